@@ -1,0 +1,33 @@
+"""splatplan: collision-aware motion planning directly in 3D Gaussian Splatting scenes.
+
+Public API (imported lazily so ``splatplan --help`` stays fast):
+
+* :func:`load_scene` / :func:`save_scene` - read any supported splat file / write INRIA ``.ply``.
+* :class:`Splats` - the scene container (means, wxyz quats, linear scales, opacities, colours).
+* :class:`CollisionChecker`, :class:`MetricConfig`, :class:`QueryResult` - the CollisionSplatting metric.
+"""
+
+from __future__ import annotations
+
+import importlib
+
+__version__ = "0.1.0"
+
+_LAZY = {
+    "Splats": ("splatplan.scenes.splats", "Splats"),
+    "load_scene": ("splatplan.scenes.load", "load_scene"),
+    "save_scene": ("splatplan.scenes.load", "save_scene"),
+    "CollisionChecker": ("splatplan.metric.checker", "CollisionChecker"),
+    "MetricConfig": ("splatplan.metric.config", "MetricConfig"),
+    "QueryResult": ("splatplan.metric.config", "QueryResult"),
+    "SplatplanError": ("splatplan.errors", "SplatplanError"),
+}
+
+__all__ = sorted(_LAZY) + ["__version__"]
+
+
+def __getattr__(name: str):
+    if name in _LAZY:
+        mod, attr = _LAZY[name]
+        return getattr(importlib.import_module(mod), attr)
+    raise AttributeError(f"module 'splatplan' has no attribute {name!r}")

@@ -1,0 +1,67 @@
+"""Warp start-up in one place: quiet, with the kernel cache inside the project build tree.
+
+Import :func:`wp` from here instead of calling ``warp.init()`` anywhere else, so the banner
+never reaches the CLI's output and the cache never lands in the user's home by surprise.
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+from functools import lru_cache
+from pathlib import Path
+
+_lock = threading.Lock()
+
+
+def _cache_dir() -> Path:
+    env = os.environ.get("SPLATPLAN_WARP_CACHE")
+    if env:
+        return Path(env)
+    here = Path(__file__).resolve()
+    # Editable/source checkout: <repo>/src/splatplan/_warp.py -> <repo>/build/warp-cache
+    repo = here.parents[2]
+    if (repo / "pyproject.toml").exists():
+        return repo / "build" / "warp-cache"
+    return Path.home() / ".cache" / "splatplan" / "warp-cache"
+
+
+@lru_cache(maxsize=1)
+def wp():
+    """Return the initialised ``warp`` module (quiet, project-local kernel cache)."""
+    with _lock:
+        import warp
+
+        warp.config.quiet = True
+        cache = _cache_dir()
+        cache.mkdir(parents=True, exist_ok=True)
+        warp.config.kernel_cache_dir = str(cache)
+        warp.init()
+        return warp
+
+
+def resolve_device(device: str | None) -> str:
+    """Map ``None``/"auto"/"cpu"/"cuda"/"cuda:N" to a Warp device name, with a clear error."""
+    from .errors import SplatplanError
+
+    w = wp()
+    if device in (None, "auto"):
+        return "cuda:0" if w.is_cuda_available() else "cpu"
+    if device == "cpu":
+        return "cpu"
+    if device.startswith("cuda"):
+        if not w.is_cuda_available():
+            raise SplatplanError(f"device {device!r} requested but no CUDA device is available; use --device cpu")
+        return "cuda:0" if device == "cuda" else device
+    raise SplatplanError(f"unknown device {device!r}: use 'cpu', 'cuda' or 'cuda:N'")
+
+
+def cpu_threads() -> int:
+    """Worker threads for CPU launches (Warp runs one CPU launch on one thread)."""
+    env = os.environ.get("SPLATPLAN_CPU_THREADS")
+    if env:
+        return max(1, int(env))
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # pragma: no cover - non-Linux
+        return max(1, os.cpu_count() or 1)

@@ -1,0 +1,79 @@
+"""Configuration and result types of the CollisionSplatting metric (SPEC section 2)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass
+class MetricConfig:
+    """Knobs of the CollisionSplatting metric. All distances are squared *scaling* distances
+    (dimensionless: 1 on the link's surface), not metres."""
+
+    #: Conservatism: s2~ = max(0, s2 - n_sigma * sigma). 0 = point cloud of splat means.
+    n_sigma: float = 1.0
+    #: min_s2 is exact below this value; neighbourhood N(q) = {splats with s2~ < s2_cap}. Must be >= 1.
+    s2_cap: float = 4.0
+    #: A link is in collision when more than this many splats have s2~ < 1.
+    k_collide: int = 0
+    #: Softmin temperature t in -(1/t) log sum_{i in N(q)} exp(-t s2~_i).
+    softmin_t: float = 10.0
+    #: MPPI cost per splat d_max * exp(-gamma * max(s2~ - s_min, 0)) ...
+    cost_d_max: float = 1.0
+    #: ... decay factor gamma ...
+    cost_gamma: float = 4.0
+    #: ... and the minimum allowable scaling distance s_min (1 = the link surface).
+    cost_s_min: float = 1.0
+    #: How per-splat costs over N(q) are combined: "mean" (the paper) or "sum" or "max".
+    cost_reduce: str = "mean"
+
+    def validate(self) -> "MetricConfig":
+        from ..errors import SplatplanError
+
+        if not (np.isfinite(self.n_sigma) and self.n_sigma >= 0):
+            raise SplatplanError(f"n_sigma must be a finite number >= 0, got {self.n_sigma}")
+        if not (np.isfinite(self.s2_cap) and self.s2_cap >= 1.0):
+            raise SplatplanError(f"s2_cap must be finite and >= 1 (collisions are s2~ < 1), got {self.s2_cap}")
+        if self.k_collide < 0:
+            raise SplatplanError(f"k_collide must be >= 0, got {self.k_collide}")
+        if not self.softmin_t > 0:
+            raise SplatplanError(f"softmin_t must be > 0, got {self.softmin_t}")
+        if self.cost_reduce not in ("mean", "sum", "max"):
+            raise SplatplanError(f"cost_reduce must be 'mean', 'sum' or 'max', got {self.cost_reduce!r}")
+        return self
+
+
+COST_REDUCE_CODES = {"mean": 0, "sum": 1, "max": 2}
+
+
+@dataclass
+class QueryResult:
+    """Per-query outputs, every array shaped like the query batch (e.g. (K, T, links)).
+
+    Attributes:
+        min_s2: float32, min over splats of s2~; exact when < s2_cap, else >= s2_cap (may be inf).
+        n_colliding: int32, number of splats with s2~ < 1 (exact).
+        in_collision: bool, n_colliding > k_collide.
+        softmin: float32, streaming softmin of s2~ over N(q); +inf when N(q) is empty.
+        cost: float32, aggregated MPPI collision cost over N(q); 0 when N(q) is empty.
+    """
+
+    min_s2: np.ndarray
+    n_colliding: np.ndarray
+    in_collision: np.ndarray
+    softmin: np.ndarray
+    cost: np.ndarray
+
+    def as_dict(self) -> dict[str, np.ndarray]:
+        return {
+            "min_s2": self.min_s2,
+            "n_colliding": self.n_colliding,
+            "in_collision": self.in_collision,
+            "softmin": self.softmin,
+            "cost": self.cost,
+        }
+
+    def reshape(self, shape: tuple[int, ...]) -> "QueryResult":
+        return QueryResult(**{k: v.reshape(shape) for k, v in self.as_dict().items()})
