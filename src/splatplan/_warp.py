@@ -7,7 +7,9 @@ never reaches the CLI's output and the cache never lands in the user's home by s
 from __future__ import annotations
 
 import os
+import sys
 import threading
+from contextlib import contextmanager
 from functools import lru_cache
 from pathlib import Path
 
@@ -32,12 +34,35 @@ def wp():
     with _lock:
         import warp
 
-        warp.config.quiet = True
+        if hasattr(warp.config, "log_level"):  # warp >= 1.10
+            warp.config.log_level = warp.LOG_ERROR
+        warp.config.quiet = True  # older releases
         cache = _cache_dir()
         cache.mkdir(parents=True, exist_ok=True)
         warp.config.kernel_cache_dir = str(cache)
-        warp.init()
+        # The native library prints a CUDA-driver warning straight to fd 2 on machines without a
+        # GPU; keep it off the CLI's output (resolve_device gives our own message instead).
+        with _silence_fd(2):
+            warp.init()
         return warp
+
+
+@contextmanager
+def _silence_fd(fd: int):
+    try:
+        saved = os.dup(fd)
+    except OSError:  # no such descriptor (embedded interpreters)
+        yield
+        return
+    try:
+        sys.stderr.flush()
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, fd)
+        os.close(devnull)
+        yield
+    finally:
+        os.dup2(saved, fd)
+        os.close(saved)
 
 
 def resolve_device(device: str | None) -> str:

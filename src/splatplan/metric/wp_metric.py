@@ -1,0 +1,207 @@
+"""Glue between numpy and the Warp kernels: scale tiers, hash grids, multi-core CPU launches.
+
+Scale tiers (see :mod:`.wp_metric_kernel` for the exactness argument): splats are binned by
+their largest std ``sigma``; each tier gets its own hash grid whose query radius is derived from
+the tier's largest ``sigma``, so the many small splats are searched with a tight radius while the
+few huge ones (the last tier, at most ``exhaustive_max`` splats) are visited by every query
+through a 1x1x1 grid. Memory is O(N) for the scene plus O(B) per batch.
+"""
+
+from __future__ import annotations
+
+import math
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+
+import numpy as np
+
+from .._warp import cpu_threads, resolve_device
+from .._warp import wp as _wp
+from ..scenes.splats import Splats, quat_to_rotmat
+from .config import COST_REDUCE_CODES, MetricConfig, QueryResult
+from .reference import link_matrices
+
+wp = _wp()
+
+_POOL: ThreadPoolExecutor | None = None
+
+
+def _pool() -> ThreadPoolExecutor:
+    global _POOL
+    if _POOL is None:
+        _POOL = ThreadPoolExecutor(max_workers=cpu_threads(), thread_name_prefix="splatplan-warp")
+    return _POOL
+
+
+@dataclass
+class TierConfig:
+    """How splats are binned into scale tiers (a performance knob; results are exact either way)."""
+
+    #: Quantiles of the per-splat largest std that separate the tiers.
+    quantiles: tuple[float, ...] = (0.6, 0.9, 0.98, 0.995)
+    #: The last tier is searched exhaustively (1x1x1 grid) when it has at most this many splats.
+    exhaustive_max: int = 1024
+    #: Hash-grid cell width as a fraction of the tier's query radius.
+    cell_factor: float = 1.0
+    #: Largest grid dimension per axis (cells wrap around beyond it; results stay exact).
+    max_dim: int = 128
+
+
+def _morton_order(p: np.ndarray) -> np.ndarray:
+    """Indices sorting points (M, 3) along a Morton curve (10 bits per axis) for cache locality."""
+    if len(p) == 0:
+        return np.zeros(0, dtype=np.int64)
+    lo, hi = p.min(0), p.max(0)
+    q = ((p - lo) / np.maximum(hi - lo, 1e-12) * 1023).astype(np.uint64)
+
+    def spread(x: np.ndarray) -> np.ndarray:
+        x = x & 0x3FF
+        x = (x | (x << 16)) & 0x030000FF
+        x = (x | (x << 8)) & 0x0300F00F
+        x = (x | (x << 4)) & 0x030C30C3
+        x = (x | (x << 2)) & 0x09249249
+        return x
+
+    code = spread(q[:, 0]) | (spread(q[:, 1]) << 1) | (spread(q[:, 2]) << 2)
+    return np.argsort(code, kind="stable")
+
+
+class WarpMetric:
+    """Scene data on one Warp device plus cached hash grids; see :class:`CollisionChecker`."""
+
+    def __init__(self, scene: Splats, device: str | None = "cpu", tiers: TierConfig | None = None) -> None:
+        self.device = resolve_device(device)
+        self.tiers = tiers or TierConfig()
+        means = scene.means.astype(np.float64)
+        scales = scene.scales.astype(np.float64)
+        smax = scales.max(axis=1)  # (N,)
+
+        # --- tier assignment: quantile edges, last tier exhaustive when small
+        edges = np.unique(np.quantile(smax, self.tiers.quantiles)) if len(smax) > 1 else np.zeros(0)
+        tier_of = np.searchsorted(edges, smax, side="left")  # (N,) in [0, len(edges)]
+        n_t = len(edges) + 1
+        order_parts, self.tier_offset, self.tier_count, self.tier_sigma = [], [], [], []
+        start = 0
+        for j in range(n_t):
+            idx = np.flatnonzero(tier_of == j)
+            if len(idx) == 0:
+                continue
+            idx = idx[_morton_order(means[idx])]
+            order_parts.append(idx)
+            self.tier_offset.append(start)
+            self.tier_count.append(len(idx))
+            self.tier_sigma.append(float(smax[idx].max()))
+            start += len(idx)
+        order = np.concatenate(order_parts)
+        self.order = order  # tier-sorted position -> original splat index
+        self.exhaustive_last = self.tier_count[-1] <= self.tiers.exhaustive_max and len(self.tier_count) > 1
+
+        rot = quat_to_rotmat(scene.quats[order])  # (N, 3, 3)
+        mrows = np.transpose(rot, (0, 2, 1)) * scales[order][:, :, None]  # diag(s) R^T
+        self._means_np = means[order].astype(np.float32)
+        self.means = wp.array(self._means_np, dtype=wp.vec3, device=self.device)
+        self.mrows = wp.array(mrows.astype(np.float32), dtype=wp.mat33, device=self.device)
+        self._tier_offset = wp.array(np.asarray(self.tier_offset, np.int32), dtype=wp.int32, device=self.device)
+        self._tier_sigma = wp.array(np.asarray(self.tier_sigma, np.float32), dtype=wp.float32, device=self.device)
+        self._grids: dict[tuple[int, int], object] = {}  # (tier, quantised cell) -> HashGrid
+
+    # ------------------------------------------------------------------ grids
+    def _grid(self, j: int, cell: float):
+        """Hash grid of tier j with a cell width close to ``cell`` (quantised, cached)."""
+        exhaustive = self.exhaustive_last and j == len(self.tier_count) - 1
+        key = (j, -1 if exhaustive else int(math.floor(4 * math.log2(max(cell, 1e-9)))))
+        g = self._grids.get(key)
+        if g is None:
+            lo = self.tier_offset[j]
+            pts = self._means_np[lo : lo + self.tier_count[j]]
+            if exhaustive:
+                dims, width = (1, 1, 1), 1.0
+            else:
+                width = 2.0 ** (key[1] / 4.0)
+                ext = pts.max(0) - pts.min(0)
+                dims = tuple(int(min(self.tiers.max_dim, max(1, math.ceil(e / width) + 1))) for e in ext)
+            g = wp.HashGrid(*dims, device=self.device)
+            g.build(wp.array(pts, dtype=wp.vec3, device=self.device), width)
+            self._grids[key] = (g, pts)  # keep the points alive with the grid
+        return self._grids[key][0]
+
+    def _grid_ids(self, n_sigma: float, cap: float, a_min: float, a_max: float):
+        ids = []
+        for j, sig in enumerate(self.tier_sigma):
+            k = n_sigma * sig / a_min
+            rho = a_max * (k + math.sqrt(k * k + cap))
+            ids.append(self._grid(j, rho * self.tiers.cell_factor).id)
+        return wp.array(np.asarray(ids, dtype=np.uint64), dtype=wp.uint64, device=self.device)
+
+    # ------------------------------------------------------------------ launches
+    def _inputs(self, c: np.ndarray, q: np.ndarray | None, a: np.ndarray):
+        b = c.shape[0]
+        link_a = link_matrices(q, a, b).astype(np.float32)  # (B, 3, 3)
+        mm = np.stack([a.min(1), a.max(1)], axis=1).astype(np.float32)  # (B, 2)
+        d = self.device
+        return (
+            wp.array(c.astype(np.float32), dtype=wp.vec3, device=d),
+            wp.array(link_a, dtype=wp.mat33, device=d),
+            wp.array(mm, dtype=wp.vec2, device=d),
+            float(np.median(mm[:, 0])),
+            float(np.median(mm[:, 1])),
+        )
+
+    def _launch(self, kernel, b: int, make_inputs) -> None:
+        """Launch over b queries; on CPU split into one launch per core (Warp runs a CPU launch on one thread)."""
+        n_thr = cpu_threads() if self.device == "cpu" else 1
+        if n_thr == 1 or b < 256:
+            wp.launch(kernel, dim=b, inputs=make_inputs(0), device=self.device)
+            return
+        step = math.ceil(b / n_thr)
+        futs = [
+            _pool().submit(wp.launch, kernel, dim=min(step, b - lo), inputs=make_inputs(lo), device=self.device)
+            for lo in range(0, b, step)
+        ]
+        for f in futs:
+            f.result()
+
+    def query(self, c: np.ndarray, q: np.ndarray | None, a: np.ndarray, cfg: MetricConfig) -> QueryResult:
+        b = c.shape[0]
+        centers, link_a, mm, amin, amax = self._inputs(c, q, a)
+        grid_ids = self._grid_ids(cfg.n_sigma, cfg.s2_cap, amin, amax)
+        d = self.device
+        out_min = wp.empty(b, dtype=wp.float32, device=d)
+        out_ncol = wp.empty(b, dtype=wp.int32, device=d)
+        out_soft = wp.empty(b, dtype=wp.float32, device=d)
+        out_cost = wp.empty(b, dtype=wp.float32, device=d)
+        from .wp_metric_kernel import metric_full_kernel
+
+        def inputs(lo: int):
+            return [
+                lo, centers, link_a, mm, self.means, self.mrows, grid_ids, self._tier_offset, self._tier_sigma,
+                len(self.tier_count), float(cfg.n_sigma), float(cfg.s2_cap), float(cfg.softmin_t),
+                float(cfg.cost_d_max), float(cfg.cost_gamma), float(cfg.cost_s_min), COST_REDUCE_CODES[cfg.cost_reduce],
+                out_min, out_ncol, out_soft, out_cost,
+            ]  # fmt: skip
+
+        self._launch(metric_full_kernel, b, inputs)
+        ncol = out_ncol.numpy()
+        return QueryResult(
+            min_s2=out_min.numpy(),
+            n_colliding=ncol,
+            in_collision=ncol > cfg.k_collide,
+            softmin=out_soft.numpy(),
+            cost=out_cost.numpy(),
+        )
+
+    def collides(self, c: np.ndarray, q: np.ndarray | None, a: np.ndarray, cfg: MetricConfig) -> np.ndarray:
+        b = c.shape[0]
+        centers, link_a, mm, amin, amax = self._inputs(c, q, a)
+        grid_ids = self._grid_ids(cfg.n_sigma, 1.0, amin, amax)
+        out_hit = wp.empty(b, dtype=wp.int32, device=self.device)
+        from .wp_metric_kernel import metric_collide_kernel
+
+        def inputs(lo: int):
+            return [
+                lo, centers, link_a, mm, self.means, self.mrows, grid_ids, self._tier_offset, self._tier_sigma,
+                len(self.tier_count), float(cfg.n_sigma), int(cfg.k_collide), out_hit,
+            ]  # fmt: skip
+
+        self._launch(metric_collide_kernel, b, inputs)
+        return out_hit.numpy().astype(bool)

@@ -1,0 +1,198 @@
+"""Plug-in dynamics for MPPI (and link geometry for RRT), one common protocol.
+
+Every model maps a start state and K control sequences to K state trajectories, and states to
+robot link ellipsoids in the scene's world frame:
+
+    states = dyn.rollout(x0, controls, dt)      # (dx,), (K, T, du) -> (K, T, dx)
+    centers, quats, semi_axes = dyn.link_poses(states)
+    # centers (..., L, 3) scene units, quats (..., L, 4) wxyz link->world or None (axis-aligned),
+    # semi_axes (L, 3) in each link's own frame
+
+``states[:, t]`` is the state *after* applying ``controls[:, t]`` for ``dt`` seconds, so a
+rollout of horizon T contains x_1 .. x_T (not x_0). All integrators are explicit (forward) Euler
+on numpy float64; they are cheap next to the collision query that follows them.
+``link_poses`` accepts any leading batch shape (the RRT calls it on (N, n_edge_pts, dx)).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable, Protocol, runtime_checkable
+
+import numpy as np
+
+from ..errors import SplatplanError
+
+
+@runtime_checkable
+class Dynamics(Protocol):
+    """What MPPI needs from a robot model."""
+
+    #: dimension of the state x
+    state_dim: int
+    #: dimension of the control u
+    control_dim: int
+
+    def rollout(self, x0: np.ndarray, controls: np.ndarray, dt: float) -> np.ndarray:
+        """(dx,), (K, T, du), seconds -> states (K, T, dx) after each control step."""
+        ...
+
+    def link_poses(self, states: np.ndarray) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
+        """(..., dx) -> centers (..., L, 3), quats (..., L, 4) wxyz or None, semi_axes (L, 3)."""
+        ...
+
+
+def _check_rollout_args(x0, controls, state_dim: int, control_dim: int) -> tuple[np.ndarray, np.ndarray]:
+    x0 = np.asarray(x0, dtype=np.float64).reshape(-1)
+    u = np.asarray(controls, dtype=np.float64)
+    if x0.shape != (state_dim,):
+        raise SplatplanError(f"x0 must have shape ({state_dim},), got {x0.shape}")
+    if u.ndim != 3 or u.shape[-1] != control_dim:
+        raise SplatplanError(f"controls must have shape (K, T, {control_dim}), got {u.shape}")
+    return x0, u
+
+
+@dataclass
+class HolonomicPoint:
+    """A sphere (or axis-aligned ellipsoid) moving with commanded world-frame velocity.
+
+    State x = (x, y, z) position of the centre (scene units, world frame); control u = (vx, vy, vz)
+    (scene units / s). ``x_{t+1} = x_t + u_t dt``.
+    """
+
+    #: robot semi-axes (a, b, c) in scene units, world-aligned; a sphere of radius r is (r, r, r)
+    semi_axes: tuple[float, float, float] = (0.015, 0.015, 0.015)
+    state_dim: int = field(default=3, init=False)
+    control_dim: int = field(default=3, init=False)
+
+    def rollout(self, x0: np.ndarray, controls: np.ndarray, dt: float) -> np.ndarray:
+        x0, u = _check_rollout_args(x0, controls, 3, 3)
+        return x0 + np.cumsum(u * dt, axis=1)  # (K, T, 3)
+
+    def link_poses(self, states: np.ndarray):
+        s = np.asarray(states, dtype=np.float64)
+        return s[..., None, :3], None, np.asarray(self.semi_axes, dtype=np.float64).reshape(1, 3)
+
+
+def yaw_to_quat(yaw: np.ndarray) -> np.ndarray:
+    """wxyz quaternions (..., 4) of rotations by ``yaw`` (radians) about the world z axis."""
+    yaw = np.asarray(yaw, dtype=np.float64)
+    q = np.zeros(yaw.shape + (4,))
+    q[..., 0] = np.cos(0.5 * yaw)
+    q[..., 3] = np.sin(0.5 * yaw)
+    return q
+
+
+@dataclass
+class PlanarBase:
+    """A mobile base moving in the plane z = ``height`` with body-frame velocity commands.
+
+    State x = (x, y, yaw): base origin in the world frame (scene units, z-up world) and heading
+    (radians, about +z, yaw = 0 looks along +x). Control u = (vx, vy, wz): forward / left velocity
+    in the *body* frame (scene units / s) and yaw rate (rad / s). Forward Euler with the heading at
+    the start of the step:
+
+        x_{t+1}   = x_t + (cos(yaw_t) vx - sin(yaw_t) vy) dt
+        y_{t+1}   = y_t + (sin(yaw_t) vx + cos(yaw_t) vy) dt
+        yaw_{t+1} = yaw_t + wz dt
+
+    Links are ellipsoids rigidly attached to the body: link l has centre ``offsets[l]`` (body frame,
+    relative to the base origin at height ``height``) and semi-axes ``semi_axes[l]`` along the body
+    axes, so its world orientation is the yaw rotation. The default is one quadruped-like body
+    ellipsoid (long along x) sized for the normalised built-in scenes.
+    """
+
+    #: height z of the base origin in the world frame (scene units)
+    height: float = 0.06
+    #: (L, 3) link centres in the body frame (x forward, y left, z up), scene units
+    offsets: np.ndarray = field(default_factory=lambda: np.zeros((1, 3)))
+    #: (L, 3) link semi-axes along the body axes, scene units
+    semi_axes: np.ndarray = field(default_factory=lambda: np.array([[0.03, 0.015, 0.012]]))
+    state_dim: int = field(default=3, init=False)
+    control_dim: int = field(default=3, init=False)
+
+    def __post_init__(self) -> None:
+        self.offsets = np.asarray(self.offsets, dtype=np.float64).reshape(-1, 3)
+        self.semi_axes = np.asarray(self.semi_axes, dtype=np.float64).reshape(-1, 3)
+        if self.offsets.shape != self.semi_axes.shape:
+            raise SplatplanError(f"PlanarBase: offsets {self.offsets.shape} and semi_axes {self.semi_axes.shape} must both be (L, 3)")
+
+    def rollout(self, x0: np.ndarray, controls: np.ndarray, dt: float) -> np.ndarray:
+        x0, u = _check_rollout_args(x0, controls, 3, 3)
+        k, t_len, _ = u.shape
+        out = np.empty((k, t_len, 3))
+        x = np.broadcast_to(x0, (k, 3)).copy()
+        for t in range(t_len):  # sequential in t, vectorised over K
+            c, s = np.cos(x[:, 2]), np.sin(x[:, 2])
+            vx, vy, wz = u[:, t, 0], u[:, t, 1], u[:, t, 2]
+            x[:, 0] += (c * vx - s * vy) * dt
+            x[:, 1] += (s * vx + c * vy) * dt
+            x[:, 2] += wz * dt
+            out[:, t] = x
+        return out
+
+    def link_poses(self, states: np.ndarray):
+        s = np.asarray(states, dtype=np.float64)
+        yaw = s[..., 2]
+        c, sn = np.cos(yaw)[..., None], np.sin(yaw)[..., None]  # (..., 1)
+        ox, oy, oz = self.offsets[:, 0], self.offsets[:, 1], self.offsets[:, 2]  # (L,)
+        centers = np.stack(
+            [s[..., 0:1] + c * ox - sn * oy, s[..., 1:2] + sn * ox + c * oy, np.broadcast_to(self.height + oz, c.shape[:-1] + oz.shape)],
+            axis=-1,
+        )  # (..., L, 3)
+        quats = np.broadcast_to(yaw_to_quat(yaw)[..., None, :], centers.shape[:-1] + (4,))  # (..., L, 4)
+        return centers, quats, self.semi_axes
+
+
+@dataclass
+class JointIntegrator:
+    """A joint-space single integrator: state q (n joints, rad or m), control qdot.
+
+    ``q_{t+1} = clip(q_t + qdot_t dt, q_min, q_max)`` (joint limits enforced by saturation).
+    Link ellipsoids come from a user forward-kinematics callable
+    ``fk(q (..., n)) -> (centers (..., L, 3), quats (..., L, 4) wxyz | None)`` in the scene's world
+    frame, with fixed per-link ``semi_axes`` (L, 3).
+    """
+
+    #: forward kinematics: q (..., n) -> (centers (..., L, 3), quats (..., L, 4) wxyz or None)
+    fk: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray | None]]
+    #: lower joint limits (n,)
+    q_min: np.ndarray
+    #: upper joint limits (n,)
+    q_max: np.ndarray
+    #: (L, 3) link semi-axes in each link's frame, scene units
+    semi_axes: np.ndarray
+    state_dim: int = field(default=0, init=False)
+    control_dim: int = field(default=0, init=False)
+
+    def __post_init__(self) -> None:
+        self.q_min = np.asarray(self.q_min, dtype=np.float64).reshape(-1)
+        self.q_max = np.asarray(self.q_max, dtype=np.float64).reshape(-1)
+        self.semi_axes = np.asarray(self.semi_axes, dtype=np.float64).reshape(-1, 3)
+        if self.q_min.shape != self.q_max.shape or np.any(self.q_min > self.q_max):
+            raise SplatplanError("JointIntegrator: q_min and q_max must have the same shape and q_min <= q_max")
+        self.state_dim = self.control_dim = int(self.q_min.size)
+
+    def rollout(self, x0: np.ndarray, controls: np.ndarray, dt: float) -> np.ndarray:
+        q0, u = _check_rollout_args(x0, controls, self.state_dim, self.control_dim)
+        k, t_len, _ = u.shape
+        out = np.empty((k, t_len, self.state_dim))
+        q = np.broadcast_to(q0, (k, self.state_dim)).copy()
+        for t in range(t_len):  # saturation makes the steps sequential
+            q = np.clip(q + u[:, t] * dt, self.q_min, self.q_max)
+            out[:, t] = q
+        return out
+
+    def link_poses(self, states: np.ndarray):
+        centers, quats = self.fk(np.asarray(states, dtype=np.float64))
+        return np.asarray(centers, dtype=np.float64), None if quats is None else np.asarray(quats, dtype=np.float64), self.semi_axes
+
+
+def sphere_links(radius: float) -> Callable[[np.ndarray], tuple[np.ndarray, None, np.ndarray]]:
+    """``link_poses`` of a sphere robot whose configuration is its centre: (..., 3) -> one link."""
+    ax = np.full((1, 3), float(radius))
+
+    def link_poses(configs: np.ndarray):
+        return np.asarray(configs, dtype=np.float64)[..., None, :3], None, ax
+
+    return link_poses

@@ -1,0 +1,209 @@
+"""INRIA 3DGS / 2DGS ``.ply``: reader, writer, and the PLY dispatch (INRIA vs 2DGS vs compressed).
+
+Layout (binary PLY, one ``vertex`` element, fields read **by name** so their order is free):
+
+* ``x y z`` -- centre, scene units, the capture's frame (COLMAP/INRIA: y down, z forward).
+* ``f_dc_0..2`` -- SH DC per channel; colour = 0.5 + C0 * f_dc.
+* ``f_rest_0..3K-1`` -- higher SH bands, **channel-major**: ``f_rest_{c*K + k}`` is coefficient k
+  of channel c; stored here as ``sh_rest[:, k, c]`` (N, K, 3).
+* ``opacity`` -- logit; activated with a sigmoid.
+* ``scale_0..2`` -- log of the linear std; 2DGS files have only ``scale_0, scale_1`` (the third
+  std is 0: a flat disk).
+* ``rot_0..3`` -- quaternion wxyz, not normalised.
+
+Other fields (``nx ny nz``, custom attributes) are ignored.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import tempfile
+from pathlib import Path
+
+import numpy as np
+import plyfile
+
+from ..errors import SceneFormatError, SplatplanError
+from .io_common import build_splats, color_to_sh_dc, logit, scene_error, sh_dc_to_color, sigmoid
+from .splats import Splats
+
+_F_REST = re.compile(r"^f_rest_(\d+)$")
+_REQUIRED = ["x", "y", "z", "f_dc_0", "f_dc_1", "f_dc_2", "opacity", "scale_0", "scale_1", "rot_0", "rot_1", "rot_2", "rot_3"]
+
+
+def read_plydata(path: str | Path) -> plyfile.PlyData:
+    """Parse a PLY file completely, turning every parse problem into :class:`SceneFormatError`.
+
+    Besides plyfile's own checks (header syntax, early end of file), a binary file whose size
+    differs from header + element counts x row sizes (trailing bytes) is rejected too.
+    """
+    try:
+        with open(path, "rb") as f:
+            magic = f.read(4)
+            if magic not in (b"ply\n", b"ply\r"):
+                raise scene_error(path, "not a PLY file (it does not start with 'ply')")
+            f.seek(0)
+            ply = plyfile.PlyData.read(f, mmap=False)
+    except SceneFormatError:
+        raise
+    except plyfile.PlyElementParseError as e:
+        raise scene_error(path, f"truncated or corrupt PLY data ({e}); the byte count does not match the element counts in the header") from None
+    except (plyfile.PlyParseError, ValueError, TypeError, UnicodeDecodeError) as e:
+        raise scene_error(path, f"invalid PLY file ({e})") from None
+    except OSError as e:
+        raise scene_error(path, f"cannot read the file ({e.strerror or e})") from None
+    _check_no_trailing_bytes(path, ply)
+    return ply
+
+
+def _check_no_trailing_bytes(path: str | Path, ply: plyfile.PlyData) -> None:
+    """Reject binary PLYs with bytes after the last element (fixed-size rows only)."""
+    if ply.text or any(isinstance(p, plyfile.PlyListProperty) for el in ply.elements for p in el.properties):
+        return
+    with open(path, "rb") as f:
+        head = f.read(1 << 20)
+    end = head.find(b"end_header")
+    if end < 0:
+        return
+    header_len = head.index(b"\n", end) + 1
+    expected = header_len + sum(el.count * el.data.dtype.itemsize for el in ply.elements)
+    size = os.path.getsize(path)
+    if size != expected:
+        raise scene_error(path, f"file has {size} bytes but its header describes {expected}; the file is corrupt (extra trailing bytes)")
+
+
+def ply_kind(ply: plyfile.PlyData) -> str | None:
+    """'compressed_ply', 'inria', '2dgs' or None, decided by the header's elements and fields."""
+    names = {el.name for el in ply.elements}
+    if "vertex" not in names:
+        return None
+    fields = set(ply["vertex"].data.dtype.names or ())
+    if "chunk" in names and "packed_position" in fields:
+        return "compressed_ply"
+    if {"scale_0", "scale_1"} <= fields:
+        return "inria" if "scale_2" in fields else "2dgs"
+    return None
+
+
+def decode_gaussian_ply(ply: plyfile.PlyData, path: str | Path, *, drop_invalid: bool = False) -> Splats:
+    """Decode an INRIA 3DGS or 2DGS ``vertex`` element (see the module docstring).
+
+    Raises:
+        SceneFormatError: missing fields (all named), a malformed ``f_rest`` set or bad values.
+    """
+    if "vertex" not in {el.name for el in ply.elements}:
+        raise scene_error(path, "PLY has no 'vertex' element; not a Gaussian-splat file")
+    v = ply["vertex"].data
+    fields = set(v.dtype.names or ())
+    missing = [f for f in _REQUIRED if f not in fields]
+    if missing:
+        raise scene_error(path, f"PLY 'vertex' element lacks required Gaussian-splat field(s) {', '.join(missing)}; expected an INRIA 3DGS or 2DGS export")
+    is_2d = "scale_2" not in fields
+    n = len(v)
+
+    def col(name: str) -> np.ndarray:  # (N,) float64
+        return np.asarray(v[name], dtype=np.float64)
+
+    means = np.stack([col("x"), col("y"), col("z")], axis=1)  # (N, 3)
+    f_dc = np.stack([col(f"f_dc_{c}") for c in range(3)], axis=1)  # (N, 3)
+    rest_idx = sorted(int(m.group(1)) for f in fields if (m := _F_REST.match(f)))
+    sh_rest = None
+    if rest_idx:
+        if rest_idx != list(range(len(rest_idx))) or len(rest_idx) % 3:
+            raise scene_error(path, f"'f_rest_*' fields must be f_rest_0..f_rest_{{3K-1}}; found {len(rest_idx)} with indices {rest_idx[0]}..{rest_idx[-1]}")
+        k = len(rest_idx) // 3
+        flat = np.stack([col(f"f_rest_{i}") for i in rest_idx], axis=1)  # (N, 3K) channel-major
+        sh_rest = flat.reshape(n, 3, k).transpose(0, 2, 1)  # (N, K, 3)
+    log_s = [col("scale_0"), col("scale_1")] + ([] if is_2d else [col("scale_2")])
+    with np.errstate(over="ignore"):
+        scales = np.stack([np.exp(s) for s in log_s] + ([np.zeros(n)] if is_2d else []), axis=1)  # (N, 3)
+    quats = np.stack([col(f"rot_{i}") for i in range(4)], axis=1)  # (N, 4) wxyz
+    return build_splats(
+        path,
+        "2dgs" if is_2d else "inria",
+        means=means,
+        quats=quats,
+        scales=scales,
+        opacities=sigmoid(col("opacity")),
+        colors=sh_dc_to_color(f_dc),
+        sh_rest=sh_rest,
+        is_2d=is_2d,
+        drop_invalid=drop_invalid,
+    )
+
+
+def write_gaussian_ply(splats: Splats, path: str | Path) -> None:
+    """Write ``splats`` as a binary little-endian INRIA 3DGS ``.ply``, atomically.
+
+    Opacity is written as a logit (opacities clipped to [1e-7, 1 - 1e-7] so it is finite), scales
+    as logs, ``f_dc`` from the colours, ``f_rest`` channel-major when ``sh_rest`` is present and
+    ``nx ny nz = 0`` for tools that expect them. A scene of 2DGS disks (every third scale 0) is
+    written as a 2DGS file with only ``scale_0, scale_1``.
+
+    The data go to a temporary file in the target directory, which then replaces ``path``
+    (``os.replace``), so a failure never leaves a half-written file behind.
+
+    Raises:
+        SplatplanError: the scene has bad values or mixes disks with 3D splats.
+        SceneFormatError: the file cannot be written.
+    """
+    splats.validate(what=f"cannot write {path}")
+    n = len(splats)
+    is_2d = splats.is_2d
+    if not is_2d and np.any(splats.scales[:, 2] == 0):
+        raise SplatplanError(f"cannot write {path}: some (not all) splats have a zero third scale; a PLY holds either 3DGS splats or 2DGS disks")
+    k = 0 if splats.sh_rest is None else splats.sh_rest.shape[1]
+    n_scales = 2 if is_2d else 3
+    names = (
+        ["x", "y", "z", "nx", "ny", "nz", "f_dc_0", "f_dc_1", "f_dc_2"]
+        + [f"f_rest_{i}" for i in range(3 * k)]
+        + ["opacity"]
+        + [f"scale_{i}" for i in range(n_scales)]
+        + [f"rot_{i}" for i in range(4)]
+    )
+    data = np.empty(n, dtype=[(name, "<f4") for name in names])
+    for i, axis in enumerate("xyz"):
+        data[axis] = splats.means[:, i]
+        data[f"n{axis}"] = 0.0
+    f_dc = color_to_sh_dc(splats.colors)  # (N, 3)
+    for c in range(3):
+        data[f"f_dc_{c}"] = f_dc[:, c]
+    if k:
+        flat = splats.sh_rest.transpose(0, 2, 1).reshape(n, 3 * k)  # (N, 3K) channel-major
+        for i in range(3 * k):
+            data[f"f_rest_{i}"] = flat[:, i]
+    data["opacity"] = logit(splats.opacities)
+    for i in range(n_scales):
+        data[f"scale_{i}"] = np.log(splats.scales[:, i].astype(np.float64))
+    q = splats.quats / np.linalg.norm(splats.quats, axis=1, keepdims=True)  # (N, 4) wxyz
+    for i in range(4):
+        data[f"rot_{i}"] = q[:, i]
+    ply = plyfile.PlyData([plyfile.PlyElement.describe(data, "vertex")], text=False, byte_order="<")
+    atomic_write(path, ply.write)
+
+
+def atomic_write(path: str | Path, write) -> None:
+    """Call ``write(binary_file)`` on a temporary file next to ``path``, then move it into place.
+
+    Raises:
+        SceneFormatError: the directory does not exist or is not writable.
+    """
+    path = Path(path)
+    mode = (path.stat().st_mode & 0o777) if path.exists() else 0o644
+    try:
+        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    except OSError as e:
+        raise scene_error(path, f"cannot write here ({e.strerror or e})") from None
+    try:
+        with os.fdopen(fd, "wb") as f:
+            write(f)
+            f.flush()
+            os.fsync(f.fileno())
+        os.chmod(tmp, mode)
+        os.replace(tmp, path)
+    except BaseException as e:
+        Path(tmp).unlink(missing_ok=True)
+        if isinstance(e, OSError):
+            raise scene_error(path, f"cannot write the file ({e.strerror or e})") from None
+        raise
