@@ -38,11 +38,11 @@ class TierConfig:
     """How splats are binned into scale tiers (a performance knob; results are exact either way)."""
 
     #: Quantiles of the per-splat largest std that separate the tiers.
-    quantiles: tuple[float, ...] = (0.6, 0.9, 0.98, 0.995)
+    quantiles: tuple[float, ...] = (0.9, 0.999)
     #: The last tier is searched exhaustively (1x1x1 grid) when it has at most this many splats.
-    exhaustive_max: int = 1024
+    exhaustive_max: int = 256
     #: Hash-grid cell width as a fraction of the tier's query radius.
-    cell_factor: float = 1.0
+    cell_factor: float = 1.5
     #: Largest grid dimension per axis (cells wrap around beyond it; results stay exact).
     max_dim: int = 128
 

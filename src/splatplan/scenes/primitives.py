@@ -38,7 +38,7 @@ import numpy as np
 from ..errors import SplatplanError
 from .splats import quat_to_rotmat
 
-__all__ = ["AnalyticScene", "box_sdf", "box_corners", "make_box"]
+__all__ = ["AnalyticScene", "SurfaceSplatConfig", "box_corners", "box_sdf", "make_box", "splats_from_boxes"]
 
 #: Format tag written into JSON files produced by :meth:`AnalyticScene.to_json`.
 JSON_FORMAT = "splatplan.analytic_scene"
@@ -241,3 +241,283 @@ class AnalyticScene:
         except json.JSONDecodeError as e:
             raise SplatplanError(f"{path}: not valid JSON ({e})") from e
         return cls.from_json(d)
+
+
+# ---------------------------------------------------------------------------------------------
+# Box surfaces -> 3DGS-like splats
+# ---------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class SurfaceSplatConfig:
+    """How :func:`splats_from_boxes` turns box surfaces into 3DGS-like splats.
+
+    All lengths are relative to the *local sample spacing* ``h`` (the side of the jittered-grid cell
+    a splat was drawn from), so the look is the same at any splat count.
+    """
+
+    #: Tangential std = ``tangential_factor * h`` before jitter (0.5-0.7 makes neighbours overlap).
+    tangential_factor: float = 0.6
+    #: Normal std = ``thickness * mean tangential std`` (flat splats: 0.1-0.2).
+    thickness: float = 0.15
+    #: Log-std of the per-splat isotropic size jitter (lognormal).
+    size_jitter: float = 0.25
+    #: Log-std of the in-plane anisotropy: s_t1 = s exp(+a), s_t2 = s exp(-a), a ~ N(0, this).
+    anisotropy: float = 0.15
+    #: Log-std of the jitter of the normal std.
+    thickness_jitter: float = 0.3
+    #: Position noise along the face normal, std = this * h.
+    normal_noise: float = 0.15
+    #: Position noise in the face plane, std = this * h.
+    tangential_noise: float = 0.2
+    #: Fraction of splats with a lower opacity drawn from U(low_opacity_range).
+    low_opacity_fraction: float = 0.15
+    #: Opacity range of the low-opacity splats.
+    low_opacity_range: tuple[float, float] = (0.15, 0.6)
+    #: The others get 1 - (1 - min_high_opacity) * U^2 (mostly close to 1).
+    min_high_opacity: float = 0.6
+    #: Per-splat colour noise std (RGB, added to the box's base colour, then clipped to [0, 1]).
+    color_noise: float = 0.04
+    #: Fraction of all splats that are floaters (large, transparent, in free space).
+    floater_fraction: float = 0.0005
+    #: Floater max std = U(range) * median over surface splats of their max std.
+    floater_size_range: tuple[float, float] = (8.0, 25.0)
+    #: Fraction of floaters with opacity < 0.1 (the rest get U(0.1, 0.3): a filter misses them).
+    floater_transparent_fraction: float = 0.85
+    #: Floaters are kept at least this far (scene units) from the geometry.
+    floater_clearance: float = 0.02
+
+
+#: Face ids: 0 +x, 1 -x, 2 +y, 3 -y, 4 +z, 5 -z (in the box frame).
+FACE_NAMES = ("+x", "-x", "+y", "-y", "+z", "-z")
+
+
+def _face_frames(box: np.ndarray, rot: np.ndarray) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """Per face of one box: (centre (3,), frame (3, 3) columns t1 t2 n (right-handed), half (2,))."""
+    out = []
+    h = box[3:6]
+    for k in range(3):
+        a, b = (k + 1) % 3, (k + 2) % 3
+        for sign in (1.0, -1.0):
+            n = sign * rot[:, k]
+            if sign > 0:
+                t1, t2, ha, hb = rot[:, a], rot[:, b], h[a], h[b]
+            else:  # swap the tangents so that (t1, t2, n) stays right-handed
+                t1, t2, ha, hb = rot[:, b], rot[:, a], h[b], h[a]
+            out.append((box[:3] + n * h[k], np.stack([t1, t2, n], axis=1), np.array([ha, hb])))
+    return out
+
+
+def _quat_mul(p: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """Hamilton product of wxyz quaternions, broadcasting over leading axes."""
+    w1, x1, y1, z1 = np.moveaxis(p, -1, 0)
+    w2, x2, y2, z2 = np.moveaxis(q, -1, 0)
+    return np.stack(
+        [
+            w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2,
+            w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
+            w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2,
+            w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2,
+        ],
+        axis=-1,
+    )
+
+
+def _sample_faces(
+    scene: AnalyticScene,
+    spacing: np.ndarray,  # (M,) target grid spacing per box
+    faces: np.ndarray,  # (M, 6) bool, which faces to sample
+    rng: np.random.Generator,
+) -> dict[str, np.ndarray]:
+    """Jittered-grid samples on the chosen faces, with buried samples removed.
+
+    Returns a dict of arrays over the kept samples S: ``p`` (S, 3) points, ``frame`` (S,) face index
+    into ``face_rot``/``face_box``, ``h`` (S,) local spacing (sqrt of the cell area), plus the
+    per-face ``face_rot`` (F, 3, 3) and ``face_box`` (F,) arrays.
+    """
+    rots = scene._rot
+    pts, fid, hloc, face_rot, face_box = [], [], [], [], []
+    for i, box in enumerate(scene.boxes):
+        for f, (c, fr, half) in enumerate(_face_frames(box, rots[i])):
+            if not faces[i, f]:
+                continue
+            na = max(1, int(np.ceil(2 * half[0] / spacing[i])))
+            nb = max(1, int(np.ceil(2 * half[1] / spacing[i])))
+            da, db = 2 * half[0] / na, 2 * half[1] / nb
+            ia, ib = np.meshgrid(np.arange(na), np.arange(nb), indexing="ij")
+            u = -half[0] + (ia.ravel() + rng.random(na * nb)) * da  # (K,) along t1
+            v = -half[1] + (ib.ravel() + rng.random(na * nb)) * db  # (K,) along t2
+            pts.append(c + u[:, None] * fr[:, 0] + v[:, None] * fr[:, 1])
+            fid.append(np.full(na * nb, len(face_rot)))
+            hloc.append(np.full(na * nb, np.sqrt(da * db)))
+            face_rot.append(fr)
+            face_box.append(i)
+    p = np.concatenate(pts) if pts else np.zeros((0, 3))
+    fid = np.concatenate(fid) if fid else np.zeros(0, int)
+    hl = np.concatenate(hloc) if hloc else np.zeros(0)
+    face_box = np.asarray(face_box, dtype=int)
+    face_rot = np.asarray(face_rot).reshape(-1, 3, 3)
+    # Remove samples buried inside another box (contact faces, overlaps, the ground under stones).
+    owner = face_box[fid]  # (S,)
+    keep = np.ones(len(p), dtype=bool)
+    lo, hi = _box_aabbs(scene)
+    for i in np.unique(owner):
+        sel = np.flatnonzero(owner == i)
+        others = np.flatnonzero(np.all(lo <= hi[i] + 1e-9, axis=1) & np.all(hi >= lo[i] - 1e-9, axis=1))
+        others = others[others != i]
+        if len(others):
+            keep[sel] = scene.sdf(p[sel], box_ids=others) >= -1e-9
+    return {"p": p[keep], "frame": fid[keep], "h": hl[keep], "face_rot": face_rot, "face_box": face_box}
+
+
+def _box_aabbs(scene: AnalyticScene) -> tuple[np.ndarray, np.ndarray]:
+    """Per-box world AABBs (lo, hi), each (M, 3)."""
+    half = np.einsum("mij,mj->mi", np.abs(scene._rot), scene.boxes[:, 3:6])
+    return scene.boxes[:, :3] - half, scene.boxes[:, :3] + half
+
+
+def splats_from_boxes(
+    scene: AnalyticScene,
+    n_splats: int,
+    *,
+    config: SurfaceSplatConfig = SurfaceSplatConfig(),
+    colors: np.ndarray | None = None,  # (M, 3) base RGB per box
+    density: np.ndarray | None = None,  # (M,) relative spacing per box (2 = twice the spacing)
+    faces: np.ndarray | None = None,  # (M, 6) bool, faces to sample (FACE_NAMES order)
+    floater_region: tuple[np.ndarray, np.ndarray] | None = None,
+    seed: int | np.random.Generator = 0,
+):
+    """Sample ~3DGS-like splats on the exposed box surfaces (exactly ``n_splats`` of them).
+
+    Surfaces are sampled on a jittered grid (stratified, so the spacing is even like a trained
+    3DGS), buried parts (contact faces, overlaps) are dropped, and each splat gets:
+
+    * local frame = face frame rotated by a random angle about the normal; its **third axis is the
+      face normal** (``R[:, 2]``) and carries the smallest std (flat splats);
+    * tangential std ``~ tangential_factor * h`` (``h`` = local spacing) with lognormal jitter and
+      in-plane anisotropy; normal std ``thickness`` times that;
+    * a small position noise along the normal and in the plane;
+    * opacity mostly in [0.6, 1], a fraction lower; colour = box colour plus noise.
+
+    The last ``info["n_floaters"]`` splats are floaters: large, mostly transparent (o < 0.1)
+    splats in free space, at least ``floater_clearance`` from the geometry.
+
+    Args:
+        scene: the boxes.
+        n_splats: total number of splats, floaters included.
+        config: the look (see :class:`SurfaceSplatConfig`).
+        colors: base RGB per box in [0, 1]; default mid grey.
+        density: relative spacing per box (1 = the base spacing); default all 1.
+        faces: which faces of each box to sample; default all.
+        floater_region: (lo, hi) world AABB for floaters; default the scene bounds.
+        seed: integer seed or a numpy Generator.
+
+    Returns:
+        A :class:`~splatplan.scenes.splats.Splats` (float32, wxyz quats, linear stds).
+    """
+    from .splats import Splats
+
+    if n_splats < 1:
+        raise SplatplanError(f"n_splats must be >= 1, got {n_splats}")
+    rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
+    m = len(scene)
+    colors = np.full((m, 3), 0.5) if colors is None else np.asarray(colors, np.float64).reshape(m, 3)
+    density = np.ones(m) if density is None else np.asarray(density, np.float64).reshape(m)
+    faces = np.ones((m, 6), bool) if faces is None else np.asarray(faces, bool).reshape(m, 6)
+    cfg = config
+
+    n_float = int(round(cfg.floater_fraction * n_splats))
+    if cfg.floater_fraction > 0 and n_splats >= 1000:
+        n_float = max(1, n_float)
+    n_surf = n_splats - n_float
+
+    # Pilot at a coarse spacing: the exposed area per box, in units of the base spacing.
+    total = 0.0
+    for i, box in enumerate(scene.boxes):
+        h = box[3:6]
+        areas = 4 * np.array([h[1] * h[2], h[1] * h[2], h[0] * h[2], h[0] * h[2], h[0] * h[1], h[0] * h[1]])
+        total += float((areas * faces[i]).sum()) / density[i] ** 2
+    h_base = np.sqrt(total / n_surf) * 3.0
+    pilot = _sample_faces(scene, h_base * density, faces, rng)
+    weighted = float(np.sum(pilot["h"] ** 2 / density[pilot["face_box"][pilot["frame"]]] ** 2))
+    h_base = np.sqrt(weighted / n_surf) * 0.98
+    for _ in range(5):
+        smp = _sample_faces(scene, h_base * density, faces, rng)
+        if len(smp["p"]) >= n_surf:
+            break
+        h_base *= 0.97 * np.sqrt(len(smp["p"]) / n_surf)
+    keep = np.sort(rng.choice(len(smp["p"]), size=n_surf, replace=False))
+    p, fid, hl = smp["p"][keep], smp["frame"][keep], smp["h"][keep]
+    face_rot, face_box = smp["face_rot"], smp["face_box"]
+    rot = face_rot[fid]  # (S, 3, 3) columns t1, t2, n
+    box_id = face_box[fid]  # (S,)
+
+    # Position noise in the face frame.
+    noise = rng.standard_normal((n_surf, 3)) * np.array([cfg.tangential_noise, cfg.tangential_noise, cfg.normal_noise])
+    means = p + np.einsum("sij,sj->si", rot, noise * hl[:, None])
+
+    # Scales: (t1, t2, n) in the splat frame.
+    base = cfg.tangential_factor * hl * np.exp(cfg.size_jitter * rng.standard_normal(n_surf))
+    a = cfg.anisotropy * rng.standard_normal(n_surf)
+    thick = cfg.thickness * base * np.exp(cfg.thickness_jitter * rng.standard_normal(n_surf))
+    scales = np.stack([base * np.exp(a), base * np.exp(-a), thick], axis=1)
+
+    # Orientation: face frame, then a random spin about the normal (local z).
+    from .splats import rotmat_to_quat
+
+    fq = rotmat_to_quat(face_rot)  # (F, 4)
+    theta = rng.uniform(0.0, np.pi, n_surf)
+    spin = np.stack([np.cos(theta / 2), np.zeros(n_surf), np.zeros(n_surf), np.sin(theta / 2)], axis=1)
+    quats = _quat_mul(fq[fid], spin)
+    quats /= np.linalg.norm(quats, axis=1, keepdims=True)
+    quats *= np.where(quats[:, :1] < 0, -1.0, 1.0)
+
+    low = rng.random(n_surf) < cfg.low_opacity_fraction
+    opac = np.where(
+        low,
+        rng.uniform(*cfg.low_opacity_range, n_surf),
+        1.0 - (1.0 - cfg.min_high_opacity) * rng.random(n_surf) ** 2,
+    )
+    cols = np.clip(colors[box_id] + cfg.color_noise * rng.standard_normal((n_surf, 3)), 0.0, 1.0)
+
+    # Floaters.
+    if n_float:
+        lo, hi = floater_region if floater_region is not None else scene.bounds()
+        lo, hi = np.asarray(lo, np.float64), np.asarray(hi, np.float64)
+        fm = np.zeros((0, 3))
+        for _ in range(50):
+            cand = rng.uniform(lo, hi, (max(64, 4 * n_float), 3))
+            cand = cand[scene.sdf(cand) > cfg.floater_clearance]
+            fm = np.concatenate([fm, cand])[:n_float]
+            if len(fm) == n_float:
+                break
+        if len(fm) < n_float:
+            raise SplatplanError("splats_from_boxes: no free space for floaters in floater_region")
+        med = float(np.median(scales.max(axis=1)))
+        big = rng.uniform(*cfg.floater_size_range, n_float) * med
+        fs = big[:, None] * np.concatenate([np.ones((n_float, 1)), rng.uniform(0.3, 1.0, (n_float, 2))], axis=1)
+        fq_ = rng.standard_normal((n_float, 4))
+        fq_ /= np.linalg.norm(fq_, axis=1, keepdims=True)
+        fq_ *= np.where(fq_[:, :1] < 0, -1.0, 1.0)
+        transparent = rng.random(n_float) < cfg.floater_transparent_fraction
+        fo = np.where(transparent, rng.uniform(0.01, 0.09, n_float), rng.uniform(0.1, 0.3, n_float))
+        fc = np.clip(0.8 + 0.1 * rng.standard_normal((n_float, 3)), 0, 1)
+        means = np.concatenate([means, fm])
+        scales = np.concatenate([scales, fs])
+        quats = np.concatenate([quats, fq_])
+        opac = np.concatenate([opac, fo])
+        cols = np.concatenate([cols, fc])
+
+    return Splats(
+        means=means,
+        quats=quats,
+        scales=scales,
+        opacities=opac,
+        colors=cols,
+        source_format="analytic",
+        info={
+            "n_floaters": int(n_float),
+            "floaters": "the last n_floaters splats",
+            "base_spacing": float(h_base),
+        },
+    )
