@@ -3,8 +3,9 @@
 Scale tiers (see :mod:`.wp_metric_kernel` for the exactness argument): splats are binned by
 their largest std ``sigma``; each tier gets its own hash grid whose query radius is derived from
 the tier's largest ``sigma``, so the many small splats are searched with a tight radius while the
-few huge ones (the last tier, at most ``exhaustive_max`` splats) are visited by every query
-through a 1x1x1 grid. Memory is O(N) for the scene plus O(B) per batch.
+few huge ones (the last tier) get a coarse grid whose cells match their large radius; when that
+radius spans the tier's whole extent the grid degenerates to 1x1x1, i.e. every query visits the
+tier exhaustively. Nothing is ever dropped. Memory is O(N) for the scene plus O(B) per batch.
 """
 
 from __future__ import annotations
@@ -39,8 +40,6 @@ class TierConfig:
 
     #: Quantiles of the per-splat largest std that separate the tiers.
     quantiles: tuple[float, ...] = (0.9, 0.999)
-    #: The last tier is searched exhaustively (1x1x1 grid) when it has at most this many splats.
-    exhaustive_max: int = 256
     #: Hash-grid cell width as a fraction of the tier's query radius.
     cell_factor: float = 1.5
     #: Largest grid dimension per axis (cells wrap around beyond it; results stay exact).
@@ -76,7 +75,7 @@ class WarpMetric:
         scales = scene.scales.astype(np.float64)
         smax = scales.max(axis=1)  # (N,)
 
-        # --- tier assignment: quantile edges, last tier exhaustive when small
+        # --- tier assignment by quantiles of the largest std
         edges = np.unique(np.quantile(smax, self.tiers.quantiles)) if len(smax) > 1 else np.zeros(0)
         tier_of = np.searchsorted(edges, smax, side="left")  # (N,) in [0, len(edges)]
         n_t = len(edges) + 1
@@ -94,7 +93,6 @@ class WarpMetric:
             start += len(idx)
         order = np.concatenate(order_parts)
         self.order = order  # tier-sorted position -> original splat index
-        self.exhaustive_last = self.tier_count[-1] <= self.tiers.exhaustive_max and len(self.tier_count) > 1
 
         rot = quat_to_rotmat(scene.quats[order])  # (N, 3, 3)
         mrows = np.transpose(rot, (0, 2, 1)) * scales[order][:, :, None]  # diag(s) R^T
@@ -108,18 +106,15 @@ class WarpMetric:
     # ------------------------------------------------------------------ grids
     def _grid(self, j: int, cell: float):
         """Hash grid of tier j with a cell width close to ``cell`` (quantised, cached)."""
-        exhaustive = self.exhaustive_last and j == len(self.tier_count) - 1
-        key = (j, -1 if exhaustive else int(math.floor(4 * math.log2(max(cell, 1e-9)))))
+        key = (j, int(math.floor(4 * math.log2(max(cell, 1e-9)))))
         g = self._grids.get(key)
         if g is None:
             lo = self.tier_offset[j]
             pts = self._means_np[lo : lo + self.tier_count[j]]
-            if exhaustive:
-                dims, width = (1, 1, 1), 1.0
-            else:
-                width = 2.0 ** (key[1] / 4.0)
-                ext = pts.max(0) - pts.min(0)
-                dims = tuple(int(min(self.tiers.max_dim, max(1, math.ceil(e / width) + 1))) for e in ext)
+            width = 2.0 ** (key[1] / 4.0)
+            ext = pts.max(0) - pts.min(0)
+            # cells past the extent would only wrap around; a radius larger than the extent -> 1x1x1
+            dims = tuple(int(min(self.tiers.max_dim, max(1, math.ceil(e / width) + 1))) for e in ext)
             g = wp.HashGrid(*dims, device=self.device)
             g.build(wp.array(pts, dtype=wp.vec3, device=self.device), width)
             self._grids[key] = (g, pts)  # keep the points alive with the grid
