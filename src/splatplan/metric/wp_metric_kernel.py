@@ -23,6 +23,8 @@ from .._warp import wp as _wp
 wp = _wp()
 
 RHO_SLACK = 1.0001
+# Softmin terms exp(-t (v - pivot)) below exp(-40) ~ 4e-18 are skipped (relative effect < N * 4e-18).
+SOFTMIN_SKIP = wp.constant(40.0)
 
 
 @wp.func
@@ -97,9 +99,11 @@ def metric_full_kernel(
                     if v < pivot:
                         acc = acc * wp.exp(-softmin_t * (pivot - v)) + 1.0
                         pivot = v
-                    else:
+                    elif softmin_t * (v - pivot) < SOFTMIN_SKIP:
                         acc += wp.exp(-softmin_t * (v - pivot))
-                    cv = d_max * wp.exp(-gamma * wp.max(v - s_min, 0.0))
+                    cv = d_max
+                    if v > s_min:
+                        cv = d_max * wp.exp(-gamma * (v - s_min))
                     c_sum += cv
                     c_max = wp.max(c_max, cv)
 

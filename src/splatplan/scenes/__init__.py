@@ -1,5 +1,30 @@
 """Scene stage: the Splats container, readers/writers, filters, transforms and built-in scenes."""
 
+from . import transforms
+from .filters import FilterReport, filter_floaters
+from .load import SCENE_EXTENSIONS, load_scene, save_scene
 from .splats import SH_C0, Splats, quat_to_rotmat, rotmat_to_quat
+from .primitives import AnalyticScene, SurfaceSplatConfig, splats_from_boxes
+from .stonehenge import StonehengeLayout, build_stonehenge, ground_truth_path, plot_top_view, stonehenge_layout, write_stonehenge
 
-__all__ = ["SH_C0", "Splats", "quat_to_rotmat", "rotmat_to_quat"]
+__all__ = [
+    "AnalyticScene",
+    "StonehengeLayout",
+    "SurfaceSplatConfig",
+    "build_stonehenge",
+    "ground_truth_path",
+    "plot_top_view",
+    "splats_from_boxes",
+    "stonehenge_layout",
+    "write_stonehenge",
+    "SCENE_EXTENSIONS",
+    "SH_C0",
+    "FilterReport",
+    "Splats",
+    "filter_floaters",
+    "load_scene",
+    "quat_to_rotmat",
+    "rotmat_to_quat",
+    "save_scene",
+    "transforms",
+]

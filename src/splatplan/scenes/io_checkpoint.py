@@ -15,8 +15,6 @@ executed. Checkpoints trained with learned appearance (``features``/``colors`` i
 
 from __future__ import annotations
 
-import pickle
-import zipfile
 from collections.abc import Mapping
 from pathlib import Path
 
@@ -39,7 +37,7 @@ def read_gsplat_checkpoint(path: str | Path, *, drop_invalid: bool = False) -> S
 
     try:
         obj = torch.load(path, map_location="cpu", weights_only=True)
-    except (RuntimeError, pickle.UnpicklingError, EOFError, zipfile.BadZipFile, ValueError, OSError) as e:
+    except Exception as e:  # torch.load raises many unrelated types on non-torch bytes (IndexError, ...)
         first = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
         raise scene_error(path, f"cannot load as a torch checkpoint ({first})") from None
     params = obj.get("splats", obj) if isinstance(obj, Mapping) else None

@@ -21,10 +21,14 @@ ZERO_QUAT_EPS = 1e-8
 
 
 def sigmoid(x: np.ndarray) -> np.ndarray:
-    """Logistic function in float64, overflow-free for large |x|."""
+    """Logistic function in float64, overflow-free; non-finite inputs give NaN.
+
+    NaN rather than 0 or 1 for an infinite logit, so that :func:`build_splats` reports the file's
+    Inf instead of silently accepting it.
+    """
     x = np.asarray(x, dtype=np.float64)
-    with np.errstate(over="ignore"):
-        return np.where(x >= 0, 1.0 / (1.0 + np.exp(-x)), np.exp(x) / (1.0 + np.exp(x)))
+    e = np.exp(-np.abs(x))  # in (0, 1], never overflows
+    return np.where(np.isfinite(x), np.where(x >= 0, 1.0 / (1.0 + e), e / (1.0 + e)), np.nan)
 
 
 def logit(p: np.ndarray, eps: float = 1e-7) -> np.ndarray:
@@ -74,7 +78,7 @@ def build_splats(
         The scene with unit quaternions (w >= 0) and opacities clipped to [0, 1].
 
     Raises:
-        SceneFormatError: on NaN/Inf, zero quaternions or non-positive scales (unless
+        SceneFormatError: on an empty scene, or on NaN/Inf, zero quaternions or non-positive scales (unless
             ``drop_invalid``), naming the file, the field, the count and the first bad index.
     """
     means = np.asarray(means, dtype=np.float64)
@@ -83,6 +87,8 @@ def build_splats(
     opacities = np.asarray(opacities, dtype=np.float64).reshape(-1)
     colors = np.asarray(colors, dtype=np.float64)
     n = means.shape[0]
+    if n == 0:
+        raise scene_error(path, "the file holds no splats")
 
     problems: list[tuple[str, np.ndarray]] = []  # (description, bad-row mask (N,))
     fields = {"means": means, "quats": quats, "scales": scales, "opacities": opacities, "colors": colors}

@@ -16,7 +16,7 @@ Layout (all fields read by name):
     the largest is ``sqrt(1 - a^2 - b^2 - c^2)`` (the encoder flips the sign so it is >= 0).
     Component order is ``rot_0..rot_3`` of the source INRIA file, i.e. **wxyz** (index 0 = w);
     verified on a real SuperSplat file by checking that each splat's thinnest axis follows the
-    local surface normal of its neighbours (see ``tests/scenes/test_real_files.py``).
+    local surface normal of its neighbours (see ``tests/scenes/test_io_real_files.py``).
   - ``packed_color``: RGBA 8 bits each (R in bits 31..24). RGB is the colour 0.5 + C0 * f_dc,
     lerped over the chunk colour bounds when present; A is the activated opacity.
 

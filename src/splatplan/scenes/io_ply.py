@@ -41,10 +41,13 @@ def read_plydata(path: str | Path) -> plyfile.PlyData:
     try:
         with open(path, "rb") as f:
             magic = f.read(4)
-            if magic not in (b"ply\n", b"ply\r"):
-                raise scene_error(path, "not a PLY file (it does not start with 'ply')")
-            f.seek(0)
-            ply = plyfile.PlyData.read(f, mmap=False)
+        if magic not in (b"ply\n", b"ply\r"):
+            raise scene_error(path, "not a PLY file (it does not start with 'ply')")
+        # memory-mapped: plyfile's non-mmap binary path parses row by row and is ~1000x slower;
+        # then copied into memory so later changes to the file cannot fault our arrays
+        ply = plyfile.PlyData.read(str(path), mmap=True)
+        for el in ply.elements:
+            el.data = np.array(el.data)
     except SceneFormatError:
         raise
     except plyfile.PlyElementParseError as e:
@@ -145,11 +148,13 @@ def write_gaussian_ply(splats: Splats, path: str | Path) -> None:
     (``os.replace``), so a failure never leaves a half-written file behind.
 
     Raises:
-        SplatplanError: the scene has bad values or mixes disks with 3D splats.
+        SplatplanError: the scene is empty, has bad values or mixes disks with 3D splats.
         SceneFormatError: the file cannot be written.
     """
-    splats.validate(what=f"cannot write {path}")
     n = len(splats)
+    if n == 0:
+        raise SplatplanError(f"cannot write {path}: the scene has no splats")
+    splats.validate(what=f"cannot write {path}")
     is_2d = splats.is_2d
     if not is_2d and np.any(splats.scales[:, 2] == 0):
         raise SplatplanError(f"cannot write {path}: some (not all) splats have a zero third scale; a PLY holds either 3DGS splats or 2DGS disks")

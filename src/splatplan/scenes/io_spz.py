@@ -22,7 +22,8 @@ followed by attribute blocks, each for all N points in turn:
 Axes: spz stores RUB (x right, y up, z back); the loader converts to the INRIA/COLMAP RDF
 convention (x right, y down, z forward) by the 180-degree rotation about x, diag(1, -1, -1):
 positions (x, -y, -z), quaternions wxyz (w, x, -y, -z), and the SH coefficients whose basis
-function is odd in (y, z) change sign. Version 1 (float16 positions) is not supported.
+function is odd in (y, z) change sign. Version 1 (float16 positions) is not supported. The
+antialiasing flag is ignored (it only affects rendering).
 """
 
 from __future__ import annotations
@@ -77,8 +78,10 @@ def read_spz(path: str | Path, *, drop_invalid: bool = False) -> Splats:
     try:
         with gzip.open(path, "rb") as f:
             raw = f.read()
-    except OSError as e:  # includes gzip.BadGzipFile
-        raise scene_error(path, f"cannot decompress the .spz file ({e}); it is not gzip data or is corrupt") from None
+    except gzip.BadGzipFile as e:
+        raise scene_error(path, f"cannot decompress the .spz file ({e}); it is not gzip data") from None
+    except OSError as e:
+        raise scene_error(path, f"cannot read the file ({e.strerror or e})") from None
     except (EOFError, zlib.error) as e:
         raise scene_error(path, f"truncated or corrupt gzip stream in .spz file ({e})") from None
     if len(raw) < SPZ_HEADER.size:

@@ -86,6 +86,33 @@ def box_corners(box: np.ndarray) -> np.ndarray:
     return (signs * box[3:6]) @ rot.T + box[:3]
 
 
+def _sdf_dense(
+    p: np.ndarray,  # (P, 3) float64
+    boxes: np.ndarray,  # (M, 10)
+    rot: np.ndarray,  # (M, 3, 3) box -> world
+    chunk: int | None = None,
+) -> np.ndarray:
+    """min over the boxes of the exact box SDFs, (P,) float64, by brute force in chunks."""
+    m = boxes.shape[0]
+    out = np.empty(p.shape[0])
+    if chunk is None:
+        chunk = max(256, int(1_000_000 // (3 * m)))
+    # Box-frame coordinates of every point for every box in one GEMM:
+    # R_m^T (p - c_m) = p @ R_m - c_m @ R_m, stacked as p @ W - b with W (3, 3M), b (3M,).
+    w = rot.transpose(1, 0, 2).reshape(3, 3 * m)
+    b = np.einsum("mi,mij->mj", boxes[:, :3], rot).reshape(3 * m)
+    h = boxes[:, 3:6][None]  # (1, M, 3)
+    for s in range(0, p.shape[0], chunk):
+        local = (p[s : s + chunk] @ w - b).reshape(-1, m, 3)  # (C, M, 3) box-frame coordinates
+        np.abs(local, out=local)
+        local -= h
+        inside = np.minimum(local.max(axis=2), 0.0)  # (C, M)
+        np.maximum(local, 0.0, out=local)
+        outside = np.sqrt(np.einsum("cmi,cmi->cm", local, local))
+        out[s : s + chunk] = (outside + inside).min(axis=1)
+    return out
+
+
 @dataclass
 class AnalyticScene:
     """A union of solid oriented boxes with an exact signed distance (see module docstring).
@@ -122,54 +149,76 @@ class AnalyticScene:
         self.labels = [str(s) for s in self.labels]
         if len(self.labels) != len(b):
             raise SplatplanError(f"AnalyticScene: {len(self.labels)} labels for {len(b)} boxes")
-        # Cached (M, 3, 3) box -> world rotations.
-        self._rot = quat_to_rotmat(self.boxes[:, 6:10]).reshape(-1, 3, 3)
 
     def __len__(self) -> int:
         return int(self.boxes.shape[0])
 
     # ------------------------------------------------------------------ geometry
+    @property
+    def _rot(self) -> np.ndarray:
+        """(M, 3, 3) box -> world rotations (recomputed, so edits to ``boxes`` are honoured)."""
+        return quat_to_rotmat(self.boxes[:, 6:10]).reshape(-1, 3, 3)
+
     def rotations(self) -> np.ndarray:
         """float64 (M, 3, 3) box-to-world rotation matrices."""
-        return self._rot.copy()
+        return self._rot
 
-    def sdf(self, points: np.ndarray, *, chunk: int | None = None, box_ids: np.ndarray | None = None) -> np.ndarray:
+    def sdf(
+        self,
+        points: np.ndarray,  # (P, 3) or (3,)
+        *,
+        chunk: int | None = None,
+        box_ids: np.ndarray | None = None,
+        broad_phase: bool = True,
+    ) -> np.ndarray:
         """Signed distance (P,) float64 from points to the union of boxes (negative inside).
 
         Exact outside the union; inside, ``min`` of the box distances (right sign, magnitude may be
         too small where boxes overlap; see the module docstring). Memory is bounded: points are
         processed in chunks so that temporaries stay around ``chunk * M * 3`` float64 values.
 
+        The broad phase bins the points into cells and evaluates, per cell, only the boxes that can
+        hold the minimum (AABB lower bound <= the cell's best upper bound ``max |corner - c_m|``);
+        it changes nothing in the result, only the speed.
+
         Args:
             points: (P, 3) or (3,) world coordinates, scene units.
             chunk: points per chunk; default keeps each temporary below ~8 MB.
             box_ids: optional subset of box indices to take the union over (default: all).
+            broad_phase: cull boxes per cell of points (exact; off = brute force over all boxes).
 
         Returns:
             float64 (P,) signed distances (scene units); a (3,) input gives a (1,) result.
         """
         p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-        boxes, rot = self.boxes, self._rot
-        if box_ids is not None:
-            boxes, rot = boxes[box_ids], rot[box_ids]
+        boxes = self.boxes if box_ids is None else self.boxes[box_ids]
+        rot = quat_to_rotmat(boxes[:, 6:10]).reshape(-1, 3, 3)
         m = boxes.shape[0]
-        out = np.full(p.shape[0], np.inf)
         if m == 0 or p.shape[0] == 0:
-            return out
-        if chunk is None:
-            chunk = max(256, int(1_000_000 // (3 * m)))
-        c = boxes[:, :3]  # (M, 3)
-        h = boxes[:, 3:6]  # (M, 3)
-        for s in range(0, p.shape[0], chunk):
-            pc = p[s : s + chunk]  # (C, 3)
-            d = pc[:, None, :] - c[None, :, :]  # (C, M, 3) world offsets
-            local = np.einsum("cmi,mij->cmj", d, rot)  # R^T d, (C, M, 3)
-            np.abs(local, out=local)
-            local -= h[None]
-            inside = np.minimum(local.max(axis=2), 0.0)  # (C, M)
-            np.maximum(local, 0.0, out=local)
-            outside = np.sqrt(np.einsum("cmi,cmi->cm", local, local))
-            out[s : s + chunk] = (outside + inside).min(axis=1)
+            return np.full(p.shape[0], np.inf)
+        if not broad_phase or p.shape[0] < 4096 or m < 8:
+            return _sdf_dense(p, boxes, rot, chunk)
+        out = np.empty(p.shape[0])
+        half = np.einsum("mij,mj->mi", np.abs(rot), boxes[:, 3:6])
+        b_lo, b_hi = boxes[:, :3] - half, boxes[:, :3] + half  # (M, 3) box AABBs
+        p_lo, p_hi = p.min(0), p.max(0)
+        n_cells = np.clip(np.ceil((p_hi - p_lo) / (np.max(p_hi - p_lo) / 8 + 1e-300)), 1, 8).astype(int)
+        size = np.maximum((p_hi - p_lo) / n_cells, 1e-12)
+        cell = np.minimum(((p - p_lo) / size).astype(int), n_cells - 1)  # (P, 3)
+        key = (cell[:, 0] * n_cells[1] + cell[:, 1]) * n_cells[2] + cell[:, 2]
+        order = np.argsort(key, kind="stable")
+        uniq, starts = np.unique(key[order], return_index=True)
+        ends = np.append(starts[1:], len(order))
+        corner_sign = np.array([[(i >> 0) & 1, (i >> 1) & 1, (i >> 2) & 1] for i in range(8)], np.float64)
+        for k, s0, s1 in zip(uniq, starts, ends):
+            idx = order[s0:s1]
+            c_lo, c_hi = p[idx].min(0), p[idx].max(0)  # tight AABB of this cell's points
+            corners = c_lo + corner_sign * (c_hi - c_lo)  # (8, 3)
+            # upper bound for every point of the cell: dist to the box centre (inside the box)
+            upper = np.linalg.norm(corners[:, None, :] - boxes[None, :, :3], axis=2).max(0).min()
+            gap = np.maximum(np.maximum(b_lo - c_hi, c_lo - b_hi), 0.0)  # (M, 3)
+            cand = np.flatnonzero(np.linalg.norm(gap, axis=1) <= upper)
+            out[idx] = _sdf_dense(p[idx], boxes[cand], rot[cand], chunk)
         return out
 
     def sdf_gradient(self, points: np.ndarray, eps: float = 1e-6) -> np.ndarray:
@@ -335,7 +384,7 @@ def _sample_faces(
     into ``face_rot``/``face_box``, ``h`` (S,) local spacing (sqrt of the cell area), plus the
     per-face ``face_rot`` (F, 3, 3) and ``face_box`` (F,) arrays.
     """
-    rots = scene._rot
+    rots = scene.rotations()
     pts, fid, hloc, face_rot, face_box = [], [], [], [], []
     for i, box in enumerate(scene.boxes):
         for f, (c, fr, half) in enumerate(_face_frames(box, rots[i])):
@@ -372,7 +421,7 @@ def _sample_faces(
 
 def _box_aabbs(scene: AnalyticScene) -> tuple[np.ndarray, np.ndarray]:
     """Per-box world AABBs (lo, hi), each (M, 3)."""
-    half = np.einsum("mij,mj->mi", np.abs(scene._rot), scene.boxes[:, 3:6])
+    half = np.einsum("mij,mj->mi", np.abs(scene.rotations()), scene.boxes[:, 3:6])
     return scene.boxes[:, :3] - half, scene.boxes[:, :3] + half
 
 
@@ -457,9 +506,12 @@ def splats_from_boxes(
     means = p + np.einsum("sij,sj->si", rot, noise * hl[:, None])
 
     # Scales: (t1, t2, n) in the splat frame.
-    base = cfg.tangential_factor * hl * np.exp(cfg.size_jitter * rng.standard_normal(n_surf))
-    a = cfg.anisotropy * rng.standard_normal(n_surf)
-    thick = cfg.thickness * base * np.exp(cfg.thickness_jitter * rng.standard_normal(n_surf))
+    def clipped_normal(size: int) -> np.ndarray:  # lognormal factors with the tails cut at 2.5 std
+        return np.clip(rng.standard_normal(size), -2.5, 2.5)
+
+    base = cfg.tangential_factor * hl * np.exp(cfg.size_jitter * clipped_normal(n_surf))
+    a = cfg.anisotropy * clipped_normal(n_surf)
+    thick = cfg.thickness * base * np.exp(cfg.thickness_jitter * clipped_normal(n_surf))
     scales = np.stack([base * np.exp(a), base * np.exp(-a), thick], axis=1)
 
     # Orientation: face frame, then a random spin about the normal (local z).
@@ -516,8 +568,7 @@ def splats_from_boxes(
         colors=cols,
         source_format="analytic",
         info={
-            "n_floaters": int(n_float),
-            "floaters": "the last n_floaters splats",
+            "n_floaters": int(n_float),  # the last n_floaters splats are the floaters
             "base_spacing": float(h_base),
         },
     )
