@@ -9,7 +9,8 @@ Units and frames
 * ``scales`` are *linear* standard deviations along the splat's local axes (not log-scales). A 2DGS
   disk has ``scales[:, 2] == 0``.
 * ``opacities`` are activated opacities in [0, 1] (not logits).
-* ``colors`` are RGB in [0, 1] from the SH DC term (0.5 + C0 * f_dc).
+* ``colors`` are RGB from the SH DC term (0.5 + C0 * f_dc), nominally in [0, 1]; trained scenes
+  may slightly exceed it (kept unclipped so files round-trip exactly).
 * ``sh_rest`` optionally holds the higher SH coefficients, shape (N, K, 3), K in {0, 3, 8, 15}.
 """
 
@@ -69,7 +70,7 @@ class Splats:
         quats: float32 (N, 4) unit wxyz quaternions.
         scales: float32 (N, 3) linear standard deviations (>= 0; third is 0 for 2DGS disks).
         opacities: float32 (N,) activated opacity in [0, 1].
-        colors: float32 (N, 3) RGB in [0, 1] (SH band 0).
+        colors: float32 (N, 3) RGB (SH band 0), nominally in [0, 1].
         sh_rest: optional float32 (N, K, 3) higher-order SH coefficients.
         source_format: short name of the format it was read from ("inria", "2dgs", ...).
         info: free-form metadata (e.g. counts dropped by filters).
