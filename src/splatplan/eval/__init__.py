@@ -1,0 +1,1 @@
+"""Evaluation stage: one module per study of the paper (pr, throughput, conservatism, linearization)."""

@@ -1,0 +1,186 @@
+"""Study E4 (paper Table III, Fig. 5): the metric's linearisation versus Gaussian size.
+
+Scenes M1..M5 are the built-in Stonehenge at levels 1..5 (fewer, larger splats at higher levels,
+floaters filtered). Two measurements, both at n_sigma = 1 with a sphere robot of radius 0.015:
+
+1. The metric along **one straight collision-free path** (checker s2_cap raised to 25 so that
+   min_s2 is exact up to ~5 radii) (the same segment for every level):
+   ``min_s2`` (conservative minimum scaling distance, clipped at the checker's ``s2_cap``) and the
+   streaming ``softmin``, against arc length -> ``fig5_metric_along_path.png``. The segment is
+   chosen automatically: among random segments (length >= 0.4) in the plane z = 0.06 whose exact
+   clearance (``AnalyticScene.sdf`` minus the radius) is at least 0.005 and that are free for
+   the M1 checker, the one running closest to the stones (smallest mean clearance),
+   so that it passes close by obstacles as in the paper's figure.
+2. The planner of study E3 (batched RRT + greedy shortcut; the paper's Table III reports the RRT
+   path, its numbers equal Table II's n_sigma = 1 RRT column) from the centre to random border
+   goals: path length and d_min per level -> ``linearization.json`` / ``.md`` beside the paper's
+   Table III (M1..M3).
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from ..errors import PlanningError
+from .conservatism import PLANE_Z, RADIUS, border_goals, free_start, load_scene, mean_std, plan_trials, progress
+
+#: The paper's Table III: scene -> (path length mean, std), (closest distance mean, std).
+PAPER_TABLE_III = {
+    1: {"length": (0.6048, 0.0806), "dmin": (0.030, 0.012)},
+    2: {"length": (0.6747, 0.1721), "dmin": (0.031, 0.014)},
+    3: {"length": (0.7531, 0.2812), "dmin": (0.035, 0.013)},
+}
+LEVELS = (1, 2, 3, 4, 5)
+#: s2_cap of the metric-along-path plot (min_s2 exact below it: within ~5 robot radii)
+PLOT_S2_CAP = 25.0
+N_SIGMA = 1.0
+
+
+def choose_straight_path(
+    scene,
+    checkers,
+    rng: np.random.Generator,
+    n_candidates: int = 3000,
+    min_length: float = 0.4,
+    min_clearance: float = 0.005,
+    z: float = PLANE_Z,
+) -> np.ndarray:
+    """A straight segment (2, 3) at height z, at least ``min_length`` long, collision-free for the
+    exact geometry (clearance >= ``min_clearance``) and for every checker, running as close to the
+    stones as allowed (smallest mean clearance, clearances above 0.05 counted as 0.05)."""
+    axes = (RADIUS, RADIUS, RADIUS)
+    p0 = np.concatenate([rng.uniform(-0.47, 0.47, (n_candidates, 2)), np.full((n_candidates, 1), z)], axis=1)
+    p1 = np.concatenate([rng.uniform(-0.47, 0.47, (n_candidates, 2)), np.full((n_candidates, 1), z)], axis=1)
+    keep = np.linalg.norm(p1 - p0, axis=1) >= min_length
+    p0, p1 = p0[keep], p1[keep]
+    s = np.linspace(0.0, 1.0, 120)
+    pts = p0[:, None] + s[None, :, None] * (p1 - p0)[:, None]  # (C, S, 3)
+    clr = (scene.sdf(pts.reshape(-1, 3)) - RADIUS).reshape(len(p0), -1)  # (C, S)
+    ok = clr.min(axis=1) >= min_clearance
+    score = np.where(ok, np.minimum(clr, 0.05).mean(axis=1), np.inf)
+    for i in np.argsort(score):
+        if not np.isfinite(score[i]):
+            break
+        dense = p0[i] + np.linspace(0, 1, 400)[:, None] * (p1[i] - p0[i])
+        if not any(c.collides(dense, None, axes).any() for c in checkers):
+            return np.stack([p0[i], p1[i]])
+    raise PlanningError("no collision-free straight segment found for the metric-along-path plot")
+
+
+def run_linearization(out_dir: Path, quick: bool = False, seed: int = 0) -> dict:
+    """Run study E4 and write ``linearization.json``, ``linearization.md`` and
+    ``fig5_metric_along_path.png`` into ``out_dir``.
+
+    Args:
+        out_dir: output folder (created if missing).
+        quick: 3 goals per level and a 10 s RRT budget (< 1 minute) instead of 20 goals and 60 s.
+        seed: scene, goal and planner seed.
+
+    Returns:
+        The JSON content: ``{"rows": [{"level", "length": [mean, std], "dmin": [mean, std]}], ...}``.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from ..metric import CollisionChecker
+
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    n_goals = 3 if quick else 20
+    budget = 10.0 if quick else 60.0
+    rng = np.random.default_rng(seed)
+    scenes = {}
+    for lv in progress(LEVELS, desc="build scenes"):
+        splats, scene = load_scene(lv, seed)
+        scenes[lv] = (splats, scene, CollisionChecker(splats, n_sigma=N_SIGMA, device="auto"))
+    analytic = scenes[1][1]  # the geometry is the same at every level (same layout seed)
+    checkers = [v[2] for v in scenes.values()]
+    line = choose_straight_path(analytic, checkers[:1], rng)  # free in M1 (and the exact geometry)
+    goals = border_goals(n_goals, rng, checkers)
+    start = free_start(np.array([0.0, 0.0, PLANE_Z]), checkers)
+
+    t = np.linspace(0.0, 1.0, 600)
+    pts = line[0] + t[:, None] * (line[1] - line[0])  # (S, 3)
+    arc = t * float(np.linalg.norm(line[1] - line[0]))
+    clr_true = analytic.sdf(pts) - RADIUS
+    fig, axs = plt.subplots(2, 1, figsize=(8, 6.5), sharex=True)
+    rows, along = [], {}
+    for lv in progress(LEVELS, desc="levels"):
+        splats, scene, ch = scenes[lv]
+        plot_ch = ch.with_config(s2_cap=PLOT_S2_CAP)  # exact min_s2 up to a larger distance
+        q = plot_ch.query(pts, None, (RADIUS, RADIUS, RADIUS))
+        cap = PLOT_S2_CAP
+        min_s2 = np.minimum(q.min_s2.astype(np.float64), cap)
+        soft = np.minimum(q.softmin.astype(np.float64), cap)
+        along[lv] = {"min_s2_min": float(min_s2.min()), "softmin_min": float(soft.min()), "min_s2_mean": float(min_s2.mean())}
+        axs[0].plot(arc, min_s2, label=f"M{lv} ({len(splats) // 1000}k splats)")
+        axs[1].plot(arc, soft, label=f"M{lv}")
+        trials, _ = plan_trials(ch, start, goals, cKDTree(splats.means.astype(np.float64)), scene.sdf, seed, budget, tag=f"M{lv}")
+        ok = [r for r in trials if r]
+        rows.append(
+            {
+                "level": int(lv),
+                "length": mean_std([r["length_rrt"] for r in ok]),
+                "dmin": mean_std([r["dmin_rrt"] for r in ok]),
+                "length_refined": mean_std([r["length_refined"] for r in ok]),
+                "dmin_refined": mean_std([r["dmin_refined"] for r in ok]),
+                "success_rate": len(ok) / max(1, len(trials)),
+                "n_splats": len(splats),
+                "mean_max_scale": float(splats.scales.max(axis=1).mean()),
+                "metric_along_path": along[lv],
+            }
+        )
+    axs[0].set_ylabel(f"min_s2 (clipped at s2_cap={cap:g})")
+    axs[0].axhline(1.0, color="k", lw=0.6, ls=":")
+    axs[1].set_ylabel("softmin of s2~")
+    axs[1].axhline(1.0, color="k", lw=0.6, ls=":")
+    ax2 = axs[1].twinx()
+    ax2.plot(arc, clr_true, color="0.6", lw=0.8, ls="--")
+    ax2.set_ylabel("exact clearance (scene units)", color="0.5")
+    axs[1].set_xlabel("arc length along the straight path (scene units)")
+    axs[0].legend(fontsize=7)
+    axs[0].set_title(f"Metric along a straight collision-free path (n_sigma = {N_SIGMA:g}, sphere r = {RADIUS})")
+    fig.tight_layout()
+    fig.savefig(out_dir / "fig5_metric_along_path.png", dpi=120)
+    plt.close(fig)
+
+    out = {
+        "rows": rows,
+        "setup": {
+            "n_sigma": N_SIGMA,
+            "robot_radius": RADIUS,
+            "plane_z": PLANE_Z,
+            "straight_path": line.tolist(),
+            "straight_path_min_true_clearance": float(clr_true.min()),
+            "start": start.tolist(),
+            "goals": goals.tolist(),
+            "length_dmin_of": "batched RRT + greedy shortcut path (as the paper's Table III: its M1 row equals Table II's n_sigma=1 RRT column)",
+            "quick": bool(quick),
+            "seed": int(seed),
+        },
+    }
+    (out_dir / "linearization.json").write_text(json.dumps(out, indent=2))
+    fmt = lambda ms: "n/a" if not np.isfinite(ms[0]) else f"{ms[0]:.4f} ± {ms[1]:.4f}"  # noqa: E731
+    lines = [
+        "# E4: linearisation effect (paper Table III)",
+        "",
+        f"Stonehenge levels 1..5 (M1..M5, larger and fewer splats with the level), n_sigma = {N_SIGMA:g}, "
+        f"sphere r = {RADIUS}, {n_goals} border goals from the centre; RRT (+ greedy shortcut) paths. mean ± std.",
+        "",
+        "| scene | splats | path length (ours) | path length (paper) | d_min (ours) | d_min (paper) | success | min over path of min_s2 |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for r in rows:
+        p = PAPER_TABLE_III.get(r["level"])
+        lines.append(
+            f"| M{r['level']} | {r['n_splats']} | {fmt(r['length'])} | {fmt(p['length']) if p else '—'} | "
+            f"{fmt(r['dmin'])} | {fmt(p['dmin']) if p else '—'} | {r['success_rate']:.2f} | {r['metric_along_path']['min_s2_min']:.3f} |"
+        )
+    (out_dir / "linearization.md").write_text("\n".join(lines) + "\n")
+    return out

@@ -1,0 +1,102 @@
+"""Planners stage: batched RRT, MPPI over B-spline controls, zeroth-order path refinement.
+
+Everything here talks to the scene only through a :class:`~splatplan.metric.CollisionChecker`
+(``query`` for costs, ``collides`` for edge checks), so it runs on any checker backend/device.
+
+    from splatplan.planners import plan
+    res = plan(checker, start=(0, 0, 0.06), goal=(0.45, 0.1, 0.06))
+    res.success, res.path, res.length
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import replace
+
+from .bspline import UniformBSpline, bspline_basis, bspline_eval, fit_bspline, knot_vector, resample_polyline
+from .dynamics import Dynamics, HolonomicPoint, JointIntegrator, PlanarBase, sphere_links, yaw_to_quat
+from .metrics import clearance, d_min, densify_path, smoothness
+from .mppi import MPPI, MPPIConfig, MPPIInfo
+from .refine import RefineConfig, RefineResult, refine_path
+from .rrt import RRT, EdgeChecker, PlanResult, RRTConfig, edge_points, path_length, shortcut_path
+
+__all__ = [
+    "Dynamics",
+    "EdgeChecker",
+    "HolonomicPoint",
+    "JointIntegrator",
+    "MPPI",
+    "MPPIConfig",
+    "MPPIInfo",
+    "PlanResult",
+    "PlanarBase",
+    "RRT",
+    "RRTConfig",
+    "RefineConfig",
+    "RefineResult",
+    "UniformBSpline",
+    "bspline_basis",
+    "bspline_eval",
+    "clearance",
+    "d_min",
+    "densify_path",
+    "edge_points",
+    "fit_bspline",
+    "knot_vector",
+    "path_length",
+    "plan",
+    "refine_path",
+    "resample_polyline",
+    "shortcut_path",
+    "smoothness",
+    "sphere_links",
+    "yaw_to_quat",
+]
+
+
+def plan(
+    checker,
+    start,
+    goal,
+    radius: float = 0.015,
+    refine: bool = True,
+    seed: int = 0,
+    rrt_config: RRTConfig | None = None,
+    refine_config: RefineConfig | None = None,
+) -> PlanResult:
+    """Plan a collision-free path for a sphere robot: batched RRT (+ shortcut) (+ refinement).
+
+    Args:
+        checker: a :class:`~splatplan.metric.CollisionChecker` (its ``n_sigma`` sets the conservatism).
+        start: (3,) start centre, scene units, world frame.
+        goal: (3,) goal centre.
+        radius: robot sphere radius (scene units).
+        refine: run :func:`refine_path` on the found path (kept only if collision-free).
+        seed: seeds the RRT sampler and the refinement noise (overrides the configs' seeds).
+        rrt_config: :class:`RRTConfig` (default: RRTConfig()). Give ``box_lo``/``box_hi`` with
+            equal z to plan in a plane.
+        refine_config: :class:`RefineConfig` (default: RefineConfig()).
+
+    Returns:
+        :class:`PlanResult`; ``path_rrt`` holds the raw tree path, ``path`` the final one,
+        ``refined`` says whether the refinement was accepted, ``info["length_rrt"]`` the length
+        of the shortcut RRT path.
+
+    Raises:
+        PlanningError: start or goal in collision or outside the sampling box.
+    """
+    t0 = time.perf_counter()
+    cfg = replace(rrt_config or RRTConfig(), seed=seed)
+    res = RRT(checker, cfg, radius=radius).plan(start, goal)
+    res.info["length_rrt"] = res.length
+    res.info["path_shortcut"] = res.path.copy()
+    if refine and res.success and len(res.path) >= 2:
+        rcfg = replace(refine_config or RefineConfig(), seed=seed)
+        ref = refine_path(checker, res.path, radius=radius, config=rcfg)
+        res.info["refine_message"] = ref.message
+        if ref.accepted:
+            res.path = ref.path
+            res.length = path_length(ref.path)
+            res.refined = True
+    res.time_s = time.perf_counter() - t0
+    return res

@@ -1,0 +1,180 @@
+"""Zeroth-order path refinement: one MPPI update with the horizon set to the whole path (paper III-C).
+
+1. Fit a clamped cubic B-spline to the (RRT) polyline, endpoints pinned (``fit_bspline``); the
+   number of control points follows the path length (``knot_spacing``).
+2. Sample K perturbations of the *interior* control points (sample 0 = the fit itself);
+   coordinates along which the whole path is constant (e.g. z of a planar plan) are not perturbed.
+3. Cost of each sampled curve, evaluated on ``T`` dense samples:
+   ``C = w_length * length + w_collision * sum_t cost_t * ds + w_hit * (#samples in collision)``
+   with ``cost_t`` the checker's collision cost of the robot at sample t (one ``checker.query`` on
+   a (K, T, L) batch) and ``ds = length / (T - 1)``, so the collision term is a line integral in
+   scene units, comparable to the length.
+4. MPPI weights ``exp(-(C - C_min) / lambda)``, control points <- weighted mean (``n_iters`` times;
+   the paper uses one).
+5. Accept the refined curve only if its dense polyline is collision-free at ``check_resolution``
+   (default: half the robot's smallest semi-axis) via ``checker.collides``; otherwise fall back to
+   the lowest-cost collision-free sample, then retry with twice the control points (up to
+   ``max_attempts`` fits); if nothing passes, the original path is returned unchanged.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import SplatplanError
+from .bspline import bspline_basis, fit_bspline, resample_polyline
+from .dynamics import sphere_links
+from .rrt import EdgeChecker, LinkPoses, path_length
+
+
+@dataclass
+class RefineConfig:
+    """Knobs of :func:`refine_path` (distances in scene units)."""
+
+    #: sampled perturbations K
+    n_samples: int = 256
+    #: target arc length between B-spline control points (sets n_knots from the path length)
+    knot_spacing: float = 0.05
+    #: fixed number of control points instead of knot_spacing (None = from knot_spacing)
+    n_knots: int | None = None
+    #: bounds of the number of control points
+    min_knots: int = 5
+    max_knots: int = 64
+    #: standard deviation of the interior control point perturbations
+    noise_sigma: float = 0.008
+    #: MPPI temperature lambda (same units as the cost, i.e. scene units)
+    temperature: float = 0.005
+    #: MPPI updates (the paper: 1)
+    n_iters: int = 1
+    #: spacing of the dense samples on which the cost is evaluated; None = the robot's smallest semi-axis
+    cost_spacing: float | None = None
+    #: weight of the path length
+    w_length: float = 1.0
+    #: weight of the collision line integral (pushes the curve away from splats within ~2 radii)
+    w_collision: float = 10.0
+    #: cost per dense sample in collision
+    w_hit: float = 1.0
+    #: spacing of the acceptance check; None = half the robot's smallest semi-axis
+    check_resolution: float | None = None
+    #: fits tried (n_knots doubled after a rejected one)
+    max_attempts: int = 3
+    #: seed of the perturbations
+    seed: int = 0
+
+
+@dataclass
+class RefineResult:
+    """Outcome of :func:`refine_path`.
+
+    Attributes:
+        path: (M, D) the refined dense curve (spacing <= check_resolution), or the input path
+            when rejected.
+        accepted: whether ``path`` is the refined curve.
+        knots: (n_knots, D) control points of the accepted curve (None when rejected).
+        cost_before: refinement cost of the input polyline.
+        cost_after: refinement cost of the returned path.
+        n_attempts: fits tried.
+        message: what happened.
+    """
+
+    path: np.ndarray
+    accepted: bool
+    knots: np.ndarray | None
+    cost_before: float
+    cost_after: float
+    n_attempts: int
+    message: str = ""
+    info: dict = field(default_factory=dict)
+
+
+def _curve_costs(checker, link_poses: LinkPoses, curves: np.ndarray, cfg: RefineConfig) -> np.ndarray:
+    """Refinement cost of K dense curves (K, T, D) -> (K,)."""
+    seg = np.linalg.norm(np.diff(curves, axis=1), axis=-1)  # (K, T-1)
+    length = seg.sum(axis=1)  # (K,)
+    centers, quats, axes = link_poses(curves)  # (K, T, L, 3)
+    res = checker.query(centers, quats, axes)  # (K, T, L)
+    k, t_len = curves.shape[:2]
+    col = res.cost.reshape(k, t_len, -1).astype(np.float64).sum(axis=2)  # (K, T)
+    hit = res.in_collision.reshape(k, t_len, -1).any(axis=2).sum(axis=1)  # (K,)
+    ds = length / (t_len - 1)
+    return cfg.w_length * length + cfg.w_collision * col.sum(axis=1) * ds + cfg.w_hit * hit
+
+
+def refine_path(
+    checker,
+    path: np.ndarray,
+    radius: float = 0.015,
+    config: RefineConfig | None = None,
+    link_poses: LinkPoses | None = None,
+) -> RefineResult:
+    """Refine a collision-free polyline into a shorter, smoother, collision-free B-spline curve.
+
+    Args:
+        checker: a :class:`~splatplan.metric.CollisionChecker`.
+        path: (P, D) polyline from start to goal (e.g. an RRT path), assumed collision-free.
+        radius: sphere robot radius (scene units) when ``link_poses`` is None.
+        config: :class:`RefineConfig`.
+        link_poses: configurations (..., D) -> link ellipsoids, as for the RRT.
+
+    Returns:
+        :class:`RefineResult`; ``path`` is never in collision at ``check_resolution`` unless the
+        input was.
+    """
+    cfg = config or RefineConfig()
+    p = np.asarray(path, dtype=np.float64)
+    if p.ndim != 2 or len(p) < 2:
+        raise SplatplanError(f"refine_path needs a path of shape (P >= 2, D), got {p.shape}")
+    lp = link_poses if link_poses is not None else sphere_links(radius)
+    _, _, axes = lp(p[:1])
+    a_min = float(np.min(axes))
+    check_res = float(cfg.check_resolution or 0.5 * a_min)
+    cost_sp = float(cfg.cost_spacing or a_min)
+    edges = EdgeChecker(checker, lp, check_res)
+    rng = np.random.default_rng(cfg.seed)
+    length0 = path_length(p)
+    # the input polyline's own cost, on the same kind of dense samples
+    t_cost = int(np.clip(math.ceil(length0 / cost_sp) + 1, 16, 4096))
+    cost_before = float(_curve_costs(checker, lp, resample_polyline(p, t_cost)[0][None], cfg)[0])
+    if length0 <= 0:
+        return RefineResult(p.copy(), False, None, cost_before, cost_before, 0, "zero-length path")
+    free_dims = np.ptp(p, axis=0) > 0  # perturb only coordinates the path actually uses
+    u_cost = np.linspace(0.0, 1.0, t_cost)
+    t_out = int(max(2, math.ceil(length0 * 1.5 / check_res) + 1))  # output density (refined curves are shorter)
+    n_knots = cfg.n_knots or int(np.clip(math.ceil(length0 / cfg.knot_spacing) + 3, cfg.min_knots, cfg.max_knots))
+    message = ""
+    for attempt in range(1, cfg.max_attempts + 1):
+        basis = bspline_basis(n_knots, u_cost)  # (T, n)
+        knots = fit_bspline(p, n_knots, fix_endpoints=True)  # (n, D)
+        for _ in range(cfg.n_iters):
+            eps = rng.standard_normal((cfg.n_samples, n_knots, p.shape[1])) * cfg.noise_sigma
+            eps[0] = 0.0
+            eps[:, [0, -1]] = 0.0  # endpoints pinned
+            eps[:, :, ~free_dims] = 0.0
+            samples = knots[None] + eps  # (K, n, D)
+            curves = np.einsum("tn,knd->ktd", basis, samples)  # (K, T, D)
+            c = _curve_costs(checker, lp, curves, cfg)
+            w = np.exp(-(c - c.min()) / cfg.temperature)
+            w /= w.sum()
+            knots = np.einsum("k,knd->nd", w, samples)
+        candidates = [knots, samples[int(np.argmin(c))]]
+        basis_out = bspline_basis(n_knots, t_out)
+        for name, kn in zip(("weighted mean", "best sample"), candidates):
+            dense = basis_out @ kn  # (T_out, D)
+            if edges.path_free(dense):
+                cost_after = float(_curve_costs(checker, lp, (basis @ kn)[None], cfg)[0])
+                return RefineResult(
+                    dense,
+                    True,
+                    kn,
+                    cost_before,
+                    cost_after,
+                    attempt,
+                    f"accepted the {name} (n_knots={n_knots}, attempt {attempt})",
+                    {"n_knots": n_knots, "length_before": length0, "length_after": path_length(dense)},
+                )
+        message = f"refined curves collide (n_knots={n_knots}); kept the original path"
+        n_knots = min(2 * n_knots, max(cfg.max_knots, n_knots))
+    return RefineResult(p.copy(), False, None, cost_before, cost_before, cfg.max_attempts, message, {"length_before": length0})
