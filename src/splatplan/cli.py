@@ -202,12 +202,13 @@ def cmd_plan(args) -> int:
     out = {
         "success": bool(res.success),
         "path": np.asarray(res.path).tolist(),
-        "length": float(res.length),
+        "length": float(res.length) if np.isfinite(res.length) else None,  # null when no path
         "time_s": float(res.time_s),
         "n_nodes": int(res.n_nodes),
     }
     write_json(args.out, out)
-    print(f"{'found' if res.success else 'no'} path: length {res.length:.4f}, {res.n_nodes} nodes, {res.time_s:.3f} s -> {args.out}")
+    msg = f"path found: length {res.length:.4f}" if res.success else f"no path found ({res.message})"
+    print(f"{msg}; {res.n_nodes} nodes, {res.time_s:.3f} s -> {args.out}")
     return 0
 
 
