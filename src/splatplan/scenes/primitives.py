@@ -307,14 +307,17 @@ class SurfaceSplatConfig:
 
     #: Tangential std = ``tangential_factor * h`` before jitter (0.5-0.7 makes neighbours overlap).
     tangential_factor: float = 0.6
-    #: Normal std = ``thickness * mean tangential std`` (flat splats: 0.1-0.2).
+    #: Normal std = ``thickness * smaller tangential std`` (flat splats: 0.1-0.2).
     thickness: float = 0.15
     #: Log-std of the per-splat isotropic size jitter (lognormal).
     size_jitter: float = 0.25
-    #: Log-std of the in-plane anisotropy: s_t1 = s exp(+a), s_t2 = s exp(-a), a ~ N(0, this).
+    #: Log-std of the in-plane anisotropy: s_t1 = s exp(+a), s_t2 = s exp(-a), a ~ N(0, this)
+    #: clipped at 2 std.
     anisotropy: float = 0.15
-    #: Log-std of the jitter of the normal std.
+    #: Log-std of the jitter of the normal std (the normal std stays below the tangential ones).
     thickness_jitter: float = 0.3
+    #: Std (degrees) of the tilt of a splat's normal axis away from the face normal (0 = exact).
+    tilt_deg: float = 0.0
     #: Position noise along the face normal, std = this * h.
     normal_noise: float = 0.15
     #: Position noise in the face plane, std = this * h.
@@ -510,8 +513,9 @@ def splats_from_boxes(
         return np.clip(rng.standard_normal(size), -2.5, 2.5)
 
     base = cfg.tangential_factor * hl * np.exp(cfg.size_jitter * clipped_normal(n_surf))
-    a = cfg.anisotropy * clipped_normal(n_surf)
-    thick = cfg.thickness * base * np.exp(cfg.thickness_jitter * clipped_normal(n_surf))
+    a = cfg.anisotropy * np.clip(rng.standard_normal(n_surf), -2.0, 2.0)
+    t_min = base * np.exp(-np.abs(a))
+    thick = np.minimum(cfg.thickness * t_min * np.exp(cfg.thickness_jitter * clipped_normal(n_surf)), 0.9 * t_min)
     scales = np.stack([base * np.exp(a), base * np.exp(-a), thick], axis=1)
 
     # Orientation: face frame, then a random spin about the normal (local z).
@@ -521,6 +525,12 @@ def splats_from_boxes(
     theta = rng.uniform(0.0, np.pi, n_surf)
     spin = np.stack([np.cos(theta / 2), np.zeros(n_surf), np.zeros(n_surf), np.sin(theta / 2)], axis=1)
     quats = _quat_mul(fq[fid], spin)
+    if cfg.tilt_deg > 0:  # tilt the normal about a random in-plane axis (trained splats are not exact)
+        phi = np.deg2rad(cfg.tilt_deg) * np.hypot(*rng.standard_normal((2, n_surf)))  # Rayleigh angle
+        psi = rng.uniform(0.0, 2 * np.pi, n_surf)
+        zero = np.zeros(n_surf)
+        tilt = np.stack([np.cos(phi / 2), np.sin(phi / 2) * np.cos(psi), np.sin(phi / 2) * np.sin(psi), zero], axis=1)
+        quats = _quat_mul(quats, tilt)
     quats /= np.linalg.norm(quats, axis=1, keepdims=True)
     quats *= np.where(quats[:, :1] < 0, -1.0, 1.0)
 
