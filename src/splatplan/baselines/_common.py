@@ -24,9 +24,12 @@ from ..errors import SplatplanError
 MIN_SCALE = 1e-7
 
 #: Default cap on the number of elements of the largest intermediate (chunk x N x 3) tensor of the
-#: dense batched baselines on CPU (2**26 float32 = 256 MiB). On CUDA the cap is derived from the
-#: free device memory instead (see :func:`elem_budget`).
-CPU_ELEM_BUDGET = 1 << 26
+#: dense batched baselines on CPU (2**22 float32 = 16 MiB). Chosen by measurement, not memory:
+#: sweeping 2**18..2**26 (SPLANNING and ATLASNav, 50k splats x 1024 queries, 2 threads),
+#: 2**20..2**22 was fastest and 2**26 was ~3x slower (page faults and cache misses on the huge
+#: temporaries). On CUDA the cap is derived from the free device memory instead, so the dense
+#: batch runs unchunked whenever it fits, like the originals (see :func:`elem_budget`).
+CPU_ELEM_BUDGET = 1 << 22
 
 
 def quat_to_rotmat_torch(q: torch.Tensor) -> torch.Tensor:

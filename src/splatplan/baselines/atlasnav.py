@@ -13,9 +13,11 @@ Batching, as in the original: a dense (queries x Gaussians) evaluation. We build
 [b, N, 3] difference tensor and its norm (not ``torch.cdist``), which is what makes the original
 memory-hungry (SPEC Table: 55 GB at batch 4096 on 200k splats). Queries are split into chunks of
 ``b = max(1, budget // (3 N))`` rows, where ``budget`` is the element cap of
-:func:`~splatplan.baselines._common.elem_budget` (2**26 elements on CPU, i.e. 256 MiB per
-float32 [b, N, 3] tensor and b = 111 rows at N = 200k; on CUDA 80% of the free memory over ~3
-live tensors, so batch 4096 runs unchunked when it fits), or ``max_elems`` when given.
+:func:`~splatplan.baselines._common.elem_budget`, or ``max_elems`` when given. On CUDA the
+budget is 80% of the free memory over ~3 live tensors, so batch 4096 runs unchunked whenever it
+fits (about 30 GB at N = 200k), i.e. the queries are chunked only as much as memory requires.
+On CPU it is 2**22 elements (16 MiB per float32 [b, N, 3] tensor; b = 6 rows at N = 200k),
+a size chosen for speed (see :data:`~splatplan.baselines._common.CPU_ELEM_BUDGET`).
 """
 
 from __future__ import annotations
