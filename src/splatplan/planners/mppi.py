@@ -56,6 +56,11 @@ class MPPIConfig:
     u_max: float | tuple[float, ...] | None = None
     #: weight of the collision cost (checker ``cost`` summed over time and links)
     w_collision: float = 1.0
+    #: neighbourhood of the rollouts' collision cost: splats with s2~ below this (the checker's
+    #: ``s2_cap`` for MPPI queries). Beyond it a splat's cost d_max exp(-gamma (s2~ - 1)) is below
+    #: exp(-gamma (cap - 1)) (1.8% of d_max for the defaults gamma = 4, cap = 2); a smaller cap is a
+    #: much smaller search radius. None = the checker's own s2_cap.
+    collision_s2_cap: float | None = 2.0
     #: extra cost per (time step, link) in collision (``in_collision``); 0 = the paper's cost only
     w_hit: float = 10.0
     #: weight of the task cost callable
@@ -158,8 +163,9 @@ class MPPI:
         terminal_cost: Callable[[np.ndarray], np.ndarray] | None = None,
     ) -> None:
         self.dynamics = dynamics
-        self.checker = checker
         self.config = (config or MPPIConfig()).validate()
+        cap = self.config.collision_s2_cap
+        self.checker = checker.with_config(s2_cap=cap) if checker is not None and cap is not None else checker
         self.task_cost = task_cost
         self.terminal_cost = terminal_cost
         cfg = self.config
