@@ -36,7 +36,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import SplatplanError
-from .splats import quat_to_rotmat
+from .splats import quat_multiply, quat_to_rotmat
 
 __all__ = ["AnalyticScene", "SurfaceSplatConfig", "box_corners", "box_sdf", "make_box", "splats_from_boxes"]
 
@@ -360,21 +360,6 @@ def _face_frames(box: np.ndarray, rot: np.ndarray) -> list[tuple[np.ndarray, np.
     return out
 
 
-def _quat_mul(p: np.ndarray, q: np.ndarray) -> np.ndarray:
-    """Hamilton product of wxyz quaternions, broadcasting over leading axes."""
-    w1, x1, y1, z1 = np.moveaxis(p, -1, 0)
-    w2, x2, y2, z2 = np.moveaxis(q, -1, 0)
-    return np.stack(
-        [
-            w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2,
-            w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
-            w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2,
-            w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2,
-        ],
-        axis=-1,
-    )
-
-
 def _sample_faces(
     scene: AnalyticScene,
     spacing: np.ndarray,  # (M,) target grid spacing per box
@@ -524,13 +509,13 @@ def splats_from_boxes(
     fq = rotmat_to_quat(face_rot)  # (F, 4)
     theta = rng.uniform(0.0, np.pi, n_surf)
     spin = np.stack([np.cos(theta / 2), np.zeros(n_surf), np.zeros(n_surf), np.sin(theta / 2)], axis=1)
-    quats = _quat_mul(fq[fid], spin)
+    quats = quat_multiply(fq[fid], spin)
     if cfg.tilt_deg > 0:  # tilt the normal about a random in-plane axis (trained splats are not exact)
         phi = np.deg2rad(cfg.tilt_deg) * np.hypot(*rng.standard_normal((2, n_surf)))  # Rayleigh angle
         psi = rng.uniform(0.0, 2 * np.pi, n_surf)
         zero = np.zeros(n_surf)
         tilt = np.stack([np.cos(phi / 2), np.sin(phi / 2) * np.cos(psi), np.sin(phi / 2) * np.sin(psi), zero], axis=1)
-        quats = _quat_mul(quats, tilt)
+        quats = quat_multiply(quats, tilt)
     quats /= np.linalg.norm(quats, axis=1, keepdims=True)
     quats *= np.where(quats[:, :1] < 0, -1.0, 1.0)
 

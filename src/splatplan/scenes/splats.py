@@ -50,6 +50,23 @@ def quat_to_rotmat(q: np.ndarray) -> np.ndarray:
     return r
 
 
+def quat_multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Hamilton product a * b of wxyz quaternions, shapes broadcast over (..., 4)."""
+    a = np.asarray(a, dtype=np.float64)
+    b = np.asarray(b, dtype=np.float64)
+    aw, ax, ay, az = np.moveaxis(a, -1, 0)
+    bw, bx, by, bz = np.moveaxis(b, -1, 0)
+    return np.stack(
+        [
+            aw * bw - ax * bx - ay * by - az * bz,
+            aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw,
+        ],
+        axis=-1,
+    )
+
+
 def rotmat_to_quat(r: np.ndarray) -> np.ndarray:
     """Unit wxyz quaternions (w >= 0) from rotation matrices of shape (..., 3, 3)."""
     from scipy.spatial.transform import Rotation

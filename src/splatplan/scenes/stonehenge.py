@@ -42,7 +42,7 @@ import numpy as np
 
 from ..errors import SplatplanError
 from .primitives import AnalyticScene, SurfaceSplatConfig, box_corners, make_box, splats_from_boxes
-from .splats import SH_C0, Splats
+from .splats import SH_C0, Splats, quat_multiply
 
 __all__ = [
     "PLANE_Z",
@@ -110,19 +110,6 @@ def _axis_quat(axis, angle: float) -> np.ndarray:
     a = np.asarray(axis, np.float64)
     a = a / np.linalg.norm(a)
     return np.concatenate([[np.cos(angle / 2)], np.sin(angle / 2) * a])
-
-
-def _qmul(p: np.ndarray, q: np.ndarray) -> np.ndarray:
-    w1, x1, y1, z1 = p
-    w2, x2, y2, z2 = q
-    return np.array(
-        [
-            w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2,
-            w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
-            w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2,
-            w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2,
-        ]
-    )
 
 
 def _rect_distance(a: np.ndarray, b: np.ndarray) -> tuple[float, np.ndarray]:
@@ -296,24 +283,24 @@ def _build_layout(seed: int) -> StonehengeLayout:
     add("fallen", (c[0], c[1], 0.012 - SINK), (0.05, 0.02, 0.012 + SINK), _yaw_quat(np.deg2rad(35.0) + rng.uniform(-0.1, 0.1)))
     # a fallen lintel tilted against the ground outside the ring (one end up)
     c = polar(0.40, 150.0)
-    q = _qmul(_yaw_quat(np.deg2rad(-20.0)), _axis_quat((0, 1, 0), np.deg2rad(-28.0)))
+    q = quat_multiply(_yaw_quat(np.deg2rad(-20.0)), _axis_quat((0, 1, 0), np.deg2rad(-28.0)))
     add("fallen", (c[0], c[1], 0.018), (0.05, 0.016, 0.01), q)
     # a leaning upright (tilted ~22 degrees sideways, along the ring) between horseshoe and ring,
     # beside two narrow gates: it cuts the planning plane
     c = polar(0.225, 110.0)
     ang = back + np.deg2rad(110.0)
-    q = _qmul(_yaw_quat(ang), _axis_quat((1, 0, 0), np.deg2rad(22.0) + rng.uniform(-0.03, 0.03)))
+    q = quat_multiply(_yaw_quat(ang), _axis_quat((1, 0, 0), np.deg2rad(22.0) + rng.uniform(-0.03, 0.03)))
     add("leaning", (c[0], c[1], 0.045), (0.015, 0.022, 0.06), q)
     # a broken stump + a tilted block outside the ring
     c = polar(0.41, -60.0)
-    q = _qmul(_yaw_quat(np.deg2rad(10.0)), _axis_quat((1, 0, 0), np.deg2rad(12.0)))
+    q = quat_multiply(_yaw_quat(np.deg2rad(10.0)), _axis_quat((1, 0, 0), np.deg2rad(12.0)))
     add("fallen", (c[0], c[1], 0.025), (0.025, 0.03, 0.03), q)
     # the altar stone: a flat slab inside the horseshoe, off centre, below the planning plane
     c = polar(0.075, 10.0)
     add("altar", (c[0], c[1], 0.008 - SINK), (0.012, 0.04, 0.008 + SINK), _yaw_quat(back + np.deg2rad(10.0)))
     # heel stone (outside the entrance, slightly tilted) and two station stones
     c = 0.43 * np.array([np.cos(_ENTRANCE_ANGLE), np.sin(_ENTRANCE_ANGLE)])
-    q = _qmul(_yaw_quat(_ENTRANCE_ANGLE), _axis_quat((0, 1, 0), np.deg2rad(8.0)))
+    q = quat_multiply(_yaw_quat(_ENTRANCE_ANGLE), _axis_quat((0, 1, 0), np.deg2rad(8.0)))
     add("heel", (c[0], c[1], 0.045 - SINK), (0.02, 0.025, 0.045 + SINK), q)
     for ang_deg in (-95.0, 95.0):
         c = polar(0.40, ang_deg)

@@ -15,28 +15,11 @@ from dataclasses import replace
 import numpy as np
 
 from ..errors import SplatplanError
-from .splats import Splats, quat_to_rotmat, rotmat_to_quat
+from .splats import Splats, quat_multiply, quat_to_rotmat, rotmat_to_quat
 
 #: The map from the INRIA/COLMAP capture frame (x right, y down, z forward) to a z-up frame
 #: (x right, y forward, z up): (x, y, z) -> (x, z, -y), a -90 degree rotation about x.
 Y_DOWN_TO_Z_UP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
-
-
-def quat_multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Hamilton product a * b of wxyz quaternions, shapes broadcast over (..., 4)."""
-    a = np.asarray(a, dtype=np.float64)
-    b = np.asarray(b, dtype=np.float64)
-    aw, ax, ay, az = np.moveaxis(a, -1, 0)
-    bw, bx, by, bz = np.moveaxis(b, -1, 0)
-    return np.stack(
-        [
-            aw * bw - ax * bx - ay * by - az * bz,
-            aw * bx + ax * bw + ay * bz - az * by,
-            aw * by - ax * bz + ay * bw + az * bx,
-            aw * bz + ax * by - ay * bx + az * bw,
-        ],
-        axis=-1,
-    )
 
 
 def as_rotation(rotation: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

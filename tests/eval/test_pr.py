@@ -1,0 +1,144 @@
+"""E1 precision-recall: AP/F1 against hand-computed examples, exact culling, the quick study."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+import torch
+
+from splatplan.baselines import BASELINES, as_scene_tensors
+from splatplan.errors import SplatplanError
+from splatplan.eval.pr import (
+    _cull_rule,
+    average_precision,
+    best_f1,
+    culled_collision_scores,
+    precision_recall_curve,
+    pr_summary,
+    run_pr,
+)
+from splatplan.scenes.splats import Splats
+
+
+def _ap_f1(scores, labels):
+    p, r, _ = precision_recall_curve(np.asarray(scores, float), np.asarray(labels, bool))
+    return average_precision(p, r), best_f1(p, r)[0]
+
+
+# ------------------------------------------------------------------ metrics, by hand
+def test_ap_f1_hand_example():
+    # ranks: + - + -  -> (P, R) = (1, .5), (.5, .5), (2/3, 1), (.5, 1)
+    ap, f1 = _ap_f1([0.9, 0.8, 0.7, 0.6], [1, 0, 1, 0])
+    assert ap == pytest.approx(0.5 * 1 + 0 * 0.5 + 0.5 * 2 / 3)
+    assert f1 == pytest.approx(0.8)  # at threshold 0.7: 2 (2/3)(1) / (5/3)
+
+
+def test_ties_form_one_step():
+    # threshold 1: tp 1, fp 1 -> (.5, .5); threshold 0: tp 2, fp 1 -> (2/3, 1)
+    p, r, thr = precision_recall_curve(np.array([1.0, 1.0, 0.0]), np.array([True, False, True]))
+    np.testing.assert_allclose(p, [0.5, 2 / 3])
+    np.testing.assert_allclose(r, [0.5, 1.0])
+    np.testing.assert_array_equal(thr, [1.0, 0.0])
+    assert average_precision(p, r) == pytest.approx(0.5 * 0.5 + 0.5 * 2 / 3)
+    assert best_f1(p, r)[0] == pytest.approx(0.8)
+
+
+def test_infinite_scores_and_perfect_ranking():
+    ap, f1 = _ap_f1([np.inf, -np.inf, -np.inf], [1, 0, 1])  # -inf ties must not split
+    assert ap == pytest.approx(0.5 + 0.5 * 2 / 3)
+    assert f1 == pytest.approx(0.8)
+    assert _ap_f1([3, 2, 1, 0], [1, 1, 0, 0]) == (pytest.approx(1.0), pytest.approx(1.0))
+    assert _ap_f1([0, 0, 0, 0], [1, 0, 0, 0])[0] == pytest.approx(0.25)  # one tie group: AP = prevalence
+
+
+def test_ap_matches_definition_on_random_ties():
+    rng = np.random.default_rng(0)
+    s = rng.integers(0, 12, 300).astype(float)
+    y = rng.random(300) < 0.3 + 0.04 * s
+    ap = 0.0
+    r_prev = 0.0
+    for t in sorted(set(s), reverse=True):  # brute force: every distinct threshold
+        pred = s >= t
+        p_t, r_t = (pred & y).sum() / pred.sum(), (pred & y).sum() / y.sum()
+        ap += (r_t - r_prev) * p_t
+        r_prev = r_t
+    assert _ap_f1(s, y)[0] == pytest.approx(ap)
+
+
+def test_native_decision_and_bad_input():
+    d = pr_summary(np.array([2.0, 1.0, 0.5, -1.0]), np.array([True, False, True, False]), native_threshold=0.7)
+    assert (d["native_precision"], d["native_recall"]) == (pytest.approx(0.5), pytest.approx(0.5))
+    with pytest.raises(SplatplanError, match="no positive"):
+        precision_recall_curve(np.ones(3), np.zeros(3, bool))
+    with pytest.raises(SplatplanError, match="NaN"):
+        precision_recall_curve(np.array([np.nan, 1.0]), np.array([True, False]))
+
+
+# ------------------------------------------------------------------ culling is exact
+def _random_scene(n: int, seed: int) -> Splats:
+    rng = np.random.default_rng(seed)
+    q = rng.normal(size=(n, 4))
+    s = np.exp(rng.normal(np.log(0.004), 0.8, (n, 3)))  # heavy-tailed sizes
+    s[:, 2] *= 0.2
+    return Splats(
+        means=rng.uniform(-0.15, 0.15, (n, 3)),
+        quats=q / np.linalg.norm(q, axis=1, keepdims=True),
+        scales=s,
+        opacities=rng.uniform(0.1, 1.0, n),
+        colors=np.full((n, 3), 0.5),
+    )
+
+
+@pytest.mark.parametrize("name", ["splatnav", "safersplat", "atlasnav", "splanning"])
+def test_culled_scores_equal_full_scores(name):
+    r = 0.015
+    scene_t = as_scene_tensors(_random_scene(600, 1), "cpu", torch.float32)
+    q = np.random.default_rng(2).uniform(-0.2, 0.2, (300, 3))
+    info = BASELINES[name]
+    full_obj = info.cls(scene_t, "cpu")
+    full = full_obj.collision_score(q, r, batch=64)
+    incl, clamp, _ = _cull_rule(name, full_obj, r)
+    got, clamped, n_pairs = culled_collision_scores(info.cls, scene_t, incl, clamp, q, r, tile=0.03, block=0.09)
+    assert 0 < n_pairs < 300 * 600  # culling did cull
+    if clamp is None:
+        assert not clamped.any()
+        np.testing.assert_allclose(got, full, rtol=1e-5, atol=1e-12)
+    else:
+        assert clamped.any() and (~clamped).any()
+        np.testing.assert_allclose(got[~clamped], full[~clamped], rtol=1e-6, atol=1e-9)
+        assert np.all(full[clamped] <= clamp + 1e-9)  # the true score is beyond the clamp
+        np.testing.assert_array_equal(got[clamped], clamp)
+
+
+# ------------------------------------------------------------------ the quick study
+@pytest.fixture(scope="module")
+def quick_pr(tmp_path_factory):
+    out = tmp_path_factory.mktemp("pr")
+    return out, run_pr(out, quick=True)
+
+
+def test_quick_pr_outputs(quick_pr):
+    out, res = quick_pr
+    data = json.loads((out / "pr.json").read_text())
+    assert isinstance(data["n_queries"], int) and isinstance(data["n_positive"], int)
+    assert 0 < data["n_positive"] < data["n_queries"]
+    for key in ("collisionsplatting", "splatnav", "safersplat", "atlasnav", "splanning", "collisionsplatting_nsigma0", "collisionsplatting_nsigma2"):
+        m = data["methods"][key]
+        assert isinstance(m["ap"], float) and 0.0 <= m["ap"] <= 1.0, key
+        assert isinstance(m["best_f1"], float) and 0.0 <= m["best_f1"] <= 1.0, key
+        assert 0.0 <= m["all_points"]["ap"] <= 1.0
+    assert data["quick"] is True and "quick" in data["note"]
+    for chk in data["culling_check"].values():
+        assert chk["max_rel_dev"] < 1e-4 and chk["max_clamp_violation"] == 0.0
+    assert (out / "pr.png").stat().st_size > 10_000
+    md = (out / "pr.md").read_text()
+    assert "| method |" in md and "Splat-Nav" in md and "SPLANNING" in md
+
+
+def test_scene_path_needs_ground_truth(tmp_path):
+    with pytest.raises(SplatplanError, match="--gt"):
+        run_pr(tmp_path, scene=str(tmp_path / "scene.ply"), gt=None, quick=True)
+    with pytest.raises(SplatplanError, match="built-in"):
+        run_pr(tmp_path, scene="stonehenge", gt="x.gt.json", quick=True)
