@@ -101,7 +101,7 @@ def make_queries(
 
 
 def progress(iterable=None, **kw):
-    """A tqdm progress bar on stderr (disabled when stderr is not a terminal and SPLATPLAN_NO_TQDM is set)."""
+    """A tqdm progress bar on stderr (set the environment variable SPLATPLAN_NO_TQDM=1 to hide it)."""
     from tqdm import tqdm
 
     kw.setdefault("file", sys.stderr)

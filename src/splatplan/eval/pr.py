@@ -428,7 +428,9 @@ def _markdown(res: dict) -> str:
         "# E1 precision-recall (paper Fig. 3)",
         "",
         f"Scene: {res['scene']} ({res['n_splats']:,} splats after filtering {res['floaters_dropped']} floaters); "
-        f"sphere r = {res['radius']}; grid spacing {res['grid']['spacing']} over {res['grid']['lo']} .. {res['grid']['hi']}.",
+        f"sphere r = {res['radius']}; grid spacing {res['grid']['spacing']} over "
+        f"[{', '.join(f'{v:.3f}' for v in res['grid']['lo'])}] .. [{', '.join(f'{v:.3f}' for v in res['grid']['hi'])}] "
+        f"(splat largest std: median {res['splat_max_std']['median']:.4f}, p99 {res['splat_max_std']['p99']:.4f}).",
         f"Evaluation set: {res['n_queries']:,} grid points with sdf > -r, {res['n_positive']:,} in collision (sdf < r). "
         f"All points: {res['n_queries_all']:,} ({res['n_positive_all']:,} positive). Above ground (z > r): "
         f"{res['n_queries_above_ground']:,} ({res['n_positive_above_ground']:,} positive).",
@@ -453,10 +455,20 @@ def _markdown(res: dict) -> str:
     for k in ("collisionsplatting", "collisionsplatting_nsigma0", "collisionsplatting_nsigma2"):
         if k in cs:
             m = cs[k]
+            tie = (
+                f" (min_s2 = 0, one tie group, at {m['n_zero_min_s2']:,} queries, {m['n_zero_min_s2_negative']:,} of them free)"
+                if m["n_zero_min_s2"]
+                else ""
+            )
             rows.append(
                 f"- CollisionSplatting n_sigma={m['n_sigma']:g} with `-min(min_s2, cap)` instead of `-softmin`: AP {m['min_s2']['ap']:.4f}, "
-                f"best F1 {m['min_s2']['best_f1']:.4f} (min_s2 = 0 at {m['n_zero_min_s2']:,} queries, {m['n_zero_min_s2_negative']:,} of them free: one tie group)."
+                f"best F1 {m['min_s2']['best_f1']:.4f}{tie}."
             )
+    for k, v in res.get("diagnostics", {}).items():
+        rows.append(
+            f"- Diagnostic: CollisionSplatting n_sigma={v['n_sigma']:g} without the {v['n_removed']} semi-transparent floaters "
+            f"the default filter keeps: AP {v['ap']:.4f}, best F1 {v['best_f1']:.4f}."
+        )
     rows += [
         "",
         "Own rule = each method's native decision (CollisionSplatting: min_s2 < 1; Splat-Nav: max K < 1; SAFER-Splat: h < 0; "
@@ -573,6 +585,20 @@ def run_pr(out_dir: Path, scene: str = "stonehenge", gt: str | None = None, quic
             p, rc, _ = precision_recall_curve(score_min[reach], y)
             curves["collisionsplatting_min_s2"] = (*_thin_curve(p, rc, cfg.plot_points), dm["ap"])
 
+    # --- diagnostic (built-in scene only): the same metric without the floaters the default
+    # filter keeps (semi-transparent, 0.1 <= opacity < 0.3). The generator appends its floaters
+    # last and the filter keeps order, so they are the last ``n_floaters - n_dropped`` splats.
+    diagnostics: dict[str, Any] = {}
+    n_kept_floaters = int(splats.info.get("n_floaters", 0)) - int(rep.n_dropped) if scene == "stonehenge" else 0
+    if n_kept_floaters > 0:
+        clean = CollisionChecker(splats.subset(np.arange(len(splats) - n_kept_floaters)), n_sigma=1.0, device="cpu")
+        for ns in cfg.n_sigmas:
+            soft = np.concatenate(
+                [clean.with_config(n_sigma=float(ns)).query(q[i : i + 32768], None, (r, r, r)).softmin for i in range(0, len(q), 32768)]
+            ).astype(np.float64)
+            d = pr_summary(-soft, y)
+            diagnostics[f"nsigma{ns:g}_without_kept_floaters"] = {"n_sigma": float(ns), "n_removed": n_kept_floaters, "ap": d["ap"], "best_f1": d["best_f1"]}
+
     # --- baselines, culled
     checks: dict[str, dict] = {}
     scene_t = as_scene_tensors(splats, "cpu", torch.float32)
@@ -591,7 +617,7 @@ def run_pr(out_dir: Path, scene: str = "stonehenge", gt: str | None = None, quic
             s_all[~reach] = s_deep
         d = summarise(s_all, info.collision_threshold)
         methods[name] = {
-            "score": {"splatnav": "-min_i max_t K_i", "safersplat": "-min_i h_i", "atlasnav": "-min_i (|p-mu_i| - 3 sigma_i - r)", "splanning": "p = 1 - exp(-I/4pi)"}[name],
+            "score": {"splatnav": "-min_i max_t K_i", "safersplat": "-min_i h_i", "atlasnav": "-min_i (dist(p, mu_i) - 3 sigma_i - r)", "splanning": "p = 1 - exp(-I/4pi)"}[name],
             **d,
             "culling": rule,
             "n_clamped": int(cl_eval.sum()),
@@ -624,6 +650,7 @@ def run_pr(out_dir: Path, scene: str = "stonehenge", gt: str | None = None, quic
         "scene": scene_name,
         "n_splats": len(splats),
         "floaters_dropped": int(rep.n_dropped),
+        "splat_max_std": {k: float(np.percentile(splats.scales.max(1), v)) for k, v in (("median", 50), ("p99", 99), ("max", 100))},
         "radius": r,
         "grid": grid_spec,
         "evaluation_set": "grid points with sdf > -r (reachable from free space); 'all_points' and 'above_ground' (z > r) per method",
@@ -633,6 +660,7 @@ def run_pr(out_dir: Path, scene: str = "stonehenge", gt: str | None = None, quic
             "min_s2 = 0 for n_sigma > 0 (s2~ = max(0, ...)), which ties every query inside a splat's inflated core"
         ) % (checker.config.softmin_t, cap),
         "culling_check": checks,
+        "diagnostics": diagnostics,
         "quick": bool(quick and config is None),
         "note": cfg.note,
         "config": {k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(cfg).items()},
@@ -641,9 +669,16 @@ def run_pr(out_dir: Path, scene: str = "stonehenge", gt: str | None = None, quic
     }
     ours, best_base = methods["collisionsplatting"]["ap"], max(methods[n]["ap"] for n in BASELINE_NAMES)
     res["targets"] = {
+        "best_baseline": max(BASELINE_NAMES, key=lambda n: methods[n]["ap"]),
         "ap_minus_best_baseline": ours - best_base,
         "ap_within_0.02_of_best_baseline_or_above": bool(ours >= best_base - 0.02),
         "atlasnav_below_ours": bool(methods["atlasnav"]["ap"] < ours),
+        "ap_minus_best_baseline_by_variant": {
+            f"{k}{'' if sc == 'softmin' else '_min_s2'}": (m["ap"] if sc == "softmin" else m["min_s2"]["ap"]) - best_base
+            for k, m in methods.items()
+            if k.startswith("collisionsplatting")
+            for sc in ("softmin", "min_s2")
+        },
     }
     (out_dir / "pr.json").write_text(json.dumps(res, indent=2) + "\n")
     _plot(curves, out_dir / "pr.png", f"E1: {scene_name}, {len(q):,} queries (sdf > -r), r = {r}")

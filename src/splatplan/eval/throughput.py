@@ -21,8 +21,9 @@ Protocol
   with ``torch.set_num_threads(<cores>)``.
 * **Memory**: every (method, batch) runs in a **fresh subprocess**. It imports all libraries,
   builds the scene, draws the queries and warms the method's code paths up on a 64-splat dummy
-  scene (loads Warp kernels / initialises torch's CPU runtime), then resets the kernel's RSS
-  high-water mark (``echo 5 > /proc/self/clear_refs``) and reads VmRSS. After building the
+  scene (loads Warp kernels / initialises torch's CPU runtime), returns freed heap pages to the OS
+  (``malloc_trim(0)``: otherwise the method would silently reuse pages freed by the scene build and
+  its RSS would not grow), then resets the kernel's RSS high-water mark (``echo 5 > /proc/self/clear_refs``) and reads VmRSS. After building the
   method's scene data (tensors, hash grids), the warm-up and the timed runs it reads VmHWM:
   ``peak_mem_mb = VmHWM - VmRSS_before`` is everything the method added above the loaded
   libraries, scene arrays and queries. On CUDA: ``torch.cuda.max_memory_allocated`` plus the
@@ -138,6 +139,20 @@ def _proc_status_mb(key: str) -> float:
     return float("nan")
 
 
+def _trim_heap() -> None:
+    """Return freed heap pages to the OS (glibc ``malloc_trim(0)``; no-op elsewhere).
+
+    Without it, memory freed while the scene was built stays resident in the heap, later
+    allocations reuse those pages without raising RSS, and the peak is under-estimated.
+    """
+    try:
+        import ctypes
+
+        ctypes.CDLL("libc.so.6").malloc_trim(0)
+    except (OSError, AttributeError):
+        pass
+
+
 def _reset_hwm() -> bool:
     """Reset the RSS high-water mark VmHWM to the current RSS (Linux >= 4.0). True on success."""
     try:
@@ -236,6 +251,7 @@ def _worker(spec: dict) -> dict:
     r0(timed[:2] if not batch1 else timed[:1])
     del b0, r0, dummy
     gc.collect()
+    _trim_heap()
 
     cuda = device.startswith("cuda")
     if cuda:
@@ -250,6 +266,7 @@ def _worker(spec: dict) -> dict:
     build, run = _make_runner(method, splats, device, radius, n_sigma)
     build()
     prep_s = time.perf_counter() - t0
+    prep_mem = _proc_status_mb("VmHWM") - rss0 if hwm_ok and not cuda else float("nan")  # scene data only
 
     def evaluate() -> None:
         if batch1:
@@ -289,6 +306,7 @@ def _worker(spec: dict) -> dict:
         "extrapolated": bool(not batch1 and n_timed != batch),
         "seconds": seconds,
         "prep_s": prep_s,
+        "prep_peak_mem_mb": float(prep_mem),
         "warmup_s": warmup_s,
         "rss_before_mb": rss0,
         "memory_measure": mem_how,
