@@ -127,3 +127,13 @@ def test_bad_queries_are_clear_errors():
     with pytest.raises(SplatplanError, match="n_sigma"):
         CollisionChecker(random_scene(rng, 5), n_sigma=-1.0)
     assert ch.query(np.zeros((0, 3))).min_s2.shape == (0,)
+
+
+@pytest.mark.parametrize("t, gamma", [(4.0, 4.0), (12.0, 4.0), (10.0, 4.0), (30.0, 2.5)])
+def test_softmin_paths(t, gamma):
+    """softmin_t = m * gamma reuses the cost's exp (m = 1, 3); other ratios take two exps."""
+    rng = np.random.default_rng(int(t * 10 + gamma))
+    scene = random_scene(rng, 900)
+    centers = scene.means[rng.integers(0, len(scene), 150)] + rng.normal(0, 0.01, (150, 3))
+    cfg = MetricConfig(n_sigma=0.7, softmin_t=t, cost_gamma=gamma)
+    _compare(scene, centers, random_quats(rng, 150), rng.uniform(0.01, 0.04, (150, 3)), cfg, "cpu")

@@ -25,6 +25,8 @@ from .reference import link_matrices
 wp = _wp()
 
 _POOL: ThreadPoolExecutor | None = None
+#: CPU launches per worker thread for one batch (dynamic load balancing).
+CHUNKS_PER_THREAD = 8
 
 
 def _pool() -> ThreadPoolExecutor:
@@ -54,6 +56,19 @@ class _GridSet:
     ids: object  # wp.array(uint64) (T,)
     means: object  # wp.array(vec3) (N,)
     mrows: object  # wp.array(mat33) (N,) diag(s) R^T
+
+
+def _softmin_power(cfg: MetricConfig) -> int:
+    """m when softmin_t = m * cost_gamma for a small integer m (and no overflow risk), else 0.
+
+    Then every softmin term exp(-t (v - pivot)) is the m-th power of the cost's
+    exp(-gamma (v - s_min)) times a per-pivot factor: one exp per neighbour instead of two.
+    """
+    if cfg.cost_gamma <= 0:
+        return 0
+    m = cfg.softmin_t / cfg.cost_gamma
+    ok = abs(m - round(m)) < 1e-9 and 1 <= round(m) <= 8 and cfg.cost_gamma * max(cfg.cost_s_min, cfg.s2_cap) < 60.0
+    return int(round(m)) if ok else 0
 
 
 class WarpMetric:
@@ -153,7 +168,9 @@ class WarpMetric:
         if n_thr == 1 or b < 256:
             wp.launch(kernel, dim=b, inputs=make_inputs(0), device=self.device)
             return
-        step = math.ceil(b / n_thr)
+        # Several chunks per core, taken from the pool as cores free up: query costs vary a lot
+        # (free space vs. dense surfaces), so equal static halves leave a core idle.
+        step = max(128, math.ceil(b / (CHUNKS_PER_THREAD * n_thr)))
         futs = [
             _pool().submit(wp.launch, kernel, dim=min(step, b - lo), inputs=make_inputs(lo), device=self.device)
             for lo in range(0, b, step)
@@ -172,12 +189,14 @@ class WarpMetric:
         out_cost = wp.empty(b, dtype=wp.float32, device=d)
         from .wp_metric_kernel import metric_full_kernel
 
+        pow_m = _softmin_power(cfg)
+
         def inputs(lo: int):
             return [
                 lo, centers, link_a, mm, gs.means, gs.mrows, gs.ids, self._tier_offset, self._tier_sigma,
                 len(self.tier_count), float(cfg.n_sigma), float(cfg.s2_cap), float(cfg.softmin_t),
                 float(cfg.cost_d_max), float(cfg.cost_gamma), float(cfg.cost_s_min), COST_REDUCE_CODES[cfg.cost_reduce],
-                out_min, out_ncol, out_soft, out_cost,
+                pow_m, out_min, out_ncol, out_soft, out_cost,
             ]  # fmt: skip
 
         self._launch(metric_full_kernel, b, inputs)

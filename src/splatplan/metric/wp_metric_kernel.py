@@ -63,6 +63,7 @@ def metric_full_kernel(
     gamma: float,
     s_min: float,
     reduce_code: int,  # 0 mean, 1 sum, 2 max
+    pow_m: int,  # > 0 when softmin_t == pow_m * gamma (softmin terms from the cost's exp), else 0
     out_min: wp.array(dtype=wp.float32),  # (B,)
     out_ncol: wp.array(dtype=wp.int32),  # (B,)
     out_softmin: wp.array(dtype=wp.float32),  # (B,)
@@ -80,6 +81,7 @@ def metric_full_kernel(
     n_nb = int(0)  # |N(q)|
     c_sum = float(0.0)
     c_max = float(0.0)
+    pg = float(1.0)  # exp(gamma (pivot - s_min)), updated with the pivot
 
     for j in range(n_tiers):
         rho = tier_radius(n_sigma, tier_sigma[j], mm[0], mm[1], cap)
@@ -97,14 +99,21 @@ def metric_full_kernel(
                     ncol += 1
                 if v < cap:
                     n_nb += 1
+                    eg = wp.exp(-gamma * (v - s_min))  # the one exp per neighbour in the common case
+                    cv = d_max * wp.min(eg, 1.0)  # d_max exp(-gamma max(v - s_min, 0))
                     if v < pivot:
                         acc = acc * wp.exp(-softmin_t * (pivot - v)) + 1.0
                         pivot = v
+                        pg = wp.exp(gamma * (pivot - s_min))  # eg * pg = exp(-gamma (v - pivot))
+                    elif pow_m > 0:
+                        # t = m gamma: exp(-t (v - pivot)) = (eg * pg)^m, no second exp
+                        e = eg * pg
+                        term = e
+                        for _k in range(pow_m - 1):
+                            term = term * e
+                        acc += term
                     elif softmin_t * (v - pivot) < SOFTMIN_SKIP:
                         acc += wp.exp(-softmin_t * (v - pivot))
-                    cv = d_max
-                    if v > s_min:
-                        cv = d_max * wp.exp(-gamma * (v - s_min))
                     c_sum += cv
                     c_max = wp.max(c_max, cv)
 
