@@ -2,8 +2,10 @@
 
 checks/s = robot poses checked per second (one sphere link, r = 0.015, n_sigma = 1), at batch
 4096 and 32768; half the queries uniform in the scene bounds, half within 0.05 of a splat mean.
-Warm-up first, then the median of timed runs. Memory: peak RSS growth of this process while
-querying (CPU), above the loaded scene and built grids; on CUDA, Warp's pool high-water mark.
+Warm-up first, then the median of timed runs. Memory (CPU): after the scene is loaded, freed heap
+pages are returned to the OS and the RSS high-water mark is reset; "extra peak memory" is VmHWM
+minus that baseline after building the checker (tiers, hash grids, data copies), the warm-up and
+all timed queries of that batch size, i.e. everything CollisionSplatting adds above the scene.
 
     python benchmarks/metric_throughput.py [--device cpu|cuda] [--repeats 7] [--out benchmarks/results/metric_throughput.json]
 
@@ -15,7 +17,6 @@ from __future__ import annotations
 import argparse
 import json
 import platform
-import resource
 import sys
 import time
 from pathlib import Path
@@ -26,18 +27,6 @@ PAPER = {  # Table I: (GPU checks/s, CPU checks/s, memory GB) on an RTX 6000 Pro
     4096: (215_578.9, 13_653.3, 0.16),
     32768: (1_638_400.0, 12_750.2, 0.166),
 }
-
-
-def _rss_mb() -> float:
-    with open("/proc/self/status") as f:
-        for line in f:
-            if line.startswith("VmRSS:"):
-                return int(line.split()[1]) / 1024.0
-    return float("nan")
-
-
-def _peak_mb() -> float:
-    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
 
 def make_queries(means: np.ndarray, lo: np.ndarray, hi: np.ndarray, b: int, rng: np.random.Generator) -> np.ndarray:
@@ -59,21 +48,25 @@ def main(argv: list[str] | None = None) -> int:
     from splatplan._warp import cpu_threads, wp
     from splatplan.metric import CollisionChecker
     from splatplan.scenes.filters import filter_floaters
+    from splatplan.eval.throughput import proc_status_mb, reset_peak_rss, trim_heap
     from splatplan.scenes.stonehenge import build_stonehenge
 
     scene, _ = build_stonehenge(level=1, seed=0)
     scene, rep = filter_floaters(scene)
     lo, hi = scene.bounds()
-    checker = CollisionChecker(scene, n_sigma=1.0, device=args.device)
     rng = np.random.default_rng(0)
     radius = 0.015
     rows = []
+    wp()  # load Warp before the baseline
     for b in [int(x) for x in args.batches.split(",")]:
         centers = make_queries(scene.means, lo, hi, b, rng)
+        trim_heap()
+        rss0 = proc_status_mb("VmRSS")
+        hwm_ok = reset_peak_rss()
+        checker = CollisionChecker(scene, n_sigma=1.0, device=args.device)
         checker.query(centers, None, radius)  # warm-up: compile, build grids
         checker.collides(centers, None, radius)
         wp().synchronize()
-        rss0, peak0 = _rss_mb(), _peak_mb()
         for fn in ("query", "collides"):
             times = []
             for _ in range(args.repeats):
@@ -88,8 +81,7 @@ def main(argv: list[str] | None = None) -> int:
                 "checks_per_s": b / med,
                 "checks_per_s_std": float(np.std([b / t for t in times])),
                 "seconds_median": med,
-                "peak_mem_mb": max(0.0, _peak_mb() - peak0) if args.device == "cpu" else float("nan"),
-                "rss_growth_mb": _rss_mb() - rss0,
+                "peak_mem_mb": proc_status_mb("VmHWM") - rss0 if hwm_ok and args.device == "cpu" else float("nan"),
             })  # fmt: skip
     result = {
         "device": checker.device,

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from splatplan.errors import SplatplanError
-from splatplan.eval.throughput import _proc_status_mb, _reset_hwm, run_throughput
+from splatplan.eval.throughput import proc_status_mb, reset_peak_rss, run_throughput
 
 EXPECTED_ROWS = {("splatnav", 1), ("safersplat", 1), ("atlasnav", 4096), ("splanning", 4096), ("collisionsplatting", 4096), ("collisionsplatting", 32768)}
 
@@ -37,10 +37,10 @@ def test_quick_throughput_outputs(quick_tp):
 
 @pytest.mark.skipif(not os.path.exists("/proc/self/clear_refs"), reason="needs Linux /proc")
 def test_memory_probe_sees_an_allocation():
-    assert _reset_hwm()
-    rss0 = _proc_status_mb("VmRSS")
+    assert reset_peak_rss()
+    rss0 = proc_status_mb("VmRSS")
     a = np.ones(64 * 2**20 // 8)  # 64 MiB, touched
-    assert _proc_status_mb("VmHWM") - rss0 > 60
+    assert proc_status_mb("VmHWM") - rss0 > 60
     del a
 
 

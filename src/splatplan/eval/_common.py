@@ -101,11 +101,11 @@ def make_queries(
 
 
 def progress(iterable=None, **kw):
-    """A tqdm progress bar on stderr (set the environment variable SPLATPLAN_NO_TQDM=1 to hide it)."""
+    """A tqdm progress bar on stderr when it is a terminal (SPLATPLAN_NO_TQDM=1 hides it there too)."""
     from tqdm import tqdm
 
     kw.setdefault("file", sys.stderr)
     kw.setdefault("leave", False)
     kw.setdefault("dynamic_ncols", True)
-    kw.setdefault("disable", bool(os.environ.get("SPLATPLAN_NO_TQDM")))
+    kw.setdefault("disable", bool(os.environ.get("SPLATPLAN_NO_TQDM")) or not sys.stderr.isatty())
     return tqdm(iterable, **kw)

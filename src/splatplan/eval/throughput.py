@@ -127,7 +127,7 @@ class ThroughputConfig:
 # ---------------------------------------------------------------------------------------------
 
 
-def _proc_status_mb(key: str) -> float:
+def proc_status_mb(key: str) -> float:
     """A ``/proc/self/status`` field (e.g. VmRSS, VmHWM) in MiB; NaN when unavailable."""
     try:
         with open("/proc/self/status") as f:
@@ -139,7 +139,7 @@ def _proc_status_mb(key: str) -> float:
     return float("nan")
 
 
-def _trim_heap() -> None:
+def trim_heap() -> None:
     """Return freed heap pages to the OS (glibc ``malloc_trim(0)``; no-op elsewhere).
 
     Without it, memory freed while the scene was built stays resident in the heap, later
@@ -153,7 +153,7 @@ def _trim_heap() -> None:
         pass
 
 
-def _reset_hwm() -> bool:
+def reset_peak_rss() -> bool:
     """Reset the RSS high-water mark VmHWM to the current RSS (Linux >= 4.0). True on success."""
     try:
         with open("/proc/self/clear_refs", "w") as f:
@@ -251,7 +251,7 @@ def _worker(spec: dict) -> dict:
     r0(timed[:2] if not batch1 else timed[:1])
     del b0, r0, dummy
     gc.collect()
-    _trim_heap()
+    trim_heap()
 
     cuda = device.startswith("cuda")
     if cuda:
@@ -259,14 +259,14 @@ def _worker(spec: dict) -> dict:
         torch.cuda.reset_peak_memory_stats()
         wp_dev = wp().get_device(device)
         wp_before = wp().get_mempool_used_mem_current(wp_dev) if wp().is_mempool_enabled(wp_dev) else 0
-    hwm_ok = _reset_hwm()
-    rss0 = _proc_status_mb("VmRSS")
+    hwm_ok = reset_peak_rss()
+    rss0 = proc_status_mb("VmRSS")
 
     t0 = time.perf_counter()
     build, run = _make_runner(method, splats, device, radius, n_sigma)
     build()
     prep_s = time.perf_counter() - t0
-    prep_mem = _proc_status_mb("VmHWM") - rss0 if hwm_ok and not cuda else float("nan")  # scene data only
+    prep_mem = proc_status_mb("VmHWM") - rss0 if hwm_ok and not cuda else float("nan")  # scene data only
 
     def evaluate() -> None:
         if batch1:
@@ -294,7 +294,7 @@ def _worker(spec: dict) -> dict:
             peak += max(0, wp().get_mempool_used_mem_high(wp_dev) - wp_before) / 2**20
         mem_how = "torch.cuda.max_memory_allocated + Warp mempool high-water growth"
     else:
-        peak = _proc_status_mb("VmHWM") - rss0 if hwm_ok else float("nan")
+        peak = proc_status_mb("VmHWM") - rss0 if hwm_ok else float("nan")
         mem_how = "VmHWM - VmRSS after loading (HWM reset via /proc/self/clear_refs)"
     return {
         "method": method,
