@@ -132,7 +132,7 @@ def refine_path(
     a_min = float(np.min(axes))
     check_res = float(cfg.check_resolution or 0.5 * a_min)
     cost_sp = float(cfg.cost_spacing or a_min)
-    edges = EdgeChecker(checker, lp, check_res)
+    edges = EdgeChecker(checker, lp, check_res, inflate=link_poses is None)
     rng = np.random.default_rng(cfg.seed)
     length0 = path_length(p)
     # the input polyline's own cost, on the same kind of dense samples

@@ -154,28 +154,40 @@ def edge_points(a: np.ndarray, b: np.ndarray, resolution: float, include_start: 
 
 
 class EdgeChecker:
-    """Batched straight-edge collision checks of a robot (``link_poses``) against a checker."""
+    """Batched straight-edge collision checks of a robot (``link_poses``) against a checker.
 
-    def __init__(self, checker, link_poses: LinkPoses, resolution: float) -> None:
+    With ``inflate`` (meant for position robots, where configuration distance = workspace
+    distance), the samples *inside* an edge are checked with every semi-axis grown by half the
+    sample spacing: any point of the edge lies within that distance of a sample, so the edge is
+    free between the samples too, not only at them (exact for n_sigma = 0, where s2 < 1 means a
+    splat mean inside the link). The edge's end point is checked with the true size.
+    """
+
+    def __init__(self, checker, link_poses: LinkPoses, resolution: float, inflate: bool = False) -> None:
         self.checker = checker
         self.link_poses = link_poses
         self.resolution = float(resolution)
+        self.inflate = bool(inflate)
         self.n_queries = 0  # link poses checked so far
 
-    def configs_collide(self, configs: np.ndarray) -> np.ndarray:
-        """(..., D) -> bool (...): any link in collision."""
+    def configs_collide(self, configs: np.ndarray, margin: float = 0.0) -> np.ndarray:
+        """(..., D) -> bool (...): any link in collision (semi-axes grown by ``margin``)."""
         centers, quats, axes = self.link_poses(configs)  # (..., L, 3)
-        hit = self.checker.collides(centers, quats, axes)  # (..., L)
+        hit = self.checker.collides(centers, quats, np.asarray(axes) + margin)  # (..., L)
         self.n_queries += hit.size
         return hit.any(axis=-1)
 
     def edges_free(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         """(E, D), (E, D) -> bool (E,): True where the whole edge (end point included, start
-        excluded) is collision-free at ``resolution``. One batched checker call."""
+        excluded) is collision-free at ``resolution``. One batched checker call (two with inflate)."""
         if len(a) == 0:
             return np.zeros(0, dtype=bool)
-        pts = edge_points(a, b, self.resolution)  # (E, n_pts, D)
-        return ~self.configs_collide(pts).any(axis=1)
+        pts = edge_points(a, b, self.resolution)  # (E, n_pts, D), the last point is b
+        if not self.inflate:
+            return ~self.configs_collide(pts).any(axis=1)
+        spacing = float(np.linalg.norm(b - a, axis=-1).max()) / pts.shape[1]
+        inner = self.configs_collide(pts[:, :-1], margin=0.5 * spacing).any(axis=1) if pts.shape[1] > 1 else np.zeros(len(a), bool)
+        return ~(inner | self.configs_collide(pts[:, -1]))
 
     def path_free(self, path: np.ndarray) -> bool:
         """Whether every point of a polyline (P, D), sampled at ``resolution``, is collision-free."""
@@ -237,6 +249,8 @@ class RRT:
         self.checker = checker
         self.config = (config or RRTConfig()).validate()
         self.link_poses = link_poses if link_poses is not None else sphere_links(radius)
+        #: position robot (the default sphere): edges are checked between their samples too
+        self.inflate_edges = link_poses is None
 
     # ------------------------------------------------------------------ setup
     def _box(self, start: np.ndarray, goal: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
@@ -291,7 +305,7 @@ class RRT:
         if not np.all(np.isfinite(start)) or (goal is not None and not np.all(np.isfinite(goal))):
             raise PlanningError("start and goal must be finite")
         lo, hi = self._box(start, goal)
-        edges = EdgeChecker(self.checker, self.link_poses, self._resolution(start))
+        edges = EdgeChecker(self.checker, self.link_poses, self._resolution(start), inflate=self.inflate_edges)
         check_endpoint(self.checker, self.link_poses, start, "start")
         if goal is not None:
             check_endpoint(self.checker, self.link_poses, goal, "goal")
