@@ -20,9 +20,13 @@ def link_matrices(quats: np.ndarray | None, semi_axes: np.ndarray, batch: int) -
         semi_axes: (3,) or (B, 3) semi-axes (a, b, c) in the link frame, scene units.
         batch: B.
     """
-    ax = np.broadcast_to(np.asarray(semi_axes, dtype=np.float64), (batch, 3))
-    r = np.broadcast_to(np.eye(3), (batch, 3, 3)) if quats is None else quat_to_rotmat(quats)
-    return np.einsum("bij,bj,bkj->bik", r, 1.0 / ax**2, r)
+    w = 1.0 / np.broadcast_to(np.asarray(semi_axes, dtype=np.float64), (batch, 3)) ** 2  # (B, 3)
+    if quats is None:
+        a = np.zeros((batch, 3, 3))
+        a[:, [0, 1, 2], [0, 1, 2]] = w
+        return a
+    r = quat_to_rotmat(quats)  # (B, 3, 3)
+    return np.matmul(r * w[:, None, :], np.swapaxes(r, 1, 2))  # R diag(w) R^T
 
 
 def conservative_s2_ref(

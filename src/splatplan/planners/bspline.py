@@ -131,7 +131,7 @@ def bspline_eval(knots: np.ndarray, basis: np.ndarray) -> np.ndarray:
     Returns:
         (..., T, dim) samples.
     """
-    return np.einsum("tn,...nd->...td", basis, knots)
+    return np.matmul(basis, knots)  # (T, n) @ (..., n, D) -> (..., T, D)
 
 
 def resample_polyline(points: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
