@@ -18,8 +18,15 @@ demo: $(STAMP)
 test: $(STAMP)
 	$(PY) -m pytest -q
 
+# Every benchmark and study at full size (about 10 minutes on 2 cores), then the README tables.
 bench: $(STAMP)
 	$(PY) benchmarks/metric_throughput.py
+	$(PY) benchmarks/planners.py
+	$(VENV)/bin/splatplan eval throughput --out benchmarks/results
+	$(VENV)/bin/splatplan eval pr --out benchmarks/results
+	$(VENV)/bin/splatplan eval conservatism --out benchmarks/results
+	$(VENV)/bin/splatplan eval linearization --out benchmarks/results
+	$(PY) benchmarks/update_readme.py
 
 clean:
 	rm -rf $(VENV) build demo_out

@@ -41,7 +41,12 @@ def metric_throughput() -> str | None:
 def markdown_file(name: str):
     def read() -> str | None:
         p = RESULTS / name
-        return p.read_text().strip() if p.exists() else None
+        if not p.exists():
+            return None
+        lines = p.read_text().strip().splitlines()
+        if lines and lines[0].startswith("# "):  # the README gives each study its own heading
+            lines = lines[1:]
+        return "\n".join(lines).strip()
 
     return read
 

@@ -49,7 +49,9 @@ class RRTConfig:
     batch_size: int = 32
     #: maximum edge length: a sample farther than this from its nearest node is pulled back to it
     stride: float = 0.03
-    #: spacing of the collision checks along an edge; None = half the robot's smallest semi-axis
+    #: spacing of the collision checks along an edge; None = a quarter of the robot's smallest
+    #: semi-axis for the default sphere robot (whose inner edge samples are checked with the
+    #: sphere grown by half the spacing, <= r/8), half of it for other robots
     edge_resolution: float | None = None
     #: probability that a sample is the goal itself (goal mode only)
     goal_bias: float = 0.1
@@ -286,7 +288,7 @@ class RRT:
         if self.config.edge_resolution is not None:
             return float(self.config.edge_resolution)
         _, _, axes = self.link_poses(start[None])
-        return 0.5 * float(np.min(axes))
+        return (0.25 if self.inflate_edges else 0.5) * float(np.min(axes))
 
     # ------------------------------------------------------------------ search
     def plan(self, start, goal=None) -> PlanResult:
