@@ -81,6 +81,25 @@ def _plot_plans(path: Path, plans, gt, z: float, start, goal) -> None:
     plt.close(fig)
 
 
+def _free_border_goal(checkers, start: np.ndarray, radius: float = 0.47, first_angle: float = 0.6) -> np.ndarray:
+    """A goal on the circle of ``radius`` (scanning counter-clockwise from ``first_angle``) that is
+    collision-free for every checker, the one whose straight line from ``start`` is the most
+    obstructed (so the planner has to find a way through or around the ring)."""
+    ang = first_angle + np.linspace(0.0, 2 * np.pi, 360, endpoint=False)
+    cand = np.stack([radius * np.cos(ang), radius * np.sin(ang), np.full_like(ang, start[2])], axis=1)  # (360, 3)
+    free = np.ones(len(cand), dtype=bool)
+    for c in checkers:
+        free &= ~c.collides(cand, None, RADIUS)
+    if not free.any():
+        from .errors import PlanningError
+
+        raise PlanningError("no collision-free goal on the scene border for every n_sigma of the demo")
+    t = np.linspace(0.0, 1.0, 200)[None, :, None]
+    lines = start + t * (cand[:, None, :] - start)  # (360, 200, 3) straight segments
+    blocked = checkers[0].collides(lines, None, RADIUS).sum(axis=1)  # (360,) samples in collision
+    return cand[int(np.argmax(np.where(free, blocked, -1)))]  # the most obstructed free goal
+
+
 def run_demo(out_dir: Path, device: str = "cpu", seed: int = 0) -> dict:
     """Run the demo, write the PNGs into ``out_dir`` and print a summary. Returns the summary."""
     from .metric import CollisionChecker
@@ -112,10 +131,9 @@ def run_demo(out_dir: Path, device: str = "cpu", seed: int = 0) -> dict:
     out_dir = Path(out_dir)
     _plot_field(out_dir / "collision_field.png", fields, gt, PLANE_Z, lo, hi)
 
-    # planning from the centre to a border goal on the plane
+    # planning from the centre to a border goal on the plane, free at every n_sigma shown
     start = np.array([0.0, 0.0, PLANE_Z])
-    ang = 0.6
-    goal = np.array([0.47 * np.cos(ang), 0.47 * np.sin(ang), PLANE_Z])
+    goal = _free_border_goal([base.with_config(n_sigma=ns) for ns in N_SIGMAS], start)
     rrt = RRTConfig(box_lo=(-0.5, -0.5, PLANE_Z), box_hi=(0.5, 0.5, PLANE_Z), time_budget_s=20.0)
     plans, rows = {}, []
     for ns in N_SIGMAS:
