@@ -44,6 +44,12 @@ def conservative_s2(d: wp.vec3, link_a: wp.mat33, m: wp.mat33, n_sigma: float):
     return wp.max(0.0, s2 - n_sigma * sigma)
 
 
+@wp.func
+def conservative_s2_sphere(d: wp.vec3, dd: float, inv_r2: float, m: wp.mat33, n_sigma: float):
+    """The same for a sphere (A = I / r^2, so A d = d / r^2), reusing dd = |d|^2."""
+    return wp.max(0.0, (dd - n_sigma * 2.0 * wp.length(m * d)) * inv_r2)
+
+
 @wp.kernel
 def metric_full_kernel(
     offset: int,  # first query handled by this launch (CPU launches split the batch)
@@ -82,6 +88,8 @@ def metric_full_kernel(
     c_sum = float(0.0)
     c_max = float(0.0)
     pg = float(1.0)  # exp(gamma (pivot - s_min)), updated with the pivot
+    sphere = mm[0] == mm[1]  # A = I / r^2: cheaper s2~
+    inv_r2 = 1.0 / (mm[0] * mm[0])
 
     for j in range(n_tiers):
         rho = tier_radius(n_sigma, tier_sigma[j], mm[0], mm[1], cap)
@@ -92,8 +100,13 @@ def metric_full_kernel(
         while wp.hash_grid_query_next(query, local):
             i = base + local
             d = means[i] - c
-            if wp.dot(d, d) <= rho2:
-                v = conservative_s2(d, a, mrows[i], n_sigma)
+            dd = wp.dot(d, d)
+            if dd <= rho2:
+                v = float(0.0)
+                if sphere:
+                    v = conservative_s2_sphere(d, dd, inv_r2, mrows[i], n_sigma)
+                else:
+                    v = conservative_s2(d, a, mrows[i], n_sigma)
                 best = wp.min(best, v)
                 if v < 1.0:
                     ncol += 1
@@ -154,6 +167,8 @@ def metric_collide_kernel(
     a = link_a[q]
     mm = axis_minmax[q]
     ncol = int(0)
+    sphere = mm[0] == mm[1]
+    inv_r2 = 1.0 / (mm[0] * mm[0])
     j = int(0)
     while j < n_tiers and ncol <= k_collide:
         rho = tier_radius(n_sigma, tier_sigma[j], mm[0], mm[1], 1.0)
@@ -164,8 +179,14 @@ def metric_collide_kernel(
         while ncol <= k_collide and wp.hash_grid_query_next(query, local):
             i = base + local
             d = means[i] - c
-            if wp.dot(d, d) <= rho2:
-                if conservative_s2(d, a, mrows[i], n_sigma) < 1.0:
+            dd = wp.dot(d, d)
+            if dd <= rho2:
+                v = float(0.0)
+                if sphere:
+                    v = conservative_s2_sphere(d, dd, inv_r2, mrows[i], n_sigma)
+                else:
+                    v = conservative_s2(d, a, mrows[i], n_sigma)
+                if v < 1.0:
                     ncol += 1
         j += 1
     out_hit[q] = wp.where(ncol > k_collide, 1, 0)
