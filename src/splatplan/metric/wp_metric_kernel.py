@@ -45,9 +45,11 @@ def conservative_s2(d: wp.vec3, link_a: wp.mat33, m: wp.mat33, n_sigma: float):
 
 
 @wp.func
-def conservative_s2_sphere(d: wp.vec3, dd: float, inv_r2: float, m: wp.mat33, n_sigma: float):
-    """The same for a sphere (A = I / r^2, so A d = d / r^2), reusing dd = |d|^2."""
-    return wp.max(0.0, (dd - n_sigma * 2.0 * wp.length(m * d)) * inv_r2)
+def link_s2(d: wp.vec3, dd: float, link_a: wp.mat33, sphere: bool, inv_r2: float, m: wp.mat33, n_sigma: float):
+    """s2~ of one splat; for a sphere link (A = I / r^2, so A d = d / r^2) it reuses dd = |d|^2."""
+    if sphere:
+        return wp.max(0.0, (dd - n_sigma * 2.0 * wp.length(m * d)) * inv_r2)
+    return conservative_s2(d, link_a, m, n_sigma)
 
 
 @wp.kernel
@@ -102,11 +104,7 @@ def metric_full_kernel(
             d = means[i] - c
             dd = wp.dot(d, d)
             if dd <= rho2:
-                v = float(0.0)
-                if sphere:
-                    v = conservative_s2_sphere(d, dd, inv_r2, mrows[i], n_sigma)
-                else:
-                    v = conservative_s2(d, a, mrows[i], n_sigma)
+                v = link_s2(d, dd, a, sphere, inv_r2, mrows[i], n_sigma)
                 best = wp.min(best, v)
                 if v < 1.0:
                     ncol += 1
@@ -181,12 +179,7 @@ def metric_collide_kernel(
             d = means[i] - c
             dd = wp.dot(d, d)
             if dd <= rho2:
-                v = float(0.0)
-                if sphere:
-                    v = conservative_s2_sphere(d, dd, inv_r2, mrows[i], n_sigma)
-                else:
-                    v = conservative_s2(d, a, mrows[i], n_sigma)
-                if v < 1.0:
+                if link_s2(d, dd, a, sphere, inv_r2, mrows[i], n_sigma) < 1.0:
                     ncol += 1
         j += 1
     out_hit[q] = wp.where(ncol > k_collide, 1, 0)
