@@ -29,14 +29,6 @@ PAPER = {  # Table I: (GPU checks/s, CPU checks/s, memory GB) on an RTX 6000 Pro
 }
 
 
-def make_queries(means: np.ndarray, lo: np.ndarray, hi: np.ndarray, b: int, rng: np.random.Generator) -> np.ndarray:
-    """(b, 3): half uniform in the bounds, half within 0.05 of a random splat mean."""
-    u = rng.uniform(lo, hi, (b // 2, 3))
-    d = rng.normal(size=(b - b // 2, 3))
-    d *= (0.05 * rng.uniform(0, 1, (len(d), 1)) ** (1 / 3)) / np.linalg.norm(d, axis=1, keepdims=True)
-    return np.concatenate([u, means[rng.integers(0, len(means), len(d))] + d])
-
-
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--device", default="cpu")
@@ -48,6 +40,7 @@ def main(argv: list[str] | None = None) -> int:
     from splatplan._warp import cpu_threads, wp
     from splatplan.metric import CollisionChecker
     from splatplan.scenes.filters import filter_floaters
+    from splatplan.eval._common import make_queries
     from splatplan.eval.throughput import proc_status_mb, reset_peak_rss, trim_heap
     from splatplan.scenes.stonehenge import build_stonehenge
 

@@ -90,7 +90,7 @@ def make_queries(
     b: int,
     rng: np.random.Generator,
 ) -> np.ndarray:
-    """(b, 3) float64 query centres as in ``benchmarks/metric_throughput.py``.
+    """(b, 3) float64 query centres of the throughput benchmarks (E2 and ``benchmarks/metric_throughput.py``).
 
     Half uniform in the bounds, half uniform in a ball of radius 0.05 around a random splat mean.
     """
