@@ -112,3 +112,33 @@ def test_scene_stonehenge_writes_ply_and_ground_truth(tmp_path, capsys):
     assert main(["info", str(out), "--json"]) == 0
     info = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert info["count"] > 1000
+
+
+def _write_ply(path: Path, fields: dict[str, np.ndarray]) -> None:
+    from plyfile import PlyData, PlyElement
+
+    n = len(next(iter(fields.values())))
+    arr = np.zeros(n, dtype=[(k, "f4") for k in fields])
+    for k, v in fields.items():
+        arr[k] = v
+    PlyData([PlyElement.describe(arr, "vertex")]).write(str(path))
+
+
+def test_broken_scene_files_exit_2(tmp_path):
+    n = 20
+    good = {"x": np.zeros(n), "y": np.zeros(n), "z": np.zeros(n), "f_dc_0": np.zeros(n), "f_dc_1": np.zeros(n), "f_dc_2": np.zeros(n),
+            "opacity": np.zeros(n), "scale_0": np.full(n, -4.0), "scale_1": np.full(n, -4.0), "scale_2": np.full(n, -4.0),
+            "rot_0": np.ones(n), "rot_1": np.zeros(n), "rot_2": np.zeros(n), "rot_3": np.zeros(n)}  # fmt: skip
+    missing = {k: v for k, v in good.items() if k != "opacity"}
+    nan = dict(good, x=np.where(np.arange(n) == 3, np.nan, 0.0))
+    zero_q = dict(good, rot_0=np.zeros(n))
+    np.save(tmp_path / "p.npy", np.zeros((2, 3)))
+    for name, fields, needle in (("missing", missing, "opacity"), ("nan", nan, "NaN"), ("zeroq", zero_q, "quaternion")):
+        _write_ply(tmp_path / f"{name}.ply", fields)
+        for argv in (["info", str(tmp_path / f"{name}.ply")],
+                     ["check", str(tmp_path / f"{name}.ply"), "--poses", str(tmp_path / "p.npy"), "--robot", "sphere:0.01"]):  # fmt: skip
+            r = run_cli(*argv)
+            assert r.returncode == 2, (name, r.stderr)
+            assert "Traceback" not in r.stderr and needle in r.stderr, (name, r.stderr)
+    _write_ply(tmp_path / "ok.ply", good)
+    assert run_cli("info", str(tmp_path / "ok.ply")).returncode == 0
