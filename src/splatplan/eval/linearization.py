@@ -38,6 +38,8 @@ LEVELS = (1, 2, 3, 4, 5)
 #: levels the planner runs on (the paper's Table III: M1..M3). At M4/M5 the largest splats
 #: (needles up to ~0.2 long at M5) make most of the border unreachable at n_sigma = 1.
 PLAN_LEVELS = (1, 2, 3)
+#: border goals per level in the full run (the same goals for every level)
+N_GOALS = 40
 #: s2_cap of the metric-along-path plot (min_s2 exact below it: within ~5 robot radii)
 PLOT_S2_CAP = 25.0
 N_SIGMA = 1.0
@@ -80,7 +82,7 @@ def run_linearization(out_dir: Path, quick: bool = False, seed: int = 0) -> dict
 
     Args:
         out_dir: output folder (created if missing).
-        quick: 3 goals per level and a 10 s RRT budget (< 1 minute) instead of 20 goals and 60 s.
+        quick: 3 goals per level and a 10 s RRT budget (< 1 minute) instead of N_GOALS goals and 60 s.
         seed: scene, goal and planner seed.
 
     Returns:
@@ -95,7 +97,7 @@ def run_linearization(out_dir: Path, quick: bool = False, seed: int = 0) -> dict
 
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    n_goals = 3 if quick else 20
+    n_goals = 3 if quick else N_GOALS
     budget = 10.0 if quick else 60.0
     rng = np.random.default_rng(seed)
     scenes = {}

@@ -360,15 +360,16 @@ def level_config(level: int) -> SurfaceSplatConfig:
     statistics of real trained captures (the truck, bathroom and banana scans in shared/data):
     log-std of the largest std ~0.8 with a heavy tail (p99 ~ 7x the median), needle-like in-plane
     shapes (median middle/largest std ~ 0.3) and normals a few degrees off the surface. Higher
-    levels thicken the splats, widen the anisotropy and tilt the normals more.
+    levels have larger splats (fewer of them over the same surfaces) with the same shape
+    statistics, slightly thicker and with normals tilted more.
     """
     if level not in (1, 2, 3, 4, 5):
         raise SplatplanError(f"stonehenge level must be 1..5, got {level}")
     k = level - 1
     return SurfaceSplatConfig(
         thickness=0.15 + 0.06 * k,
-        anisotropy=0.6 + 0.05 * k,
-        size_jitter=0.5 + 0.03 * k,
+        anisotropy=0.6,
+        size_jitter=0.5,
         normal_noise=0.15 + 0.02 * k,
         tangential_noise=0.2,
         tilt_deg=6.0 + 2.0 * k,
