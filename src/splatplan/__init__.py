@@ -5,6 +5,8 @@ Public API (imported lazily so ``splatplan --help`` stays fast):
 * :func:`load_scene` / :func:`save_scene` - read any supported splat file / write INRIA ``.ply``.
 * :class:`Splats` - the scene container (means, wxyz quats, linear scales, opacities, colours).
 * :class:`CollisionChecker`, :class:`MetricConfig`, :class:`QueryResult` - the CollisionSplatting metric.
+* :func:`build_stonehenge` - the built-in scene (splats + exact analytic ground truth).
+* :func:`plan`, :class:`RRT`, :class:`MPPI` (+ configs) - planners on the metric.
 """
 
 from __future__ import annotations
@@ -21,6 +23,13 @@ _LAZY = {
     "MetricConfig": ("splatplan.metric.config", "MetricConfig"),
     "QueryResult": ("splatplan.metric.config", "QueryResult"),
     "SplatplanError": ("splatplan.errors", "SplatplanError"),
+    "PlanningError": ("splatplan.errors", "PlanningError"),
+    "build_stonehenge": ("splatplan.scenes.stonehenge", "build_stonehenge"),
+    "plan": ("splatplan.planners", "plan"),
+    "RRT": ("splatplan.planners", "RRT"),
+    "RRTConfig": ("splatplan.planners", "RRTConfig"),
+    "MPPI": ("splatplan.planners", "MPPI"),
+    "MPPIConfig": ("splatplan.planners", "MPPIConfig"),
 }
 
 __all__ = sorted(_LAZY) + ["__version__"]
