@@ -37,14 +37,14 @@ class RefineConfig:
     #: sampled perturbations K
     n_samples: int = 256
     #: target arc length between B-spline control points (sets n_knots from the path length)
-    knot_spacing: float = 0.05
+    knot_spacing: float = 0.1
     #: fixed number of control points instead of knot_spacing (None = from knot_spacing)
     n_knots: int | None = None
     #: bounds of the number of control points
     min_knots: int = 5
     max_knots: int = 64
     #: standard deviation of the interior control point perturbations
-    noise_sigma: float = 0.008
+    noise_sigma: float = 0.012
     #: MPPI temperature lambda (same units as the cost, i.e. scene units)
     temperature: float = 0.005
     #: MPPI updates (the paper: 1)
@@ -54,7 +54,7 @@ class RefineConfig:
     #: weight of the path length
     w_length: float = 1.0
     #: weight of the collision line integral (pushes the curve away from splats within ~2 radii)
-    w_collision: float = 10.0
+    w_collision: float = 30.0
     #: cost per dense sample in collision
     w_hit: float = 1.0
     #: spacing of the acceptance check; None = half the robot's smallest semi-axis
