@@ -54,12 +54,7 @@ def wall_scene(seed: int = 0) -> Splats:
 
 
 def make_checker(splats: Splats, n_sigma: float = 1.0):
-    """Warp backend when the kernel exists, else the numpy reference."""
+    """The Warp-backed checker the planners use in production."""
     from splatplan.metric import CollisionChecker
 
-    try:
-        import splatplan.metric.wp_metric  # noqa: F401
-
-        return CollisionChecker(splats, n_sigma=n_sigma, backend="warp")
-    except ImportError:
-        return CollisionChecker(splats, n_sigma=n_sigma, backend="reference")
+    return CollisionChecker(splats, n_sigma=n_sigma, backend="warp")

@@ -16,7 +16,6 @@ Table II) and ``fig4_paths.png`` (paths at n_sigma 0, 0.5, 1, 1.5 over the top v
 from __future__ import annotations
 
 import json
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -25,6 +24,7 @@ from scipy.spatial import cKDTree
 from ..errors import PlanningError
 from ..planners import RRTConfig, plan
 from ..planners.metrics import clearance, d_min, smoothness
+from ._common import load_stonehenge_filtered, progress
 
 #: The paper's Table II: n_sigma -> (mean, std) per column.
 PAPER_TABLE_II: dict[float, dict[str, tuple[float, float]]] = {
@@ -51,20 +51,9 @@ BORDER = 0.47
 SHORTCUT = False
 
 
-def progress(iterable, **kw):
-    """tqdm on stderr, silent when stderr is not a terminal."""
-    from tqdm import tqdm
-
-    return tqdm(iterable, file=sys.stderr, disable=not sys.stderr.isatty(), leave=False, **kw)
-
-
 def load_scene(level: int, seed: int):
     """Stonehenge splats at ``level`` with floaters filtered (the paper's preprocessing) + analytic scene."""
-    from ..scenes.filters import filter_floaters
-    from ..scenes.stonehenge import build_stonehenge
-
-    splats, scene = build_stonehenge(level=level, seed=seed)
-    splats, report = filter_floaters(splats)
+    splats, scene, report = load_stonehenge_filtered(level, seed)
     splats.info["floaters_dropped"] = int(report.n_dropped)
     return splats, scene
 

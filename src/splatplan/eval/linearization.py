@@ -26,7 +26,8 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ..errors import PlanningError
-from .conservatism import PLANE_Z, RADIUS, border_goals, free_start, load_scene, mean_std, plan_trials, progress
+from ._common import progress
+from .conservatism import PLANE_Z, RADIUS, border_goals, free_start, load_scene, mean_std, plan_trials
 
 #: The paper's Table III: scene -> (path length mean, std), (closest distance mean, std).
 PAPER_TABLE_III = {
