@@ -1,0 +1,62 @@
+"""Command-line interface. Thin: parse, call the library, print, exit codes.
+
+Exit codes: 0 success, 1 no result within the budget (e.g. ``plan`` found no path), 2 bad input
+or impossible request (one-line message, no traceback), 130 interrupted. Output files are written
+atomically.
+
+One module per group of subcommands; each exposes ``register(sub, eval_sub)`` where ``sub`` is
+the top-level subparsers object and ``eval_sub`` the subparsers of ``splatplan eval``. Add a new
+module to ``_MODULES`` to add commands.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+from ..errors import SplatplanError
+
+#: Subcommand modules (relative to this package), in the order of ``splatplan --help``.
+_MODULES = (
+    "scenes",
+    "check",
+    "plan",
+    "demo",
+    "eval",
+)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    from .. import __version__
+
+    p = argparse.ArgumentParser(prog="splatplan", description="Collision-aware motion planning in Gaussian-splat scenes.")
+    p.add_argument("--version", action="version", version=f"splatplan {__version__}")
+    sub = p.add_subparsers(dest="cmd", required=True, metavar="COMMAND")
+    ev = sub.add_parser("eval", help="the paper's studies and the robot studies")
+    eval_sub = ev.add_subparsers(dest="study", required=True, metavar="STUDY")
+    for name in _MODULES:
+        importlib.import_module(f".{name}", __name__).register(sub, eval_sub)
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args.func(args) or 0)
+    except SplatplanError as exc:
+        print(f"splatplan: error: {exc}", file=sys.stderr)
+        return 2
+    except FileNotFoundError as exc:
+        print(f"splatplan: error: {exc.filename or exc}: no such file", file=sys.stderr)
+        return 2
+    except PermissionError as exc:
+        print(f"splatplan: error: permission denied: {exc.filename or exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("splatplan: interrupted", file=sys.stderr)
+        return 130
+    except MemoryError:
+        print("splatplan: error: out of memory; try a smaller batch or --device cuda", file=sys.stderr)
+        return 2

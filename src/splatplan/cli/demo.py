@@ -1,0 +1,27 @@
+"""`splatplan demo`: the main job on the built-in scene."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import SplatplanError
+from ._common import (  # noqa: F401
+    ROBOT_HELP, _load, _out_dir, add_config_args, add_device_arg, atomic_path, config_from_args, load_poses, parse_robot, parse_vec3, write_json,
+)
+
+
+def cmd_demo(args) -> int:
+    from ..demo import run_demo
+
+    run_demo(_out_dir(args.out), device=args.device)
+    return 0
+
+
+def register(sub, eval_sub) -> None:
+    s = sub.add_parser("demo", help="the main job on the built-in scene: collision field and plans")
+    s.add_argument("--out", default="demo_out", help="output folder (default demo_out)")
+    add_device_arg(s)
+    s.set_defaults(func=cmd_demo)

@@ -1,0 +1,72 @@
+"""`splatplan info` and `splatplan scene`: summarise a splat file, write a built-in scene."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import SplatplanError
+from ._common import (  # noqa: F401
+    ROBOT_HELP, _load, _out_dir, add_config_args, add_device_arg, atomic_path, config_from_args, load_poses, parse_robot, parse_vec3, write_json,
+)
+
+
+def cmd_info(args) -> int:
+    from ..scenes.filters import filter_floaters
+
+    s = _load(args.scene, filter_floaters=False)
+    lo, hi = s.bounds()
+    smax = s.scales.max(1)
+    _, rep = filter_floaters(s)
+    info = {
+        "path": str(args.scene),
+        "format": s.source_format,
+        "count": len(s),
+        "bounds_min": lo.tolist(),
+        "bounds_max": hi.tolist(),
+        "is_2dgs": s.is_2d,
+        "sh_rest_coeffs": 0 if s.sh_rest is None else int(s.sh_rest.shape[1]),
+        "max_std_median": float(np.median(smax)),
+        "max_std_p99": float(np.quantile(smax, 0.99)),
+        "opacity_median": float(np.median(s.opacities)),
+        "floaters_default_rule": int(rep.n_dropped),
+    }
+    if args.json:
+        print(json.dumps(info))
+        return 0
+    print(f"{info['path']}: {info['count']:,} splats ({info['format']}{', 2DGS disks' if s.is_2d else ''})")
+    print(f"  bounds of means (file frame, scene units): min {np.round(lo, 4).tolist()}  max {np.round(hi, 4).tolist()}")
+    print(f"  largest std per splat: median {info['max_std_median']:.4g}, p99 {info['max_std_p99']:.4g}; median opacity {info['opacity_median']:.3f}")
+    print(f"  SH rest coefficients: {info['sh_rest_coeffs']}; floaters by the default rule (o < 0.1 and max std > 5x median): {info['floaters_default_rule']}")
+    return 0
+
+
+def cmd_scene(args) -> int:
+    from ..scenes.stonehenge import write_stonehenge
+
+    if args.name != "stonehenge":
+        raise SplatplanError(f"unknown built-in scene {args.name!r}: available: stonehenge")
+    if not 1 <= args.level <= 5:
+        raise SplatplanError(f"--level must be 1..5, got {args.level}")
+    if not str(args.out).endswith(".ply"):
+        raise SplatplanError(f"--out {args.out}: expected a .ply path")
+    if not Path(args.out).parent.exists():
+        raise SplatplanError(f"output folder {Path(args.out).parent} does not exist")
+    ply, gt = write_stonehenge(args.out, level=args.level, seed=args.seed)
+    print(f"wrote {ply} and its ground truth {gt}")
+    return 0
+
+
+def register(sub, eval_sub) -> None:
+    s = sub.add_parser("info", help="summarise a splat file")
+    s.add_argument("scene", metavar="SCENE", help="splat file (.ply INRIA/2DGS/compressed, .splat, .spz, gsplat .pt)")
+    s.add_argument("--json", action="store_true", help="print one JSON object")
+    s.set_defaults(func=cmd_info)
+    s = sub.add_parser("scene", help="write a built-in scene with its ground truth")
+    s.add_argument("name", metavar="NAME", help="built-in scene name: stonehenge")
+    s.add_argument("--out", required=True, help="PATH.ply (ground truth goes to PATH.gt.json)")
+    s.add_argument("--level", type=int, default=1, help="Gaussian-size level 1..5 (larger, fewer splats)")
+    s.add_argument("--seed", type=int, default=0)
+    s.set_defaults(func=cmd_scene)
