@@ -77,7 +77,13 @@ def resolve_device(device: str | None) -> str:
     if device.startswith("cuda"):
         if not w.is_cuda_available():
             raise SplatplanError(f"device {device!r} requested but no CUDA device is available; use --device cpu")
-        return "cuda:0" if device == "cuda" else device
+        if device == "cuda":
+            return "cuda:0"
+        idx = device[5:]
+        n = w.get_cuda_device_count()
+        if device[4:5] != ":" or not idx.isdigit() or int(idx) >= n:
+            raise SplatplanError(f"device {device!r} not available: this machine has {n} CUDA device(s) (cuda:0..cuda:{n - 1}); use --device cuda:0 or cpu")
+        return f"cuda:{int(idx)}"
     raise SplatplanError(f"unknown device {device!r}: use 'cpu', 'cuda' or 'cuda:N'")
 
 

@@ -24,6 +24,7 @@ _MODULES = (
     "plan",
     "demo",
     "eval",
+    "view",
 )
 
 
@@ -41,22 +42,33 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    from ._common import Terminated, check_device, cli_signal_handlers
+
     parser = build_parser()
     args = parser.parse_args(argv)
-    try:
-        return int(args.func(args) or 0)
-    except SplatplanError as exc:
-        print(f"splatplan: error: {exc}", file=sys.stderr)
-        return 2
-    except FileNotFoundError as exc:
-        print(f"splatplan: error: {exc.filename or exc}: no such file", file=sys.stderr)
-        return 2
-    except PermissionError as exc:
-        print(f"splatplan: error: permission denied: {exc.filename or exc}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        print("splatplan: interrupted", file=sys.stderr)
-        return 130
-    except MemoryError:
-        print("splatplan: error: out of memory; try a smaller batch or --device cuda", file=sys.stderr)
-        return 2
+    with cli_signal_handlers():  # Ctrl-C / SIGTERM unwind through every finally (no stray temp files)
+        try:
+            if getattr(args, "device", None) is not None:
+                args.device = check_device(args.device)  # one meaning everywhere: auto -> cuda:0 or cpu
+            return int(args.func(args) or 0)
+        except SplatplanError as exc:
+            print(f"splatplan: error: {exc}", file=sys.stderr)
+            return 2
+        except FileNotFoundError as exc:
+            print(f"splatplan: error: {exc.filename or exc}: no such file", file=sys.stderr)
+            return 2
+        except IsADirectoryError as exc:
+            print(f"splatplan: error: {exc.filename or exc}: is a directory, expected a file", file=sys.stderr)
+            return 2
+        except PermissionError as exc:
+            print(f"splatplan: error: permission denied: {exc.filename or exc}", file=sys.stderr)
+            return 2
+        except KeyboardInterrupt:
+            print("splatplan: interrupted", file=sys.stderr)
+            return 130
+        except Terminated as exc:
+            print("splatplan: terminated", file=sys.stderr)
+            return int(exc.code)
+        except MemoryError:
+            print("splatplan: error: out of memory; try a smaller batch or --device cuda", file=sys.stderr)
+            return 2

@@ -1,4 +1,5 @@
-"""Shared CLI helpers: argument parsing of vectors/robots/poses, atomic output files, config flags.
+"""Shared CLI helpers: argument parsing of vectors/robots/poses, atomic output files, config flags,
+signals, devices.
 
 Every subcommand module imports from here; nothing here imports a heavy library at module level.
 """
@@ -11,8 +12,12 @@ import inspect
 import json
 import os
 import re
+import shutil
+import signal
 import sys
 import tempfile
+import threading
+import types
 import typing
 from contextlib import contextmanager
 from pathlib import Path
@@ -22,6 +27,7 @@ import numpy as np
 from ..errors import SplatplanError
 
 ROBOT_HELP = "robot link: 'sphere:R' or 'ellipsoid:A,B,C' (semi-axes, scene units)"
+
 
 def parse_robot(spec: str) -> np.ndarray:
     """'sphere:R' or 'ellipsoid:A,B,C' -> semi-axes (3,) float64."""
@@ -51,20 +57,31 @@ def parse_vec3(text: str, what: str) -> np.ndarray:
     return v
 
 
-def load_poses(path: str) -> tuple[np.ndarray, np.ndarray | None]:
-    """POSES.npy of shape (B, 3) centres or (B, 7) centre + wxyz quaternion."""
+def load_npy(path: str, what: str) -> np.ndarray:
+    """A real numeric ``.npy`` array as float64, or a one-line error naming ``what`` and the problem."""
     p = Path(path)
+    if p.is_dir():
+        raise SplatplanError(f"{what} {path} is a directory; expected a .npy file")
     if not p.is_file():
-        raise SplatplanError(f"poses file {path} does not exist")
+        raise SplatplanError(f"{what} {path} does not exist")
     try:
         arr = np.load(p, allow_pickle=False)
     except Exception as exc:  # numpy raises several types for broken files
-        raise SplatplanError(f"poses file {path} is not a readable .npy array ({exc.__class__.__name__}: {exc})") from None
+        raise SplatplanError(f"{what} {path} is not a readable .npy array ({exc.__class__.__name__}: {exc})") from None
+    if isinstance(arr, np.lib.npyio.NpzFile):
+        names = ", ".join(arr.files) or "none"
+        arr.close()
+        raise SplatplanError(f"{what} {path} is an .npz archive (arrays: {names}); save the one array with np.save(PATH.npy, array)")
     if not np.issubdtype(arr.dtype, np.number) or np.issubdtype(arr.dtype, np.complexfloating):
-        raise SplatplanError(f"poses file {path}: expected a real numeric array, got dtype {arr.dtype}")
+        raise SplatplanError(f"{what} {path}: expected a real numeric array, got dtype {arr.dtype}")
+    return arr.astype(np.float64)
+
+
+def load_poses(path: str) -> tuple[np.ndarray, np.ndarray | None]:
+    """POSES.npy of shape (B, 3) centres or (B, 7) centre + wxyz quaternion."""
+    arr = load_npy(path, "poses file")
     if arr.ndim != 2 or arr.shape[1] not in (3, 7):
         raise SplatplanError(f"poses file {path}: expected shape (B, 3) centres or (B, 7) centre + wxyz quaternion, got {arr.shape}")
-    arr = arr.astype(np.float64)
     bad = ~np.isfinite(arr).all(axis=1)
     if bad.any():
         raise SplatplanError(f"poses file {path}: {int(bad.sum())} row(s) contain NaN or Inf (first: row {int(np.argmax(bad))})")
@@ -76,20 +93,56 @@ def load_poses(path: str) -> tuple[np.ndarray, np.ndarray | None]:
     return arr, None
 
 
+# ---------------------------------------------------------------------------- output files
+def _umask() -> int:
+    """The process umask (read by setting and restoring it)."""
+    m = os.umask(0o022)
+    os.umask(m)
+    return m
+
+
 @contextmanager
 def atomic_path(path: str | Path):
-    """Yield a temp path in the destination folder; move it over ``path`` only on success."""
+    """Yield a temp path in the destination folder; move it over ``path`` only on success.
+
+    The final file gets the permissions a plain ``open(path, "w")`` would give (0666 minus the
+    umask), not mkstemp's 0600. The temp file is removed on any exception, KeyboardInterrupt and
+    SystemExit included (``main`` turns SIGTERM into SystemExit so this runs then too).
+    """
     dest = Path(path)
+    if dest.is_dir():
+        raise SplatplanError(f"output {dest} is a directory; give a file path")
     if dest.parent and not dest.parent.exists():
         raise SplatplanError(f"output folder {dest.parent} does not exist")
     fd, tmp = tempfile.mkstemp(prefix=f".{dest.name}.", suffix=dest.suffix, dir=dest.parent or ".")
     os.close(fd)
     try:
         yield Path(tmp)
+        os.chmod(tmp, 0o666 & ~_umask())
         os.replace(tmp, dest)
     finally:
         if os.path.exists(tmp):
             os.unlink(tmp)
+
+
+@contextmanager
+def atomic_dir(folder: str | Path):
+    """Yield a fresh temp folder inside ``folder``; the caller moves finished files out of it
+    (see :func:`move_into`). The temp folder and anything left in it are always removed."""
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise SplatplanError(f"output folder {folder} does not exist")
+    tmp = tempfile.mkdtemp(prefix=".splatplan-", dir=folder)
+    try:
+        yield Path(tmp)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
+def move_into(src: Path, dest: str | Path) -> None:
+    """Move a finished temp file to ``dest`` (atomic on one file system), permissions per umask."""
+    os.chmod(src, 0o666 & ~_umask())
+    os.replace(src, dest)
 
 
 def write_json(path: str | Path, obj) -> None:
@@ -99,6 +152,8 @@ def write_json(path: str | Path, obj) -> None:
 
 def _out_dir(path: str) -> Path:
     d = Path(path)
+    if d.exists() and not d.is_dir():
+        raise SplatplanError(f"output folder {d} exists and is not a folder")
     try:
         d.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
@@ -112,35 +167,157 @@ def _load(path: str, filter_floaters: bool = True):
     return load_scene(path, filter_floaters=filter_floaters)
 
 
+def progress(iterable=None, **kw):
+    """A tqdm progress bar on stderr, shown only when stderr is a terminal (SPLATPLAN_NO_TQDM=1 hides it)."""
+    from tqdm import tqdm
+
+    kw.setdefault("file", sys.stderr)
+    kw.setdefault("leave", False)
+    kw.setdefault("dynamic_ncols", True)
+    kw.setdefault("disable", bool(os.environ.get("SPLATPLAN_NO_TQDM")) or not sys.stderr.isatty())
+    return tqdm(iterable, **kw)
+
+
+# ---------------------------------------------------------------------------- signals
+class Terminated(SystemExit):
+    """Raised by the CLI's SIGTERM handler (exit code 143), so ``finally`` blocks clean up."""
+
+
+def _raise_terminated(signum, frame):
+    raise Terminated(128 + signum)
+
+
+@contextmanager
+def cli_signal_handlers():
+    """SIGINT -> KeyboardInterrupt and SIGTERM -> :class:`Terminated` while the block runs (main
+    thread only), so every ``finally`` (temp files of :func:`atomic_path`) runs on Ctrl-C or kill."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    old = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+    signal.signal(signal.SIGTERM, _raise_terminated)
+    try:
+        yield
+    finally:
+        for s, h in old.items():
+            signal.signal(s, h if h is not None else signal.SIG_DFL)
+
+
+@contextmanager
+def signals_deferred():
+    """Hold SIGINT/SIGTERM while native work (a Warp launch on worker threads) is in flight and
+    deliver them when the block ends, as KeyboardInterrupt / :class:`Terminated`.
+
+    Interrupting the main thread while worker threads still run a kernel lets the interpreter shut
+    down under them (a segfault); use this around one bounded chunk of work at a time.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    pending: list[int] = []
+    old = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+
+    def record(signum, frame):
+        pending.append(signum)
+
+    for s in old:
+        signal.signal(s, record)
+    try:
+        yield
+    finally:
+        for s, h in old.items():
+            signal.signal(s, h if h is not None else signal.SIG_DFL)
+    if pending:
+        if signal.SIGTERM in pending:
+            raise Terminated(128 + signal.SIGTERM)
+        raise KeyboardInterrupt
+
+
+# ---------------------------------------------------------------------------- devices
+DEVICE_HELP = "auto (CUDA when present, else CPU) | cpu | cuda | cuda:N (default auto)"
+
+
+def add_device_arg(parser: argparse.ArgumentParser) -> None:
+    """The one ``--device`` flag every subcommand shares (same meaning everywhere)."""
+    parser.add_argument("--device", default="auto", help=DEVICE_HELP)
+
+
+def check_device(device: str) -> str:
+    """Validate a ``--device`` value and resolve it (``auto`` -> ``cuda:0`` or ``cpu``).
+
+    Raises:
+        SplatplanError: unknown spelling, or a CUDA device that this machine does not have.
+    """
+    if not re.fullmatch(r"auto|cpu|cuda(:\d+)?", device or ""):
+        raise SplatplanError(f"--device {device!r} not understood: use {DEVICE_HELP}")
+    from .._warp import resolve_device
+
+    return resolve_device(device)
 
 
 # ---------------------------------------------------------------------------- config dataclasses -> flags
 def field_docs(cls) -> dict[str, str]:
     """The ``#:`` comment above each field of a dataclass (joined when it spans several lines)."""
     docs: dict[str, str] = {}
-    try:
-        lines = inspect.getsource(cls).splitlines()
-    except (OSError, TypeError):
-        return docs
-    pending: list[str] = []
-    for line in lines:
-        s = line.strip()
-        if s.startswith("#:"):
-            pending.append(s[2:].strip())
+    for klass in reversed(getattr(cls, "__mro__", (cls,))):
+        if not dataclasses.is_dataclass(klass):
             continue
-        m = re.match(r"^([A-Za-z_][A-Za-z0-9_]*)\s*:", s)
-        if m and pending:
-            docs[m.group(1)] = " ".join(pending)
-        if not s.startswith("#"):
-            pending = []
+        try:
+            lines = inspect.getsource(klass).splitlines()
+        except (OSError, TypeError):
+            continue
+        pending: list[str] = []
+        for line in lines:
+            s = line.strip()
+            if s.startswith("#:"):
+                pending.append(s[2:].strip())
+                continue
+            m = re.match(r"^([A-Za-z_][A-Za-z0-9_]*)\s*:", s)
+            if m and pending:
+                docs[m.group(1)] = " ".join(pending)
+            if not s.startswith("#"):
+                pending = []
     return docs
 
 
-def add_config_args(parser: argparse.ArgumentParser, cls, prefix: str = "", skip: tuple[str, ...] = (), group: str | None = None) -> None:
+class _Unset:
+    """Flag not given on the command line (keep the config's value)."""
+
+
+#: A flag's explicit ``none`` (for ``X | None`` fields), distinct from "not given".
+_EXPLICIT_NONE = type("_ExplicitNone", (), {"__repr__": lambda self: "None"})()
+
+
+def _field_default(f: dataclasses.Field):
+    if f.default is not dataclasses.MISSING:
+        return f.default
+    if f.default_factory is not dataclasses.MISSING:  # type: ignore[misc]
+        return f.default_factory()  # type: ignore[misc]
+    return None
+
+
+def _show(v) -> str:
+    """A default value as it would be typed on the command line."""
+    if isinstance(v, dict):
+        return ",".join(f"{k}={_show(x)}" for k, x in v.items()) or "''"
+    if isinstance(v, (tuple, list)):
+        return ",".join(":".join(_show(y) for y in x) if isinstance(x, (tuple, list)) else _show(x) for x in v) or "''"
+    if v is None:
+        return "none"
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    return str(v)
+
+
+def add_config_args(parser: argparse.ArgumentParser, cls, prefix: str = "", skip: tuple[str, ...] = (), group: str | None = None, base=None) -> None:
     """Add one ``--<prefix><field>`` flag per field of dataclass ``cls`` (help = its ``#:`` doc).
 
-    Defaults are ``None`` (= keep the dataclass default); read them back with :func:`config_from_args`.
-    Tuples take comma-separated numbers; bools take true/false.
+    Defaults are "unset" (= keep the config's value); read them back with :func:`config_from_args`.
+    Value syntax: numbers and strings as usual; bools true/false; ``X | None`` fields also take
+    ``none``; tuples take comma-separated items (``0,1,2``), tuples of pairs ``a:1,b:2``, dicts
+    ``a=1,b=2``; ``Literal`` fields list their choices. ``base`` (an instance) sets the defaults
+    shown in the help.
     """
     docs = field_docs(cls)
     hints = typing.get_type_hints(cls)
@@ -149,65 +326,129 @@ def add_config_args(parser: argparse.ArgumentParser, cls, prefix: str = "", skip
         if f.name in skip or not f.init:
             continue
         flag = "--" + (prefix + f.name).replace("_", "-")
-        default = f.default if f.default is not dataclasses.MISSING else (f.default_factory() if f.default_factory is not dataclasses.MISSING else None)  # type: ignore[misc]
-        help_ = f"{docs.get(f.name, '')} (default {default!r})".strip()
-        g.add_argument(flag, dest=f"cfg_{prefix}{f.name}", default=None, type=_parser_for(hints.get(f.name, str), flag), metavar=_metavar(hints.get(f.name, str)), help=help_.replace("%", "%%"))
+        tp = hints.get(f.name, str)
+        default = getattr(base, f.name) if base is not None else _field_default(f)
+        doc = docs.get(f.name, "")
+        help_ = f"{doc} (default {_show(default)})".strip()
+        g.add_argument(flag, dest=f"cfg_{prefix}{f.name}", default=_Unset, type=_parser_for(tp, flag), metavar=_metavar(tp), help=help_.replace("%", "%%"))
 
 
-def config_from_args(args: argparse.Namespace, cls, prefix: str = "", **overrides):
-    """Build ``cls`` from the flags of :func:`add_config_args` (unset flags keep the defaults)."""
+def config_from_args(args: argparse.Namespace, cls, prefix: str = "", base=None, **overrides):
+    """Build ``cls`` from the flags of :func:`add_config_args`.
+
+    Unset flags keep ``base``'s value (an instance of ``cls``) or the dataclass default.
+    ``overrides`` that are not None win over both.
+    """
     kw = {}
     for f in dataclasses.fields(cls):
-        v = getattr(args, f"cfg_{prefix}{f.name}", None)
-        if v is not None:
-            kw[f.name] = v
+        v = getattr(args, f"cfg_{prefix}{f.name}", _Unset)
+        if v is not _Unset:
+            kw[f.name] = None if v is _EXPLICIT_NONE else v
     kw.update({k: v for k, v in overrides.items() if v is not None})
     try:
-        return cls(**kw)
+        return dataclasses.replace(base, **kw) if base is not None else cls(**kw)
     except TypeError as exc:
         raise SplatplanError(f"bad {cls.__name__} options: {exc}") from None
 
 
+def _is_union(tp) -> bool:
+    return typing.get_origin(tp) in (typing.Union, types.UnionType)
+
+
 def _strip_optional(tp):
-    if typing.get_origin(tp) in (typing.Union, getattr(__import__("types"), "UnionType", typing.Union)):
+    """(inner type, whether None is allowed)."""
+    if _is_union(tp):
         args = [a for a in typing.get_args(tp) if a is not type(None)]
+        optional = len(args) < len(typing.get_args(tp))
         if len(args) == 1:
-            return args[0]
-    return tp
+            return args[0], optional
+        return typing.Union[tuple(args)], optional  # type: ignore[return-value]
+    return tp, False
 
 
 def _metavar(tp) -> str:
-    tp = _strip_optional(tp)
-    if typing.get_origin(tp) is tuple:
-        return "A,B,..."
-    return {float: "FLOAT", int: "INT", bool: "BOOL"}.get(tp, "STR")
+    tp, optional = _strip_optional(tp)
+    origin = typing.get_origin(tp)
+    if origin is typing.Literal:
+        mv = "{" + ",".join(str(a) for a in typing.get_args(tp)) + "}"
+    elif origin is tuple:
+        inner = [a for a in typing.get_args(tp) if a is not Ellipsis]
+        mv = "NAME:N,..." if inner and typing.get_origin(inner[0]) is tuple else "A,B,..."
+    elif origin is dict:
+        mv = "KEY=V,..."
+    else:
+        mv = {float: "FLOAT", int: "INT", bool: "BOOL"}.get(tp, "STR")
+    return f"{mv}|none" if optional else mv
+
+
+def _scalar(tp, text: str):
+    """Parse one scalar of type ``tp`` (int, float, bool, str, Literal, or a union of them)."""
+    tp, optional = _strip_optional(tp)
+    if optional and text.lower() == "none":
+        return None
+    if typing.get_origin(tp) is typing.Literal:
+        for a in typing.get_args(tp):
+            if str(a) == text:
+                return a
+        raise ValueError(text)
+    if _is_union(tp):
+        for a in typing.get_args(tp):
+            try:
+                return _scalar(a, text)
+            except ValueError:
+                pass
+        raise ValueError(text)
+    if tp is bool:
+        low = text.lower()
+        if low in ("1", "true", "yes", "on"):
+            return True
+        if low in ("0", "false", "no", "off"):
+            return False
+        raise ValueError(text)
+    if tp is int:
+        return int(text)
+    if tp is float:
+        return float(text)
+    return text
 
 
 def _parser_for(tp, flag: str):
-    tp = _strip_optional(tp)
+    inner, optional = _strip_optional(tp)
+    origin = typing.get_origin(inner)
 
     def parse(text: str):
         try:
-            if typing.get_origin(tp) is tuple:
-                inner = [a for a in typing.get_args(tp) if a is not Ellipsis]
-                conv = inner[0] if inner else float
-                return tuple(conv(x) for x in text.split(","))
-            if tp is bool:
-                low = text.lower()
-                if low in ("1", "true", "yes", "on"):
-                    return True
-                if low in ("0", "false", "no", "off"):
-                    return False
-                raise ValueError(text)
-            if tp in (int, float):
-                return tp(text)
-            return text
+            if optional and text.lower() == "none":
+                return _EXPLICIT_NONE
+            if origin is tuple:
+                items = [x for x in text.split(",") if x.strip()] if text.strip() else []
+                args = [a for a in typing.get_args(inner) if a is not Ellipsis]
+                el = args[0] if args else float
+                if typing.get_origin(el) is tuple:  # pairs "a:1,b:2"
+                    sub = typing.get_args(el)
+                    out = []
+                    for it in items:
+                        parts = it.split(":")
+                        if len(parts) != len(sub):
+                            raise ValueError(it)
+                        out.append(tuple(_scalar(t, p) for t, p in zip(sub, parts)))
+                    return tuple(out)
+                if Ellipsis not in typing.get_args(inner) and len(args) > 1:  # fixed-length tuple
+                    if len(items) != len(args):
+                        raise ValueError(text)
+                    return tuple(_scalar(t, x) for t, x in zip(args, items))
+                return tuple(_scalar(el, x) for x in items)
+            if origin is dict:
+                kt, vt = typing.get_args(inner) or (str, str)
+                out = {}
+                for it in (x for x in text.split(",") if x.strip()):
+                    k, sep, v = it.partition("=")
+                    if not sep:
+                        raise ValueError(it)
+                    out[_scalar(kt, k.strip())] = _scalar(vt, v.strip())
+                return out
+            return _scalar(inner, text)
         except ValueError:
             raise argparse.ArgumentTypeError(f"{flag}: cannot read {text!r} as {_metavar(tp)}") from None
 
     return parse
-
-
-def add_device_arg(parser: argparse.ArgumentParser) -> None:
-    """The one ``--device`` flag every subcommand shares (same meaning everywhere)."""
-    parser.add_argument("--device", default="auto", help="auto (CUDA when present, else CPU) | cpu | cuda | cuda:N (default auto)")

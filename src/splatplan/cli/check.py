@@ -1,45 +1,181 @@
-"""`splatplan check`: the CollisionSplatting metric for a batch of robot poses."""
+"""`splatplan check`: the CollisionSplatting metric for a batch of link poses or robot configurations.
+
+Two inputs:
+
+* ``--robot sphere:R|ellipsoid:A,B,C --poses POSES.npy``: one link, (B, 3) centres or (B, 7) centre
+  + wxyz quaternion (scene frame) -> per-pose outputs, each (B,).
+* ``--robot panda|go2|ROBOT.urdf --configs Q.npy``: joint configurations (B, dof) -> per-ellipsoid
+  outputs (B, E), per-link collision (B, L) and per-configuration collision (B,).
+
+Long batches run in chunks (``--chunk`` queries per kernel call) so Ctrl-C is honoured between
+chunks and a progress bar can move (on a terminal only).
+"""
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import SplatplanError
-from ._common import (  # noqa: F401
-    ROBOT_HELP, _load, _out_dir, add_config_args, add_device_arg, atomic_path, config_from_args, load_poses, parse_robot, parse_vec3, write_json,
-)
+from ._common import (
+    ROBOT_HELP, _load, add_config_args, add_device_arg, atomic_path, config_from_args, load_npy, load_poses, parse_robot, progress,
+    signals_deferred,
+)  # fmt: skip
+
+#: queries (link poses) per kernel call: small enough that an interrupt waits < ~1 s on a CPU
+DEFAULT_CHUNK = 65_536
+
+_OUTPUTS = ("min_s2", "n_colliding", "in_collision", "softmin", "cost")
+
+
+def _is_link_spec(spec: str) -> bool:
+    return spec.partition(":")[0] in ("sphere", "ellipsoid")
+
+
+def _chunked_query(checker, n: int, chunk: int, query, desc: str) -> dict[str, np.ndarray]:
+    """Run ``query(lo, hi) -> QueryResult`` over [0, n) in chunks; concatenate the outputs.
+
+    Each chunk runs with SIGINT/SIGTERM deferred (see :func:`signals_deferred`): an interrupt
+    lands between chunks, never while worker threads are inside a kernel.
+    """
+    parts: dict[str, list[np.ndarray]] = {k: [] for k in _OUTPUTS}
+    with progress(total=n, desc=desc, unit="query", unit_scale=True) as bar:
+        for lo in range(0, n, chunk):
+            hi = min(n, lo + chunk)
+            with signals_deferred():
+                res = query(lo, hi).as_dict()
+            for k in _OUTPUTS:
+                parts[k].append(res[k])
+            bar.update(hi - lo)
+    return {k: np.concatenate(v) if v else np.zeros(0) for k, v in parts.items()}
+
+
+def _check_link(args, checker, scene) -> dict[str, np.ndarray]:
+    axes = parse_robot(args.robot)
+    centers, quats = load_poses(args.poses)
+    b = len(centers)
+    out = _chunked_query(
+        checker, b, args.chunk,
+        lambda lo, hi: checker.query(centers[lo:hi], None if quats is None else quats[lo:hi], axes),
+        desc="check",
+    )  # fmt: skip
+    cfg = checker.config
+    msg = f"min s2~ = {float(np.min(out['min_s2'])):.4g}" if b else "no poses"
+    print(f"{b:,} poses checked against {len(scene):,} splats (n_sigma={cfg.n_sigma:g}, device={checker.device}): "
+          f"{int(out['in_collision'].sum()):,} in collision, {msg}")  # fmt: skip
+    return out
+
+
+def _check_robot(args, checker, scene) -> dict[str, np.ndarray]:
+    from ..robots import load_robot
+
+    robot = load_robot(args.robot)
+    q = load_npy(args.configs, "configs file")
+    if q.ndim == 1 and q.shape[0] == robot.dof:
+        q = q[None]
+    if q.ndim != 2 or q.shape[1] != robot.dof:
+        raise SplatplanError(f"configs file {args.configs}: expected shape (B, {robot.dof}) joint configurations of {robot.name} "
+                             f"({', '.join(robot.joint_names)}), got {q.shape}")  # fmt: skip
+    bad = ~np.isfinite(q).all(axis=1)
+    if bad.any():
+        raise SplatplanError(f"configs file {args.configs}: {int(bad.sum())} row(s) contain NaN or Inf (first: row {int(np.argmax(bad))})")
+    q = robot.check_q(q)
+    lim = np.asarray(robot.joint_limits, dtype=np.float64)
+    outside = ((q < lim[:, 0] - 1e-9) | (q > lim[:, 1] + 1e-9)).any(axis=1)
+    e = int(robot.n_ellipsoids)
+    b = len(q)
+    per_chunk = max(1, args.chunk // max(1, e))  # configurations per chunk (chunk counts link poses)
+    query_robot = getattr(checker, "query_robot", None)
+
+    def query(lo: int, hi: int):
+        if query_robot is not None:
+            res = query_robot(robot, q[lo:hi])
+        else:  # the ellipsoids of every configuration, (hi - lo, E, 3/4)
+            c, quat, ax = robot.ellipsoids(q[lo:hi])
+            res = checker.query(c, quat, ax)
+        return res.reshape((-1,))  # (n * E,) rows b * E + e
+
+    flat = _chunked_query(checker, b * e, per_chunk * e, lambda lo, hi: query(lo // e, hi // e), desc="check") if b else {k: np.zeros(0) for k in _OUTPUTS}
+    out = {k: v.reshape(b, e) for k, v in flat.items()}  # (B, E) per ellipsoid
+    link_idx = np.asarray(robot.ellipsoid_link, dtype=np.int64)  # (E,)
+    links = np.unique(link_idx)  # links that carry ellipsoids, (L,)
+    hit = out["in_collision"]
+    link_hit = np.stack([hit[:, link_idx == li].any(axis=1) for li in links], axis=1) if b else np.zeros((0, len(links)), bool)  # (B, L)
+    link_min = np.stack([out["min_s2"][:, link_idx == li].min(axis=1) for li in links], axis=1) if b else np.zeros((0, len(links)), np.float32)
+    collision = hit.any(axis=1)  # (B,) scene collision of the whole robot
+    with signals_deferred():
+        self_hit = np.asarray(robot.self_collision(q), dtype=bool) if b else np.zeros(0, bool)
+    names = np.asarray([robot.link_names[li] for li in links])
+    res = {
+        **out,
+        "collision": collision,
+        "self_collision": self_hit,
+        "outside_joint_limits": outside,
+        "link_names": names,
+        "link_in_collision": link_hit,
+        "link_min_s2": link_min,
+        "ellipsoid_link": link_idx,
+        "configs": q,
+    }
+    cfg = checker.config
+    worst = ""
+    if b and link_hit.any():
+        counts = link_hit.sum(axis=0)
+        worst = f"; most often hit: {names[int(np.argmax(counts))]} ({int(counts.max()):,} configurations)"
+    print(f"{b:,} configurations of {robot.name} ({e} ellipsoids on {len(links)} links) checked against {len(scene):,} splats "
+          f"(n_sigma={cfg.n_sigma:g}, device={checker.device}): {int(collision.sum()):,} in collision with the scene, "
+          f"{int(self_hit.sum()):,} in self-collision, {int(outside.sum()):,} outside the joint limits{worst}")  # fmt: skip
+    return res
 
 
 def cmd_check(args) -> int:
-    from ..metric import CollisionChecker
+    from ..metric import CollisionChecker, MetricConfig
 
-    axes = parse_robot(args.robot)
-    centers, quats = load_poses(args.poses)
+    link = _is_link_spec(args.robot)
+    if link:
+        parse_robot(args.robot)  # fail fast on a bad spec
+    if (args.poses is None) == (args.configs is None):
+        raise SplatplanError("give exactly one of --poses POSES.npy (link poses) or --configs Q.npy (joint configurations)")
+    if args.poses is not None and not link:
+        raise SplatplanError(f"--poses is for a single link ({ROBOT_HELP}); for the robot {args.robot!r} give --configs Q.npy (B, dof)")
+    if args.chunk < 1:
+        raise SplatplanError(f"--chunk must be >= 1, got {args.chunk}")
     if args.out and not str(args.out).endswith(".npz"):
         raise SplatplanError(f"--out {args.out}: expected a .npz path")
+    if args.out and not Path(args.out).parent.exists():
+        raise SplatplanError(f"output folder {Path(args.out).parent} does not exist")
+    cfg = config_from_args(args, MetricConfig).validate()
+    if args.poses is not None:
+        load_poses(args.poses)  # validate before the (slow) scene load
     scene = _load(args.scene)
-    checker = CollisionChecker(scene, n_sigma=args.n_sigma, device=args.device)
-    res = checker.query(centers, quats, axes)
-    n_hit = int(res.in_collision.sum())
-    print(f"{len(centers):,} poses checked against {len(scene):,} splats (n_sigma={args.n_sigma}, device={checker.device}): "
-          f"{n_hit:,} in collision, min s2~ = {float(np.min(res.min_s2)) if len(centers) else float('nan'):.4g}")  # fmt: skip
+    checker = CollisionChecker(scene, device=args.device, config=cfg)
+    res = _check_link(args, checker, scene) if args.poses is not None else _check_robot(args, checker, scene)
     if args.out:
         with atomic_path(args.out) as tmp:
             with open(tmp, "wb") as f:
-                np.savez(f, **res.as_dict())
+                with signals_deferred():  # a half-written archive is removed by atomic_path anyway
+                    np.savez(f, **res)
         print(f"wrote {args.out}")
     return 0
 
 
 def register(sub, eval_sub) -> None:
-    s = sub.add_parser("check", help="CollisionSplatting metric for a batch of robot poses")
+    from ..metric import MetricConfig
+
+    s = sub.add_parser(
+        "check",
+        help="CollisionSplatting metric for a batch of link poses or robot configurations",
+        description="CollisionSplatting metric for link poses (--robot sphere:R|ellipsoid:A,B,C --poses) "
+        "or robot configurations (--robot panda|go2|URDF --configs).",
+    )
     s.add_argument("scene", metavar="SCENE")
-    s.add_argument("--poses", required=True, help="POSES.npy: (B,3) centres or (B,7) centre + wxyz quaternion, scene frame")
-    s.add_argument("--robot", required=True, help=ROBOT_HELP)
-    s.add_argument("--n-sigma", type=float, default=1.0, help="conservatism n_sigma >= 0 (default 1)")
-    s.add_argument("--out", help="OUT.npz with min_s2, n_colliding, in_collision, softmin, cost, each (B,)")
+    s.add_argument("--robot", required=True, help=f"{ROBOT_HELP}, or a robot: panda, go2, PATH.urdf (then --configs)")
+    s.add_argument("--poses", help="POSES.npy: (B,3) centres or (B,7) centre + wxyz quaternion, scene frame (single-link robots)")
+    s.add_argument("--configs", help="Q.npy: (B, dof) joint configurations of --robot (rad or m; panda: 7 arm joints, go2: x, y, yaw)")
+    s.add_argument("--out", help="OUT.npz with min_s2, n_colliding, in_collision, softmin, cost: (B,) per pose, or (B, E) per "
+                   "ellipsoid plus collision (B,), link_in_collision (B, L), link_min_s2 (B, L), link_names (L,) for --configs")  # fmt: skip
+    s.add_argument("--chunk", type=int, default=DEFAULT_CHUNK, help=f"link poses per kernel call; Ctrl-C is honoured between calls (default {DEFAULT_CHUNK})")
     add_device_arg(s)
+    add_config_args(s, MetricConfig, group="metric options (MetricConfig)")
     s.set_defaults(func=cmd_check)

@@ -8,9 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import SplatplanError
-from ._common import (  # noqa: F401
-    ROBOT_HELP, _load, _out_dir, add_config_args, add_device_arg, atomic_path, config_from_args, load_poses, parse_robot, parse_vec3, write_json,
-)
+from ._common import _load, atomic_dir, move_into
 
 
 def cmd_info(args) -> int:
@@ -44,18 +42,29 @@ def cmd_info(args) -> int:
 
 
 def cmd_scene(args) -> int:
-    from ..scenes.stonehenge import write_stonehenge
+    from ..scenes.stonehenge import ground_truth_path, write_stonehenge
 
     if args.name != "stonehenge":
         raise SplatplanError(f"unknown built-in scene {args.name!r}: available: stonehenge")
     if not 1 <= args.level <= 5:
         raise SplatplanError(f"--level must be 1..5, got {args.level}")
-    if not str(args.out).endswith(".ply"):
+    if not 0 <= args.seed < 2**63:
+        raise SplatplanError(f"--seed must be an integer >= 0, got {args.seed}")
+    out = Path(args.out)
+    if out.suffix.lower() != ".ply":
         raise SplatplanError(f"--out {args.out}: expected a .ply path")
-    if not Path(args.out).parent.exists():
-        raise SplatplanError(f"output folder {Path(args.out).parent} does not exist")
-    ply, gt = write_stonehenge(args.out, level=args.level, seed=args.seed)
-    print(f"wrote {ply} and its ground truth {gt}")
+    if out.is_dir():
+        raise SplatplanError(f"--out {args.out} is a directory; give a PATH.ply")
+    if not out.parent.exists():
+        raise SplatplanError(f"output folder {out.parent} does not exist")
+    # Both files are written into a temp folder beside the output and moved into place only when
+    # both are complete (an interrupted run leaves nothing behind).
+    with atomic_dir(out.parent) as tmp:
+        ply, gt = write_stonehenge(tmp / out.name, level=args.level, seed=args.seed)
+        gt_dest = ground_truth_path(out)
+        move_into(gt, gt_dest)
+        move_into(ply, out)
+    print(f"wrote {out} and its ground truth {gt_dest}")
     return 0
 
 
@@ -68,5 +77,5 @@ def register(sub, eval_sub) -> None:
     s.add_argument("name", metavar="NAME", help="built-in scene name: stonehenge")
     s.add_argument("--out", required=True, help="PATH.ply (ground truth goes to PATH.gt.json)")
     s.add_argument("--level", type=int, default=1, help="Gaussian-size level 1..5 (larger, fewer splats)")
-    s.add_argument("--seed", type=int, default=0)
+    s.add_argument("--seed", type=int, default=0, help="layout and sampling seed, an integer >= 0 (default 0)")
     s.set_defaults(func=cmd_scene)
