@@ -4,8 +4,9 @@ Everything here talks to the scene only through a :class:`~splatplan.metric.Coll
 (``query`` for costs, ``collides`` for edge checks), so it runs on any checker backend/device.
 
     from splatplan.planners import plan
-    res = plan(checker, start=(0, 0, 0.06), goal=(0.45, 0.1, 0.06))
-    res.success, res.path, res.length
+    res = plan(checker, start=(0, 0, 0.06), goal=(0.45, 0.1, 0.06))            # sphere r = 0.015
+    res = plan(checker, start=q0, goal=q1, robot=load_robot("panda"))           # joint space
+    res.success, res.path, res.length, res.info["settings"]
 """
 
 from __future__ import annotations
@@ -63,40 +64,44 @@ def plan(
     seed: int = 0,
     rrt_config: RRTConfig | None = None,
     refine_config: RefineConfig | None = None,
+    robot=None,
 ) -> PlanResult:
-    """Plan a collision-free path for a sphere robot: batched RRT (+ shortcut) (+ refinement).
+    """Plan a collision-free path for a robot: batched RRT (+ shortcut) (+ refinement).
 
     Args:
         checker: a :class:`~splatplan.metric.CollisionChecker` (its ``n_sigma`` sets the conservatism).
-        start: (3,) start centre, scene units, world frame.
-        goal: (3,) goal centre.
-        radius: robot sphere radius (scene units).
+        start: (D,) start configuration (a point robot: its centre, scene units, world frame;
+            an arm: joint angles; a planar base: x, y, yaw).
+        goal: (D,) goal configuration.
+        radius: shortcut for ``robot="sphere:<radius>"`` (scene units) when ``robot`` is None.
         refine: run :func:`refine_path` on the found path (kept only if collision-free).
         seed: seeds the RRT sampler and the refinement noise (overrides the configs' seeds).
-        rrt_config: :class:`RRTConfig` (default: RRTConfig()). Give ``box_lo``/``box_hi`` with
-            equal z to plan in a plane.
+        rrt_config: :class:`RRTConfig` (default: RRTConfig(): scene-scaled lengths, 10 s).
+            Give ``box_lo``/``box_hi`` with equal z (or ``frozen=(2,)``) to plan in a plane.
         refine_config: :class:`RefineConfig` (default: RefineConfig()).
+        robot: a :class:`~splatplan.robots.Robot` or a name for :func:`~splatplan.robots.load_robot`.
 
     Returns:
         :class:`PlanResult`; ``path_rrt`` holds the raw tree path, ``path`` the final one,
         ``refined`` says whether the refinement was accepted, ``info["length_rrt"]`` the length
-        of the shortcut RRT path.
+        of the shortcut RRT path, ``info["settings"]`` the RRT values used (derived or given).
 
     Raises:
-        PlanningError: start or goal in collision or outside the sampling box.
+        PlanningError: start or goal in collision, outside the scene bounds or the sampling box.
     """
     t0 = time.perf_counter()
     cfg = replace(rrt_config or RRTConfig(), seed=seed)
-    res = RRT(checker, cfg, radius=radius).plan(start, goal)
+    rrt = RRT(checker, cfg, radius=radius, robot=robot)
+    res = rrt.plan(start, goal)
     res.info["length_rrt"] = res.length
     res.info["path_shortcut"] = res.path.copy()
     if refine and res.success and len(res.path) >= 2:
         rcfg = replace(refine_config or RefineConfig(), seed=seed)
-        ref = refine_path(checker, res.path, radius=radius, config=rcfg)
+        ref = refine_path(checker, res.path, config=rcfg, robot=rrt.robot)
         res.info["refine_message"] = ref.message
         if ref.accepted:
             res.path = ref.path
-            res.length = path_length(ref.path)
+            res.length = path_length(ref.path, rrt.geometry.distance_scale())
             res.refined = True
     res.time_s = time.perf_counter() - t0
     return res

@@ -26,8 +26,8 @@ import numpy as np
 
 from ..errors import SplatplanError
 from .bspline import bspline_basis, fit_bspline, resample_polyline
-from .dynamics import sphere_links
-from .rrt import EdgeChecker, LinkPoses, path_length
+from .robot_links import LinkGeometry, LinkPoses
+from .rrt import EdgeChecker, path_length
 
 
 @dataclass
@@ -43,7 +43,8 @@ class RefineConfig:
     #: bounds of the number of control points
     min_knots: int = 5
     max_knots: int = 64
-    #: standard deviation of the interior control point perturbations
+    #: standard deviation of the interior control point perturbations (scene units of motion;
+    #: divided by motion_bound per joint for an arm or base)
     noise_sigma: float = 0.012
     #: MPPI temperature lambda (same units as the cost, i.e. scene units)
     temperature: float = 0.005
@@ -90,12 +91,11 @@ class RefineResult:
     info: dict = field(default_factory=dict)
 
 
-def _curve_costs(checker, link_poses: LinkPoses, curves: np.ndarray, cfg: RefineConfig) -> np.ndarray:
-    """Refinement cost of K dense curves (K, T, D) -> (K,)."""
-    seg = np.linalg.norm(np.diff(curves, axis=1), axis=-1)  # (K, T-1)
+def _curve_costs(checker, geom: LinkGeometry, curves: np.ndarray, cfg: RefineConfig) -> np.ndarray:
+    """Refinement cost of K dense curves (K, T, D) -> (K,) (lengths in the planner metric)."""
+    seg = np.linalg.norm(np.diff(curves, axis=1) * geom.distance_scale(), axis=-1)  # (K, T-1)
     length = seg.sum(axis=1)  # (K,)
-    centers, quats, axes = link_poses(curves)  # (K, T, L, 3)
-    res = checker.query(centers, quats, axes)  # (K, T, L)
+    res = geom.query(checker, curves)  # (K, T, L)
     k, t_len = curves.shape[:2]
     col = res.cost.reshape(k, t_len, -1).astype(np.float64).sum(axis=2)  # (K, T)
     hit = res.in_collision.reshape(k, t_len, -1).any(axis=2).sum(axis=1)  # (K,)
@@ -109,15 +109,19 @@ def refine_path(
     radius: float = 0.015,
     config: RefineConfig | None = None,
     link_poses: LinkPoses | None = None,
+    robot=None,
 ) -> RefineResult:
     """Refine a collision-free polyline into a shorter, smoother, collision-free B-spline curve.
 
     Args:
         checker: a :class:`~splatplan.metric.CollisionChecker`.
         path: (P, D) polyline from start to goal (e.g. an RRT path), assumed collision-free.
-        radius: sphere robot radius (scene units) when ``link_poses`` is None.
+        radius: shortcut for ``robot="sphere:<radius>"`` when neither ``robot`` nor ``link_poses``
+            is given.
         config: :class:`RefineConfig`.
-        link_poses: configurations (..., D) -> link ellipsoids, as for the RRT.
+        link_poses: (legacy) configurations (..., D) -> link ellipsoids; prefer ``robot``.
+        robot: a :class:`~splatplan.robots.Robot` or name; the path is in its configuration space
+            and lengths / spacings are in the RRT's metric (|motion_bound * dq|, scene units).
 
     Returns:
         :class:`RefineResult`; ``path`` is never in collision at ``check_resolution`` unless the
@@ -127,19 +131,21 @@ def refine_path(
     p = np.asarray(path, dtype=np.float64)
     if p.ndim != 2 or len(p) < 2:
         raise SplatplanError(f"refine_path needs a path of shape (P >= 2, D), got {p.shape}")
-    lp = link_poses if link_poses is not None else sphere_links(radius)
-    _, _, axes = lp(p[:1])
-    a_min = float(np.min(axes))
+    geom = LinkGeometry.make(robot=robot, link_poses=link_poses, radius=radius)
+    geom.bind(p[0])
+    wq = geom.distance_scale()  # (D,) configuration -> metric
+    a_min = geom.min_semi_axis
     check_res = float(cfg.check_resolution or 0.5 * a_min)
     cost_sp = float(cfg.cost_spacing or a_min)
-    edges = EdgeChecker(checker, lp, check_res, inflate=link_poses is None)
+    edges = EdgeChecker(checker, geom, check_res, inflate=geom.sphere)
     rng = np.random.default_rng(cfg.seed)
-    length0 = path_length(p)
+    length0 = path_length(p, wq)
     # the input polyline's own cost, on the same kind of dense samples
     t_cost = int(np.clip(math.ceil(length0 / cost_sp) + 1, 16, 4096))
-    cost_before = float(_curve_costs(checker, lp, resample_polyline(p, t_cost)[0][None], cfg)[0])
+    cost_before = float(_curve_costs(checker, geom, resample_polyline(p, t_cost)[0][None], cfg)[0])
     if length0 <= 0:
         return RefineResult(p.copy(), False, None, cost_before, cost_before, 0, "zero-length path")
+    sigma_q = cfg.noise_sigma / np.where(wq > 0, wq, 1.0)  # (D,) noise in configuration units
     free_dims = np.ptp(p, axis=0) > 0  # perturb only coordinates the path actually uses
     u_cost = np.linspace(0.0, 1.0, t_cost)
     t_out = int(max(2, math.ceil(length0 * 1.5 / check_res) + 1))  # output density (refined curves are shorter)
@@ -149,13 +155,13 @@ def refine_path(
         basis = bspline_basis(n_knots, u_cost)  # (T, n)
         knots = fit_bspline(p, n_knots, fix_endpoints=True)  # (n, D)
         for _ in range(cfg.n_iters):
-            eps = rng.standard_normal((cfg.n_samples, n_knots, p.shape[1])) * cfg.noise_sigma
+            eps = rng.standard_normal((cfg.n_samples, n_knots, p.shape[1])) * sigma_q  # (K, n, D)
             eps[0] = 0.0
             eps[:, [0, -1]] = 0.0  # endpoints pinned
             eps[:, :, ~free_dims] = 0.0
             samples = knots[None] + eps  # (K, n, D)
             curves = np.einsum("tn,knd->ktd", basis, samples)  # (K, T, D)
-            c = _curve_costs(checker, lp, curves, cfg)
+            c = _curve_costs(checker, geom, curves, cfg)
             w = np.exp(-(c - c.min()) / cfg.temperature)
             w /= w.sum()
             knots = np.einsum("k,knd->nd", w, samples)
@@ -164,7 +170,7 @@ def refine_path(
         for name, kn in zip(("weighted mean", "best sample"), candidates):
             dense = basis_out @ kn  # (T_out, D)
             if edges.path_free(dense):
-                cost_after = float(_curve_costs(checker, lp, (basis @ kn)[None], cfg)[0])
+                cost_after = float(_curve_costs(checker, geom, (basis @ kn)[None], cfg)[0])
                 return RefineResult(
                     dense,
                     True,
@@ -173,7 +179,7 @@ def refine_path(
                     cost_after,
                     attempt,
                     f"accepted the {name} (n_knots={n_knots}, attempt {attempt})",
-                    {"n_knots": n_knots, "length_before": length0, "length_after": path_length(dense)},
+                    {"n_knots": n_knots, "length_before": length0, "length_after": path_length(dense, wq)},
                 )
         message = f"refined curves collide (n_knots={n_knots}); kept the original path"
         n_knots = min(2 * n_knots, max(cfg.max_knots, n_knots))

@@ -1,96 +1,178 @@
-"""Batched RRT (paper Sec. II-E) on the CollisionSplatting checker.
+"""Batched RRT (paper Sec. II-E) on the CollisionSplatting checker, in a robot's configuration space.
 
 Each iteration draws ``batch_size`` samples (goal-biased), finds the nearest tree node of every
 sample (one vectorised distance matrix), steers from it by at most ``stride``, discretises every
-new edge at ``edge_resolution`` and checks all edges in **one** batched ``checker.collides`` call
-on an array shaped (N_batch, N_edge_pts, N_links). Collision-free edges become new nodes.
+new edge (see *Edge resolution*) and checks all edges in **one** batched collision call over every
+robot ellipsoid. Collision-free edges become new nodes.
 
 * **Goal mode** (``goal`` given): new nodes within ``connect_radius`` of the goal try a direct,
   collision-checked edge to the goal (one batched call); the first iteration with a free one ends
   the search and the goal itself becomes the path's last vertex. The path can then be shortcut
   greedily (batched edge checks).
-* **Exploration mode** (``goal=None``): grows the tree until ``max_nodes`` / ``max_iters`` /
-  ``time_budget_s`` and returns it (nodes + parents), e.g. for image-goal retrieval (E6).
+* **Exploration mode** (``goal=None``): grows the tree until the node / iteration / time budget
+  and returns it (nodes + parents), e.g. for image-goal retrieval (E6).
 
-Configurations are points of a D-dimensional box (D = len(start)); a ``link_poses`` callable maps
-configurations (..., D) to robot link ellipsoids (centers (..., L, 3), quats (..., L, 4) wxyz or
-None, semi_axes (L, 3)) -- by default a sphere of radius ``radius`` centred at the configuration
-(D = 3, world frame, scene units). Any :class:`~splatplan.planners.dynamics.Dynamics`'s
-``link_poses`` works too (e.g. a :class:`PlanarBase` over (x, y, yaw)). Distances (stride,
-resolution, tolerances) are Euclidean in configuration space.
+**Configuration space.** The robot is a :class:`~splatplan.robots.Robot`: joint space for an arm
+(sampled within the joint limits), (x, y, yaw) for a planar base (x, y within the scene's robust
+bounds, yaw in [-pi, pi]), R^3 for a sphere or ellipsoid point robot. Distances (stride, goal
+tolerance, connect radius) are the weighted Euclidean norm ``|motion_bound * dq|_2`` in scene units
+(plain Euclidean distance for a point robot; see :mod:`splatplan.planners.robot_links`). A bare
+``link_poses`` callable (the pre-Robot API) still works, with plain Euclidean configuration units.
 
-The tree lives in preallocated numpy arrays on the CPU, grown in place. That is deliberate: the
-tree holds at most a few ten thousand nodes, nearest-neighbour search over it is a (32 x n)
-distance matrix, and the expensive part (collision checks) runs on the checker's own device.
+**Edge resolution (the guarantee).** An edge a -> b is checked at the configurations
+``q_k = a + (k / n)(b - a)``, k = 1..n (q_0 = a is already a checked tree node), with
+``n = ceil(M(b - a) / edge_resolution)`` and ``M(dq) = sum_j motion_bound_j |dq_j|`` (``|dq|`` for
+a translating point robot), which bounds the displacement of every point of every ellipsoid
+along the segment. Hence **no point of any robot ellipsoid moves more than ``edge_resolution``
+between two consecutive checked configurations**; the default ``edge_resolution`` is
+``edge_fraction`` (1/4) of the robot's smallest semi-axis. For a single translating sphere the
+inner samples are additionally checked with the radius grown by half the sample spacing (<= r/8
+by default): every point of the swept volume lies within that distance of a sample centre, so at
+n_sigma = 0 the edge is free between the samples too, not only at them.
+
+**Scene-scaled defaults.** Lengths the user leaves unset are derived from the scene and the robot
+(:meth:`RRT.settings`): the sampling box is the 0.5-99.5 percentile box of the splat means padded
+by the robot's largest semi-axis (joint limits for joints), the stride 1/32 of the largest side
+of that box, the goal tolerance half the smallest semi-axis, and the search runs until
+``time_limit_s`` (default 10 s) rather than a node count. The chosen values are returned in
+``PlanResult.info["settings"]``; :meth:`RRTSettings.summary` prints them on one line.
+
+The tree lives in numpy arrays on the CPU, grown in place (doubled when full). That is deliberate:
+nearest-neighbour search over it is a (32 x n) distance matrix, and the expensive part (collision
+checks) runs on the checker's own device.
 """
 
 from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
-from typing import Callable
+from dataclasses import InitVar, dataclass, field
 
 import numpy as np
 from scipy.spatial.distance import cdist
 
 from ..errors import PlanningError, SplatplanError
-from .dynamics import sphere_links
+from .robot_links import EDGE_FRACTION, LinkGeometry, LinkPoses
 
-LinkPoses = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray | None, np.ndarray]]
+#: percentile of the splat means that bounds the default sampling box on each side (robust to outliers)
+BOX_PERCENTILE = 0.5
+#: the default stride is this fraction of the largest side of the sampling box
+STRIDE_FRACTION = 1.0 / 32.0
 
 
 @dataclass
 class RRTConfig:
-    """Knobs of the batched RRT. Distances are in configuration-space units (scene units for a
-    position robot)."""
+    """Knobs of the batched RRT. Lengths are in scene units of robot motion (the weighted
+    configuration distance |motion_bound * dq|; plain distance for a point robot). Every None is
+    derived from the scene and the robot (see the module docstring)."""
 
     #: samples drawn (and edges checked) per iteration; the paper grows 32 nodes at a time
     batch_size: int = 32
-    #: maximum edge length: a sample farther than this from its nearest node is pulled back to it
-    stride: float = 0.03
-    #: spacing of the collision checks along an edge; None = a quarter of the robot's smallest
-    #: semi-axis for the default sphere robot (whose inner edge samples are checked with the
-    #: sphere grown by half the spacing, <= r/8), half of it for other robots
+    #: maximum edge length: a sample farther than this from its nearest node is pulled back to it;
+    #: None = 1/32 of the largest side of the sampling box
+    stride: float | None = None
+    #: largest displacement of any robot ellipsoid point between two consecutive collision checks
+    #: along an edge (scene units); None = edge_fraction * the robot's smallest semi-axis
     edge_resolution: float | None = None
+    #: default edge_resolution as a fraction of the robot's smallest semi-axis
+    edge_fraction: float = EDGE_FRACTION
     #: probability that a sample is the goal itself (goal mode only)
     goal_bias: float = 0.1
     #: a node closer than this to the goal ends the search even if the last edge to the goal is not
-    #: free (the path then ends at that node); 0 = the path must reach the goal exactly
-    goal_tolerance: float = 0.0
+    #: free (the path then ends at that node); None = half the robot's smallest semi-axis; 0 = exact
+    goal_tolerance: float | None = None
     #: new nodes within this distance of the goal try a direct collision-checked edge to it;
     #: None = 4 * stride
     connect_radius: float | None = None
-    #: iteration budget
-    max_iters: int = 5000
-    #: node budget (the tree arrays are preallocated with this size)
-    max_nodes: int = 20000
-    #: wall-clock budget in seconds (None = unlimited)
-    time_budget_s: float | None = 60.0
+    #: iteration budget (None = unlimited: the time limit decides)
+    max_iters: int | None = None
+    #: node budget (None = unlimited: the time limit decides)
+    max_nodes: int | None = None
+    #: wall-clock budget of the search in seconds (None = unlimited)
+    time_limit_s: float | None = 10.0
     #: seed of the sampler
     seed: int = 0
-    #: sampling box lower corner (D,); None = the scene's splat bounds united with start/goal.
+    #: sampling box lower corner (D,); None = derived (robust scene bounds / joint limits).
     #: A side with lo == hi freezes that coordinate (e.g. planar planning at a fixed z)
     box_lo: tuple[float, ...] | None = None
     #: sampling box upper corner (D,); see box_lo
     box_hi: tuple[float, ...] | None = None
+    #: configuration coordinates held at the start's value (planar planning with a derived box,
+    #: e.g. (2,) keeps z of a point robot fixed); the goal must have the same values there
+    frozen: tuple[int, ...] | None = None
     #: greedily shortcut the found path (batched edge checks at edge_resolution)
     shortcut: bool = True
+    #: deprecated alias of time_limit_s (overrides it when given)
+    time_budget_s: InitVar[float | None] = None
+
+    def __post_init__(self, time_budget_s: float | None) -> None:
+        if time_budget_s is not None:
+            self.time_limit_s = float(time_budget_s)
 
     def validate(self) -> "RRTConfig":
         if self.batch_size < 1:
             raise SplatplanError(f"RRTConfig.batch_size must be >= 1, got {self.batch_size}")
-        if not self.stride > 0:
-            raise SplatplanError(f"RRTConfig.stride must be > 0, got {self.stride}")
-        if self.edge_resolution is not None and not self.edge_resolution > 0:
-            raise SplatplanError(f"RRTConfig.edge_resolution must be > 0, got {self.edge_resolution}")
+        for name in ("stride", "edge_resolution", "connect_radius", "time_limit_s"):
+            v = getattr(self, name)
+            if v is not None and not (v > 0 and math.isfinite(v)):
+                raise SplatplanError(f"RRTConfig.{name} must be finite and > 0, got {v}")
+        if not 0.0 < self.edge_fraction <= 1.0:
+            raise SplatplanError(f"RRTConfig.edge_fraction must lie in (0, 1], got {self.edge_fraction}")
         if not 0.0 <= self.goal_bias <= 1.0:
             raise SplatplanError(f"RRTConfig.goal_bias must lie in [0, 1], got {self.goal_bias}")
-        if self.goal_tolerance < 0:
+        if self.goal_tolerance is not None and not self.goal_tolerance >= 0:
             raise SplatplanError(f"RRTConfig.goal_tolerance must be >= 0, got {self.goal_tolerance}")
-        if self.max_nodes < 2 or self.max_iters < 1:
+        if (self.max_nodes is not None and self.max_nodes < 2) or (self.max_iters is not None and self.max_iters < 1):
             raise SplatplanError("RRTConfig.max_nodes must be >= 2 and max_iters >= 1")
         return self
+
+
+@dataclass
+class RRTSettings:
+    """The values one RRT search actually used (user-given or derived).
+
+    Attributes:
+        box_lo, box_hi: (D,) sampling box.
+        stride, edge_resolution, goal_tolerance, connect_radius: lengths (scene units of motion).
+        time_limit_s: wall-clock budget (None = unlimited).
+        derived: names of the values derived from the scene / robot (not set by the user).
+        notes: remarks (e.g. the box was widened to include the start).
+    """
+
+    box_lo: np.ndarray
+    box_hi: np.ndarray
+    stride: float
+    edge_resolution: float
+    goal_tolerance: float
+    connect_radius: float
+    time_limit_s: float | None
+    derived: list[str] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
+
+    def summary(self) -> str:
+        """One line: every value, derived ones marked with '*'."""
+
+        def tag(name: str) -> str:
+            return "*" if name in self.derived else ""
+
+        box = "[" + ", ".join(f"{a:.3g}..{b:.3g}" for a, b in zip(self.box_lo, self.box_hi)) + "]"
+        tl = "unlimited" if self.time_limit_s is None else f"{self.time_limit_s:g} s"
+        line = (
+            f"stride{tag('stride')} {self.stride:.4g}, edge resolution{tag('edge_resolution')} {self.edge_resolution:.4g}, "
+            f"goal tolerance{tag('goal_tolerance')} {self.goal_tolerance:.4g}, box{tag('box')} {box}, "
+            f"time limit{tag('time_limit_s')} {tl}"
+        )
+        if self.derived:
+            line += " (* = derived from the scene and robot)"
+        return line
+
+    def as_dict(self) -> dict:
+        return {
+            "box_lo": self.box_lo.tolist(), "box_hi": self.box_hi.tolist(), "stride": self.stride,
+            "edge_resolution": self.edge_resolution, "goal_tolerance": self.goal_tolerance,
+            "connect_radius": self.connect_radius, "time_limit_s": self.time_limit_s,
+            "derived": list(self.derived), "notes": list(self.notes),
+        }  # fmt: skip
 
 
 @dataclass
@@ -101,7 +183,8 @@ class PlanResult:
         success: goal mode: a path was found; exploration mode: the tree was grown (always True).
         path: (P, D) path vertices from start to goal (empty (0, D) when none was found or in
             exploration mode); after refinement a densely sampled smooth curve.
-        length: Euclidean length of ``path`` (configuration units); inf when no path.
+        length: length of ``path`` in the planner's metric (|motion_bound * dq| summed over the
+            segments; plain Euclidean length for a point robot); inf when no path.
         time_s: wall-clock seconds of the whole call (search + shortcut + refinement).
         n_nodes: nodes in the tree (root included).
         n_iters: RRT iterations run.
@@ -110,6 +193,8 @@ class PlanResult:
         message: why it stopped, in words.
         path_rrt: (P0, D) the raw tree path before shortcutting / refinement (goal mode).
         refined: whether ``path`` is the accepted output of the zeroth-order refinement.
+        info: extras: ``settings`` (the :class:`RRTSettings` as a dict), ``n_queries``,
+            ``edge_resolution``, ``time_limit_hit``.
     """
 
     success: bool
@@ -126,14 +211,17 @@ class PlanResult:
     info: dict = field(default_factory=dict)
 
 
-def path_length(path: np.ndarray) -> float:
-    """Sum of segment lengths of a polyline (P, D); 0 for P < 2."""
+def path_length(path: np.ndarray, weights: np.ndarray | None = None) -> float:
+    """Sum of segment lengths of a polyline (P, D) (coordinates scaled by ``weights`` (D,) first);
+    0 for P < 2."""
     p = np.asarray(path, dtype=np.float64)
+    if weights is not None:
+        p = p * np.asarray(weights, dtype=np.float64)
     return float(np.linalg.norm(np.diff(p, axis=0), axis=1).sum()) if len(p) > 1 else 0.0
 
 
 def edge_points(a: np.ndarray, b: np.ndarray, resolution: float, include_start: bool = False) -> np.ndarray:
-    """Points along E straight edges a[e] -> b[e], spaced at most ``resolution`` apart.
+    """Points along E straight edges a[e] -> b[e], spaced at most ``resolution`` apart (Euclidean).
 
     Every edge gets the same number of points ``n = ceil(max_len / resolution)`` (shorter edges are
     sampled more densely), at parameters ``k / n`` for k = 1..n (k = 0..n with include_start), so
@@ -155,41 +243,73 @@ def edge_points(a: np.ndarray, b: np.ndarray, resolution: float, include_start: 
     return a[:, None, :] + t[None, :, None] * (b - a)[:, None, :]
 
 
-class EdgeChecker:
-    """Batched straight-edge collision checks of a robot (``link_poses``) against a checker.
+def edge_samples(a: np.ndarray, b: np.ndarray, motion: np.ndarray, resolution: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Check configurations of E edges, each edge with its own count (see the module docstring).
 
-    With ``inflate`` (meant for position robots, where configuration distance = workspace
-    distance), the samples *inside* an edge are checked with every semi-axis grown by half the
-    sample spacing: any point of the edge lies within that distance of a sample, so the edge is
-    free between the samples too, not only at them (exact for n_sigma = 0, where s2 < 1 means a
-    splat mean inside the link). The edge's end point is checked with the true size.
+    Args:
+        a: (E, D) edge starts; b: (E, D) edge ends.
+        motion: (E,) bound on any ellipsoid point's displacement along each edge (scene units).
+        resolution: largest displacement allowed between consecutive checks.
+
+    Returns:
+        points (P, D) = a_e + (k / n_e)(b_e - a_e) for k = 1..n_e, edge index (P,), n (E,) with
+        ``n_e = max(1, ceil(motion_e / resolution))``.
+    """
+    n = np.maximum(1, np.ceil(np.asarray(motion, dtype=np.float64) / resolution - 1e-9)).astype(np.int64)  # (E,)
+    idx = np.repeat(np.arange(len(a)), n)  # (P,)
+    first = np.cumsum(n) - n  # (E,)
+    k = np.arange(idx.size) - first[idx] + 1  # 1..n_e
+    t = k / n[idx]
+    return a[idx] + t[:, None] * (b - a)[idx], idx, n
+
+
+class EdgeChecker:
+    """Batched straight-edge collision checks of a robot against a checker.
+
+    Args:
+        checker: a :class:`~splatplan.metric.CollisionChecker`.
+        geometry: a :class:`LinkGeometry` (or, as before the Robot type, a ``link_poses``
+            callable; its edges are then spaced in Euclidean configuration units).
+        resolution: largest displacement of any ellipsoid point between consecutive checks
+            (configuration units for a bare callable).
+        inflate: check inner samples with the semi-axes grown by half the sample spacing (valid
+            for translating spheres only; see the module docstring).
     """
 
-    def __init__(self, checker, link_poses: LinkPoses, resolution: float, inflate: bool = False) -> None:
+    def __init__(self, checker, geometry: LinkGeometry | LinkPoses, resolution: float, inflate: bool = False) -> None:
         self.checker = checker
-        self.link_poses = link_poses
+        self.geometry = geometry if isinstance(geometry, LinkGeometry) else LinkGeometry(link_poses=geometry)
         self.resolution = float(resolution)
         self.inflate = bool(inflate)
-        self.n_queries = 0  # link poses checked so far
 
-    def configs_collide(self, configs: np.ndarray, margin: float = 0.0) -> np.ndarray:
+    @property
+    def n_queries(self) -> int:
+        """Ellipsoid checks issued so far."""
+        return self.geometry.n_queries
+
+    def configs_collide(self, configs: np.ndarray, margin: float | np.ndarray = 0.0) -> np.ndarray:
         """(..., D) -> bool (...): any link in collision (semi-axes grown by ``margin``)."""
-        centers, quats, axes = self.link_poses(configs)  # (..., L, 3)
-        hit = self.checker.collides(centers, quats, np.asarray(axes) + margin)  # (..., L)
-        self.n_queries += hit.size
-        return hit.any(axis=-1)
+        return self.geometry.collides(self.checker, configs, margin)
 
     def edges_free(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         """(E, D), (E, D) -> bool (E,): True where the whole edge (end point included, start
-        excluded) is collision-free at ``resolution``. One batched checker call (two with inflate)."""
+        excluded) is collision-free at ``resolution``. One batched checker call."""
+        a = np.asarray(a, dtype=np.float64)
+        b = np.asarray(b, dtype=np.float64)
         if len(a) == 0:
             return np.zeros(0, dtype=bool)
-        pts = edge_points(a, b, self.resolution)  # (E, n_pts, D), the last point is b
-        if not self.inflate:
-            return ~self.configs_collide(pts).any(axis=1)
-        spacing = float(np.linalg.norm(b - a, axis=-1).max()) / pts.shape[1]
-        inner = self.configs_collide(pts[:, :-1], margin=0.5 * spacing).any(axis=1) if pts.shape[1] > 1 else np.zeros(len(a), bool)
-        return ~(inner | self.configs_collide(pts[:, -1]))
+        pts, idx, n = edge_samples(a, b, self.geometry.motion(b - a), self.resolution)  # (P, D)
+        if self.inflate:
+            last = np.cumsum(n) - 1  # (E,) index of each edge's end point
+            spacing = np.linalg.norm(b - a, axis=-1) / n  # (E,)
+            margin = 0.5 * spacing[idx]
+            margin[last] = 0.0  # the end point with the true size
+            hit = self.configs_collide(pts, margin)
+        else:
+            hit = self.configs_collide(pts)  # (P,)
+        bad = np.zeros(len(a), dtype=bool)
+        np.logical_or.at(bad, idx[hit], True)
+        return ~bad
 
     def path_free(self, path: np.ndarray) -> bool:
         """Whether every point of a polyline (P, D), sampled at ``resolution``, is collision-free."""
@@ -199,15 +319,13 @@ class EdgeChecker:
         return bool(self.edges_free(p[:-1], p[1:]).all()) and not bool(self.configs_collide(p[:1]).any())
 
 
-def check_endpoint(checker, link_poses: LinkPoses, x: np.ndarray, what: str) -> None:
+def check_endpoint(checker, geometry: LinkGeometry | LinkPoses, x: np.ndarray, what: str) -> None:
     """Raise :class:`PlanningError` when configuration ``x`` (D,) is in collision."""
-    centers, quats, axes = link_poses(x[None])
-    res = checker.query(centers, quats, axes)  # (1, L)
-    if bool(np.any(res.in_collision)):
-        j = int(np.argmin(res.min_s2[0]))
+    geom = geometry if isinstance(geometry, LinkGeometry) else LinkGeometry(link_poses=geometry)
+    why = geom.describe_collision(checker, x)
+    if why is not None:
         raise PlanningError(
-            f"the {what} {np.array2string(x, precision=4)} is in collision: min_s2 = {float(res.min_s2[0, j]):.4g} < 1 "
-            f"({int(res.n_colliding[0, j])} splat(s) inside the robot at n_sigma = {checker.n_sigma:g}); "
+            f"the {what} {np.array2string(np.asarray(x), precision=4)} is in collision: {why}; "
             f"move the {what}, shrink the robot or lower n_sigma"
         )
 
@@ -236,40 +354,121 @@ def shortcut_path(edges: EdgeChecker, path: np.ndarray) -> np.ndarray:
     return np.asarray(out)
 
 
+def robust_scene_box(scene, percentile: float = BOX_PERCENTILE) -> tuple[np.ndarray, np.ndarray]:
+    """(lo (3,), hi (3,)): the [p, 100 - p] percentile box of the splat means (world frame, scene
+    units); robust to outlier splats far outside the captured room."""
+    m = np.asarray(scene.means)
+    lo, hi = np.percentile(m, [percentile, 100.0 - percentile], axis=0)
+    return lo.astype(np.float64), hi.astype(np.float64)
+
+
 class RRT:
-    """Batched RRT over a box of D-dimensional configurations (see the module docstring).
+    """Batched RRT over a robot's configuration space (see the module docstring).
 
     Args:
         checker: a :class:`~splatplan.metric.CollisionChecker` (any backend).
         config: :class:`RRTConfig`.
-        link_poses: configurations (..., D) -> (centers (..., L, 3), quats or None, semi_axes
-            (L, 3)); None = a sphere of ``radius`` centred at the (3-D) configuration.
-        radius: sphere radius (scene units) when ``link_poses`` is None.
+        link_poses: (legacy) configurations (..., D) -> (centers (..., L, 3), quats or None,
+            semi_axes (L, 3)); prefer ``robot``.
+        radius: shortcut for ``robot="sphere:<radius>"`` (scene units) when neither ``robot`` nor
+            ``link_poses`` is given.
+        robot: a :class:`~splatplan.robots.Robot` or a name for :func:`~splatplan.robots.load_robot`
+            ("panda", "go2", "sphere:0.015", "ellipsoid:A,B,C", a URDF path).
     """
 
-    def __init__(self, checker, config: RRTConfig | None = None, link_poses: LinkPoses | None = None, radius: float = 0.015) -> None:
+    def __init__(self, checker, config: RRTConfig | None = None, link_poses: LinkPoses | None = None, radius: float = 0.015, robot=None) -> None:
         self.checker = checker
         self.config = (config or RRTConfig()).validate()
-        self.link_poses = link_poses if link_poses is not None else sphere_links(radius)
-        #: position robot (the default sphere): edges are checked between their samples too
-        self.inflate_edges = link_poses is None
+        self.geometry = LinkGeometry.make(robot=robot, link_poses=link_poses, radius=radius)
+        #: a translating sphere: edges are checked between their samples too
+        self.inflate_edges = self.geometry.sphere
+
+    @property
+    def robot(self):
+        """The :class:`~splatplan.robots.Robot` (None for a legacy ``link_poses`` callable)."""
+        return self.geometry.robot
+
+    @property
+    def link_poses(self) -> LinkPoses:
+        """configurations (..., D) -> (centers (..., L, 3), quats (..., L, 4) | None, semi_axes (L, 3))."""
+        return self.geometry.ellipsoids
 
     # ------------------------------------------------------------------ setup
-    def _box(self, start: np.ndarray, goal: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
-        cfg = self.config
-        d = start.size
-        if cfg.box_lo is None or cfg.box_hi is None:
+    def _derived_box(self, start: np.ndarray, goal: np.ndarray | None, notes: list[str]) -> tuple[np.ndarray, np.ndarray]:
+        """Sampling box from joint limits and the scene's robust bounds (see the module docstring)."""
+        geom, d = self.geometry, start.size
+        if geom.robot is None:
             if d != 3:
                 raise PlanningError(f"give RRTConfig.box_lo / box_hi for a {d}-D configuration space")
-            lo, hi = self.checker.scene.bounds()
-            pts = [start] + ([goal] if goal is not None else [])
-            lo = np.minimum(lo, np.min(pts, axis=0)) if cfg.box_lo is None else np.asarray(cfg.box_lo, dtype=np.float64)
-            hi = np.maximum(hi, np.max(pts, axis=0)) if cfg.box_hi is None else np.asarray(cfg.box_hi, dtype=np.float64)
+            lim = np.full((3, 2), np.inf) * np.array([-1.0, 1.0])
+            trans_dirs = np.eye(3)
+            ref = np.zeros(3)
+            pad = geom.max_semi_axis
+            c_ref = np.zeros(3)
+        else:
+            robot = geom.robot
+            lim = np.asarray(robot.joint_limits, dtype=np.float64).reshape(d, 2)
+            ref = np.asarray(robot.q_default, dtype=np.float64).reshape(d).copy()
+            pad = geom.max_semi_axis
+            c_ref = np.asarray(robot.ellipsoids(ref[None])[0], dtype=np.float64)[0].mean(axis=0)  # (3,) robot centre
+            trans_dirs = np.full((d, 3), np.nan)
+            for j in np.nonzero(~np.isfinite(lim).all(axis=1))[0]:
+                q1 = ref.copy()
+                q1[j] += 1.0
+                c1, quat1, _ = robot.ellipsoids(np.stack([ref, q1]))
+                u = np.asarray(c1[1] - c1[0], dtype=np.float64)  # (E, 3)
+                rot_same = quat1 is None or np.allclose(np.abs(np.sum(quat1[0] * quat1[1], axis=-1)), 1.0, atol=1e-9)
+                if rot_same and np.allclose(u, u[:1], atol=1e-9) and abs(np.linalg.norm(u[0]) - 1.0) < 1e-6:
+                    trans_dirs[j] = u[0]
+        lo, hi = lim[:, 0].copy(), lim[:, 1].copy()
+        need_scene = [j for j in range(d) if not (np.isfinite(lo[j]) and np.isfinite(hi[j]))]
+        if need_scene:
+            s_lo, s_hi = robust_scene_box(self.checker.scene)
+            r_lo, r_hi = self.checker.scene.bounds()
+            corners = np.array([[x, y, z] for x in (s_lo[0], s_hi[0]) for y in (s_lo[1], s_hi[1]) for z in (s_lo[2], s_hi[2])])
+            raw = np.array([[x, y, z] for x in (r_lo[0], r_hi[0]) for y in (r_lo[1], r_hi[1]) for z in (r_lo[2], r_hi[2])])
+            for j in need_scene:
+                u = trans_dirs[j]
+                if not np.all(np.isfinite(u)):  # an unlimited rotation (e.g. a base's yaw)
+                    lo[j], hi[j] = -math.pi, math.pi
+                    continue
+                off = ref[j] - float(u @ c_ref)  # q_j = off + u . (robot centre)
+                lo[j], hi[j] = off + float((corners @ u).min()) - pad, off + float((corners @ u).max()) + pad
+                raw_lo, raw_hi = off + float((raw @ u).min()) - pad, off + float((raw @ u).max()) + pad
+                for name, x in (("start", start), ("goal", goal)):
+                    if x is None:
+                        continue
+                    if x[j] < raw_lo - 1e-9 or x[j] > raw_hi + 1e-9:
+                        raise PlanningError(
+                            f"the {name} {np.array2string(x, precision=4)} lies outside the scene bounds: coordinate {j} = {x[j]:.4g} "
+                            f"is not within {raw_lo:.4g}..{raw_hi:.4g} (splat means, padded by the robot size); "
+                            f"give a {name} inside the scene or set the sampling box (box_lo/box_hi, --box)"
+                        )
+                    if x[j] < lo[j] or x[j] > hi[j]:
+                        notes.append(f"box widened on coordinate {j} to include the {name} (outside the {BOX_PERCENTILE:g}-{100 - BOX_PERCENTILE:g} percentile box)")
+                        lo[j], hi[j] = min(lo[j], x[j]), max(hi[j], x[j])
+        if self.config.frozen:
+            for j in self.config.frozen:
+                if not 0 <= int(j) < d:
+                    raise PlanningError(f"RRTConfig.frozen names coordinate {j}, the configuration has {d}")
+                lo[int(j)] = hi[int(j)] = start[int(j)]
+        return lo, hi
+
+    def _box(self, start: np.ndarray, goal: np.ndarray | None, notes: list[str]) -> tuple[np.ndarray, np.ndarray]:
+        cfg, d = self.config, start.size
+        if cfg.box_lo is None or cfg.box_hi is None:
+            lo, hi = self._derived_box(start, goal, notes)
+            if cfg.box_lo is not None:
+                lo = np.asarray(cfg.box_lo, dtype=np.float64).reshape(-1)
+            if cfg.box_hi is not None:
+                hi = np.asarray(cfg.box_hi, dtype=np.float64).reshape(-1)
         else:
             lo = np.asarray(cfg.box_lo, dtype=np.float64).reshape(-1)
             hi = np.asarray(cfg.box_hi, dtype=np.float64).reshape(-1)
         if lo.shape != (d,) or hi.shape != (d,):
             raise PlanningError(f"the sampling box has dimension {lo.shape}/{hi.shape}, the start has {d}")
+        if not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi))):
+            raise PlanningError(f"the sampling box must be finite: lo {lo}, hi {hi}")
         if np.any(hi < lo):
             raise PlanningError(f"the sampling box is empty: lo {lo} > hi {hi} somewhere")
         for name, x in (("start", start), ("goal", goal)):
@@ -280,56 +479,95 @@ class RRT:
                 raise PlanningError(
                     f"the {name} {np.array2string(x, precision=4)} lies outside the sampling box "
                     f"lo={np.array2string(lo, precision=4)} hi={np.array2string(hi, precision=4)} "
-                    f"(a frozen coordinate lo == hi must equal the {name}'s)"
+                    f"(joint limits, the given box, or a frozen coordinate lo == hi that must equal the {name}'s)"
                 )
         return lo, hi
 
-    def _resolution(self, start: np.ndarray) -> float:
-        if self.config.edge_resolution is not None:
-            return float(self.config.edge_resolution)
-        _, _, axes = self.link_poses(start[None])
-        return (0.25 if self.inflate_edges else 0.5) * float(np.min(axes))
+    def settings(self, start, goal=None) -> RRTSettings:
+        """The values a search from ``start`` to ``goal`` will use: the config's where given, else
+        derived from the scene and the robot (see the module docstring). Raises like :meth:`plan`."""
+        cfg = self.config
+        start = np.asarray(start, dtype=np.float64).reshape(-1)
+        goal = None if goal is None else np.asarray(goal, dtype=np.float64).reshape(-1)
+        self.geometry.bind(start)
+        if goal is not None and goal.shape != start.shape:
+            raise PlanningError(f"start has {start.size} coordinates but goal has {goal.size}")
+        if not np.all(np.isfinite(start)) or (goal is not None and not np.all(np.isfinite(goal))):
+            raise PlanningError("start and goal must be finite")
+        notes: list[str] = []
+        derived: list[str] = []
+        lo, hi = self._box(start, goal, notes)
+        if cfg.box_lo is None or cfg.box_hi is None:
+            derived.append("box")
+        geom = self.geometry
+        w = geom.distance_scale()
+        if cfg.stride is None:
+            side = float(np.max((hi - lo) * w)) if np.any(hi > lo) else 1.0
+            stride = side * STRIDE_FRACTION
+            derived.append("stride")
+        else:
+            stride = float(cfg.stride)
+        if cfg.edge_resolution is None:
+            frac = cfg.edge_fraction if geom.robot is not None else (cfg.edge_fraction if self.inflate_edges else 2 * cfg.edge_fraction)
+            res = frac * geom.min_semi_axis
+            derived.append("edge_resolution")
+        else:
+            res = float(cfg.edge_resolution)
+        if cfg.goal_tolerance is None:
+            tol = 0.5 * geom.min_semi_axis if geom.robot is not None else 0.0
+            derived.append("goal_tolerance")
+        else:
+            tol = float(cfg.goal_tolerance)
+        if not (math.isfinite(stride) and stride > 0 and math.isfinite(res) and res > 0):
+            raise PlanningError(f"derived stride {stride} / edge resolution {res} are not usable; set RRTConfig.stride and edge_resolution")
+        connect = 4.0 * stride if cfg.connect_radius is None else float(cfg.connect_radius)
+        return RRTSettings(lo, hi, stride, res, tol, connect, cfg.time_limit_s, derived, notes)
 
     # ------------------------------------------------------------------ search
     def plan(self, start, goal=None) -> PlanResult:
         """Grow a tree from ``start``; towards ``goal`` (goal mode) or everywhere (goal=None).
 
         Raises:
-            PlanningError: start or goal in collision, outside the sampling box, or a bad box.
+            PlanningError: start or goal in collision, outside the sampling box / scene bounds /
+                joint limits, or a bad box.
         """
         t0 = time.perf_counter()
         cfg = self.config
+        st = self.settings(start, goal)
         start = np.asarray(start, dtype=np.float64).reshape(-1)
         goal = None if goal is None else np.asarray(goal, dtype=np.float64).reshape(-1)
         d = start.size
-        if goal is not None and goal.shape != start.shape:
-            raise PlanningError(f"start has {d} coordinates but goal has {goal.size}")
-        if not np.all(np.isfinite(start)) or (goal is not None and not np.all(np.isfinite(goal))):
-            raise PlanningError("start and goal must be finite")
-        lo, hi = self._box(start, goal)
-        edges = EdgeChecker(self.checker, self.link_poses, self._resolution(start), inflate=self.inflate_edges)
-        check_endpoint(self.checker, self.link_poses, start, "start")
+        lo, hi = st.box_lo, st.box_hi
+        geom = self.geometry
+        w = geom.distance_scale()  # (D,) configuration -> metric space
+        edges = EdgeChecker(self.checker, geom, st.edge_resolution, inflate=self.inflate_edges)
+        q0 = geom.n_queries
+        check_endpoint(self.checker, geom, start, "start")
         if goal is not None:
-            check_endpoint(self.checker, self.link_poses, goal, "goal")
+            check_endpoint(self.checker, geom, goal, "goal")
         rng = np.random.default_rng(cfg.seed)
-        connect_r = 4.0 * cfg.stride if cfg.connect_radius is None else float(cfg.connect_radius)
+        connect_r = st.connect_radius
 
-        # the tree: preallocated, grown in place (numpy on CPU, see module docstring)
-        cap = int(cfg.max_nodes)
-        nodes = np.empty((cap, d))  # (cap, D)
+        # the tree: numpy on CPU, grown in place (see module docstring); zs = nodes * w (metric space)
+        cap_max = math.inf if cfg.max_nodes is None else int(cfg.max_nodes)
+        cap = int(min(cap_max, 4096))
+        nodes = np.empty((cap, d))  # (cap, D) configurations
+        zs = np.empty((cap, d))  # (cap, D) the same in the weighted metric
         parents = np.full(cap, -1, dtype=np.int64)  # (cap,)
-        cost = np.zeros(cap)  # path length from the root
-        nodes[0] = start
+        cost = np.zeros(cap)  # path length from the root (metric)
+        nodes[0], zs[0] = start, start * w
         n = 1
         frozen = hi <= lo
         span = np.where(frozen, 0.0, hi - lo)
+        goal_z = None if goal is None else goal * w
+        info = {"settings": st.as_dict(), "edge_resolution": st.edge_resolution, "stride": st.stride}
 
         def result(success: bool, path: np.ndarray | None, message: str, it: int) -> PlanResult:
             p = np.zeros((0, d)) if path is None else path
             return PlanResult(
                 success=success,
                 path=p,
-                length=path_length(p) if path is not None else (math.inf if goal is not None else 0.0),
+                length=path_length(p, w) if path is not None else (math.inf if goal is not None else 0.0),
                 time_s=time.perf_counter() - t0,
                 n_nodes=n,
                 n_iters=it,
@@ -337,7 +575,7 @@ class RRT:
                 tree_parents=parents[:n].copy(),
                 message=message,
                 path_rrt=None if path is None else path.copy(),
-                info={"n_queries": edges.n_queries, "edge_resolution": edges.resolution},
+                info={**info, "n_queries": geom.n_queries - q0},
             )
 
         def trace(i: int) -> np.ndarray:
@@ -347,78 +585,90 @@ class RRT:
                 i = int(parents[i])
             return nodes[idx[::-1]].copy()
 
-        if goal is not None and np.linalg.norm(goal - start) <= connect_r and edges.edges_free(start[None], goal[None])[0]:
+        if goal is not None and np.linalg.norm(goal_z - zs[0]) <= connect_r and edges.edges_free(start[None], goal[None])[0]:
             raw = np.stack([start, goal])
-            return self._finish(result(True, raw, "direct edge from start to goal is free", 0), edges, t0)
+            return self._finish(result(True, raw, "direct edge from start to goal is free", 0), edges, t0, w, q0)
 
         it = 0
         message = ""
+        t_search = time.perf_counter()
         while True:
-            if it >= cfg.max_iters:
-                message = f"iteration budget ({cfg.max_iters}) exhausted"
+            if cfg.max_iters is not None and it >= cfg.max_iters:
+                message = f"within the iteration budget ({cfg.max_iters:,} iterations, {n:,} nodes)"
                 break
-            if n >= cap:
-                message = f"node budget ({cap}) exhausted"
+            if n >= cap_max:
+                message = f"within the node budget ({cfg.max_nodes:,} nodes)"
                 break
-            if cfg.time_budget_s is not None and time.perf_counter() - t0 > cfg.time_budget_s:
-                message = f"time budget ({cfg.time_budget_s:g} s) exhausted"
+            if st.time_limit_s is not None and time.perf_counter() - t_search > st.time_limit_s:
+                message = f"within {st.time_limit_s:.1f} s ({n:,} nodes)"
+                info["time_limit_hit"] = True
                 break
             it += 1
             nb = cfg.batch_size
             samples = lo + rng.random((nb, d)) * span  # (N, D)
             if goal is not None and cfg.goal_bias > 0:
                 samples[rng.random(nb) < cfg.goal_bias] = goal
-            near = np.argmin(cdist(samples, nodes[:n], "sqeuclidean"), axis=1)  # (N,)
+            sz = samples * w
+            near = np.argmin(cdist(sz, zs[:n], "sqeuclidean"), axis=1)  # (N,)
             base = nodes[near]  # (N, D)
             delta = samples - base
-            dist = np.linalg.norm(delta, axis=1)
+            dist = np.linalg.norm(sz - zs[near], axis=1)  # metric distance
             ok = dist > 1e-12
             if not ok.any():
                 continue
             base, near, delta, dist = base[ok], near[ok], delta[ok], dist[ok]
-            step = np.minimum(dist, cfg.stride) / dist
+            step = np.minimum(dist, st.stride) / dist
             new = base + delta * step[:, None]  # steer: at most `stride` towards the sample
             new[:, frozen] = lo[frozen]
-            free = edges.edges_free(base, new)  # ONE batched call: (N, n_edge_pts, L)
+            free = edges.edges_free(base, new)  # ONE batched call over every edge point and ellipsoid
             if not free.any():
                 continue
-            k = int(min(free.sum(), cap - n))
+            k = int(min(free.sum(), cap_max - n))
+            if n + k > cap:  # grow the tree arrays (doubling)
+                cap = int(min(cap_max, max(2 * cap, n + k)))
+                nodes, zs = _grow(nodes, cap), _grow(zs, cap)
+                parents = _grow(parents, cap, fill=-1)
+                cost = _grow(cost, cap)
             sel = np.nonzero(free)[0][:k]
             ids = np.arange(n, n + k)
             nodes[ids] = new[sel]
+            zs[ids] = new[sel] * w
             parents[ids] = near[sel]
             cost[ids] = cost[near[sel]] + (dist[sel] * step[sel])
             n += k
             if goal is None:
                 continue
-            dg = np.linalg.norm(nodes[ids] - goal, axis=1)
+            dg = np.linalg.norm(zs[ids] - goal_z, axis=1)
             cand = ids[dg <= connect_r]
             if cand.size:
                 ok_goal = edges.edges_free(nodes[cand], np.repeat(goal[None], cand.size, axis=0))
                 if ok_goal.any():
                     good = cand[ok_goal]
-                    best = int(good[np.argmin(cost[good] + np.linalg.norm(nodes[good] - goal, axis=1))])
+                    best = int(good[np.argmin(cost[good] + np.linalg.norm(zs[good] - goal_z, axis=1))])
+                    raw = np.vstack([trace(best), goal[None]])
                     if n < cap:
-                        nodes[n] = goal
-                        parents[n] = best
-                        cost[n] = cost[best] + float(np.linalg.norm(goal - nodes[best]))
+                        nodes[n], zs[n], parents[n] = goal, goal_z, best
+                        cost[n] = cost[best] + float(np.linalg.norm(goal_z - zs[best]))
                         n += 1
-                        raw = trace(n - 1)
-                    else:
-                        raw = np.vstack([trace(best), goal[None]])
-                    return self._finish(result(True, raw, f"goal reached after {it} iterations", it), edges, t0)
-            if cfg.goal_tolerance > 0 and np.any(dg <= cfg.goal_tolerance):
+                    return self._finish(result(True, raw, f"goal reached after {it} iterations", it), edges, t0, w, q0)
+            if st.goal_tolerance > 0 and np.any(dg <= st.goal_tolerance):
                 best = int(ids[np.argmin(dg)])
-                return self._finish(result(True, trace(best), f"within goal_tolerance after {it} iterations", it), edges, t0)
+                return self._finish(result(True, trace(best), f"within goal_tolerance after {it} iterations", it), edges, t0, w, q0)
 
         if goal is None:
             return result(True, None, f"exploration finished: {message}", it)
-        return result(False, None, f"no path found: {message}", it)
+        return result(False, None, f"no path found {message}", it)
 
-    def _finish(self, res: PlanResult, edges: EdgeChecker, t0: float) -> PlanResult:
+    def _finish(self, res: PlanResult, edges: EdgeChecker, t0: float, w: np.ndarray, q0: int) -> PlanResult:
         if self.config.shortcut and len(res.path) > 2:
             res.path = shortcut_path(edges, res.path)
-            res.length = path_length(res.path)
-        res.info["n_queries"] = edges.n_queries
+            res.length = path_length(res.path, w)
+        res.info["n_queries"] = edges.n_queries - q0
         res.time_s = time.perf_counter() - t0
         return res
+
+
+def _grow(a: np.ndarray, cap: int, fill=0) -> np.ndarray:
+    out = np.full((cap,) + a.shape[1:], fill, dtype=a.dtype)
+    out[: len(a)] = a
+    return out

@@ -1,0 +1,206 @@
+"""The planners' view of a robot: collision checks of configurations, and a configuration metric.
+
+Every planner talks to a robot through :class:`LinkGeometry`, built either from a
+:class:`splatplan.robots.Robot` (the normal case) or, for backward compatibility, from a bare
+``link_poses`` callable ``q (..., D) -> (centers (..., L, 3), quats (..., L, 4) wxyz | None,
+semi_axes (L, 3))``.
+
+The two functions :func:`robot_collides` and :func:`robot_query` are the **only** places where a
+planner asks the checker about a robot: they use the checker's device-resident
+``collides_robot`` / ``query_robot`` when it has them, else forward kinematics on the host
+(``robot.ellipsoids(q)``) followed by ``collides`` / ``query``. Switching is one line each.
+
+Configuration metric (what "stride", "edge resolution" and "goal tolerance" are measured in):
+
+* ``motion(dq)`` bounds how far **any point of any ellipsoid** moves when the configuration changes
+  by ``dq`` along a straight line in configuration space: ``sum_j motion_bound[j] |dq_j|`` (scene
+  units, from :attr:`Robot.motion_bound`), and exactly ``|dq|`` for a translating robot (a sphere
+  or ellipsoid whose configuration is its centre).
+* distances between configurations (nearest neighbours, stride) are the weighted Euclidean norm
+  ``|motion_bound * dq|_2`` (scene units; the plain Euclidean distance for a point robot), which is
+  never more than ``motion(dq)`` and never less than ``motion(dq) / sqrt(dof)``.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Callable
+
+import numpy as np
+
+from ..errors import SplatplanError
+
+LinkPoses = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray | None, np.ndarray]]
+
+#: default fraction of the robot's smallest semi-axis that bounds how far any ellipsoid point moves
+#: between two consecutive collision checks along an edge
+EDGE_FRACTION = 0.25
+
+
+def as_robot(robot=None, radius: float | None = None):
+    """A :class:`~splatplan.robots.Robot` from a Robot, a name ("panda", "sphere:0.015", a URDF
+    path) or, when ``robot`` is None, the sphere of ``radius`` (default 0.015)."""
+    if robot is not None and not isinstance(robot, str):
+        return robot
+    from ..robots import load_robot
+
+    if robot is None:
+        r = 0.015 if radius is None else float(radius)
+        if not (math.isfinite(r) and r > 0):
+            raise SplatplanError(f"the robot radius must be finite and > 0, got {radius}")
+        return load_robot(f"sphere:{r!r}")
+    return load_robot(robot)
+
+
+def robot_collides(checker, robot, q: np.ndarray) -> np.ndarray:
+    """(..., dof) configurations -> (..., E) bool: ellipsoid e of configuration q is in collision."""
+    if hasattr(checker, "collides_robot"):
+        return np.asarray(checker.collides_robot(robot, q))
+    return checker.collides(*robot.ellipsoids(q))
+
+
+def robot_query(checker, robot, q: np.ndarray):
+    """(..., dof) configurations -> :class:`~splatplan.metric.QueryResult` with fields (..., E)."""
+    if hasattr(checker, "query_robot"):
+        return checker.query_robot(robot, q)
+    return checker.query(*robot.ellipsoids(q))
+
+
+def _is_translation(robot, rng: np.random.Generator) -> bool:
+    """Whether the configuration is a pure translation of the whole robot (centres = q + const,
+    orientations fixed): a sphere or ellipsoid point robot."""
+    if robot.dof != 3:
+        return False
+    lim = np.asarray(robot.joint_limits, dtype=np.float64)
+    q0 = np.asarray(robot.q_default, dtype=np.float64)
+    lo = np.where(np.isfinite(lim[:, 0]), lim[:, 0], q0 - 1.0)
+    hi = np.where(np.isfinite(lim[:, 1]), lim[:, 1], q0 + 1.0)
+    q = lo + rng.random((4, 3)) * (hi - lo)
+    c, quat, _ = robot.ellipsoids(q)  # (4, E, 3), (4, E, 4)
+    off = c - q[:, None, :]
+    same_off = np.allclose(off, off[:1], atol=1e-9)
+    same_rot = quat is None or np.allclose(np.abs(np.einsum("...i,...i->...", quat, quat[:1])), 1.0, atol=1e-9)
+    return bool(same_off and same_rot)
+
+
+class LinkGeometry:
+    """Collision geometry + configuration metric of a robot, as the planners need it.
+
+    Attributes:
+        robot: the :class:`~splatplan.robots.Robot` (None for a bare ``link_poses`` callable).
+        dof: configuration dimension D (None for a bare callable: taken from the start).
+        weights: (D,) per-coordinate weights of the configuration distance (motion_bound; ones for
+            translating robots and bare callables).
+        translation: the configuration is the robot's position (|dq| is the exact displacement).
+        sphere: a single translating sphere (edges may use the inflation test, see the RRT).
+        min_semi_axis: smallest ellipsoid semi-axis (scene units).
+        max_semi_axis: largest ellipsoid semi-axis (scene units), used to pad sampling boxes.
+        n_queries: ellipsoid checks issued so far (statistics).
+    """
+
+    def __init__(self, robot=None, link_poses: LinkPoses | None = None) -> None:
+        if (robot is None) == (link_poses is None):
+            raise SplatplanError("LinkGeometry needs exactly one of robot or link_poses")
+        self.robot = robot
+        self._link_poses = link_poses
+        self.n_queries = 0
+        if robot is not None:
+            rng = np.random.default_rng(0)
+            self.dof = int(robot.dof)
+            self.translation = _is_translation(robot, rng)
+            ax = np.asarray(robot.semi_axes, dtype=np.float64)
+            self.weights = np.ones(self.dof) if self.translation else np.asarray(robot.motion_bound, dtype=np.float64).reshape(self.dof)
+            if not np.all(np.isfinite(self.weights)) or np.any(self.weights < 0):
+                raise SplatplanError(f"robot {robot.name}: motion_bound must be finite and >= 0, got {self.weights}")
+            self.min_semi_axis = float(robot.min_semi_axis)
+            self.max_semi_axis = float(ax.max())
+            self.sphere = self.translation and ax.shape[0] == 1 and bool(np.allclose(ax, ax[0, 0]))
+        else:
+            self.dof = None
+            self.translation = False
+            self.weights = None
+            self.min_semi_axis = self.max_semi_axis = float("nan")
+            self.sphere = False
+
+    @classmethod
+    def make(cls, robot=None, link_poses: LinkPoses | None = None, radius: float | None = None) -> "LinkGeometry":
+        """From a Robot / robot name, a bare ``link_poses`` callable, or a sphere ``radius``."""
+        if link_poses is not None and robot is None:
+            return cls(link_poses=link_poses)
+        return cls(robot=as_robot(robot, radius))
+
+    # ------------------------------------------------------------------ metric
+    def bind(self, q: np.ndarray) -> None:
+        """Fix D, weights and sizes of a bare ``link_poses`` geometry from a sample configuration (D,)."""
+        if self.robot is not None:
+            if q.shape != (self.dof,):
+                raise SplatplanError(f"robot {self.robot.name} has {self.dof} degrees of freedom, got a configuration of {q.size}: {np.array2string(q, precision=4)}")
+            return
+        self.dof = int(q.size)
+        self.weights = np.ones(self.dof)
+        _, _, axes = self._link_poses(q[None])
+        axes = np.asarray(axes, dtype=np.float64)
+        self.min_semi_axis, self.max_semi_axis = float(axes.min()), float(axes.max())
+
+    def motion(self, dq: np.ndarray) -> np.ndarray:
+        """(..., D) configuration differences -> (...,) bound on the displacement of any ellipsoid
+        point along the straight segment (scene units; configuration units for a bare callable)."""
+        dq = np.asarray(dq, dtype=np.float64)
+        if self.translation or self.robot is None:
+            return np.linalg.norm(dq, axis=-1)
+        return np.abs(dq) @ self.weights
+
+    def distance_scale(self) -> np.ndarray:
+        """(D,) multipliers that turn configurations into the metric space of the RRT."""
+        return self.weights
+
+    # ------------------------------------------------------------------ collisions
+    def ellipsoids(self, q: np.ndarray):
+        """(..., D) -> centers (..., L, 3), quats (..., L, 4) | None, semi_axes (L, 3)."""
+        if self.robot is not None:
+            return self.robot.ellipsoids(q)
+        return self._link_poses(q)
+
+    def collides(self, checker, q: np.ndarray, margin: float | np.ndarray = 0.0) -> np.ndarray:
+        """(..., D) -> (...,) bool: any ellipsoid in collision. ``margin`` (scalar or (...,)) grows
+        every semi-axis (used by the sphere edge test)."""
+        q = np.asarray(q, dtype=np.float64)
+        if np.all(np.asarray(margin) == 0):
+            if self.robot is not None:
+                hit = robot_collides(checker, self.robot, q)  # (..., E)
+            else:
+                hit = checker.collides(*self._link_poses(q))
+        else:
+            c, quat, ax = self.ellipsoids(q)  # (..., L, 3)
+            m = np.asarray(margin, dtype=np.float64)
+            axes = np.asarray(ax, dtype=np.float64) + (m[..., None, None] if m.ndim else m)  # (..., L, 3)
+            hit = checker.collides(c, quat, axes)
+        hit = np.asarray(hit)
+        self.n_queries += hit.size
+        return hit.any(axis=-1)
+
+    def query(self, checker, q: np.ndarray):
+        """(..., D) -> QueryResult with fields (..., L)."""
+        q = np.asarray(q, dtype=np.float64)
+        if self.robot is not None:
+            res = robot_query(checker, self.robot, q)
+        else:
+            res = checker.query(*self._link_poses(q))
+        self.n_queries += int(np.size(res.min_s2))
+        return res
+
+    def describe_collision(self, checker, q: np.ndarray) -> str | None:
+        """None when configuration ``q`` (D,) is free, else a sentence naming the worst link."""
+        res = self.query(checker, np.asarray(q, dtype=np.float64)[None])  # (1, L)
+        if not bool(np.any(res.in_collision)):
+            return None
+        j = int(np.argmin(res.min_s2[0]))
+        link = ""
+        if self.robot is not None and len(self.robot.link_names) and res.min_s2.shape[-1] > 1:
+            li = int(np.asarray(self.robot.ellipsoid_link)[j])
+            link = f" (link {self.robot.link_names[li]}, ellipsoid {j})"
+        colliding = np.nonzero(np.asarray(res.in_collision[0]))[0]
+        return (
+            f"min_s2 = {float(res.min_s2[0, j]):.4g} < 1{link}: {int(res.n_colliding[0, j])} splat(s) inside the robot "
+            f"at n_sigma = {checker.n_sigma:g}, {colliding.size} of {res.min_s2.shape[-1]} ellipsoid(s) in collision"
+        )
