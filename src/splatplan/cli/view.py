@@ -1,0 +1,100 @@
+"""`splatplan view`: a browser viewer (viser) of a scene, a robot, plans, trees and MPC runs."""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import SplatplanError
+from ._common import _load, add_config_args, config_from_args
+
+
+def _read_plan(path: str) -> np.ndarray:
+    p = Path(path)
+    if not p.is_file():
+        raise SplatplanError(f"--plan {path}: no such file")
+    try:
+        obj = json.loads(p.read_text())
+        arr = np.asarray(obj["path"], dtype=np.float64)
+    except (ValueError, KeyError, TypeError) as exc:
+        raise SplatplanError(f"--plan {path}: expected the JSON of 'splatplan plan' with a \"path\" list ({exc.__class__.__name__})") from None
+    if arr.ndim != 2 or len(arr) == 0 or not np.all(np.isfinite(arr)):
+        raise SplatplanError(f"--plan {path}: \"path\" must be a non-empty list of finite configurations, got shape {arr.shape}")
+    return arr
+
+
+def _read_mpc(folder: str) -> np.ndarray:
+    p = Path(folder) / "result.json"
+    if not p.is_file():
+        raise SplatplanError(f"--mpc {folder}: no result.json there (the output folder of 'splatplan mpc')")
+    try:
+        arr = np.asarray(json.loads(p.read_text())["trajectory"], dtype=np.float64)
+    except (ValueError, KeyError, TypeError) as exc:
+        raise SplatplanError(f"--mpc {p}: expected a \"trajectory\" list of states ({exc.__class__.__name__})") from None
+    if arr.ndim != 2 or len(arr) == 0 or not np.all(np.isfinite(arr)):
+        raise SplatplanError(f"--mpc {p}: \"trajectory\" must be a non-empty (T, dof) list of finite numbers, got shape {arr.shape}")
+    return arr
+
+
+def _read_tree(path: str):
+    p = Path(path)
+    if not p.is_file():
+        raise SplatplanError(f"--tree {path}: no such file")
+    try:
+        with np.load(p, allow_pickle=False) as z:
+            nodes, parents = np.asarray(z["nodes"], dtype=np.float64), np.asarray(z["parents"], dtype=np.int64)
+    except Exception as exc:  # numpy raises several types for broken files
+        raise SplatplanError(f"--tree {path}: expected an .npz with arrays 'nodes' (N, D) and 'parents' (N,) ({exc.__class__.__name__})") from None
+    if nodes.ndim != 2 or parents.shape != (len(nodes),):
+        raise SplatplanError(f"--tree {path}: 'nodes' (N, D) and 'parents' (N,) expected, got {nodes.shape} and {parents.shape}")
+    return nodes, parents
+
+
+def cmd_view(args) -> int:
+    from ..viewer import SplatViewer, ViewerConfig
+
+    try:
+        import viser  # noqa: F401
+    except ImportError:
+        raise SplatplanError("the viewer needs the optional extra: pip install 'splatplan[viewer]'") from None
+    cfg = config_from_args(args, ViewerConfig)
+    plan = _read_plan(args.plan) if args.plan else None
+    traj = _read_mpc(args.mpc) if args.mpc else None
+    tree = _read_tree(args.tree) if args.tree else None
+    robot = None
+    if args.robot:
+        from ..robots import load_robot
+
+        robot = load_robot(args.robot)
+    scene = _load(args.scene)
+    viewer = SplatViewer(scene, robot=robot, plan=plan, trajectory=traj, tree=tree, config=cfg)
+    viewer.start()
+    print(f"splatplan viewer: {viewer.url}  ({len(scene):,} splats, robot {viewer.robot.name}; Ctrl-C to stop)", flush=True)
+    try:
+        while True:
+            time.sleep(0.25)
+    except KeyboardInterrupt:
+        print("stopping the viewer", flush=True)
+    finally:
+        viewer.stop()
+    return 0
+
+
+def register(sub, eval_sub) -> None:
+    s = sub.add_parser("view", help="open a browser viewer of a scene, robot, plan, tree or MPC run")
+    s.add_argument("scene", metavar="SCENE", help="splat file or a built-in scene file")
+    s.add_argument("--robot", help="robot: panda | go2 | sphere:R | ellipsoid:A,B,C | path/to.urdf (default: a sphere sized to the scene)")
+    s.add_argument("--plan", help="PATH.json written by 'splatplan plan'")
+    s.add_argument("--mpc", help="output folder of 'splatplan mpc' (its result.json trajectory is animated)")
+    s.add_argument("--tree", help="TREE.npz with 'nodes' (N, D) and 'parents' (N,)")
+    add_config_args(s, ViewerConfigProxy(), group="viewer options")
+    s.set_defaults(func=cmd_view)
+
+
+def ViewerConfigProxy():  # noqa: N802 - returns the class lazily (viewer imports stay out of --help)
+    from ..viewer.app import ViewerConfig
+
+    return ViewerConfig
