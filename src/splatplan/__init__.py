@@ -2,7 +2,7 @@
 
 Public API (imported lazily so ``splatplan --help`` stays fast):
 
-* :func:`load_scene` / :func:`save_scene` - read any supported splat file / write INRIA ``.ply``.
+* :func:`load_scene` / :func:`save_scene` - read any supported splat file / write INRIA ``.ply`` or ``.spz``.
 * :class:`Splats` - the scene container (means, wxyz quats, linear scales, opacities, colours).
 * :class:`CollisionChecker`, :class:`MetricConfig`, :class:`QueryResult` - the CollisionSplatting metric.
 * :func:`build_stonehenge` - the built-in scene (splats + exact analytic ground truth).
@@ -30,6 +30,7 @@ _LAZY = {
     "RRTConfig": ("splatplan.planners", "RRTConfig"),
     "MPPI": ("splatplan.planners", "MPPI"),
     "MPPIConfig": ("splatplan.planners", "MPPIConfig"),
+    "load_encoder": ("splatplan.encoders", "load_encoder"),
 }
 
 __all__ = sorted(_LAZY) + ["__version__"]

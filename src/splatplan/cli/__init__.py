@@ -25,6 +25,7 @@ _MODULES = (
     "demo",
     "eval",
     "view",
+    "encode",
 )
 
 

@@ -37,9 +37,9 @@ class EncoderConfig:
     name: str = "thumbnail"
     #: weights: DINOv2 = folder with the Hugging Face config.json + model.safetensors (e.g. facebook/dinov2-small saved with save_pretrained); efficientnet-lite0 = optional .pth state dict (default: the installed package); thumbnail: none
     weights: str | None = None
-    #: global embedding: cls | mean (mean of patch tokens) | cls_mean (both concatenated); empty = the encoder's default (cls for DINOv2, mean for EfficientNet)
+    #: global embedding: cls | mean (mean of patch tokens) | cls_mean (both concatenated); none = the encoder's default (cls for DINOv2, mean for EfficientNet)
     pooling: str | None = None
-    #: side in pixels of the square image the encoder sees (multiple of 14 for DINOv2); empty = default (224; 16 for thumbnail)
+    #: side in pixels of the square image the encoder sees (multiple of 14 for DINOv2); none = default (224; 16 for thumbnail)
     image_size: int | None = None
     #: L2-normalise embeddings and patch tokens, so that ||e_t - e_r||^2 = 2 - 2 cos
     normalize: bool = False

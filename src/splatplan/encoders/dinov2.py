@@ -18,6 +18,7 @@ Embeddings come from the last layer after the final LayerNorm: ``cls`` (the CLS 
 from __future__ import annotations
 
 import json
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -59,6 +60,21 @@ def _get_hint(arch: str) -> str:
             f"(config.json + model.safetensors); for tests use random_init=True / --encoder-random-init")
 
 
+@contextmanager
+def _quiet_transformers():
+    """No progress bar or load report from transformers while loading; its settings are restored after."""
+    tl = require("transformers.utils.logging", what="DINOv2 encoders")
+    verbosity, bar = tl.get_verbosity(), tl.is_progress_bar_enabled()
+    tl.set_verbosity_error()
+    tl.disable_progress_bar()
+    try:
+        yield
+    finally:
+        tl.set_verbosity(verbosity)
+        if bar:
+            tl.enable_progress_bar()
+
+
 def load_dinov2_model(weights: str | Path | None, arch: str = "dinov2"):
     """Load a ``Dinov2Model`` from a local folder and check its architecture.
 
@@ -97,7 +113,8 @@ def load_dinov2_model(weights: str | Path | None, arch: str = "dinov2"):
         raise SplatplanError(f"weights folder {d} has config.json but no model.safetensors or pytorch_model.bin: {_get_hint(found or arch)}")
     transformers = require("transformers", what="DINOv2 encoders")
     try:
-        model, info = transformers.Dinov2Model.from_pretrained(str(d), local_files_only=True, output_loading_info=True)
+        with _quiet_transformers():
+            model, info = transformers.Dinov2Model.from_pretrained(str(d), local_files_only=True, output_loading_info=True)
     except Exception as exc:  # transformers raises many types for broken files
         msg = str(exc).strip().splitlines()[0] if str(exc).strip() else exc.__class__.__name__
         raise SplatplanError(f"cannot load DINOv2 weights from {d}: {msg[:300]}") from None
