@@ -7,20 +7,30 @@ import pytest
 
 from splatplan.errors import SplatplanError
 from splatplan.metric import CollisionChecker, MetricConfig
-from splatplan.metric.reference import conservative_s2_ref, link_matrices
-from splatplan.metric.wp_metric import TierConfig, WarpMetric
+from splatplan.metric.reference import conservative_s2_ref, link_matrices, softmin_ref, splat_inflation_ref
+from splatplan.metric.wp_metric import TierConfig
 from splatplan.scenes.splats import Splats
 
 from .conftest import DEVICES, random_quats, random_scene
 
 
-def _compare(scene: Splats, centers, quats, axes, cfg: MetricConfig, device: str, tiers: TierConfig | None = None):
-    wm = WarpMetric(scene, device=device, tiers=tiers)
-    got = wm.query(centers, quats, np.broadcast_to(axes, centers.shape), cfg)
-    hit = wm.collides(centers, quats, np.broadcast_to(axes, centers.shape), cfg)
-    a = link_matrices(quats, axes, len(centers))
-    _, s2t = conservative_s2_ref(scene.means, scene.quats, scene.scales, centers, a, cfg.n_sigma)  # (B, N)
-    want_min = s2t.min(1)
+def _compare(scene: Splats, centers, quats, axes, cfg: MetricConfig, device: str, tiers: TierConfig | None = None, rots=None):
+    ch = CollisionChecker(scene, config=cfg, device=device, tiers=tiers)
+    got = ch.query(centers, quats, np.broadcast_to(axes, centers.shape), rots=rots)
+    hit = ch.collides(centers, quats, np.broadcast_to(axes, centers.shape), rots=rots)
+    _check_against_reference(scene, centers, quats, axes, cfg, got, hit, rots=rots)
+
+
+def _check_against_reference(scene: Splats, centers, quats, axes, cfg: MetricConfig, got, hit, rots=None):
+    """Every output of ``got`` (and the collision-only ``hit``) against the float64 brute force."""
+    if rots is not None:
+        w = 1.0 / np.broadcast_to(axes, centers.shape) ** 2
+        a = np.matmul(rots * w[:, None, :], np.swapaxes(rots, 1, 2))
+    else:
+        a = link_matrices(quats, axes, len(centers))
+    keep, ns = splat_inflation_ref(scene.opacities, len(scene), cfg)
+    _, s2t = conservative_s2_ref(scene.means[keep], scene.quats[keep], scene.scales[keep], centers, a, ns[keep])  # (B, N)
+    want_min = s2t.min(1) if s2t.shape[1] else np.full(len(centers), np.inf)
     below = want_min < cfg.s2_cap
     # min_s2: exact (to float32 rounding) below the cap, >= cap (up to rounding) above it
     np.testing.assert_allclose(got.min_s2[below], want_min[below], rtol=1e-4, atol=2e-5)
@@ -29,6 +39,7 @@ def _compare(scene: Splats, centers, quats, axes, cfg: MetricConfig, device: str
     want_n = (s2t < 1.0).sum(1)
     ambiguous = (np.abs(s2t - 1.0) < 1e-4).sum(1)
     assert np.all(np.abs(got.n_colliding - want_n) <= ambiguous)
+    assert np.all((got.in_collision == (want_n > cfg.k_collide)) | (ambiguous > 0))
     # collision-only kernel agrees with the counts
     assert np.all((hit == (want_n > cfg.k_collide)) | (ambiguous > 0))
     # softmin and cost over N(q) = {s2~ < cap}
@@ -37,8 +48,7 @@ def _compare(scene: Splats, centers, quats, axes, cfg: MetricConfig, device: str
         if v.size == 0:
             assert np.isinf(got.softmin[j]) and got.cost[j] == 0.0
             continue
-        m = v.min()
-        soft = m - np.log(np.exp(-cfg.softmin_t * (v - m)).sum()) / cfg.softmin_t
+        soft = softmin_ref(v, cfg.softmin_t, cfg.softmin_mode)
         c = cfg.cost_d_max * np.exp(-cfg.cost_gamma * np.maximum(v - cfg.cost_s_min, 0))
         cost = {"mean": c.mean(), "sum": c.sum(), "max": c.max()}[cfg.cost_reduce]
         tol = 1e-3 * max(1.0, np.abs(v).size * 1e-3)
@@ -73,7 +83,7 @@ def test_2dgs_disks(device):
 
 
 @pytest.mark.parametrize("device", DEVICES)
-@pytest.mark.parametrize("tiers", [TierConfig(), TierConfig(quantiles=(0.5, 0.8, 0.95), cell_factor=3.0), TierConfig(quantiles=(), cell_factor=0.5)])
+@pytest.mark.parametrize("tiers", [TierConfig(), TierConfig(mode="quantile", quantiles=(0.5, 0.8, 0.95), cell_factor=3.0), TierConfig(mode="quantile", quantiles=(), cell_factor=0.5), TierConfig(class_factor=1.5, min_tier_count=1)])
 def test_huge_splats_are_never_dropped(device, tiers):
     """Splats far larger than the robot (a few huge floaters and walls) stay exact in every tiering."""
     rng = np.random.default_rng(3)

@@ -3,11 +3,20 @@
     checker = CollisionChecker(scene, n_sigma=1.0, device="cpu")
     res = checker.query(centers, quats=None, semi_axes=(0.015, 0.015, 0.015))
     res.min_s2, res.n_colliding, res.in_collision, res.softmin, res.cost
+    hits = checker.collides_robot(robot, q)          # q (..., dof) -> (..., E) bool, FK on the device
 
 Query batches may have any leading shape, e.g. (K, T, links) for MPPI rollouts; every output has
 that shape. Frames: ``centers`` are link centres in the scene's world frame (scene units),
-``quats`` wxyz link orientations (link frame -> world), ``semi_axes`` the link's (a, b, c) along its
-own x, y, z axes.
+``quats`` wxyz link orientations (link frame -> world) or ``rots`` the same as 3x3 matrices,
+``semi_axes`` the link's (a, b, c) along its own x, y, z axes.
+
+Inputs may be numpy arrays, torch tensors (CPU or CUDA) or ``wp.array``s; results come back as the
+type of ``centers`` (or ``q``) on its device (see :mod:`.interop` for the rules: numpy inputs are
+validated on the host as before; device inputs cost O(1) host work, zero-copy). Pass
+``out=checker.workspace()`` to reuse preallocated output buffers across calls in a hot loop.
+
+The checker owns a CPU thread pool (created on first use): ``checker.close()``, ``with
+CollisionChecker(...) as checker:`` or garbage collection shuts it down.
 """
 
 from __future__ import annotations
@@ -19,41 +28,27 @@ import numpy as np
 from ..errors import SplatplanError
 from ..scenes.splats import Splats
 from .config import MetricConfig, QueryResult
+from .interop import (
+    MetricWorkspace,
+    array_kind,
+    as_host_queries,
+    axes_medians,
+    convert_out,
+    device_axes_medians,
+    device_rows,
+    device_side_rows,
+    host_link_batch,
+)
+
+_FIELDS = ("min_s2", "n_colliding", "in_collision", "softmin", "cost")
+_DTYPES = {"min_s2": np.float32, "n_colliding": np.int32, "in_collision": bool, "softmin": np.float32, "cost": np.float32}
 
 
-def _as_queries(centers, quats, semi_axes) -> tuple[tuple[int, ...], np.ndarray, np.ndarray | None, np.ndarray]:
-    """Validate and flatten a query batch. Returns (batch_shape, centers (B,3), quats (B,4)|None, axes (B,3))."""
-    c = np.asarray(centers, dtype=np.float64)
-    if c.ndim < 1 or c.shape[-1] != 3:
-        raise SplatplanError(f"centers must have shape (..., 3), got {c.shape}")
-    shape = c.shape[:-1]
-    c = c.reshape(-1, 3)
-    if not np.all(np.isfinite(c)):
-        raise SplatplanError("centers contain NaN or Inf")
-    q = None
-    if quats is not None:
-        q = np.asarray(quats, dtype=np.float64)
-        if q.shape[-1] != 4:
-            raise SplatplanError(f"quats must have shape (..., 4) (wxyz), got {q.shape}")
-        q = np.broadcast_to(q, shape + (4,)).reshape(-1, 4) if q.shape[:-1] != shape else q.reshape(-1, 4)
-        if not np.all(np.isfinite(q)):
-            raise SplatplanError("quats contain NaN or Inf")
-        n = np.linalg.norm(q, axis=1, keepdims=True)
-        if np.any(n < 1e-8):
-            raise SplatplanError("quats contain a zero quaternion")
-        q = q / n
-    a = np.asarray(semi_axes, dtype=np.float64)
-    if a.ndim == 0:
-        a = np.full(3, float(a))
-    if a.shape[-1] != 3:
-        raise SplatplanError(f"semi_axes must have shape (3,) or (..., 3), got {a.shape}")
-    try:
-        a = np.broadcast_to(a, shape + (3,)).reshape(-1, 3)
-    except ValueError as exc:
-        raise SplatplanError(f"semi_axes shape {np.shape(semi_axes)} does not broadcast to the batch {shape}") from exc
-    if not np.all(np.isfinite(a)) or np.any(a <= 0):
-        raise SplatplanError("semi_axes must be finite and > 0")
-    return shape, c, q, a
+def _tile(x: np.ndarray | None, period: int, b: int) -> np.ndarray | None:
+    """Rows of a compact (P, ...) array for every query (row q % P)."""
+    if x is None or period == b:
+        return x
+    return np.tile(x, (b // max(period, 1),) + (1,) * (x.ndim - 1))
 
 
 class CollisionChecker:
@@ -65,6 +60,8 @@ class CollisionChecker:
         device: "cpu", "cuda", "cuda:N" or None/"auto".
         config: full :class:`MetricConfig`; ``n_sigma`` overrides its field when given.
         backend: "warp" (the streaming kernel) or "reference" (numpy brute force, slow).
+        tiers: how splats are binned into tiers (:class:`~splatplan.metric.wp_metric.TierConfig`,
+            a performance knob; results are exact either way).
     """
 
     def __init__(
@@ -74,6 +71,7 @@ class CollisionChecker:
         device: str | None = "cpu",
         config: MetricConfig | None = None,
         backend: str = "warp",
+        tiers=None,
     ) -> None:
         cfg = config or MetricConfig()
         if n_sigma is not None:
@@ -86,55 +84,324 @@ class CollisionChecker:
             raise SplatplanError(f"unknown backend {backend!r}: use 'warp' or 'reference'")
         self.backend = backend
         self._impl = None
+        self._robot_axes: dict = {}  # semi-axes bytes -> (wp.array (E,) vec3, a_min median, a_max median)
         if backend == "warp":
             from .wp_metric import WarpMetric
 
-            self._impl = WarpMetric(scene, device=device)
+            self._impl = WarpMetric(scene, device=device, tiers=tiers)
             self.device = self._impl.device
         else:
-            self.device = "cpu"
+            from .._warp import resolve_device
+
+            self.device = resolve_device(device) if device not in (None, "auto") else "cpu"
+
+    # ------------------------------------------------------------------ life cycle
+    def close(self) -> None:
+        """Release the CPU thread pool (the checker stays usable: a later query starts a new one)."""
+        if self._impl is not None:
+            self._impl.close()
+
+    def __enter__(self) -> "CollisionChecker":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
 
     @property
     def n_sigma(self) -> float:
         return self.config.n_sigma
 
     def with_config(self, **changes) -> "CollisionChecker":
-        """A checker sharing this one's scene data (and grids) with some config fields changed."""
+        """A checker sharing this one's scene data, grids and thread pool with some config fields changed."""
         other = object.__new__(CollisionChecker)
         other.__dict__.update(self.__dict__)
         other.config = replace(self.config, **changes).validate()
         return other
 
-    def query(self, centers, quats=None, semi_axes=(0.015, 0.015, 0.015)) -> QueryResult:
-        """All five outputs for a batch of link poses (see :class:`QueryResult`)."""
-        shape, c, q, a = _as_queries(centers, quats, semi_axes)
-        if c.shape[0] == 0:
-            empty = np.zeros(0)
-            return QueryResult(empty.astype(np.float32), empty.astype(np.int32), empty.astype(bool), empty.astype(np.float32), empty.astype(np.float32)).reshape(shape)
-        if self.backend == "reference":
-            from .reference import collision_metric_ref
+    def workspace(self, capacity: int = 0) -> MetricWorkspace:
+        """Preallocated output buffers on this checker's device, for ``out=`` (see :class:`MetricWorkspace`)."""
+        return MetricWorkspace(self.device).reserve(capacity)
 
-            s = self.scene
-            res = collision_metric_ref(s.means, s.quats, s.scales, c, q, a, self.config)
-            res = QueryResult(
-                res.min_s2.astype(np.float32),
-                res.n_colliding.astype(np.int32),
-                res.in_collision,
-                res.softmin.astype(np.float32),
-                res.cost.astype(np.float32),
-            )
-        else:
-            res = self._impl.query(c, q, a, self.config)
-        return res.reshape(shape)
+    # ------------------------------------------------------------------ queries
+    def query(self, centers, quats=None, semi_axes=(0.015, 0.015, 0.015), *, rots=None, out=None, validate=False) -> QueryResult:
+        """All five outputs for a batch of link poses (see :class:`QueryResult`).
 
-    def collides(self, centers, quats=None, semi_axes=(0.015, 0.015, 0.015)) -> np.ndarray:
+        Args:
+            centers: (..., 3) link centres, world frame: numpy, torch or wp (vec3 or float32).
+            quats: (..., 4) wxyz world <- link, or None (axis-aligned); broadcast over the batch.
+            semi_axes: (3,), a scalar, or (..., 3) broadcast over the batch.
+            rots: (..., 3, 3) world <- link rotation matrices instead of ``quats``.
+            out: a :meth:`workspace` whose buffers receive the results (returned as views of them).
+            validate: device inputs only: raise on non-finite input (one device sync). Without
+                it, invalid queries read in_collision = True with NaN distances.
+        """
+        prep = self._prepare(centers, quats, rots, semi_axes)
+        if prep is None:
+            return self._reference(centers, quats, rots, semi_axes, full=True)
+        kind, shape, b, links, amin, amax, keep = prep
+        if b == 0:
+            return QueryResult(**{k: self._empty(kind, shape, _DTYPES[k]) for k in _FIELDS})
+        ws = self._workspace(out, b)
+        if kind != "numpy":
+            ws.reset_bad()
+        self._impl.query(links, b, amin, amax, self.config, ws.outputs())
+        self._raise_bad(ws, kind, validate)
+        del keep
+        return QueryResult(**{k: convert_out(getattr(ws, k), b, shape, kind, False) for k in _FIELDS})
+
+    def collides(self, centers, quats=None, semi_axes=(0.015, 0.015, 0.015), *, rots=None, out=None, validate=False):
         """Boolean collision state only (n_colliding > k_collide); stops at the (k+1)-th hit.
 
-        Much cheaper than :meth:`query` for RRT edge checks. Shape: the batch shape.
+        Much cheaper than :meth:`query` for RRT edge checks. Shape: the batch shape; type: the
+        input's (arguments as in :meth:`query`).
         """
-        shape, c, q, a = _as_queries(centers, quats, semi_axes)
-        if c.shape[0] == 0:
-            return np.zeros(shape, dtype=bool)
+        prep = self._prepare(centers, quats, rots, semi_axes)
+        if prep is None:
+            return self._reference(centers, quats, rots, semi_axes, full=False)
+        kind, shape, b, links, amin, amax, keep = prep
+        if b == 0:
+            return self._empty(kind, shape, bool)
+        ws = self._workspace(out, b)
+        if kind != "numpy":
+            ws.reset_bad()
+        self._impl.collides(links, b, amin, amax, self.config, ws.in_collision, ws.bad)
+        self._raise_bad(ws, kind, validate)
+        del keep
+        return convert_out(ws.in_collision, b, shape, kind, False)
+
+    # ------------------------------------------------------------------ robots
+    def query_robot(self, robot, q, *, out=None, validate=False) -> QueryResult:
+        """All five outputs for every collision ellipsoid of ``robot`` at joint configurations ``q``.
+
+        ``q`` (..., dof) (numpy, torch or wp float32) -> forward kinematics on the device
+        (``robot.fk_wp``) -> the metric, with no host round trip; outputs shaped (..., E), of the
+        type of ``q``. numpy ``q`` is validated by ``robot.check_q``; device ``q`` costs O(1) host
+        work (NaN joint values make their ellipsoids read in_collision = True, or raise with
+        ``validate=True``).
+        """
+        return self._robot(robot, q, out, validate, full=True)
+
+    def collides_robot(self, robot, q, *, out=None, validate=False):
+        """(..., E) collision state of every ellipsoid of ``robot`` at ``q`` (see :meth:`query_robot`).
+
+        A configuration collides when any of its ellipsoids does: ``collides_robot(...).any(-1)``.
+        """
+        return self._robot(robot, q, out, validate, full=False)
+
+    def _robot(self, robot, q, out, validate, full: bool):
+        kind = array_kind(q)
+        e = int(robot.n_ellipsoids)
+        dof = int(robot.dof)
         if self.backend == "reference":
-            return self.query(centers, quats, semi_axes).in_collision
-        return self._impl.collides(c, q, a, self.config).reshape(shape)
+            qn = robot.check_q(_host(q))
+            c, quat, ax = robot.ellipsoids(qn)
+            res = self.query(c, quat, ax) if full else self.collides(c, quat, ax)
+            return _convert_host(res, kind, _device_of(q, self.device))
+        from .._warp import wp as _wp
+        from .wp_metric_kernel import LinkBatch
+
+        wp = _wp()
+        if kind == "numpy":
+            qn = robot.check_q(q)  # (..., dof) float64, validated (shape, NaN)
+            shape = tuple(qn.shape[:-1])
+            qw = wp.array(np.ascontiguousarray(qn.reshape(-1, dof), dtype=np.float32), dtype=wp.float32, device=self.device)
+        else:
+            if tuple(q.shape[-1:]) != (dof,):
+                raise SplatplanError(f"q must have shape (..., {dof}) for robot {robot.name!r}, got {tuple(q.shape)}")
+            shape = tuple(q.shape[:-1])
+            qw = _device_q(q, kind, dof, self.device)
+        b = int(np.prod(shape, dtype=np.int64)) if shape else 1
+        oshape = shape + (e,)
+        n = b * e
+        if n == 0:
+            if full:
+                return QueryResult(**{k: self._empty(kind, oshape, _DTYPES[k]) for k in _FIELDS})
+            return self._empty(kind, oshape, bool)
+        ws = self._workspace(out, n)
+        ws.reserve_fk(n)
+        centers, rots = ws.fk_centers[:n], ws.fk_rots[:n]
+        robot.fk_wp(qw, centers, rots)
+        axes, amin, amax = self._axes_for(robot)
+        links = LinkBatch()
+        links.centers, links.rots, links.axes = centers, rots, axes
+        links.rot_mode, links.rot_period, links.axes_period = 2, n, e
+        if kind != "numpy":
+            ws.reset_bad()
+        if full:
+            self._impl.query(links, n, amin, amax, self.config, ws.outputs())
+        else:
+            self._impl.collides(links, n, amin, amax, self.config, ws.in_collision, ws.bad)
+        self._raise_bad(ws, kind, validate)
+        if full:
+            return QueryResult(**{k: convert_out(getattr(ws, k), n, oshape, kind, False) for k in _FIELDS})
+        return convert_out(ws.in_collision, n, oshape, kind, False)
+
+    def _axes_for(self, robot):
+        """Robot semi-axes (E,) on the device plus their grid-sizing medians (cached by value)."""
+        from .._warp import wp as _wp
+
+        wp = _wp()
+        ax = np.ascontiguousarray(np.asarray(robot.semi_axes, dtype=np.float64).reshape(-1, 3))
+        key = ax.tobytes()
+        hit = self._robot_axes.get(key)
+        if hit is None:
+            if not np.all(np.isfinite(ax)) or np.any(ax <= 0):
+                raise SplatplanError(f"robot {robot.name!r} has semi-axes that are not finite and > 0")
+            hit = (wp.array(ax.astype(np.float32), dtype=wp.vec3, device=self.device), *axes_medians(ax))
+            if len(self._robot_axes) >= 16:
+                self._robot_axes.pop(next(iter(self._robot_axes)))
+            self._robot_axes[key] = hit
+        return hit
+
+    # ------------------------------------------------------------------ plumbing
+    def _prepare(self, centers, quats, rots, semi_axes):
+        """(kind, batch shape, B, LinkBatch, a_min, a_max, keep-alive) or None for the reference backend."""
+        kind = array_kind(centers)
+        if self.backend == "reference":
+            return None
+        if kind == "numpy":
+            h = as_host_queries(centers, quats, semi_axes, rots)
+            b = h.centers.shape[0]
+            if b == 0:
+                return kind, h.shape, 0, None, 0.0, 0.0, None
+            links, keep = host_link_batch(h, self.device)
+            return (kind, h.shape, b, links, *axes_medians(h.axes), keep)
+        from .._warp import wp as _wp
+        from .wp_metric_kernel import LinkBatch
+
+        wp = _wp()
+        if quats is not None and rots is not None:
+            raise SplatplanError("give link orientations as quats or as rots, not both")
+        carr, shape, keep_c = device_rows(centers, kind, "centers", (3,), self.device)
+        b = int(np.prod(shape, dtype=np.int64)) if shape else 1
+        if b == 0:
+            return kind, shape, 0, None, 0.0, 0.0, None
+        links = LinkBatch()
+        links.centers = carr
+        links.rot_mode, links.rot_period = 0, 1
+        keep = [keep_c, carr]
+        if quats is not None:
+            links.quats, links.rot_period, k, _ = device_side_rows(quats, "quats", (4,), shape, self.device)
+            links.rot_mode = 1
+            keep.append(k)
+        elif rots is not None:
+            links.rots, links.rot_period, k, _ = device_side_rows(rots, "rots", (3, 3), shape, self.device)
+            links.rot_mode = 2
+            keep.append(k)
+        links.axes, links.axes_period, k, host_axes = device_side_rows(semi_axes, "semi_axes", (3,), shape, self.device)
+        keep.append(k)
+        if host_axes is not None:
+            if not np.all(np.isfinite(host_axes)) or np.any(host_axes <= 0):
+                raise SplatplanError("semi_axes must be finite and > 0")
+            amin, amax = axes_medians(host_axes)
+        else:
+            amin, amax = device_axes_medians(links.axes, self.device)
+        del wp
+        return kind, shape, b, links, amin, amax, keep
+
+    def _workspace(self, out, n: int) -> MetricWorkspace:
+        if out is None:
+            return MetricWorkspace(self.device).reserve(n)
+        if not isinstance(out, MetricWorkspace):
+            raise SplatplanError("out must be a workspace from checker.workspace()")
+        if out.device != self.device:
+            raise SplatplanError(f"the workspace is on {out.device} but the checker runs on {self.device}")
+        return out.reserve(n)
+
+    @staticmethod
+    def _raise_bad(ws: MetricWorkspace, kind: str, validate: bool) -> None:
+        if validate and kind != "numpy":
+            i = ws.first_bad()
+            if i is not None:
+                raise SplatplanError(
+                    f"query {i} (flat index) is invalid: a NaN/Inf centre, rotation or semi-axis, a zero quaternion "
+                    "or a semi-axis <= 0"
+                )
+
+    def _empty(self, kind: str, shape, dtype):
+        return _from_host(np.zeros(shape, dtype=dtype), kind, self.device)
+
+    def _reference(self, centers, quats, rots, semi_axes, full: bool):
+        """The numpy brute force on any input type (converted to and from the host)."""
+        from .reference import collision_metric_ref
+
+        kind = array_kind(centers)
+        h = as_host_queries(centers, quats, semi_axes, rots)
+        b = h.centers.shape[0]
+        dev = _device_of(centers, self.device)
+        if b == 0:
+            res = QueryResult(**{k: np.zeros(h.shape, dtype=_DTYPES[k]) for k in _FIELDS})
+        else:
+            s = self.scene
+            r = collision_metric_ref(
+                s.means, s.quats, s.scales, h.centers, _tile(h.quats, h.rot_period, b), _tile(h.axes, h.axes_period, b),
+                self.config, opacities=s.opacities, rots=_tile(h.rots, h.rot_period, b),
+            )  # fmt: skip
+            res = QueryResult(
+                r.min_s2.astype(np.float32), r.n_colliding.astype(np.int32), r.in_collision,
+                r.softmin.astype(np.float32), r.cost.astype(np.float32),
+            ).reshape(h.shape)  # fmt: skip
+        return _convert_host(res if full else res.in_collision, kind, dev)
+
+
+def _host(x) -> np.ndarray:
+    k = array_kind(x)
+    if k == "torch":
+        return x.detach().cpu().numpy()
+    if k == "warp":
+        return x.numpy()
+    return np.asarray(x)
+
+
+def _device_of(x, default: str) -> str:
+    k = array_kind(x)
+    if k == "torch":
+        return "cpu" if x.device.type == "cpu" else f"cuda:{x.device.index or 0}"
+    if k == "warp":
+        return "cpu" if x.device.is_cpu else str(x.device)
+    return default
+
+
+def _from_host(a: np.ndarray, kind: str, device: str):
+    """A host array as the caller's type on ``device``."""
+    if kind == "numpy":
+        return a
+    if kind == "torch":
+        import torch
+
+        return torch.from_numpy(np.ascontiguousarray(a)).to(device)
+    from .._warp import wp as _wp
+
+    wp = _wp()
+    flat = np.ascontiguousarray(a).reshape(-1) if a.ndim == 0 else np.ascontiguousarray(a)
+    return wp.array(flat, dtype=wp.bool if a.dtype == bool else wp.dtype_from_numpy(a.dtype), device=device)
+
+
+def _convert_host(res, kind: str, device: str):
+    if isinstance(res, QueryResult):
+        return QueryResult(**{k: _from_host(v, kind, device) for k, v in res.as_dict().items()})
+    return _from_host(res, kind, device)
+
+
+def _device_q(q, kind: str, dof: int, device: str):
+    """Joint configurations (..., dof) on the device as a float32 (B, dof) wp.array: O(1) host work."""
+    from .._warp import wp as _wp
+
+    wp = _wp()
+    if kind == "torch":
+        import torch
+
+        dev = "cpu" if q.device.type == "cpu" else f"cuda:{q.device.index or 0}"
+        if dev != device:
+            raise SplatplanError(f"q is on {dev} but the checker runs on {device}: move it there or create the checker with device={dev!r}")
+        if not q.is_floating_point():
+            raise SplatplanError(f"q must be a floating-point tensor, got {q.dtype}")
+        t = q.detach().to(torch.float32).contiguous().reshape(-1, dof)
+        return wp.from_torch(t, dtype=wp.float32)
+    dev = "cpu" if q.device.is_cpu else str(q.device)
+    if dev != device:
+        raise SplatplanError(f"q is on {dev} but the checker runs on {device}: move it there or create the checker with device={dev!r}")
+    if q.dtype != wp.float32 or not q.is_contiguous:
+        raise SplatplanError(f"q as a wp.array must be contiguous float32 shaped (..., {dof})")
+    n = int(np.prod(q.shape[:-1], dtype=np.int64)) if q.ndim > 1 else 1
+    return q.reshape((n, dof))

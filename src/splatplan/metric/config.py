@@ -29,6 +29,15 @@ class MetricConfig:
     cost_s_min: float = 1.0
     #: How per-splat costs over N(q) are combined: "mean" (the paper) or "sum" or "max".
     cost_reduce: str = "mean"
+    #: Softmin aggregation over N(q): "sum" = log-sum-exp -(1/t) log sum exp(-t s2~) (<= min_s2), or
+    #: "mean" = log-mean-exp -(1/t) log((1/|N|) sum exp(-t s2~)) (the paper's "recursive softmin", in [min, mean]).
+    softmin_mode: str = "sum"
+    #: Beyond the paper (our option): splats with opacity below this count as free space in every
+    #: output (min_s2, n_colliding, collides, softmin, cost). 0 = use every splat (the paper).
+    opacity_min: float = 0.0
+    #: Beyond the paper (our option): inflate each splat by n_sigma * o_i * sigma_i instead of
+    #: n_sigma * sigma_i, so faint splats get less conservatism. Still exact (o_i <= 1).
+    opacity_scaled_inflation: bool = False
 
     def validate(self) -> "MetricConfig":
         from ..errors import SplatplanError
@@ -43,6 +52,10 @@ class MetricConfig:
             raise SplatplanError(f"softmin_t must be > 0, got {self.softmin_t}")
         if self.cost_reduce not in ("mean", "sum", "max"):
             raise SplatplanError(f"cost_reduce must be 'mean', 'sum' or 'max', got {self.cost_reduce!r}")
+        if self.softmin_mode not in ("sum", "mean"):
+            raise SplatplanError(f"softmin_mode must be 'sum' (log-sum-exp) or 'mean' (log-mean-exp), got {self.softmin_mode!r}")
+        if not (np.isfinite(self.opacity_min) and 0.0 <= self.opacity_min <= 1.0):
+            raise SplatplanError(f"opacity_min must be in [0, 1], got {self.opacity_min}")
         return self
 
 
@@ -53,11 +66,16 @@ COST_REDUCE_CODES = {"mean": 0, "sum": 1, "max": 2}
 class QueryResult:
     """Per-query outputs, every array shaped like the query batch (e.g. (K, T, links)).
 
+    The arrays are numpy arrays, torch tensors or ``wp.array``s: the type (and device) of the query
+    input. Invalid device queries (NaN, zero quaternion, see ``CollisionChecker.query``) read
+    min_s2 = softmin = cost = NaN, n_colliding = -1 and in_collision = True.
+
     Attributes:
         min_s2: float32, min over splats of s2~; exact when < s2_cap, else >= s2_cap (may be inf).
         n_colliding: int32, number of splats with s2~ < 1 (exact).
         in_collision: bool, n_colliding > k_collide.
-        softmin: float32, streaming softmin of s2~ over N(q); +inf when N(q) is empty.
+        softmin: float32, streaming softmin of s2~ over N(q) (log-sum-exp or log-mean-exp, see
+            ``MetricConfig.softmin_mode``); +inf when N(q) is empty.
         cost: float32, aggregated MPPI collision cost over N(q); 0 when N(q) is empty.
     """
 

@@ -35,7 +35,7 @@ def conservative_s2_ref(
     splat_scales: np.ndarray,  # (N, 3) linear std
     centers: np.ndarray,  # (B, 3)
     link_A: np.ndarray,  # (B, 3, 3)
-    n_sigma: float,
+    n_sigma: float | np.ndarray,  # scalar or per splat (N,)
 ) -> tuple[np.ndarray, np.ndarray]:
     """(s2, s2~) for every (query, splat) pair, each float64 (B, N). Use on small inputs only."""
     d = splat_means[None, :, :].astype(np.float64) - centers[:, None, :].astype(np.float64)  # (B, N, 3)
@@ -45,7 +45,28 @@ def conservative_s2_ref(
     rot = quat_to_rotmat(splat_quats)  # (N, 3, 3)
     m = np.einsum("nji,bnj->bni", rot, g) * splat_scales[None].astype(np.float64)  # diag(s) R^T g
     sigma = np.linalg.norm(m, axis=-1)
-    return s2, np.maximum(0.0, s2 - n_sigma * sigma)
+    return s2, np.maximum(0.0, s2 - np.asarray(n_sigma, dtype=np.float64) * sigma)
+
+
+def splat_inflation_ref(opacities: np.ndarray | None, n: int, config: MetricConfig) -> tuple[np.ndarray, np.ndarray]:
+    """(keep (N,) bool, n_sigma per splat (N,)) under the opacity options of ``config``.
+
+    Splats with opacity < ``opacity_min`` are free space (dropped); with ``opacity_scaled_inflation``
+    splat i is inflated by n_sigma * o_i.
+    """
+    o = np.ones(n) if opacities is None else np.asarray(opacities, dtype=np.float64).reshape(n)
+    keep = o >= config.opacity_min if config.opacity_min > 0 else np.ones(n, dtype=bool)
+    ns = config.n_sigma * o if config.opacity_scaled_inflation else np.full(n, float(config.n_sigma))
+    return keep, ns
+
+
+def softmin_ref(v: np.ndarray, t: float, mode: str = "sum") -> float:
+    """-(1/t) log sum exp(-t v) ("sum") or -(1/t) log mean exp(-t v) ("mean"), stable; +inf when empty."""
+    if v.size == 0:
+        return np.inf
+    m = v.min()
+    s = m - np.log(np.exp(-t * (v - m)).sum()) / t
+    return s + np.log(v.size) / t if mode == "mean" else s
 
 
 def collision_metric_ref(
@@ -57,17 +78,27 @@ def collision_metric_ref(
     semi_axes: np.ndarray,  # (3,) or (B, 3)
     config: MetricConfig,
     chunk: int = 64,
+    opacities: np.ndarray | None = None,  # (N,) needed by the opacity options
+    rots: np.ndarray | None = None,  # (B, 3, 3) world <- link, instead of quats
 ) -> QueryResult:
     """Brute-force reference of all five outputs (see :class:`QueryResult`)."""
     centers = np.asarray(centers, dtype=np.float64).reshape(-1, 3)
     b = centers.shape[0]
-    a_all = link_matrices(quats, semi_axes, b)
+    if rots is not None:
+        r = np.asarray(rots, dtype=np.float64).reshape(b, 3, 3)
+        w = 1.0 / np.broadcast_to(np.asarray(semi_axes, dtype=np.float64), (b, 3)) ** 2
+        a_all = np.matmul(r * w[:, None, :], np.swapaxes(r, 1, 2))
+    else:
+        a_all = link_matrices(quats, semi_axes, b)
+    keep, ns = splat_inflation_ref(opacities, len(splat_means), config)
+    if not keep.all():
+        splat_means, splat_quats, splat_scales, ns = splat_means[keep], splat_quats[keep], splat_scales[keep], ns[keep]
     out = {k: np.empty(b, dtype=np.float64) for k in ("min_s2", "softmin", "cost")}
     ncol = np.empty(b, dtype=np.int64)
     t = config.softmin_t
     for lo in range(0, b, chunk):
         hi = min(b, lo + chunk)
-        _, s2t = conservative_s2_ref(splat_means, splat_quats, splat_scales, centers[lo:hi], a_all[lo:hi], config.n_sigma)
+        _, s2t = conservative_s2_ref(splat_means, splat_quats, splat_scales, centers[lo:hi], a_all[lo:hi], ns)
         out["min_s2"][lo:hi] = s2t.min(axis=1) if s2t.shape[1] else np.inf
         ncol[lo:hi] = (s2t < 1.0).sum(axis=1)
         nb = s2t < config.s2_cap  # the neighbourhood N(q)
@@ -77,8 +108,7 @@ def collision_metric_ref(
                 out["softmin"][lo + j] = np.inf
                 out["cost"][lo + j] = 0.0
                 continue
-            m = v.min()
-            out["softmin"][lo + j] = m - np.log(np.exp(-t * (v - m)).sum()) / t
+            out["softmin"][lo + j] = softmin_ref(v, t, config.softmin_mode)
             c = config.cost_d_max * np.exp(-config.cost_gamma * np.maximum(v - config.cost_s_min, 0.0))
             out["cost"][lo + j] = {"mean": c.mean, "sum": c.sum, "max": c.max}[config.cost_reduce]()
     return QueryResult(

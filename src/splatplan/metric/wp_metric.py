@@ -1,16 +1,23 @@
-"""Glue between numpy and the Warp kernels: scale tiers, hash grids, multi-core CPU launches.
+"""Glue around the Warp kernels: size-class tiers, hash grids, multi-core CPU launches.
 
-Scale tiers (see :mod:`.wp_metric_kernel` for the exactness argument): splats are binned by
-their largest std ``sigma``; each tier gets its own hash grid whose query radius is derived from
-the tier's largest ``sigma``, so the many small splats are searched with a tight radius while the
-few huge ones (the last tier) get a coarse grid whose cells match their large radius; when that
-radius spans the tier's whole extent the grid degenerates to 1x1x1, i.e. every query visits the
-tier exhaustively. Nothing is ever dropped. Memory is O(N) for the scene plus O(B) per batch.
+Tiers (see :mod:`.wp_metric_kernel` for the exactness argument): splats are binned by geometric
+size class of their largest std ``sigma`` (classes a factor ``class_factor`` apart); each tier gets
+its own hash grid whose query radius is derived from the tier's largest ``sigma``, so every tier's
+radius fits its members: the many small splats are searched with a tight radius, and a class of
+huge splats far from the robot (the "sky shell" of a phone capture: thousands of 7 m splats on a
+240 m sphere) gets a coarse grid whose cells near the robot are empty, so it costs one grid probe
+per query. Nothing is ever dropped. Memory is O(N) for the scene plus O(B) per batch.
+
+Thread safety: the grid cache is guarded by a lock, and launches only read shared data, so two
+threads may query one :class:`WarpMetric` (or checker) at once. The CPU thread pool belongs to the
+object, is created on first use and shut down by :meth:`WarpMetric.close` (or garbage collection).
 """
 
 from __future__ import annotations
 
 import math
+import threading
+import weakref
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
@@ -19,28 +26,38 @@ import numpy as np
 from .._warp import cpu_threads, resolve_device
 from .._warp import wp as _wp
 from ..scenes.splats import Splats, quat_to_rotmat
-from .config import COST_REDUCE_CODES, MetricConfig, QueryResult
-from .reference import link_matrices
+from .config import COST_REDUCE_CODES, MetricConfig
+from .wp_metric_kernel import (
+    LinkBatch,
+    MetricOutputs,
+    MetricParams,
+    SplatTiers,
+    metric_collide_kernel,
+    metric_full_kernel,
+    search_radius,
+)
 
 wp = _wp()
 
-_POOL: ThreadPoolExecutor | None = None
 #: CPU launches per worker thread for one batch (dynamic load balancing).
 CHUNKS_PER_THREAD = 8
 
 
-def _pool() -> ThreadPoolExecutor:
-    global _POOL
-    if _POOL is None:
-        _POOL = ThreadPoolExecutor(max_workers=cpu_threads(), thread_name_prefix="splatplan-warp")
-    return _POOL
-
-
 @dataclass
 class TierConfig:
-    """How splats are binned into scale tiers (a performance knob; results are exact either way)."""
+    """How splats are binned into tiers (a performance knob; results are exact either way)."""
 
-    #: Quantiles of the per-splat largest std that separate the tiers.
+    #: "size": geometric size classes of the largest std (default); "quantile": tiers split at
+    #: ``quantiles`` of the largest std (the old scheme, kept for comparison).
+    mode: str = "size"
+    #: Size classes are [s0 f^k, s0 f^(k+1)) of the largest std, f = class_factor, s0 = the smallest std.
+    class_factor: float = 2.0
+    #: A class with fewer splats than this merges into the next larger class when that class is
+    #: adjacent (at most one factor apart); far larger classes are never merged with it.
+    min_tier_count: int = 256
+    #: At most this many tiers: the adjacent pair whose merge widens fewest splats' radius merges first.
+    max_tiers: int = 8
+    #: mode "quantile": quantiles of the per-splat largest std that separate the tiers.
     quantiles: tuple[float, ...] = (0.9, 0.999)
     #: Hash-grid cell width as a fraction of the tier's query radius.
     cell_factor: float = 1.5  # measured best on Stonehenge (CPU): 0.75-2.0 within 25%
@@ -48,14 +65,77 @@ class TierConfig:
     max_dim: int = 128
 
 
+def quantile_tiers(smax: np.ndarray, quantiles: tuple[float, ...]) -> np.ndarray:
+    """(N,) tier index per splat: tiers split at quantiles of the largest std (the old scheme)."""
+    edges = np.unique(np.quantile(smax, quantiles)) if len(smax) > 1 and len(quantiles) else np.zeros(0)
+    return np.searchsorted(edges, smax, side="left")
+
+
+def size_class_tiers(smax: np.ndarray, factor: float = 2.0, min_count: int = 256, max_tiers: int = 8) -> np.ndarray:
+    """(N,) tier index per splat (0 = smallest) from geometric size classes of the largest std.
+
+    Class k holds the splats with std in [s0 f^k, s0 f^(k+1)), s0 = the smallest positive std.
+    Classes with fewer than ``min_count`` splats merge upwards into the next non-empty class only
+    when it is adjacent (k + 1), so a far larger class (a sky shell) keeps its own tight tier; then
+    while there are more than ``max_tiers`` tiers, the adjacent pair whose merge costs least
+    (the lower tier's count times the growth of its std bound) merges.
+    """
+    n = len(smax)
+    if n == 0:
+        return np.zeros(0, dtype=np.int64)
+    if factor <= 1.0:
+        raise ValueError(f"class_factor must be > 1, got {factor}")
+    pos = smax[smax > 0]
+    s0 = float(pos.min()) if len(pos) else 1.0
+    cls = np.floor(np.log(np.maximum(smax, s0) / s0) / math.log(factor) + 1e-9).astype(np.int64)
+    keys, inv, counts = np.unique(cls, return_inverse=True, return_counts=True)
+    # groups of classes: [first class, last class, count, max std]
+    groups = []
+    for j, (k, c) in enumerate(zip(keys, counts)):
+        groups.append([int(k), int(k), int(c), float(smax[inv == j].max()), [j]])
+    merged = []
+    for g in groups:
+        if merged and merged[-1][2] < min_count and g[0] == merged[-1][1] + 1:
+            p = merged.pop()
+            g = [p[0], g[1], p[2] + g[2], max(p[3], g[3]), p[4] + g[4]]
+        merged.append(g)
+    while len(merged) > max(1, max_tiers):
+        # cost of merging tier i into i + 1: its members' std bound grows from s_i to s_{i+1}
+        costs = [merged[i][2] * (merged[i + 1][3] / max(merged[i][3], 1e-30)) ** 3 for i in range(len(merged) - 1)]
+        i = int(np.argmin(costs))
+        a, b = merged[i], merged.pop(i + 1)
+        merged[i] = [a[0], b[1], a[2] + b[2], max(a[3], b[3]), a[4] + b[4]]
+    tier_of_class = np.empty(len(keys), dtype=np.int64)
+    for t, g in enumerate(merged):
+        tier_of_class[g[4]] = t
+    return tier_of_class[inv]
+
+
 @dataclass
 class _GridSet:
     """One hash grid per tier plus the splat data permuted into the grids' cell order."""
 
     grids: list  # wp.HashGrid per tier (kept alive here)
-    ids: object  # wp.array(uint64) (T,)
-    means: object  # wp.array(vec3) (N,)
-    mrows: object  # wp.array(mat33) (N,) diag(s) R^T
+    tiers: SplatTiers  # the kernel's view of it
+
+
+def metric_params(cfg: MetricConfig, pow_m: int) -> MetricParams:
+    """The kernels' struct for ``cfg``."""
+    p = MetricParams()
+    p.n_sigma = float(cfg.n_sigma)
+    p.cap = float(cfg.s2_cap)
+    p.softmin_t = float(cfg.softmin_t)
+    p.softmin_mean = 1 if cfg.softmin_mode == "mean" else 0
+    p.d_max = float(cfg.cost_d_max)
+    p.gamma = float(cfg.cost_gamma)
+    p.s_min = float(cfg.cost_s_min)
+    p.reduce_code = COST_REDUCE_CODES[cfg.cost_reduce]
+    p.pow_m = int(pow_m)
+    p.k_collide = int(cfg.k_collide)
+    p.opacity_min = float(cfg.opacity_min)
+    p.opacity_scaled = 1 if cfg.opacity_scaled_inflation else 0
+    p.use_opacity = 1 if (cfg.opacity_min > 0 or cfg.opacity_scaled_inflation) else 0
+    return p
 
 
 def _softmin_power(cfg: MetricConfig) -> int:
@@ -72,7 +152,7 @@ def _softmin_power(cfg: MetricConfig) -> int:
 
 
 class WarpMetric:
-    """Scene data on one Warp device plus cached hash grids; see :class:`CollisionChecker`."""
+    """Scene data on one Warp device, cached hash grids and a CPU thread pool; see :class:`CollisionChecker`."""
 
     def __init__(self, scene: Splats, device: str | None = "cpu", tiers: TierConfig | None = None) -> None:
         self.device = resolve_device(device)
@@ -81,13 +161,15 @@ class WarpMetric:
         scales = scene.scales.astype(np.float64)
         smax = scales.max(axis=1)  # (N,)
 
-        # --- tier assignment by quantiles of the largest std
-        edges = np.unique(np.quantile(smax, self.tiers.quantiles)) if len(smax) > 1 else np.zeros(0)
-        tier_of = np.searchsorted(edges, smax, side="left")  # (N,) in [0, len(edges)]
-        n_t = len(edges) + 1
+        if self.tiers.mode == "size":
+            tier_of = size_class_tiers(smax, self.tiers.class_factor, self.tiers.min_tier_count, self.tiers.max_tiers)
+        elif self.tiers.mode == "quantile":
+            tier_of = quantile_tiers(smax, self.tiers.quantiles)
+        else:
+            raise ValueError(f"unknown tier mode {self.tiers.mode!r}: use 'size' or 'quantile'")
         order_parts, self.tier_offset, self.tier_count, self.tier_sigma = [], [], [], []
         start = 0
-        for j in range(n_t):
+        for j in range(int(tier_of.max()) + 1):
             idx = np.flatnonzero(tier_of == j)
             if len(idx) == 0:
                 continue
@@ -102,28 +184,59 @@ class WarpMetric:
         rot = quat_to_rotmat(scene.quats[order])  # (N, 3, 3)
         self._means_np = means[order].astype(np.float32)  # (N, 3) tier-sorted
         self._mrows_np = (np.transpose(rot, (0, 2, 1)) * scales[order][:, :, None]).astype(np.float32)  # diag(s) R^T
-        self._tier_offset = wp.array(np.asarray(self.tier_offset, np.int32), dtype=wp.int32, device=self.device)
+        self._opac_np = np.asarray(scene.opacities, dtype=np.float32)[order]  # (N,) tier-sorted
+        offs = np.asarray(self.tier_offset + [start], np.int32)
+        self._tier_offset = wp.array(offs, dtype=wp.int32, device=self.device)
         self._tier_sigma = wp.array(np.asarray(self.tier_sigma, np.float32), dtype=wp.float32, device=self.device)
         self._gridsets: dict[tuple[int, ...], _GridSet] = {}  # quantised cell per tier -> grids + data
+        self._lock = threading.Lock()
+        self._pool: ThreadPoolExecutor | None = None
+        self._pool_finalizer = None
+
+    # ------------------------------------------------------------------ resources
+    def _executor(self) -> ThreadPoolExecutor:
+        with self._lock:
+            if self._pool is None:
+                self._pool = ThreadPoolExecutor(max_workers=cpu_threads(), thread_name_prefix="splatplan-metric")
+                self._pool_finalizer = weakref.finalize(self, self._pool.shutdown, wait=False)
+            return self._pool
+
+    def close(self) -> None:
+        """Shut the CPU thread pool down (a later query creates a new one)."""
+        with self._lock:
+            pool, self._pool = self._pool, None
+            if self._pool_finalizer is not None:
+                self._pool_finalizer.detach()
+                self._pool_finalizer = None
+        if pool is not None:
+            pool.shutdown(wait=True)
 
     # ------------------------------------------------------------------ grids
-    def _gridset(self, n_sigma: float, cap: float, a_min: float, a_max: float) -> "_GridSet":
-        """Hash grids of every tier for this query radius (quantised to 2^(1/4), cached).
+    def grid_key(self, n_sigma: float, cap: float, a_min: float, a_max: float) -> tuple[int, ...]:
+        """Quantised (2^(1/4)) cell width per tier for a typical query with semi-axes in [a_min, a_max]."""
+        key = []
+        for sig in self.tier_sigma:
+            rho = search_radius(float(n_sigma), float(sig), float(a_min), float(a_max), float(cap))
+            key.append(int(math.floor(4 * math.log2(max(rho * self.tiers.cell_factor, 1e-9)))))
+        return tuple(key)
+
+    def gridset(self, n_sigma: float, cap: float, a_min: float, a_max: float) -> _GridSet:
+        """Hash grids of every tier for this query radius (cached; safe from several threads).
 
         Each grid set keeps its own copy of the splat data in the grid's cell order, so the
         indices a grid returns walk memory almost sequentially (a large win on CPU caches).
         """
-        key = []
-        for sig in self.tier_sigma:
-            k = n_sigma * sig / a_min
-            rho = a_max * (k + math.sqrt(k * k + cap))
-            key.append(int(math.floor(4 * math.log2(max(rho * self.tiers.cell_factor, 1e-9)))))
-        key = tuple(key)
-        gs = self._gridsets.get(key)
-        if gs is not None:
+        key = self.grid_key(n_sigma, cap, a_min, a_max)
+        with self._lock:
+            gs = self._gridsets.get(key)
+            if gs is None:
+                gs = self._build_gridset(key)
+                if len(self._gridsets) >= 4:  # bound memory: drop the oldest grid set (users keep theirs alive)
+                    self._gridsets.pop(next(iter(self._gridsets)))
+                self._gridsets[key] = gs
             return gs
-        if len(self._gridsets) >= 4:  # bound memory: drop the oldest grid set
-            self._gridsets.pop(next(iter(self._gridsets)))
+
+    def _build_gridset(self, key: tuple[int, ...]) -> _GridSet:
         grids, perm = [], []
         for j, q in enumerate(key):
             lo, n = self.tier_offset[j], self.tier_count[j]
@@ -139,88 +252,40 @@ class WarpMetric:
             g.build(wp.array(pts[local], dtype=wp.vec3, device=self.device), width)
             grids.append(g)
         perm = np.concatenate(perm)
-        gs = _GridSet(
-            grids=grids,
-            ids=wp.array(np.asarray([g.id for g in grids], dtype=np.uint64), dtype=wp.uint64, device=self.device),
-            means=wp.array(self._means_np[perm], dtype=wp.vec3, device=self.device),
-            mrows=wp.array(self._mrows_np[perm], dtype=wp.mat33, device=self.device),
-        )
-        self._gridsets[key] = gs
-        return gs
+        t = SplatTiers()
+        t.means = wp.array(self._means_np[perm], dtype=wp.vec3, device=self.device)
+        t.mrows = wp.array(self._mrows_np[perm], dtype=wp.mat33, device=self.device)
+        t.opacity = wp.array(self._opac_np[perm], dtype=wp.float32, device=self.device)
+        t.grid = wp.array(np.asarray([g.id for g in grids], dtype=np.uint64), dtype=wp.uint64, device=self.device)
+        t.offset = self._tier_offset
+        t.sigma = self._tier_sigma
+        t.n_tiers = len(grids)
+        return _GridSet(grids=grids, tiers=t)
 
     # ------------------------------------------------------------------ launches
-    def _inputs(self, c: np.ndarray, q: np.ndarray | None, a: np.ndarray):
-        b = c.shape[0]
-        link_a = link_matrices(q, a, b).astype(np.float32)  # (B, 3, 3)
-        mm = np.stack([a.min(1), a.max(1)], axis=1).astype(np.float32)  # (B, 2)
-        d = self.device
-        return (
-            wp.array(c.astype(np.float32), dtype=wp.vec3, device=d),
-            wp.array(link_a, dtype=wp.mat33, device=d),
-            wp.array(mm, dtype=wp.vec2, device=d),
-            float(np.median(mm[:, 0])),
-            float(np.median(mm[:, 1])),
-        )
-
-    def _launch(self, kernel, b: int, make_inputs) -> None:
-        """Launch over b queries; on CPU split into one launch per core (Warp runs a CPU launch on one thread)."""
+    def _launch(self, kernel, b: int, args: list) -> None:
+        """Launch over b queries; on CPU split into several launches per core (Warp runs a CPU launch on one thread)."""
         n_thr = cpu_threads() if self.device == "cpu" else 1
         if n_thr == 1 or b < 256:
-            wp.launch(kernel, dim=b, inputs=make_inputs(0), device=self.device)
+            wp.launch(kernel, dim=b, inputs=[0, *args], device=self.device)
             return
         # Several chunks per core, taken from the pool as cores free up: query costs vary a lot
         # (free space vs. dense surfaces), so equal static halves leave a core idle.
         step = max(128, math.ceil(b / (CHUNKS_PER_THREAD * n_thr)))
+        pool = self._executor()
         futs = [
-            _pool().submit(wp.launch, kernel, dim=min(step, b - lo), inputs=make_inputs(lo), device=self.device)
+            pool.submit(wp.launch, kernel, dim=min(step, b - lo), inputs=[lo, *args], device=self.device)
             for lo in range(0, b, step)
         ]
         for f in futs:
             f.result()
 
-    def query(self, c: np.ndarray, q: np.ndarray | None, a: np.ndarray, cfg: MetricConfig) -> QueryResult:
-        b = c.shape[0]
-        centers, link_a, mm, amin, amax = self._inputs(c, q, a)
-        gs = self._gridset(cfg.n_sigma, cfg.s2_cap, amin, amax)
-        d = self.device
-        out_min = wp.empty(b, dtype=wp.float32, device=d)
-        out_ncol = wp.empty(b, dtype=wp.int32, device=d)
-        out_soft = wp.empty(b, dtype=wp.float32, device=d)
-        out_cost = wp.empty(b, dtype=wp.float32, device=d)
-        from .wp_metric_kernel import metric_full_kernel
+    def query(self, links: LinkBatch, b: int, a_min: float, a_max: float, cfg: MetricConfig, out: MetricOutputs) -> None:
+        """All five outputs of b queries into ``out`` (device arrays of at least b rows)."""
+        gs = self.gridset(cfg.n_sigma, cfg.s2_cap, a_min, a_max)
+        self._launch(metric_full_kernel, b, [links, gs.tiers, metric_params(cfg, _softmin_power(cfg)), out])
 
-        pow_m = _softmin_power(cfg)
-
-        def inputs(lo: int):
-            return [
-                lo, centers, link_a, mm, gs.means, gs.mrows, gs.ids, self._tier_offset, self._tier_sigma,
-                len(self.tier_count), float(cfg.n_sigma), float(cfg.s2_cap), float(cfg.softmin_t),
-                float(cfg.cost_d_max), float(cfg.cost_gamma), float(cfg.cost_s_min), COST_REDUCE_CODES[cfg.cost_reduce],
-                pow_m, out_min, out_ncol, out_soft, out_cost,
-            ]  # fmt: skip
-
-        self._launch(metric_full_kernel, b, inputs)
-        ncol = out_ncol.numpy()
-        return QueryResult(
-            min_s2=out_min.numpy(),
-            n_colliding=ncol,
-            in_collision=ncol > cfg.k_collide,
-            softmin=out_soft.numpy(),
-            cost=out_cost.numpy(),
-        )
-
-    def collides(self, c: np.ndarray, q: np.ndarray | None, a: np.ndarray, cfg: MetricConfig) -> np.ndarray:
-        b = c.shape[0]
-        centers, link_a, mm, amin, amax = self._inputs(c, q, a)
-        gs = self._gridset(cfg.n_sigma, 1.0, amin, amax)
-        out_hit = wp.empty(b, dtype=wp.int32, device=self.device)
-        from .wp_metric_kernel import metric_collide_kernel
-
-        def inputs(lo: int):
-            return [
-                lo, centers, link_a, mm, gs.means, gs.mrows, gs.ids, self._tier_offset, self._tier_sigma,
-                len(self.tier_count), float(cfg.n_sigma), int(cfg.k_collide), out_hit,
-            ]  # fmt: skip
-
-        self._launch(metric_collide_kernel, b, inputs)
-        return out_hit.numpy().astype(bool)
+    def collides(self, links: LinkBatch, b: int, a_min: float, a_max: float, cfg: MetricConfig, out_hit, bad) -> None:
+        """in_collision of b queries into ``out_hit`` (bool device array of at least b rows)."""
+        gs = self.gridset(cfg.n_sigma, 1.0, a_min, a_max)
+        self._launch(metric_collide_kernel, b, [links, gs.tiers, metric_params(cfg, 0), out_hit, bad])

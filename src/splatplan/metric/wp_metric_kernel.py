@@ -1,19 +1,28 @@
 """Warp kernels of the CollisionSplatting metric (SPEC section 2). Glue lives in :mod:`.wp_metric`.
 
 One thread per query ellipsoid; all accumulators live in registers; no (queries x splats) buffer.
+Kernel arguments are three structs: :class:`LinkBatch` (the query ellipsoids, read on the device:
+link matrices are built here, not on the host), :class:`SplatTiers` (the scene in one grid set's
+memory order) and :class:`MetricParams` (the config), plus the outputs.
 
-Splats are stored in *tiers* by their largest standard deviation. Tier ``j`` owns the contiguous
-index range ``[tier_offset[j], tier_offset[j] + tier_count[j])`` of the splat arrays, a hash grid
-``tier_grid[j]`` over those means (indices returned by the grid are local to the tier) and
-``tier_sigma[j]`` = the largest std of any splat in it. The last tier may be a 1x1x1 grid: every
-query then visits all of its points (the exhaustive set for huge splats).
+Splats are stored in *tiers* by size class of their largest standard deviation. Tier ``j`` owns
+the contiguous index range ``[offset[j], offset[j + 1])`` of the splat arrays, a hash grid
+``grid[j]`` over those means (indices returned by the grid are local to the tier) and
+``sigma[j]`` = the largest std of any splat in it. A tier's grid may be 1x1x1: every query then
+visits all of its points (the exhaustive set for huge splats).
 
 Exactness (the query is conservative: it never misses a splat with s2~ < cap but may visit
 extra candidates, which the distance test removes). With s = sqrt(s2), |grad s2| <= 2 s / a_min
 and sigma <= sigma_g |grad s2|, so s2~ >= s^2 - 2 k s with k = n_sigma sigma_g / a_min. Hence
 s2~ >= cap whenever s >= k + sqrt(k^2 + cap), and since s >= |d| / a_max every splat farther than
-rho = a_max (k + sqrt(k^2 + cap)) has s2~ >= cap. The tier radius below uses that rho (times a
-relative slack of 1e-4 against float32 rounding).
+rho = a_max (k + sqrt(k^2 + cap)) has s2~ >= cap. :func:`search_radius` is that rho (times a
+relative slack of 1e-4 against float32 rounding); it is the one definition of the formula, used by
+the kernels, by the glue (grid cell sizes) and by the tests. The opacity options only shrink the
+inflation (o_i <= 1) or drop splats, so the same radius stays exact.
+
+Invalid queries (non-finite centre, rotation or semi-axes, a zero quaternion, a semi-axis <= 0)
+are never reported free: their outputs are min_s2 = softmin = cost = NaN, n_colliding = -1,
+in_collision = True, and the smallest invalid query index is written to ``bad[0]``.
 """
 
 from __future__ import annotations
@@ -22,17 +31,114 @@ from .._warp import wp as _wp
 
 wp = _wp()
 
-RHO_SLACK = 1.0001
+#: Relative slack of the search radius against float32 rounding.
+RHO_SLACK = wp.constant(1.0001)
 # Softmin terms exp(-t (v - pivot)) below exp(-20) ~ 2e-9 are skipped: the sum (>= 1) changes by
 # less than N * 2e-9 relative, so the softmin moves by < N * 2e-9 / t (1e-7 for N = 500, t = 10).
 SOFTMIN_SKIP = wp.constant(20.0)
+#: bad[0] when every query was valid.
+NO_BAD = 2147483647
 
 
 @wp.func
-def tier_radius(n_sigma: float, sigma_g: float, a_min: float, a_max: float, cap: float):
-    """rho = a_max (k + sqrt(k^2 + cap)), k = n_sigma sigma_g / a_min: splats beyond have s2~ >= cap."""
+def search_radius(n_sigma: float, sigma_g: float, a_min: float, a_max: float, cap: float):
+    """rho = a_max (k + sqrt(k^2 + cap)) (1 + 1e-4), k = n_sigma sigma_g / a_min: splats beyond have s2~ >= cap.
+
+    The single definition of the bound: a ``@wp.func`` that Warp also evaluates in Python scope
+    (float64 there), so the glue and the tests call this very function.
+    """
     k = n_sigma * sigma_g / a_min
     return a_max * (k + wp.sqrt(k * k + cap)) * RHO_SLACK
+
+
+@wp.struct
+class LinkBatch:
+    """B query ellipsoids (world frame, scene units). Rotations and semi-axes are read with a period
+    (row ``q % period``) so that a per-link (E, ...) array broadcasts over a (..., E) batch."""
+
+    centers: wp.array(dtype=wp.vec3)  # (B,) link centres, world frame
+    quats: wp.array(dtype=wp.vec4)  # (P_rot,) wxyz world <- link, used when rot_mode == 1 (normalised here)
+    rots: wp.array(dtype=wp.mat33)  # (P_rot,) world <- link, used when rot_mode == 2
+    axes: wp.array(dtype=wp.vec3)  # (P_axes,) semi-axes (a, b, c) along the link's x, y, z
+    rot_mode: int  # 0 identity (no rotation given), 1 quaternions, 2 rotation matrices
+    rot_period: int
+    axes_period: int
+
+
+@wp.struct
+class SplatTiers:
+    """The scene in one grid set's memory order (see the module docstring)."""
+
+    means: wp.array(dtype=wp.vec3)  # (N,) splat means, world frame
+    mrows: wp.array(dtype=wp.mat33)  # (N,) diag(s) R^T per splat
+    opacity: wp.array(dtype=wp.float32)  # (N,) opacity in [0, 1]
+    grid: wp.array(dtype=wp.uint64)  # (T,) hash-grid ids
+    offset: wp.array(dtype=wp.int32)  # (T + 1,) tier j = [offset[j], offset[j + 1])
+    sigma: wp.array(dtype=wp.float32)  # (T,) largest std in the tier
+    n_tiers: int
+
+
+@wp.struct
+class MetricParams:
+    """:class:`~splatplan.metric.config.MetricConfig` as the kernels see it."""
+
+    n_sigma: float
+    cap: float  # s2_cap: exactness threshold and neighbourhood N(q) = {s2~ < cap}; 1 for collides
+    softmin_t: float
+    softmin_mean: int  # 1: log-mean-exp (adds log|N| / t), 0: log-sum-exp
+    d_max: float
+    gamma: float
+    s_min: float
+    reduce_code: int  # 0 mean, 1 sum, 2 max
+    pow_m: int  # > 0 when softmin_t == pow_m * gamma (softmin terms from the cost's exp), else 0
+    k_collide: int  # in collision when more than k splats have s2~ < 1
+    opacity_min: float  # splats with opacity below it are free space
+    opacity_scaled: int  # 1: inflation n_sigma * o_i * sigma_i
+    use_opacity: int  # 1 when either opacity option is active (else opacity is never read)
+
+
+@wp.struct
+class MetricOutputs:
+    min_s2: wp.array(dtype=wp.float32)  # (B,)
+    n_colliding: wp.array(dtype=wp.int32)  # (B,)
+    in_collision: wp.array(dtype=wp.bool)  # (B,)
+    softmin: wp.array(dtype=wp.float32)  # (B,)
+    cost: wp.array(dtype=wp.float32)  # (B,)
+    bad: wp.array(dtype=wp.int32)  # (1,) smallest invalid query index, NO_BAD if none
+
+
+@wp.func
+def quat_wxyz_to_mat(q: wp.vec4):
+    """Rotation matrix of a wxyz quaternion (normalised here)."""
+    return wp.quat_to_matrix(wp.normalize(wp.quat(q[1], q[2], q[3], q[0])))
+
+
+@wp.func
+def link_matrix(rot: wp.mat33, axes: wp.vec3):
+    """A = R diag(1/a^2, 1/b^2, 1/c^2) R^T."""
+    w = wp.vec3(1.0 / (axes[0] * axes[0]), 1.0 / (axes[1] * axes[1]), 1.0 / (axes[2] * axes[2]))
+    return rot * wp.diag(w) * wp.transpose(rot)
+
+
+@wp.func
+def link_rotation(links: LinkBatch, q: int):
+    """World <- link rotation of query q (identity when none was given)."""
+    if links.rot_mode == 1:
+        return quat_wxyz_to_mat(links.quats[q % links.rot_period])
+    if links.rot_mode == 2:
+        return links.rots[q % links.rot_period]
+    return wp.identity(n=3, dtype=float)
+
+
+@wp.func
+def link_valid(links: LinkBatch, q: int, c: wp.vec3, ax: wp.vec3):
+    ok = wp.isfinite(c) and wp.isfinite(ax) and wp.min(ax) > 0.0
+    if links.rot_mode == 1:
+        qv = links.quats[q % links.rot_period]
+        ok = ok and wp.isfinite(qv) and wp.length(qv) > 1.0e-8
+    if links.rot_mode == 2:
+        ok = ok and wp.isfinite(links.rots[q % links.rot_period])
+    return ok
 
 
 @wp.func
@@ -52,35 +158,41 @@ def link_s2(d: wp.vec3, dd: float, link_a: wp.mat33, sphere: bool, inv_r2: float
     return conservative_s2(d, link_a, m, n_sigma)
 
 
+@wp.func
+def splat_inflation(splats: SplatTiers, p: MetricParams, i: int):
+    """n_sigma for splat i under the opacity options; -1 when the splat counts as free space."""
+    if p.use_opacity == 0:
+        return p.n_sigma
+    o = splats.opacity[i]
+    if o < p.opacity_min:
+        return -1.0
+    if p.opacity_scaled != 0:
+        return p.n_sigma * o
+    return p.n_sigma
+
+
 @wp.kernel
 def metric_full_kernel(
     offset: int,  # first query handled by this launch (CPU launches split the batch)
-    centers: wp.array(dtype=wp.vec3),  # (B,) link centres, world frame
-    link_a: wp.array(dtype=wp.mat33),  # (B,) A = R diag(1/a^2, 1/b^2, 1/c^2) R^T
-    axis_minmax: wp.array(dtype=wp.vec2),  # (B,) (a_min, a_max) semi-axes
-    means: wp.array(dtype=wp.vec3),  # (N,) splat means, tier-sorted
-    mrows: wp.array(dtype=wp.mat33),  # (N,) diag(s) R^T per splat
-    tier_grid: wp.array(dtype=wp.uint64),  # (T,) hash-grid ids
-    tier_offset: wp.array(dtype=wp.int32),  # (T,)
-    tier_sigma: wp.array(dtype=wp.float32),  # (T,) largest std in the tier
-    n_tiers: int,
-    n_sigma: float,
-    cap: float,  # s2_cap: exactness threshold and neighbourhood N(q) = {s2~ < cap}
-    softmin_t: float,
-    d_max: float,
-    gamma: float,
-    s_min: float,
-    reduce_code: int,  # 0 mean, 1 sum, 2 max
-    pow_m: int,  # > 0 when softmin_t == pow_m * gamma (softmin terms from the cost's exp), else 0
-    out_min: wp.array(dtype=wp.float32),  # (B,)
-    out_ncol: wp.array(dtype=wp.int32),  # (B,)
-    out_softmin: wp.array(dtype=wp.float32),  # (B,)
-    out_cost: wp.array(dtype=wp.float32),  # (B,)
+    links: LinkBatch,
+    splats: SplatTiers,
+    p: MetricParams,
+    out: MetricOutputs,
 ):
     q = wp.tid() + offset
-    c = centers[q]
-    a = link_a[q]
-    mm = axis_minmax[q]
+    c = links.centers[q]
+    ax = links.axes[q % links.axes_period]
+    if not link_valid(links, q, c, ax):
+        out.min_s2[q] = wp.nan
+        out.n_colliding[q] = -1
+        out.in_collision[q] = True
+        out.softmin[q] = wp.nan
+        out.cost[q] = wp.nan
+        wp.atomic_min(out.bad, 0, q)
+        return
+    a = link_matrix(link_rotation(links, q), ax)
+    a_min = wp.min(ax)
+    a_max = wp.max(ax)
 
     best = float(wp.inf)  # min s2~ over visited splats
     ncol = int(0)  # splats with s2~ < 1
@@ -90,96 +202,115 @@ def metric_full_kernel(
     c_sum = float(0.0)
     c_max = float(0.0)
     pg = float(1.0)  # exp(gamma (pivot - s_min)), updated with the pivot
-    sphere = mm[0] == mm[1]  # A = I / r^2: cheaper s2~
-    inv_r2 = 1.0 / (mm[0] * mm[0])
+    sphere = a_min == a_max  # A = I / r^2: cheaper s2~
+    inv_r2 = 1.0 / (a_min * a_min)
+    cap = p.cap
+    gamma = p.gamma
+    t = p.softmin_t
 
-    for j in range(n_tiers):
-        rho = tier_radius(n_sigma, tier_sigma[j], mm[0], mm[1], cap)
+    for j in range(splats.n_tiers):
+        rho = search_radius(p.n_sigma, splats.sigma[j], a_min, a_max, cap)
         rho2 = rho * rho
-        base = tier_offset[j]
-        query = wp.hash_grid_query(tier_grid[j], c, rho)
+        base = splats.offset[j]
+        query = wp.hash_grid_query(splats.grid[j], c, rho)
         local = int(0)
         while wp.hash_grid_query_next(query, local):
             i = base + local
-            d = means[i] - c
+            d = splats.means[i] - c
             dd = wp.dot(d, d)
             if dd <= rho2:
-                v = link_s2(d, dd, a, sphere, inv_r2, mrows[i], n_sigma)
+                ns = splat_inflation(splats, p, i)
+                if ns < 0.0:
+                    continue
+                v = link_s2(d, dd, a, sphere, inv_r2, splats.mrows[i], ns)
                 best = wp.min(best, v)
                 if v < 1.0:
                     ncol += 1
                 if v < cap:
                     n_nb += 1
-                    eg = wp.exp(-gamma * (v - s_min))  # the one exp per neighbour in the common case
-                    cv = d_max * wp.min(eg, 1.0)  # d_max exp(-gamma max(v - s_min, 0))
+                    eg = wp.exp(-gamma * (v - p.s_min))  # the one exp per neighbour in the common case
+                    cv = p.d_max * wp.min(eg, 1.0)  # d_max exp(-gamma max(v - s_min, 0))
                     if v < pivot:
-                        acc = acc * wp.exp(-softmin_t * (pivot - v)) + 1.0
+                        acc = acc * wp.exp(-t * (pivot - v)) + 1.0
                         pivot = v
-                        pg = wp.exp(gamma * (pivot - s_min))  # eg * pg = exp(-gamma (v - pivot))
-                    elif pow_m > 0:
+                        pg = wp.exp(gamma * (pivot - p.s_min))  # eg * pg = exp(-gamma (v - pivot))
+                    elif p.pow_m > 0:
                         # t = m gamma: exp(-t (v - pivot)) = (eg * pg)^m, no second exp
                         e = eg * pg
                         term = e
-                        for _k in range(pow_m - 1):
+                        for _k in range(p.pow_m - 1):
                             term = term * e
                         acc += term
-                    elif softmin_t * (v - pivot) < SOFTMIN_SKIP:
-                        acc += wp.exp(-softmin_t * (v - pivot))
+                    elif t * (v - pivot) < SOFTMIN_SKIP:
+                        acc += wp.exp(-t * (v - pivot))
                     c_sum += cv
                     c_max = wp.max(c_max, cv)
 
-    out_min[q] = best
-    out_ncol[q] = ncol
+    out.min_s2[q] = best
+    out.n_colliding[q] = ncol
+    out.in_collision[q] = ncol > p.k_collide
     if n_nb > 0:
-        out_softmin[q] = pivot - wp.log(acc) / softmin_t
-        if reduce_code == 0:
-            out_cost[q] = c_sum / float(n_nb)
-        elif reduce_code == 1:
-            out_cost[q] = c_sum
+        soft = pivot - wp.log(acc) / t
+        if p.softmin_mean != 0:
+            soft += wp.log(float(n_nb)) / t
+        out.softmin[q] = soft
+        if p.reduce_code == 0:
+            out.cost[q] = c_sum / float(n_nb)
+        elif p.reduce_code == 1:
+            out.cost[q] = c_sum
         else:
-            out_cost[q] = c_max
+            out.cost[q] = c_max
     else:
-        out_softmin[q] = float(wp.inf)
-        out_cost[q] = 0.0
+        out.softmin[q] = float(wp.inf)
+        out.cost[q] = 0.0
 
 
 @wp.kernel
 def metric_collide_kernel(
     offset: int,
-    centers: wp.array(dtype=wp.vec3),  # (B,)
-    link_a: wp.array(dtype=wp.mat33),  # (B,)
-    axis_minmax: wp.array(dtype=wp.vec2),  # (B,)
-    means: wp.array(dtype=wp.vec3),  # (N,)
-    mrows: wp.array(dtype=wp.mat33),  # (N,)
-    tier_grid: wp.array(dtype=wp.uint64),  # (T,)
-    tier_offset: wp.array(dtype=wp.int32),  # (T,)
-    tier_sigma: wp.array(dtype=wp.float32),  # (T,)
-    n_tiers: int,
-    n_sigma: float,
-    k_collide: int,  # in collision when more than k splats have s2~ < 1
-    out_hit: wp.array(dtype=wp.int32),  # (B,) 1 in collision, 0 free
+    links: LinkBatch,
+    splats: SplatTiers,
+    p: MetricParams,  # p.cap is ignored: the radius is the one for cap = 1
+    out_hit: wp.array(dtype=wp.bool),  # (B,) True in collision (or invalid)
+    bad: wp.array(dtype=wp.int32),  # (1,)
 ):
     """Collision-only variant: radius for cap = 1, stops at the (k+1)-th colliding splat."""
     q = wp.tid() + offset
-    c = centers[q]
-    a = link_a[q]
-    mm = axis_minmax[q]
+    c = links.centers[q]
+    ax = links.axes[q % links.axes_period]
+    if not link_valid(links, q, c, ax):
+        out_hit[q] = True
+        wp.atomic_min(bad, 0, q)
+        return
+    a = link_matrix(link_rotation(links, q), ax)
+    a_min = wp.min(ax)
+    a_max = wp.max(ax)
     ncol = int(0)
-    sphere = mm[0] == mm[1]
-    inv_r2 = 1.0 / (mm[0] * mm[0])
+    sphere = a_min == a_max
+    inv_r2 = 1.0 / (a_min * a_min)
+    k_collide = p.k_collide
     j = int(0)
-    while j < n_tiers and ncol <= k_collide:
-        rho = tier_radius(n_sigma, tier_sigma[j], mm[0], mm[1], 1.0)
+    while j < splats.n_tiers and ncol <= k_collide:
+        rho = search_radius(p.n_sigma, splats.sigma[j], a_min, a_max, 1.0)
         rho2 = rho * rho
-        base = tier_offset[j]
-        query = wp.hash_grid_query(tier_grid[j], c, rho)
+        base = splats.offset[j]
+        query = wp.hash_grid_query(splats.grid[j], c, rho)
         local = int(0)
         while ncol <= k_collide and wp.hash_grid_query_next(query, local):
             i = base + local
-            d = means[i] - c
+            d = splats.means[i] - c
             dd = wp.dot(d, d)
             if dd <= rho2:
-                if link_s2(d, dd, a, sphere, inv_r2, mrows[i], n_sigma) < 1.0:
-                    ncol += 1
+                ns = splat_inflation(splats, p, i)
+                if ns >= 0.0:
+                    if link_s2(d, dd, a, sphere, inv_r2, splats.mrows[i], ns) < 1.0:
+                        ncol += 1
         j += 1
-    out_hit[q] = wp.where(ncol > k_collide, 1, 0)
+    out_hit[q] = ncol > k_collide
+
+
+@wp.kernel
+def gather_rows_kernel(src: wp.array(dtype=wp.vec3), step: int, dst: wp.array(dtype=wp.vec3)):
+    """dst[i] = src[i * step]: an evenly spaced sample of a device array (to size the hash grids)."""
+    i = wp.tid()
+    dst[i] = src[i * step]
