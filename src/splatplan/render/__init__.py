@@ -1,0 +1,19 @@
+"""Rendering stage: a tile rasteriser for Gaussian splats (Warp kernels on CPU and CUDA, gsplat
+on CUDA when installed), its numpy reference, and cameras (look-at, field of view, robot-mounted).
+
+    import splatplan
+    res = splatplan.render(scene, viewmats, Ks, 64, 64)         # one-off
+    with splatplan.render.SplatRenderer(scene, "cpu") as r:     # repeated calls (MPPI)
+        res = r.render(viewmats, Ks, 64, 64)
+
+Conventions: ``docs/rendering.md`` and :mod:`.config`.
+"""
+
+from __future__ import annotations
+
+from .api import render
+from .cameras import Camera, MountedCamera, intrinsics_from_fov, look_at, mount_offset
+from .config import RenderResult
+from .renderer import SplatRenderer
+
+__all__ = ["render", "RenderResult", "SplatRenderer", "Camera", "MountedCamera", "look_at", "intrinsics_from_fov", "mount_offset"]

@@ -1,0 +1,343 @@
+"""SplatRenderer: scene data kept on one device, batched cameras, multi-core CPU launches.
+
+    renderer = SplatRenderer(scene, device="cpu")
+    res = renderer.render(viewmats, Ks, 64, 64)      # RenderResult, (B, H, W, ...) arrays
+    renderer.close()                                  # or use it as a context manager
+
+On CPU a Warp launch runs on one thread, so the camera batch is split into chunks that a thread
+pool owned by the renderer runs in parallel, each worker with its own workspace (projected
+splats, sort buffers); every chunk runs the whole pipeline of :mod:`.wp_raster` and writes its
+own images of the shared output arrays. On CUDA chunks run one after another on the device
+(chunk size bounded by the workspace memory), blending one thread per pixel.
+"""
+
+from __future__ import annotations
+
+import math
+import queue
+import threading
+from concurrent.futures import ThreadPoolExecutor
+
+import numpy as np
+
+from .._warp import cpu_threads, resolve_device
+from .._warp import wp as _wp
+from ..errors import SplatplanError
+from ..scenes.splats import Splats
+from .config import (
+    MAX_BYTES, TILE, RenderResult, camera_arrays, check_background, check_cameras, check_image_size, check_planes,
+    estimate_bytes, resolve_sh_degree,
+)  # fmt: skip
+from .reference import scene_arrays
+
+wp = _wp()
+
+#: Bytes of workspace per projected row (camera x splat) plus per sort pair, for memory estimates.
+_ROW_BYTES = 8 + 12 + 4 + 8 + 12 + 4 + 16 + 4 + 4  # xy conic depth dkey rgb opac rect ntiles offsets
+_PAIR_BYTES = 2 * (8 + 4)  # keys + values, doubled for the radix sort's scratch half
+#: Rows (camera x splat) of one CUDA chunk at most.
+_CUDA_MAX_ROWS = 1 << 24
+
+
+class _Workspace:
+    """Buffers of one worker: projected rows, offsets, sort pairs, tile ranges (grown on demand)."""
+
+    def __init__(self, device: str) -> None:
+        self.device = device
+        self.rows = 0
+        self.pairs = 0
+        self.tiles = 0
+        self.proj = None
+        self.offsets = None
+        self.keys = None
+        self.vals = None
+        self.ranges = None
+
+    def ensure_rows(self, rows: int) -> None:
+        if rows <= self.rows:
+            return
+        d = self.device
+        p = _wp_raster().ProjArgs()
+        p.xy = wp.empty(rows, dtype=wp.vec2, device=d)
+        p.conic = wp.empty(rows, dtype=wp.vec3, device=d)
+        p.depth = wp.empty(rows, dtype=wp.float32, device=d)
+        p.dkey = wp.empty(rows, dtype=wp.int64, device=d)
+        p.rgb = wp.empty(rows, dtype=wp.vec3, device=d)
+        p.opac = wp.empty(rows, dtype=wp.float32, device=d)
+        p.rect = wp.empty(rows, dtype=wp.vec4i, device=d)
+        p.ntiles = wp.empty(rows, dtype=wp.int32, device=d)
+        self.proj = p
+        self.offsets = wp.empty(rows, dtype=wp.int32, device=d)
+        self.rows = rows
+
+    def ensure_pairs(self, pairs: int) -> None:
+        if pairs <= self.pairs:
+            return
+        cap = max(pairs, int(self.pairs * 1.5), 1024)
+        self.keys = wp.empty(2 * cap, dtype=wp.int64, device=self.device)
+        self.vals = wp.empty(2 * cap, dtype=wp.int32, device=self.device)
+        self.pairs = cap
+
+    def ensure_tiles(self, tiles: int) -> None:
+        if tiles <= self.tiles:
+            return
+        self.ranges = wp.empty(tiles, dtype=wp.vec2i, device=self.device)
+        self.tiles = tiles
+
+
+def _wp_raster():
+    from . import wp_raster
+
+    return wp_raster
+
+
+class SplatRenderer:
+    """Render one scene from batches of cameras, repeatedly (scene data stays on the device).
+
+    Args:
+        scene: the splats (validated once here).
+        device: "cpu", "cuda", "cuda:N" or None/"auto".
+        threads: CPU worker threads (default: every core the process may use).
+        blend: "tile" (one thread per tile; the CPU default) or "pixel" (one thread per pixel;
+            the CUDA default). Both give the same images.
+        max_bytes: cap on the memory one call may take (outputs + workspace); a larger request
+            raises :class:`SplatplanError` (default 2 GiB).
+    """
+
+    def __init__(
+        self,
+        scene: Splats,
+        device: str | None = None,
+        *,
+        threads: int | None = None,
+        blend: str | None = None,
+        max_bytes: int = MAX_BYTES,
+    ) -> None:
+        if not isinstance(scene, Splats):
+            raise SplatplanError(f"scene must be a Splats object, got {type(scene).__name__}")
+        self.device = resolve_device(device)
+        self.is_cuda = self.device.startswith("cuda")
+        if blend is None:
+            blend = "pixel" if self.is_cuda else "tile"
+        if blend not in ("tile", "pixel"):
+            raise SplatplanError(f"unknown blend mode {blend!r}: use 'tile' or 'pixel'")
+        self.blend = blend
+        self.max_bytes = int(max_bytes)
+        self.n = len(scene)
+        if self.n:
+            scene.validate()
+        arrs = scene_arrays(scene)
+        self.sh_degree = int(arrs["degree"])
+        self.sh_k = int(arrs["sh"].shape[1])
+        d = self.device
+        rast = _wp_raster()
+        s = rast.SceneArgs()
+        s.means = wp.array(arrs["means"].astype(np.float32), dtype=wp.vec3, device=d)
+        s.covs = wp.array(arrs["covs"].astype(np.float32), dtype=wp.mat33, device=d)
+        s.opacities = wp.array(arrs["opacities"].astype(np.float32), dtype=wp.float32, device=d)
+        s.colors = wp.array(arrs["colors"].astype(np.float32), dtype=wp.vec3, device=d)
+        sh = arrs["sh"].reshape(-1, 3).astype(np.float32) if self.sh_k else np.zeros((1, 3), np.float32)
+        s.sh = wp.array(sh, dtype=wp.vec3, device=d)
+        s.n = self.n
+        s.sh_k = self.sh_k
+        s.sh_deg = 0
+        self._scene = s
+        self._scene_bytes = self.n * (12 + 36 + 4 + 12 + 12 * self.sh_k)
+        self.threads = 1 if self.is_cuda else max(1, int(threads or cpu_threads()))
+        self._pool: ThreadPoolExecutor | None = None
+        self._workspaces: queue.SimpleQueue = queue.SimpleQueue()
+        for _ in range(self.threads):
+            self._workspaces.put(_Workspace(d))
+        self._lock = threading.Lock()
+        wp.load_module(rast, device=d)  # compile before any worker thread launches
+
+    # ------------------------------------------------------------------ lifetime
+    def close(self) -> None:
+        """Stop the worker threads (the renderer can still be used; it restarts them)."""
+        if self._pool is not None:
+            self._pool.shutdown(wait=True)
+            self._pool = None
+
+    def __enter__(self) -> "SplatRenderer":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def __del__(self) -> None:  # pragma: no cover - best effort
+        try:
+            self.close()
+        except Exception:
+            pass
+
+    def _get_pool(self) -> ThreadPoolExecutor:
+        if self._pool is None:
+            self._pool = ThreadPoolExecutor(max_workers=self.threads, thread_name_prefix="splatplan-render")
+        return self._pool
+
+    # ------------------------------------------------------------------ rendering
+    def render(
+        self,
+        viewmats,
+        Ks,
+        width: int,
+        height: int,
+        *,
+        near: float = 0.01,
+        far: float = 1e10,
+        background=(0.0, 0.0, 0.0),
+        sh_degree: int | None = None,
+    ) -> RenderResult:
+        """Render B cameras; see :func:`splatplan.render` for the conventions and outputs."""
+        width, height = check_image_size(width, height)
+        v, k = check_cameras(viewmats, Ks)
+        near, far = check_planes(near, far)
+        bg = check_background(background)
+        deg = resolve_sh_degree(sh_degree, self.sh_degree)
+        b = v.shape[0]
+        out_bytes = estimate_bytes(b, width, height)
+        if out_bytes > self.max_bytes:
+            raise SplatplanError(
+                f"{b} image(s) of {width}x{height} need {out_bytes / 2**30:.2f} GiB of output alone, over the "
+                f"{self.max_bytes / 2**30:.2f} GiB cap of one render call; render fewer cameras per call or smaller images"
+            )
+        kind = _output_kind(viewmats)
+        if b == 0:
+            return _wrap(np.zeros((0, height, width, 3), np.float32), np.zeros((0, height, width), np.float32),
+                         np.zeros((0, height, width), np.float32), kind, self.device)  # fmt: skip
+        rast = _wp_raster()
+        dev = self.device
+        cam = camera_arrays(v, k, width, height)
+        ca = rast.CamArgs()
+        ca.rot = wp.array(cam["rot"].astype(np.float32), dtype=wp.mat33, device=dev)
+        ca.trans = wp.array(cam["trans"].astype(np.float32), dtype=wp.vec3, device=dev)
+        ca.campos = wp.array(cam["campos"].astype(np.float32), dtype=wp.vec3, device=dev)
+        ca.intr = wp.array(cam["intr"].astype(np.float32), dtype=wp.vec4, device=dev)
+        ca.lims = wp.array(cam["lims"].astype(np.float32), dtype=wp.vec4, device=dev)
+        fr = rast.FrameArgs()
+        fr.width, fr.height = width, height
+        fr.tiles_x, fr.tiles_y = math.ceil(width / TILE), math.ceil(height / TILE)
+        fr.near, fr.far = near, min(far, 3.0e38)
+        fr.log_near = math.log(near)
+        fr.key_scale = (2.0**32 - 1.0) / max(math.log(fr.far) - math.log(near), 1e-30)
+        fr.bg = wp.vec3(*bg.astype(np.float32))
+        scene = self._scene
+        scene.sh_deg = deg  # the struct is copied at launch; calls are serialised by self._lock
+
+        npix = b * height * width
+        if self.is_cuda:
+            out = rast.OutArgs()
+            out.rgb = wp.empty(npix, dtype=wp.vec3, device=dev)
+            out.depth = wp.empty(npix, dtype=wp.float32, device=dev)
+            out.alpha = wp.empty(npix, dtype=wp.float32, device=dev)
+            host = None
+        else:
+            host = (np.empty((b, height, width, 3), np.float32), np.empty((b, height, width), np.float32),
+                    np.empty((b, height, width), np.float32))  # fmt: skip
+            out = rast.OutArgs()
+            out.rgb = wp.array(host[0].reshape(-1, 3), dtype=wp.vec3, device="cpu", copy=False)
+            out.depth = wp.array(host[1].reshape(-1), dtype=wp.float32, device="cpu", copy=False)
+            out.alpha = wp.array(host[2].reshape(-1), dtype=wp.float32, device="cpu", copy=False)
+
+        chunk = self._chunk_size(b, width, height, out_bytes)
+        starts = list(range(0, b, chunk))
+        with self._lock:
+            scene_copy = scene
+            if self.is_cuda or self.threads == 1 or len(starts) == 1:
+                for s0 in starts:
+                    self._run_chunk(scene_copy, ca, fr, out, s0, min(chunk, b - s0))
+            else:
+                pool = self._get_pool()
+                futs = [pool.submit(self._run_chunk, scene_copy, ca, fr, out, s0, min(chunk, b - s0)) for s0 in starts]
+                for f in futs:
+                    f.result()
+        if host is not None:
+            return _wrap(*host, kind, dev)
+        return _wrap_device(out, b, height, width, kind)
+
+    def _chunk_size(self, b: int, width: int, height: int, out_bytes: int) -> int:
+        """Cameras per chunk: CPU spreads the batch over the workers (one camera per chunk for big
+        scenes); CUDA takes as many as the workspace budget allows."""
+        n = max(self.n, 1)
+        budget = max(self.max_bytes - out_bytes - self._scene_bytes, 0)
+        per_cam = n * (_ROW_BYTES + _PAIR_BYTES) + math.ceil(width / TILE) * math.ceil(height / TILE) * 8
+        by_mem = max(1, budget // max(per_cam * (1 if self.is_cuda else self.threads), 1))
+        if self.is_cuda:
+            return int(max(1, min(b, by_mem, _CUDA_MAX_ROWS // n)))
+        # small scenes: a few cameras per chunk to amortise launch overhead; big ones: one each
+        per_thread = math.ceil(b / self.threads)
+        return int(max(1, min(per_thread, by_mem, max(1, (1 << 16) // n))))
+
+    def _run_chunk(self, scene, cams, frame, out, cam_base: int, nc: int) -> None:
+        rast = _wp_raster()
+        dev = self.device
+        ws: _Workspace = self._workspaces.get()
+        try:
+            n = self.n
+            rows = nc * n
+            tiles = nc * frame.tiles_x * frame.tiles_y
+            ws.ensure_tiles(tiles)
+            ranges = ws.ranges
+            ranges.zero_()  # whole buffer: harmless, and empty tiles must read [0, 0)
+            m = 0
+            if rows:
+                ws.ensure_rows(rows)
+                proj = ws.proj
+                wp.launch(rast.project_kernel, dim=rows, inputs=[scene, cams, cam_base, frame, proj], device=dev)
+                wp.utils.array_scan(proj.ntiles[:rows], ws.offsets[:rows], inclusive=True)
+                m = int(ws.offsets[rows - 1 : rows].numpy()[0])
+            if m:
+                pair_bytes = m * _PAIR_BYTES
+                if pair_bytes > self.max_bytes:
+                    raise SplatplanError(
+                        f"the splats cover {m:,} tile slots in {nc} image(s) ({pair_bytes / 2**30:.2f} GiB of sort buffers), "
+                        f"over the {self.max_bytes / 2**30:.2f} GiB cap of one render call; use smaller images"
+                    )
+                ws.ensure_pairs(m)
+                wp.launch(rast.write_keys_kernel, dim=rows, inputs=[proj, n, frame, ws.offsets, ws.keys, ws.vals], device=dev)
+                end_bit = 32 + max(1, int(tiles - 1).bit_length())
+                wp.utils.radix_sort_pairs(ws.keys, ws.vals, m, 0, end_bit)
+                wp.launch(rast.tile_ranges_kernel, dim=m, inputs=[ws.keys, m, ranges], device=dev)
+            else:
+                ws.ensure_rows(1)
+                ws.ensure_pairs(1)
+            if self.blend == "tile":
+                wp.launch(rast.blend_tile_kernel, dim=tiles, inputs=[ws.proj, ws.vals, ranges, frame, cam_base, out], device=dev)
+            else:
+                wp.launch(rast.blend_pixel_kernel, dim=tiles * TILE * TILE, inputs=[ws.proj, ws.vals, ranges, frame, cam_base, out], device=dev)
+        finally:
+            self._workspaces.put(ws)
+
+
+def _output_kind(x) -> str:
+    mod = type(x).__module__
+    if mod.startswith("torch"):
+        return "torch"
+    if mod.startswith("warp"):
+        return "warp"
+    return "numpy"
+
+
+def _wrap(rgb: np.ndarray, depth: np.ndarray, alpha: np.ndarray, kind: str, device: str) -> RenderResult:
+    if kind == "torch":
+        import torch
+
+        return RenderResult(torch.from_numpy(rgb), torch.from_numpy(depth), torch.from_numpy(alpha))
+    if kind == "warp":
+        return RenderResult(
+            wp.array(rgb, dtype=wp.float32, device="cpu"),
+            wp.array(depth, dtype=wp.float32, device="cpu"),
+            wp.array(alpha, dtype=wp.float32, device="cpu"),
+        )
+    return RenderResult(rgb, depth, alpha)
+
+
+def _wrap_device(out, b: int, h: int, w: int, kind: str) -> RenderResult:
+    rgb = out.rgb.reshape((b, h, w))
+    if kind == "torch":
+        return RenderResult(
+            wp.to_torch(out.rgb).reshape(b, h, w, 3), wp.to_torch(out.depth).reshape(b, h, w), wp.to_torch(out.alpha).reshape(b, h, w)
+        )
+    if kind == "warp":
+        return RenderResult(rgb, out.depth.reshape((b, h, w)), out.alpha.reshape((b, h, w)))
+    return RenderResult(out.rgb.numpy().reshape(b, h, w, 3), out.depth.numpy().reshape(b, h, w), out.alpha.numpy().reshape(b, h, w))
