@@ -42,10 +42,11 @@ def cmd_info(args) -> int:
 
 
 def cmd_scene(args) -> int:
-    from ..scenes.stonehenge import ground_truth_path, write_stonehenge
+    from ..scenes.builtin import BUILTIN_SCENES, write_builtin
+    from ..scenes.stonehenge import ground_truth_path
 
-    if args.name != "stonehenge":
-        raise SplatplanError(f"unknown built-in scene {args.name!r}: available: stonehenge")
+    if args.name not in BUILTIN_SCENES:
+        raise SplatplanError(f"unknown built-in scene {args.name!r}: available: {', '.join(BUILTIN_SCENES)}")
     if not 1 <= args.level <= 5:
         raise SplatplanError(f"--level must be 1..5, got {args.level}")
     if not 0 <= args.seed < 2**63:
@@ -60,7 +61,7 @@ def cmd_scene(args) -> int:
     # Both files are written into a temp folder beside the output and moved into place only when
     # both are complete (an interrupted run leaves nothing behind).
     with atomic_dir(out.parent) as tmp:
-        ply, gt = write_stonehenge(tmp / out.name, level=args.level, seed=args.seed)
+        ply, gt = write_builtin(args.name, tmp / out.name, seed=args.seed, level=args.level)
         gt_dest = ground_truth_path(out)
         move_into(gt, gt_dest)
         move_into(ply, out)
@@ -74,7 +75,7 @@ def register(sub, eval_sub) -> None:
     s.add_argument("--json", action="store_true", help="print one JSON object")
     s.set_defaults(func=cmd_info)
     s = sub.add_parser("scene", help="write a built-in scene with its ground truth")
-    s.add_argument("name", metavar="NAME", help="built-in scene name: stonehenge")
+    s.add_argument("name", metavar="NAME", help="built-in scene name: stonehenge | tabletop | apartment")
     s.add_argument("--out", required=True, help="PATH.ply (ground truth goes to PATH.gt.json)")
     s.add_argument("--level", type=int, default=1, help="Gaussian-size level 1..5 (larger, fewer splats)")
     s.add_argument("--seed", type=int, default=0, help="layout and sampling seed, an integer >= 0 (default 0)")

@@ -113,6 +113,130 @@ def _sdf_dense(
     return out
 
 
+def _fibonacci_sphere(n: int) -> np.ndarray:
+    """(n, 3) nearly uniform unit vectors (Fibonacci lattice)."""
+    i = np.arange(n) + 0.5
+    z = 1 - 2 * i / n
+    r = np.sqrt(np.maximum(1 - z * z, 0))
+    phi = np.pi * (1 + 5**0.5) * i
+    return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=1)
+
+
+#: Sample directions of :func:`_ellipsoid_box` in the unit ball: 128 surface, 16 half-radius, centre.
+_BALL_SAMPLES = np.concatenate([_fibonacci_sphere(128), 0.5 * _fibonacci_sphere(16), np.zeros((1, 3))])
+
+
+def _project_ellipsoid(y: np.ndarray, a: np.ndarray, n_newton: int = 40) -> np.ndarray:
+    """Closest points (P, 3) of axis-aligned solid ellipsoids (semi-axes a (P, 3)) to points y (P, 3).
+
+    Outside points: x_i = a_i^2 y_i / (a_i^2 + t) with t >= 0 the root of
+    F(t) = sum (a_i y_i / (a_i^2 + t))^2 - 1 (convex, decreasing): Newton from t = 0 approaches it
+    monotonically from below.
+    """
+    a2 = a * a
+    inside = np.sum((y / a) ** 2, axis=1) <= 1.0
+    t = np.zeros(len(y))
+    ay2 = a2 * y * y
+    for _ in range(n_newton):
+        den = a2 + t[:, None]
+        f = np.sum(ay2 / den**2, axis=1) - 1.0
+        df = -2.0 * np.sum(ay2 / den**3, axis=1)
+        t = np.maximum(t - f / np.minimum(df, -1e-300), 0.0)
+    x = a2 * y / (a2 + t[:, None])
+    return np.where(inside[:, None], y, x)
+
+
+def _box_sdf_local(p: np.ndarray, h: np.ndarray) -> np.ndarray:
+    """Box SDF for points p (..., 3) in the box frame, half-extents h broadcast (..., 3)."""
+    d = np.abs(p) - h
+    return np.linalg.norm(np.maximum(d, 0.0), axis=-1) + np.minimum(d.max(axis=-1), 0.0)
+
+
+def _ellipsoid_box(
+    c: np.ndarray,  # (P, 3) ellipsoid centres in the box frame
+    r: np.ndarray,  # (P, 3, 3) ellipsoid -> box frame rotations
+    a: np.ndarray,  # (P, 3) semi-axes
+    h: np.ndarray,  # (P, 3) box half-extents
+    n_ap: int = 400,
+    n_sub: int = 400,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """min over the solid ellipsoid of the box SDF, with (lower, upper) bounds, each (P,)."""
+    m = r * a[:, None, :]  # (P, 3, 3): p = c + m u, |u| <= 1
+    pts = c[:, None, :] + np.einsum("pij,sj->psi", m, _BALL_SAMPLES)  # (P, S, 3)
+    f = _box_sdf_local(pts, h[:, None, :])  # (P, S)
+    best = np.argmin(f, axis=1)
+    val = f[np.arange(len(c)), best]
+    lower, upper = val.copy(), val.copy()
+    # ---- separated (or touching): alternating projections, certified by a separating plane
+    sep = val > 0
+    if np.any(sep):
+        cs, rs, as_, hs, ms = c[sep], r[sep], a[sep], h[sep], m[sep]
+        p = pts[sep, best[sep]]  # (S', 3) start on the ellipsoid
+        for _ in range(n_ap):
+            qb = np.clip(p, -hs, hs)
+            y = np.einsum("pji,pj->pi", rs, qb - cs)  # ellipsoid frame
+            p_new = cs + np.einsum("pij,pj->pi", rs, _project_ellipsoid(y, as_))
+            done = np.max(np.abs(p_new - p)) < 1e-12
+            p = p_new
+            if done:
+                break
+        qb = np.clip(p, -hs, hs)
+        diff = p - qb
+        dist = np.linalg.norm(diff, axis=1)
+        n = diff / np.maximum(dist, 1e-300)[:, None]
+        lb = np.einsum("pi,pi->p", n, cs) - np.linalg.norm(np.einsum("pji,pj->pi", ms, n), axis=1) - np.sum(hs * np.abs(n), axis=1)
+        ub = np.minimum(dist, val[sep])
+        lower[sep] = np.minimum(np.maximum(lb, 0.0), ub)
+        upper[sep] = ub
+        val[sep] = ub
+    # ---- penetrating (or touching): the deepest point by projected subgradient ascent on the depth
+    pen = ~sep | (upper < 1e-9)
+    if np.any(pen):
+        cs, ms, hs = c[pen], m[pen], h[pen]
+        u = _BALL_SAMPLES[best[pen]].copy()  # (S', 3)
+        idx = np.arange(len(u))
+        best_f = _box_sdf_local(cs + np.einsum("pij,pj->pi", ms, u), hs)
+        s0 = 0.5 * np.minimum(hs.min(axis=1), a[pen].min(axis=1))[:, None]  # first step (m)
+        for it in range(n_sub):
+            p = cs + np.einsum("pij,pj->pi", ms, u)
+            margin = hs - np.abs(p)  # (S', 3) depth per axis
+            k = np.argmin(margin, axis=1)
+            fv = -margin[idx, k]
+            best_f = np.minimum(best_f, np.where(np.all(margin >= 0, axis=1), fv, _box_sdf_local(p, hs)))
+            g = np.sign(p[idx, k])[:, None] * ms[idx, k, :]  # d(-margin_k)/du
+            gn2 = np.sum(g * g, axis=1, keepdims=True)
+            u = u - s0 * (it + 1.0) ** -0.75 * g / np.maximum(gn2, 1e-300)  # the margin moves ~ the step (m)
+            nu = np.linalg.norm(u, axis=1, keepdims=True)
+            u = np.where(nu > 1.0, u / nu, u)
+        val[pen] = np.minimum(val[pen], best_f)
+        upper[pen] = val[pen]
+        lower[pen] = -np.inf  # no certificate for the depth (see AnalyticScene.ellipsoid_clearance)
+    return val, lower, upper
+
+
+def _ellipsoid_clearance_chunk(
+    boxes: np.ndarray,  # (M, 10)
+    rot_b: np.ndarray,  # (M, 3, 3) box -> world
+    c: np.ndarray,  # (Q, 3) world
+    rot_e: np.ndarray,  # (Q, 3, 3) ellipsoid -> world
+    a: np.ndarray,  # (Q, 3)
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    q_n = len(c)
+    local = np.einsum("mji,qmj->qmi", rot_b, c[:, None, :] - boxes[None, :, :3])  # (Q, M, 3) box frame
+    d_c = _box_sdf_local(local, boxes[None, :, 3:6])  # (Q, M) SDF of the centre per box
+    a_max, a_min = a.max(1, keepdims=True), a.min(1, keepdims=True)
+    ub = np.where(d_c < 0, d_c, np.maximum(d_c - a_min, 0.0))  # min over the ellipsoid <= this
+    lb = d_c - a_max  # 1-Lipschitz: >= this
+    cand_q, cand_m = np.nonzero(lb <= ub.min(axis=1, keepdims=True) + 1e-12)
+    r_loc = np.einsum("pji,pjk->pik", rot_b[cand_m], rot_e[cand_q])  # (P, 3, 3) ellipsoid -> box frame
+    val, lo, hi = _ellipsoid_box(local[cand_q, cand_m], r_loc, a[cand_q], boxes[cand_m, 3:6])
+    out, out_lo, out_hi = np.full(q_n, np.inf), np.full(q_n, np.inf), np.full(q_n, np.inf)
+    np.minimum.at(out, cand_q, val)
+    np.minimum.at(out_lo, cand_q, lo)
+    np.minimum.at(out_hi, cand_q, hi)
+    return out, out_lo, out_hi
+
+
 @dataclass
 class AnalyticScene:
     """A union of solid oriented boxes with an exact signed distance (see module docstring).
@@ -220,6 +344,66 @@ class AnalyticScene:
             cand = np.flatnonzero(np.linalg.norm(gap, axis=1) <= upper)
             out[idx] = _sdf_dense(p[idx], boxes[cand], rot[cand], chunk)
         return out
+
+    def ellipsoid_clearance(
+        self,
+        centers: np.ndarray,  # (..., 3) world
+        quats: np.ndarray | None,  # (..., 4) wxyz ellipsoid -> world, or None (axis-aligned)
+        semi_axes: np.ndarray,  # (3,) or (..., 3) in the ellipsoid frame
+        *,
+        return_bounds: bool = False,
+        chunk: int = 4096,
+    ):
+        """Smallest signed distance from each solid ellipsoid to the union of boxes, (...,) float64.
+
+        ``clearance(E) = min over points p of E of sdf(p) = min_i min_{p in E} d_i(p)``:
+
+        * positive: the exact Euclidean distance between the ellipsoid and the nearest box;
+        * negative: minus the depth of the ellipsoid's deepest point inside a box (the right sign;
+          for overlapping boxes the depth inside one box, see the module docstring).
+
+        Each ellipsoid-box problem is convex (the box SDF is convex, the ellipsoid is convex). The
+        positive case is solved by alternating projections between the ellipsoid and the box from
+        the best of 146 surface/interior samples; it returns the length of the final closest-pair
+        candidate (an upper bound) and certifies it with a separating-plane lower bound
+        ``n.c - |M^T n| - sum_k h_k |n_k|`` (``return_bounds`` gives both; their gap is < 1e-7 m in
+        the tests). The negative case maximises ``min_k (h_k - |p_k|)`` over the ellipsoid by
+        projected subgradient ascent (300 steps) from the best sample; the depth it finds is a
+        feasible point's depth, so it is a lower bound on the true depth (tests: within 0.1 mm).
+        A broad phase skips boxes whose lower bound ``d_i(c) - a_max`` exceeds the best upper bound.
+
+        Args:
+            centers: ellipsoid centres, world frame, scene units.
+            quats: wxyz rotations ellipsoid -> world (None: axis-aligned).
+            semi_axes: semi-axes along the ellipsoid's own axes (broadcast over the batch).
+            return_bounds: also return (lower, upper) bounds (...,) on the clearance.
+            chunk: ellipsoids per batch (memory ~ chunk * M floats).
+
+        Returns:
+            (...,) float64 clearances, or (clearance, lower, upper) with ``return_bounds``.
+        """
+        c = np.asarray(centers, dtype=np.float64)
+        if c.shape[-1:] != (3,):
+            raise SplatplanError(f"ellipsoid_clearance: centers must be (..., 3), got {c.shape}")
+        shape = c.shape[:-1]
+        c = c.reshape(-1, 3)
+        q = np.broadcast_to(np.array([1.0, 0, 0, 0]), shape + (4,)) if quats is None else np.broadcast_to(np.asarray(quats, np.float64), shape + (4,))
+        a = np.broadcast_to(np.asarray(semi_axes, np.float64), shape + (3,)).reshape(-1, 3)
+        q = q.reshape(-1, 4)
+        if not (np.all(np.isfinite(c)) and np.all(np.isfinite(q)) and np.all(np.isfinite(a))):
+            raise SplatplanError("ellipsoid_clearance: NaN or Inf in the ellipsoids")
+        if np.any(a <= 0):
+            raise SplatplanError("ellipsoid_clearance: semi-axes must be > 0")
+        out = np.full(len(c), np.inf)
+        lo_b, hi_b = np.full(len(c), np.inf), np.full(len(c), np.inf)
+        if len(self) and len(c):
+            rot_e = quat_to_rotmat(q / np.linalg.norm(q, axis=1, keepdims=True)).reshape(-1, 3, 3)
+            for s in range(0, len(c), chunk):
+                sl = slice(s, s + chunk)
+                out[sl], lo_b[sl], hi_b[sl] = _ellipsoid_clearance_chunk(self.boxes, self._rot, c[sl], rot_e[sl], a[sl])
+        if return_bounds:
+            return out.reshape(shape), lo_b.reshape(shape), hi_b.reshape(shape)
+        return out.reshape(shape)
 
     def sdf_gradient(self, points: np.ndarray, eps: float = 1e-6) -> np.ndarray:
         """Central-difference gradient (P, 3) of :meth:`sdf` (unit length almost everywhere)."""

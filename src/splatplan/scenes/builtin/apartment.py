@@ -1,0 +1,263 @@
+"""The built-in ``apartment`` scene: three rooms joined by doorways of different widths.
+
+Sized for the Unitree Go2 (body ~0.31 m wide with the legs, standing height ~0.3 m), for the
+quadruped studies (paper Sec. IV, E6). The boxes are the exact ground truth
+(:class:`~splatplan.scenes.builtin.primitives.AnalyticScene`); the splats are sampled on their
+surfaces with the statistics of real captures (:func:`.stonehenge.level_config` level 1).
+
+Units and frames
+----------------
+Metres, **z up**, the floor's top face is z = 0, the apartment spans x in [-4, 4], y in [-3, 3]
+(inside faces of the outer walls). Quaternions are wxyz.
+
+Layout
+------
+* ``living`` room: x in [-4, 0], all of y; ``bedroom``: x in [0, 4], y in [0, 3];
+  ``kitchen``: x in [0, 4], y in [-3, 0].
+* doorways (:data:`DOORS`): living <-> bedroom 0.90 m wide; living <-> kitchen 0.25 m (narrower
+  than the Go2: impassable); bedroom <-> kitchen 0.70 m; a second living <-> kitchen doorway of
+  0.60 m near the outer wall.
+* walls 0.10 m thick and :data:`WALL_HEIGHT` tall; furniture per room (sofa, tables, bed,
+  wardrobe, counters, ...) and distinctly coloured objects (``object_*``).
+
+Splats: ~160k by default (:data:`N_SPLATS`); the floor uses twice the spacing and only its top
+face, walls 1.5x.
+"""
+
+from __future__ import annotations
+
+import functools
+import json
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from ...errors import SplatplanError
+from ..splats import Splats
+from .primitives import AnalyticScene, make_box, splats_from_boxes
+
+__all__ = ["DOORS", "N_SPLATS", "ROOMS", "WALL_HEIGHT", "ApartmentLayout", "apartment_layout", "build_apartment", "room_of"]
+
+#: Default total splat count (floaters included).
+N_SPLATS = 160_000
+#: Height of the walls (m).
+WALL_HEIGHT = 1.2
+_T = 0.05  # wall half thickness
+
+#: Rooms: name -> (lo (2,), hi (2,)) xy rectangle between the wall faces (m).
+ROOMS = {
+    "living": ((-4.0, -3.0), (0.0 - _T, 3.0)),
+    "bedroom": ((0.0 + _T, 0.0 + _T), (4.0, 3.0)),
+    "kitchen": ((0.0 + _T, -3.0), (4.0, 0.0 - _T)),
+}
+
+#: Doorways: (name, wall axis "x" (wall at x = const) or "y", wall coordinate, start, end along the
+#: wall, rooms joined). Width = end - start.
+DOORS = (
+    ("living-bedroom", "x", 0.0, 1.30, 2.20, ("living", "bedroom")),
+    ("living-kitchen-narrow", "x", 0.0, -1.10, -0.85, ("living", "kitchen")),
+    ("living-kitchen", "x", 0.0, -2.85, -2.25, ("living", "kitchen")),
+    ("bedroom-kitchen", "y", 0.0, 2.60, 3.30, ("bedroom", "kitchen")),
+)
+
+LABEL_COLORS = {
+    "floor": (0.62, 0.50, 0.36),
+    "wall": (0.90, 0.89, 0.85),
+    "sofa": (0.55, 0.10, 0.12),
+    "table": (0.45, 0.30, 0.18),
+    "bed": (0.20, 0.30, 0.65),
+    "wardrobe": (0.85, 0.80, 0.70),
+    "counter": (0.80, 0.80, 0.82),
+    "fridge": (0.92, 0.94, 0.96),
+    "shelf": (0.40, 0.28, 0.20),
+}
+OBJECT_COLORS = {
+    "object_green_plant": (0.10, 0.55, 0.15),
+    "object_yellow_box": (0.95, 0.80, 0.10),
+    "object_orange_ball": (0.98, 0.45, 0.05),
+    "object_cyan_chest": (0.10, 0.75, 0.80),
+    "object_magenta_box": (0.80, 0.10, 0.60),
+    "object_red_bin": (0.90, 0.10, 0.10),
+    "object_blue_crate": (0.10, 0.25, 0.90),
+    "object_lime_stool": (0.60, 0.90, 0.10),
+}
+
+
+@dataclass(frozen=True)
+class ApartmentLayout:
+    """The analytic apartment and its named parts (metres, z up, floor top at z = 0).
+
+    Attributes:
+        scene: the boxes (floor first), labels "floor", "wall", furniture names, "object_*".
+        colors: float64 (M, 3) base RGB per box.
+        rooms: name -> (lo (2,), hi (2,)) xy rectangles.
+        doors: name -> dict(center (3,) at z = 0.3, width (m), rooms (a, b), normal (2,) across the wall).
+    """
+
+    scene: AnalyticScene
+    colors: np.ndarray
+    rooms: dict
+    doors: dict
+
+
+def room_of(xy) -> str | None:
+    """The room containing the xy point (None: inside a wall or outside)."""
+    x, y = float(xy[0]), float(xy[1])
+    for name, (lo, hi) in ROOMS.items():
+        if lo[0] <= x <= hi[0] and lo[1] <= y <= hi[1]:
+            return name
+    return None
+
+
+def _wall_segments(axis: str, coord: float, start: float, end: float, gaps) -> list[tuple[float, float]]:
+    """Solid intervals of a wall from ``start`` to ``end`` minus the door gaps on it."""
+    cuts = sorted((s, e) for (_, ax, c, s, e, _) in gaps if ax == axis and abs(c - coord) < 1e-9 and start < e and s < end)
+    segs, cur = [], start
+    for s, e in cuts:
+        if s > cur:
+            segs.append((cur, s))
+        cur = max(cur, e)
+    if cur < end:
+        segs.append((cur, end))
+    return segs
+
+
+def _yaw(a: float) -> np.ndarray:
+    return np.array([np.cos(a / 2), 0.0, 0.0, np.sin(a / 2)])
+
+
+def _build_layout(seed: int) -> ApartmentLayout:
+    rng = np.random.default_rng([int(seed), 9191])
+    boxes, labels, colors = [], [], []
+
+    def add(label: str, center, half, quat=(1.0, 0.0, 0.0, 0.0), color=None) -> None:
+        boxes.append(make_box(center, half, quat))
+        labels.append(label)
+        colors.append(np.asarray(color if color is not None else LABEL_COLORS[label], np.float64))
+
+    def block(label: str, x: float, y: float, hx: float, hy: float, h: float, yaw: float = 0.0, color=None) -> None:
+        add(label, (x, y, (h - 0.002) / 2), (hx, hy, (h + 0.002) / 2), _yaw(yaw), color)  # sinks 2 mm
+
+    j = lambda s: rng.uniform(-s, s)  # noqa: E731  small per-seed jitter (m)
+    add("floor", (0.0, 0.0, -0.05), (4.2, 3.2, 0.05))
+    hz = WALL_HEIGHT / 2
+    # outer walls
+    for y in (-3.0 - _T, 3.0 + _T):
+        add("wall", (0.0, y, hz - 0.001), (4.0 + 2 * _T, _T, hz + 0.001))
+    for x in (-4.0 - _T, 4.0 + _T):
+        add("wall", (x, 0.0, hz - 0.001), (_T, 3.0, hz + 0.001))
+    # interior wall at x = 0 (y in [-3, 3]) and y = 0 (x in [0, 4]), with doorways
+    for s, e in _wall_segments("x", 0.0, -3.0, 3.0, DOORS):
+        add("wall", (0.0, (s + e) / 2, hz - 0.001), (_T, (e - s) / 2, hz + 0.001))
+    for s, e in _wall_segments("y", 0.0, _T, 4.0, DOORS):
+        add("wall", ((s + e) / 2, 0.0, hz - 0.001), ((e - s) / 2, _T, hz + 0.001))
+
+    # living room: sofa, coffee table, shelf, objects
+    block("sofa", -3.45, 0.4 + j(0.05), 0.35, 0.95, 0.45)
+    block("sofa", -3.70, 0.4 + j(0.05), 0.10, 0.95, 0.80)  # backrest
+    block("table", -2.3 + j(0.05), 0.3 + j(0.05), 0.45, 0.30, 0.42, j(0.1))
+    block("shelf", -2.0, 2.78, 0.80, 0.17, 1.0)
+    block("table", -1.6 + j(0.05), -1.5 + j(0.05), 0.50, 0.40, 0.75, j(0.1))  # dining table
+    block("object_green_plant", -0.45, 2.55, 0.18, 0.18, 0.70, color=OBJECT_COLORS["object_green_plant"])
+    block("object_yellow_box", -2.9 + j(0.05), -1.2 + j(0.05), 0.20, 0.15, 0.30, rng.uniform(0, np.pi), OBJECT_COLORS["object_yellow_box"])
+    block("object_orange_ball", -1.5 + j(0.05), 1.2 + j(0.05), 0.12, 0.12, 0.24, rng.uniform(0, np.pi), OBJECT_COLORS["object_orange_ball"])
+    # bedroom: bed, wardrobe, chest, objects
+    block("bed", 3.0, 1.8 + j(0.05), 0.95, 1.0, 0.50)
+    block("bed", 3.93, 1.8, 0.05, 1.0, 0.90)  # headboard
+    block("wardrobe", 1.0 + j(0.05), 2.7, 0.60, 0.27, 1.15)
+    block("object_cyan_chest", 3.7, 0.45 + j(0.05), 0.20, 0.30, 0.45, 0.0, OBJECT_COLORS["object_cyan_chest"])
+    block("object_magenta_box", 0.55 + j(0.05), 0.95 + j(0.05), 0.15, 0.15, 0.30, rng.uniform(0, np.pi), OBJECT_COLORS["object_magenta_box"])
+    # kitchen: counters along the walls, fridge, island, objects
+    block("counter", 2.35, -2.7, 0.85, 0.30, 0.90)
+    block("counter", 3.7, -1.2, 0.30, 0.60, 0.90)
+    block("fridge", 3.62, -2.62, 0.33, 0.33, 1.15)
+    block("table", 2.0 + j(0.05), -1.4 + j(0.05), 0.50, 0.30, 0.90, j(0.05))  # island
+    add("object_blue_crate", (2.0, -1.4, 0.90 + 0.12 - 0.001), (0.15, 0.12, 0.12), _yaw(rng.uniform(0, np.pi)), OBJECT_COLORS["object_blue_crate"])
+    block("object_red_bin", 0.4 + j(0.03), -0.4, 0.15, 0.15, 0.40, color=OBJECT_COLORS["object_red_bin"])
+    block("object_lime_stool", 1.1 + j(0.03), -1.4 + j(0.03), 0.16, 0.16, 0.45, color=OBJECT_COLORS["object_lime_stool"])
+
+    doors = {}
+    for name, ax, c, s, e, rooms in DOORS:
+        mid = (s + e) / 2
+        center = np.array([c, mid, 0.3]) if ax == "x" else np.array([mid, c, 0.3])
+        normal = np.array([1.0, 0.0]) if ax == "x" else np.array([0.0, 1.0])
+        doors[name] = {"center": center, "width": float(e - s), "rooms": rooms, "normal": normal}
+    scene = AnalyticScene(
+        np.stack(boxes),
+        labels,
+        {
+            "name": "apartment",
+            "seed": int(seed),
+            "units": "metres, z up, floor top at z = 0",
+            "robot": "go2",
+            "rooms": {k: [list(v[0]), list(v[1])] for k, v in ROOMS.items()},
+            "doors": {k: {"center": v["center"].tolist(), "width": v["width"], "rooms": list(v["rooms"])} for k, v in doors.items()},
+        },
+    )
+    return ApartmentLayout(scene=scene, colors=np.stack(colors), rooms={k: (np.array(v[0]), np.array(v[1])) for k, v in ROOMS.items()}, doors=doors)
+
+
+@functools.lru_cache(maxsize=4)
+def _layout_cached(seed: int) -> ApartmentLayout:
+    return _build_layout(seed)
+
+
+def apartment_layout(seed: int = 0) -> ApartmentLayout:
+    """The analytic apartment for a seed (fresh copies; furniture jittered by seed)."""
+    lay = _layout_cached(int(seed))
+    sc = lay.scene
+    return replace(
+        lay,
+        scene=AnalyticScene(sc.boxes.copy(), list(sc.labels), json.loads(json.dumps(sc.meta))),
+        colors=lay.colors.copy(),
+        rooms={k: (v[0].copy(), v[1].copy()) for k, v in lay.rooms.items()},
+        doors={k: {**v, "center": v["center"].copy(), "normal": v["normal"].copy()} for k, v in lay.doors.items()},
+    )
+
+
+@functools.lru_cache(maxsize=4)
+def _build_cached(seed: int, n_splats: int) -> Splats:
+    from .stonehenge import level_config
+
+    lay = _layout_cached(seed)
+    scene = lay.scene
+    m = len(scene)
+    density = np.ones(m)
+    faces = np.ones((m, 6), bool)
+    for i, lab in enumerate(scene.labels):
+        if lab == "floor":
+            density[i] = 2.0
+            faces[i] = [False, False, False, False, True, False]  # only the top face is seen
+        elif lab == "wall":
+            density[i] = 1.5
+    splats = splats_from_boxes(
+        scene,
+        n_splats,
+        config=level_config(1),
+        colors=lay.colors,
+        density=density,
+        faces=faces,
+        floater_region=(np.array([-3.9, -2.9, 0.05]), np.array([3.9, 2.9, 1.1])),
+        seed=np.random.default_rng([int(seed), int(n_splats), 1618]),
+    )
+    splats.info.update({"scene": "apartment", "seed": int(seed), "units": scene.meta["units"]})
+    return splats
+
+
+def build_apartment(seed: int = 0, n_splats: int | None = None) -> tuple[Splats, AnalyticScene]:
+    """The apartment splats and their analytic ground truth (fresh copies; cached in memory).
+
+    Args:
+        seed: furniture jitter and splat sampling seed (deterministic).
+        n_splats: total splat count, floaters included (default :data:`N_SPLATS`).
+
+    Returns:
+        (splats, scene): float32 splats (wxyz, linear stds; the last ``info["n_floaters"]`` are
+        floaters) and the boxes, in metres with z up.
+    """
+    from .tabletop import _copy
+
+    n = N_SPLATS if n_splats is None else int(n_splats)
+    if n < 1:
+        raise SplatplanError(f"n_splats must be >= 1, got {n_splats}")
+    return _copy(_build_cached(int(seed), n)), apartment_layout(seed).scene

@@ -1,0 +1,213 @@
+"""The built-in ``tabletop`` scene: a table with box walls around parts of a 7-DoF arm's workspace.
+
+Sized for the Franka Panda of ``example-robot-data`` mounted at the world origin on the table top
+(paper Sec. IV, E5: "a box-walled tabletop scene"). The boxes are the exact ground truth
+(:class:`~splatplan.scenes.builtin.primitives.AnalyticScene`); the splats are sampled on their
+surfaces with the statistics of real captures (:func:`.stonehenge.level_config` level 1).
+
+Units and frames
+----------------
+Metres, **z up**, the robot base at the origin looking along +x. The table top is the plane
+z = 0 (the robot stands on it). Quaternions are wxyz.
+
+Layout (before the small per-seed jitter)
+-----------------------------------------
+* ``table``: top slab x in [-0.30, 1.00], y in [-0.80, 0.80], z in [-0.04, 0]; four legs.
+* ``bin``: a box open at the top in front of the robot, x in [0.44, 0.78], y in [-0.26, 0.26]:
+  a tall near wall (``wall_front``, 0.30 m) between the robot and the inside of the bin, lower
+  side and back walls (0.16 m). :data:`TARGET_REGION` lies inside the bin, *behind the front
+  wall*: an arm reaching straight for a target there cuts through the wall.
+* ``wall_side``: a 0.34 m wall on the robot's left (y = +0.42), targets behind it are out of the
+  studies (too tight) but it blocks wide sweeps of the arm.
+* ``shelf``: a low shelf on the right (two posts and a board), objects on and under it.
+* coloured objects (``object_*``): a red cube and a yellow block in the bin, a green block and a
+  blue box on the table, a purple box on the shelf, an orange block behind the side wall.
+
+Splats: ~150k by default (:data:`N_SPLATS`), the table legs sampled at 3x the spacing.
+"""
+
+from __future__ import annotations
+
+import functools
+import json
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from ...errors import SplatplanError
+from ..splats import Splats
+from .primitives import AnalyticScene, make_box, splats_from_boxes
+
+__all__ = ["N_SPLATS", "TARGET_REGION", "TabletopLayout", "build_tabletop", "tabletop_layout"]
+
+#: Default total splat count (floaters included).
+N_SPLATS = 150_000
+#: Axis-aligned region (lo, hi) (world, metres) inside the bin behind the front wall where the arm
+#: study places end-effector targets.
+TARGET_REGION = (np.array([0.53, -0.14, 0.07]), np.array([0.66, 0.14, 0.13]))
+
+#: Base colours per label (RGB in [0, 1]); objects carry their own colour in the layout.
+LABEL_COLORS = {
+    "table": (0.55, 0.40, 0.26),
+    "table_leg": (0.35, 0.25, 0.16),
+    "wall_front": (0.85, 0.85, 0.80),
+    "wall_bin": (0.75, 0.78, 0.80),
+    "wall_side": (0.70, 0.72, 0.66),
+    "shelf": (0.45, 0.45, 0.50),
+}
+#: Distinct object colours (name -> RGB).
+OBJECT_COLORS = {
+    "object_red": (0.85, 0.12, 0.10),
+    "object_yellow": (0.95, 0.82, 0.10),
+    "object_green": (0.15, 0.65, 0.20),
+    "object_blue": (0.12, 0.30, 0.85),
+    "object_purple": (0.55, 0.20, 0.70),
+    "object_orange": (0.98, 0.50, 0.05),
+}
+
+
+@dataclass(frozen=True)
+class TabletopLayout:
+    """The analytic tabletop and its named parts (metres, z up, robot base at the origin).
+
+    Attributes:
+        scene: the boxes; labels in {"table", "table_leg", "wall_front", "wall_bin", "wall_side",
+            "shelf"} and "object_<colour>".
+        colors: float64 (M, 3) base RGB per box.
+        target_region: (lo, hi) AABB of end-effector targets behind the front wall.
+        front_wall_top: height (m) of the front wall's top face.
+    """
+
+    scene: AnalyticScene
+    colors: np.ndarray
+    target_region: tuple[np.ndarray, np.ndarray]
+    front_wall_top: float
+
+
+def _yaw(a: float) -> np.ndarray:
+    return np.array([np.cos(a / 2), 0.0, 0.0, np.sin(a / 2)])
+
+
+def _build_layout(seed: int) -> TabletopLayout:
+    rng = np.random.default_rng([int(seed), 4242])
+    boxes, labels, colors = [], [], []
+
+    def add(label: str, center, half, quat=(1.0, 0.0, 0.0, 0.0), color=None) -> None:
+        boxes.append(make_box(center, half, quat))
+        labels.append(label)
+        colors.append(np.asarray(color if color is not None else LABEL_COLORS[label], np.float64))
+
+    j = lambda s: rng.uniform(-s, s)  # noqa: E731  small per-seed jitter (m)
+    # table top (its top face is z = 0) and legs
+    add("table", (0.35, 0.0, -0.02), (0.65, 0.80, 0.02))
+    for x in (-0.26, 0.96):
+        for y in (-0.76, 0.76):
+            add("table_leg", (x, y, -0.39), (0.03, 0.03, 0.36))
+    # the bin: a tall front wall, lower side and back walls (all sink 1 mm into the table)
+    t, front_h, low_h = 0.01, 0.30, 0.16
+    x0, x1, y1 = 0.44, 0.78, 0.26
+    add("wall_front", (x0, 0.0, (front_h - 0.001) / 2), (t, y1 + t, (front_h + 0.001) / 2))
+    add("wall_bin", (x1, 0.0, (low_h - 0.001) / 2), (t, y1 + t, (low_h + 0.001) / 2))
+    for s in (-1.0, 1.0):
+        add("wall_bin", ((x0 + x1) / 2, s * y1, (low_h - 0.001) / 2), ((x1 - x0) / 2 - t, t, (low_h + 0.001) / 2))
+    # a side wall on the left
+    add("wall_side", (0.30 + j(0.01), 0.42, 0.17 - 0.0005), (0.22, 0.012, 0.17 + 0.0005), _yaw(j(0.03)))
+    # a low shelf on the right: two posts and a board
+    for x in (0.22, 0.52):
+        add("shelf", (x, -0.50, 0.10 - 0.0005), (0.015, 0.12, 0.10 + 0.0005))
+    add("shelf", (0.37, -0.50, 0.21), (0.17, 0.13, 0.012))
+    # coloured objects
+    add("object_red", (0.70 + j(0.01), -0.17 + j(0.01), 0.025), (0.025, 0.025, 0.0255), _yaw(rng.uniform(0, np.pi)), OBJECT_COLORS["object_red"])
+    add("object_yellow", (0.71 + j(0.01), 0.17 + j(0.01), 0.035), (0.03, 0.02, 0.0355), _yaw(rng.uniform(0, np.pi)), OBJECT_COLORS["object_yellow"])
+    add("object_green", (0.20 + j(0.02), 0.25 + j(0.02), 0.04), (0.03, 0.03, 0.0405), _yaw(rng.uniform(0, np.pi)), OBJECT_COLORS["object_green"])
+    add("object_blue", (0.28 + j(0.02), -0.28 + j(0.02), 0.03), (0.05, 0.035, 0.0305), _yaw(rng.uniform(0, np.pi)), OBJECT_COLORS["object_blue"])
+    add("object_purple", (0.37 + j(0.02), -0.50, 0.222 + 0.03 - 0.001), (0.03, 0.03, 0.03), _yaw(rng.uniform(0, np.pi)), OBJECT_COLORS["object_purple"])
+    add("object_orange", (0.30 + j(0.02), 0.58 + j(0.02), 0.04), (0.035, 0.035, 0.0405), _yaw(rng.uniform(0, np.pi)), OBJECT_COLORS["object_orange"])
+
+    scene = AnalyticScene(
+        np.stack(boxes),
+        labels,
+        {
+            "name": "tabletop",
+            "seed": int(seed),
+            "units": "metres, z up, table top at z = 0, robot base at the origin looking along +x",
+            "robot": "panda",
+            "target_region": [TARGET_REGION[0].tolist(), TARGET_REGION[1].tolist()],
+        },
+    )
+    return TabletopLayout(scene=scene, colors=np.stack(colors), target_region=TARGET_REGION, front_wall_top=front_h)
+
+
+@functools.lru_cache(maxsize=4)
+def _layout_cached(seed: int) -> TabletopLayout:
+    return _build_layout(seed)
+
+
+def tabletop_layout(seed: int = 0) -> TabletopLayout:
+    """The analytic tabletop for a seed (fresh copies; small object/wall jitter by seed)."""
+    lay = _layout_cached(int(seed))
+    sc = lay.scene
+    return replace(
+        lay,
+        scene=AnalyticScene(sc.boxes.copy(), list(sc.labels), json.loads(json.dumps(sc.meta))),
+        colors=lay.colors.copy(),
+        target_region=(lay.target_region[0].copy(), lay.target_region[1].copy()),
+    )
+
+
+@functools.lru_cache(maxsize=4)
+def _build_cached(seed: int, n_splats: int) -> Splats:
+    from .stonehenge import level_config
+
+    lay = _layout_cached(seed)
+    scene = lay.scene
+    m = len(scene)
+    density = np.ones(m)
+    faces = np.ones((m, 6), bool)
+    for i, lab in enumerate(scene.labels):
+        if lab == "table_leg":
+            density[i] = 3.0
+        if lab == "table":
+            density[i] = 1.5
+    splats = splats_from_boxes(
+        scene,
+        n_splats,
+        config=level_config(1),
+        colors=lay.colors,
+        density=density,
+        faces=faces,
+        floater_region=(np.array([-0.2, -0.7, 0.02]), np.array([0.95, 0.7, 0.8])),
+        seed=np.random.default_rng([int(seed), int(n_splats), 2718]),
+    )
+    splats.info.update({"scene": "tabletop", "seed": int(seed), "units": scene.meta["units"]})
+    return splats
+
+
+def build_tabletop(seed: int = 0, n_splats: int | None = None) -> tuple[Splats, AnalyticScene]:
+    """The tabletop splats and their analytic ground truth (fresh copies; cached in memory).
+
+    Args:
+        seed: layout jitter and splat sampling seed (deterministic).
+        n_splats: total splat count, floaters included (default :data:`N_SPLATS`).
+
+    Returns:
+        (splats, scene): float32 splats (wxyz, linear stds; the last ``info["n_floaters"]`` are
+        floaters) and the boxes, in metres with z up.
+    """
+    n = N_SPLATS if n_splats is None else int(n_splats)
+    if n < 1:
+        raise SplatplanError(f"n_splats must be >= 1, got {n_splats}")
+    s = _build_cached(int(seed), n)
+    return _copy(s), tabletop_layout(seed).scene
+
+
+def _copy(s: Splats) -> Splats:
+    return replace(
+        s,
+        means=s.means.copy(),
+        quats=s.quats.copy(),
+        scales=s.scales.copy(),
+        opacities=s.opacities.copy(),
+        colors=s.colors.copy(),
+        info=dict(s.info),
+    )
