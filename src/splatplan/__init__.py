@@ -30,6 +30,7 @@ _LAZY = {
     "RRTConfig": ("splatplan.planners", "RRTConfig"),
     "MPPI": ("splatplan.planners", "MPPI"),
     "MPPIConfig": ("splatplan.planners", "MPPIConfig"),
+    "Robot": ("splatplan.robots", "Robot"), "load_robot": ("splatplan.robots", "load_robot"),
     "load_encoder": ("splatplan.encoders", "load_encoder"),
 }
 

@@ -1,0 +1,242 @@
+"""``load_robot``: built-in robots (offline, from example-robot-data) and any URDF.
+
+Built-ins:
+
+* ``panda``: Franka Panda arm, 7 dofs (panda_joint1..7), base at the world origin. The fingers
+  are fixed at the SRDF "default" state (0.001 m opening); override with
+  ``fixed={"panda_finger_joint1": 0.04}``. Ellipsoids: ``data/panda.yaml`` (fitted to the
+  collision meshes and finger boxes by ``splatplan robot fit``).
+* ``go2``: Unitree Go2 as a planar base, dofs (x [m], y [m], yaw [rad]); the 12 leg joints are
+  fixed at the SRDF "standing" state; the body is raised so that the lowest point of any
+  ellipsoid (the feet's) is at z = 0. Ellipsoids: ``data/go2.yaml``.
+* ``sphere:R`` / ``ellipsoid:A,B,C``: one link ("body"), dofs (x, y, z) translation, axis-aligned.
+
+A path to a ``.urdf`` loads that robot: every movable non-mimic joint is a dof (or ``active=``),
+the base is fixed (or ``base="planar"`` / ``"translation"``), ellipsoids come from ``ellipsoids=``
+(YAML), else a sidecar ``<urdf stem>.ellipsoids.yaml``, else they are fitted at load time.
+"""
+
+from __future__ import annotations
+
+import math
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import SplatplanError
+from .fit import EllipsoidSet, fit_model, load_yaml
+from .kinematics import FIXED, PLANAR, TRANSLATION, Kinematics, bake_fixed
+from .robot import Robot
+from .urdf import UrdfModel, read_srdf, read_urdf, share_dir
+
+DATA = Path(__file__).parent / "data"
+KNOWN = ("panda", "go2", "sphere:R", "ellipsoid:A,B,C")
+#: Default base speeds for planar / translation bases (m/s, rad/s); documented, not from a datasheet.
+BASE_SPEED = {"x": 1.0, "y": 1.0, "z": 1.0, "yaw": 2.0}
+
+
+def _known_msg() -> str:
+    return f"use one of {', '.join(KNOWN)} or a path to a .urdf file"
+
+
+def robot_data_dir(sub: str) -> Path:
+    share = share_dir()
+    if share is None:
+        raise SplatplanError("the built-in robots need the 'example-robot-data' package (pip install example-robot-data)")
+    return share / "example-robot-data" / "robots" / sub
+
+
+def builtin_urdf(name: str) -> tuple[Path, Path | None]:
+    if name == "panda":
+        d = robot_data_dir("panda_description")
+        return d / "urdf" / "panda.urdf", d / "srdf" / "panda.srdf"
+    if name == "go2":
+        d = robot_data_dir("go2_description")
+        return d / "urdf" / "go2.urdf", d / "srdf" / "go2.srdf"
+    raise SplatplanError(f"unknown built-in robot {name!r}: {_known_msg()}")
+
+
+def load_robot(
+    spec: "str | Path | Robot",
+    *,
+    active: list[str] | None = None,
+    fixed: dict[str, float] | None = None,
+    base: str | None = None,
+    base_pose: np.ndarray | None = None,
+    ellipsoids: str | Path | None = None,
+    per_link: int = 1,
+    from_visual: bool = False,
+    srdf: str | Path | None = None,
+) -> Robot:
+    """A :class:`Robot` from a built-in name or a URDF path (see the module docstring).
+
+    Args:
+        spec: "panda", "go2", "sphere:R", "ellipsoid:A,B,C", a .urdf path, or a Robot (returned as is).
+        active: joints that are dofs (URDF order kept); others are fixed at ``fixed`` / SRDF / 0.
+        fixed: joint values for joints that are not dofs.
+        base: "fixed" (default for URDFs), "planar" (x, y, yaw) or "translation" (x, y, z).
+        base_pose: (4, 4) world <- robot base (default: identity; go2: raised to standing height).
+        ellipsoids: YAML with the collision ellipsoids (skips fitting).
+        per_link: ellipsoids per link when fitting at load time.
+        from_visual: fit links without collision geometry to their visual meshes.
+        srdf: SRDF with disabled collision pairs / group states (default: ``<urdf stem>.srdf`` beside it).
+    """
+    if isinstance(spec, Robot):
+        return spec
+    text = str(spec).strip()
+    kind, sep, rest = text.partition(":")
+    if sep and kind in ("sphere", "ellipsoid"):
+        return _point_robot(text, kind, rest, base_pose)
+    if text in ("panda", "go2"):
+        return _cached_builtin(text) if not (active or fixed or base or base_pose is not None or ellipsoids or srdf) else _builtin(text, active, fixed, base, base_pose, ellipsoids)
+    p = Path(text).expanduser()
+    if p.suffix.lower() in (".urdf", ".xml") or p.is_file():
+        if not p.is_file():
+            raise SplatplanError(f"URDF {p} does not exist")
+        srdf_path = Path(srdf) if srdf else (p.with_suffix(".srdf") if p.with_suffix(".srdf").is_file() else None)
+        ell = ellipsoids or (p.with_name(p.stem + ".ellipsoids.yaml") if p.with_name(p.stem + ".ellipsoids.yaml").is_file() else None)
+        return build_robot(read_urdf(p), srdf_path, active, fixed, base or "fixed", base_pose, ell, per_link, from_visual)
+    raise SplatplanError(f"unknown robot {text!r}: {_known_msg()}")
+
+
+def _point_robot(text: str, kind: str, rest: str, base_pose) -> Robot:
+    try:
+        vals = [float(v) for v in rest.split(",")] if rest else []
+    except ValueError:
+        raise SplatplanError(f"robot {text!r}: numbers expected after ':' ('sphere:R' or 'ellipsoid:A,B,C', metres)") from None
+    if kind == "sphere" and len(vals) == 1:
+        axes = np.full(3, vals[0])
+    elif kind == "ellipsoid" and len(vals) == 3:
+        axes = np.asarray(vals)
+    else:
+        raise SplatplanError(f"robot {text!r} not understood: 'sphere:R' or 'ellipsoid:A,B,C' (semi-axes, metres)")
+    if not np.all(np.isfinite(axes)) or np.any(axes <= 0):
+        raise SplatplanError(f"robot {text!r}: sizes must be finite and > 0")
+    origin = np.eye(4)[None].copy()
+    if base_pose is not None:
+        origin[0] = _check_pose(base_pose)
+    kin = Kinematics(["body"], ["xyz"], np.array([-1]), np.array([TRANSLATION]), np.array([[1.0, 0, 0]]), origin, np.array([0]), np.ones(1), np.zeros(1))
+    v = float(4.0 / 3.0 * math.pi * np.prod(axes))
+    ells = EllipsoidSet(["body"], np.zeros((1, 3)), np.eye(3)[None], axes[None].astype(np.float64),
+                        {"body": {"source": "analytic", "geometry": [kind], "n": 1, "geometry_volume": v, "ellipsoid_volume": v, "volume_ratio": 1.0}})
+    lim = np.array([[-np.inf, np.inf]] * 3)
+    return Robot(text, kin, ["x", "y", "z"], lim, np.array([BASE_SPEED[k] for k in "xyz"]), np.zeros(3), ells)
+
+
+def _check_pose(t) -> np.ndarray:
+    t = np.asarray(t, dtype=np.float64)
+    if t.shape != (4, 4) or not np.all(np.isfinite(t)) or not np.allclose(t[:3, :3] @ t[:3, :3].T, np.eye(3), atol=1e-6) or np.linalg.det(t[:3, :3]) < 0:
+        raise SplatplanError("base_pose must be a finite (4, 4) rigid transform (rotation + translation)")
+    return t
+
+
+@lru_cache(maxsize=4)
+def _cached_builtin(name: str) -> Robot:
+    return _builtin(name, None, None, None, None, None)
+
+
+def _builtin(name, active, fixed, base, base_pose, ellipsoids) -> Robot:
+    urdf, srdf = builtin_urdf(name)
+    model = read_urdf(urdf)
+    ell = ellipsoids or (DATA / f"{name}.yaml" if (DATA / f"{name}.yaml").is_file() else None)
+    if name == "panda":
+        active = active or [f"panda_joint{i}" for i in range(1, 8)]
+        return build_robot(model, srdf, active, fixed, base or "fixed", base_pose, ell, 1, False, state="default", name="panda")
+    robot = build_robot(model, srdf, active or [], fixed, base or "planar", base_pose, ell, 1, False, state="standing", name="go2")
+    if base_pose is None and (base or "planar") == "planar":
+        # Raise the body so the lowest ellipsoid point (the feet) touches z = 0.
+        c, r = robot.ellipsoid_frames(robot.q_default)
+        low = float(np.min(c[:, 2] - np.linalg.norm(r[:, 2, :] * robot.semi_axes, axis=-1)))
+        pose = np.eye(4)
+        pose[2, 3] = -low
+        robot = build_robot(model, srdf, active or [], fixed, "planar", pose, ell, 1, False, state="standing", name="go2")
+        robot.info["standing_height_m"] = -low
+    return robot
+
+
+def build_robot(
+    model: UrdfModel,
+    srdf: Path | None,
+    active: list[str] | None,
+    fixed: dict[str, float] | None,
+    base: str,
+    base_pose: np.ndarray | None,
+    ellipsoids: str | Path | None,
+    per_link: int,
+    from_visual: bool,
+    state: str | None = None,
+    name: str | None = None,
+) -> Robot:
+    """Assemble a Robot from a parsed URDF: choose dofs, bake the others, attach ellipsoids."""
+    sr = read_srdf(srdf) if srdf is not None and Path(srdf).is_file() else None
+    kin = model.kin
+    dof_joints = model.dof_joints
+    active = list(dof_joints) if active is None else list(active)
+    unknown = [a for a in active if a not in dof_joints]
+    if unknown:
+        raise SplatplanError(f"robot {model.name}: unknown or non-movable joints {unknown}; movable joints: {', '.join(dof_joints)}")
+    # Values of every URDF dof: SRDF state, then explicit ``fixed``, clipped to limits (0 by default).
+    vals = np.zeros(len(dof_joints))
+    if sr is not None and state and state in sr.group_states:
+        for k, jn in enumerate(dof_joints):
+            v = sr.group_states[state].get(jn)
+            if v and len(v) == 1:
+                vals[k] = v[0]
+    for jn, v in (fixed or {}).items():
+        if jn not in dof_joints:
+            raise SplatplanError(f"robot {model.name}: cannot fix unknown joint {jn!r}; movable joints: {', '.join(dof_joints)}")
+        vals[dof_joints.index(jn)] = float(v)
+    vals = np.clip(vals, model.lower, model.upper)
+    keep_dof = np.array([jn in active for jn in dof_joints])
+    # Per-link joint value for baking; which links keep their joint.
+    keep = np.zeros(kin.n_links, dtype=bool)
+    lv = np.zeros(kin.n_links)
+    for l in range(kin.n_links):
+        if kin.jtype[l] == FIXED:
+            continue
+        qi = int(kin.qidx[l])
+        keep[l] = keep_dof[qi]
+        lv[l] = vals[qi] * kin.mult[l] + kin.offset[l]
+    kin = bake_fixed(kin, keep, lv)
+    new_index = -np.ones(len(dof_joints), dtype=np.int64)
+    new_index[keep_dof] = np.arange(int(keep_dof.sum()))
+    shift = {"fixed": 0, "planar": 3, "translation": 3}.get(base)
+    if shift is None:
+        raise SplatplanError(f"base {base!r}: use 'fixed', 'planar' or 'translation'")
+    kin.qidx = np.where(kin.qidx >= 0, new_index[np.maximum(kin.qidx, 0)] + shift, -1)
+    names = [jn for jn in dof_joints if jn in active]
+    lim = np.stack([model.lower[keep_dof], model.upper[keep_dof]], axis=1)
+    vel = model.velocity[keep_dof]
+    cont = model.continuous[keep_dof]
+    qdef = np.clip(vals[keep_dof], lim[:, 0], lim[:, 1])
+    qdef = np.where(np.isfinite(qdef), qdef, 0.0)
+    if base_pose is not None:
+        kin.origin[0] = _check_pose(base_pose)
+    if base != "fixed":
+        if kin.jtype[0] != FIXED:  # pragma: no cover - URDF roots never have joints
+            raise SplatplanError("the root link already moves")
+        kin.jtype[0], kin.qidx[0] = (PLANAR if base == "planar" else TRANSLATION), 0
+        bnames = ["x", "y", "yaw"] if base == "planar" else ["x", "y", "z"]
+        blim = np.array([[-np.inf, np.inf], [-np.inf, np.inf], [-math.pi, math.pi] if base == "planar" else [-np.inf, np.inf]])
+        names = bnames + names
+        lim = np.concatenate([blim, lim])
+        vel = np.concatenate([[BASE_SPEED[n] for n in bnames], vel])
+        cont = np.concatenate([[False, False, base == "planar"], cont])
+        qdef = np.concatenate([np.zeros(3), qdef])
+    if ellipsoids is not None:
+        ells = load_yaml(ellipsoids, kin.link_names)
+    else:
+        ells = fit_model(model, per_link=per_link, from_visual=from_visual)
+    return Robot(
+        name or model.name,
+        kin,
+        names,
+        lim,
+        vel,
+        qdef,
+        ells,
+        continuous=cont,
+        disabled_pairs=sr.disabled_pairs if sr else set(),
+        info={"urdf": str(model.path), **({"srdf": str(srdf)} if sr else {})},
+    )

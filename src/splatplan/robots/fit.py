@@ -1,0 +1,361 @@
+"""Enclosing ellipsoids for robot links: analytic for primitives, fitted to meshes, YAML I/O.
+
+An ellipsoid is (centre c (3,), rotation R (3, 3) link <- ellipsoid frame, semi-axes s (3,)), all
+in the link frame, metres. A point x lies inside when |diag(1/s) R^T (x - c)| <= 1.
+
+Per link:
+
+* ``<sphere>``, ``<cylinder>`` and ``<capsule>`` elements each get their own analytic enclosing
+  ellipsoid (the minimum-volume one among ellipsoids sharing the primitive's axes).
+* ``<box>`` elements and meshes are polytopes: their vertices (box corners, mesh vertices) are
+  pooled per link and enclosed by k ellipsoids. k = 1: the minimum-volume enclosing ellipsoid of
+  the convex hull vertices (Khachiyan's algorithm). k > 1: the link is cut into k slabs of equal
+  width along its principal axis; each slab's ellipsoid encloses the vertices inside it plus the
+  points where mesh edges cross the slab's bounding planes, so the union of the k ellipsoids
+  contains every point of every triangle (and hence the solid), not only the vertices.
+* Guarantee: after Khachiyan's iterations stop, every ellipsoid is rescaled by its largest
+  Mahalanobis radius over its points (times 1 + 1e-9), so each point it must contain lies inside
+  exactly, whatever the tolerance. ``tests/robots`` re-checks the shipped YAML files.
+
+The volume ratio of a link is (sum of its ellipsoids' volumes) / (sum of its collision elements'
+volumes; a mesh that is not watertight counts with its convex hull): 1 is a perfect fit,
+overlaps between elements make it slightly optimistic.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import SplatplanError
+from .urdf import Geom, UrdfModel
+
+#: Relative safety factor applied after the exact containment rescale (float rounding).
+CONTAIN_EPS = 1e-9
+
+
+@dataclass
+class EllipsoidSet:
+    """E ellipsoids attached to links (link frame) plus a per-link fit report."""
+
+    link: list[str]  # (E,) link names
+    center: np.ndarray  # (E, 3) link frame, metres
+    rot: np.ndarray  # (E, 3, 3) link <- ellipsoid frame
+    semi_axes: np.ndarray  # (E, 3) metres
+    report: dict[str, dict] = field(default_factory=dict)  # link -> {source, n, geometry_volume, ellipsoid_volume, volume_ratio}
+    skipped: list[str] = field(default_factory=list)  # links without geometry (no ellipsoid)
+
+    @property
+    def n(self) -> int:
+        return len(self.link)
+
+
+# --------------------------------------------------------------------------- fitting primitives
+
+
+def ellipsoid_volume(semi_axes: np.ndarray) -> np.ndarray:
+    return 4.0 / 3.0 * math.pi * np.prod(np.asarray(semi_axes, dtype=np.float64), axis=-1)
+
+
+def mahalanobis(points: np.ndarray, center: np.ndarray, rot: np.ndarray, semi_axes: np.ndarray) -> np.ndarray:
+    """|diag(1/s) R^T (p - c)| for points (N, 3): <= 1 inside."""
+    local = (np.asarray(points, dtype=np.float64) - center) @ rot  # (N, 3) ellipsoid frame
+    return np.linalg.norm(local / semi_axes, axis=-1)
+
+
+def _hull_vertices(points: np.ndarray) -> np.ndarray:
+    from scipy.spatial import ConvexHull, QhullError
+
+    if len(points) <= 4:
+        return points
+    try:
+        return points[ConvexHull(points).vertices]
+    except (QhullError, ValueError):
+        return points
+
+
+def mvee(points: np.ndarray, tol: float = 1e-3, max_iter: int = 20000) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Minimum-volume enclosing ellipsoid of points (N, 3) by Khachiyan's algorithm.
+
+    Returns (centre (3,), rotation (3, 3) with det +1, semi-axes (3,) descending). The result
+    contains every point (rescaled by the largest Mahalanobis radius); flat or tiny point sets
+    get a thickness of 1e-3 of their extent (at least 1e-6 m).
+    """
+    p = np.unique(np.asarray(points, dtype=np.float64).reshape(-1, 3), axis=0)
+    if len(p) == 0 or not np.all(np.isfinite(p)):
+        raise SplatplanError("cannot fit an ellipsoid to an empty or non-finite point set")
+    mean = p.mean(axis=0)
+    _, sv, vt = np.linalg.svd(p - mean, full_matrices=False) if len(p) > 1 else (None, np.zeros(1), np.eye(3))
+    sv = np.concatenate([sv, np.zeros(3 - len(sv))])
+    extent = max(float(np.ptp(p, axis=0).max()), 1e-6)
+    pad = max(1e-3 * extent, 1e-6)
+    for i in range(3):  # give flat / line / point sets a small thickness
+        if sv[i] <= 1e-9 * max(sv[0], 1e-30) or len(p) < 4:
+            p = np.concatenate([p, mean + pad * vt[i], mean - pad * vt[i]]) if i < len(vt) else p
+    if len(p) < 4 or np.linalg.matrix_rank(p - p.mean(axis=0), tol=1e-12) < 3:
+        p = np.concatenate([p, mean + pad * np.eye(3), mean - pad * np.eye(3)])
+    p = _hull_vertices(p)
+    n, d = p.shape
+    qm = np.vstack([p.T, np.ones(n)])  # (4, N) lifted points
+    u = np.full(n, 1.0 / n)
+    for _ in range(max_iter):
+        x = (qm * u) @ qm.T  # (4, 4)
+        m = np.einsum("in,ij,jn->n", qm, np.linalg.inv(x), qm)
+        j = int(np.argmax(m))
+        mj = m[j]
+        if mj <= (1.0 + tol) * (d + 1):
+            break
+        step = (mj - d - 1.0) / ((d + 1.0) * (mj - 1.0))
+        u *= 1.0 - step
+        u[j] += step
+    c = p.T @ u
+    cov = (p.T * u) @ p - np.outer(c, c)
+    a = np.linalg.inv(cov) / d  # (x - c)^T A (x - c) <= 1 (approximately)
+    lam, vec = np.linalg.eigh(0.5 * (a + a.T))  # ascending eigenvalues -> descending semi-axes
+    lam = np.maximum(lam, 1e-30)
+    s = 1.0 / np.sqrt(lam)
+    if np.linalg.det(vec) < 0:
+        vec[:, 2] *= -1.0
+    r = float(mahalanobis(p, c, vec, s).max())
+    s = s * r * (1.0 + CONTAIN_EPS)
+    return c, vec, s
+
+
+def _cylinder_like(radius: float, half: float, cap: float) -> tuple[float, float]:
+    """Semi-axes (a, c) of the minimum-volume z-aligned ellipsoid enclosing a capsule (cap = r)
+    or a cylinder (cap = 0) of radius r and half-length ``half`` of its straight part."""
+    if cap == 0.0:
+        return radius * math.sqrt(1.5), half * math.sqrt(3.0)
+    z = np.linspace(0.0, cap, 4001)  # hemisphere profile above the straight part
+    x2 = np.maximum(radius**2 - z**2, 0.0)
+    best = None
+    for cz in np.geomspace((half + cap) * (1 + 1e-6), (half + cap) * 20.0, 4000):
+        a2 = float(np.max(x2 / (1.0 - ((half + z) / cz) ** 2)))
+        v = a2 * cz
+        if best is None or v < best[0]:
+            best = (v, math.sqrt(a2), cz)
+    _, a, cz = best
+    return a * (1.0 + 1e-4), cz  # 1e-4 margin covers the sampling of the profile
+
+
+def primitive_ellipsoid(g: Geom) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """Enclosing ellipsoid of a sphere/cylinder/capsule/box in the link frame + the primitive's volume."""
+    rot, ctr = g.origin[:3, :3], g.origin[:3, 3]
+    if g.kind == "sphere":
+        r = float(g.size[0])
+        return ctr.copy(), rot.copy(), np.full(3, r), 4.0 / 3.0 * math.pi * r**3
+    if g.kind == "cylinder":
+        r, ln = float(g.size[0]), float(g.size[1])
+        a, c = _cylinder_like(r, ln / 2.0, 0.0)
+        return ctr.copy(), rot.copy(), np.array([a, a, c]), math.pi * r * r * ln
+    if g.kind == "capsule":
+        r, ln = float(g.size[0]), float(g.size[1])
+        a, c = _cylinder_like(r, ln / 2.0, r)
+        return ctr.copy(), rot.copy(), np.array([a, a, c]), math.pi * r * r * ln + 4.0 / 3.0 * math.pi * r**3
+    if g.kind == "box":
+        h = np.asarray(g.size, dtype=np.float64) / 2.0
+        return ctr.copy(), rot.copy(), h * math.sqrt(3.0), float(np.prod(2 * h))
+    raise ValueError(g.kind)
+
+
+def _check_size(g: Geom, link: str) -> None:
+    if not np.all(np.isfinite(g.size)) or np.any(g.size <= 0):
+        raise SplatplanError(f"link {link!r}: {g.kind} with invalid size {g.size.tolist()} (sizes must be finite and > 0)")
+
+
+def _polytope(g: Geom, link: str):
+    """A trimesh in the link frame for a mesh or box element."""
+    import trimesh
+
+    if g.kind == "box":
+        return trimesh.creation.box(extents=g.size, transform=g.origin)
+    if g.mesh is None or not Path(g.mesh).is_file():
+        raise SplatplanError(f"link {link!r}: mesh file {g.mesh} not found")
+    try:
+        m = trimesh.load(str(g.mesh), force="mesh")
+    except Exception as exc:
+        raise SplatplanError(f"link {link!r}: mesh file {g.mesh} cannot be read ({exc.__class__.__name__}: {exc})") from None
+    if not isinstance(m, trimesh.Trimesh) or len(m.vertices) == 0:
+        raise SplatplanError(f"link {link!r}: mesh file {g.mesh} holds no triangles")
+    m = m.copy()
+    m.apply_scale(1.0)
+    m.vertices = m.vertices * g.size  # per-axis URDF scale
+    m.apply_transform(g.origin)
+    return m
+
+
+def _mesh_volume(m) -> float:
+    try:
+        if m.is_watertight and m.volume > 0:
+            return float(m.volume)
+        return float(m.convex_hull.volume)
+    except Exception:  # degenerate hull
+        return 0.0
+
+
+def split_fit(verts: np.ndarray, edges: np.ndarray, k: int) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """k ellipsoids enclosing a triangle mesh (vertices (N, 3), unique edges (M, 2)): see module doc."""
+    if k <= 1 or len(verts) < 8:
+        return [mvee(verts)]
+    ctr = verts.mean(axis=0)
+    axis = np.linalg.svd(verts - ctr, full_matrices=False)[2][0]
+    t = (verts - ctr) @ axis
+    bounds = np.linspace(t.min(), t.max(), k + 1)
+    ta, tb = t[edges[:, 0]], t[edges[:, 1]]
+    out = []
+    for i in range(k):
+        lo, hi = bounds[i], bounds[i + 1]
+        parts = [verts[(t >= lo) & (t <= hi)]]
+        for plane, interior in ((lo, i > 0), (hi, i < k - 1)):
+            if not interior:
+                continue
+            cross = (ta - plane) * (tb - plane) < 0
+            if cross.any():
+                e = edges[cross]
+                w = ((plane - ta[cross]) / (tb[cross] - ta[cross]))[:, None]
+                parts.append(verts[e[:, 0]] + w * (verts[e[:, 1]] - verts[e[:, 0]]))
+        pts = np.concatenate(parts)
+        if len(pts):
+            out.append(mvee(pts))
+    return out
+
+
+def fit_link(link: str, geoms: list[Geom], k: int = 1) -> tuple[list, float]:
+    """Ellipsoids [(c, R, s), ...] in the link frame for one link's geometry + its geometry volume."""
+    import trimesh
+
+    ells, vol, polys = [], 0.0, []
+    for g in geoms:
+        _check_size(g, link) if g.kind != "mesh" else None
+        if g.kind in ("sphere", "cylinder", "capsule"):
+            c, r, s, v = primitive_ellipsoid(g)
+            ells.append((c, r, s))
+            vol += v
+        else:
+            m = _polytope(g, link)
+            vol += _mesh_volume(m) if g.kind == "mesh" else float(np.prod(g.size))
+            polys.append(m)
+    if polys:
+        merged = trimesh.util.concatenate(polys) if len(polys) > 1 else polys[0]
+        ells += split_fit(np.asarray(merged.vertices, dtype=np.float64), np.asarray(merged.edges_unique), k)
+    return ells, vol
+
+
+def link_points(geoms: list[Geom], link: str) -> np.ndarray:
+    """Every vertex (mesh vertices, box corners) of a link's polytope elements, link frame (N, 3)."""
+    pts = [np.asarray(_polytope(g, link).vertices) for g in geoms if g.kind in ("mesh", "box")]
+    return np.concatenate(pts) if pts else np.zeros((0, 3))
+
+
+def fit_model(model: UrdfModel, per_link: int | dict[str, int] = 1, from_visual: bool = False, links: list[str] | None = None) -> EllipsoidSet:
+    """Fit ellipsoids to every link of a URDF model (links in the model's order).
+
+    Args:
+        per_link: k ellipsoids for each link's polytopes (int, or {link: k} with default 1).
+        from_visual: fit links that have no collision geometry to their visual geometry.
+        links: restrict to these links (default: all).
+    Links with no usable geometry are listed in ``skipped``.
+    """
+    if isinstance(per_link, int) and per_link < 1:
+        raise SplatplanError(f"--per-link must be >= 1, got {per_link}")
+    names, cs, rs, ss, report, skipped = [], [], [], [], {}, []
+    for link in model.kin.link_names:
+        if links is not None and link not in links:
+            continue
+        geoms, source = model.collisions.get(link, []), "collision"
+        if not geoms and from_visual:
+            geoms, source = model.visuals.get(link, []), "visual"
+        if not geoms:
+            skipped.append(link)
+            continue
+        k = per_link if isinstance(per_link, int) else int(per_link.get(link, 1))
+        ells, gvol = fit_link(link, geoms, k)
+        evol = float(sum(ellipsoid_volume(s) for _, _, s in ells))
+        for c, r, s in ells:
+            names.append(link)
+            cs.append(c)
+            rs.append(r)
+            ss.append(s)
+        report[link] = {
+            "source": source,
+            "geometry": sorted({g.kind for g in geoms}),
+            "n": len(ells),
+            "geometry_volume": gvol,
+            "ellipsoid_volume": evol,
+            "volume_ratio": evol / gvol if gvol > 0 else float("inf"),
+        }
+    if not names:
+        raise SplatplanError(f"URDF {model.path}: no link has collision geometry" + ("" if from_visual else " (try --from-visual)"))
+    return EllipsoidSet(names, np.array(cs), np.array(rs), np.array(ss), report, skipped)
+
+
+# --------------------------------------------------------------------------- YAML
+
+
+def save_yaml(ells: EllipsoidSet, path: str | Path, robot: str = "", urdf: str = "", note: str = "") -> None:
+    """Write an ellipsoid set as YAML (quaternions wxyz, link frame, metres)."""
+    import yaml
+
+    from ..scenes.splats import rotmat_to_quat
+
+    quats = rotmat_to_quat(ells.rot) if ells.n else np.zeros((0, 4))
+    doc = {
+        "robot": robot,
+        "urdf": urdf,
+        "note": note or "collision ellipsoids per link: centre and wxyz quaternion (link <- ellipsoid) in the link frame, semi-axes in metres",
+        "ellipsoids": [
+            {
+                "link": ells.link[i],
+                "center": [float(v) for v in ells.center[i]],
+                "quat": [float(v) for v in quats[i]],
+                "semi_axes": [float(v) for v in ells.semi_axes[i]],
+            }
+            for i in range(ells.n)
+        ],
+        "links": {k: {kk: (float(f"{vv:.6g}") if isinstance(vv, float) else vv) for kk, vv in v.items()} for k, v in ells.report.items()},
+        "skipped_links": list(ells.skipped),
+    }
+    from ..cli._common import atomic_path  # atomic write (no partial YAML on failure)
+
+    with atomic_path(path) as tmp:
+        Path(tmp).write_text(yaml.safe_dump(doc, sort_keys=False, width=200))
+
+
+def load_yaml(path: str | Path, link_names: list[str] | None = None) -> EllipsoidSet:
+    """Read an ellipsoid YAML written by :func:`save_yaml` (or by hand: link, center, semi_axes, optional quat)."""
+    import yaml
+
+    from ..scenes.splats import quat_to_rotmat
+
+    path = Path(path)
+    if not path.is_file():
+        raise SplatplanError(f"ellipsoid file {path} does not exist")
+    try:
+        doc = yaml.safe_load(path.read_text())
+    except yaml.YAMLError as exc:
+        raise SplatplanError(f"ellipsoid file {path} is not valid YAML ({str(exc).splitlines()[0]})") from None
+    items = doc.get("ellipsoids") if isinstance(doc, dict) else None
+    if not isinstance(items, list) or not items:
+        raise SplatplanError(f"ellipsoid file {path}: expected a non-empty list under 'ellipsoids'")
+    names, cs, qs, ss = [], [], [], []
+    for i, it in enumerate(items):
+        try:
+            link = str(it["link"])
+            c = np.asarray(it["center"], dtype=np.float64).reshape(3)
+            s = np.asarray(it["semi_axes"], dtype=np.float64).reshape(3)
+            q = np.asarray(it.get("quat", [1.0, 0.0, 0.0, 0.0]), dtype=np.float64).reshape(4)
+        except (KeyError, TypeError, ValueError):
+            raise SplatplanError(f"ellipsoid file {path}: entry {i} needs 'link', 'center' (3 numbers), 'semi_axes' (3 numbers), optional 'quat' (wxyz)") from None
+        if not (np.all(np.isfinite(c)) and np.all(np.isfinite(q)) and np.all(np.isfinite(s))) or np.any(s <= 0) or np.linalg.norm(q) < 1e-8:
+            raise SplatplanError(f"ellipsoid file {path}: entry {i} (link {link!r}) has non-finite values, a zero quaternion or semi-axes <= 0")
+        if link_names is not None and link not in link_names:
+            raise SplatplanError(f"ellipsoid file {path}: entry {i} names link {link!r}, which the robot does not have")
+        names.append(link)
+        cs.append(c)
+        qs.append(q / np.linalg.norm(q))
+        ss.append(s)
+    report = doc.get("links") or {}
+    return EllipsoidSet(names, np.array(cs), quat_to_rotmat(np.array(qs)), np.array(ss), dict(report), list(doc.get("skipped_links") or []))

@@ -1,0 +1,374 @@
+"""The one robot type: a kinematic tree whose links carry collision ellipsoids.
+
+Frames and units: z-up world, metres, radians; quaternions wxyz. ``link_poses(q)`` are world <-
+link transforms; each ellipsoid is given in its link's frame (centre, rotation link <- ellipsoid,
+semi-axes) and ``ellipsoids(q)`` returns it in the world frame.
+
+Configurations ``q`` have shape (..., dof). FK and collision queries accept any q that is finite;
+joint limits are checked only by :meth:`Robot.check_q` (``clip=True`` clips instead of raising),
+which the CLI applies to user-supplied configurations.
+"""
+
+from __future__ import annotations
+
+import threading
+from concurrent.futures import ThreadPoolExecutor
+
+import numpy as np
+
+from ..errors import SplatplanError
+from .fit import EllipsoidSet
+from .kinematics import FIXED, PLANAR, PRISMATIC, REVOLUTE, TRANSLATION, Kinematics, link_poses_ref, rigid_groups
+
+
+class Robot:
+    """A robot: flat kinematics + collision ellipsoids (see the module docstring).
+
+    Attributes:
+        name: str.
+        dof: number of configuration entries.
+        joint_names: (dof,) names ("x", "y", "yaw" / "z" for bases).
+        link_names: (L,) every link (frame) of the tree, topological order.
+        joint_limits: (dof, 2) float64 [lower, upper]; +-inf for free translations.
+        velocity_limits: (dof,) float64 (rad/s or m/s).
+        continuous: (dof,) bool, True for joints that wrap around (continuous joints).
+        q_default: (dof,) home / standing configuration.
+        base_pose: (4, 4) world <- robot base (the root link's frame at q = 0).
+        ellipsoid_link: (E,) int index into link_names.
+        ellipsoid_local: (E, 4, 4) link <- ellipsoid frame.
+        semi_axes: (E, 3) float64 metres.
+        motion_bound: (dof,) metres per unit of joint motion; see :meth:`_motion_bound`.
+        fit_report: link -> {source, n, geometry_volume, ellipsoid_volume, volume_ratio}.
+        self_collision_pairs: (P, 2) int ellipsoid pairs checked by :meth:`self_collision`.
+    """
+
+    def __init__(
+        self,
+        name: str,
+        kin: Kinematics,
+        joint_names: list[str],
+        joint_limits: np.ndarray,
+        velocity_limits: np.ndarray,
+        q_default: np.ndarray,
+        ellipsoids: EllipsoidSet,
+        continuous: np.ndarray | None = None,
+        disabled_pairs: set[frozenset[str]] | None = None,
+        info: dict | None = None,
+    ):
+        self.name = name
+        self.kin = kin
+        self.dof = len(joint_names)
+        kin.validate(self.dof)
+        self.joint_names = list(joint_names)
+        self.link_names = list(kin.link_names)
+        self.joint_limits = np.asarray(joint_limits, dtype=np.float64).reshape(self.dof, 2)
+        self.velocity_limits = np.asarray(velocity_limits, dtype=np.float64).reshape(self.dof)
+        self.continuous = np.zeros(self.dof, dtype=bool) if continuous is None else np.asarray(continuous, dtype=bool)
+        self.q_default = np.asarray(q_default, dtype=np.float64).reshape(self.dof)
+        self.info = dict(info or {})
+        index = {n: i for i, n in enumerate(self.link_names)}
+        missing = [n for n in ellipsoids.link if n not in index]
+        if missing:
+            raise SplatplanError(f"robot {name}: ellipsoids name unknown links {sorted(set(missing))}")
+        if ellipsoids.n == 0:
+            raise SplatplanError(f"robot {name}: no collision ellipsoids")
+        # Ellipsoids in link order (stable), so the kernel and the reference agree on row order.
+        order = sorted(range(ellipsoids.n), key=lambda i: index[ellipsoids.link[i]])
+        self.ellipsoid_link = np.array([index[ellipsoids.link[i]] for i in order], dtype=np.int64)
+        local = np.tile(np.eye(4), (len(order), 1, 1))
+        local[:, :3, :3] = ellipsoids.rot[order]
+        local[:, :3, 3] = ellipsoids.center[order]
+        self.ellipsoid_local = local
+        self.semi_axes = np.ascontiguousarray(ellipsoids.semi_axes[order], dtype=np.float64)
+        self.fit_report = dict(ellipsoids.report)
+        self.skipped_links = list(ellipsoids.skipped)
+        self.frame_of_link, self.link_in_frame = rigid_groups(kin)
+        self.motion_bound = self._motion_bound()
+        self.self_collision_pairs = self._pairs(disabled_pairs or set())
+        self._lock = threading.Lock()
+        self._pool: ThreadPoolExecutor | None = None
+        self._wp_cache: dict = {}
+
+    # ------------------------------------------------------------------ basic properties
+
+    @property
+    def n_ellipsoids(self) -> int:
+        return len(self.ellipsoid_link)
+
+    @property
+    def base_pose(self) -> np.ndarray:
+        return self.kin.origin[0].copy()
+
+    @property
+    def min_semi_axis(self) -> float:
+        return float(self.semi_axes.min())
+
+    def __repr__(self) -> str:
+        return f"Robot({self.name!r}, dof={self.dof}, links={len(self.link_names)}, ellipsoids={self.n_ellipsoids})"
+
+    # ------------------------------------------------------------------ validation
+
+    def check_q(self, q, *, clip: bool = False, check_limits: bool = True) -> np.ndarray:
+        """Validate configurations (..., dof): shape, finiteness and (optionally) joint limits.
+
+        Returns a float64 copy. Outside the limits (tolerance 1e-9): raises SplatplanError, or
+        clips into them when ``clip=True``; ``check_limits=False`` skips the limit check.
+        """
+        try:
+            arr = np.array(q, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise SplatplanError(f"robot {self.name}: configurations must be numeric arrays of shape (..., {self.dof})") from None
+        if arr.ndim == 0 or arr.shape[-1] != self.dof:
+            raise SplatplanError(
+                f"robot {self.name}: configurations need {self.dof} values ({', '.join(self.joint_names)}), got shape {arr.shape}"
+            )
+        finite = np.isfinite(arr).all(axis=-1)
+        if not finite.all():
+            bad = np.argwhere(~finite)[0]
+            raise SplatplanError(f"robot {self.name}: configuration {tuple(int(i) for i in bad)} contains NaN or Inf")
+        if check_limits:
+            lo, hi = self.joint_limits[:, 0], self.joint_limits[:, 1]
+            if clip:
+                arr = np.clip(arr, lo, hi)
+            else:
+                out = (arr < lo - 1e-9) | (arr > hi + 1e-9)
+                if out.any():
+                    idx = np.argwhere(out)[0]
+                    j = int(idx[-1])
+                    raise SplatplanError(
+                        f"robot {self.name}: configuration {tuple(int(i) for i in idx[:-1])} has {self.joint_names[j]} = {arr[tuple(idx)]:.6g}"
+                        f" outside its limits [{lo[j]:.6g}, {hi[j]:.6g}] (clip it, e.g. check_q(q, clip=True))"
+                    )
+        return arr
+
+    # ------------------------------------------------------------------ numpy reference FK
+
+    def link_poses(self, q) -> np.ndarray:
+        """q (..., dof) -> (..., L, 4, 4) float64 world <- link (numpy reference)."""
+        return link_poses_ref(self.kin, self.check_q(q, check_limits=False))
+
+    def ellipsoid_frames(self, q) -> tuple[np.ndarray, np.ndarray]:
+        """q (..., dof) -> (centres (..., E, 3) world, rotations (..., E, 3, 3) world <- ellipsoid)."""
+        poses = self.link_poses(q)[..., self.ellipsoid_link, :, :] @ self.ellipsoid_local  # (..., E, 4, 4)
+        return poses[..., :3, 3], poses[..., :3, :3]
+
+    def ellipsoids(self, q) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """q (..., dof) -> (centres (..., E, 3) world, quats (..., E, 4) wxyz world <- ellipsoid, semi_axes (E, 3))."""
+        from ..scenes.splats import rotmat_to_quat
+
+        c, r = self.ellipsoid_frames(q)
+        return c, rotmat_to_quat(r), self.semi_axes.copy()
+
+    # ------------------------------------------------------------------ Warp FK
+
+    def fk_wp(self, q_wp, out_centers, out_rots) -> None:
+        """Device-resident FK (Warp kernel; CPU launches split across this robot's thread pool).
+
+        Args:
+            q_wp: wp.array(dtype=float32, ndim=2) (B, dof) on any device.
+            out_centers: wp.array(dtype=wp.vec3) (B*E,) world frame, same device.
+            out_rots: wp.array(dtype=wp.mat33) (B*E,) world <- ellipsoid frame, same device.
+        Row b*E + e holds ellipsoid e of configuration b. Nothing is copied to the host.
+        """
+        from .wp_fk import launch_fk
+
+        launch_fk(self, q_wp, out_centers, out_rots)
+
+    def fk(self, q, device: str | None = "cpu") -> tuple[np.ndarray, np.ndarray]:
+        """Convenience: numpy q (..., dof) -> Warp FK -> numpy (centres (..., E, 3), rotations (..., E, 3, 3)) float32."""
+        from .._warp import resolve_device
+        from .._warp import wp as _wp
+
+        wp = _wp()
+        arr = self.check_q(q, check_limits=False)
+        lead = arr.shape[:-1]
+        flat = np.ascontiguousarray(arr.reshape(-1, self.dof), dtype=np.float32)
+        dev = resolve_device(device)
+        b = flat.shape[0]
+        qw = wp.array(flat, dtype=wp.float32, device=dev)
+        oc = wp.empty(b * self.n_ellipsoids, dtype=wp.vec3, device=dev)
+        orr = wp.empty(b * self.n_ellipsoids, dtype=wp.mat33, device=dev)
+        self.fk_wp(qw, oc, orr)
+        e = self.n_ellipsoids
+        return oc.numpy().reshape(lead + (e, 3)), orr.numpy().reshape(lead + (e, 3, 3))
+
+    def _thread_pool(self) -> ThreadPoolExecutor:
+        from .._warp import cpu_threads
+
+        with self._lock:
+            if self._pool is None:
+                self._pool = ThreadPoolExecutor(max_workers=cpu_threads(), thread_name_prefix=f"splatplan-fk-{self.name}")
+            return self._pool
+
+    def close(self) -> None:
+        """Shut down the CPU thread pool (recreated on the next CPU launch)."""
+        with self._lock:
+            if self._pool is not None:
+                self._pool.shutdown(wait=True)
+                self._pool = None
+
+    def __enter__(self) -> "Robot":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def __del__(self):  # pragma: no cover - best effort
+        try:
+            if self._pool is not None:
+                self._pool.shutdown(wait=False)
+        except Exception:
+            pass
+
+    # ------------------------------------------------------------------ motion bound
+
+    def _subtree(self) -> list[list[int]]:
+        kids = self.kin.children()
+        out = [[] for _ in range(self.kin.n_links)]
+        for l in reversed(range(self.kin.n_links)):
+            out[l] = [l] + [x for c in kids[l] for x in out[c]]
+        return out
+
+    def _motion_bound(self) -> np.ndarray:
+        """(dof,) b with |x(q1) - x(q2)| <= sum_j b_j |q1_j - q2_j| for every point x of every ellipsoid.
+
+        Per joint: a prismatic joint (or base translation) moves downstream points by |dv|, so it
+        contributes 1; a revolute joint (or the base yaw) moves a point at distance rho from its
+        axis by at most rho |dv|, so it contributes max rho over downstream ellipsoid points.
+        rho is bounded by |perpendicular part of the ellipsoid centre| + largest semi-axis when
+        the ellipsoid is rigidly attached to the joint's link, otherwise by the triangle
+        inequality along the chain (sum of joint offsets, prismatic travel, centre offset,
+        largest semi-axis), which holds in every configuration. A dof driving several joints
+        (mimic) sums |multiplier| x bound over them. Integrating the point's speed along the
+        straight segment q1 -> q2 gives the stated inequality for any pair of configurations.
+        """
+        kin = self.kin
+        sub = self._subtree()
+        bound = np.zeros(self.dof)
+        ell_of_link: dict[int, list[int]] = {}
+        for e, l in enumerate(self.ellipsoid_link):
+            ell_of_link.setdefault(int(l), []).append(e)
+        smax = self.semi_axes.max(axis=1)
+        for l in range(kin.n_links):
+            jt = int(kin.jtype[l])
+            if jt == FIXED:
+                continue
+            qi, m = int(kin.qidx[l]), abs(float(kin.mult[l]))
+            if jt in (PRISMATIC, TRANSLATION):
+                bound[qi : qi + (3 if jt == TRANSLATION else 1)] += m if jt == PRISMATIC else 1.0
+                continue
+            if jt == PLANAR:
+                bound[qi : qi + 2] += 1.0
+                qi_rot, axis = qi + 2, np.array([0.0, 0.0, 1.0])
+            else:
+                qi_rot, axis = qi, kin.axis[l]
+            rho = 0.0
+            for d in sub[l]:
+                for e in ell_of_link.get(d, []):
+                    rho = max(rho, self._axis_distance_bound(l, d, e, axis, smax[e]))
+            bound[qi_rot] += (1.0 if jt == PLANAR else m) * rho
+        return bound
+
+    def _axis_distance_bound(self, l: int, d: int, e: int, axis: np.ndarray, smax: float) -> float:
+        kin = self.kin
+        path = []  # links from d up to (excluding) l
+        k = d
+        while k != l:
+            path.append(k)
+            k = int(kin.parent[k])
+        if all(kin.jtype[k] == FIXED for k in path):  # rigid: exact centre in l's frame
+            t = np.eye(4)
+            for k in reversed(path):
+                t = t @ kin.origin[k]
+            c = (t @ self.ellipsoid_local[e])[:3, 3]
+            return float(np.linalg.norm(c - (c @ axis) * axis) + smax)
+        total = float(np.linalg.norm(self.ellipsoid_local[e][:3, 3])) + smax
+        for k in path:
+            total += float(np.linalg.norm(kin.origin[k][:3, 3]))
+            if kin.jtype[k] == PRISMATIC:
+                lo, hi = self.joint_limits[int(kin.qidx[k])]
+                total += max(abs(lo), abs(hi)) * abs(float(kin.mult[k])) + abs(float(kin.offset[k]))
+        return total
+
+    # ------------------------------------------------------------------ self-collision
+
+    def _pairs(self, disabled: set[frozenset[str]]) -> np.ndarray:
+        """Ellipsoid pairs to check: different rigid bodies, not adjacent, not disabled, apart at q_default."""
+        kin, fr = self.kin, self.frame_of_link
+        parent_frame = {int(f): (int(fr[kin.parent[f]]) if kin.parent[f] >= 0 else -1) for f in set(fr.tolist())}
+        pairs = []
+        for i in range(self.n_ellipsoids):
+            for j in range(i + 1, self.n_ellipsoids):
+                li, lj = int(self.ellipsoid_link[i]), int(self.ellipsoid_link[j])
+                fi, fj = int(fr[li]), int(fr[lj])
+                if fi == fj or parent_frame[fi] == fj or parent_frame[fj] == fi:
+                    continue
+                if frozenset((self.link_names[li], self.link_names[lj])) in disabled:
+                    continue
+                pairs.append((i, j))
+        pairs = np.array(pairs, dtype=np.int64).reshape(-1, 2)
+        if len(pairs):
+            c, r = self.ellipsoid_frames(self.q_default)
+            hit = _maybe_overlap(c[pairs[:, 0]], r[pairs[:, 0]], self.semi_axes[pairs[:, 0]], c[pairs[:, 1]], r[pairs[:, 1]], self.semi_axes[pairs[:, 1]])
+            pairs = pairs[~hit]  # touching in the home pose: treated as always in contact (MoveIt's "Default")
+        return pairs
+
+    def self_collision(self, q) -> np.ndarray:
+        """(...,) bool: True where some checked ellipsoid pair may overlap (conservative: never misses a true overlap).
+
+        Pairs are those of ``self_collision_pairs``: ellipsoids on different rigid bodies whose
+        links are not adjacent, not disabled in the SRDF, and not already overlapping in
+        ``q_default``. The test reports "separate" only with a proof: the bounding spheres are
+        apart, or the projections on one of 7 directions (centre line, the 6 ellipsoid axes) are.
+        """
+        c, r = self.ellipsoid_frames(q)
+        lead = c.shape[:-2]
+        if len(self.self_collision_pairs) == 0:
+            return np.zeros(lead, dtype=bool)
+        i, j = self.self_collision_pairs[:, 0], self.self_collision_pairs[:, 1]
+        hit = _maybe_overlap(c[..., i, :], r[..., i, :, :], self.semi_axes[i], c[..., j, :], r[..., j, :, :], self.semi_axes[j])
+        return hit.any(axis=-1)
+
+    # ------------------------------------------------------------------ report
+
+    def describe(self) -> dict:
+        """JSON-able summary (``splatplan robot info``)."""
+        return {
+            "name": self.name,
+            "dof": self.dof,
+            "joints": [
+                {"name": n, "lower": float(lo), "upper": float(hi), "velocity": float(v), "continuous": bool(c), "default": float(d), "motion_bound_m": float(mb)}
+                for n, (lo, hi), v, c, d, mb in zip(self.joint_names, self.joint_limits, self.velocity_limits, self.continuous, self.q_default, self.motion_bound)
+            ],
+            "links": self.link_names,
+            "base_pose": self.base_pose.tolist(),
+            "n_ellipsoids": self.n_ellipsoids,
+            "ellipsoids": [
+                {"link": self.link_names[l], "center": self.ellipsoid_local[e, :3, 3].tolist(), "semi_axes": self.semi_axes[e].tolist()}
+                for e, l in enumerate(self.ellipsoid_link)
+            ],
+            "fit": self.fit_report,
+            "links_without_geometry": self.skipped_links,
+            "self_collision_pairs": len(self.self_collision_pairs),
+            "min_semi_axis": self.min_semi_axis,
+            **({"info": self.info} if self.info else {}),
+        }
+
+
+def _support(n: np.ndarray, r: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """Half-width of an ellipsoid (rotation r (..., 3, 3), semi-axes s (..., 3)) along unit n (..., 3)."""
+    return np.linalg.norm(np.einsum("...i,...ik->...k", n, r) * s, axis=-1)
+
+
+def _maybe_overlap(c1, r1, s1, c2, r2, s2) -> np.ndarray:
+    """Conservative overlap test for ellipsoid pairs (..., P): False only when proven apart."""
+    d = c2 - c1
+    dist = np.linalg.norm(d, axis=-1)
+    s1 = np.broadcast_to(s1, r1.shape[:-1])
+    s2 = np.broadcast_to(s2, r2.shape[:-1])
+    maybe = dist <= s1.max(axis=-1) + s2.max(axis=-1)
+    dirs = [d / np.maximum(dist, 1e-300)[..., None]] + [r1[..., :, k] for k in range(3)] + [r2[..., :, k] for k in range(3)]
+    for n in dirs:
+        gap = np.abs(np.einsum("...i,...i->...", d, n)) - _support(n, r1, s1) - _support(n, r2, s2)
+        maybe &= ~(gap > 0)
+    return maybe
