@@ -132,7 +132,41 @@ def _pack_rotation_v3(xyzw: np.ndarray) -> np.ndarray:
     return out
 
 
-SPZ_SH_DEGREE = {0: 0, 3: 1, 8: 2, 15: 3}
+SPZ_SH_DEGREE = {0: 0, 3: 1, 8: 2, 15: 3, 24: 4}
+
+
+def spz_streams(
+    *,
+    means_rub: np.ndarray,  # (N, 3) RUB
+    quats_rub_wxyz: np.ndarray,  # (N, 4)
+    log_scales: np.ndarray,  # (N, 3)
+    opacities: np.ndarray,  # (N,)
+    f_dc: np.ndarray,  # (N, 3)
+    sh_rub: np.ndarray | None,  # (N, K, 3)
+    version: int = 2,
+    frac_bits: int = 12,
+) -> list[bytes]:
+    """The uncompressed .spz attribute streams: positions, alphas, colours, scales, rotations[, sh]."""
+    fixed = np.round(np.asarray(means_rub, dtype=np.float64) * (1 << frac_bits)).astype(np.int64) & 0xFFFFFF  # (N, 3)
+    parts = [np.stack([fixed & 0xFF, (fixed >> 8) & 0xFF, (fixed >> 16) & 0xFF], axis=-1).astype(np.uint8).tobytes()]
+    parts.append(np.clip(np.round(opacities * 255), 0, 255).astype(np.uint8).tobytes())
+    parts.append(np.clip(np.round(f_dc * 0.15 * 255 + 127.5), 0, 255).astype(np.uint8).tobytes())
+    parts.append(np.clip(np.round((log_scales + 10) * 16), 0, 255).astype(np.uint8).tobytes())
+    q = quats_rub_wxyz / np.linalg.norm(quats_rub_wxyz, axis=1, keepdims=True)
+    xyzw = np.concatenate([q[:, 1:], q[:, :1]], axis=1)
+    if version == 2:
+        xyzw = xyzw * np.where(xyzw[:, 3:] < 0, -1.0, 1.0)
+        parts.append(np.clip(np.round((xyzw[:, :3] + 1) * 127.5), 0, 255).astype(np.uint8).tobytes())
+    else:
+        parts.append(_pack_rotation_v3(xyzw).astype("<u4").tobytes())
+    if sh_rub is not None and sh_rub.shape[1]:
+        parts.append(np.clip(np.round(sh_rub * 128 + 128), 0, 255).astype(np.uint8).tobytes())
+    return parts
+
+
+def ext_record(ext_type: int, payload: bytes) -> bytes:
+    """One spz extension record: u32 type, u32 byte length, payload."""
+    return struct.pack("<II", ext_type, len(payload)) + payload
 
 
 def write_spz_raw(
@@ -148,50 +182,80 @@ def write_spz_raw(
     frac_bits: int = 12,
     header_override: dict | None = None,
     payload_trim: int = 0,
+    extensions: bytes = b"",
+    flags: int = 0,
 ) -> None:
-    """Write a gzip .spz from arrays already in spz's RUB axes."""
+    """Write a gzip .spz (v2/v3 layout) from arrays already in spz's RUB axes; ``extensions`` are appended after the streams."""
     n = len(means_rub)
     k = 0 if sh_rub is None else sh_rub.shape[1]
-    hdr = dict(magic=0x5053474E, version=version, n=n, sh_degree=SPZ_SH_DEGREE[k], frac=frac_bits, flags=0, reserved=0)
+    hdr = dict(magic=0x5053474E, version=version, n=n, sh_degree=SPZ_SH_DEGREE[k], frac=frac_bits, flags=flags, reserved=0)
     hdr.update(header_override or {})
     parts = [struct.pack("<IIIBBBB", *hdr.values())]
-    fixed = np.round(np.asarray(means_rub, dtype=np.float64) * (1 << frac_bits)).astype(np.int64) & 0xFFFFFF  # (N, 3)
-    parts.append(np.stack([fixed & 0xFF, (fixed >> 8) & 0xFF, (fixed >> 16) & 0xFF], axis=-1).astype(np.uint8).tobytes())
-    parts.append(np.clip(np.round(opacities * 255), 0, 255).astype(np.uint8).tobytes())
-    parts.append(np.clip(np.round(f_dc * 0.15 * 255 + 127.5), 0, 255).astype(np.uint8).tobytes())
-    parts.append(np.clip(np.round((log_scales + 10) * 16), 0, 255).astype(np.uint8).tobytes())
-    q = quats_rub_wxyz / np.linalg.norm(quats_rub_wxyz, axis=1, keepdims=True)
-    xyzw = np.concatenate([q[:, 1:], q[:, :1]], axis=1)
-    if version == 2:
-        xyzw = xyzw * np.where(xyzw[:, 3:] < 0, -1.0, 1.0)
-        parts.append(np.clip(np.round((xyzw[:, :3] + 1) * 127.5), 0, 255).astype(np.uint8).tobytes())
-    else:
-        parts.append(_pack_rotation_v3(xyzw).astype("<u4").tobytes())
-    if k:
-        parts.append(np.clip(np.round(sh_rub * 128 + 128), 0, 255).astype(np.uint8).tobytes())
-    payload = b"".join(parts)
+    parts += spz_streams(means_rub=means_rub, quats_rub_wxyz=quats_rub_wxyz, log_scales=log_scales, opacities=opacities, f_dc=f_dc, sh_rub=sh_rub, version=version, frac_bits=frac_bits)
+    payload = b"".join(parts) + extensions
     path.write_bytes(gzip.compress(payload[: len(payload) - payload_trim]))
+
+
+def write_spz_v4_raw(
+    path: Path,
+    streams: list[bytes],
+    *,
+    n: int,
+    sh_degree: int,
+    frac_bits: int = 12,
+    flags: int = 0,
+    extensions: bytes = b"",
+    header_override: dict | None = None,
+    toc_override: dict | None = None,
+    compressed: list[bytes] | None = None,
+    tail: bytes = b"",
+) -> None:
+    """Write a version-4 .spz: 32-byte NGSP header, extension zone, table of contents, zstd streams.
+
+    ``toc_override`` maps a stream index to a (compressed, uncompressed) pair to declare instead;
+    ``compressed`` replaces the zstd frames (e.g. a bomb); ``tail`` is appended after them.
+    """
+    import zstandard
+
+    comp = compressed if compressed is not None else [zstandard.ZstdCompressor(level=3).compress(b) for b in streams]
+    hdr = dict(magic=0x5053474E, version=4, n=n, sh_degree=sh_degree, frac=frac_bits, flags=flags, n_streams=len(comp), toc_offset=32 + len(extensions))
+    hdr.update(header_override or {})
+    head = struct.pack("<IIIBBBBI", *hdr.values()) + b"\0" * 12
+    toc = []
+    for i, (c, u) in enumerate(zip(comp, streams)):
+        cs, us = (toc_override or {}).get(i, (len(c), len(u)))
+        toc.append(struct.pack("<QQ", cs, us))
+    path.write_bytes(head + extensions + b"".join(toc) + b"".join(comp) + tail)
 
 
 #: Sign of the INRIA-order SH coefficients (bands 1..3) under (x, y, z) -> (x, -y, -z).
 SH_PARITY_YZ = np.array([-1, -1, 1, -1, 1, 1, -1, 1, -1, 1, -1, -1, 1, -1, 1], dtype=np.float64)
 
 
-def write_spz(splats: Splats, path: Path, *, version: int = 2, frac_bits: int = 12) -> None:
-    """Write ``splats`` (RDF axes) as .spz, converting to RUB by (x, y, z) -> (x, -y, -z)."""
+def _rub_arrays(splats: Splats) -> dict:
+    """``splats`` (RDF axes) converted to RUB by (x, y, z) -> (x, -y, -z), as spz encoder inputs."""
     q = splats.quats.astype(np.float64) * np.array([1, 1, -1, -1])
     sh = None if splats.sh_rest is None else splats.sh_rest * SH_PARITY_YZ[: splats.sh_rest.shape[1], None]
-    write_spz_raw(
-        path,
+    return dict(
         means_rub=splats.means * np.array([1, -1, -1]),
         quats_rub_wxyz=q,
         log_scales=np.log(splats.scales.astype(np.float64)),
         opacities=splats.opacities,
         f_dc=(splats.colors.astype(np.float64) - 0.5) / SH_C0,
         sh_rub=sh,
-        version=version,
-        frac_bits=frac_bits,
     )
+
+
+def write_spz(splats: Splats, path: Path, *, version: int = 2, frac_bits: int = 12, extensions: bytes = b"", flags: int = 0) -> None:
+    """Write ``splats`` (RDF axes) as a gzip .spz of version 2 or 3."""
+    write_spz_raw(path, **_rub_arrays(splats), version=version, frac_bits=frac_bits, extensions=extensions, flags=flags)
+
+
+def write_spz_v4(splats: Splats, path: Path, *, frac_bits: int = 12, **kw) -> None:
+    """Write ``splats`` (RDF axes) as a version-4 .spz with this module's encoder (independent of the library's)."""
+    streams = spz_streams(**_rub_arrays(splats), version=4, frac_bits=frac_bits)
+    k = 0 if splats.sh_rest is None else splats.sh_rest.shape[1]
+    write_spz_v4_raw(path, streams, n=len(splats), sh_degree=SPZ_SH_DEGREE[k], frac_bits=frac_bits, **kw)
 
 
 def eval_sh(sh_rest: np.ndarray, d: np.ndarray) -> np.ndarray:

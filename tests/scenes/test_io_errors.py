@@ -180,8 +180,14 @@ def test_compressed_too_few_chunks(tmp_path):
 
 
 def test_spz_not_gzip(tmp_path):
-    (tmp_path / "a.spz").write_bytes(b"NGSP not gzipped")
-    with pytest.raises(SceneFormatError, match=r"a\.spz: cannot decompress"):
+    (tmp_path / "a.spz").write_bytes(b"PSGN not gzipped")
+    with pytest.raises(SceneFormatError, match=r"a\.spz: cannot decompress .*neither gzip data .* nor starts with 'NGSP'"):
+        load_scene(tmp_path / "a.spz")
+
+
+def test_spz_v4_truncated_header(tmp_path):
+    (tmp_path / "a.spz").write_bytes(b"NGSP not zstd")
+    with pytest.raises(SceneFormatError, match=r"a\.spz: \.spz file is 13 bytes, shorter than the 32-byte NGSP header"):
         load_scene(tmp_path / "a.spz")
 
 
@@ -204,12 +210,12 @@ def test_spz_bad_magic(tmp_path):
 
 
 def test_spz_unsupported_version(tmp_path):
-    with pytest.raises(SceneFormatError, match=r"\.spz version 1 is not supported \(supported: 2, 3\)"):
+    with pytest.raises(SceneFormatError, match=r"\.spz version 1 is not supported \(supported: 2 and 3 \(gzip\) and 4 \(NGSP header \+ zstd streams\)\)"):
         load_scene(_spz_raw(tmp_path / "v.spz", header_override={"version": 1}))
 
 
 def test_spz_payload_short(tmp_path):
-    with pytest.raises(SceneFormatError, match=r"p\.spz: \.spz payload is \d+ bytes but the header \(20 points.*truncated"):
+    with pytest.raises(SceneFormatError, match=r"p\.spz: \.spz payload \(header: 20 points, SH degree 0, version 2\) ends after 377 of the 380 bytes its header describes; the file is truncated"):
         load_scene(_spz_raw(tmp_path / "p.spz", payload_trim=3))
 
 
@@ -246,7 +252,7 @@ def test_checkpoint_not_a_dict(tmp_path):
 
 
 def test_save_scene_rejects_other_extensions(tmp_path):
-    with pytest.raises(SceneFormatError, match=r"writes INRIA \.ply only"):
+    with pytest.raises(SceneFormatError, match=r"writes INRIA \.ply or Niantic \.spz \(version 4\); got extension '\.splat'"):
         save_scene(random_splats(5), tmp_path / "x.splat")
 
 

@@ -157,7 +157,7 @@ def test_spz_converts_rub_to_rdf(tmp_path):
     d /= np.linalg.norm(d, axis=1, keepdims=True)
     sh_q = (np.round(sh * 128 + 128) - 128) / 128
     np.testing.assert_allclose(eval_sh(s.sh_rest.astype(np.float64), d @ f), eval_sh(sh_q, d), atol=1e-5)
-    np.testing.assert_array_equal(SH_FLIP_RUB_RDF, SH_PARITY_YZ)
+    np.testing.assert_array_equal(SH_FLIP_RUB_RDF[:15], SH_PARITY_YZ)
 
 
 def _gsplat_params(s: Splats) -> dict:

@@ -11,7 +11,7 @@ with ``s`` the linear standard deviations. A faint small splat or an opaque larg
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
@@ -57,7 +57,8 @@ def filter_floaters(splats: Splats, opacity_below: float = 0.1, scale_factor: fl
         scale_factor: size threshold relative to the median largest std; must be > 0.
 
     Returns:
-        (kept splats, report). The input is not modified; ``info`` is copied.
+        (kept splats, report). The input is not modified; ``info`` is copied. When nothing is
+        dropped the result shares the input's arrays (no copy).
 
     Raises:
         SplatplanError: a threshold is out of range.
@@ -77,4 +78,6 @@ def filter_floaters(splats: Splats, opacity_below: float = 0.1, scale_factor: fl
         median_max_scale=median,
         max_scale_above=scale_factor * median,
     )
+    if n_dropped == 0:  # nothing to drop: share the arrays instead of copying them
+        return replace(splats, info=dict(splats.info)), report
     return splats.subset(~drop), report

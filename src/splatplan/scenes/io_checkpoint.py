@@ -9,21 +9,48 @@ the parameter dict may also be saved on its own. Tensors, by key:
   (coefficient-major, channel last -- the same layout as ``Splats.sh_rest``).
 
 Checkpoints are loaded with ``torch.load(..., weights_only=True)``, so no code from the file is
-executed. Checkpoints trained with learned appearance (``features``/``colors`` instead of
+executed. PyTorch is an optional extra: without it, reading a checkpoint raises a one-line
+:class:`~splatplan.errors.SplatplanError` naming ``splatplan[baselines]``. Checkpoints trained with learned appearance (``features``/``colors`` instead of
 ``sh0``) are not supported.
 """
 
 from __future__ import annotations
 
+import zipfile
 from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
 
-from .io_common import build_splats, scene_error, sh_dc_to_color, sigmoid
+from ..errors import SplatplanError
+from .io_common import build_splats, exp_std, scene_error, sh_dc_to_color, sigmoid
 from .splats import Splats
 
 _REQUIRED = ("means", "quats", "scales", "opacities", "sh0")
+
+
+#: Largest accepted uncompressed/compressed size ratio of a compressed entry in a checkpoint zip.
+#: ``torch.save`` stores entries uncompressed and float tensors barely compress, so a larger ratio
+#: means a decompression bomb (torch would allocate the declared size up front).
+MAX_ZIP_RATIO = 100
+
+
+def _check_zip_ratio(path: str | Path) -> None:
+    """Reject zip checkpoints whose compressed entries inflate more than :data:`MAX_ZIP_RATIO` times."""
+    try:
+        if not zipfile.is_zipfile(path):
+            return  # legacy (non-zip) torch file or garbage: torch.load reports it
+        with zipfile.ZipFile(path) as z:
+            infos = z.infolist()
+    except (OSError, zipfile.BadZipFile, ValueError):
+        return  # torch.load gives the message
+    for zi in infos:
+        if zi.compress_type != zipfile.ZIP_STORED and zi.file_size > MAX_ZIP_RATIO * max(zi.compress_size, 1024):
+            raise scene_error(
+                path,
+                f"checkpoint entry '{zi.filename}' claims {zi.file_size:,} bytes from {zi.compress_size:,} compressed "
+                f"(more than {MAX_ZIP_RATIO}x; torch.save does not compress): refusing a likely decompression bomb",
+            )
 
 
 def read_gsplat_checkpoint(path: str | Path, *, drop_invalid: bool = False) -> Splats:
@@ -33,8 +60,14 @@ def read_gsplat_checkpoint(path: str | Path, *, drop_invalid: bool = False) -> S
         SceneFormatError: not a torch file, no splat dict, missing keys (named), bad shapes or
             bad values.
     """
-    import torch  # deferred: importing torch takes about a second
+    try:
+        import torch  # deferred: importing torch takes about a second, and it is an optional extra
+    except ImportError:
+        raise SplatplanError(
+            f"{path}: reading a gsplat checkpoint needs PyTorch, which is not installed: pip install 'splatplan[baselines]' (or any torch >= 2.2)"
+        ) from None
 
+    _check_zip_ratio(path)
     try:
         obj = torch.load(path, map_location="cpu", weights_only=True)
     except Exception as e:  # torch.load raises many unrelated types on non-torch bytes (IndexError, ...)
@@ -53,9 +86,11 @@ def read_gsplat_checkpoint(path: str | Path, *, drop_invalid: bool = False) -> S
         if not isinstance(value, torch.Tensor):
             raise scene_error(path, f"checkpoint entry '{key}' is a {type(value).__name__}, expected a tensor")
         arrays[key] = value.detach().to(torch.float64).cpu().numpy()
-    n = arrays["means"].shape[0]
+    n = arrays["means"].shape[0] if arrays["means"].ndim >= 1 else -1
+    if n == 0:
+        raise scene_error(path, "the checkpoint holds no splats ('means' has 0 rows)")
     opac = arrays["opacities"].reshape(-1)
-    sh0 = arrays["sh0"].reshape(n, -1) if arrays["sh0"].size == 3 * n else None
+    sh0 = arrays["sh0"].reshape(n, -1) if n > 0 and arrays["sh0"].size == 3 * n else None
     want = {"means": (n, 3), "quats": (n, 4)}
     bad = [f"{k} {arrays[k].shape} (expected {s})" for k, s in want.items() if arrays[k].shape != s]
     if arrays["scales"].ndim != 2 or arrays["scales"].shape[0] != n or arrays["scales"].shape[1] not in (2, 3):
@@ -70,8 +105,7 @@ def read_gsplat_checkpoint(path: str | Path, *, drop_invalid: bool = False) -> S
         raise scene_error(path, f"gsplat checkpoint tensors have wrong shapes: {'; '.join(bad)}")
 
     is_2d = arrays["scales"].shape[1] == 2
-    with np.errstate(over="ignore"):
-        scales = np.exp(arrays["scales"])  # (N, 2 or 3) linear std
+    scales = exp_std(arrays["scales"])  # (N, 2 or 3) linear std, Inf on overflow (reported below)
     if is_2d:
         scales = np.concatenate([scales, np.zeros((n, 1))], axis=1)  # (N, 3)
     sh_rest = arrays.get("shN")
@@ -86,4 +120,5 @@ def read_gsplat_checkpoint(path: str | Path, *, drop_invalid: bool = False) -> S
         sh_rest=None if sh_rest is None or sh_rest.shape[1] == 0 else sh_rest,
         is_2d=is_2d,
         drop_invalid=drop_invalid,
+        activation={"scales": "std = exp(scales)", "opacities": "sigmoid(opacities)", "colors": "0.5 + C0 * sh0"},
     )

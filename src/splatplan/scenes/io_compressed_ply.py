@@ -32,7 +32,7 @@ from pathlib import Path
 import numpy as np
 import plyfile
 
-from .io_common import build_splats, scene_error
+from .io_common import build_splats, exp_std, scene_error
 from .splats import Splats
 
 #: Splats per chunk.
@@ -100,14 +100,15 @@ def decode_compressed_ply(ply: plyfile.PlyData, path: str | Path, *, drop_invali
         hi = np.stack([np.asarray(chunk[f"max_{prefix}{a}"], dtype=np.float64) for a in axes], axis=1)[ci]
         return lo, hi
 
-    means = _lerp(*bounds("", "xyz"), unpack_111011(np.asarray(vert["packed_position"], dtype=np.uint32)))  # (N, 3)
-    with np.errstate(over="ignore"):
-        scales = np.exp(_lerp(*bounds("scale_", "xyz"), unpack_111011(np.asarray(vert["packed_scale"], dtype=np.uint32))))  # (N, 3)
-    quats = unpack_rotation(vert["packed_rotation"])  # (N, 4) wxyz
-    packed_color = np.asarray(vert["packed_color"], dtype=np.uint32)
-    rgb = np.stack([unpack_unorm(packed_color, s, 8) for s in (24, 16, 8)], axis=1)  # (N, 3)
-    if all(f in (chunk.dtype.names or ()) for f in _CHUNK_COLOR):
-        rgb = _lerp(*bounds("", "rgb"), rgb)
+    # Inf/NaN chunk bounds give Inf/NaN values here silently; build_splats reports them
+    with np.errstate(over="ignore", invalid="ignore"):
+        means = _lerp(*bounds("", "xyz"), unpack_111011(np.asarray(vert["packed_position"], dtype=np.uint32)))  # (N, 3)
+        scales = exp_std(_lerp(*bounds("scale_", "xyz"), unpack_111011(np.asarray(vert["packed_scale"], dtype=np.uint32))))  # (N, 3)
+        quats = unpack_rotation(vert["packed_rotation"])  # (N, 4) wxyz
+        packed_color = np.asarray(vert["packed_color"], dtype=np.uint32)
+        rgb = np.stack([unpack_unorm(packed_color, s, 8) for s in (24, 16, 8)], axis=1)  # (N, 3)
+        if all(f in (chunk.dtype.names or ()) for f in _CHUNK_COLOR):
+            rgb = _lerp(*bounds("", "rgb"), rgb)
     opacities = unpack_unorm(packed_color, 0, 8)  # (N,) already activated
 
     sh_rest = None
@@ -117,8 +118,9 @@ def decode_compressed_ply(ply: plyfile.PlyData, path: str | Path, *, drop_invali
         if len(sh) != n or not idx or idx != list(range(len(idx))) or len(idx) % 3:
             raise scene_error(path, f"compressed PLY 'sh' element must have {n} rows of f_rest_0..f_rest_{{3K-1}}; found {len(sh)} rows, {len(idx)} f_rest fields")
         k = len(idx) // 3
-        flat = np.stack([np.asarray(sh[f"f_rest_{i}"], dtype=np.float64) for i in idx], axis=1)  # (N, 3K)
-        sh_rest = ((flat / 255.0 - 0.5) * 8.0).reshape(n, 3, k).transpose(0, 2, 1)  # (N, K, 3)
+        sh_rest = np.empty((n, k, 3), dtype=np.float32)  # (N, K, 3), filled field by field
+        for i in idx:  # channel-major: f_rest_{c*K + j} -> sh_rest[:, j, c]
+            sh_rest[:, i % k, i // k] = (np.asarray(sh[f"f_rest_{i}"], dtype=np.float32) / np.float32(255.0) - np.float32(0.5)) * np.float32(8.0)
 
     return build_splats(
         path,
@@ -130,4 +132,5 @@ def decode_compressed_ply(ply: plyfile.PlyData, path: str | Path, *, drop_invali
         colors=rgb,
         sh_rest=sh_rest,
         drop_invalid=drop_invalid,
+        activation={"means": "lerp over the chunk's min/max position", "scales": "exp of the lerp over the chunk's log-scale range", "colors": "lerp over the chunk's colour range"},
     )

@@ -25,7 +25,7 @@ import numpy as np
 import plyfile
 
 from ..errors import SceneFormatError, SplatplanError
-from .io_common import build_splats, color_to_sh_dc, logit, scene_error, sh_dc_to_color, sigmoid
+from .io_common import BLOCK_ROWS, LOG_FLOAT32_MAX, build_splats, color_to_sh_dc, exp_std, logit, scene_error, sh_dc_to_color, sigmoid
 from .splats import Splats
 
 _F_REST = re.compile(r"^f_rest_(\d+)$")
@@ -33,21 +33,21 @@ _REQUIRED = ["x", "y", "z", "f_dc_0", "f_dc_1", "f_dc_2", "opacity", "scale_0", 
 
 
 def read_plydata(path: str | Path) -> plyfile.PlyData:
-    """Parse a PLY file completely, turning every parse problem into :class:`SceneFormatError`.
+    """Parse a PLY file's header and map its elements, turning every parse problem into :class:`SceneFormatError`.
 
-    Besides plyfile's own checks (header syntax, early end of file), a binary file whose size
-    differs from header + element counts x row sizes (trailing bytes) is rejected too.
+    Binary elements with fixed-size rows stay memory-mapped (``np.memmap``, copy-on-write): the
+    decoders copy what they need into their own arrays, field by field or block by block (see
+    :func:`iter_rows`), so loading never holds a second in-memory copy of the file. Besides
+    plyfile's own checks (header syntax, early end of file), a binary file whose size differs
+    from header + element counts x row sizes (trailing bytes) is rejected too.
     """
     try:
         with open(path, "rb") as f:
             magic = f.read(4)
         if magic not in (b"ply\n", b"ply\r"):
             raise scene_error(path, "not a PLY file (it does not start with 'ply')")
-        # memory-mapped: plyfile's non-mmap binary path parses row by row and is ~1000x slower;
-        # then copied into memory so later changes to the file cannot fault our arrays
+        # memory-mapped: plyfile's non-mmap binary path parses row by row and is ~1000x slower
         ply = plyfile.PlyData.read(str(path), mmap=True)
-        for el in ply.elements:
-            el.data = np.array(el.data)
     except SceneFormatError:
         raise
     except plyfile.PlyElementParseError as e:
@@ -60,20 +60,59 @@ def read_plydata(path: str | Path) -> plyfile.PlyData:
     return ply
 
 
-def _check_no_trailing_bytes(path: str | Path, ply: plyfile.PlyData) -> None:
-    """Reject binary PLYs with bytes after the last element (fixed-size rows only)."""
-    if ply.text or any(isinstance(p, plyfile.PlyListProperty) for el in ply.elements for p in el.properties):
-        return
+def _header_length(path: str | Path) -> int | None:
+    """Bytes up to and including the ``end_header`` line, or None if not found in the first MiB."""
     with open(path, "rb") as f:
         head = f.read(1 << 20)
     end = head.find(b"end_header")
     if end < 0:
+        return None
+    return head.index(b"\n", end) + 1
+
+
+def _fixed_rows(ply: plyfile.PlyData) -> bool:
+    """True for a binary PLY whose elements all have fixed-size rows (no list properties)."""
+    return not ply.text and not any(isinstance(p, plyfile.PlyListProperty) for el in ply.elements for p in el.properties)
+
+
+def _check_no_trailing_bytes(path: str | Path, ply: plyfile.PlyData) -> None:
+    """Reject binary PLYs with bytes after the last element (fixed-size rows only)."""
+    if not _fixed_rows(ply):
         return
-    header_len = head.index(b"\n", end) + 1
+    header_len = _header_length(path)
+    if header_len is None:
+        return
     expected = header_len + sum(el.count * el.data.dtype.itemsize for el in ply.elements)
     size = os.path.getsize(path)
     if size != expected:
         raise scene_error(path, f"file has {size} bytes but its header describes {expected}; the file is corrupt (extra trailing bytes)")
+
+
+def iter_rows(ply: plyfile.PlyData, path: str | Path, name: str, block: int = BLOCK_ROWS):
+    """Yield ``(start, rows)`` blocks of element ``name``'s structured rows, in order.
+
+    For a binary PLY with fixed-size rows each block is read from the file with ordinary reads
+    (not through the memory map), so the resident memory stays one block, whatever the file
+    size; otherwise blocks are slices of plyfile's in-memory array.
+    """
+    el = ply[name]
+    data = el.data
+    n = len(data)
+    if not (isinstance(data, np.memmap) and _fixed_rows(ply)):
+        for a in range(0, n, block):
+            yield a, data[a : a + block]
+        return
+    header_len = _header_length(path)
+    offset = header_len + sum(e.count * e.data.dtype.itemsize for e in ply.elements[: ply.elements.index(el)])
+    dtype = data.dtype  # structured, row size = itemsize, byte order of the file
+    with open(path, "rb") as f:
+        f.seek(offset)
+        for a in range(0, n, block):
+            m = min(block, n - a)
+            raw = f.read(m * dtype.itemsize)
+            if len(raw) != m * dtype.itemsize:
+                raise scene_error(path, "the file changed or was truncated while it was being read")
+            yield a, np.frombuffer(raw, dtype=dtype)
 
 
 def ply_kind(ply: plyfile.PlyData) -> str | None:
@@ -92,6 +131,10 @@ def ply_kind(ply: plyfile.PlyData) -> str | None:
 def decode_gaussian_ply(ply: plyfile.PlyData, path: str | Path, *, drop_invalid: bool = False) -> Splats:
     """Decode an INRIA 3DGS or 2DGS ``vertex`` element (see the module docstring).
 
+    Memory: the output float32 arrays are allocated once and filled block by block
+    (:data:`~splatplan.scenes.io_common.BLOCK_ROWS` rows at a time, activations in float64 per
+    block), so the peak is the output plus one block, not several float64 copies of the SH block.
+
     Raises:
         SceneFormatError: missing fields (all named), a malformed ``f_rest`` set or bad values.
     """
@@ -104,35 +147,50 @@ def decode_gaussian_ply(ply: plyfile.PlyData, path: str | Path, *, drop_invalid:
         raise scene_error(path, f"PLY 'vertex' element lacks required Gaussian-splat field(s) {', '.join(missing)}; expected an INRIA 3DGS or 2DGS export")
     is_2d = "scale_2" not in fields
     n = len(v)
-
-    def col(name: str) -> np.ndarray:  # (N,) float64
-        return np.asarray(v[name], dtype=np.float64)
-
-    means = np.stack([col("x"), col("y"), col("z")], axis=1)  # (N, 3)
-    f_dc = np.stack([col(f"f_dc_{c}") for c in range(3)], axis=1)  # (N, 3)
     rest_idx = sorted(int(m.group(1)) for f in fields if (m := _F_REST.match(f)))
-    sh_rest = None
+    k = 0
     if rest_idx:
         if rest_idx != list(range(len(rest_idx))) or len(rest_idx) % 3:
             raise scene_error(path, f"'f_rest_*' fields must be f_rest_0..f_rest_{{3K-1}}; found {len(rest_idx)} with indices {rest_idx[0]}..{rest_idx[-1]}")
         k = len(rest_idx) // 3
-        flat = np.stack([col(f"f_rest_{i}") for i in rest_idx], axis=1)  # (N, 3K) channel-major
-        sh_rest = flat.reshape(n, 3, k).transpose(0, 2, 1)  # (N, K, 3)
-    log_s = [col("scale_0"), col("scale_1")] + ([] if is_2d else [col("scale_2")])
-    with np.errstate(over="ignore"):
-        scales = np.stack([np.exp(s) for s in log_s] + ([np.zeros(n)] if is_2d else []), axis=1)  # (N, 3)
-    quats = np.stack([col(f"rot_{i}") for i in range(4)], axis=1)  # (N, 4) wxyz
+
+    means = np.empty((n, 3), dtype=np.float32)
+    quats = np.empty((n, 4), dtype=np.float32)  # wxyz, not normalised
+    scales = np.zeros((n, 3), dtype=np.float32)  # third std stays 0 for 2DGS
+    opacities = np.empty(n, dtype=np.float32)
+    colors = np.empty((n, 3), dtype=np.float32)
+    sh_rest = np.empty((n, k, 3), dtype=np.float32) if k else None
+    n_scales = 2 if is_2d else 3
+    with np.errstate(over="ignore", invalid="ignore"):  # overflow -> Inf, reported by build_splats
+        for a, rows in iter_rows(ply, path, "vertex"):
+            b = a + len(rows)
+            for j, axis in enumerate("xyz"):
+                means[a:b, j] = rows[axis]
+            for j in range(4):
+                quats[a:b, j] = rows[f"rot_{j}"]
+            for j in range(n_scales):
+                scales[a:b, j] = exp_std(rows[f"scale_{j}"])
+            opacities[a:b] = sigmoid(rows["opacity"])
+            for c in range(3):
+                colors[a:b, c] = sh_dc_to_color(rows[f"f_dc_{c}"])
+            for i in range(3 * k):  # channel-major in the file: f_rest_{c*K + j} -> sh_rest[:, j, c]
+                sh_rest[a:b, i % k, i // k] = rows[f"f_rest_{i}"]
     return build_splats(
         path,
         "2dgs" if is_2d else "inria",
         means=means,
         quats=quats,
         scales=scales,
-        opacities=sigmoid(col("opacity")),
-        colors=sh_dc_to_color(f_dc),
+        opacities=opacities,
+        colors=colors,
         sh_rest=sh_rest,
         is_2d=is_2d,
         drop_invalid=drop_invalid,
+        activation={
+            "scales": f"std = exp(scale_*); log-scales above {LOG_FLOAT32_MAX:.1f} overflow",
+            "opacities": "sigmoid(opacity)",
+            "colors": "0.5 + C0 * f_dc_*",
+        },
     )
 
 

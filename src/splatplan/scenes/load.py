@@ -7,9 +7,14 @@ extension           content                                               ``sour
 ``.ply``            ``vertex`` with ``scale_0..2``                        ``inria``
 ``.ply``            ``vertex`` with ``scale_0, scale_1`` only             ``2dgs``
 ``.splat``          antimatter15 32-byte records                          ``splat``
-``.spz``            Niantic gzip, versions 2 and 3                        ``spz``
+``.spz``            Niantic: gzip (versions 2, 3) or NGSP + zstd (4)      ``spz``
 ``.pt .ckpt .pth``  gsplat checkpoint (torch)                             ``gsplat_ckpt``
 ==================  ====================================================  =================
+
+Compressed data (``.spz``) is inflated incrementally into buffers of the exact size the header
+fixes, so a decompression bomb is rejected without using more memory than an honest file. Large
+``.ply`` files are read block by block into preallocated float32 arrays (peak memory: the output
+arrays plus one block).
 
 Positions keep the file's frame (INRIA-style captures are y-down; ``.spz`` is converted from
 RUB to that convention); see :mod:`splatplan.scenes.transforms` to change it.
@@ -25,7 +30,7 @@ from .io_common import scene_error
 from .io_compressed_ply import decode_compressed_ply
 from .io_ply import decode_gaussian_ply, ply_kind, read_plydata, write_gaussian_ply
 from .io_splat import read_splat
-from .io_spz import read_spz
+from .io_spz import read_spz, write_spz
 from .splats import Splats
 
 #: Extensions load_scene understands (lower case).
@@ -93,15 +98,22 @@ def load_scene(
 
 
 def save_scene(splats: Splats, path: str | Path) -> None:
-    """Write ``splats`` as a binary INRIA 3DGS ``.ply`` (2DGS ``.ply`` for disks), atomically.
+    """Write ``splats`` atomically, in the format given by the extension.
 
-    See :func:`splatplan.scenes.io_ply.write_gaussian_ply` for the field encoding.
+    * ``.ply``: binary INRIA 3DGS (2DGS for disks), lossless for float32 data; see
+      :func:`splatplan.scenes.io_ply.write_gaussian_ply`.
+    * ``.spz``: Niantic version 4 (NGSP header + zstd streams), lossy (about 10x smaller); see
+      :func:`splatplan.scenes.io_spz.write_spz` for the quantisation and for writing version 3.
 
     Raises:
-        SceneFormatError: the extension is not ``.ply`` or the file cannot be written.
+        SceneFormatError: another extension, or the file cannot be written.
         SplatplanError: the scene holds bad values.
     """
     path = Path(path)
-    if path.suffix.lower() != ".ply":
-        raise scene_error(path, f"save_scene writes INRIA .ply only; got extension '{path.suffix}'")
+    ext = path.suffix.lower()
+    if ext == ".spz":
+        write_spz(splats, path)
+        return
+    if ext != ".ply":
+        raise scene_error(path, f"save_scene writes INRIA .ply or Niantic .spz (version 4); got extension '{path.suffix}'")
     write_gaussian_ply(splats, path)

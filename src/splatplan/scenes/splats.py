@@ -11,7 +11,8 @@ Units and frames
 * ``opacities`` are activated opacities in [0, 1] (not logits).
 * ``colors`` are RGB from the SH DC term (0.5 + C0 * f_dc), nominally in [0, 1]; trained scenes
   may slightly exceed it (kept unclipped so files round-trip exactly).
-* ``sh_rest`` optionally holds the higher SH coefficients, shape (N, K, 3), K in {0, 3, 8, 15}.
+* ``sh_rest`` optionally holds the higher SH coefficients, shape (N, K, 3), K in {3, 8, 15, 24}
+  (SH degree 1..4), coefficient-major with the channel last.
 """
 
 from __future__ import annotations
@@ -103,13 +104,16 @@ class Splats:
     info: dict = field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        self.means = np.ascontiguousarray(self.means, dtype=np.float32)
-        self.quats = np.ascontiguousarray(self.quats, dtype=np.float32)
-        self.scales = np.ascontiguousarray(self.scales, dtype=np.float32)
-        self.opacities = np.ascontiguousarray(self.opacities, dtype=np.float32).reshape(-1)
-        self.colors = np.ascontiguousarray(self.colors, dtype=np.float32)
-        if self.sh_rest is not None:
-            self.sh_rest = np.ascontiguousarray(self.sh_rest, dtype=np.float32)
+        # no copy for contiguous float32 input; values beyond float32 become Inf without a
+        # RuntimeWarning (validate() and the readers report them as NaN/Inf)
+        with np.errstate(over="ignore", invalid="ignore"):
+            self.means = np.ascontiguousarray(self.means, dtype=np.float32)
+            self.quats = np.ascontiguousarray(self.quats, dtype=np.float32)
+            self.scales = np.ascontiguousarray(self.scales, dtype=np.float32)
+            self.opacities = np.ascontiguousarray(self.opacities, dtype=np.float32).reshape(-1)
+            self.colors = np.ascontiguousarray(self.colors, dtype=np.float32)
+            if self.sh_rest is not None:
+                self.sh_rest = np.ascontiguousarray(self.sh_rest, dtype=np.float32)
         n = self.means.shape[0] if self.means.ndim == 2 else -1
         shapes = {
             "means": (self.means.shape, (n, 3)),
@@ -173,7 +177,8 @@ class Splats:
             if bad.any():
                 row = int(np.argwhere(bad)[0][0])
                 raise SplatplanError(f"{what}: {int(bad.any(axis=tuple(range(1, arr.ndim))).sum()) if arr.ndim > 1 else int(bad.sum())} splat(s) have NaN/Inf in '{name}' (first at index {row})")
-        qn = np.linalg.norm(self.quats, axis=1)
+        with np.errstate(over="ignore"):
+            qn = np.linalg.norm(self.quats.astype(np.float64), axis=1)
         if np.any(qn < 1e-8):
             raise SplatplanError(f"{what}: {int((qn < 1e-8).sum())} splat(s) have a zero quaternion (first at index {int(np.argmax(qn < 1e-8))})")
         if np.any(self.scales < 0):
