@@ -1,0 +1,221 @@
+"""Forward kinematics as a Warp kernel: configurations (B, dof) -> ellipsoid poses (B*E,), CPU or CUDA.
+
+One thread per configuration walks the robot's *frames* in topological order. Frames are the
+root link and every link whose joint moves; links attached by fixed joints are folded into their
+frame at build time (:func:`..kinematics.rigid_groups`), so the Panda's 13 links become 8 frames
+and the Go2 (legs fixed) one. The running pose is kept in registers; a frame whose children are
+not its immediate successor is also stored in a per-configuration scratch slot (chains such as
+the Panda need none). Each frame writes its ellipsoids' world centres and rotations:
+row b*E + e = ellipsoid e of configuration b, rotation = world <- ellipsoid frame.
+
+Float32 throughout; the float64 numpy reference is :meth:`Robot.link_poses` /
+:meth:`Robot.ellipsoid_frames`, and tests compare both on random configurations.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .._warp import wp as _wp
+from .kinematics import FIXED, PLANAR, PRISMATIC, REVOLUTE, TRANSLATION
+
+wp = _wp()
+
+#: CPU launches per worker thread for one batch.
+CHUNKS_PER_THREAD = 4
+#: Below this batch size a CPU launch runs on the calling thread.
+MIN_SPLIT = 4096
+
+
+@wp.struct
+class FKModel:
+    """Flat robot model on one device (F frames, E ellipsoids)."""
+
+    n_frames: int
+    n_ell: int
+    n_slots: int
+    parent: wp.array(dtype=wp.int32)  # (F,) parent frame, -1 for the root
+    jtype: wp.array(dtype=wp.int32)  # (F,) kinematics joint type
+    qidx: wp.array(dtype=wp.int32)  # (F,) first dof, -1 when fixed
+    mult: wp.array(dtype=wp.float32)  # (F,) mimic multiplier
+    offset: wp.array(dtype=wp.float32)  # (F,) mimic offset
+    axis: wp.array(dtype=wp.vec3)  # (F,) unit joint axis (joint frame)
+    orot: wp.array(dtype=wp.mat33)  # (F,) parent frame <- joint frame rotation at zero value
+    opos: wp.array(dtype=wp.vec3)  # (F,) parent frame <- joint frame translation
+    slot: wp.array(dtype=wp.int32)  # (F,) scratch slot, -1 when not stored
+    ell_start: wp.array(dtype=wp.int32)  # (F+1,) ellipsoids of frame f: ell_start[f]..ell_start[f+1]
+    ell_id: wp.array(dtype=wp.int32)  # (E,) output index of each (frame-sorted) ellipsoid
+    erot: wp.array(dtype=wp.mat33)  # (E,) frame <- ellipsoid rotation (frame-sorted)
+    epos: wp.array(dtype=wp.vec3)  # (E,) ellipsoid centre in the frame (frame-sorted)
+
+
+@wp.func
+def axis_angle_mat(k: wp.vec3, angle: float):
+    """Rodrigues: rotation by ``angle`` about the unit axis ``k``."""
+    c = wp.cos(angle)
+    s = wp.sin(angle)
+    t = 1.0 - c
+    return wp.mat33(
+        t * k[0] * k[0] + c, t * k[0] * k[1] - s * k[2], t * k[0] * k[2] + s * k[1],
+        t * k[0] * k[1] + s * k[2], t * k[1] * k[1] + c, t * k[1] * k[2] - s * k[0],
+        t * k[0] * k[2] - s * k[1], t * k[1] * k[2] + s * k[0], t * k[2] * k[2] + c,
+    )  # fmt: skip
+
+
+@wp.kernel
+def fk_kernel(
+    m: FKModel,
+    q: wp.array2d(dtype=wp.float32),  # (B, dof)
+    b0: int,  # first configuration of this launch
+    scratch_rot: wp.array(dtype=wp.mat33),  # (B * n_slots,) or (1,)
+    scratch_pos: wp.array(dtype=wp.vec3),
+    out_centers: wp.array(dtype=wp.vec3),  # (B * E,) world frame
+    out_rots: wp.array(dtype=wp.mat33),  # (B * E,) world <- ellipsoid
+):
+    b = wp.tid() + b0
+    rot = wp.identity(n=3, dtype=float)
+    pos = wp.vec3(0.0, 0.0, 0.0)
+    for f in range(m.n_frames):
+        par = m.parent[f]
+        prot = rot
+        ppos = pos
+        if par < 0:
+            prot = wp.identity(n=3, dtype=float)
+            ppos = wp.vec3(0.0, 0.0, 0.0)
+        elif par != f - 1:
+            s = b * m.n_slots + m.slot[par]
+            prot = scratch_rot[s]
+            ppos = scratch_pos[s]
+        lrot = m.orot[f]
+        lpos = m.opos[f]
+        jt = m.jtype[f]
+        qi = m.qidx[f]
+        if jt == 1:  # revolute
+            v = q[b, qi] * m.mult[f] + m.offset[f]
+            lrot = lrot @ axis_angle_mat(m.axis[f], v)
+        elif jt == 2:  # prismatic
+            v = q[b, qi] * m.mult[f] + m.offset[f]
+            lpos = lpos + lrot @ (m.axis[f] * v)
+        elif jt == 3:  # planar base: Trans(x, y, 0) Rz(yaw)
+            lpos = lpos + lrot @ wp.vec3(q[b, qi], q[b, qi + 1], 0.0)
+            lrot = lrot @ axis_angle_mat(wp.vec3(0.0, 0.0, 1.0), q[b, qi + 2])
+        elif jt == 4:  # translation base
+            lpos = lpos + lrot @ wp.vec3(q[b, qi], q[b, qi + 1], q[b, qi + 2])
+        rot = prot @ lrot
+        pos = prot @ lpos + ppos
+        if m.slot[f] >= 0:
+            s = b * m.n_slots + m.slot[f]
+            scratch_rot[s] = rot
+            scratch_pos[s] = pos
+        for k in range(m.ell_start[f], m.ell_start[f + 1]):
+            o = b * m.n_ell + m.ell_id[k]
+            out_centers[o] = rot @ m.epos[k] + pos
+            out_rots[o] = rot @ m.erot[k]
+
+
+assert (FIXED, REVOLUTE, PRISMATIC, PLANAR, TRANSLATION) == (0, 1, 2, 3, 4)  # codes used in the kernel
+
+
+def model_arrays(robot) -> dict[str, np.ndarray]:
+    """The flat frame model of a robot as numpy arrays (float32/int32), device independent."""
+    kin = robot.kin
+    frames = [l for l in range(kin.n_links) if kin.parent[l] < 0 or kin.jtype[l] != FIXED]
+    fid = {l: i for i, l in enumerate(frames)}
+    fol, rel = robot.frame_of_link, robot.link_in_frame
+    parent = np.array([fid[int(fol[kin.parent[l]])] if kin.parent[l] >= 0 else -1 for l in frames], dtype=np.int32)
+    origin = np.stack([kin.origin[l] if kin.parent[l] < 0 else rel[kin.parent[l]] @ kin.origin[l] for l in frames])
+    kids: dict[int, list[int]] = {}
+    for i, p in enumerate(parent):
+        kids.setdefault(int(p), []).append(i)
+    need = [i for i in range(len(frames)) if any(c != i + 1 for c in kids.get(i, []))]
+    slot = -np.ones(len(frames), dtype=np.int32)
+    slot[need] = np.arange(len(need), dtype=np.int32)
+    ell_frame = np.array([fid[int(fol[l])] for l in robot.ellipsoid_link], dtype=np.int64)
+    order = np.argsort(ell_frame, kind="stable")
+    local = rel[robot.ellipsoid_link] @ robot.ellipsoid_local  # (E, 4, 4) frame <- ellipsoid
+    start = np.searchsorted(ell_frame[order], np.arange(len(frames) + 1)).astype(np.int32)
+    return {
+        "parent": parent,
+        "jtype": kin.jtype[frames].astype(np.int32),
+        "qidx": kin.qidx[frames].astype(np.int32),
+        "mult": kin.mult[frames].astype(np.float32),
+        "offset": kin.offset[frames].astype(np.float32),
+        "axis": kin.axis[frames].astype(np.float32),
+        "orot": origin[:, :3, :3].astype(np.float32),
+        "opos": origin[:, :3, 3].astype(np.float32),
+        "slot": slot,
+        "ell_start": start,
+        "ell_id": order.astype(np.int32),
+        "erot": local[order][:, :3, :3].astype(np.float32),
+        "epos": local[order][:, :3, 3].astype(np.float32),
+    }
+
+
+def _model(robot, device) -> FKModel:
+    key = ("model", str(device))
+    with robot._lock:
+        m = robot._wp_cache.get(key)
+        if m is None:
+            a = model_arrays(robot)
+            m = FKModel()
+            m.n_frames = len(a["parent"])
+            m.n_ell = robot.n_ellipsoids
+            m.n_slots = int((a["slot"] >= 0).sum())
+            for name in ("parent", "jtype", "qidx", "slot", "ell_start", "ell_id"):
+                setattr(m, name, wp.array(a[name], dtype=wp.int32, device=device))
+            for name in ("mult", "offset"):
+                setattr(m, name, wp.array(a[name], dtype=wp.float32, device=device))
+            for name in ("axis", "opos", "epos"):
+                setattr(m, name, wp.array(a[name], dtype=wp.vec3, device=device))
+            for name in ("orot", "erot"):
+                setattr(m, name, wp.array(a[name], dtype=wp.mat33, device=device))
+            robot._wp_cache[key] = m
+        return m
+
+
+def _scratch(robot, m: FKModel, batch: int, device):
+    """Scratch slots for tree-shaped robots, grown on demand and kept by the robot."""
+    n = max(1, batch * m.n_slots)
+    key = ("scratch", str(device))
+    with robot._lock:
+        s = robot._wp_cache.get(key)
+        if s is None or s[0].shape[0] < n:
+            s = (wp.empty(n, dtype=wp.mat33, device=device), wp.empty(n, dtype=wp.vec3, device=device))
+            robot._wp_cache[key] = s
+        return s
+
+
+def launch_fk(robot, q_wp, out_centers, out_rots) -> None:
+    """Validate shapes/dtypes (O(1) host work) and launch :func:`fk_kernel` (see ``Robot.fk_wp``)."""
+    from ..errors import SplatplanError
+
+    if not isinstance(q_wp, wp.array) or q_wp.ndim != 2 or q_wp.dtype != wp.float32 or q_wp.shape[1] != robot.dof:
+        raise SplatplanError(f"fk_wp: q must be a wp.array of float32 with shape (B, {robot.dof})")
+    b = q_wp.shape[0]
+    e = robot.n_ellipsoids
+    dev = q_wp.device
+    for name, arr, dt in (("out_centers", out_centers, wp.vec3), ("out_rots", out_rots, wp.mat33)):
+        if not isinstance(arr, wp.array) or arr.dtype != dt or arr.ndim != 1 or arr.shape[0] < b * e or arr.device != dev:
+            raise SplatplanError(f"fk_wp: {name} must be a wp.array of {dt.__name__} with at least B*E = {b * e} rows on {dev}")
+    if b == 0:
+        return
+    m = _model(robot, dev)
+    sr, sp = _scratch(robot, m, b, dev)
+    if not dev.is_cpu:
+        wp.launch(fk_kernel, dim=b, inputs=[m, q_wp, 0, sr, sp, out_centers, out_rots], device=dev)
+        return
+    pool = robot._thread_pool()
+    nthreads = pool._max_workers
+    if b < MIN_SPLIT or nthreads == 1:
+        wp.launch(fk_kernel, dim=b, inputs=[m, q_wp, 0, sr, sp, out_centers, out_rots], device=dev)
+        return
+    n_chunks = min(nthreads * CHUNKS_PER_THREAD, -(-b // (MIN_SPLIT // 4)))
+    edges = np.linspace(0, b, n_chunks + 1).astype(np.int64)
+
+    def run(i: int) -> None:
+        lo, hi = int(edges[i]), int(edges[i + 1])
+        if hi > lo:
+            wp.launch(fk_kernel, dim=hi - lo, inputs=[m, q_wp, lo, sr, sp, out_centers, out_rots], device=dev)
+
+    for fut in [pool.submit(run, i) for i in range(n_chunks)]:
+        fut.result()
