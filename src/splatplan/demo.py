@@ -31,15 +31,17 @@ def collision_field(checker, z: float, lo: np.ndarray, hi: np.ndarray, res: int 
     return xs, ys, checker.query(pts, None, radius).min_s2
 
 
-def _plot_field(path: Path, fields, gt, z: float, lo, hi) -> None:
+def _plot_field(path: Path, fields, gt, z: float, lo, hi, n_kept_floaters: int = 0, floater_opacity: tuple[float, float] = (0.1, 0.3)) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.lines import Line2D
 
+    from .eval._plots import top_view_handles
     from .scenes.stonehenge import plot_top_view
 
-    fig, axes = plt.subplots(1, len(fields), figsize=(5.2 * len(fields), 5.0), constrained_layout=True)
+    fig, axes = plt.subplots(1, len(fields), figsize=(5.2 * len(fields), 6.3), constrained_layout=True)
     for ax, (ns, (xs, ys, f)) in zip(np.atleast_1d(axes), fields.items()):
         im = ax.imshow(np.minimum(f, 4.0), origin="lower", extent=(xs[0], xs[-1], ys[0], ys[-1]), cmap="magma", vmin=0, vmax=4)
         ax.contour(xs, ys, f, levels=[1.0], colors="cyan", linewidths=0.8)
@@ -48,9 +50,28 @@ def _plot_field(path: Path, fields, gt, z: float, lo, hi) -> None:
             p.set_alpha(0.25)
         ax.set_xlim(lo[0], hi[0])
         ax.set_ylim(lo[1], hi[1])
-        ax.set_title(f"n_sigma = {ns:g}: min s2~ (cyan: s2~ = 1)")
-    fig.colorbar(im, ax=axes, shrink=0.8, label="min s2~ (clipped at 4)")
-    fig.suptitle(f"CollisionSplatting field, sphere r = {RADIUS} at z = {z} (scene units, z up, top view)")
+        ax.set_xlabel("x (scene units)")
+        ax.set_ylabel("y (scene units)")
+        ax.set_title(f"conservatism n_sigma = {ns:g}" + (" (splat centres only)" if ns == 0 else f" (splats grown by {ns:g} std)"))
+    fig.colorbar(im, ax=axes, shrink=0.8, label="conservative scaling distance (min s2~, clipped at 4); dark = close to a splat")
+    handles = [
+        Line2D([], [], color="cyan", lw=0.8, label="s2~ = 1: the sphere touches a splat (inside = collision)"),
+        *top_view_handles(gt, z, footprints=False, alpha=0.25),
+    ]
+    fig.legend(handles=handles, loc="lower center", ncol=2, fontsize=7, frameon=False)
+    floaters = (
+        f" The large dark disks that appear at n_sigma = 2 are the {n_kept_floaters} semi-transparent floaters "
+        f"(opacity {floater_opacity[0]:.2f}-{floater_opacity[1]:.2f}) "
+        "that the default filter keeps (it drops only splats that are both faint and large); growing them by 2 std makes them big."
+        if n_kept_floaters
+        else ""
+    )
+    fig.suptitle(
+        f"Where a sphere of radius r = {RADIUS} collides in the plane z = {z} (top view, scene units, z up).{floaters}",
+        fontsize=9,
+        wrap=True,
+    )
+    fig.get_layout_engine().set(rect=(0, 0.08, 1, 1))
     fig.savefig(path, dpi=110)
     plt.close(fig)
 
@@ -63,7 +84,11 @@ def _plot_plans(path: Path, plans, gt, z: float, start, goal) -> None:
 
     from .scenes.stonehenge import plot_top_view
 
-    fig, ax = plt.subplots(figsize=(6.5, 6.5), constrained_layout=True)
+    from matplotlib.lines import Line2D
+
+    from .eval._plots import top_view_handles
+
+    fig, ax = plt.subplots(figsize=(7.0, 8.4), constrained_layout=True)
     plot_top_view(ax, gt, z, inflate=RADIUS)
     colors = {0.0: "tab:blue", 1.0: "tab:orange", 2.0: "tab:green"}
     for ns, res in plans.items():
@@ -75,8 +100,13 @@ def _plot_plans(path: Path, plans, gt, z: float, start, goal) -> None:
         ax.plot(p[:, 0], p[:, 1], "-", color=colors.get(ns, "k"), lw=2.0, label=f"n_sigma={ns:g} (length {res.length:.3f})")
     ax.plot(*start[:2], "ko", ms=7, label="start")
     ax.plot(*goal[:2], "k*", ms=12, label="goal")
-    ax.legend(loc="lower left", fontsize=8)
-    ax.set_title(f"RRT (dotted) + refinement (solid), sphere r = {RADIUS}, plane z = {z}")
+    ax.set_xlabel("x (scene units)")
+    ax.set_ylabel("y (scene units)")
+    handles, _ = ax.get_legend_handles_labels()
+    handles += [Line2D([], [], color="0.3", ls=":", lw=1.0, label="dotted: the RRT path before refinement (same colour)")]
+    handles += top_view_handles(gt, z, inflate=RADIUS)
+    fig.legend(handles=handles, loc="outside lower center", ncol=2, fontsize=7, frameon=False)
+    ax.set_title(f"Plans at three conservatism levels n_sigma, sphere r = {RADIUS}, plane z = {z} (top view)", fontsize=9)
     fig.savefig(path, dpi=110)
     plt.close(fig)
 
@@ -100,7 +130,7 @@ def _free_border_goal(checkers, start: np.ndarray, radius: float = 0.47, first_a
     return cand[int(np.argmax(np.where(free, blocked, -1)))]  # the most obstructed free goal
 
 
-def run_demo(out_dir: Path, device: str = "cpu", seed: int = 0) -> dict:
+def run_demo(out_dir: Path, device: str = "auto", seed: int = 0) -> dict:
     """Run the demo, write the PNGs into ``out_dir`` and print a summary. Returns the summary."""
     from .metric import CollisionChecker
     from .planners import RRTConfig, plan
@@ -129,7 +159,10 @@ def run_demo(out_dir: Path, device: str = "cpu", seed: int = 0) -> dict:
     sdf = gt.sdf(np.stack([gx.ravel(), gy.ravel(), np.full(gx.size, PLANE_Z)], 1))
     print(f"  exact geometry: {100 * float((sdf < RADIUS).mean()):.1f}% of the plane in collision (sdf < r)")
     out_dir = Path(out_dir)
-    _plot_field(out_dir / "collision_field.png", fields, gt, PLANE_Z, lo, hi)
+    n_kept = int(raw.info.get("n_floaters", 0)) - int(rep.n_dropped)  # semi-transparent floaters the default filter keeps
+    # the generator appends its floaters last and the filter keeps order
+    o_kept = scene.opacities[len(scene) - n_kept :] if n_kept > 0 else np.zeros(1)
+    _plot_field(out_dir / "collision_field.png", fields, gt, PLANE_Z, lo, hi, n_kept_floaters=n_kept, floater_opacity=(float(o_kept.min()), float(o_kept.max())))
 
     # planning from the centre to a border goal on the plane, free at every n_sigma shown
     start = np.array([0.0, 0.0, PLANE_Z])

@@ -1,57 +1,60 @@
-"""`splatplan eval STUDY`: the paper's studies (one nested subcommand per study)."""
+"""`splatplan eval STUDY`: the paper's studies (one nested subcommand per study).
+
+Every study is ``run_<study>(out_dir, config=..., device=...)`` plus ``report(result) -> markdown``;
+every field of its config dataclass is a flag here (``--quick`` starts from the config's
+``quick()`` values, flags override either). When a study is done its markdown table is printed.
+"""
 
 from __future__ import annotations
 
-import json
-from pathlib import Path
+import importlib
 
-import numpy as np
+from ._common import _out_dir, add_config_args, add_device_arg, config_from_args
 
-from ..errors import SplatplanError
-from ._common import (  # noqa: F401
-    ROBOT_HELP, _load, _out_dir, add_config_args, add_device_arg, atomic_path, config_from_args, load_poses, parse_robot, parse_vec3, write_json,
-)
-
-
-def cmd_eval(args) -> int:
-    out = _out_dir(args.out)
-    if args.study == "pr":
-        from ..eval.pr import run_pr
-
-        run_pr(out, scene=args.scene, gt=args.gt, quick=args.quick)
-    elif args.study == "throughput":
-        from ..eval.throughput import run_throughput
-
-        run_throughput(out, quick=args.quick, device=args.device)
-    elif args.study == "conservatism":
-        from ..eval.conservatism import run_conservatism
-
-        run_conservatism(out, quick=args.quick, seed=args.seed)
-    elif args.study == "linearization":
-        from ..eval.linearization import run_linearization
-
-        run_linearization(out, quick=args.quick, seed=args.seed)
-    return 0
-
-
+#: study -> (help, module under splatplan.eval, config class, run function, output files)
 STUDIES = {
-    "pr": "E1 precision-recall against the four baselines (paper Fig. 3)",
-    "throughput": "E2 checks/s and memory of every method (paper Table I)",
-    "conservatism": "E3 path length / clearance vs n_sigma (paper Table II, Fig. 4)",
-    "linearization": "E4 scenes M1..M5 of growing splat size (paper Table III, Fig. 5)",
+    "pr": ("E1 precision-recall against the four baselines (paper Fig. 3)", "pr", "PRConfig", "run_pr", ("pr.json", "pr.md", "pr.png")),
+    "throughput": ("E2 checks/s and memory of every method (paper Table I)", "throughput", "ThroughputConfig", "run_throughput", ("throughput.json", "throughput.md")),
+    "conservatism": (
+        "E3 path length / clearance vs n_sigma (paper Table II, Fig. 4)", "conservatism", "ConservatismConfig", "run_conservatism",
+        ("conservatism.json", "conservatism.md", "fig4_paths.png"),
+    ),  # fmt: skip
+    "linearization": (
+        "E4 scenes M1..M5 of growing splat size (paper Table III, Fig. 5)", "linearization", "LinearizationConfig", "run_linearization",
+        ("linearization.json", "linearization.md", "fig5_metric_along_path.png"),
+    ),  # fmt: skip
 }
 
 
+def _study(name: str):
+    _, mod, cfg_name, run_name, files = STUDIES[name]
+    m = importlib.import_module(f"splatplan.eval.{mod}")
+    return m, getattr(m, cfg_name), getattr(m, run_name), files
+
+
+def cmd_eval(args) -> int:
+    mod, cfg_cls, run, files = _study(args.study)
+    base = cfg_cls.quick() if args.quick else cfg_cls()
+    cfg = config_from_args(args, cfg_cls, base=base)
+    if hasattr(cfg, "validate"):
+        cfg.validate()
+    out = _out_dir(args.out)
+    kw = {"scene": args.scene, "gt": args.gt} if args.study == "pr" else {}
+    res = run(out, quick=args.quick, config=cfg, device=args.device, **kw)
+    print(mod.report(res).rstrip())
+    print(f"\nwrote {', '.join(str(out / f) for f in files)}")
+    return 0
+
+
 def register(sub, eval_sub) -> None:
-    for name, help_ in STUDIES.items():
-        s = eval_sub.add_parser(name, help=help_)
-        s.add_argument("--out", required=True, help="output folder")
-        s.add_argument("--quick", action="store_true", help="small version for smoke tests (< 1 min)")
+    for name, (help_, *_rest) in STUDIES.items():
+        mod, cfg_cls, _, _ = _study(name)
+        s = eval_sub.add_parser(name, help=help_, description=(mod.__doc__ or help_).strip().splitlines()[0])
+        s.add_argument("--out", required=True, help="output folder (created)")
+        s.add_argument("--quick", action="store_true", help="start from the small smoke-test settings (< 1 min); flags still override them")
         if name == "pr":
-            s.add_argument("--scene", default="stonehenge", help="'stonehenge' or a splat file with --gt")
-            s.add_argument("--gt", help="ground-truth .gt.json for a scene file")
-        else:
-            s.set_defaults(scene="stonehenge", gt=None)
-        s.add_argument("--seed", type=int, default=0)
+            s.add_argument("--scene", default="stonehenge", help="'stonehenge' (built-in) or a splat file with --gt")
+            s.add_argument("--gt", help="ground-truth .gt.json of a scene file (written by 'splatplan scene')")
         add_device_arg(s)
+        add_config_args(s, cfg_cls, group=f"study options ({cfg_cls.__name__})")
         s.set_defaults(func=cmd_eval, study=name)

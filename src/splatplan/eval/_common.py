@@ -59,11 +59,16 @@ def load_stonehenge_filtered(level: int = 1, seed: int = 0, n_splats: int | None
     return splats, scene, rep
 
 
-def load_scene_with_gt(path: str | Path, gt: str | Path | None) -> tuple[Splats, object, FilterReport]:
+def load_scene_with_gt(path: str | Path, gt: str | Path | None, filtered: bool = True) -> tuple[Splats, object, FilterReport | None]:
     """A splat file and its analytic ground truth (``.gt.json`` written by ``splatplan scene``).
 
+    Args:
+        path: the splat file.
+        gt: its ground truth.
+        filtered: drop floaters with the default rule (the report is None when False).
+
     Raises:
-        SplatplanError: no ``gt`` given or the file is missing.
+        SplatplanError: no ``gt`` given or a file is missing.
     """
     from ..scenes.load import load_scene
     from ..scenes.primitives import AnalyticScene
@@ -78,8 +83,10 @@ def load_scene_with_gt(path: str | Path, gt: str | Path | None) -> tuple[Splats,
         raise SplatplanError(f"ground-truth file {str(gt_path)!r} not found")
     if not Path(path).is_file():
         raise SplatplanError(f"scene file {str(path)!r} not found")
-    splats = load_scene(path)
-    splats, rep = filter_floaters(splats)
+    splats = load_scene(path, filter_floaters=False)
+    rep = None
+    if filtered:
+        splats, rep = filter_floaters(splats)
     return splats, AnalyticScene.load(gt_path), rep
 
 

@@ -2,12 +2,15 @@
 
 Protocol (SPEC section 4, E3): on the built-in Stonehenge (level 1, floaters filtered as the paper
 does), a sphere robot of radius 0.015 plans in the plane z = 0.06 from the scene centre to random
-goals on the scene border with the batched RRT (32 nodes per iteration; no shortcut, see SHORTCUT), then the
-zeroth-order refinement (one MPPI update over the whole path). For n_sigma in 0, 0.25, ..., 2 we
+goals on the scene border with the batched RRT (32 nodes per iteration, stride 0.03, edges
+checked every r/4 with the sphere grown by half that spacing (the planner's default for a sphere
+robot); no shortcut, see SHORTCUT), then the zeroth-order refinement (one MPPI update over the whole path). For n_sigma in 0, 0.25, ..., 2 we
 report path length, d_min (closest distance from the densely resampled path to a splat mean) and
 smoothness (:func:`splatplan.planners.metrics.smoothness`), before ("rrt" = the raw RRT path)
 and after refinement, as mean and standard deviation over the successful trials. The same goals
 (all collision-free at the most conservative n_sigma) are used for every n_sigma.
+
+Every knob is a field of :class:`ConservatismConfig` (``splatplan eval conservatism --help``).
 
 Outputs in ``out_dir``: ``conservatism.json``, ``conservatism.md`` (ours beside the paper's
 Table II) and ``fig4_paths.png`` (paths at n_sigma 0, 0.5, 1, 1.5 over the top view).
@@ -16,12 +19,13 @@ Table II) and ``fig4_paths.png`` (paths at n_sigma 0, 0.5, 1, 1.5 over the top v
 from __future__ import annotations
 
 import json
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ..errors import PlanningError
+from ..errors import PlanningError, SplatplanError
 from ..planners import RRTConfig, plan
 from ..planners.metrics import clearance, d_min, smoothness
 from ._common import load_stonehenge_filtered, progress
@@ -51,10 +55,59 @@ BORDER = 0.47
 SHORTCUT = False
 
 
+@dataclass
+class ConservatismConfig:
+    """Knobs of study E3 (defaults = the full run; :meth:`quick` = the < 1 min smoke version)."""
+
+    #: n_sigma values to plan with (the same goals for each).
+    n_sigmas: tuple[float, ...] = N_SIGMAS
+    #: Border goals per n_sigma (all collision-free at the largest n_sigma).
+    n_goals: int = 20
+    #: RRT wall-clock budget per plan (s).
+    time_budget_s: float = 60.0
+    #: RRT node budget per plan.
+    max_nodes: int = 50_000
+    #: RRT samples drawn (and edges checked) per iteration (the paper grows 32 nodes at a time).
+    batch_size: int = 32
+    #: RRT maximum edge length (scene units).
+    stride: float = 0.03
+    #: Spacing of the collision checks along RRT edges (scene units); None = the planner's default
+    #: for a sphere robot, r/4 (inner samples checked with the sphere grown by half the spacing).
+    edge_resolution: float | None = None
+    #: Robot sphere radius (scene units).
+    radius: float = RADIUS
+    #: Height of the planning plane (scene units, z up).
+    plane_z: float = PLANE_Z
+    #: Built-in Stonehenge level (1..5).
+    level: int = 1
+    #: Scene, goal and planner seed (an integer >= 0).
+    seed: int = 0
+
+    @classmethod
+    def quick(cls) -> "ConservatismConfig":
+        """3 goals per n_sigma and a 10 s RRT budget (< 1 minute on a laptop CPU)."""
+        return cls(n_goals=3, time_budget_s=10.0)
+
+    def validate(self) -> "ConservatismConfig":
+        if self.n_goals < 1 or not self.n_sigmas:
+            raise SplatplanError("ConservatismConfig: n_goals must be >= 1 and n_sigmas not empty")
+        if not (self.radius > 0 and self.stride > 0 and self.time_budget_s > 0):
+            raise SplatplanError("ConservatismConfig: radius, stride and time_budget_s must be > 0")
+        if self.seed < 0:
+            raise SplatplanError(f"ConservatismConfig: seed must be >= 0, got {self.seed}")
+        return self
+
+
+def rrt_description(stride: float, batch_size: int, edge_resolution: float | None, radius: float) -> str:
+    """The RRT settings in words, from the values actually used (no stale claims)."""
+    er = f"edge resolution {edge_resolution:g}" if edge_resolution is not None else f"edge resolution r/4 = {radius / 4:g} (the planner's default for a sphere robot)"
+    return f"batched RRT, {batch_size} samples/iter, stride {stride:g}, {er}" + (", greedy shortcut" if SHORTCUT else ", raw tree path (no shortcut)")
+
+
 def load_scene(level: int, seed: int):
     """Stonehenge splats at ``level`` with floaters filtered (the paper's preprocessing) + analytic scene."""
-    splats, scene, report = load_stonehenge_filtered(level, seed)
-    splats.info["floaters_dropped"] = int(report.n_dropped)
+    splats, scene, rep = load_stonehenge_filtered(level, seed)
+    splats.info["floaters_dropped"] = int(rep.n_dropped)
     return splats, scene
 
 
@@ -99,24 +152,27 @@ def mean_std(values) -> list[float]:
     return [float(v.mean()), float(v.std())] if v.size else [float("nan"), float("nan")]
 
 
-def plan_trials(checker, start, goals, means_tree, sdf, seed: int, time_budget_s: float, tag: str = "") -> tuple[list[dict], list]:
+def plan_trials(checker, start, goals, means_tree, sdf, seed: int, time_budget_s: float, tag: str = "", config: ConservatismConfig | None = None) -> tuple[list[dict], list]:
     """Plan start -> each goal (RRT (+ shortcut if SHORTCUT) + refinement) and measure the paths.
 
+    ``config`` supplies the RRT settings and the robot radius (default :class:`ConservatismConfig`).
     Returns per-trial metric dicts (empty dict for a failure) and the PlanResults (None for an error).
     """
+    c = config or ConservatismConfig()
     cfg = RRTConfig(
-        batch_size=32,
-        stride=0.03,
-        box_lo=(-0.5, -0.5, PLANE_Z),
-        box_hi=(0.5, 0.5, PLANE_Z),
+        batch_size=c.batch_size,
+        stride=c.stride,
+        edge_resolution=c.edge_resolution,
+        box_lo=(-0.5, -0.5, c.plane_z),
+        box_hi=(0.5, 0.5, c.plane_z),
         time_budget_s=time_budget_s,
-        max_nodes=50_000,
+        max_nodes=c.max_nodes,
         shortcut=SHORTCUT,
     )
     rows, results = [], []
     for i, g in enumerate(progress(goals, desc=tag)):
         try:
-            res = plan(checker, start, g, radius=RADIUS, refine=True, seed=seed + i, rrt_config=cfg)
+            res = plan(checker, start, g, radius=c.radius, refine=True, seed=seed + i, rrt_config=cfg)
         except PlanningError:
             rows.append({})
             results.append(None)
@@ -135,8 +191,8 @@ def plan_trials(checker, start, goals, means_tree, sdf, seed: int, time_budget_s
                 dmin_refined=d_min(p1, means_tree),
                 smoothness_rrt=smoothness(p0),
                 smoothness_refined=smoothness(p1),
-                clearance_rrt=clearance(p0, sdf, RADIUS),
-                clearance_refined=clearance(p1, sdf, RADIUS),
+                clearance_rrt=clearance(p0, sdf, c.radius),
+                clearance_refined=clearance(p1, sdf, c.radius),
                 refined=float(res.refined),
                 time_s=res.time_s,
                 n_nodes=res.n_nodes,
@@ -158,31 +214,42 @@ def _fmt(ms) -> str:
     return "n/a" if not np.isfinite(m) else f"{m:.4f} ± {s:.4f}"
 
 
-def write_markdown(path: Path, rows: list[dict], header: str) -> None:
-    lines = [header, ""]
-    lines.append("| n_sigma | " + " | ".join(f"{c} (ours) | {c} (paper)" for c in COLUMNS) + " | success | refined | true clearance refined |")
-    lines.append("|" + "---|" * (2 + 2 * len(COLUMNS) + 2))
-    for r in rows:
+def report(out: dict) -> str:
+    """The markdown table of E3 (ours beside the paper's Table II)."""
+    st = out["setup"]
+    lines = [
+        "# E3: conservatism (paper Table II)",
+        "",
+        f"Stonehenge level {st['level']} ({st['n_splats']} splats), sphere r = {st['robot_radius']}, plane z = {st['plane_z']}, "
+        f"{st['n_goals']} border goals from the centre; {st['rrt']}. 'rrt' = the raw batched-RRT path (no shortcut); "
+        "'refined' = after the zeroth-order refinement. mean ± std over successful trials. "
+        "Smoothness: our definition (planners/metrics.py); the paper does not define its own.",
+        "",
+        "| n_sigma | " + " | ".join(f"{c} (ours) | {c} (paper)" for c in COLUMNS) + " | success | refined | true clearance refined |",
+        "|" + "---|" * (2 + 2 * len(COLUMNS) + 2),
+    ]
+    for r in out["rows"]:
         paper = PAPER_TABLE_II.get(round(r["n_sigma"], 2), {})
         cells = [f"{r['n_sigma']:.2f}"]
         for c in COLUMNS:
             cells += [_fmt(r[c]), _fmt(paper[c]) if c in paper else "—"]
         cells += [f"{r['success_rate']:.2f}", f"{r['refined_rate']:.2f}", _fmt(r["clearance_refined"])]
         lines.append("| " + " | ".join(cells) + " |")
-    path.write_text("\n".join(lines) + "\n")
+    return "\n".join(lines) + "\n"
 
 
-def run_conservatism(out_dir: Path, quick: bool = False, seed: int = 0) -> dict:
-    """Run study E3 and write its JSON, markdown table and figure into ``out_dir``.
+def run_conservatism(out_dir: Path, quick: bool = False, seed: int | None = None, config: ConservatismConfig | None = None, device: str = "auto") -> dict:
+    """Run study E3 and write ``conservatism.json``, ``conservatism.md`` and ``fig4_paths.png``.
 
     Args:
         out_dir: output folder (created if missing).
-        quick: 3 goals per n_sigma and a 10 s RRT budget (< 1 minute on a laptop CPU) instead
-            of 20 goals and 60 s.
-        seed: scene, goal and planner seed.
+        quick: start from :meth:`ConservatismConfig.quick` (3 goals, 10 s budget) instead of the full run.
+        seed: scene, goal and planner seed (overrides the config's).
+        config: explicit knobs (override ``quick``).
+        device: metric device ("auto" = CUDA when present, "cpu", "cuda", "cuda:N").
 
     Returns:
-        The JSON content: ``{"rows": [{"n_sigma", "length_rrt": [mean, std], ...}], ...}``.
+        The JSON content: ``{"rows": [{"n_sigma", "length_rrt": [mean, std], ...}], "setup": {...}}``.
     """
     import matplotlib
 
@@ -191,69 +258,79 @@ def run_conservatism(out_dir: Path, quick: bool = False, seed: int = 0) -> dict:
 
     from ..metric import CollisionChecker
     from ..scenes.stonehenge import plot_top_view
+    from ._plots import top_view_handles
 
+    cfg = config or (ConservatismConfig.quick() if quick else ConservatismConfig())
+    if seed is not None:
+        cfg = replace(cfg, seed=int(seed))
+    cfg.validate()
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    n_goals = 3 if quick else 20
-    budget = 10.0 if quick else 60.0
-    splats, scene = load_scene(1, seed)
-    base = CollisionChecker(splats, n_sigma=0.0, device="auto")
+    splats, scene = load_scene(cfg.level, cfg.seed)
+    base = CollisionChecker(splats, n_sigma=0.0, device=device)
     tree = cKDTree(splats.means.astype(np.float64))
-    strict = [base.with_config(n_sigma=max(N_SIGMAS))]
-    start = free_start(np.array([0.0, 0.0, PLANE_Z]), strict)
-    rng = np.random.default_rng(seed)
-    goals = border_goals(n_goals, rng, strict)
+    strict = [base.with_config(n_sigma=max(cfg.n_sigmas))]
+    start = free_start(np.array([0.0, 0.0, cfg.plane_z]), strict, radius=cfg.radius)
+    rng = np.random.default_rng(cfg.seed)
+    goals = border_goals(cfg.n_goals, rng, strict, z=cfg.plane_z, radius=cfg.radius)
     rows, paths = [], {}
-    for ns in progress(N_SIGMAS, desc="n_sigma"):
-        ch = base.with_config(n_sigma=ns)
-        trials, results = plan_trials(ch, start, goals, tree, scene.sdf, seed, budget, tag=f"n_sigma={ns:g}")
+    for ns in progress(cfg.n_sigmas, desc="n_sigma"):
+        ch = base.with_config(n_sigma=float(ns))
+        trials, results = plan_trials(ch, start, goals, tree, scene.sdf, cfg.seed, cfg.time_budget_s, tag=f"n_sigma={ns:g}", config=cfg)
         row = {"n_sigma": float(ns), **summarise(trials, COLUMNS + ("clearance_rrt", "clearance_refined", "time_s"))}
         row["refined_rate"] = float(np.mean([t["refined"] for t in trials if t])) if any(trials) else 0.0
         rows.append(row)
-        paths[ns] = [(r.info["path_shortcut"], r.path) for r in results if r is not None and r.success]
+        paths[float(ns)] = [(r.info["path_shortcut"], r.path) for r in results if r is not None and r.success]
     out = {
         "rows": rows,
         "setup": {
-            "scene": "stonehenge level 1",
+            "scene": f"stonehenge level {cfg.level}",
+            "level": cfg.level,
             "n_splats": len(splats),
             "floaters_dropped": splats.info.get("floaters_dropped", 0),
-            "robot_radius": RADIUS,
-            "plane_z": PLANE_Z,
+            "robot_radius": cfg.radius,
+            "plane_z": cfg.plane_z,
+            "n_goals": cfg.n_goals,
             "start": start.tolist(),
             "goals": goals.tolist(),
-            "rrt": "batched RRT, 32 samples/iter, stride 0.03, edge resolution r/2" + (", greedy shortcut" if SHORTCUT else ", raw tree path (no shortcut)"),
+            "rrt": rrt_description(cfg.stride, cfg.batch_size, cfg.edge_resolution, cfg.radius) + f", budget {cfg.time_budget_s:g} s / {cfg.max_nodes:,} nodes",
             "refinement": "one MPPI update over the whole path (RefineConfig defaults)",
             "device": str(base.device),
-            "quick": bool(quick),
-            "seed": int(seed),
+            "quick": bool(quick and config is None),
+            "seed": int(cfg.seed),
+            "config": {k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(cfg).items()},
         },
     }
     (out_dir / "conservatism.json").write_text(json.dumps(out, indent=2))
-    write_markdown(
-        out_dir / "conservatism.md",
-        rows,
-        "# E3: conservatism (paper Table II)\n\n"
-        f"Stonehenge level 1 ({len(splats)} splats), sphere r = {RADIUS}, plane z = {PLANE_Z}, "
-        f"{n_goals} border goals from the centre. 'rrt' = the raw batched-RRT path (no shortcut); "
-        "'refined' = after the zeroth-order refinement. mean ± std over successful trials. "
-        "Smoothness: our definition (planners/metrics.py); the paper does not define its own.",
-    )
-    fig, axs = plt.subplots(1, 4, figsize=(16, 4.4))
-    for ax, ns in zip(axs, (0.0, 0.5, 1.0, 1.5)):
-        plot_top_view(ax, scene, PLANE_Z)
+    (out_dir / "conservatism.md").write_text(report(out))
+    shown = [ns for ns in (0.0, 0.5, 1.0, 1.5) if ns in paths] or list(paths)[:4]
+    fig, axs = plt.subplots(1, len(shown), figsize=(4 * len(shown), 5.0), squeeze=False)
+    axs = axs[0]
+    for ax, ns in zip(axs, shown):
+        plot_top_view(ax, scene, cfg.plane_z)
         for p0, p1 in paths.get(ns, []):
             ax.plot(p0[:, 0], p0[:, 1], "--", color="tab:blue", lw=0.8, alpha=0.7)
             ax.plot(p1[:, 0], p1[:, 1], "-", color="tab:red", lw=1.2)
         ax.plot(*start[:2], "ko", ms=4)
         ax.plot(goals[:, 0], goals[:, 1], "k*", ms=6)
-        ax.set_title(f"n_sigma = {ns:g}")
+        ax.set_title(f"conservatism n_sigma = {ns:g}")
         ax.set_xlim(-0.5, 0.5)
         ax.set_ylim(-0.5, 0.5)
         ax.set_aspect("equal")
-    axs[0].plot([], [], "--", color="tab:blue", label="RRT")
-    axs[0].plot([], [], "-", color="tab:red", label="refined")
-    axs[0].legend(loc="lower left", fontsize=7)
-    fig.tight_layout()
+        ax.set_xlabel("x (scene units)")
+        ax.set_ylabel("y (scene units)")
+    from matplotlib.lines import Line2D
+
+    handles = [
+        Line2D([], [], ls="--", color="tab:blue", label="RRT path (raw tree path)"),
+        Line2D([], [], color="tab:red", label="after the zeroth-order refinement"),
+        Line2D([], [], ls="", marker="o", color="k", ms=4, label="start"),
+        Line2D([], [], ls="", marker="*", color="k", ms=6, label="goals on the border"),
+        *top_view_handles(scene, cfg.plane_z),
+    ]
+    fig.legend(handles=handles, loc="lower center", ncol=4, fontsize=7, frameon=False)
+    fig.suptitle(f"E3: paths of a sphere (r = {cfg.radius:g}) in the plane z = {cfg.plane_z:g}, top view; larger n_sigma = more conservative", fontsize=10)
+    fig.tight_layout(rect=(0, 0.12, 1, 0.95))
     fig.savefig(out_dir / "fig4_paths.png", dpi=120)
     plt.close(fig)
     return out

@@ -15,17 +15,20 @@ floaters filtered). Two measurements, both at n_sigma = 1 with a sphere robot of
    path, its numbers equal Table II's n_sigma = 1 RRT column) from the centre to random border
    goals: path length and d_min per level M1..M3 (PLAN_LEVELS) -> ``linearization.json`` / ``.md``
    beside the paper's Table III (M1..M3).
+
+Every knob is a field of :class:`LinearizationConfig` (``splatplan eval linearization --help``).
 """
 
 from __future__ import annotations
 
 import json
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ..errors import PlanningError
+from ..errors import PlanningError, SplatplanError
 from ._common import progress
 from .conservatism import PLANE_Z, RADIUS, border_goals, free_start, load_scene, mean_std, plan_trials
 
@@ -44,6 +47,40 @@ N_GOALS = 40
 #: s2_cap of the metric-along-path plot (min_s2 exact below it: within ~5 robot radii)
 PLOT_S2_CAP = 25.0
 N_SIGMA = 1.0
+
+
+@dataclass
+class LinearizationConfig:
+    """Knobs of study E4 (defaults = the full run; :meth:`quick` = the < 1 min smoke version)."""
+
+    #: Stonehenge levels whose metric is plotted along the straight path (M1..M5).
+    levels: tuple[int, ...] = LEVELS
+    #: Levels the planner runs on (the paper's Table III: M1..M3).
+    plan_levels: tuple[int, ...] = PLAN_LEVELS
+    #: Border goals per level (the same goals for every level).
+    n_goals: int = N_GOALS
+    #: RRT wall-clock budget per plan (s).
+    time_budget_s: float = 60.0
+    #: Conservatism of every checker.
+    n_sigma: float = N_SIGMA
+    #: s2_cap of the metric-along-path plot (min_s2 exact below it: within ~5 robot radii).
+    plot_s2_cap: float = PLOT_S2_CAP
+    #: Candidate straight segments drawn to pick the plotted one.
+    n_candidates: int = 3000
+    #: Scene, goal and planner seed (an integer >= 0).
+    seed: int = 0
+
+    @classmethod
+    def quick(cls) -> "LinearizationConfig":
+        """3 goals per level and a 10 s RRT budget (< 1 minute)."""
+        return cls(n_goals=3, time_budget_s=10.0)
+
+    def validate(self) -> "LinearizationConfig":
+        if not set(self.plan_levels) <= set(self.levels) or not all(1 <= lv <= 5 for lv in self.levels):
+            raise SplatplanError(f"LinearizationConfig: levels must lie in 1..5 and include plan_levels, got {self.levels} / {self.plan_levels}")
+        if self.n_goals < 1 or not self.time_budget_s > 0 or self.n_sigma < 0 or self.seed < 0:
+            raise SplatplanError("LinearizationConfig: n_goals >= 1, time_budget_s > 0, n_sigma >= 0 and seed >= 0 required")
+        return self
 
 
 def choose_straight_path(
@@ -77,14 +114,38 @@ def choose_straight_path(
     raise PlanningError("no collision-free straight segment found for the metric-along-path plot")
 
 
-def run_linearization(out_dir: Path, quick: bool = False, seed: int = 0) -> dict:
+def report(out: dict) -> str:
+    """The markdown table of E4 (ours beside the paper's Table III)."""
+    st = out["setup"]
+    fmt = lambda ms: "n/a" if not np.isfinite(ms[0]) else f"{ms[0]:.4f} ± {ms[1]:.4f}"  # noqa: E731
+    lines = [
+        "# E4: linearisation effect (paper Table III)",
+        "",
+        f"Stonehenge levels {', '.join(f'M{lv}' for lv in st['levels'])} (larger and fewer splats with the level), n_sigma = {st['n_sigma']:g}, "
+        f"sphere r = {st['robot_radius']}, {st['n_goals']} border goals from the centre; raw RRT paths (as E3). mean ± std.",
+        "",
+        "| scene | splats | path length (ours) | path length (paper) | d_min (ours) | d_min (paper) | success | min over path of min_s2 |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for r in out["rows"]:
+        p = PAPER_TABLE_III.get(r["level"])
+        lines.append(
+            f"| M{r['level']} | {r['n_splats']} | {fmt(r['length'])} | {fmt(p['length']) if p else '—'} | "
+            f"{fmt(r['dmin'])} | {fmt(p['dmin']) if p else '—'} | {r['success_rate']:.2f} | {r['metric_along_path']['min_s2_min']:.3f} |"
+        )
+    return "\n".join(lines) + "\n"
+
+
+def run_linearization(out_dir: Path, quick: bool = False, seed: int | None = None, config: LinearizationConfig | None = None, device: str = "auto") -> dict:
     """Run study E4 and write ``linearization.json``, ``linearization.md`` and
     ``fig5_metric_along_path.png`` into ``out_dir``.
 
     Args:
         out_dir: output folder (created if missing).
-        quick: 3 goals per level and a 10 s RRT budget (< 1 minute) instead of N_GOALS goals and 60 s.
-        seed: scene, goal and planner seed.
+        quick: start from :meth:`LinearizationConfig.quick` (3 goals per level, 10 s budget).
+        seed: scene, goal and planner seed (overrides the config's).
+        config: explicit knobs (override ``quick``).
+        device: metric device ("auto" = CUDA when present, "cpu", "cuda", "cuda:N").
 
     Returns:
         The JSON content: ``{"rows": [{"level", "length": [mean, std], "dmin": [mean, std]}], ...}``.
@@ -96,40 +157,42 @@ def run_linearization(out_dir: Path, quick: bool = False, seed: int = 0) -> dict
 
     from ..metric import CollisionChecker
 
+    cfg = config or (LinearizationConfig.quick() if quick else LinearizationConfig())
+    if seed is not None:
+        cfg = replace(cfg, seed=int(seed))
+    cfg.validate()
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    n_goals = 3 if quick else N_GOALS
-    budget = 10.0 if quick else 60.0
-    rng = np.random.default_rng(seed)
+    rng = np.random.default_rng(cfg.seed)
     scenes = {}
-    for lv in progress(LEVELS, desc="build scenes"):
-        splats, scene = load_scene(lv, seed)
-        scenes[lv] = (splats, scene, CollisionChecker(splats, n_sigma=N_SIGMA, device="auto"))
-    analytic = scenes[1][1]  # the geometry is the same at every level (same layout seed)
-    checkers = [scenes[lv][2] for lv in PLAN_LEVELS]
-    line = choose_straight_path(analytic, checkers[:1], rng)  # free in M1 (and the exact geometry)
-    goals = border_goals(n_goals, rng, checkers)
+    for lv in progress(cfg.levels, desc="build scenes"):
+        splats, scene = load_scene(lv, cfg.seed)
+        scenes[lv] = (splats, scene, CollisionChecker(splats, n_sigma=cfg.n_sigma, device=device))
+    analytic = scenes[cfg.levels[0]][1]  # the geometry is the same at every level (same layout seed)
+    checkers = [scenes[lv][2] for lv in cfg.plan_levels]
+    line = choose_straight_path(analytic, [scenes[cfg.levels[0]][2]], rng, n_candidates=cfg.n_candidates)  # free in the first level (and the exact geometry)
+    goals = border_goals(cfg.n_goals, rng, checkers)
     start = free_start(np.array([0.0, 0.0, PLANE_Z]), checkers)
 
     t = np.linspace(0.0, 1.0, 600)
     pts = line[0] + t[:, None] * (line[1] - line[0])  # (S, 3)
     arc = t * float(np.linalg.norm(line[1] - line[0]))
     clr_true = analytic.sdf(pts) - RADIUS
-    fig, axs = plt.subplots(2, 1, figsize=(8, 6.5), sharex=True)
+    fig, axs = plt.subplots(2, 1, figsize=(8, 7.0), sharex=True)
     rows, along = [], {}
-    for lv in progress(LEVELS, desc="levels"):
+    cap = cfg.plot_s2_cap
+    for lv in progress(cfg.levels, desc="levels"):
         splats, scene, ch = scenes[lv]
-        plot_ch = ch.with_config(s2_cap=PLOT_S2_CAP)  # exact min_s2 up to a larger distance
+        plot_ch = ch.with_config(s2_cap=cap)  # exact min_s2 up to a larger distance
         q = plot_ch.query(pts, None, (RADIUS, RADIUS, RADIUS))
-        cap = PLOT_S2_CAP
         min_s2 = np.minimum(q.min_s2.astype(np.float64), cap)
         soft = np.minimum(q.softmin.astype(np.float64), cap)
         along[lv] = {"min_s2_min": float(min_s2.min()), "softmin_min": float(soft.min()), "min_s2_mean": float(min_s2.mean())}
         axs[0].plot(arc, min_s2, label=f"M{lv} ({len(splats) // 1000}k splats)")
         axs[1].plot(arc, soft, label=f"M{lv}")
-        if lv not in PLAN_LEVELS:
+        if lv not in cfg.plan_levels:
             continue
-        trials, _ = plan_trials(ch, start, goals, cKDTree(splats.means.astype(np.float64)), scene.sdf, seed, budget, tag=f"M{lv}")
+        trials, _ = plan_trials(ch, start, goals, cKDTree(splats.means.astype(np.float64)), scene.sdf, cfg.seed, cfg.time_budget_s, tag=f"M{lv}")
         ok = [r for r in trials if r]
         rows.append(
             {
@@ -144,16 +207,19 @@ def run_linearization(out_dir: Path, quick: bool = False, seed: int = 0) -> dict
                 "metric_along_path": along[lv],
             }
         )
-    axs[0].set_ylabel(f"min_s2 (clipped at s2_cap={cap:g})")
-    axs[0].axhline(1.0, color="k", lw=0.6, ls=":")
-    axs[1].set_ylabel("softmin of s2~")
+    axs[0].set_ylabel(f"conservative scaling distance\n(min s2~, clipped at {cap:g})")
+    axs[0].axhline(1.0, color="k", lw=0.6, ls=":", label="1 = touching (below: collision)")
+    axs[1].set_ylabel("smooth minimum over nearby splats\n(softmin of s2~)")
     axs[1].axhline(1.0, color="k", lw=0.6, ls=":")
     ax2 = axs[1].twinx()
-    ax2.plot(arc, clr_true, color="0.6", lw=0.8, ls="--")
-    ax2.set_ylabel("exact clearance (scene units)", color="0.5")
-    axs[1].set_xlabel("arc length along the straight path (scene units)")
+    ax2.plot(arc, clr_true, color="0.6", lw=0.8, ls="--", label="true clearance (right axis)")
+    ax2.set_ylabel("true clearance to the stones (scene units)", color="0.5")
+    ax2.legend(loc="upper right", fontsize=7)
+    axs[1].set_xlabel("distance along the straight path (scene units)")
     axs[0].legend(fontsize=7)
-    axs[0].set_title(f"Metric along a straight collision-free path (n_sigma = {N_SIGMA:g}, sphere r = {RADIUS})")
+    axs[1].legend(loc="upper left", fontsize=7)
+    axs[0].set_title(f"Metric along a straight collision-free path (n_sigma = {cfg.n_sigma:g}, sphere r = {RADIUS}); "
+                     "M1..M5: larger and fewer splats", fontsize=9)  # fmt: skip
     fig.tight_layout()
     fig.savefig(out_dir / "fig5_metric_along_path.png", dpi=120)
     plt.close(fig)
@@ -161,7 +227,9 @@ def run_linearization(out_dir: Path, quick: bool = False, seed: int = 0) -> dict
     out = {
         "rows": rows,
         "setup": {
-            "n_sigma": N_SIGMA,
+            "n_sigma": cfg.n_sigma,
+            "levels": list(cfg.levels),
+            "n_goals": cfg.n_goals,
             "robot_radius": RADIUS,
             "plane_z": PLANE_Z,
             "straight_path": line.tolist(),
@@ -169,26 +237,12 @@ def run_linearization(out_dir: Path, quick: bool = False, seed: int = 0) -> dict
             "start": start.tolist(),
             "goals": goals.tolist(),
             "length_dmin_of": "batched RRT path (as the paper's Table III: its M1 row equals Table II's n_sigma=1 RRT column)",
-            "quick": bool(quick),
-            "seed": int(seed),
+            "device": str(checkers[0].device),
+            "quick": bool(quick and config is None),
+            "seed": int(cfg.seed),
+            "config": {k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(cfg).items()},
         },
     }
     (out_dir / "linearization.json").write_text(json.dumps(out, indent=2))
-    fmt = lambda ms: "n/a" if not np.isfinite(ms[0]) else f"{ms[0]:.4f} ± {ms[1]:.4f}"  # noqa: E731
-    lines = [
-        "# E4: linearisation effect (paper Table III)",
-        "",
-        f"Stonehenge levels 1..5 (M1..M5, larger and fewer splats with the level), n_sigma = {N_SIGMA:g}, "
-        f"sphere r = {RADIUS}, {n_goals} border goals from the centre; raw RRT paths (as E3). mean ± std.",
-        "",
-        "| scene | splats | path length (ours) | path length (paper) | d_min (ours) | d_min (paper) | success | min over path of min_s2 |",
-        "|---|---|---|---|---|---|---|---|",
-    ]
-    for r in rows:
-        p = PAPER_TABLE_III.get(r["level"])
-        lines.append(
-            f"| M{r['level']} | {r['n_splats']} | {fmt(r['length'])} | {fmt(p['length']) if p else '—'} | "
-            f"{fmt(r['dmin'])} | {fmt(p['dmin']) if p else '—'} | {r['success_rate']:.2f} | {r['metric_along_path']['min_s2_min']:.3f} |"
-        )
-    (out_dir / "linearization.md").write_text("\n".join(lines) + "\n")
+    (out_dir / "linearization.md").write_text(report(out))
     return out

@@ -62,7 +62,20 @@ the full one up to float32 summation order (no clamp). ``culling_check`` re-eval
 queries near the boundary (and a few clamped ones) over **all** Gaussians and reports the largest
 deviation. CollisionSplatting runs its own (exact) kernel on every point.
 
-Outputs in ``out_dir``: ``pr.json``, ``pr.png`` (all curves), ``pr.md`` (table).
+Fidelity variants (issue #7)
+----------------------------
+CollisionSplatting is also scored, on the same queries, in the variants of :data:`VARIANTS` at every
+n_sigma: (a) today's settings; (b) the paper authors' evaluation filter (every splat with opacity
+< 0.1 removed, not only the faint *and* large ones); (c) the log-*mean*-exp softmin with a sharp
+temperature (the paper's "recursive softmin", t = 300 on s2~), with a float64 spot check that the
+kernel's exponentials do not underflow; (b)+(c); and two options of our own, beyond the paper:
+(d1) ``MetricConfig.opacity_min`` (faint splats are free space) and (d2)
+``opacity_scaled_inflation`` (inflation n_sigma * o_i * sigma_i). The best baseline is re-scored
+on the (b) scene for a like-for-like comparison. The scene is never tuned to the result.
+
+Every knob is a field of :class:`PRConfig` (``splatplan eval pr --help``).
+
+Outputs in ``out_dir``: ``pr.json``, ``pr.png`` (all curves; variants on the right), ``pr.md`` (tables).
 """
 
 from __future__ import annotations
@@ -77,12 +90,41 @@ from typing import Any
 import numpy as np
 
 from ..errors import SplatplanError
-from ._common import DISPLAY, ROBOT_RADIUS, load_scene_with_gt, load_stonehenge_filtered, n_cores, progress, set_torch_threads
+from ._common import DISPLAY, ROBOT_RADIUS, load_scene_with_gt, n_cores, progress, set_torch_threads
 
-__all__ = ["PRConfig", "precision_recall_curve", "average_precision", "best_f1", "pr_summary", "run_pr"]
+__all__ = ["PRConfig", "VARIANTS", "precision_recall_curve", "average_precision", "best_f1", "pr_summary", "report", "run_pr"]
 
 #: Order of the baselines in tables and plots.
 BASELINE_NAMES = ("splatnav", "safersplat", "atlasnav", "splanning")
+
+#: CollisionSplatting fidelity variants (issue #7): name -> (label, scene, MetricConfig changes).
+#: scene "default" = the default floater filter (o < 0.1 *and* max std > 5x median), "opacity" =
+#: the paper authors' evaluation filter (every splat with o < eval_opacity_below removed). The
+#: values "$lme_t" and "$opacity_min" are taken from :class:`PRConfig`.
+VARIANTS: dict[str, tuple[str, str, dict[str, Any]]] = {
+    "default": ("(a) today: default floater filter, log-sum-exp softmin t = $default_t", "default", {}),
+    "opacity_filter": ("(b) paper's evaluation filter: every splat with opacity < 0.1 removed", "opacity", {}),
+    "log_mean_exp": ("(c) log-mean-exp softmin (the paper's recursive softmin), t = $lme_t", "default", {"softmin_mode": "mean", "softmin_t": "$lme_t"}),
+    "log_mean_exp_default_t": ("(c') log-mean-exp at today's t = $default_t (separates the aggregation from the temperature)", "default", {"softmin_mode": "mean"}),
+    "opacity_filter+log_mean_exp": ("(b)+(c) both", "opacity", {"softmin_mode": "mean", "softmin_t": "$lme_t"}),
+    "opacity_min": ("(d1, beyond the paper) metric option opacity_min = $opacity_min on the default scene", "default", {"opacity_min": "$opacity_min"}),
+    "opacity_scaled_inflation": ("(d2, beyond the paper) inflation n_sigma * o_i * sigma_i", "default", {"opacity_scaled_inflation": True}),
+}
+
+
+def variant_settings(name: str, cfg: "PRConfig") -> tuple[str, str, dict[str, Any]]:
+    """(label, scene kind, MetricConfig changes) of variant ``name`` with ``cfg``'s values filled in."""
+    if name not in VARIANTS:
+        raise SplatplanError(f"unknown E1 variant {name!r}: choose from {', '.join(VARIANTS)}")
+    from ..metric.config import MetricConfig
+
+    label, kind, changes = VARIANTS[name]
+    subst = {"$lme_t": cfg.lme_t, "$opacity_min": cfg.opacity_min, "$default_t": MetricConfig().softmin_t}
+    changes = {k: subst.get(v, v) if isinstance(v, str) else v for k, v in changes.items()}
+    for key, val in subst.items():
+        label = label.replace(key, f"{val:g}")
+    label = label.replace("opacity < 0.1", f"opacity < {cfg.eval_opacity_below:g}")
+    return label, kind, changes
 
 
 @dataclass
@@ -115,6 +157,27 @@ class PRConfig:
     plot_points: int = 3000
     #: Seed of the culling-check sample.
     check_seed: int = 0
+    #: CollisionSplatting fidelity variants scored at every n_sigma (see VARIANTS; empty = none).
+    variants: tuple[str, ...] = (
+        "default",
+        "opacity_filter",
+        "log_mean_exp",
+        "log_mean_exp_default_t",
+        "opacity_filter+log_mean_exp",
+        "opacity_min",
+        "opacity_scaled_inflation",
+    )
+    #: Opacity threshold of the paper's evaluation filter (variant ``opacity_filter``: every splat below it removed).
+    eval_opacity_below: float = 0.1
+    #: Softmin temperature of the log-mean-exp variants (the paper's sharp "recursive softmin", on s2~).
+    lme_t: float = 300.0
+    #: opacity_min of the ``opacity_min`` variant (splats below it count as free space).
+    opacity_min: float = 0.1
+    #: Baseline also scored on the ``opacity_filter`` scene for a like-for-like comparison:
+    #: "best" (the best AP on the default scene), a baseline name, or "none".
+    variant_baseline: str = "best"
+    #: Queries near the surface whose log-mean-exp softmin is re-computed in float64 (underflow check).
+    n_softmin_check: int = 64
     #: Free-form note stored in the JSON (e.g. why this is a quick run).
     note: str = ""
 
@@ -129,6 +192,8 @@ class PRConfig:
             n_check=3,
             n_check_clamped=1,
             plot_points=500,
+            variant_baseline="none",
+            n_softmin_check=16,
             note="quick run: Stonehenge level 1 with 50,000 splats (not ~200k), grid spacing 0.025; smoke test only",
         )
 
@@ -386,13 +451,17 @@ def _culling_check(
 # ---------------------------------------------------------------------------------------------
 
 
-def _plot(curves: dict[str, tuple[np.ndarray, np.ndarray, float]], path: Path, title: str) -> None:
+def _plot(curves: dict[str, tuple[np.ndarray, np.ndarray, float]], path: Path, title: str, curves_v: dict | None = None, variants: dict | None = None) -> None:
+    """Left: every method's PR curve. Right (when variants ran): CollisionSplatting's fidelity
+    variants at n_sigma = 1, with the best baseline on the same scenes for reference."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(6.4, 5.0), dpi=130)
+    two = bool(curves_v)
+    fig, axs = plt.subplots(1, 2 if two else 1, figsize=(12.8 if two else 6.4, 5.4), dpi=130, squeeze=False)
+    ax = axs[0][0]
     styles = {
         "collisionsplatting": dict(color="C3", lw=2.4),
         "collisionsplatting_nsigma0": dict(color="C3", lw=1.0, ls="--"),
@@ -405,25 +474,81 @@ def _plot(curves: dict[str, tuple[np.ndarray, np.ndarray, float]], path: Path, t
     }
     for key, (p, r, ap) in curves.items():
         label = {
-            "collisionsplatting": "CollisionSplatting $n_\\sigma$=1, softmin",
-            "collisionsplatting_nsigma0": "CollisionSplatting $n_\\sigma$=0, softmin",
-            "collisionsplatting_nsigma2": "CollisionSplatting $n_\\sigma$=2, softmin",
-            "collisionsplatting_min_s2": "CollisionSplatting $n_\\sigma$=1, min $s^2$",
+            "collisionsplatting": "CollisionSplatting $n_\\sigma$=1, softmin score",
+            "collisionsplatting_nsigma0": "CollisionSplatting $n_\\sigma$=0, softmin score",
+            "collisionsplatting_nsigma2": "CollisionSplatting $n_\\sigma$=2, softmin score",
+            "collisionsplatting_min_s2": "CollisionSplatting $n_\\sigma$=1, min $\\tilde s^2$ score",
         }.get(key, DISPLAY.get(key, key))
         ax.plot(r, p, label=f"{label}  AP {ap:.3f}", drawstyle="steps-post", **styles.get(key, {}))
-    ax.set_xlabel("recall")
-    ax.set_ylabel("precision")
-    ax.set_xlim(0, 1.0)
-    ax.set_ylim(0, 1.02)
-    ax.grid(alpha=0.3)
-    ax.set_title(title, fontsize=9)
-    ax.legend(loc="lower left", fontsize=8)
+    panels = [(ax, title)]
+    if two:
+        axv = axs[0][1]
+        for i, (key, (p, r, ap)) in enumerate(curves_v.items()):
+            if key in (variants or {}):  # decreasing widths and varied dashes: identical curves stay visible
+                label, st = variants[key]["label"], dict(color=f"C{i}", lw=max(0.8, 3.2 - 0.4 * i), ls=("-", "--", "-.", ":")[i % 4])
+            else:  # a baseline on the opacity-filtered scene
+                label, st = f"{DISPLAY.get(key.replace('_opacity', ''), key)} on the (b) scene (reference)", dict(color="0.3", lw=1.2, ls="--")
+            axv.plot(r, p, label=f"{label}  AP {ap:.3f}", drawstyle="steps-post", **st)
+        panels.append((axv, "CollisionSplatting fidelity variants at $n_\\sigma$ = 1 (same queries; identical variants overlap)"))
+    for a, t in panels:
+        a.set_xlabel("recall (share of colliding queries flagged)")
+        a.set_ylabel("precision (share of flagged queries that collide)")
+        a.set_xlim(0, 1.0)
+        a.set_ylim(0, 1.02)
+        a.grid(alpha=0.3)
+        a.set_title(t, fontsize=9)
+        a.legend(loc="lower left", fontsize=7)
     fig.tight_layout()
     fig.savefig(path)
     plt.close(fig)
 
 
-def _markdown(res: dict) -> str:
+def _variants_markdown(res: dict) -> list[str]:
+    """The fidelity-variants table (issue #7): AP per n_sigma and the decision at n_sigma = 1."""
+    variants = res.get("variants") or {}
+    if not variants:
+        return []
+    ns_keys = list(next(iter(variants.values()))["by_n_sigma"])
+    rows = [
+        "",
+        "## CollisionSplatting fidelity variants",
+        "",
+        "Same queries and labels as above; score `-softmin`. (a) is today's setting (the table above); (b) and (c) are what "
+        "the paper's authors do (evaluation filter; log-mean-exp \"recursive softmin\" with a sharp temperature); "
+        "(d1), (d2) are options of our own, **beyond the paper**.",
+        "",
+        "| variant | scene splats | " + " | ".join(f"AP n_sigma={k}" for k in ns_keys) + " | best F1 n_sigma=1 | own rule P / R n_sigma=1 | AP above ground n_sigma=1 |",
+        "|---|---|" + "---|" * len(ns_keys) + "---|---|---|",
+    ]
+    for name, v in variants.items():
+        one = v["by_n_sigma"].get("1")
+        cells = [f"{v['label']} (`{name}`)", f"{v['n_splats']:,}"] + [f"{v['by_n_sigma'][k]['ap']:.4f}" for k in ns_keys]
+        cells += [f"{one['best_f1']:.4f}", f"{one['native_precision']:.3f} / {one['native_recall']:.3f}", f"{one['ap_above_ground']:.4f}"] if one else ["—"] * 3
+        rows.append("| " + " | ".join(cells) + " |")
+    vb = res.get("variant_baseline") or {}
+    rows.append("")
+    if vb:
+        rows.append(
+            f"- Reference: {DISPLAY[vb['method']]} (the best baseline) on the (b) scene ({vb['n_splats']:,} splats): AP {vb['ap']:.4f}, "
+            f"best F1 {vb['best_f1']:.4f} (default scene: AP {vb['ap_default_scene']:.4f})."
+        )
+    for name, c in (res.get("softmin_check") or {}).items():
+        rows.append(
+            f"- Log-mean-exp at t = {c['softmin_t']:g} (`{name}`), float32 kernel vs float64 reference on {c['n']} queries near the surface: "
+            f"max |difference| {c['max_abs_dev']:.1e}, {c['n_inf_mismatch']} finite/infinite mismatches (no underflow when 0)."
+        )
+    t = res.get("targets", {})
+    if "best_variant_at_n_sigma_1" in t:
+        bv = t["best_variant_at_n_sigma_1"]
+        rows.append(
+            f"- Highest AP at n_sigma = 1: {variants[bv]['label']} (`{bv}`), {variants[bv]['by_n_sigma']['1']['ap']:.4f} "
+            f"({t['ap_minus_best_baseline_by_fidelity_variant'][bv]:+.4f} against the best baseline on the default scene)."
+        )
+    return rows
+
+
+def report(res: dict) -> str:
+    """The markdown of E1: the methods table, then CollisionSplatting's fidelity variants."""
     rows = [
         "# E1 precision-recall (paper Fig. 3)",
         "",
@@ -469,6 +594,7 @@ def _markdown(res: dict) -> str:
             f"- Diagnostic: CollisionSplatting n_sigma={v['n_sigma']:g} without the {v['n_removed']} semi-transparent floaters "
             f"the default filter keeps: AP {v['ap']:.4f}, best F1 {v['best_f1']:.4f}."
         )
+    rows += _variants_markdown(res)
     rows += [
         "",
         "Own rule = each method's native decision (CollisionSplatting: min_s2 < 1; Splat-Nav: max K < 1; SAFER-Splat: h < 0; "
@@ -488,7 +614,19 @@ def _markdown(res: dict) -> str:
     return "\n".join(rows)
 
 
-def run_pr(out_dir: Path, scene: str = "stonehenge", gt: str | None = None, quick: bool = False, config: PRConfig | None = None) -> dict:
+def _cs_query(chk: Any, pts: np.ndarray, r: float, desc: str) -> tuple[np.ndarray, np.ndarray]:
+    """CollisionSplatting (min_s2, softmin), each (Q,) float64, for sphere centres ``pts`` (Q, 3)."""
+    ms, sm = [], []
+    for i in progress(range(0, len(pts), 32768), desc=desc, unit="chunk"):
+        res = chk.query(pts[i : i + 32768], None, (r, r, r))
+        ms.append(np.asarray(res.min_s2))
+        sm.append(np.asarray(res.softmin))
+    return np.concatenate(ms).astype(np.float64), np.concatenate(sm).astype(np.float64)
+
+
+def run_pr(
+    out_dir: Path, scene: str = "stonehenge", gt: str | None = None, quick: bool = False, config: PRConfig | None = None, device: str = "auto"
+) -> dict:
     """Run E1 and write ``pr.json``, ``pr.png``, ``pr.md`` into ``out_dir``.
 
     Args:
@@ -497,6 +635,9 @@ def run_pr(out_dir: Path, scene: str = "stonehenge", gt: str | None = None, quic
         gt: ground-truth ``.gt.json`` of a scene file (boxes with an exact SDF).
         quick: the < 1 min smoke version (:meth:`PRConfig.quick`).
         config: explicit knobs (overrides ``quick``).
+        device: where CollisionSplatting's kernel runs ("auto" = CUDA when present, "cpu",
+            "cuda", "cuda:N"). The baselines' culled tile evaluation is a CPU algorithm (many small
+            torch calls on a thread pool) and always runs on the CPU.
 
     Returns:
         The dict written to ``pr.json``.
@@ -505,10 +646,15 @@ def run_pr(out_dir: Path, scene: str = "stonehenge", gt: str | None = None, quic
 
     from ..baselines import BASELINES, as_scene_tensors
     from ..metric import CollisionChecker
+    from ..scenes.filters import filter_floaters
 
     cfg = config or (PRConfig.quick() if quick else PRConfig())
     if not (cfg.spacing > 0 and cfg.radius > 0 and cfg.tile > 0):
         raise SplatplanError("PRConfig: spacing, radius and tile must be > 0")
+    for v in cfg.variants:
+        variant_settings(v, cfg)  # unknown names fail before any work
+    if cfg.variant_baseline not in ("best", "none", *BASELINE_NAMES):
+        raise SplatplanError(f"PRConfig.variant_baseline must be 'best', 'none' or one of {', '.join(BASELINE_NAMES)}, got {cfg.variant_baseline!r}")
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     t_all = time.perf_counter()
@@ -518,11 +664,14 @@ def run_pr(out_dir: Path, scene: str = "stonehenge", gt: str | None = None, quic
     if scene == "stonehenge":
         if gt is not None:
             raise SplatplanError("--gt is only for a scene file; the built-in stonehenge carries its own ground truth")
-        splats, geom, rep = load_stonehenge_filtered(cfg.level, cfg.seed, cfg.n_splats)
+        from ..scenes.stonehenge import build_stonehenge
+
+        raw, geom = build_stonehenge(level=cfg.level, seed=cfg.seed, n_splats=cfg.n_splats)
         scene_name = f"built-in Stonehenge level {cfg.level} seed {cfg.seed}"
     else:
-        splats, geom, rep = load_scene_with_gt(scene, gt)
+        raw, geom, _ = load_scene_with_gt(scene, gt, filtered=False)
         scene_name = str(scene)
+    splats, rep = filter_floaters(raw)  # the default rule: o < 0.1 and max std > 5x median
 
     lo, hi = splats.bounds()
     grid, grid_spec = make_grid(lo - cfg.pad * r, hi + cfg.pad * r, cfg.spacing)  # (Q_all, 3)
@@ -547,18 +696,12 @@ def run_pr(out_dir: Path, scene: str = "stonehenge", gt: str | None = None, quic
     curves: dict[str, tuple] = {}
 
     # --- CollisionSplatting: the kernel on every grid point
-    checker = CollisionChecker(splats, n_sigma=1.0, device="cpu")
+    checker = CollisionChecker(splats, n_sigma=1.0, device=device)
     cap = checker.config.s2_cap
     for ns in cfg.n_sigmas:
         t0 = time.perf_counter()
         chk = checker.with_config(n_sigma=float(ns))
-        ms, sm = [], []
-        for i in progress(range(0, len(grid), 32768), desc=f"CollisionSplatting n_sigma={ns:g}", unit="chunk"):
-            res = chk.query(grid[i : i + 32768], None, (r, r, r))
-            ms.append(res.min_s2)
-            sm.append(res.softmin)
-        min_s2 = np.concatenate(ms).astype(np.float64)
-        softmin = np.concatenate(sm).astype(np.float64)
+        min_s2, softmin = _cs_query(chk, grid, r, f"CollisionSplatting n_sigma={ns:g}")
         dt = time.perf_counter() - t0
         score_min = -np.minimum(min_s2, cap)  # (Q_all,) -min(min_s2, cap)
         score_soft = -softmin  # (Q_all,) -softmin (+inf softmin, empty neighbourhood -> -inf)
@@ -591,7 +734,7 @@ def run_pr(out_dir: Path, scene: str = "stonehenge", gt: str | None = None, quic
     diagnostics: dict[str, Any] = {}
     n_kept_floaters = int(splats.info.get("n_floaters", 0)) - int(rep.n_dropped) if scene == "stonehenge" else 0
     if n_kept_floaters > 0:
-        clean = CollisionChecker(splats.subset(np.arange(len(splats) - n_kept_floaters)), n_sigma=1.0, device="cpu")
+        clean = CollisionChecker(splats.subset(np.arange(len(splats) - n_kept_floaters)), n_sigma=1.0, device=device)
         for ns in cfg.n_sigmas:
             soft = np.concatenate(
                 [clean.with_config(n_sigma=float(ns)).query(q[i : i + 32768], None, (r, r, r)).softmin for i in range(0, len(q), 32768)]
@@ -637,6 +780,64 @@ def run_pr(out_dir: Path, scene: str = "stonehenge", gt: str | None = None, quic
         checks[name]["seconds"] = time.perf_counter() - t1
         del full_obj
 
+    # --- fidelity variants of CollisionSplatting (issue #7): same grid, labels and evaluation set
+    opaque = raw.subset(raw.opacities >= cfg.eval_opacity_below)  # the paper authors' evaluation filter
+    scenes_v = {"default": splats, "opacity": opaque}
+    checkers_v: dict[str, Any] = {"default": checker}
+    variants: dict[str, dict] = {}
+    curves_v: dict[str, tuple] = {}
+    for name in cfg.variants:
+        label, kind, changes = variant_settings(name, cfg)
+        if kind not in checkers_v:
+            checkers_v[kind] = CollisionChecker(scenes_v[kind], n_sigma=1.0, device=device)
+        by_ns = {}
+        for ns in cfg.n_sigmas:
+            t0 = time.perf_counter()
+            chk = checkers_v[kind].with_config(n_sigma=float(ns), **changes)
+            min_s2_v, soft_v = _cs_query(chk, grid, r, f"{name} n_sigma={ns:g}")
+            d = summarise(-soft_v, None)
+            d.update({f"native_{k_}": v for k_, v in _decision_prf(min_s2_v[reach] < 1.0, y).items()})
+            by_ns[f"{ns:g}"] = {
+                "n_sigma": float(ns),
+                "ap": d["ap"],
+                "best_f1": d["best_f1"],
+                "native_precision": d["native_precision"],
+                "native_recall": d["native_recall"],
+                "ap_all_points": d["all_points"]["ap"],
+                "ap_above_ground": d["above_ground"]["ap"],
+                "seconds": time.perf_counter() - t0,
+            }
+            if float(ns) == 1.0:
+                p, rc, _ = precision_recall_curve(-soft_v[reach], y)
+                curves_v[name] = (*_thin_curve(p, rc, cfg.plot_points), d["ap"])
+        variants[name] = {"label": label, "scene": kind, "n_splats": len(scenes_v[kind]), "metric": changes, "by_n_sigma": by_ns}
+
+    # the best (or a chosen) baseline on the opacity-filtered scene, for a like-for-like comparison with (b)
+    variant_baseline: dict[str, Any] = {}
+    vb = max(BASELINE_NAMES, key=lambda n: methods[n]["ap"]) if cfg.variant_baseline == "best" else cfg.variant_baseline
+    if vb != "none" and any(variant_settings(v, cfg)[1] == "opacity" for v in cfg.variants):
+        t0 = time.perf_counter()
+        info = BASELINES[vb]
+        scene_o = as_scene_tensors(opaque, "cpu", torch.float32)
+        incl, clamp, rule = _cull_rule(vb, info.cls(scene_o, "cpu"), r)
+        s_eval, cl_eval, _ = culled_collision_scores(info.cls, scene_o, incl, clamp, q, r, cfg.tile, cfg.block, desc=DISPLAY[vb] + " (opacity filter)")
+        d = pr_summary(s_eval, y, info.collision_threshold)
+        variant_baseline = {
+            "method": vb,
+            "scene": "opacity",
+            "n_splats": len(opaque),
+            "ap": d["ap"],
+            "best_f1": d["best_f1"],
+            "native_precision": d["native_precision"],
+            "native_recall": d["native_recall"],
+            "ap_default_scene": methods[vb]["ap"],
+            "n_clamped_positive": int((cl_eval & y).sum()),
+            "seconds": time.perf_counter() - t0,
+        }
+        p, rc, _ = precision_recall_curve(s_eval, y)
+        curves_v[f"{vb}_opacity"] = (*_thin_curve(p, rc, cfg.plot_points), d["ap"])
+    softmin_check = _softmin_check(checkers_v, scenes_v, cfg, q, near, r)
+
     order = ["collisionsplatting", *BASELINE_NAMES] + [k for k in methods if k.startswith("collisionsplatting_")]
     methods = {k: methods[k] for k in order if k in methods}
     res = {
@@ -661,6 +862,11 @@ def run_pr(out_dir: Path, scene: str = "stonehenge", gt: str | None = None, quic
         ) % (checker.config.softmin_t, cap),
         "culling_check": checks,
         "diagnostics": diagnostics,
+        "variants": variants,
+        "variant_baseline": variant_baseline,
+        "softmin_check": softmin_check,
+        "device": str(checker.device),
+        "baseline_device": "cpu",
         "quick": bool(quick and config is None),
         "note": cfg.note,
         "config": {k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(cfg).items()},
@@ -680,7 +886,44 @@ def run_pr(out_dir: Path, scene: str = "stonehenge", gt: str | None = None, quic
             for sc in ("softmin", "min_s2")
         },
     }
+    if variants:
+        best_v = max(variants, key=lambda k: variants[k]["by_n_sigma"].get("1", {"ap": -1.0})["ap"])
+        res["targets"]["best_variant_at_n_sigma_1"] = best_v
+        res["targets"]["ap_minus_best_baseline_by_fidelity_variant"] = {
+            k: v["by_n_sigma"]["1"]["ap"] - best_base for k, v in variants.items() if "1" in v["by_n_sigma"]
+        }
     (out_dir / "pr.json").write_text(json.dumps(res, indent=2) + "\n")
-    _plot(curves, out_dir / "pr.png", f"E1: {scene_name}, {len(q):,} queries (sdf > -r), r = {r}")
-    (out_dir / "pr.md").write_text(_markdown(res))
+    _plot(curves, out_dir / "pr.png", f"E1: {scene_name}, {len(q):,} queries (sdf > -r), r = {r}", curves_v, variants)
+    (out_dir / "pr.md").write_text(report(res))
     return res
+
+
+def _softmin_check(checkers: dict, scenes: dict, cfg: PRConfig, q: np.ndarray, near: np.ndarray, r: float) -> dict[str, Any]:
+    """Float32 kernel vs float64 reference softmin for every log-mean-exp variant at n_sigma = 1 on
+    ``n_softmin_check`` queries near the surface: a sharp temperature (t = lme_t on s2~) must not
+    underflow the kernel's exponentials (an underflow shows as +inf or a large deviation)."""
+    from ..metric.reference import collision_metric_ref
+
+    out: dict[str, Any] = {}
+    rng = np.random.default_rng(cfg.check_seed)
+    idx = np.nonzero(near)[0]
+    if len(idx) == 0 or cfg.n_softmin_check <= 0:
+        return out
+    idx = rng.choice(idx, min(cfg.n_softmin_check, len(idx)), replace=False)
+    pts = q[idx]
+    for name in cfg.variants:
+        label, kind, changes = variant_settings(name, cfg)
+        if changes.get("softmin_mode") != "mean":
+            continue
+        chk = checkers[kind].with_config(n_sigma=1.0, **changes)
+        got = np.asarray(chk.query(pts, None, (r, r, r)).softmin, dtype=np.float64)
+        sc = scenes[kind]
+        ref = collision_metric_ref(sc.means, sc.quats, sc.scales, pts, None, np.full(3, r), chk.config, chunk=4, opacities=sc.opacities).softmin
+        both = np.isfinite(ref) & np.isfinite(got)
+        out[name] = {
+            "n": int(len(idx)),
+            "softmin_t": float(chk.config.softmin_t),
+            "max_abs_dev": float(np.max(np.abs(got[both] - ref[both]))) if both.any() else 0.0,
+            "n_inf_mismatch": int(np.sum(np.isfinite(ref) != np.isfinite(got))),
+        }
+    return out

@@ -398,13 +398,18 @@ def _markdown(res: dict) -> str:
     return "\n".join(lines)
 
 
-def run_throughput(out_dir: Path, quick: bool = False, device: str = "cpu", config: ThroughputConfig | None = None) -> dict:
+def report(res: dict) -> str:
+    """The markdown table of E2 (ours beside the paper's Table I)."""
+    return _markdown(res)
+
+
+def run_throughput(out_dir: Path, quick: bool = False, device: str = "auto", config: ThroughputConfig | None = None) -> dict:
     """Run E2 and write ``throughput.json`` and ``throughput.md`` into ``out_dir``.
 
     Args:
         out_dir: output folder (created).
         quick: the < 1 min smoke version (:meth:`ThroughputConfig.quick`).
-        device: "cpu" or "cuda"/"cuda:N" (every method runs there).
+        device: "auto" (CUDA when present), "cpu" or "cuda"/"cuda:N" (every method runs there).
         config: explicit knobs (override ``quick``).
 
     Returns:
