@@ -1,53 +1,182 @@
-"""`splatplan plan`: RRT (+ refinement) between two points."""
+"""`splatplan plan`: batched RRT (+ refinement) for a robot, from a start to a goal configuration.
+
+Exit codes: 0 path found (written to ``--out``), 1 no path within the budget (one line on stderr;
+an existing ``--out`` is kept unless ``--force``), 2 bad input.
+
+Every length the user does not set (stride, edge resolution, goal tolerance, sampling box) is
+derived from the scene and the robot; the values used are printed on one line. Configuration
+vectors are comma lists of the robot's dofs and may start with a minus sign
+(``--start -0.3,0,0.06``).
+"""
 
 from __future__ import annotations
 
-import json
+import re
+import sys
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import SplatplanError
-from ._common import (  # noqa: F401
-    ROBOT_HELP, _load, _out_dir, add_config_args, add_device_arg, atomic_path, config_from_args, load_poses, parse_robot, parse_vec3, write_json,
-)
+from ._common import _load, add_config_args, add_device_arg, config_from_args, write_json
+
+#: a command-line token that is a number or a comma list of numbers, possibly negative: a value,
+#: not an option (argparse's own test accepts only a single plain negative number)
+_NUMBER_LIST = re.compile(r"^-\.?\d[\d.eE+\-]*(,[-+]?[\d.eE+\-]*)*$")
+
+_UP = {"x": (0, 1.0), "y": (1, 1.0), "z": (2, 1.0), "-x": (0, -1.0), "-y": (1, -1.0), "-z": (2, -1.0)}
+
+ROBOT_HELP = "sphere:R | ellipsoid:A,B,C (point robots, dofs x,y,z) | panda (7 joint angles, rad) | go2 (planar base x,y,yaw) | PATH.urdf (default sphere:0.015)"
+
+
+def allow_negative_values(parser) -> None:
+    """Let values such as ``-0.3,0,0.06`` follow an option (``--start -0.3,0,0.06``).
+
+    argparse classifies every token starting with '-' as an option unless it looks like a single
+    negative number; this parser treats comma lists of numbers as values too (it has no option
+    that looks like a number, so nothing is shadowed).
+    """
+    parser._negative_number_matcher = _NUMBER_LIST  # noqa: SLF001 - the documented hook is missing
+
+
+def parse_config(text: str, robot, what: str) -> np.ndarray:
+    """'a,b,c' -> (dof,) float64 configuration of ``robot`` (a one-line error otherwise)."""
+    names = ",".join(robot.joint_names)
+    try:
+        v = np.asarray([float(x) for x in str(text).split(",")], dtype=np.float64)
+    except ValueError:
+        raise SplatplanError(f"{what} {text!r}: expected {robot.dof} comma-separated numbers ({names}) for robot {robot.name}") from None
+    if v.shape != (robot.dof,):
+        raise SplatplanError(f"{what} {text!r}: robot {robot.name} has {robot.dof} dofs ({names}), got {v.size} number(s)")
+    if not np.all(np.isfinite(v)):
+        raise SplatplanError(f"{what} {text!r}: values must be finite")
+    return v
+
+
+def _robot_for(args):
+    """The robot named by --robot; a planar base is posed on the plane given by --up / --height."""
+    from ..robots import load_robot
+
+    robot = load_robot(args.robot)
+    if robot.name == "go2" and (args.up != "z" or args.height is not None):
+        axis, sign = _UP[args.up]
+        up = np.zeros(3)
+        up[axis] = sign
+        # world <- base: base z -> up, base x -> the next world axis (a right-handed frame)
+        x = np.zeros(3)
+        x[(axis + 1) % 3] = 1.0
+        y = np.cross(up, x)
+        pose = np.eye(4)
+        pose[:3, :3] = np.stack([x, y, up], axis=1)
+        stand = float(robot.info.get("standing_height_m", 0.0))
+        pose[:3, 3] = up * ((args.height or 0.0) * sign + stand)
+        robot = load_robot("go2", base_pose=pose)
+    return robot
 
 
 def cmd_plan(args) -> int:
-    from ..metric import CollisionChecker
-    from ..planners import plan
+    from ..metric import CollisionChecker, MetricConfig
+    from ..planners import RefineConfig, RRT, RRTConfig, plan, refine_path  # noqa: F401
 
-    start, goal = parse_vec3(args.start, "--start"), parse_vec3(args.goal, "--goal")
-    axes = parse_robot(args.robot)
-    if not np.allclose(axes, axes[0]):
-        raise SplatplanError("splatplan plan takes a sphere robot ('sphere:R'); use the Python API for ellipsoid links")
-    if not str(args.out).endswith(".json"):
+    out = Path(args.out)
+    if out.suffix != ".json":
         raise SplatplanError(f"--out {args.out}: expected a .json path")
+    if not out.parent.exists():
+        raise SplatplanError(f"output folder {out.parent} does not exist")
+    robot = _robot_for(args)
+    start = parse_config(args.start, robot, "--start")
+    goal = parse_config(args.goal, robot, "--goal")
+    rrt_cfg = config_from_args(args, RRTConfig, prefix="rrt_", time_limit_s=args.time_limit, seed=args.seed)
+    if args.box is not None:
+        lo, hi = (parse_config(b, robot, "--box") for b in args.box)
+        from dataclasses import replace
+
+        rrt_cfg = replace(rrt_cfg, box_lo=tuple(lo), box_hi=tuple(hi))
+    notes = []
+    if args.planar:
+        if robot.name == "go2":
+            notes.append("go2 moves in its base plane already")
+        elif robot.dof == 3 and robot.name.split(":")[0] in ("sphere", "ellipsoid"):
+            axis, _ = _UP[args.up]
+            h = start[axis] if args.height is None else float(args.height)
+            start[axis] = h
+            if goal[axis] != h:
+                notes.append(f"goal {'xyz'[axis]} set to the plane's {h:g}")
+            goal[axis] = h
+            from dataclasses import replace
+
+            frozen = tuple(sorted(set(rrt_cfg.frozen or ()) | {axis}))
+            rrt_cfg = replace(rrt_cfg, frozen=frozen)
+            if rrt_cfg.box_lo is not None and rrt_cfg.box_hi is not None:
+                lo, hi = list(rrt_cfg.box_lo), list(rrt_cfg.box_hi)
+                lo[axis] = hi[axis] = h
+                rrt_cfg = replace(rrt_cfg, box_lo=tuple(lo), box_hi=tuple(hi))
+        else:
+            raise SplatplanError(f"--planar is for point robots (sphere/ellipsoid) and go2, not {robot.name}")
+    rrt_cfg.validate()
+    ref_cfg = config_from_args(args, RefineConfig, prefix="refine_", seed=args.seed)
+    mcfg = config_from_args(args, MetricConfig).validate()
     scene = _load(args.scene)
-    checker = CollisionChecker(scene, n_sigma=args.n_sigma, device=args.device)
-    res = plan(checker, start, goal, radius=float(axes[0]), refine=args.refine, seed=args.seed)
-    out = {
+    checker = CollisionChecker(scene, device=args.device, config=mcfg)
+    settings = RRT(checker, rrt_cfg, robot=robot).settings(start, goal)
+    print(f"plan {robot.name} ({robot.dof} dofs, {robot.n_ellipsoids} ellipsoid(s)), n_sigma {mcfg.n_sigma:g}: {settings.summary()}")
+    for note in notes + settings.notes:
+        print(f"note: {note}", file=sys.stderr)
+    res = plan(checker, start, goal, robot=robot, refine=args.refine, seed=args.seed, rrt_config=rrt_cfg, refine_config=ref_cfg)
+    doc = {
         "success": bool(res.success),
+        "robot": robot.name,
+        "joint_names": list(robot.joint_names),
         "path": np.asarray(res.path).tolist(),
         "length": float(res.length) if np.isfinite(res.length) else None,  # null when no path
         "time_s": float(res.time_s),
         "n_nodes": int(res.n_nodes),
+        "n_iters": int(res.n_iters),
+        "refined": bool(res.refined),
+        "message": res.message,
+        "settings": res.info.get("settings"),
     }
-    write_json(args.out, out)
-    msg = f"path found: length {res.length:.4f}" if res.success else f"no path found ({res.message})"
-    print(f"{msg}; {res.n_nodes} nodes, {res.time_s:.3f} s -> {args.out}")
+    if not res.success:
+        kept = out.exists() and not args.force
+        if not kept:
+            write_json(out, doc)
+        tail = f"; kept the existing {out} (--force overwrites it)" if kept else f" -> {out}"
+        print(f"splatplan: {res.message}{tail}", file=sys.stderr)
+        return 1
+    write_json(out, doc)
+    print(f"path found: {len(res.path)} vertices, length {res.length:.4f}{' (refined)' if res.refined else ''}; "
+          f"{res.n_nodes:,} nodes, {res.time_s:.3f} s -> {out}")  # fmt: skip
     return 0
 
 
 def register(sub, eval_sub) -> None:
-    s = sub.add_parser("plan", help="RRT (+ refinement) from start to goal for a sphere robot")
+    from ..metric import MetricConfig
+    from ..planners import RefineConfig, RRTConfig
+
+    s = sub.add_parser(
+        "plan",
+        help="RRT (+ refinement) from a start to a goal configuration of a robot",
+        description="Batched RRT (+ zeroth-order refinement) in the robot's configuration space. Exit codes: 0 path found, "
+        "1 no path within the budget (an existing --out is kept unless --force), 2 bad input.",
+    )
+    allow_negative_values(s)
     s.add_argument("scene", metavar="SCENE")
-    s.add_argument("--start", required=True, help="X,Y,Z (scene frame)")
-    s.add_argument("--goal", required=True, help="X,Y,Z (scene frame)")
-    s.add_argument("--robot", default="sphere:0.015", help="sphere:R (default sphere:0.015)")
-    s.add_argument("--n-sigma", type=float, default=1.0)
+    s.add_argument("--robot", default="sphere:0.015", help=ROBOT_HELP)
+    s.add_argument("--start", required=True, help="start configuration, comma list of the robot's dofs (X,Y,Z for point robots; a leading minus is fine)")
+    s.add_argument("--goal", required=True, help="goal configuration, comma list of the robot's dofs")
+    s.add_argument("--box", nargs=2, metavar=("LO", "HI"), help="sampling box corners, comma lists of the robot's dofs (default: "
+                   "robust scene bounds padded by the robot size, joint limits for joints; lo == hi freezes a coordinate)")  # fmt: skip
+    s.add_argument("--up", choices=sorted(_UP), default="z", help="the scene's up axis (default z; real captures are often -y)")
+    s.add_argument("--planar", action="store_true", help="plan at a fixed height along --up: point robots keep that coordinate at "
+                   "--height (default the start's); go2 stands on the plane at --height")  # fmt: skip
+    s.add_argument("--height", type=float, default=None, help="plane coordinate along --up for --planar / go2 (scene units)")
+    s.add_argument("--time-limit", type=float, default=None, help="RRT wall-clock budget in seconds (default 10; same as --rrt-time-limit-s)")
     s.add_argument("--refine", action="store_true", help="zeroth-order refinement of the RRT path")
     s.add_argument("--seed", type=int, default=0)
+    s.add_argument("--force", action="store_true", help="overwrite an existing --out even when no path is found")
     add_device_arg(s)
     s.add_argument("--out", required=True, help="PATH.json")
+    add_config_args(s, MetricConfig, group="metric options (MetricConfig)")
+    add_config_args(s, RRTConfig, prefix="rrt_", skip=("seed",), group="RRT options (RRTConfig; lengths in scene units of robot motion)")
+    add_config_args(s, RefineConfig, prefix="refine_", skip=("seed",), group="refinement options (RefineConfig, with --refine)")
     s.set_defaults(func=cmd_plan)

@@ -12,6 +12,12 @@ robot link ellipsoids in the scene's world frame:
 rollout of horizon T contains x_1 .. x_T (not x_0). All integrators are explicit (forward) Euler
 on numpy float64; they are cheap next to the collision query that follows them.
 ``link_poses`` accepts any leading batch shape (the RRT calls it on (N, n_edge_pts, dx)).
+
+Each model can be built from a :class:`~splatplan.robots.Robot` whose configuration is the state
+(``HolonomicPoint(load_robot("sphere:0.015"))``, ``PlanarBase(load_robot("go2"))`` over (x, y, yaw),
+``JointIntegrator(load_robot("panda"))`` over joint angles); its ``robot`` attribute then lets the
+collision cost use the checker's ``query_robot`` (FK on the device) and ``link_poses`` is
+``robot.ellipsoids``. Without a robot the models keep their own simple geometry.
 """
 
 from __future__ import annotations
@@ -62,8 +68,17 @@ class HolonomicPoint:
 
     #: robot semi-axes (a, b, c) in scene units, world-aligned; a sphere of radius r is (r, r, r)
     semi_axes: tuple[float, float, float] = (0.015, 0.015, 0.015)
+    #: a point Robot (``sphere:R`` / ``ellipsoid:A,B,C``) whose configuration is its centre; when
+    #: given, its ellipsoids replace ``semi_axes``
+    robot: object = None
     state_dim: int = field(default=3, init=False)
     control_dim: int = field(default=3, init=False)
+
+    def __post_init__(self) -> None:
+        if self.robot is None and hasattr(self.semi_axes, "ellipsoids"):  # HolonomicPoint(robot)
+            self.robot, self.semi_axes = self.semi_axes, (0.015, 0.015, 0.015)
+        if self.robot is not None and int(self.robot.dof) != 3:
+            raise SplatplanError(f"HolonomicPoint needs a point robot with 3 dof (x, y, z), {self.robot.name} has {self.robot.dof}")
 
     def rollout(self, x0: np.ndarray, controls: np.ndarray, dt: float) -> np.ndarray:
         x0, u = _check_rollout_args(x0, controls, 3, 3)
@@ -71,6 +86,8 @@ class HolonomicPoint:
 
     def link_poses(self, states: np.ndarray):
         s = np.asarray(states, dtype=np.float64)
+        if self.robot is not None:
+            return self.robot.ellipsoids(s)
         return s[..., None, :3], None, np.asarray(self.semi_axes, dtype=np.float64).reshape(1, 3)
 
 
@@ -100,8 +117,15 @@ class PlanarBase:
     relative to the base origin at height ``height``) and semi-axes ``semi_axes[l]`` along the body
     axes, so its world orientation is the yaw rotation. The default is one quadruped-like body
     ellipsoid (long along x) sized for the normalised built-in scenes.
+
+    ``PlanarBase(robot)`` with a planar-base :class:`~splatplan.robots.Robot` (e.g. ``go2``, whose
+    configuration is (x, y, yaw)) integrates the same body-frame commands and takes every body and
+    leg ellipsoid from ``robot.ellipsoids`` (the robot fixes the height); ``velocity_limits`` of
+    the robot clip the commands.
     """
 
+    #: a planar-base Robot over (x, y, yaw) (e.g. go2); None = the ellipsoids below
+    robot: object = None
     #: height z of the base origin in the world frame (scene units)
     height: float = 0.06
     #: (L, 3) link centres in the body frame (x forward, y left, z up), scene units
@@ -112,6 +136,10 @@ class PlanarBase:
     control_dim: int = field(default=3, init=False)
 
     def __post_init__(self) -> None:
+        if isinstance(self.robot, (int, float)):  # PlanarBase(0.06): the height, positionally as before
+            self.robot, self.height = None, float(self.robot)
+        if self.robot is not None and int(self.robot.dof) != 3:
+            raise SplatplanError(f"PlanarBase needs a planar-base robot with 3 dof (x, y, yaw), {self.robot.name} has {self.robot.dof}")
         self.offsets = np.asarray(self.offsets, dtype=np.float64).reshape(-1, 3)
         self.semi_axes = np.asarray(self.semi_axes, dtype=np.float64).reshape(-1, 3)
         if self.offsets.shape != self.semi_axes.shape:
@@ -119,6 +147,9 @@ class PlanarBase:
 
     def rollout(self, x0: np.ndarray, controls: np.ndarray, dt: float) -> np.ndarray:
         x0, u = _check_rollout_args(x0, controls, 3, 3)
+        if self.robot is not None:
+            vmax = np.asarray(self.robot.velocity_limits, dtype=np.float64).reshape(3)
+            u = np.clip(u, -vmax, vmax)
         k, t_len, _ = u.shape
         out = np.empty((k, t_len, 3))
         x = np.broadcast_to(x0, (k, 3)).copy()
@@ -133,6 +164,8 @@ class PlanarBase:
 
     def link_poses(self, states: np.ndarray):
         s = np.asarray(states, dtype=np.float64)
+        if self.robot is not None:
+            return self.robot.ellipsoids(s)
         yaw = s[..., 2]
         c, sn = np.cos(yaw)[..., None], np.sin(yaw)[..., None]  # (..., 1)
         ox, oy, oz = self.offsets[:, 0], self.offsets[:, 1], self.offsets[:, 2]  # (L,)
@@ -144,37 +177,50 @@ class PlanarBase:
         return centers, quats, self.semi_axes
 
 
-@dataclass
 class JointIntegrator:
-    """A joint-space single integrator: state q (n joints, rad or m), control qdot.
+    """A joint-space single integrator: state q (n joints, rad or m), control qdot (rad/s or m/s).
 
-    ``q_{t+1} = clip(q_t + qdot_t dt, q_min, q_max)`` (joint limits enforced by saturation).
-    Link ellipsoids come from a user forward-kinematics callable
-    ``fk(q (..., n)) -> (centers (..., L, 3), quats (..., L, 4) wxyz | None)`` in the scene's world
-    frame, with fixed per-link ``semi_axes`` (L, 3).
+    ``q_{t+1} = clip(q_t + clip(qdot_t, -v_max, v_max) dt, q_min, q_max)`` (joint position limits
+    by saturation, velocity limits by clipping the command).
+
+    ``JointIntegrator(robot)``: limits from ``robot.joint_limits`` / ``robot.velocity_limits`` and
+    link ellipsoids from ``robot.ellipsoids`` (the collision cost then runs FK on the checker's
+    device through ``query_robot``). Legacy form: ``JointIntegrator(fk, q_min, q_max, semi_axes)``
+    with a forward-kinematics callable ``fk(q (..., n)) -> (centers (..., L, 3), quats (..., L, 4)
+    wxyz | None)`` in the scene's world frame and fixed per-link ``semi_axes`` (L, 3).
     """
 
-    #: forward kinematics: q (..., n) -> (centers (..., L, 3), quats (..., L, 4) wxyz or None)
-    fk: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray | None]]
-    #: lower joint limits (n,)
-    q_min: np.ndarray
-    #: upper joint limits (n,)
-    q_max: np.ndarray
-    #: (L, 3) link semi-axes in each link's frame, scene units
-    semi_axes: np.ndarray
-    state_dim: int = field(default=0, init=False)
-    control_dim: int = field(default=0, init=False)
-
-    def __post_init__(self) -> None:
-        self.q_min = np.asarray(self.q_min, dtype=np.float64).reshape(-1)
-        self.q_max = np.asarray(self.q_max, dtype=np.float64).reshape(-1)
-        self.semi_axes = np.asarray(self.semi_axes, dtype=np.float64).reshape(-1, 3)
+    def __init__(self, robot_or_fk, q_min=None, q_max=None, semi_axes=None, velocity_limits=None) -> None:
+        if hasattr(robot_or_fk, "ellipsoids") and hasattr(robot_or_fk, "dof"):
+            self.robot = robot_or_fk
+            self.fk = None
+            lim = np.asarray(self.robot.joint_limits, dtype=np.float64).reshape(-1, 2)
+            q_min = lim[:, 0] if q_min is None else q_min
+            q_max = lim[:, 1] if q_max is None else q_max
+            velocity_limits = self.robot.velocity_limits if velocity_limits is None else velocity_limits
+            self.semi_axes = np.asarray(self.robot.semi_axes, dtype=np.float64)
+        else:
+            if q_min is None or q_max is None or semi_axes is None:
+                raise SplatplanError("JointIntegrator(fk, q_min, q_max, semi_axes): give all four, or a Robot")
+            self.robot = None
+            self.fk = robot_or_fk
+            self.semi_axes = np.asarray(semi_axes, dtype=np.float64).reshape(-1, 3)
+        self.q_min = np.asarray(q_min, dtype=np.float64).reshape(-1)
+        self.q_max = np.asarray(q_max, dtype=np.float64).reshape(-1)
         if self.q_min.shape != self.q_max.shape or np.any(self.q_min > self.q_max):
             raise SplatplanError("JointIntegrator: q_min and q_max must have the same shape and q_min <= q_max")
-        self.state_dim = self.control_dim = int(self.q_min.size)
+        self.v_max = None if velocity_limits is None else np.broadcast_to(np.asarray(velocity_limits, dtype=np.float64), self.q_min.shape).copy()
+        #: dimension of the state (joints)
+        self.state_dim = int(self.q_min.size)
+        #: dimension of the control (joint velocities)
+        self.control_dim = self.state_dim
 
     def rollout(self, x0: np.ndarray, controls: np.ndarray, dt: float) -> np.ndarray:
         q0, u = _check_rollout_args(x0, controls, self.state_dim, self.control_dim)
+        if self.v_max is not None:
+            u = np.clip(u, -self.v_max, self.v_max)
+        if np.all(np.isinf(self.q_min)) and np.all(np.isinf(self.q_max)):
+            return q0 + np.cumsum(u * dt, axis=1)
         k, t_len, _ = u.shape
         out = np.empty((k, t_len, self.state_dim))
         q = np.broadcast_to(q0, (k, self.state_dim)).copy()
@@ -184,7 +230,10 @@ class JointIntegrator:
         return out
 
     def link_poses(self, states: np.ndarray):
-        centers, quats = self.fk(np.asarray(states, dtype=np.float64))
+        s = np.asarray(states, dtype=np.float64)
+        if self.robot is not None:
+            return self.robot.ellipsoids(s)
+        centers, quats = self.fk(s)
         return np.asarray(centers, dtype=np.float64), None if quats is None else np.asarray(quats, dtype=np.float64), self.semi_axes
 
 

@@ -6,10 +6,14 @@ One MPC step (:meth:`MPPI.step`) runs ``n_iters`` iterations of:
    (sample 0 is the unperturbed nominal), clipped to the control bounds;
 2. controls ``u_k = B V_k`` (uniform clamped cubic B-spline basis B (T, n_knots)), so the clipped
    knots keep every control inside the bounds (convex hull property);
-3. roll out ``x_k = f(x, u_k)`` (K, T, dx) and take the robot's link ellipsoids (K, T, L);
-4. cost ``C_k = w_col sum_{t,l} cost_{ktl} + w_hit sum_{t,l} [in collision]_{ktl}
-   + w_task task(x_k) + w_ctrl sum_t |u_kt|^2 dt + w_term terminal(x_kT)`` where ``cost`` and
-   ``in collision`` come from one ``checker.query`` on the (K, T, L) batch;
+3. roll out ``x_k = f(x, u_k)`` (K, T, dx);
+4. cost ``C_k = sum_c cost_c(rollout_k)`` over a list of composable cost objects
+   (:mod:`splatplan.planners.costs`). Built from the config and the ``task_cost`` /
+   ``terminal_cost`` callables when no list is given:
+   ``w_col sum_{t,l} cost_{ktl} + w_hit sum_{t,l} [in collision]_{ktl}`` (:class:`CollisionCost`:
+   one query on the (K, T, dof) batch over every robot ellipsoid)
+   ``+ w_task task(x_k)`` (:class:`StateCost`) ``+ w_ctrl sum_t |u_kt|^2 dt``
+   (:class:`ControlEffortCost`) ``+ w_term terminal(x_kT)`` (:class:`TerminalCost`);
 5. weights ``w_k = exp(-(C_k - min C) / lambda) / sum_l exp(-(C_l - min C) / lambda)``;
 6. ``U_bar <- sum_k w_k V_k``.
 
@@ -29,6 +33,7 @@ import numpy as np
 
 from ..errors import SplatplanError
 from .bspline import UniformBSpline
+from .costs import CollisionCost, ControlEffortCost, Cost, Rollout, StateCost, TerminalCost, _geometry, reduce_time, total_cost
 from .dynamics import Dynamics
 
 
@@ -133,13 +138,7 @@ def _per_dim(v, du: int, name: str) -> np.ndarray | None:
     return a.copy()
 
 
-def _reduce_time(c: np.ndarray, k: int, what: str) -> np.ndarray:
-    c = np.asarray(c, dtype=np.float64)
-    if c.shape == (k,):
-        return c
-    if c.ndim >= 2 and c.shape[0] == k:
-        return c.reshape(k, -1).sum(axis=1)
-    raise SplatplanError(f"{what} must return (K,) or (K, T) costs for K = {k}, got shape {c.shape}")
+_reduce_time = reduce_time  # backward-compatible name
 
 
 class MPPI:
@@ -150,8 +149,14 @@ class MPPI:
         checker: a :class:`~splatplan.metric.CollisionChecker` (any backend); None disables the
             collision terms.
         config: :class:`MPPIConfig`.
-        task_cost: states (K, T, dx) -> (K,) or (K, T) (summed over time) geometric task cost.
-        terminal_cost: terminal states (K, dx) -> (K,) cost (e.g. the image cost), or None.
+        task_cost: states (K, T, dx) -> (K,) or (K, T) (summed over time) geometric task cost
+            (wrapped in a :class:`StateCost` of weight ``w_task``).
+        terminal_cost: terminal states (K, dx) -> (K,) cost (e.g. the image cost), or None
+            (wrapped in a :class:`TerminalCost` of weight ``w_terminal``).
+        costs: the cost objects to sum (weights inside each); None = built from the config:
+            :class:`CollisionCost` (``w_collision``, ``w_hit``, ``collision_s2_cap``; when a checker
+            is given), :class:`ControlEffortCost` (``w_control``). ``task_cost`` /
+            ``terminal_cost`` are appended in both cases.
     """
 
     def __init__(
@@ -161,14 +166,29 @@ class MPPI:
         config: MPPIConfig | None = None,
         task_cost: Callable[[np.ndarray], np.ndarray] | None = None,
         terminal_cost: Callable[[np.ndarray], np.ndarray] | None = None,
+        costs: list[Cost] | None = None,
     ) -> None:
         self.dynamics = dynamics
         self.config = (config or MPPIConfig()).validate()
-        cap = self.config.collision_s2_cap
+        cfg = self.config
+        cap = cfg.collision_s2_cap
         self.checker = checker.with_config(s2_cap=cap) if checker is not None and cap is not None else checker
         self.task_cost = task_cost
         self.terminal_cost = terminal_cost
-        cfg = self.config
+        self.geometry = _geometry(dynamics)
+        if costs is None:
+            costs = []
+            if checker is not None and (cfg.w_collision > 0 or cfg.w_hit > 0):
+                costs.append(CollisionCost(checker, self.geometry, weight=cfg.w_collision, hit_weight=cfg.w_hit, s2_cap=cap))
+            costs.append(ControlEffortCost(cfg.w_control))
+        else:
+            costs = list(costs)
+        if task_cost is not None:
+            costs.append(StateCost(task_cost, cfg.w_task))
+        if terminal_cost is not None:
+            costs.append(TerminalCost(terminal_cost, cfg.w_terminal))
+        #: the cost objects summed by :meth:`evaluate`
+        self.costs = costs
         du = int(dynamics.control_dim)
         self.du = du
         self.sigma = _per_dim(cfg.noise_sigma, du, "noise_sigma")
@@ -203,23 +223,11 @@ class MPPI:
             (fields shaped (K, T, L)) or None without a checker.
         """
         cfg = self.config
-        k = knots.shape[0]
         controls = self.spline(knots)  # (K, T, du)
         states = self.dynamics.rollout(x, controls, cfg.dt)  # (K, T, dx)
-        terms: dict[str, np.ndarray] = {}
-        res = None
-        if self.checker is not None and (cfg.w_collision > 0 or cfg.w_hit > 0):
-            centers, quats, axes = self.dynamics.link_poses(states)  # (K, T, L, 3), (K, T, L, 4)|None, (L, 3)
-            res = self.checker.query(centers, quats, axes)  # fields (K, T, L)
-            terms["collision"] = cfg.w_collision * res.cost.reshape(k, -1).astype(np.float64).sum(axis=1)
-            terms["hit"] = cfg.w_hit * res.in_collision.reshape(k, -1).sum(axis=1).astype(np.float64)
-        if self.task_cost is not None:
-            terms["task"] = cfg.w_task * _reduce_time(self.task_cost(states), k, "task_cost")
-        terms["control"] = cfg.w_control * np.sum(controls**2, axis=(1, 2)) * cfg.dt
-        if self.terminal_cost is not None:
-            terms["terminal"] = cfg.w_terminal * _reduce_time(self.terminal_cost(states[:, -1]), k, "terminal_cost")
-        total = np.sum(list(terms.values()), axis=0)
-        return total, terms, states, controls, res
+        rollout = Rollout(states, controls, cfg.dt)
+        total, terms = total_cost(self.costs, rollout)
+        return total, terms, states, controls, rollout.cache.get("query")
 
     # ------------------------------------------------------------------ MPC step
     def step(self, x) -> tuple[np.ndarray, MPPIInfo]:
@@ -245,7 +253,7 @@ class MPPI:
         best = int(np.argmin(c))
         nom_total, _, nom_states, nom_controls, nom_res = self.evaluate(x, self.knots[None])
         if nom_res is None and self.checker is not None:  # collision terms off: still report the state
-            nom_res = self.checker.query(*self.dynamics.link_poses(nom_states))  # (1, T, L)
+            nom_res = self.geometry.query(self.checker, nom_states)  # (1, T, L)
         n_links = 1 if nom_res is None else nom_res.min_s2.shape[-1]
         info = MPPIInfo(
             costs=total,

@@ -1,0 +1,305 @@
+"""Composable MPPI cost terms over batches of rollouts (paper Sec. II-D, Eq. 12).
+
+Every cost is a small object; calling it on a :class:`Rollout` of K sampled trajectories of
+horizon T returns (K,) float64 costs, **its weight already applied**. :class:`~splatplan.planners.MPPI`
+sums a list of them:
+
+    costs = [
+        CollisionCost(checker, robot, weight=1.0, hit_weight=10.0),   # every link ellipsoid, one query
+        GoalPoseCost(robot, position=(0.5, 0.2, 0.3), quat=(0, 1, 0, 0), link="panda_hand"),
+        ControlEffortCost(weight=0.01),
+        JointLimitCost(robot, weight=100.0),
+        TerminalCost(image_cost, weight=1.0),                          # states at T -> (K,)
+    ]
+    mppi = MPPI(JointIntegrator(robot), checker, config, costs=costs)
+
+A cost may report several named parts through ``terms(rollout) -> {name: (K,)}`` (the collision
+cost reports "collision" and "hit"); ``__call__`` is their sum. Rollout arrays: states (K, T, dx)
+after each control step, controls (K, T, du), ``dt`` seconds; quantities derived from the states
+that several costs need (the collision query, link poses) are computed once and cached on the
+rollout.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+from ..errors import SplatplanError
+from .robot_links import LinkGeometry
+
+
+@dataclass
+class Rollout:
+    """K sampled trajectories of horizon T.
+
+    Attributes:
+        states: (K, T, dx) states after each control step (x_1 .. x_T).
+        controls: (K, T, du) controls.
+        dt: control period (s).
+        cache: per-rollout results shared between costs (e.g. "query": the collision QueryResult
+            (K, T, L), "link_poses": (K, T, L_links, 4, 4)).
+    """
+
+    states: np.ndarray
+    controls: np.ndarray
+    dt: float
+    cache: dict = field(default_factory=dict)
+
+    @property
+    def k(self) -> int:
+        return int(self.states.shape[0])
+
+
+def reduce_time(c, k: int, what: str) -> np.ndarray:
+    """(K,) or (K, T, ...) costs -> (K,) (summed over everything but K)."""
+    c = np.asarray(c, dtype=np.float64)
+    if c.shape == (k,):
+        return c
+    if c.ndim >= 2 and c.shape[0] == k:
+        return c.reshape(k, -1).sum(axis=1)
+    raise SplatplanError(f"{what} must return (K,) or (K, T) costs for K = {k}, got shape {c.shape}")
+
+
+def _geometry(source) -> LinkGeometry:
+    """A LinkGeometry from a Robot, a dynamics model (its ``robot`` or ``link_poses``) or a geometry."""
+    if isinstance(source, LinkGeometry):
+        return source
+    robot = getattr(source, "robot", None)
+    if robot is not None:
+        return LinkGeometry(robot=robot)
+    if hasattr(source, "ellipsoids") and hasattr(source, "dof"):  # a Robot
+        return LinkGeometry(robot=source)
+    if hasattr(source, "link_poses"):
+        return LinkGeometry(link_poses=source.link_poses)
+    if callable(source):
+        return LinkGeometry(link_poses=source)
+    raise SplatplanError(f"cannot get robot geometry from {type(source).__name__}: give a Robot or a dynamics model")
+
+
+class Cost:
+    """Base class: ``terms(rollout) -> {name: (K,)}``, ``__call__(rollout) -> (K,)`` (weighted)."""
+
+    name = "cost"
+
+    def terms(self, rollout: Rollout) -> dict[str, np.ndarray]:
+        return {self.name: self(rollout)}
+
+    def __call__(self, rollout: Rollout) -> np.ndarray:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+
+class CollisionCost(Cost):
+    """CollisionSplatting cost over every robot ellipsoid (paper Eq. 12).
+
+    ``weight * sum_{t, e} cost_{kte} + hit_weight * #{(t, e): ellipsoid e in collision at t}``, from
+    **one** ``query_robot`` (or ``query`` after host FK) on the whole (K, T, dof) batch.
+
+    Args:
+        checker: a :class:`~splatplan.metric.CollisionChecker`.
+        robot: a Robot, a dynamics model, or a :class:`LinkGeometry`.
+        weight: weight of the summed collision cost.
+        hit_weight: extra cost per (time step, ellipsoid) in collision.
+        s2_cap: neighbourhood of the query (the checker's ``s2_cap``): beyond it a splat's cost
+            ``d_max exp(-gamma (s2~ - 1))`` is below ``exp(-gamma (cap - 1))``; a smaller cap is a
+            much smaller search radius. None = the checker's own.
+        self_collision_weight: cost per time step with a self-collision (``robot.self_collision``);
+            0 = off.
+    """
+
+    name = "collision"
+
+    def __init__(self, checker, robot, weight: float = 1.0, hit_weight: float = 10.0, s2_cap: float | None = 2.0, self_collision_weight: float = 0.0) -> None:
+        self.checker = checker.with_config(s2_cap=s2_cap) if s2_cap is not None else checker
+        self.geometry = _geometry(robot)
+        self.weight = float(weight)
+        self.hit_weight = float(hit_weight)
+        self.self_collision_weight = float(self_collision_weight)
+
+    def query(self, rollout: Rollout):
+        """The (K, T, L) QueryResult of the rollout (computed once, cached)."""
+        if "query" not in rollout.cache:
+            rollout.cache["query"] = self.geometry.query(self.checker, rollout.states)
+        return rollout.cache["query"]
+
+    def terms(self, rollout: Rollout) -> dict[str, np.ndarray]:
+        k = rollout.k
+        res = self.query(rollout)
+        out = {
+            "collision": self.weight * np.asarray(res.cost, dtype=np.float64).reshape(k, -1).sum(axis=1),
+            "hit": self.hit_weight * np.asarray(res.in_collision).reshape(k, -1).sum(axis=1).astype(np.float64),
+        }
+        robot = self.geometry.robot
+        if self.self_collision_weight > 0 and robot is not None and hasattr(robot, "self_collision"):
+            out["self_collision"] = self.self_collision_weight * np.asarray(robot.self_collision(rollout.states)).reshape(k, -1).sum(axis=1).astype(np.float64)
+        return out
+
+    def __call__(self, rollout: Rollout) -> np.ndarray:
+        return np.sum(list(self.terms(rollout).values()), axis=0)
+
+
+def _rotation_angle(r: np.ndarray, r_goal: np.ndarray) -> np.ndarray:
+    """Geodesic angle (rad) between rotations r (..., 3, 3) and r_goal (3, 3)."""
+    tr = np.einsum("...ij,ij->...", r, r_goal)  # trace(r_goal^T r)
+    return np.arccos(np.clip(0.5 * (tr - 1.0), -1.0, 1.0))
+
+
+class GoalPoseCost(Cost):
+    """Distance of the end effector (a named link) or of the base / point robot to a goal pose.
+
+    Per time step ``position_weight * |p_t - p_goal| + orientation_weight * angle(R_t, R_goal)``
+    (metres / radians), summed over the horizon; the last step is weighted by
+    ``1 + terminal_factor``.
+
+    Args:
+        robot: a Robot (with ``link``: the link's pose from ``robot.link_poses``); None = the
+            position is read from the state itself (``state_dims``, e.g. (0, 1) for a base's x, y
+            or (0, 1, 2) for a point robot).
+        position: (3,) goal position (world frame) or (len(state_dims),).
+        quat: (4,) goal orientation, wxyz, world <- link; None = position only.
+        link: link name (default: the robot's last link, e.g. the Panda's hand).
+        state_dims: state coordinates that are the position when ``robot`` is None.
+        position_weight, orientation_weight: weights of the two parts.
+        terminal_factor: extra weight on the final step.
+    """
+
+    name = "goal"
+
+    def __init__(
+        self,
+        robot=None,
+        position=(0.0, 0.0, 0.0),
+        quat=None,
+        link: str | None = None,
+        state_dims: tuple[int, ...] = (0, 1, 2),
+        position_weight: float = 1.0,
+        orientation_weight: float = 0.2,
+        terminal_factor: float = 0.0,
+    ) -> None:
+        self.robot = robot
+        self.position = np.asarray(position, dtype=np.float64).reshape(-1)
+        self.state_dims = tuple(int(i) for i in state_dims)
+        self.position_weight = float(position_weight)
+        self.orientation_weight = float(orientation_weight)
+        self.terminal_factor = float(terminal_factor)
+        self.r_goal = None
+        if quat is not None:
+            from ..scenes.splats import quat_to_rotmat
+
+            q = np.asarray(quat, dtype=np.float64).reshape(4)
+            if not np.isfinite(q).all() or np.linalg.norm(q) < 1e-8:
+                raise SplatplanError(f"GoalPoseCost: the goal quaternion must be finite and non-zero (wxyz), got {quat}")
+            self.r_goal = quat_to_rotmat(q / np.linalg.norm(q))
+        self.link_index = None
+        if robot is not None:
+            names = list(robot.link_names)
+            name = link if link is not None else names[-1]
+            if name not in names:
+                raise SplatplanError(f"GoalPoseCost: robot {robot.name} has no link {name!r}; links: {', '.join(names)}")
+            self.link_index = names.index(name)
+            if self.position.shape != (3,):
+                raise SplatplanError(f"GoalPoseCost: the goal position must be (3,) for a link, got {self.position.shape}")
+        elif self.position.shape != (len(self.state_dims),):
+            raise SplatplanError(f"GoalPoseCost: the goal has {self.position.size} coordinates, state_dims has {len(self.state_dims)}")
+        if self.r_goal is not None and robot is None:
+            raise SplatplanError("GoalPoseCost: an orientation goal needs a robot (link poses)")
+
+    def pose(self, rollout: Rollout) -> tuple[np.ndarray, np.ndarray | None]:
+        """Positions (K, T, 3 or len(state_dims)) and rotations (K, T, 3, 3) | None."""
+        if self.robot is None:
+            return rollout.states[..., list(self.state_dims)], None
+        key = "link_poses"
+        if key not in rollout.cache:
+            rollout.cache[key] = np.asarray(self.robot.link_poses(rollout.states))  # (K, T, L, 4, 4)
+        t = rollout.cache[key][..., self.link_index, :, :]
+        return t[..., :3, 3], t[..., :3, :3]
+
+    def per_step(self, rollout: Rollout) -> np.ndarray:
+        """(K, T) weighted cost of every step (before the time sum)."""
+        p, r = self.pose(rollout)
+        c = self.position_weight * np.linalg.norm(p - self.position, axis=-1)
+        if self.r_goal is not None and self.orientation_weight > 0:
+            c = c + self.orientation_weight * _rotation_angle(r, self.r_goal)
+        return c
+
+    def __call__(self, rollout: Rollout) -> np.ndarray:
+        c = self.per_step(rollout)
+        return c.sum(axis=1) + self.terminal_factor * c[:, -1]
+
+
+class ControlEffortCost(Cost):
+    """``weight * sum_t |u_t|^2 dt`` (controls in the dynamics' units)."""
+
+    name = "control"
+
+    def __init__(self, weight: float = 0.01) -> None:
+        self.weight = float(weight)
+
+    def __call__(self, rollout: Rollout) -> np.ndarray:
+        return self.weight * np.sum(rollout.controls**2, axis=(1, 2)) * rollout.dt
+
+
+class JointLimitCost(Cost):
+    """Penalty for states near or beyond joint limits: ``weight * sum_{t, j} (max(0, lo_j + m - q) +
+    max(0, q - hi_j + m))^2`` with margin m (rad or m), over joints with finite limits."""
+
+    name = "joint_limits"
+
+    def __init__(self, robot=None, weight: float = 100.0, margin: float = 0.0, lower=None, upper=None) -> None:
+        if robot is not None:
+            lim = np.asarray(robot.joint_limits, dtype=np.float64)
+            lower, upper = lim[:, 0], lim[:, 1]
+        if lower is None or upper is None:
+            raise SplatplanError("JointLimitCost needs a robot or lower and upper limits")
+        self.lower = np.asarray(lower, dtype=np.float64).reshape(-1)
+        self.upper = np.asarray(upper, dtype=np.float64).reshape(-1)
+        self.weight = float(weight)
+        self.margin = float(margin)
+
+    def __call__(self, rollout: Rollout) -> np.ndarray:
+        q = rollout.states[..., : self.lower.size]
+        lo = np.where(np.isfinite(self.lower), self.lower + self.margin, -np.inf)
+        hi = np.where(np.isfinite(self.upper), self.upper - self.margin, np.inf)
+        v = np.maximum(0.0, lo - q) + np.maximum(0.0, q - hi)  # (K, T, n)
+        return self.weight * np.sum(v**2, axis=(1, 2))
+
+
+class StateCost(Cost):
+    """Wraps a callable on the whole state trajectory: states (K, T, dx) -> (K,) or (K, T) (summed)."""
+
+    name = "task"
+
+    def __init__(self, fn: Callable[[np.ndarray], np.ndarray], weight: float = 1.0, name: str = "task") -> None:
+        self.fn = fn
+        self.weight = float(weight)
+        self.name = name
+
+    def __call__(self, rollout: Rollout) -> np.ndarray:
+        return self.weight * reduce_time(self.fn(rollout.states), rollout.k, f"{self.name}_cost")
+
+
+class TerminalCost(Cost):
+    """Wraps a callable on the terminal states: (K, dx) -> (K,) (e.g. the image cost)."""
+
+    name = "terminal"
+
+    def __init__(self, fn: Callable[[np.ndarray], np.ndarray], weight: float = 1.0, name: str = "terminal") -> None:
+        self.fn = fn
+        self.weight = float(weight)
+        self.name = name
+
+    def __call__(self, rollout: Rollout) -> np.ndarray:
+        return self.weight * reduce_time(self.fn(rollout.states[:, -1]), rollout.k, f"{self.name}_cost")
+
+
+def total_cost(costs: list[Cost], rollout: Rollout) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """Sum of a list of costs on one rollout batch: total (K,), {term name: (K,)}."""
+    terms: dict[str, np.ndarray] = {}
+    for c in costs:
+        for name, v in c.terms(rollout).items():
+            v = np.asarray(v, dtype=np.float64)
+            terms[name] = terms[name] + v if name in terms else v
+    total = np.sum(list(terms.values()), axis=0) if terms else np.zeros(rollout.k)
+    return total, terms
