@@ -3,12 +3,12 @@
 from __future__ import annotations
 
 import gzip
+import sys
 from pathlib import Path
 
 import numpy as np
 import plyfile
 import pytest
-import torch
 
 from splatplan.errors import SceneFormatError, SplatplanError
 from splatplan.scenes import load_scene, save_scene
@@ -226,18 +226,21 @@ def test_spz_empty_gzip(tmp_path):
 
 
 def test_checkpoint_garbage(tmp_path):
+    pytest.importorskip("torch")
     (tmp_path / "g.pt").write_bytes(b"this is not a torch file")
     with pytest.raises(SceneFormatError, match=r"g\.pt: cannot load as a torch checkpoint"):
         load_scene(tmp_path / "g.pt")
 
 
 def test_checkpoint_missing_keys(tmp_path):
+    torch = pytest.importorskip("torch")
     torch.save({"splats": {"means": torch.zeros(3, 3), "quats": torch.ones(3, 4)}}, tmp_path / "k.ckpt")
     with pytest.raises(SceneFormatError, match=r"k\.ckpt: gsplat checkpoint lacks key\(s\) scales, opacities, sh0"):
         load_scene(tmp_path / "k.ckpt")
 
 
 def test_checkpoint_wrong_shape(tmp_path):
+    torch = pytest.importorskip("torch")
     n = 4
     params = {"means": torch.zeros(n, 3), "quats": torch.ones(n, 4), "scales": torch.zeros(n, 5), "opacities": torch.zeros(n), "sh0": torch.zeros(n, 1, 3)}
     torch.save(params, tmp_path / "w.pt")
@@ -246,6 +249,7 @@ def test_checkpoint_wrong_shape(tmp_path):
 
 
 def test_checkpoint_not_a_dict(tmp_path):
+    torch = pytest.importorskip("torch")
     torch.save(torch.zeros(3), tmp_path / "t.pt")
     with pytest.raises(SceneFormatError, match="holds no splat parameters"):
         load_scene(tmp_path / "t.pt")
@@ -283,3 +287,32 @@ def test_save_scene_rejects_mixed_disks(tmp_path):
 def test_save_scene_missing_directory(tmp_path):
     with pytest.raises(SceneFormatError, match="cannot write here"):
         save_scene(random_splats(5), tmp_path / "no" / "such" / "dir" / "x.ply")
+
+
+def test_checkpoint_without_splats(tmp_path):
+    torch = pytest.importorskip("torch")
+    params = {"means": torch.zeros(0, 3), "quats": torch.zeros(0, 4), "scales": torch.zeros(0, 3), "opacities": torch.zeros(0), "sh0": torch.zeros(0, 1, 3), "shN": torch.zeros(0, 15, 3)}
+    torch.save({"step": 0, "splats": params}, tmp_path / "empty.pt")
+    with pytest.raises(SceneFormatError, match=r"empty\.pt: the checkpoint holds no splats \('means' has 0 rows\)"):
+        load_scene(tmp_path / "empty.pt")
+
+
+def test_checkpoint_without_torch_names_the_extra(tmp_path, monkeypatch):
+    (tmp_path / "c.pt").write_bytes(b"PK\x03\x04 whatever")
+    monkeypatch.setitem(sys.modules, "torch", None)  # import torch -> ImportError
+    with pytest.raises(SplatplanError, match=r"c\.pt: reading a gsplat checkpoint needs PyTorch, which is not installed: pip install 'splatplan\[baselines\]'"):
+        load_scene(tmp_path / "c.pt")
+
+
+def test_checkpoint_zip_bomb(tmp_path):
+    """A deflated zip entry claiming far more than it can hold is refused before torch sees it."""
+    import zipfile
+
+    with zipfile.ZipFile(tmp_path / "z.pt", "w", compression=zipfile.ZIP_DEFLATED) as z:
+        z.writestr("archive/data.pkl", b"\x80\x02}q\x00.")
+        with z.open("archive/data/0", "w") as f:
+            block = bytes(1 << 20)
+            for _ in range(32):
+                f.write(block)
+    with pytest.raises(SceneFormatError, match=r"z\.pt: checkpoint entry 'archive/data/0' claims 33,554,432 bytes from [\d,]+ compressed .*decompression bomb"):
+        load_scene(tmp_path / "z.pt")

@@ -5,7 +5,6 @@ from __future__ import annotations
 import numpy as np
 import plyfile
 import pytest
-import torch
 from .scene_encoders import SH_PARITY_YZ, eval_sh, pack_rotation_wxyz, random_splats, write_compressed_ply, write_splat, write_spz, write_spz_raw
 
 from splatplan.scenes import Splats, load_scene, save_scene
@@ -161,6 +160,7 @@ def test_spz_converts_rub_to_rdf(tmp_path):
 
 
 def _gsplat_params(s: Splats) -> dict:
+    torch = pytest.importorskip("torch")
     k = 0 if s.sh_rest is None else s.sh_rest.shape[1]
     o = np.clip(s.opacities.astype(np.float64), 1e-6, 1 - 1e-6)
     return {
@@ -175,6 +175,7 @@ def _gsplat_params(s: Splats) -> dict:
 
 @pytest.mark.parametrize("nested", [True, False])
 def test_gsplat_checkpoint_roundtrip(tmp_path, nested):
+    torch = pytest.importorskip("torch")
     s = random_splats(300, k_sh=8, seed=10)
     params = _gsplat_params(s)
     torch.save({"step": 29999, "splats": params} if nested else params, tmp_path / "ckpt_29999.pt")
@@ -184,6 +185,7 @@ def test_gsplat_checkpoint_roundtrip(tmp_path, nested):
 
 
 def test_gsplat_checkpoint_without_higher_sh(tmp_path):
+    torch = pytest.importorskip("torch")
     s = random_splats(50, seed=11)
     torch.save({"splats": _gsplat_params(s)}, tmp_path / "c.ckpt")
     back = load_scene(tmp_path / "c.ckpt", filter_floaters=False)
