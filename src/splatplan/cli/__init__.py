@@ -21,6 +21,7 @@ from ..errors import SplatplanError
 _MODULES = (
     "scenes",
     "check",
+    "robot",
     "plan",
     "demo",
     "eval",

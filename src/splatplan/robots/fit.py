@@ -17,9 +17,9 @@ Per link:
   Mahalanobis radius over its points (times 1 + 1e-9), so each point it must contain lies inside
   exactly, whatever the tolerance. ``tests/robots`` re-checks the shipped YAML files.
 
-The volume ratio of a link is (sum of its ellipsoids' volumes) / (sum of its collision elements'
-volumes; a mesh that is not watertight counts with its convex hull): 1 is a perfect fit,
-overlaps between elements make it slightly optimistic.
+The volume ratio of a link is (volume of the union of its ellipsoids; Monte Carlo when there are
+several) / (sum of its collision elements' volumes; a mesh that is not watertight counts with its
+convex hull): 1 is a perfect fit; overlaps between collision elements make it slightly optimistic.
 """
 
 from __future__ import annotations
@@ -161,6 +161,21 @@ def primitive_ellipsoid(g: Geom) -> tuple[np.ndarray, np.ndarray, np.ndarray, fl
     raise ValueError(g.kind)
 
 
+def union_volume(ells: list, n: int = 200_000, seed: int = 0) -> float:
+    """Volume of the union of ellipsoids [(c, R, s), ...]: exact for one (or disjoint bounding
+    boxes), otherwise Monte Carlo over their joint bounding box (n samples, fixed seed, ~0.5%)."""
+    if len(ells) == 1:
+        return float(ellipsoid_volume(ells[0][2]))
+    half = [np.abs(r) @ s for _, r, s in ells]  # axis-aligned half extents
+    lo = np.min([c - h for (c, _, _), h in zip(ells, half)], axis=0)
+    hi = np.max([c + h for (c, _, _), h in zip(ells, half)], axis=0)
+    pts = np.random.default_rng(seed).uniform(lo, hi, size=(n, 3))
+    inside = np.zeros(n, dtype=bool)
+    for c, r, s in ells:
+        inside |= mahalanobis(pts, c, r, s) <= 1.0
+    return float(inside.mean() * np.prod(hi - lo))
+
+
 def _check_size(g: Geom, link: str) -> None:
     if not np.all(np.isfinite(g.size)) or np.any(g.size <= 0):
         raise SplatplanError(f"link {link!r}: {g.kind} with invalid size {g.size.tolist()} (sizes must be finite and > 0)")
@@ -273,7 +288,7 @@ def fit_model(model: UrdfModel, per_link: int | dict[str, int] = 1, from_visual:
             continue
         k = per_link if isinstance(per_link, int) else int(per_link.get(link, 1))
         ells, gvol = fit_link(link, geoms, k)
-        evol = float(sum(ellipsoid_volume(s) for _, _, s in ells))
+        evol = union_volume(ells)
         for c, r, s in ells:
             names.append(link)
             cs.append(c)
@@ -318,10 +333,29 @@ def save_yaml(ells: EllipsoidSet, path: str | Path, robot: str = "", urdf: str =
         "links": {k: {kk: (float(f"{vv:.6g}") if isinstance(vv, float) else vv) for kk, vv in v.items()} for k, v in ells.report.items()},
         "skipped_links": list(ells.skipped),
     }
-    from ..cli._common import atomic_path  # atomic write (no partial YAML on failure)
+    _atomic_write(Path(path), yaml.safe_dump(doc, sort_keys=False, width=200))
 
-    with atomic_path(path) as tmp:
-        Path(tmp).write_text(yaml.safe_dump(doc, sort_keys=False, width=200))
+
+def _atomic_write(path: Path, text: str) -> None:
+    """Write a file through a temp file in the same folder (never a partial file)."""
+    import os
+    import tempfile
+
+    if path.is_dir():
+        raise SplatplanError(f"output {path} is a directory; give a file path")
+    if not path.parent.exists():
+        raise SplatplanError(f"output folder {path.parent} does not exist")
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+    try:
+        with os.fdopen(fd, "w") as fh:
+            fh.write(text)
+        mask = os.umask(0o022)
+        os.umask(mask)
+        os.chmod(tmp, 0o666 & ~mask)
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
 
 
 def load_yaml(path: str | Path, link_names: list[str] | None = None) -> EllipsoidSet:
