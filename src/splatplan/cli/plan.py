@@ -20,9 +20,10 @@ import numpy as np
 from ..errors import SplatplanError
 from ._common import _load, add_config_args, add_device_arg, config_from_args, write_json
 
-#: a command-line token that is a number or a comma list of numbers, possibly negative: a value,
-#: not an option (argparse's own test accepts only a single plain negative number)
-_NUMBER_LIST = re.compile(r"^-\.?\d[\d.eE+\-]*(,[-+]?[\d.eE+\-]*)*$")
+#: a command-line token starting with a minus and a digit ("-0.3,0,0.06", "-1e-3"): a value, not
+#: an option (argparse's own test accepts only a single plain negative number); a malformed list
+#: such as "-0.3,x" then reaches the value parser, which names the problem
+_NUMBER_LIST = re.compile(r"^-\.?\d\S*$")
 
 _UP = {"x": (0, 1.0), "y": (1, 1.0), "z": (2, 1.0), "-x": (0, -1.0), "-y": (1, -1.0), "-z": (2, -1.0)}
 

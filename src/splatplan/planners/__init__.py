@@ -15,15 +15,33 @@ import time
 from dataclasses import replace
 
 from .bspline import UniformBSpline, bspline_basis, bspline_eval, fit_bspline, knot_vector, resample_polyline
+from .costs import CollisionCost, ControlEffortCost, Cost, GoalPoseCost, JointLimitCost, Rollout, StateCost, TerminalCost, total_cost
 from .dynamics import Dynamics, HolonomicPoint, JointIntegrator, PlanarBase, sphere_links, yaw_to_quat
 from .metrics import clearance, d_min, densify_path, smoothness
 from .mppi import MPPI, MPPIConfig, MPPIInfo
 from .refine import RefineConfig, RefineResult, refine_path
-from .rrt import RRT, EdgeChecker, PlanResult, RRTConfig, edge_points, path_length, shortcut_path
+from .robot_links import LinkGeometry, as_robot, robot_collides, robot_query
+from .rrt import RRT, EdgeChecker, PlanResult, RRTConfig, RRTSettings, edge_points, edge_samples, path_length, robust_scene_box, shortcut_path
 
 __all__ = [
+    "CollisionCost",
+    "ControlEffortCost",
+    "Cost",
     "Dynamics",
     "EdgeChecker",
+    "GoalPoseCost",
+    "JointLimitCost",
+    "LinkGeometry",
+    "Rollout",
+    "RRTSettings",
+    "StateCost",
+    "TerminalCost",
+    "as_robot",
+    "edge_samples",
+    "robot_collides",
+    "robot_query",
+    "robust_scene_box",
+    "total_cost",
     "HolonomicPoint",
     "JointIntegrator",
     "MPPI",
