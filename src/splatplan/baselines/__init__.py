@@ -1,5 +1,9 @@
 """The four baselines of the paper's comparison, one module each, in PyTorch like the originals.
 
+PyTorch is an optional extra: nothing in the core imports this package, and importing it without
+torch raises a one-line :class:`~splatplan.errors.SplatplanError` naming
+``pip install 'splatplan[baselines]'``.
+
 All read the same splat arrays (means, **wxyz** quats, linear scales, opacities) and a robot
 sphere (centre, radius). Each module provides
 
@@ -27,6 +31,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from typing import Any, Callable
+
+from ..errors import SplatplanError
+
+try:  # the baselines are PyTorch code; torch is the optional extra splatplan[baselines]
+    import torch  # noqa: F401
+except ImportError:
+    raise SplatplanError("the baselines need PyTorch, which is not installed: pip install 'splatplan[baselines]'") from None
 
 from . import atlasnav, safersplat, splanning, splatnav
 from ._common import SceneTensors, as_scene_tensors

@@ -10,8 +10,10 @@ the parameter dict may also be saved on its own. Tensors, by key:
 
 Checkpoints are loaded with ``torch.load(..., weights_only=True)``, so no code from the file is
 executed. PyTorch is an optional extra: without it, reading a checkpoint raises a one-line
-:class:`~splatplan.errors.SplatplanError` naming ``splatplan[baselines]``. Checkpoints trained with learned appearance (``features``/``colors`` instead of
-``sh0``) are not supported.
+:class:`~splatplan.errors.SplatplanError` naming ``splatplan[baselines]``. Zip entries that
+inflate more than :data:`MAX_ZIP_RATIO` times are refused before torch reads them (decompression
+bombs). Checkpoints trained with learned appearance (``features``/``colors`` instead of ``sh0``)
+are not supported.
 """
 
 from __future__ import annotations
