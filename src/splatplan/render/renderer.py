@@ -33,8 +33,8 @@ from .reference import scene_arrays
 wp = _wp()
 
 #: Bytes of workspace per projected row (camera x splat) plus per sort pair, for memory estimates.
-_ROW_BYTES = 8 + 12 + 4 + 8 + 12 + 4 + 16 + 4 + 4  # xy conic depth dkey rgb opac rect ntiles offsets
-_PAIR_BYTES = 2 * (8 + 4)  # keys + values, doubled for the radix sort's scratch half
+_ROW_BYTES = 64 + 4 + 4  # Splat2D, ntiles, offsets
+_PAIR_BYTES = 2 * (8 + 4) + 64  # keys + values (doubled: the radix sort's scratch half) + gathered Splat2D
 #: Rows (camera x splat) of one CUDA chunk at most.
 _CUDA_MAX_ROWS = 1 << 24
 
@@ -51,20 +51,16 @@ class _Workspace:
         self.offsets = None
         self.keys = None
         self.vals = None
+        self.sorted = None
         self.ranges = None
 
     def ensure_rows(self, rows: int) -> None:
         if rows <= self.rows:
             return
         d = self.device
-        p = _wp_raster().ProjArgs()
-        p.xy = wp.empty(rows, dtype=wp.vec2, device=d)
-        p.conic = wp.empty(rows, dtype=wp.vec3, device=d)
-        p.depth = wp.empty(rows, dtype=wp.float32, device=d)
-        p.dkey = wp.empty(rows, dtype=wp.int64, device=d)
-        p.rgb = wp.empty(rows, dtype=wp.vec3, device=d)
-        p.opac = wp.empty(rows, dtype=wp.float32, device=d)
-        p.rect = wp.empty(rows, dtype=wp.vec4i, device=d)
+        rast = _wp_raster()
+        p = rast.ProjArgs()
+        p.rows = wp.empty(rows, dtype=rast.Splat2D, device=d)
         p.ntiles = wp.empty(rows, dtype=wp.int32, device=d)
         self.proj = p
         self.offsets = wp.empty(rows, dtype=wp.int32, device=d)
@@ -76,6 +72,7 @@ class _Workspace:
         cap = max(pairs, int(self.pairs * 1.5), 1024)
         self.keys = wp.empty(2 * cap, dtype=wp.int64, device=self.device)
         self.vals = wp.empty(2 * cap, dtype=wp.int32, device=self.device)
+        self.sorted = wp.empty(cap, dtype=_wp_raster().Splat2D, device=self.device)
         self.pairs = cap
 
     def ensure_tiles(self, tiles: int) -> None:
@@ -298,13 +295,14 @@ class SplatRenderer:
                 end_bit = 32 + max(1, int(tiles - 1).bit_length())
                 wp.utils.radix_sort_pairs(ws.keys, ws.vals, m, 0, end_bit)
                 wp.launch(rast.tile_ranges_kernel, dim=m, inputs=[ws.keys, m, ranges], device=dev)
+                wp.launch(rast.gather_kernel, dim=m, inputs=[ws.proj, ws.vals, ws.sorted], device=dev)
             else:
                 ws.ensure_rows(1)
                 ws.ensure_pairs(1)
             if self.blend == "tile":
-                wp.launch(rast.blend_tile_kernel, dim=tiles, inputs=[ws.proj, ws.vals, ranges, frame, cam_base, out], device=dev)
+                wp.launch(rast.blend_tile_kernel, dim=tiles, inputs=[ws.sorted, ranges, frame, cam_base, out], device=dev)
             else:
-                wp.launch(rast.blend_pixel_kernel, dim=tiles * TILE * TILE, inputs=[ws.proj, ws.vals, ranges, frame, cam_base, out], device=dev)
+                wp.launch(rast.blend_pixel_kernel, dim=tiles * TILE * TILE, inputs=[ws.sorted, ranges, frame, cam_base, out], device=dev)
         finally:
             self._workspaces.put(ws)
 

@@ -11,7 +11,9 @@ Pipeline for a chunk of C cameras (rows r = c * N + i, splat i seen by camera c)
    | depth key, the depth key a monotone 32-bit quantisation of log(z) (finer than float32).
 4. ``wp.utils.radix_sort_pairs`` over the used bits -> pairs grouped by tile, front to back.
 5. ``tile_ranges_kernel`` (M): [start, end) of each tile's run of pairs.
-6. blending: ``blend_tile_kernel`` (one thread per tile, splat-outer loop over the splat's
+6. ``gather_kernel`` (M): copy each pair's projected splat into pair order, so blending streams
+   through memory instead of gathering (3x faster blending on CPU).
+7. blending: ``blend_tile_kernel`` (one thread per tile, splat-outer loop over the splat's
    pixels inside the tile; the CPU kernel: each splat visits only the ~10 pixels it covers) or
    ``blend_pixel_kernel`` (one thread per pixel; the CUDA kernel). Both give the same result.
 
@@ -26,6 +28,7 @@ from .._warp import wp as _wp
 from .config import ALPHA_MAX, ALPHA_MIN, LOW_PASS, SH_C0, SH_C1, SH_C2, SH_C3, T_MIN, TILE  # noqa: F401
 
 wp = _wp()
+wp.set_module_options({"enable_backward": False})  # forward only: halves the compile time
 
 _TILE = wp.constant(TILE)
 _LOW_PASS = wp.constant(LOW_PASS)
@@ -76,16 +79,23 @@ class FrameArgs:
 
 
 @wp.struct
+class Splat2D:
+    """One projected splat (64 bytes: one cache line per sort pair read by the blending)."""
+
+    xy: wp.vec2  # mean in pixels
+    conic: wp.vec3  # inverse 2D covariance (xx, xy, yy), 1/px^2
+    opac: float  # opacity
+    rgb: wp.vec3  # colour at the viewing direction
+    depth: float  # view depth z of the mean
+    rect: wp.vec4i  # inclusive pixel box x0, y0, x1, y1
+    dkey: wp.int64  # 32-bit depth sort key
+
+
+@wp.struct
 class ProjArgs:
     """Projected splats, one row per (camera of the chunk, splat)."""
 
-    xy: wp.array(dtype=wp.vec2)  # (R,) mean in pixels
-    conic: wp.array(dtype=wp.vec3)  # (R,) inverse 2D covariance (xx, xy, yy), 1/px^2
-    depth: wp.array(dtype=wp.float32)  # (R,) view depth z of the mean
-    dkey: wp.array(dtype=wp.int64)  # (R,) 32-bit depth sort key
-    rgb: wp.array(dtype=wp.vec3)  # (R,) colour at the viewing direction
-    opac: wp.array(dtype=wp.float32)  # (R,)
-    rect: wp.array(dtype=wp.vec4i)  # (R,) inclusive pixel box x0, y0, x1, y1
+    rows: wp.array(dtype=Splat2D)  # (R,)
     ntiles: wp.array(dtype=wp.int32)  # (R,) tiles touched (0 = culled)
 
 
@@ -181,18 +191,20 @@ def project_kernel(scene: SceneArgs, cams: CamArgs, cam_base: int, frame: FrameA
     x1 = int(fx1)
     y0 = int(fy0)
     y1 = int(fy1)
-    proj.xy[row] = wp.vec2(u, v)
-    proj.conic[row] = wp.vec3(d * inv_det, -bb * inv_det, a * inv_det)
-    proj.depth[row] = z
+    sp = Splat2D()
+    sp.xy = wp.vec2(u, v)
+    sp.conic = wp.vec3(d * inv_det, -bb * inv_det, a * inv_det)
+    sp.opac = o
+    sp.depth = z
     lz = (wp.log(wp.float64(z)) - frame.log_near) * frame.key_scale
-    proj.dkey[row] = wp.int64(wp.clamp(lz, wp.float64(0.0), wp.float64(4294967295.0)))
+    sp.dkey = wp.int64(wp.clamp(lz, wp.float64(0.0), wp.float64(4294967295.0)))
     dirv = scene.means[i] - cams.campos[b]
     nd = wp.length(dirv)
     if nd > 0.0:
         dirv = dirv / nd
-    proj.rgb[row] = sh_color(scene, i, dirv)
-    proj.opac[row] = o
-    proj.rect[row] = wp.vec4i(x0, y0, x1, y1)
+    sp.rgb = sh_color(scene, i, dirv)
+    sp.rect = wp.vec4i(x0, y0, x1, y1)
+    proj.rows[row] = sp
     proj.ntiles[row] = (x1 / _TILE - x0 / _TILE + 1) * (y1 / _TILE - y0 / _TILE + 1)
 
 
@@ -207,8 +219,9 @@ def write_keys_kernel(
         return
     k = offsets[row] - nt  # offsets is the inclusive scan
     c = row // n
-    r = proj.rect[row]
-    dk = proj.dkey[row]
+    sp = proj.rows[row]
+    r = sp.rect
+    dk = sp.dkey
     tpi = frame.tiles_x * frame.tiles_y
     for ty in range(r[1] / _TILE, r[3] / _TILE + 1):
         for tx in range(r[0] / _TILE, r[2] / _TILE + 1):
@@ -237,6 +250,13 @@ def tile_ranges_kernel(keys: wp.array(dtype=wp.int64), m: int, ranges: wp.array(
             ranges[tile] = wp.vec2i(ranges[tile][0], k + 1)
 
 
+@wp.kernel
+def gather_kernel(proj: ProjArgs, vals: wp.array(dtype=wp.int32), sorted_rows: wp.array(dtype=Splat2D)):
+    """sorted_rows[k] = the projected splat of pair k: the blending then streams through memory."""
+    k = wp.tid()
+    sorted_rows[k] = proj.rows[vals[k]]
+
+
 @wp.func
 def splat_power(xy: wp.vec2, conic: wp.vec3, px: float, py: float) -> float:
     dx = px - xy[0]
@@ -246,7 +266,7 @@ def splat_power(xy: wp.vec2, conic: wp.vec3, px: float, py: float) -> float:
 
 @wp.kernel
 def blend_tile_kernel(
-    proj: ProjArgs, vals: wp.array(dtype=wp.int32), ranges: wp.array(dtype=wp.vec2i),
+    pairs: wp.array(dtype=Splat2D), ranges: wp.array(dtype=wp.vec2i),
     frame: FrameArgs, cam_base: int, out: OutArgs,
 ):  # fmt: skip
     """One thread per tile; splats in front-to-back order, each visiting only its pixels in the tile.
@@ -277,13 +297,13 @@ def blend_tile_kernel(
     for k in range(r[0], r[1]):
         if ndone == npix:
             break
-        g = vals[k]
-        rect = proj.rect[g]
-        xy = proj.xy[g]
-        conic = proj.conic[g]
-        o = proj.opac[g]
-        col = proj.rgb[g]
-        z = proj.depth[g]
+        sp = pairs[k]
+        rect = sp.rect
+        xy = sp.xy
+        conic = sp.conic
+        o = sp.opac
+        col = sp.rgb
+        z = sp.depth
         for py in range(wp.max(rect[1], y0), wp.min(rect[3], y1) + 1):
             for px in range(wp.max(rect[0], x0), wp.min(rect[2], x1) + 1):
                 pix = img + py * frame.width + px
@@ -320,7 +340,7 @@ def blend_tile_kernel(
 
 @wp.kernel
 def blend_pixel_kernel(
-    proj: ProjArgs, vals: wp.array(dtype=wp.int32), ranges: wp.array(dtype=wp.vec2i),
+    pairs: wp.array(dtype=Splat2D), ranges: wp.array(dtype=wp.vec2i),
     frame: FrameArgs, cam_base: int, out: OutArgs,
 ):  # fmt: skip
     """One thread per pixel (threads ordered tile by tile); same maths as blend_tile_kernel."""
@@ -343,19 +363,19 @@ def blend_pixel_kernel(
     rgb = wp.vec3(0.0)
     dacc = float(0.0)
     for k in range(r[0], r[1]):
-        g = vals[k]
-        power = splat_power(proj.xy[g], proj.conic[g], pxf, pyf)
+        sp = pairs[k]
+        power = splat_power(sp.xy, sp.conic, pxf, pyf)
         if power > 0.0:
             continue
-        alpha = wp.min(_ALPHA_MAX, proj.opac[g] * wp.exp(power))
+        alpha = wp.min(_ALPHA_MAX, sp.opac * wp.exp(power))
         if alpha < _ALPHA_MIN:
             continue
         nt = tr * (1.0 - alpha)
         if nt < _T_MIN:
             break
         w = alpha * tr
-        rgb = rgb + w * proj.rgb[g]
-        dacc = dacc + w * proj.depth[g]
+        rgb = rgb + w * sp.rgb
+        dacc = dacc + w * sp.depth
         tr = nt
     pix = ((cam_base + c) * frame.height + py) * frame.width + px
     acc = 1.0 - tr
@@ -365,12 +385,3 @@ def blend_pixel_kernel(
         out.depth[pix] = dacc / acc
     else:
         out.depth[pix] = 0.0
-
-
-@wp.kernel
-def fill_background_kernel(frame: FrameArgs, out: OutArgs):
-    """Pixels of an image no splat touches (empty scene): background, alpha 0, depth 0."""
-    pix = wp.tid()
-    out.rgb[pix] = frame.bg
-    out.alpha[pix] = 0.0
-    out.depth[pix] = 0.0
