@@ -32,6 +32,7 @@ _LAZY = {
     "MPPIConfig": ("splatplan.planners", "MPPIConfig"),
     "Robot": ("splatplan.robots", "Robot"), "load_robot": ("splatplan.robots", "load_robot"),
     "load_encoder": ("splatplan.encoders", "load_encoder"),
+    "render": ("splatplan.render", "render"), "RenderResult": ("splatplan.render", "RenderResult"), "Camera": ("splatplan.render", "Camera"),
 }
 
 __all__ = sorted(_LAZY) + ["__version__"]

@@ -11,9 +11,24 @@ Conventions: ``docs/rendering.md`` and :mod:`.config`.
 
 from __future__ import annotations
 
+import sys
+import types
+
 from .api import render
 from .cameras import Camera, MountedCamera, intrinsics_from_fov, look_at, mount_offset
 from .config import RenderResult
 from .renderer import SplatRenderer
 
 __all__ = ["render", "RenderResult", "SplatRenderer", "Camera", "MountedCamera", "look_at", "intrinsics_from_fov", "mount_offset"]
+
+
+class _CallableModule(types.ModuleType):
+    """``splatplan.render`` is both this package and the function: importing the package makes
+    Python bind the package to the attribute ``splatplan.render``, so the package forwards calls
+    to :func:`render` and ``splatplan.render(scene, viewmats, Ks, w, h)`` always works."""
+
+    def __call__(self, *args, **kwargs):
+        return render(*args, **kwargs)
+
+
+sys.modules[__name__].__class__ = _CallableModule
