@@ -3,14 +3,13 @@ and the neighbour-radius bound that makes the hash-grid search exact."""
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from splatplan.metric import CollisionChecker, MetricConfig
 from splatplan.metric.reference import conservative_s2_ref, link_matrices
+from splatplan.metric.wp_metric_kernel import search_radius
 from splatplan.scenes.splats import Splats, quat_to_rotmat, rotmat_to_quat
 
 from .conftest import random_quats, random_scene
@@ -82,8 +81,7 @@ def test_radius_bound(seed, n_sigma, cap):
     c = rng.uniform(-0.3, 0.3, (1, 3))
     a = link_matrices(random_quats(rng, 1), axes, 1)
     _, s2t = conservative_s2_ref(scene.means, scene.quats, scene.scales, c, a, n_sigma)
-    k = n_sigma * scene.scales.max() / axes.min()
-    rho = axes.max() * (k + math.sqrt(k * k + cap))
+    rho = search_radius(float(n_sigma), float(scene.scales.max()), float(axes.min()), float(axes.max()), float(cap))
     far = np.linalg.norm(scene.means - c, axis=1) > rho
     assert np.all(s2t[0][far] >= cap * (1 - 1e-9))
 

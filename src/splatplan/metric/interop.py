@@ -211,13 +211,7 @@ def device_rows(x, kind: str, name: str, tail: tuple[int, ...], device: str):
     raise AssertionError(kind)
 
 
-def device_batch_shape(centers, kind: str, device: str):
-    """(centres as wp vec3 (B,), batch shape, keep-alive) for a device input."""
-    arr, lead, keep = device_rows(centers, kind, "centers", (3,), device)
-    return arr, lead, keep
-
-
-def device_side_rows(x, kind: str, name: str, tail: tuple[int, ...], shape: tuple[int, ...], device: str):
+def device_side_rows(x, name: str, tail: tuple[int, ...], shape: tuple[int, ...], device: str):
     """Rotations / semi-axes of a device call: (wp rows, period, keep-alive).
 
     Host arrays (numpy, tuples, scalars) are uploaded (O(their size)); device arrays must tile the

@@ -1,0 +1,72 @@
+"""Size-class tiers: each tier's radius fits its members, a far "sky shell" gets its own tier, and
+the kernel stays exact (vs the float64 reference) on a scene with such a shell."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from splatplan.metric import CollisionChecker, MetricConfig
+from splatplan.metric.wp_metric import TierConfig, size_class_tiers
+from splatplan.scenes.splats import Splats
+
+from .conftest import DEVICES, random_quats, random_scene
+from .test_kernel_vs_reference import _compare
+
+
+def _shell_scene(rng, n_scene=900, n_shell=300, radius=60.0, std=2.0) -> Splats:
+    """A small random scene in [-0.3, 0.3]^3 inside an opaque shell of huge splats (a phone scan's sky)."""
+    s = random_scene(rng, n_scene)
+    d = rng.normal(size=(n_shell, 3))
+    m = radius * d / np.linalg.norm(d, axis=1, keepdims=True)
+    sc = np.tile([std, std, std / 4], (n_shell, 1)) * rng.uniform(0.9, 1.0, (n_shell, 1))
+    return Splats(
+        np.concatenate([s.means, m]), np.concatenate([s.quats, random_quats(rng, n_shell)]),
+        np.concatenate([s.scales, sc]), np.concatenate([s.opacities, np.ones(n_shell)]),
+        np.concatenate([s.colors, np.full((n_shell, 3), 0.5)]),
+    )  # fmt: skip
+
+
+def test_size_classes_fit_their_members():
+    rng = np.random.default_rng(0)
+    smax = np.concatenate([np.exp(rng.normal(np.log(0.003), 0.8, 5000)), np.full(300, 7.39), [0.5, 0.6]])
+    tier = size_class_tiers(smax, factor=2.0, min_count=50, max_tiers=12)
+    shell = tier[5000:5300]
+    assert len(set(shell)) == 1 and not np.isin(shell[0], tier[:5000])  # the shell alone in its tier
+    assert set(tier[5300:]) != {shell[0]}  # two big floaters do not join the shell
+    for t in np.unique(tier):
+        s = smax[tier == t]
+        if len(s) >= 50 and t != tier.max():
+            assert s.max() / s.min() <= 4.0 + 1e-9  # at most one merge of adjacent classes
+    assert tier.max() + 1 <= 12
+    few = size_class_tiers(smax, factor=2.0, min_count=50, max_tiers=3)
+    assert few.max() + 1 == 3 and len(set(few[5000:5300])) == 1
+    # the merge order never pushes small splats into the shell's tier
+    assert not np.isin(few[5000], few[:5000])
+
+
+@pytest.mark.parametrize("device", DEVICES)
+@pytest.mark.parametrize("tiers", [TierConfig(), TierConfig(mode="quantile"), TierConfig(max_tiers=2, min_tier_count=1)])
+def test_shell_scene_is_exact(device, tiers):
+    rng = np.random.default_rng(8)
+    scene = _shell_scene(rng)
+    b = 240
+    centers = scene.means[rng.integers(0, 900, b)] + rng.normal(0, 0.01, (b, 3))
+    centers[:40] = scene.means[900 + rng.integers(0, 300, 40)] * rng.uniform(0.93, 1.02, (40, 1))  # near the shell
+    axes = rng.uniform(0.01, 0.5, (b, 3))
+    axes[40:] = rng.uniform(0.01, 0.03, (b - 40, 3))
+    _compare(scene, centers, random_quats(rng, b), axes, MetricConfig(n_sigma=1.0), device, tiers)
+
+
+def _tiers_of(impl) -> list[np.ndarray]:
+    """Original splat indices per tier."""
+    return [impl.order[o : o + n] for o, n in zip(impl.tier_offset, impl.tier_count)]
+
+
+def test_shell_gets_its_own_tier():
+    scene = _shell_scene(np.random.default_rng(9), n_shell=60)  # 6% of the splats, as in the phone scan
+    new = _tiers_of(CollisionChecker(scene, n_sigma=1.0)._impl)
+    assert sorted(new[-1]) == list(range(900, 960))  # the shell alone in the top tier
+    old = _tiers_of(CollisionChecker(scene, n_sigma=1.0, tiers=TierConfig(mode="quantile"))._impl)
+    # the old quantile tiers put ordinary splats into a tier with (part of) the shell: they get its radius
+    assert any((t >= 900).any() and (t < 900).any() for t in old)
