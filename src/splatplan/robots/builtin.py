@@ -188,7 +188,7 @@ def build_robot(
             raise SplatplanError(f"robot {model.name}: cannot fix unknown joint {jn!r}; movable joints: {', '.join(dof_joints)}")
         vals[dof_joints.index(jn)] = float(v)
     vals = np.clip(vals, model.lower, model.upper)
-    keep_dof = np.array([jn in active for jn in dof_joints])
+    keep_dof = np.array([jn in active for jn in dof_joints], dtype=bool)
     # Per-link joint value for baking; which links keep their joint.
     keep = np.zeros(kin.n_links, dtype=bool)
     lv = np.zeros(kin.n_links)

@@ -88,15 +88,19 @@ def mvee(points: np.ndarray, tol: float = 1e-3, max_iter: int = 20000) -> tuple[
     if len(p) == 0 or not np.all(np.isfinite(p)):
         raise SplatplanError("cannot fit an ellipsoid to an empty or non-finite point set")
     mean = p.mean(axis=0)
-    _, sv, vt = np.linalg.svd(p - mean, full_matrices=False) if len(p) > 1 else (None, np.zeros(1), np.eye(3))
+    if len(p) > 1:
+        _, sv, vt = np.linalg.svd(p - mean, full_matrices=True)  # vt (3, 3)
+    else:
+        sv, vt = np.zeros(0), np.eye(3)
     sv = np.concatenate([sv, np.zeros(3 - len(sv))])
     extent = max(float(np.ptp(p, axis=0).max()), 1e-6)
     pad = max(1e-3 * extent, 1e-6)
+    extra = []
     for i in range(3):  # give flat / line / point sets a small thickness
-        if sv[i] <= 1e-9 * max(sv[0], 1e-30) or len(p) < 4:
-            p = np.concatenate([p, mean + pad * vt[i], mean - pad * vt[i]]) if i < len(vt) else p
-    if len(p) < 4 or np.linalg.matrix_rank(p - p.mean(axis=0), tol=1e-12) < 3:
-        p = np.concatenate([p, mean + pad * np.eye(3), mean - pad * np.eye(3)])
+        if sv[i] <= 1e-9 * max(sv[0], 1e-300):
+            extra += [mean + pad * vt[i], mean - pad * vt[i]]
+    if extra:
+        p = np.concatenate([p, np.array(extra)])
     p = _hull_vertices(p)
     n, d = p.shape
     qm = np.vstack([p.T, np.ones(n)])  # (4, N) lifted points
@@ -142,7 +146,16 @@ def _cylinder_like(radius: float, half: float, cap: float) -> tuple[float, float
 
 
 def primitive_ellipsoid(g: Geom) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
-    """Enclosing ellipsoid of a sphere/cylinder/capsule/box in the link frame + the primitive's volume."""
+    """Enclosing ellipsoid of a sphere/cylinder/capsule/box in the link frame + the primitive's volume.
+
+    The primitive's extreme points lie on the ellipsoid's surface; semi-axes get the relative
+    margin CONTAIN_EPS so float rounding never puts them outside.
+    """
+    c, r, s, v = _primitive_ellipsoid(g)
+    return c, r, s * (1.0 + CONTAIN_EPS), v
+
+
+def _primitive_ellipsoid(g: Geom) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
     rot, ctr = g.origin[:3, :3], g.origin[:3, 3]
     if g.kind == "sphere":
         r = float(g.size[0])

@@ -123,9 +123,10 @@ def _geoms(link, tag: str, urdf_dir: Path, caps: dict) -> list[Geom]:
     for i, el in enumerate(link.collisions if tag == "collision" else link.visuals):
         g = el.geometry
         origin = np.eye(4) if el.origin is None else np.asarray(el.origin, dtype=np.float64)
+        if (link.name, tag, i) in caps:
+            out.append(caps[(link.name, tag, i)])
+            continue
         if g is None or (g.box is None and g.sphere is None and g.cylinder is None and g.mesh is None):
-            if (link.name, tag, i) in caps:
-                out.append(caps[(link.name, tag, i)])
             continue
         if g.box is not None:
             out.append(Geom("box", origin, np.asarray(g.box.size, dtype=np.float64)))
@@ -148,8 +149,24 @@ def read_urdf(path: str | Path) -> UrdfModel:
     if not path.is_file():
         raise SplatplanError(f"URDF {path} does not exist")
     try:
+        ET.parse(path)  # strict XML check first (yourdfpy silently recovers from broken XML)
+    except ET.ParseError as exc:
+        raise SplatplanError(f"URDF {path} does not parse (XML error: {exc})") from None
+    caps = _capsules(path)
+    source: object = str(path)
+    if caps:  # yourdfpy rejects <capsule>: parse it as a sphere placeholder, replaced below
+        import io
+
+        tree = ET.parse(path)
+        for el in tree.getroot().iter("capsule"):
+            el.tag = "sphere"
+            el.attrib.pop("length", None)
+        buf = io.BytesIO()
+        tree.write(buf)
+        source = io.BytesIO(buf.getvalue())
+    try:
         u = yourdfpy.URDF.load(
-            str(path),
+            source,
             load_meshes=False,
             load_collision_meshes=False,
             build_scene_graph=False,
@@ -235,7 +252,6 @@ def read_urdf(path: str | Path) -> UrdfModel:
         if lower[k] > upper[k]:
             raise SplatplanError(f"URDF {path}: joint {name!r} has lower limit {lower[k]} > upper limit {upper[k]}")
     kin = Kinematics(order, jnames, parent, jtype, axis, origin, qidx, mult, offset)
-    caps = _capsules(path)
     coll = {n: _geoms(links[n], "collision", path.parent, caps) for n in order}
     vis = {n: _geoms(links[n], "visual", path.parent, caps) for n in order}
     return UrdfModel(robot.name or path.stem, path, kin, dof_joints, lower, upper, vel, cont, coll, vis)

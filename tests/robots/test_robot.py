@@ -1,0 +1,138 @@
+"""Robot: loading, validation, motion bound, self-collision, bad inputs."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from splatplan.errors import SplatplanError
+from splatplan.robots import load_robot
+
+from .conftest import random_q, write_tree
+
+
+def _surface_points(robot, q, n_per=64, seed=0):
+    """World points on every ellipsoid's surface (..., E*n_per, 3) for configurations q (..., dof)."""
+    rng = np.random.default_rng(seed)
+    u = rng.normal(size=(robot.n_ellipsoids, n_per, 3))
+    u /= np.linalg.norm(u, axis=-1, keepdims=True)
+    local = u * robot.semi_axes[:, None, :]  # (E, n, 3) ellipsoid frame
+    c, r = robot.ellipsoid_frames(q)  # (..., E, 3), (..., E, 3, 3)
+    pts = np.einsum("...eij,enj->...eni", r, local) + c[..., :, None, :]
+    return pts.reshape(pts.shape[:-3] + (-1, 3))
+
+
+def test_builtins_basic(panda, go2):
+    assert panda.dof == 7 and panda.joint_names[0] == "panda_joint1" and panda.n_ellipsoids == 11
+    assert go2.dof == 3 and go2.joint_names == ["x", "y", "yaw"]
+    s = load_robot("sphere:0.015")
+    assert s.dof == 3 and s.n_ellipsoids == 1 and s.min_semi_axis == pytest.approx(0.015)
+    e = load_robot("ellipsoid:0.05,0.02,0.01")
+    c, q, a = e.ellipsoids(np.array([[1.0, 2.0, 3.0]]))
+    np.testing.assert_allclose(c[0, 0], [1, 2, 3])
+    np.testing.assert_allclose(q[0, 0], [1, 0, 0, 0])
+    np.testing.assert_allclose(a[0], [0.05, 0.02, 0.01])
+    for r in (panda, go2, s):
+        assert r.joint_limits.shape == (r.dof, 2) and r.velocity_limits.shape == (r.dof,)
+        assert r.motion_bound.shape == (r.dof,) and np.all(r.motion_bound > 0)
+        assert not r.self_collision(r.q_default)
+        assert np.all(r.q_default >= r.joint_limits[:, 0]) and np.all(r.q_default <= r.joint_limits[:, 1])
+
+
+def test_go2_stands_on_the_ground(go2):
+    for q in random_q(go2, 5, seed=1):
+        pts = _surface_points(go2, q, n_per=400)
+        assert pts[:, 2].min() > -1e-3  # lowest ellipsoid point at z = 0 (sampled surface: within 1 mm)
+    c, r = go2.ellipsoid_frames(go2.q_default)
+    low = c[:, 2] - np.linalg.norm(r[:, 2, :] * go2.semi_axes, axis=-1)
+    assert low.min() == pytest.approx(0.0, abs=1e-9)
+    assert 0.25 < go2.base_pose[2, 3] < 0.45
+
+
+@pytest.mark.parametrize("name", ["panda", "go2", "sphere:0.015", "tree"])
+def test_motion_bound_property(name, tree_robot):
+    """|x(q1) - x(q2)| <= sum_j motion_bound_j |q1_j - q2_j| for every ellipsoid point."""
+    robot = tree_robot if name == "tree" else load_robot(name)
+    q1 = random_q(robot, 200, seed=2)
+    # both far pairs and near pairs (the bound is used for short edges)
+    q2 = np.concatenate([random_q(robot, 100, seed=3), q1[100:] + np.random.default_rng(4).normal(scale=0.05, size=(100, robot.dof))])
+    d = np.linalg.norm(_surface_points(robot, q1, 16) - _surface_points(robot, q2, 16), axis=-1).max(axis=-1)
+    bound = np.abs(q1 - q2) @ robot.motion_bound
+    assert np.all(d <= bound + 1e-12)
+
+
+def test_check_q(panda):
+    q = panda.q_default
+    assert panda.check_q(q).dtype == np.float64
+    with pytest.raises(SplatplanError, match="need 7 values"):
+        panda.check_q(np.zeros(6))
+    with pytest.raises(SplatplanError, match="NaN"):
+        panda.check_q(np.array([q, np.full(7, np.nan)]))
+    bad = q.copy()
+    bad[3] = 0.5  # joint 4 upper limit is -0.0698
+    with pytest.raises(SplatplanError, match="panda_joint4 = 0.5 outside its limits"):
+        panda.check_q(bad)
+    assert panda.check_q(bad, clip=True)[3] == pytest.approx(-0.0698)
+    assert panda.check_q(bad, check_limits=False)[3] == 0.5
+    with pytest.raises(SplatplanError, match="NaN"):
+        panda.link_poses(np.full(7, np.nan))
+    with pytest.raises(SplatplanError, match="numeric"):
+        panda.check_q("abc")
+
+
+def test_self_collision(panda):
+    """Conservative: every sampled true overlap is reported; pairs declared apart are apart."""
+    q = random_q(panda, 300, seed=5)
+    sc = panda.self_collision(q)
+    assert sc.shape == (300,) and sc.any() and not sc.all()
+    c, r = panda.ellipsoid_frames(q)
+    pts = _surface_points(panda, q, 200).reshape(300, panda.n_ellipsoids, 200, 3)
+    overlap = np.zeros(300, dtype=bool)
+    for i, j in panda.self_collision_pairs:
+        for a, b in ((i, j), (j, i)):
+            cand = np.concatenate([pts[:, a], c[:, a, None, :]], axis=1)  # surface samples + centre of a
+            local = np.einsum("bki,bnk->bni", r[:, b], cand - c[:, b, None, :]) / panda.semi_axes[b]
+            overlap |= np.linalg.norm(local, axis=-1).min(axis=-1) <= 1.0
+    assert overlap.any()  # the sample holds real self-collisions
+    assert np.all(sc[overlap])  # none missed
+    assert panda.self_collision(q.reshape(3, 100, 7)).shape == (3, 100)
+
+
+def test_unknown_and_bad_specs(tmp_path):
+    with pytest.raises(SplatplanError, match="panda, go2, sphere:R"):
+        load_robot("ur5")
+    for spec, msg in [("sphere:x", "numbers"), ("sphere:0", "> 0"), ("ellipsoid:1,2", "not understood"), ("sphere:nan", "finite")]:
+        with pytest.raises(SplatplanError, match=msg):
+            load_robot(spec)
+    with pytest.raises(SplatplanError, match="does not exist"):
+        load_robot(tmp_path / "missing.urdf")
+    p = tmp_path / "broken.urdf"
+    p.write_text("<robot name='x'><link name='a'></robot")
+    with pytest.raises(SplatplanError, match="does not parse"):
+        load_robot(p)
+    with pytest.raises(SplatplanError, match="unknown or non-movable joints"):
+        load_robot("panda", active=["nope"])
+
+
+def test_missing_mesh_and_links_without_geometry(tmp_path):
+    p = write_tree(tmp_path, with_mesh=False)
+    with pytest.raises(SplatplanError, match=r"link 'l4': mesh file .*part.stl not found"):
+        load_robot(p)
+    p = write_tree(tmp_path)
+    r = load_robot(p)
+    assert r.skipped_links == ["l6"] and "l6" not in {r.link_names[l] for l in r.ellipsoid_link}
+
+
+def test_options(tree_urdf):
+    r = load_robot(tree_urdf, active=["j1", "j3"], fixed={"j2": 0.1}, base="planar")
+    assert r.joint_names == ["x", "y", "yaw", "j1", "j3"]
+    q = np.zeros(5)
+    q[:3] = [1.0, -2.0, 0.5]
+    poses = r.link_poses(q)
+    np.testing.assert_allclose(poses[0, :3, 3], [1.0, -2.0, 0.0])
+    r3 = load_robot(tree_urdf, base="translation", base_pose=np.diag([1.0, 1.0, 1.0, 1.0]))
+    assert r3.joint_names[:3] == ["x", "y", "z"]
+    with pytest.raises(SplatplanError, match="base_pose"):
+        load_robot(tree_urdf, base_pose=np.ones((4, 4)))
+    with pytest.raises(SplatplanError, match="base 'wheeled'"):
+        load_robot(tree_urdf, base="wheeled")
