@@ -175,9 +175,10 @@ class CollisionChecker:
 
         ``q`` (..., dof) (numpy, torch or wp float32) -> forward kinematics on the device
         (``robot.fk_wp``) -> the metric, with no host round trip; outputs shaped (..., E), of the
-        type of ``q``. numpy ``q`` is validated by ``robot.check_q``; device ``q`` costs O(1) host
-        work (NaN joint values make their ellipsoids read in_collision = True, or raise with
-        ``validate=True``).
+        type of ``q``. numpy ``q`` is validated by ``robot.check_q`` (shape, NaN); device ``q`` costs
+        O(1) host work (NaN joint values make their ellipsoids read in_collision = True, or raise
+        with ``validate=True``). Joint limits are not enforced: the geometry of any configuration is
+        checked (clip first with ``robot.check_q(q, clip=True)`` where limits matter).
         """
         return self._robot(robot, q, out, validate, full=True)
 
@@ -193,7 +194,7 @@ class CollisionChecker:
         e = int(robot.n_ellipsoids)
         dof = int(robot.dof)
         if self.backend == "reference":
-            qn = robot.check_q(_host(q))
+            qn = robot.check_q(_host(q), check_limits=False)
             c, quat, ax = robot.ellipsoids(qn)
             res = self.query(c, quat, ax) if full else self.collides(c, quat, ax)
             return _convert_host(res, kind, _device_of(q, self.device))
@@ -202,7 +203,7 @@ class CollisionChecker:
 
         wp = _wp()
         if kind == "numpy":
-            qn = robot.check_q(q)  # (..., dof) float64, validated (shape, NaN)
+            qn = robot.check_q(q, check_limits=False)  # (..., dof) float64, validated (shape, NaN)
             shape = tuple(qn.shape[:-1])
             qw = wp.array(np.ascontiguousarray(qn.reshape(-1, dof), dtype=np.float32), dtype=wp.float32, device=self.device)
         else:
