@@ -4,7 +4,8 @@ weights, and EfficientNet-Lite0 (ImageNet weights) on batches of RGB images.
 Inputs are (B, H, W, 3) float32 numpy images in [0, 1] (default 32 x 224 x 224), so the timing
 includes the numpy -> torch conversion, resizing/normalisation and the forward pass, as a planner
 would call ``encode``. Random DINOv2 weights cost the same as real ones (same architecture).
-One warm-up batch, then the median of ``--repeats`` timed batches. torch's intra-op thread count is
+One warm-up batch, then the median of ``--repeats`` timed batches, in wall-clock time and in process
+CPU time (all threads; on a shared, loaded machine the wall clock also counts waiting for a core). torch's intra-op thread count is
 set to ``--threads`` for the run and restored afterwards.
 
     python benchmarks/encoders.py [--device cpu|cuda] [--batch 32] [--size 224] [--threads 2]
@@ -66,29 +67,34 @@ def main(argv: list[str] | None = None) -> int:
             sync = torch.cuda.synchronize if enc.device.type == "cuda" else (lambda: None)
             enc.encode(x)  # warm-up
             sync()
-            times = []
+            times, cpu = [], []
             for _ in range(args.repeats):
-                t0 = time.perf_counter()
+                t0, c0 = time.perf_counter(), time.process_time()
                 enc.encode(x)
                 sync()
                 times.append(time.perf_counter() - t0)
-            med = float(np.median(times))
+                cpu.append(time.process_time() - c0)
+            med, cmed = float(np.median(times)), float(np.median(cpu))
             n_params = sum(p.numel() for p in enc.model.parameters()) if getattr(enc, "model", None) is not None else 0
             rows.append({
                 "encoder": enc.name, "requested": name, "dim": enc.dim,
                 "weights": "random (same architecture and cost)" if name in RANDOM else ("none (weight-free)" if name == "thumbnail" else "pretrained ImageNet"),
                 "params": int(n_params), "input": f"{args.size}x{args.size}", "encoder_input": f"{enc.image_size[0]}x{enc.image_size[1]}",
                 "batch": args.batch, "s_per_batch": med, "images_per_s": args.batch / med, "times_s": times,
+                "cpu_s_per_batch": cmed, "images_per_cpu_s": args.batch / cmed,
             })
             enc.close()
     finally:
         torch.set_num_threads(threads_before)
 
-    head = "| encoder | weights | params | dim | encoder input | batch | s / batch | images/s |\n|---|---|---:|---:|---|---:|---:|---:|"
-    lines = [f"| {r['encoder']} | {r['weights']} | {r['params'] / 1e6:.2f}M | {r['dim']} | {r['encoder_input']} | {r['batch']} | {r['s_per_batch']:.3f} | {r['images_per_s']:.1f} |" for r in rows]
+    head = ("| encoder | weights | params | dim | encoder input | batch | s / batch | images/s | process CPU s / batch | images / CPU s |\n"
+            "|---|---|---:|---:|---|---:|---:|---:|---:|---:|")
+    lines = [f"| {r['encoder']} | {r['weights']} | {r['params'] / 1e6:.2f}M | {r['dim']} | {r['encoder_input']} | {r['batch']} | {r['s_per_batch']:.3f} | "
+             f"{r['images_per_s']:.1f} | {r['cpu_s_per_batch']:.3f} | {r['images_per_cpu_s']:.1f} |" for r in rows]
     load = os.getloadavg() if hasattr(os, "getloadavg") else (float("nan"),) * 3
     note = (f"device {args.device}, torch {torch.__version__}, {args.threads} torch threads, inputs {args.batch} x {args.size} x {args.size} x 3 "
-            f"float32 numpy; median of {args.repeats} after a warm-up; 1-min load average at the end {load[0]:.2f} (shared machine)")
+            f"float32 numpy; median of {args.repeats} after a warm-up; 1-min load average at the end {load[0]:.2f} (shared machine: "
+            f"wall-clock images/s fall when other processes compete for the cores; process CPU time, all threads, does much less)")
     table = "\n".join([head, *lines]) + f"\n\n{note}\n"
     print(table)
     out = Path(args.out)
