@@ -9,6 +9,7 @@ from splatplan.errors import SplatplanError
 from splatplan.scenes.builtin import BUILTIN_SCENES, build_builtin, write_builtin
 from splatplan.scenes.builtin.apartment import DOORS, apartment_layout, room_of
 from splatplan.scenes.builtin.primitives import AnalyticScene, _fibonacci_sphere, make_box
+from splatplan.scenes.builtin.tabletop import TABLE_TOP
 from splatplan.scenes.splats import quat_to_rotmat
 
 
@@ -102,6 +103,6 @@ def test_ellipsoid_clearance_shapes_and_errors():
     c = np.zeros((2, 5, 3)) + [-0.2, 0.0, 0.2]
     out = gt.ellipsoid_clearance(c, np.array([1.0, 0, 0, 0]), np.array([0.05, 0.04, 0.03]))
     assert out.shape == (2, 5)
-    np.testing.assert_allclose(out, 0.2 - 0.03, atol=1e-7)  # above the table top z = 0, nothing closer
+    np.testing.assert_allclose(out, 0.2 - TABLE_TOP - 0.03, atol=1e-7)  # above the table top, nothing closer
     with pytest.raises(SplatplanError):
         gt.ellipsoid_clearance(np.full((1, 3), np.nan), None, np.ones(3))

@@ -233,7 +233,7 @@ def _build_cached(seed: int, n_splats: int) -> Splats:
     splats = splats_from_boxes(
         scene,
         n_splats,
-        config=level_config(1),
+        config=replace(level_config(1), floater_transparent_fraction=1.0),  # floaters the default filter drops
         colors=lay.colors,
         density=density,
         faces=faces,

@@ -126,7 +126,7 @@ def _fibonacci_sphere(n: int) -> np.ndarray:
 _BALL_SAMPLES = np.concatenate([_fibonacci_sphere(128), 0.5 * _fibonacci_sphere(16), np.zeros((1, 3))])
 
 
-def _project_ellipsoid(y: np.ndarray, a: np.ndarray, n_newton: int = 40) -> np.ndarray:
+def _project_ellipsoid(y: np.ndarray, a: np.ndarray, n_newton: int = 30) -> np.ndarray:
     """Closest points (P, 3) of axis-aligned solid ellipsoids (semi-axes a (P, 3)) to points y (P, 3).
 
     Outside points: x_i = a_i^2 y_i / (a_i^2 + t) with t >= 0 the root of
@@ -172,13 +172,15 @@ def _ellipsoid_box(
     if np.any(sep):
         cs, rs, as_, hs, ms = c[sep], r[sep], a[sep], h[sep], m[sep]
         p = pts[sep, best[sep]]  # (S', 3) start on the ellipsoid
+        act = np.arange(len(p))  # pairs still moving
         for _ in range(n_ap):
-            qb = np.clip(p, -hs, hs)
-            y = np.einsum("pji,pj->pi", rs, qb - cs)  # ellipsoid frame
-            p_new = cs + np.einsum("pij,pj->pi", rs, _project_ellipsoid(y, as_))
-            done = np.max(np.abs(p_new - p)) < 1e-12
-            p = p_new
-            if done:
+            qb = np.clip(p[act], -hs[act], hs[act])
+            y = np.einsum("pji,pj->pi", rs[act], qb - cs[act])  # ellipsoid frame
+            p_new = cs[act] + np.einsum("pij,pj->pi", rs[act], _project_ellipsoid(y, as_[act]))
+            moved = np.max(np.abs(p_new - p[act]), axis=1) >= 1e-12
+            p[act] = p_new
+            act = act[moved]
+            if len(act) == 0:
                 break
         qb = np.clip(p, -hs, hs)
         diff = p - qb

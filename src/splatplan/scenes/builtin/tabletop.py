@@ -8,14 +8,16 @@ surfaces with the statistics of real captures (:func:`.stonehenge.level_config` 
 Units and frames
 ----------------
 Metres, **z up**, the robot base at the origin looking along +x. The table top is the plane
-z = 0 (the robot stands on it). Quaternions are wxyz.
+z = :data:`TABLE_TOP` = -0.09 (the robot stands on a 9 cm mounting plate that belongs to the
+robot: its conservative, tilted base ellipsoid reaches 7 cm below its base). Heights below are above the
+table top. Quaternions are wxyz.
 
 Layout (before the small per-seed jitter)
 -----------------------------------------
 * ``table``: top slab x in [-0.30, 1.00], y in [-0.80, 0.80], z in [-0.04, 0]; four legs.
-* ``bin``: a box open at the top in front of the robot, x in [0.44, 0.78], y in [-0.26, 0.26]:
-  a tall near wall (``wall_front``, 0.30 m) between the robot and the inside of the bin, lower
-  side and back walls (0.16 m). :data:`TARGET_REGION` lies inside the bin, *behind the front
+* ``bin``: a box open at the top in front of the robot, x in [0.44, 0.84], y in [-0.30, 0.30]:
+  a tall near wall (``wall_front``, 0.24 m) between the robot and the inside of the bin, lower
+  side and back walls (0.14 m). :data:`TARGET_REGION` lies inside the bin, *behind the front
   wall*: an arm reaching straight for a target there cuts through the wall.
 * ``wall_side``: a 0.34 m wall on the robot's left (y = +0.42), targets behind it are out of the
   studies (too tight) but it blocks wide sweeps of the arm.
@@ -38,13 +40,16 @@ from ...errors import SplatplanError
 from ..splats import Splats
 from .primitives import AnalyticScene, make_box, splats_from_boxes
 
-__all__ = ["N_SPLATS", "TARGET_REGION", "TabletopLayout", "build_tabletop", "tabletop_layout"]
+__all__ = ["N_SPLATS", "TABLE_TOP", "TARGET_REGION", "TabletopLayout", "build_tabletop", "tabletop_layout"]
 
 #: Default total splat count (floaters included).
 N_SPLATS = 150_000
+#: Height (m) of the table top: the Panda's base sits on a 9 cm mounting plate (part of the robot),
+#: so its conservative base ellipsoid clears the table.
+TABLE_TOP = -0.09
 #: Axis-aligned region (lo, hi) (world, metres) inside the bin behind the front wall where the arm
 #: study places end-effector targets.
-TARGET_REGION = (np.array([0.53, -0.14, 0.07]), np.array([0.66, 0.14, 0.13]))
+TARGET_REGION = (np.array([0.60, -0.08, -0.03]), np.array([0.70, 0.08, 0.03]))
 
 #: Base colours per label (RGB in [0, 1]); objects carry their own colour in the layout.
 LABEL_COLORS = {
@@ -93,7 +98,8 @@ def _build_layout(seed: int) -> TabletopLayout:
     boxes, labels, colors = [], [], []
 
     def add(label: str, center, half, quat=(1.0, 0.0, 0.0, 0.0), color=None) -> None:
-        boxes.append(make_box(center, half, quat))
+        # heights below are written relative to the table top (z = 0 there), then shifted
+        boxes.append(make_box(np.asarray(center, np.float64) + (0.0, 0.0, TABLE_TOP), half, quat))
         labels.append(label)
         colors.append(np.asarray(color if color is not None else LABEL_COLORS[label], np.float64))
 
@@ -104,8 +110,8 @@ def _build_layout(seed: int) -> TabletopLayout:
         for y in (-0.76, 0.76):
             add("table_leg", (x, y, -0.39), (0.03, 0.03, 0.36))
     # the bin: a tall front wall, lower side and back walls (all sink 1 mm into the table)
-    t, front_h, low_h = 0.01, 0.30, 0.16
-    x0, x1, y1 = 0.44, 0.78, 0.26
+    t, front_h, low_h = 0.01, 0.24, 0.14
+    x0, x1, y1 = 0.44, 0.84, 0.30
     add("wall_front", (x0, 0.0, (front_h - 0.001) / 2), (t, y1 + t, (front_h + 0.001) / 2))
     add("wall_bin", (x1, 0.0, (low_h - 0.001) / 2), (t, y1 + t, (low_h + 0.001) / 2))
     for s in (-1.0, 1.0):
@@ -117,8 +123,8 @@ def _build_layout(seed: int) -> TabletopLayout:
         add("shelf", (x, -0.50, 0.10 - 0.0005), (0.015, 0.12, 0.10 + 0.0005))
     add("shelf", (0.37, -0.50, 0.21), (0.17, 0.13, 0.012))
     # coloured objects
-    add("object_red", (0.70 + j(0.01), -0.17 + j(0.01), 0.025), (0.025, 0.025, 0.0255), _yaw(rng.uniform(0, np.pi)), OBJECT_COLORS["object_red"])
-    add("object_yellow", (0.71 + j(0.01), 0.17 + j(0.01), 0.035), (0.03, 0.02, 0.0355), _yaw(rng.uniform(0, np.pi)), OBJECT_COLORS["object_yellow"])
+    add("object_red", (0.78 + j(0.01), -0.21 + j(0.01), 0.025), (0.025, 0.025, 0.0255), _yaw(rng.uniform(0, np.pi)), OBJECT_COLORS["object_red"])
+    add("object_yellow", (0.78 + j(0.01), 0.21 + j(0.01), 0.035), (0.03, 0.02, 0.0355), _yaw(rng.uniform(0, np.pi)), OBJECT_COLORS["object_yellow"])
     add("object_green", (0.20 + j(0.02), 0.25 + j(0.02), 0.04), (0.03, 0.03, 0.0405), _yaw(rng.uniform(0, np.pi)), OBJECT_COLORS["object_green"])
     add("object_blue", (0.28 + j(0.02), -0.28 + j(0.02), 0.03), (0.05, 0.035, 0.0305), _yaw(rng.uniform(0, np.pi)), OBJECT_COLORS["object_blue"])
     add("object_purple", (0.37 + j(0.02), -0.50, 0.222 + 0.03 - 0.001), (0.03, 0.03, 0.03), _yaw(rng.uniform(0, np.pi)), OBJECT_COLORS["object_purple"])
@@ -130,12 +136,12 @@ def _build_layout(seed: int) -> TabletopLayout:
         {
             "name": "tabletop",
             "seed": int(seed),
-            "units": "metres, z up, table top at z = 0, robot base at the origin looking along +x",
+            "units": "metres, z up, table top at z = -0.09, robot base at the origin looking along +x",
             "robot": "panda",
             "target_region": [TARGET_REGION[0].tolist(), TARGET_REGION[1].tolist()],
         },
     )
-    return TabletopLayout(scene=scene, colors=np.stack(colors), target_region=TARGET_REGION, front_wall_top=front_h)
+    return TabletopLayout(scene=scene, colors=np.stack(colors), target_region=TARGET_REGION, front_wall_top=front_h + TABLE_TOP)
 
 
 @functools.lru_cache(maxsize=4)
@@ -172,11 +178,11 @@ def _build_cached(seed: int, n_splats: int) -> Splats:
     splats = splats_from_boxes(
         scene,
         n_splats,
-        config=level_config(1),
+        config=replace(level_config(1), floater_transparent_fraction=1.0),  # floaters the default filter drops
         colors=lay.colors,
         density=density,
         faces=faces,
-        floater_region=(np.array([-0.2, -0.7, 0.02]), np.array([0.95, 0.7, 0.8])),
+        floater_region=(np.array([-0.2, -0.7, TABLE_TOP + 0.02]), np.array([0.95, 0.7, 0.8])),
         seed=np.random.default_rng([int(seed), int(n_splats), 2718]),
     )
     splats.info.update({"scene": "tabletop", "seed": int(seed), "units": scene.meta["units"]})

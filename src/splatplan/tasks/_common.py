@@ -1,0 +1,132 @@
+"""Shared pieces of the MPPI tasks: scenes, start checks, clearance of an executed trajectory, results."""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import SplatplanError
+
+
+@dataclass
+class TaskScene:
+    """A scene for a task: the splats, a checker, and the exact geometry when known.
+
+    Attributes:
+        name: built-in name or the file path.
+        splats: the (floater-filtered) splats.
+        checker: :class:`~splatplan.metric.CollisionChecker` at the task's n_sigma.
+        analytic: :class:`~splatplan.scenes.builtin.primitives.AnalyticScene` or None (then the
+            clearance comes from the metric).
+    """
+
+    name: str
+    splats: object
+    checker: object
+    analytic: object | None
+
+
+def load_task_scene(scene, n_sigma: float = 1.0, device: str | None = "cpu", n_splats: int | None = None) -> TaskScene:
+    """A built-in name ("tabletop", "apartment", "stonehenge") or a splat file (its ``.gt.json``
+    beside it is used for the exact clearance when present)."""
+    from ..metric import CollisionChecker
+    from ..scenes.builtin import BUILTIN_SCENES, build_builtin
+    from ..scenes.filters import filter_floaters
+
+    if isinstance(scene, TaskScene):
+        return scene
+    name = str(scene)
+    if name in BUILTIN_SCENES:
+        raw, gt = build_builtin(name, n_splats=n_splats)
+    else:
+        from ..scenes.load import load_scene
+        from ..scenes.stonehenge import ground_truth_path, load_ground_truth
+
+        p = Path(name)
+        if not p.is_file():
+            raise SplatplanError(f"scene {name!r} is neither a built-in scene ({', '.join(BUILTIN_SCENES)}) nor a file")
+        raw = load_scene(p, filter_floaters=False)
+        gt = load_ground_truth(p) if ground_truth_path(p).is_file() else None
+    splats, _ = filter_floaters(raw)
+    return TaskScene(name, splats, CollisionChecker(splats, n_sigma=n_sigma, device=device), gt)
+
+
+def check_start(robot, checker, q0: np.ndarray) -> None:
+    """Raise a :class:`SplatplanError` naming the links (and splat counts) in collision at ``q0``."""
+    res = checker.query_robot(robot, np.asarray(q0, np.float64)[None])
+    hit = np.asarray(res.in_collision)[0]
+    if np.any(hit):
+        names = [robot.link_names[int(robot.ellipsoid_link[e])] for e in np.flatnonzero(hit)]
+        counts = np.asarray(res.n_colliding)[0][hit]
+        parts = ", ".join(f"{n} ({int(c)} splats)" for n, c in zip(names, counts))
+        raise SplatplanError(f"the start configuration of {robot.name} is in collision (n_sigma = {checker.n_sigma:g}): {parts}; move the start or lower n_sigma")
+
+
+def densify(robot, states: np.ndarray, step_m: float = 0.01) -> np.ndarray:
+    """Configurations along an executed trajectory (S, dof), linearly interpolated so that no
+    ellipsoid point moves more than ``step_m`` between consecutive ones (``robot.motion_bound``)."""
+    states = np.asarray(states, np.float64)
+    out = [states[:1]]
+    mb = np.asarray(robot.motion_bound, np.float64)
+    for a, b in zip(states[:-1], states[1:]):
+        n = max(1, int(np.ceil(float(np.sum(mb * np.abs(b - a))) / step_m)))
+        t = (np.arange(1, n + 1) / n)[:, None]
+        out.append(a + t * (b - a))
+    return np.concatenate(out)
+
+
+def trajectory_clearance(robot, scene: TaskScene, states: np.ndarray) -> tuple[float, str, np.ndarray]:
+    """Smallest clearance (m) of any robot ellipsoid over the densified trajectory.
+
+    Returns:
+        (min clearance, source, per-state minimum (S',)). Source "analytic": the exact signed
+        distance to the scene's boxes (:meth:`AnalyticScene.ellipsoid_clearance`); "metric": a lower
+        bound from the CollisionSplatting metric, ``(sqrt(min s2~) - 1) * smallest semi-axis`` (to
+        the n_sigma-inflated splat centres; capped where min s2~ reaches the checker's s2_cap).
+    """
+    q = densify(robot, states)
+    if scene.analytic is not None:
+        c, quat, ax = robot.ellipsoids(q)
+        per = scene.analytic.ellipsoid_clearance(c, quat, ax).min(axis=-1)
+        return float(per.min()), "analytic", per
+    res = scene.checker.query_robot(robot, q)
+    s2 = np.asarray(res.min_s2, np.float64)  # (S', E)
+    per = ((np.sqrt(np.maximum(s2, 0.0)) - 1.0) * robot.semi_axes.min(axis=1)).min(axis=-1)
+    return float(per.min()), "metric", per
+
+
+CLEARANCE_NOTES = {
+    "analytic": "exact signed distance from every robot ellipsoid to the scene's analytic geometry (negative = penetration)",
+    "metric": "no analytic geometry: lower bound (sqrt(min s2~) - 1) * smallest semi-axis from the CollisionSplatting metric at the task's n_sigma",
+}
+
+
+@dataclass
+class TaskResult:
+    """What a reaching / driving run produced (``to_json`` gives the CLI's result.json)."""
+
+    success: bool
+    trajectory: np.ndarray  # (S + 1, dof) executed configurations
+    min_clearance_m: float
+    final_position_error_m: float
+    time_s: float
+    steps_per_s: float
+    collision_cost: bool
+    clearance_source: str
+    final_orientation_error_deg: float = float("nan")
+    message: str = ""
+    goal: dict = field(default_factory=dict)
+    extra: dict = field(default_factory=dict)
+
+    def to_json(self) -> dict:
+        d = asdict(self)
+        d["trajectory"] = np.asarray(self.trajectory).round(6).tolist()
+        d["clearance_note"] = CLEARANCE_NOTES[self.clearance_source]
+        if not self.collision_cost:
+            d["note"] = "--no-collision: the collision cost was OFF for this run"
+        for k, v in list(d.items()):
+            if isinstance(v, float) and not np.isfinite(v):
+                d[k] = None
+        return d

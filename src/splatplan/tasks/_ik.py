@@ -1,0 +1,90 @@
+"""Batched inverse kinematics by damped least squares (numeric Jacobian), for goal reachability.
+
+Used before a reaching run to decide whether a goal pose is reachable at all (an unreachable goal
+is reported before any MPPI step) and to find collision-free goal configurations for the studies.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..scenes.splats import quat_to_rotmat
+
+
+def rotation_error(r: np.ndarray, r_goal: np.ndarray) -> np.ndarray:
+    """Axis-angle vector (..., 3) of ``r_goal r^T`` (world frame; rotates r onto r_goal)."""
+    m = np.einsum("ij,...kj->...ik", r_goal, r)  # r_goal @ r^T
+    angle = np.arccos(np.clip(0.5 * (np.trace(m, axis1=-2, axis2=-1) - 1.0), -1.0, 1.0))
+    v = 0.5 * np.stack([m[..., 2, 1] - m[..., 1, 2], m[..., 0, 2] - m[..., 2, 0], m[..., 1, 0] - m[..., 0, 1]], axis=-1)
+    s = np.sin(angle)[..., None]
+    small = s < 1e-6
+    axis = np.where(small, v, v / np.where(small, 1.0, s))
+    out = np.where(small, v, axis * angle[..., None])
+    # angle ~ pi: the antisymmetric part vanishes; use the symmetric part's dominant column
+    near_pi = angle > np.pi - 1e-3
+    if np.any(near_pi):
+        b = 0.5 * (m[near_pi] + np.eye(3))
+        col = np.argmax(np.einsum("pii->pi", b), axis=1)
+        ax = b[np.arange(len(b)), :, col]
+        ax /= np.linalg.norm(ax, axis=1, keepdims=True)
+        out[near_pi] = ax * angle[near_pi][:, None]
+    return out
+
+
+def solve_ik(
+    robot,
+    position,  # (3,) world
+    quat=None,  # (4,) wxyz world <- link, or None (position only)
+    *,
+    link: str,
+    n_seeds: int = 64,
+    n_iters: int = 150,
+    rot_weight: float = 0.3,
+    damping: float = 1e-3,
+    seed: int = 0,
+    q_init: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Damped-least-squares IK from ``n_seeds`` random starts (plus ``q_init``), within joint limits.
+
+    Returns:
+        q (S, dof) final configurations, position errors (S,) metres, orientation errors (S,) rad,
+        sorted by ``pos_err + rot_weight * rot_err`` (best first).
+    """
+    rng = np.random.default_rng(seed)
+    lim = np.asarray(robot.joint_limits, dtype=np.float64)
+    lo, hi = lim[:, 0], lim[:, 1]
+    dof = robot.dof
+    q = lo + rng.random((n_seeds, dof)) * (hi - lo)
+    q[0] = robot.q_default
+    if q_init is not None:
+        q = np.concatenate([np.asarray(q_init, np.float64).reshape(-1, dof), q])
+    li = list(robot.link_names).index(link)
+    p_goal = np.asarray(position, dtype=np.float64).reshape(3)
+    r_goal = None if quat is None else quat_to_rotmat(np.asarray(quat, np.float64) / np.linalg.norm(quat))
+    eps = 1e-6
+    w = np.array([1.0, 1.0, 1.0] + [rot_weight] * 3) if r_goal is not None else np.ones(3)
+
+    def residual(qq: np.ndarray) -> np.ndarray:  # (..., 6) or (..., 3)
+        t = robot.link_poses(qq)[..., li, :, :]
+        e = p_goal - t[..., :3, 3]
+        if r_goal is None:
+            return e
+        return np.concatenate([e, rotation_error(t[..., :3, :3], r_goal)], axis=-1)
+
+    for _ in range(n_iters):
+        b = q.shape[0]
+        qp = np.repeat(q[:, None, :], dof + 1, axis=1)  # (B, dof+1, dof)
+        qp[:, 1:, :] += eps * np.eye(dof)
+        res = residual(qp)  # (B, dof+1, m)
+        e = res[:, 0] * w  # (B, m)
+        jac = -(res[:, 1:] - res[:, :1]).transpose(0, 2, 1) / eps * w[None, :, None]  # (B, m, dof): d(-e)/dq
+        jt = jac.transpose(0, 2, 1)
+        a = jt @ jac + damping * np.eye(dof)
+        dq = np.linalg.solve(a, np.einsum("bdm,bm->bd", jt, e)[..., None])[..., 0]
+        step = np.clip(dq, -0.3, 0.3)
+        q = np.clip(q + step, lo, hi)
+    res = residual(q)
+    pos_err = np.linalg.norm(res[:, :3], axis=1)
+    rot_err = np.linalg.norm(res[:, 3:], axis=1) if r_goal is not None else np.zeros(len(q))
+    order = np.argsort(pos_err + rot_weight * rot_err)
+    return q[order], pos_err[order], rot_err[order]

@@ -1,0 +1,221 @@
+"""Arm reaching under MPPI (paper Sec. II-D / IV, E5 without the image): a 7-DoF arm to an
+end-effector pose, with the collision cost over every link ellipsoid.
+
+Controls: joint velocities (rad/s) as a cubic B-spline over the horizon (MPPI knots), clipped to
+``velocity_scale * robot.velocity_limits``; joint positions saturate at the limits
+(:class:`~splatplan.planners.dynamics.JointIntegrator`) and a :class:`JointLimitCost` keeps samples
+away from them. Cost per sample (:mod:`splatplan.planners.costs`):
+
+* :class:`GoalPoseCost` on the end-effector link: position (m) + orientation (rad), summed over the
+  horizon with extra weight on the last step;
+* :class:`CollisionCost`: the CollisionSplatting cost of **every** robot ellipsoid, one
+  ``query_robot`` per MPPI iteration on the (K, T, dof) batch, plus a count of colliding ellipsoids
+  (and optional self-collision);
+* :class:`ControlEffortCost` and :class:`JointLimitCost`.
+
+Warm start by shifting the knots one control period (MPPI's own). The goal pose is checked for
+reachability by IK (:func:`solve_ik`) before any step: an unreachable goal is an error.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import SplatplanError
+from ._common import TaskResult, TaskScene, check_start, load_task_scene, trajectory_clearance
+from ._ik import rotation_error, solve_ik
+
+__all__ = ["ArmConfig", "check_reachable", "down_quat", "run_arm"]
+
+
+@dataclass
+class ArmConfig:
+    """Knobs of :func:`run_arm` (MPPI over joint-velocity B-splines)."""
+
+    #: sampled control sequences K per MPPI iteration
+    n_samples: int = 64
+    #: horizon T (control steps)
+    horizon: int = 16
+    #: B-spline knots per joint over the horizon (>= 4)
+    n_knots: int = 5
+    #: control period (s)
+    dt: float = 0.1
+    #: MPPI temperature (smaller = greedier)
+    temperature: float = 0.3
+    #: std of the knot perturbations (rad/s)
+    noise_sigma: float = 0.35
+    #: MPPI iterations per MPC step
+    n_iters: int = 1
+    #: maximum MPC steps
+    max_steps: int = 80
+    #: joint velocity bound as a fraction of the robot's velocity limits
+    velocity_scale: float = 0.4
+    #: weight of the end-effector position error (per metre, per step)
+    w_position: float = 4.0
+    #: weight of the end-effector orientation error (per radian, per step)
+    w_orientation: float = 0.5
+    #: extra weight of the last step of the goal cost (x the per-step weight)
+    terminal_factor: float = 4.0
+    #: weight of the summed CollisionSplatting cost (every ellipsoid, every step)
+    w_collision: float = 2.0
+    #: cost per (step, ellipsoid) in collision
+    w_hit: float = 20.0
+    #: cost per step with a self-collision (0 = off)
+    w_self_collision: float = 0.0
+    #: weight of the joint-limit penalty
+    w_limits: float = 100.0
+    #: weight of the control effort sum |qdot|^2 dt
+    w_control: float = 0.01
+    #: conservatism of the metric (n_sigma)
+    n_sigma: float = 1.0
+    #: neighbourhood of the rollouts' collision cost (checker s2_cap for MPPI queries)
+    collision_s2_cap: float = 1.6
+    #: end-effector link
+    ee_link: str = "panda_hand_tcp"
+    #: success: final position error below this (m) ...
+    position_tol: float = 0.02
+    #: ... and orientation error below this (degrees)
+    orientation_tol_deg: float = 10.0
+    #: stop early once the position error is below this (m) and the orientation within tolerance
+    stop_tol: float = 0.008
+    #: noise seed
+    seed: int = 0
+
+
+def down_quat(yaw: float = 0.0) -> np.ndarray:
+    """wxyz quaternion of a gripper pointing straight down (tool z = world -z), turned by ``yaw``."""
+    return np.array([0.0, np.cos(yaw / 2), np.sin(yaw / 2), 0.0])
+
+
+def check_reachable(robot, position, quat, link: str, tol_m: float = 0.003, tol_deg: float = 2.0, n_seeds: int = 24, seed: int = 0) -> np.ndarray:
+    """IK (damped least squares from ``n_seeds`` starts) for the goal pose; returns the solutions
+    (S, dof) that reach it, best first. Raises "unreachable goal pose" when none does."""
+    p = np.asarray(position, np.float64).reshape(3)
+    base = robot.base_pose[:3, 3]
+    reach = float(robot.info.get("reach_m", 1.2)) if hasattr(robot, "info") else 1.2
+    if np.linalg.norm(p - base) > reach:
+        raise SplatplanError(f"unreachable goal pose: {p.round(3).tolist()} is {np.linalg.norm(p - base):.2f} m from the base of {robot.name} (reach < {reach:.2f} m)")
+    q, pe, re = solve_ik(robot, p, quat, link=link, n_seeds=n_seeds, n_iters=60, seed=seed)
+    ok = (pe < tol_m) & (re < np.deg2rad(tol_deg))
+    if not np.any(ok):
+        raise SplatplanError(
+            f"unreachable goal pose: position {p.round(3).tolist()}, quat {np.round(quat, 3).tolist()}: the closest IK solution "
+            f"({n_seeds} starts) is {pe[0] * 100:.1f} cm / {np.rad2deg(re[0]):.1f} deg away; pick a pose inside the workspace"
+        )
+    return q[ok]
+
+
+def _ee_error(robot, q: np.ndarray, li: int, p_goal: np.ndarray, r_goal: np.ndarray | None) -> tuple[float, float]:
+    t = robot.link_poses(np.asarray(q, np.float64))[li]
+    pe = float(np.linalg.norm(t[:3, 3] - p_goal))
+    re = 0.0 if r_goal is None else float(np.linalg.norm(rotation_error(t[:3, :3], r_goal)))
+    return pe, re
+
+
+def run_arm(
+    robot,
+    scene,
+    goal_position,
+    goal_quat=None,
+    *,
+    config: ArmConfig | None = None,
+    collision: bool = True,
+    q0=None,
+    device: str | None = "cpu",
+    check_goal: bool = True,
+    progress=None,
+) -> TaskResult:
+    """Reach an end-effector pose with MPPI (see the module docstring).
+
+    Args:
+        robot: a :class:`~splatplan.robots.Robot` (or a name, e.g. "panda").
+        scene: a built-in name, a splat file, or a :class:`TaskScene`.
+        goal_position: (3,) world frame, metres.
+        goal_quat: (4,) wxyz world <- end-effector link, or None (position only).
+        config: :class:`ArmConfig`.
+        collision: include the collision cost (False: the "without collision" baseline).
+        q0: start configuration (default ``robot.q_default``).
+        device: metric device.
+        check_goal: run the IK reachability check first.
+        progress: optional callable(step, position_error) per MPC step.
+
+    Returns:
+        :class:`TaskResult` (``trajectory`` in joint space).
+    """
+    from ..planners import MPPI, MPPIConfig
+    from ..planners.costs import CollisionCost, ControlEffortCost, GoalPoseCost, JointLimitCost
+    from ..planners.dynamics import JointIntegrator
+    from ..robots import load_robot
+    from ..scenes.splats import quat_to_rotmat
+
+    cfg = config or ArmConfig()
+    robot = load_robot(robot)
+    if cfg.ee_link not in robot.link_names:
+        raise SplatplanError(f"robot {robot.name} has no end-effector link {cfg.ee_link!r}; links: {', '.join(robot.link_names)}")
+    p_goal = np.asarray(goal_position, np.float64).reshape(3)
+    if not np.all(np.isfinite(p_goal)):
+        raise SplatplanError(f"goal position {p_goal.tolist()} is not finite")
+    quat = None
+    if goal_quat is not None:
+        quat = np.asarray(goal_quat, np.float64).reshape(4)
+        if not np.all(np.isfinite(quat)) or np.linalg.norm(quat) < 1e-8:
+            raise SplatplanError(f"goal quaternion {quat.tolist()} must be finite and non-zero (wxyz)")
+        quat = quat / np.linalg.norm(quat)
+    if check_goal:
+        check_reachable(robot, p_goal, quat, cfg.ee_link, seed=cfg.seed)
+    ts = load_task_scene(scene, n_sigma=cfg.n_sigma, device=device)
+    q = robot.check_q(robot.q_default if q0 is None else q0).reshape(robot.dof).copy()
+    check_start(robot, ts.checker, q)
+
+    vmax = cfg.velocity_scale * np.asarray(robot.velocity_limits, np.float64)
+    dyn = JointIntegrator(robot, velocity_limits=vmax)
+    costs = [
+        GoalPoseCost(robot, position=p_goal, quat=quat, link=cfg.ee_link, position_weight=cfg.w_position, orientation_weight=cfg.w_orientation, terminal_factor=cfg.terminal_factor),
+        ControlEffortCost(cfg.w_control),
+        JointLimitCost(robot, weight=cfg.w_limits, margin=0.05),
+    ]
+    if collision:
+        costs.insert(0, CollisionCost(ts.checker, robot, weight=cfg.w_collision, hit_weight=cfg.w_hit, s2_cap=cfg.collision_s2_cap, self_collision_weight=cfg.w_self_collision))
+    mcfg = MPPIConfig(
+        n_samples=cfg.n_samples, horizon=cfg.horizon, n_knots=cfg.n_knots, dt=cfg.dt, temperature=cfg.temperature,
+        noise_sigma=cfg.noise_sigma, n_iters=cfg.n_iters, u_min=tuple(-vmax), u_max=tuple(vmax), seed=cfg.seed,
+    )  # fmt: skip
+    mppi = MPPI(dyn, ts.checker if collision else None, mcfg, costs=costs)
+    li = robot.link_names.index(cfg.ee_link)
+    r_goal = None if quat is None else quat_to_rotmat(quat)
+    states = [q.copy()]
+    t0 = time.perf_counter()
+    n_steps = 0
+    for step in range(cfg.max_steps):
+        pe, re = _ee_error(robot, q, li, p_goal, r_goal)
+        if progress is not None:
+            progress(step, pe)
+        if pe < cfg.stop_tol and np.rad2deg(re) < cfg.orientation_tol_deg:
+            break
+        u, _ = mppi.step(q)
+        q = dyn.rollout(q, u[None, None, :], cfg.dt)[0, 0]
+        states.append(q.copy())
+        n_steps += 1
+    elapsed = time.perf_counter() - t0
+    pe, re = _ee_error(robot, q, li, p_goal, r_goal)
+    traj = np.asarray(states)
+    clearance, source, _ = trajectory_clearance(robot, ts, traj)
+    success = bool(pe < cfg.position_tol and np.rad2deg(re) < cfg.orientation_tol_deg and clearance > 0)
+    ee = robot.link_poses(traj)[:, li, :3, 3]
+    return TaskResult(
+        success=success,
+        trajectory=traj,
+        min_clearance_m=clearance,
+        final_position_error_m=pe,
+        time_s=elapsed,
+        steps_per_s=n_steps / elapsed if elapsed > 0 else float("nan"),
+        collision_cost=bool(collision),
+        clearance_source=source,
+        final_orientation_error_deg=float(np.rad2deg(re)),
+        message="" if success else ("in collision" if clearance <= 0 else "goal not reached within max_steps"),
+        goal={"position": p_goal.tolist(), "quat_wxyz": None if quat is None else quat.tolist(), "link": cfg.ee_link},
+        extra={"robot": robot.name, "scene": ts.name, "n_steps": n_steps, "ee_trace": ee.round(5).tolist(), "n_splats": len(ts.splats)},
+    )
