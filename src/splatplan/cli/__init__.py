@@ -27,6 +27,7 @@ _MODULES = (
     "eval",
     "view",
     "encode",
+    "render",
 )
 
 
