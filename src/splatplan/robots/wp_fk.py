@@ -20,6 +20,7 @@ from .._warp import wp as _wp
 from .kinematics import FIXED, PLANAR, PRISMATIC, REVOLUTE, TRANSLATION
 
 wp = _wp()
+wp.set_module_options({"enable_backward": False})  # forward only: halves compile time
 
 #: CPU launches per worker thread for one batch.
 CHUNKS_PER_THREAD = 4
@@ -41,6 +42,8 @@ class FKModel:
     offset: wp.array(dtype=wp.float32)  # (F,) mimic offset
     axis: wp.array(dtype=wp.vec3)  # (F,) unit joint axis (joint frame)
     orot: wp.array(dtype=wp.mat33)  # (F,) parent frame <- joint frame rotation at zero value
+    arot: wp.array(dtype=wp.mat33)  # (F,) orot @ [axis]_x (revolute: orot @ R(v) = c orot + s arot + (1 - c) brot)
+    brot: wp.array(dtype=wp.mat33)  # (F,) orot @ axis axis^T
     opos: wp.array(dtype=wp.vec3)  # (F,) parent frame <- joint frame translation
     slot: wp.array(dtype=wp.int32)  # (F,) scratch slot, -1 when not stored
     ell_start: wp.array(dtype=wp.int32)  # (F+1,) ellipsoids of frame f: ell_start[f]..ell_start[f+1]
@@ -62,6 +65,23 @@ def axis_angle_mat(k: wp.vec3, angle: float):
     )  # fmt: skip
 
 
+@wp.func
+def other_joint(m: FKModel, f: int, q: wp.array2d(dtype=wp.float32), b: int):
+    """Local transform (parent frame <- frame) of a fixed, prismatic, planar or translation joint."""
+    lrot = m.orot[f]
+    lpos = m.opos[f]
+    jt = m.jtype[f]
+    qi = m.qidx[f]
+    if jt == 2:  # prismatic
+        lpos = lpos + lrot @ (m.axis[f] * (q[b, qi] * m.mult[f] + m.offset[f]))
+    elif jt == 3:  # planar base: Trans(x, y, 0) Rz(yaw)
+        lpos = lpos + lrot @ wp.vec3(q[b, qi], q[b, qi + 1], 0.0)
+        lrot = lrot @ axis_angle_mat(wp.vec3(0.0, 0.0, 1.0), q[b, qi + 2])
+    elif jt == 4:  # translation base
+        lpos = lpos + lrot @ wp.vec3(q[b, qi], q[b, qi + 1], q[b, qi + 2])
+    return lrot, lpos
+
+
 @wp.kernel
 def fk_kernel(
     m: FKModel,
@@ -73,36 +93,26 @@ def fk_kernel(
     out_rots: wp.array(dtype=wp.mat33),  # (B * E,) world <- ellipsoid
 ):
     b = wp.tid() + b0
+    # Pose of the previous frame; for the root (f = 0, parent -1 = f - 1) the identity.
     rot = wp.identity(n=3, dtype=float)
     pos = wp.vec3(0.0, 0.0, 0.0)
     for f in range(m.n_frames):
         par = m.parent[f]
-        prot = rot
-        ppos = pos
-        if par < 0:
-            prot = wp.identity(n=3, dtype=float)
-            ppos = wp.vec3(0.0, 0.0, 0.0)
-        elif par != f - 1:
+        if par != f - 1:  # parent is not the previous frame: read its stored pose
             s = b * m.n_slots + m.slot[par]
-            prot = scratch_rot[s]
-            ppos = scratch_pos[s]
-        lrot = m.orot[f]
-        lpos = m.opos[f]
-        jt = m.jtype[f]
-        qi = m.qidx[f]
-        if jt == 1:  # revolute
-            v = q[b, qi] * m.mult[f] + m.offset[f]
-            lrot = lrot @ axis_angle_mat(m.axis[f], v)
-        elif jt == 2:  # prismatic
-            v = q[b, qi] * m.mult[f] + m.offset[f]
-            lpos = lpos + lrot @ (m.axis[f] * v)
-        elif jt == 3:  # planar base: Trans(x, y, 0) Rz(yaw)
-            lpos = lpos + lrot @ wp.vec3(q[b, qi], q[b, qi + 1], 0.0)
-            lrot = lrot @ axis_angle_mat(wp.vec3(0.0, 0.0, 1.0), q[b, qi + 2])
-        elif jt == 4:  # translation base
-            lpos = lpos + lrot @ wp.vec3(q[b, qi], q[b, qi + 1], q[b, qi + 2])
-        rot = prot @ lrot
-        pos = prot @ lpos + ppos
+            rot = scratch_rot[s]
+            pos = scratch_pos[s]
+        lrot = wp.mat33()
+        lpos = wp.vec3()
+        if m.jtype[f] == 1:  # revolute (the common case), Rodrigues folded into precomputed matrices
+            v = q[b, m.qidx[f]] * m.mult[f] + m.offset[f]
+            c = wp.cos(v)
+            lrot = m.orot[f] * c + m.arot[f] * wp.sin(v) + m.brot[f] * (1.0 - c)
+            lpos = m.opos[f]
+        else:
+            lrot, lpos = other_joint(m, f, q, b)
+        pos = rot @ lpos + pos
+        rot = rot @ lrot
         if m.slot[f] >= 0:
             s = b * m.n_slots + m.slot[f]
             scratch_rot[s] = rot
@@ -114,6 +124,10 @@ def fk_kernel(
 
 
 assert (FIXED, REVOLUTE, PRISMATIC, PLANAR, TRANSLATION) == (0, 1, 2, 3, 4)  # codes used in the kernel
+
+
+def _skew(k: np.ndarray) -> np.ndarray:
+    return np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
 
 
 def model_arrays(robot) -> dict[str, np.ndarray]:
@@ -142,6 +156,8 @@ def model_arrays(robot) -> dict[str, np.ndarray]:
         "offset": kin.offset[frames].astype(np.float32),
         "axis": kin.axis[frames].astype(np.float32),
         "orot": origin[:, :3, :3].astype(np.float32),
+        "arot": (origin[:, :3, :3] @ np.stack([_skew(k) for k in kin.axis[frames]])).astype(np.float32),
+        "brot": (origin[:, :3, :3] @ np.einsum("fi,fj->fij", kin.axis[frames], kin.axis[frames])).astype(np.float32),
         "opos": origin[:, :3, 3].astype(np.float32),
         "slot": slot,
         "ell_start": start,
@@ -167,7 +183,7 @@ def _model(robot, device) -> FKModel:
                 setattr(m, name, wp.array(a[name], dtype=wp.float32, device=device))
             for name in ("axis", "opos", "epos"):
                 setattr(m, name, wp.array(a[name], dtype=wp.vec3, device=device))
-            for name in ("orot", "erot"):
+            for name in ("orot", "arot", "brot", "erot"):
                 setattr(m, name, wp.array(a[name], dtype=wp.mat33, device=device))
             robot._wp_cache[key] = m
         return m
