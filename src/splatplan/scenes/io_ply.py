@@ -128,6 +128,30 @@ def ply_kind(ply: plyfile.PlyData) -> str | None:
     return None
 
 
+def _float32_matrix(rows: np.ndarray) -> tuple[np.ndarray | None, dict[str, int]]:
+    """(M, F) float32 view of structured rows whose fields are all float32 of one byte order and
+    packed without gaps, with each field's column; (None, {}) for any other layout."""
+    dt = rows.dtype
+    names = dt.names or ()
+    if not names or not rows.flags.c_contiguous or dt.itemsize != 4 * len(names):
+        return None, {}
+    f0 = dt.fields[names[0]][0]
+    if f0.kind != "f" or f0.itemsize != 4 or any(dt.fields[nm][0] != f0 or dt.fields[nm][1] % 4 for nm in names):
+        return None, {}
+    col = {nm: dt.fields[nm][1] // 4 for nm in names}
+    if len(set(col.values())) != len(names):
+        return None, {}
+    return rows.view(f0).reshape(len(rows), len(names)), col
+
+
+def _cols(col: dict[str, int], names: list[str]) -> slice | list[int]:
+    """Column selector for ``names``: a slice when they are consecutive (a view, no gather)."""
+    idx = [col[nm] for nm in names]
+    if idx == list(range(idx[0], idx[0] + len(idx))):
+        return slice(idx[0], idx[0] + len(idx))
+    return idx
+
+
 def decode_gaussian_ply(ply: plyfile.PlyData, path: str | Path, *, drop_invalid: bool = False) -> Splats:
     """Decode an INRIA 3DGS or 2DGS ``vertex`` element (see the module docstring).
 
@@ -164,6 +188,16 @@ def decode_gaussian_ply(ply: plyfile.PlyData, path: str | Path, *, drop_invalid:
     with np.errstate(over="ignore", invalid="ignore"):  # overflow -> Inf, reported by build_splats
         for a, rows in iter_rows(ply, path, "vertex"):
             b = a + len(rows)
+            mat, col = _float32_matrix(rows)
+            if mat is not None:  # the usual all-float32 file: gather whole column groups at once
+                means[a:b] = mat[:, _cols(col, ["x", "y", "z"])]
+                quats[a:b] = mat[:, _cols(col, [f"rot_{j}" for j in range(4)])]
+                scales[a:b, :n_scales] = exp_std(mat[:, _cols(col, [f"scale_{j}" for j in range(n_scales)])])
+                opacities[a:b] = sigmoid(mat[:, col["opacity"]])
+                colors[a:b] = sh_dc_to_color(mat[:, _cols(col, [f"f_dc_{c}" for c in range(3)])])
+                if k:  # (M, 3K) channel-major -> (M, K, 3)
+                    sh_rest[a:b] = mat[:, _cols(col, [f"f_rest_{i}" for i in range(3 * k)])].reshape(b - a, 3, k).transpose(0, 2, 1)
+                continue
             for j, axis in enumerate("xyz"):
                 means[a:b, j] = rows[axis]
             for j in range(4):

@@ -313,14 +313,14 @@ def _decode(path: str | Path, header: dict, blocks: dict[str, np.ndarray], *, dr
         xyzw = unpack_rotation_v3(blocks["rotations"].view("<u4"))
     quats = np.concatenate([xyzw[:, 3:], xyzw[:, :3]], axis=1)  # (N, 4) wxyz, RUB
     sh_rest = None
-    if k:
-        sh_rest = (blocks["sh"].reshape(n, k, 3).astype(np.float32) - np.float32(128.0)) / np.float32(128.0)  # (N, K, 3) RUB, exact
+    if k:  # (N, K, 3), exact in float32; in place, so one float32 copy of the SH block
+        sh_rest = blocks["sh"].reshape(n, k, 3).astype(np.float32)
+        sh_rest -= np.float32(128.0)
+        sh_rest *= (SH_FLIP_RUB_RDF[:k, None] / 128.0).astype(np.float32)  # scale, and RUB -> RDF parity
 
     # RUB -> RDF: rotate 180 degrees about x
     means[:, 1:] *= -1.0
     quats[:, 2:] *= -1.0
-    if sh_rest is not None:
-        sh_rest *= SH_FLIP_RUB_RDF[:k, None].astype(np.float32)
     return build_splats(
         path,
         "spz",
