@@ -381,7 +381,7 @@ def load_yaml(path: str | Path, link_names: list[str] | None = None) -> Ellipsoi
     if not path.is_file():
         raise SplatplanError(f"ellipsoid file {path} does not exist")
     try:
-        doc = yaml.safe_load(path.read_text())
+        doc = yaml.load(path.read_text(), Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader))
     except yaml.YAMLError as exc:
         raise SplatplanError(f"ellipsoid file {path} is not valid YAML ({str(exc).splitlines()[0]})") from None
     items = doc.get("ellipsoids") if isinstance(doc, dict) else None
