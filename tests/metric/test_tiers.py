@@ -58,15 +58,32 @@ def test_shell_scene_is_exact(device, tiers):
     _compare(scene, centers, random_quats(rng, b), axes, MetricConfig(n_sigma=1.0), device, tiers)
 
 
-def _tiers_of(impl) -> list[np.ndarray]:
-    """Original splat indices per tier."""
-    return [impl.order[o : o + n] for o, n in zip(impl.tier_offset, impl.tier_count)]
+def _tiers_of(impl, a: float = 0.02, cap: float = 4.0) -> list[np.ndarray]:
+    """Original splat indices per tier of the grid set used for queries of radius a."""
+    gs = impl.gridset(1.0, cap, a, a)
+    return [impl.order[impl.class_offset[i] : impl.class_offset[j] + impl.class_count[j]] for i, j in gs.groups]
 
 
-def test_shell_gets_its_own_tier():
+@pytest.mark.parametrize("cap", [1.0, 4.0])
+def test_shell_gets_its_own_tier(cap):
     scene = _shell_scene(np.random.default_rng(9), n_shell=60)  # 6% of the splats, as in the phone scan
-    new = _tiers_of(CollisionChecker(scene, n_sigma=1.0)._impl)
+    new = _tiers_of(CollisionChecker(scene, n_sigma=1.0)._impl, cap=cap)
     assert sorted(new[-1]) == list(range(900, 960))  # the shell alone in the top tier
-    old = _tiers_of(CollisionChecker(scene, n_sigma=1.0, tiers=TierConfig(mode="quantile"))._impl)
+    old = _tiers_of(CollisionChecker(scene, n_sigma=1.0, tiers=TierConfig(mode="quantile"))._impl, cap=cap)
     # the old quantile tiers put ordinary splats into a tier with (part of) the shell: they get its radius
     assert any((t >= 900).any() and (t < 900).any() for t in old)
+
+
+def test_classes_are_grouped_by_query_size():
+    """Classes whose radii are alike for a query size share a tier; tiny robots see more tiers."""
+    rng = np.random.default_rng(3)
+    smax_scene = random_scene(rng, 20000, scale=0.004)
+    impl = CollisionChecker(smax_scene, n_sigma=1.0)._impl
+    n_classes = len(impl.class_count)
+    assert n_classes >= 4
+    for a in (0.001, 0.02, 0.5):
+        gs = impl.gridset(1.0, 4.0, a, a)
+        flat = [c for i, j in gs.groups for c in range(i, j + 1)]
+        assert flat == list(range(n_classes))  # a partition into contiguous runs
+        assert gs.counts == [sum(impl.class_count[i : j + 1]) for i, j in gs.groups]
+    assert len(impl.gridset(1.0, 4.0, 0.5, 0.5).groups) <= len(impl.gridset(1.0, 4.0, 0.001, 0.001).groups)

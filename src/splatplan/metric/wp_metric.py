@@ -1,12 +1,17 @@
-"""Glue around the Warp kernels: size-class tiers, hash grids, multi-core CPU launches.
+"""Glue around the Warp kernels: size classes and tiers, hash grids, multi-core CPU launches.
 
-Tiers (see :mod:`.wp_metric_kernel` for the exactness argument): splats are binned by geometric
-size class of their largest std ``sigma`` (classes a factor ``class_factor`` apart); each tier gets
-its own hash grid whose query radius is derived from the tier's largest ``sigma``, so every tier's
-radius fits its members: the many small splats are searched with a tight radius, and a class of
-huge splats far from the robot (the "sky shell" of a phone capture: thousands of 7 m splats on a
-240 m sphere) gets a coarse grid whose cells near the robot are empty, so it costs one grid probe
-per query. Nothing is ever dropped. Memory is O(N) for the scene plus O(B) per batch.
+Size classes and tiers (see :mod:`.wp_metric_kernel` for the exactness argument): splats are
+sorted into geometric size classes of their largest std ``sigma`` (classes a factor
+``class_factor`` apart). For each query size (semi-axes, n_sigma, s2_cap) a *grid set* groups
+adjacent classes into tiers - one tier per class where the search radii differ enough to pay for
+a separate grid probe, merged where they do not (a small dynamic programme over an estimated
+cost) - and builds one hash grid per tier whose radius comes from the tier's largest ``sigma``.
+So every tier's radius fits its members: the many small splats are searched with a tight radius,
+and a class of huge splats far from the robot (the "sky shell" of a phone capture: thousands of
+7 m splats on a 240 m sphere) stays a tier of its own whose grid cells near the robot are empty,
+costing one grid probe per query. Nothing is ever dropped. ``TierConfig(mode="quantile")`` keeps
+the old tiers at quantiles of ``sigma`` for comparison. Memory is O(N) per grid set plus O(B) per
+batch; at most four grid sets are cached.
 
 Thread safety: the grid cache is guarded by a lock, and launches only read shared data, so two
 threads may query one :class:`WarpMetric` (or checker) at once. The CPU thread pool belongs to the
@@ -55,8 +60,12 @@ class TierConfig:
     #: A class with fewer splats than this merges into the next larger class when that class is
     #: adjacent (at most one factor apart); far larger classes are never merged with it.
     min_tier_count: int = 256
-    #: At most this many tiers: the adjacent pair whose merge widens fewest splats' radius merges first.
-    max_tiers: int = 8
+    #: At most this many size classes: the adjacent pair whose merge widens fewest splats' radius merges first.
+    max_tiers: int = 16
+    #: Fixed cost of one tier per query, in splat visits (a grid probe of ~27 cells). For each query
+    #: size, adjacent classes whose search radii are so close that a separate tier would not pay
+    #: for itself are searched as one tier (a dynamic programme over the estimated cost).
+    tier_overhead: float = 64.0
     #: mode "quantile": quantiles of the per-splat largest std that separate the tiers.
     quantiles: tuple[float, ...] = (0.9, 0.999)
     #: Hash-grid cell width as a fraction of the tier's query radius.
@@ -117,6 +126,9 @@ class _GridSet:
 
     grids: list  # wp.HashGrid per tier (kept alive here)
     tiers: SplatTiers  # the kernel's view of it
+    groups: tuple  # (first, last) size class of each tier
+    counts: list  # splats per tier
+    sigma: list  # largest std per tier
 
 
 def metric_params(cfg: MetricConfig, pow_m: int) -> MetricParams:
@@ -167,28 +179,29 @@ class WarpMetric:
             tier_of = quantile_tiers(smax, self.tiers.quantiles)
         else:
             raise ValueError(f"unknown tier mode {self.tiers.mode!r}: use 'size' or 'quantile'")
-        order_parts, self.tier_offset, self.tier_count, self.tier_sigma = [], [], [], []
+        # classes: contiguous ranges of the class-sorted splat arrays, sigma increasing
+        order_parts, self.class_offset, self.class_count, self.class_sigma, ext = [], [], [], [], []
         start = 0
         for j in range(int(tier_of.max()) + 1):
             idx = np.flatnonzero(tier_of == j)
             if len(idx) == 0:
                 continue
             order_parts.append(idx)
-            self.tier_offset.append(start)
-            self.tier_count.append(len(idx))
-            self.tier_sigma.append(float(smax[idx].max()))
+            self.class_offset.append(start)
+            self.class_count.append(len(idx))
+            self.class_sigma.append(float(smax[idx].max()))
+            ext.append(means[idx].max(0) - means[idx].min(0))
             start += len(idx)
+        self.class_extent = np.asarray(ext)  # (C, 3) bounding-box size of each class's means
         order = np.concatenate(order_parts)
-        self.order = order  # tier-sorted position -> original splat index
+        self.order = order  # class-sorted position -> original splat index
 
         rot = quat_to_rotmat(scene.quats[order])  # (N, 3, 3)
         self._means_np = means[order].astype(np.float32)  # (N, 3) tier-sorted
         self._mrows_np = (np.transpose(rot, (0, 2, 1)) * scales[order][:, :, None]).astype(np.float32)  # diag(s) R^T
         self._opac_np = np.asarray(scene.opacities, dtype=np.float32)[order]  # (N,) tier-sorted
-        offs = np.asarray(self.tier_offset + [start], np.int32)
-        self._tier_offset = wp.array(offs, dtype=wp.int32, device=self.device)
-        self._tier_sigma = wp.array(np.asarray(self.tier_sigma, np.float32), dtype=wp.float32, device=self.device)
         self._gridsets: dict[tuple[int, ...], _GridSet] = {}  # quantised cell per tier -> grids + data
+        self._keys: dict[tuple[float, ...], tuple[int, ...]] = {}  # (n_sigma, cap, a_min, a_max) -> grid key
         self._lock = threading.Lock()
         self._pool: ThreadPoolExecutor | None = None
         self._pool_finalizer = None
@@ -212,13 +225,52 @@ class WarpMetric:
             pool.shutdown(wait=True)
 
     # ------------------------------------------------------------------ grids
-    def grid_key(self, n_sigma: float, cap: float, a_min: float, a_max: float) -> tuple[int, ...]:
-        """Quantised (2^(1/4)) cell width per tier for a typical query with semi-axes in [a_min, a_max]."""
-        key = []
-        for sig in self.tier_sigma:
-            rho = search_radius(float(n_sigma), float(sig), float(a_min), float(a_max), float(cap))
-            key.append(int(math.floor(4 * math.log2(max(rho * self.tiers.cell_factor, 1e-9)))))
-        return tuple(key)
+    def grid_key(self, n_sigma: float, cap: float, a_min: float, a_max: float) -> tuple:
+        """((first, last) class of each tier, quantised (2^(1/4)) cell width of each tier) for a typical
+        query with semi-axes in [a_min, a_max]."""
+        args = (float(n_sigma), float(cap), float(a_min), float(a_max))
+        key = self._keys.get(args)  # memoised: search_radius in Python scope costs ~0.2 ms a call
+        if key is None:
+            rho = [search_radius(args[0], s, args[2], args[3], args[1]) for s in self.class_sigma]
+            groups = self._group_classes(rho)
+            cells = tuple(int(math.floor(4 * math.log2(max(rho[j] * self.tiers.cell_factor, 1e-9)))) for _, j in groups)
+            key = (groups, cells)
+            if len(self._keys) >= 256:
+                self._keys.clear()
+            self._keys[args] = key
+        return key
+
+    def _group_classes(self, rho: list[float]) -> tuple[tuple[int, int], ...]:
+        """Partition of the classes into tiers (contiguous runs) of least estimated cost per query.
+
+        A tier of classes i..j is searched with class j's radius rho_j; class k in it costs about
+        n_k * min(1, (2 + cell_factor) rho_j / extent) per axis (the share of its splats in the cells a
+        query visits), plus ``tier_overhead`` for the tier. Quantile tiers are never regrouped.
+        """
+        c = len(rho)
+        if self.tiers.mode != "size" or c == 1:
+            return tuple((j, j) for j in range(c))
+        span = 2.0 + self.tiers.cell_factor
+        n = np.asarray(self.class_count, dtype=np.float64)
+        ext = np.maximum(self.class_extent, 1e-12)
+
+        def visits(k: int, r: float) -> float:
+            return float(n[k] * np.prod(np.minimum(1.0, span * r / ext[k])))
+
+        best = [0.0] + [math.inf] * c
+        cut = [0] * (c + 1)
+        for j in range(1, c + 1):
+            acc = 0.0
+            for i in range(j - 1, -1, -1):  # tier = classes i .. j-1
+                acc += visits(i, rho[j - 1])
+                v = best[i] + self.tiers.tier_overhead + acc
+                if v < best[j]:
+                    best[j], cut[j] = v, i
+        groups, j = [], c
+        while j > 0:
+            groups.append((cut[j], j - 1))
+            j = cut[j]
+        return tuple(reversed(groups))
 
     def gridset(self, n_sigma: float, cap: float, a_min: float, a_max: float) -> _GridSet:
         """Hash grids of every tier for this query radius (cached; safe from several threads).
@@ -236,10 +288,12 @@ class WarpMetric:
                 self._gridsets[key] = gs
             return gs
 
-    def _build_gridset(self, key: tuple[int, ...]) -> _GridSet:
-        grids, perm = [], []
-        for j, q in enumerate(key):
-            lo, n = self.tier_offset[j], self.tier_count[j]
+    def _build_gridset(self, key: tuple) -> _GridSet:
+        groups, cells = key
+        grids, perm, offsets, sigmas = [], [], [0], []
+        for (ci, cj), q in zip(groups, cells):
+            lo = self.class_offset[ci]
+            n = self.class_offset[cj] + self.class_count[cj] - lo
             pts = self._means_np[lo : lo + n]
             width = 2.0 ** (q / 4.0)
             ext = pts.max(0) - pts.min(0)
@@ -251,16 +305,19 @@ class WarpMetric:
             g = wp.HashGrid(*(int(d) for d in dims), device=self.device)
             g.build(wp.array(pts[local], dtype=wp.vec3, device=self.device), width)
             grids.append(g)
+            offsets.append(offsets[-1] + n)
+            sigmas.append(self.class_sigma[cj])  # classes are sorted by sigma: the last one's is the largest
         perm = np.concatenate(perm)
+        d = self.device
         t = SplatTiers()
-        t.means = wp.array(self._means_np[perm], dtype=wp.vec3, device=self.device)
-        t.mrows = wp.array(self._mrows_np[perm], dtype=wp.mat33, device=self.device)
-        t.opacity = wp.array(self._opac_np[perm], dtype=wp.float32, device=self.device)
-        t.grid = wp.array(np.asarray([g.id for g in grids], dtype=np.uint64), dtype=wp.uint64, device=self.device)
-        t.offset = self._tier_offset
-        t.sigma = self._tier_sigma
+        t.means = wp.array(self._means_np[perm], dtype=wp.vec3, device=d)
+        t.mrows = wp.array(self._mrows_np[perm], dtype=wp.mat33, device=d)
+        t.opacity = wp.array(self._opac_np[perm], dtype=wp.float32, device=d)
+        t.grid = wp.array(np.asarray([g.id for g in grids], dtype=np.uint64), dtype=wp.uint64, device=d)
+        t.offset = wp.array(np.asarray(offsets, np.int32), dtype=wp.int32, device=d)
+        t.sigma = wp.array(np.asarray(sigmas, np.float32), dtype=wp.float32, device=d)
         t.n_tiers = len(grids)
-        return _GridSet(grids=grids, tiers=t)
+        return _GridSet(grids=grids, tiers=t, groups=groups, counts=[b - a for a, b in zip(offsets, offsets[1:])], sigma=sigmas)
 
     # ------------------------------------------------------------------ launches
     def _launch(self, kernel, b: int, args: list) -> None:
