@@ -136,3 +136,29 @@ def test_options(tree_urdf):
         load_robot(tree_urdf, base_pose=np.ones((4, 4)))
     with pytest.raises(SplatplanError, match="base 'wheeled'"):
         load_robot(tree_urdf, base="wheeled")
+
+
+def test_go2_front_hips_are_covered(go2):
+    """The URDF gives the front hips no collision geometry; their visual meshes lie inside the other ellipsoids."""
+    from splatplan.robots.fit import link_points, mahalanobis
+    from splatplan.robots.urdf import read_urdf
+
+    model = read_urdf(go2.info["urdf"])
+    poses = go2.link_poses(go2.q_default)
+    c, r = go2.ellipsoid_frames(go2.q_default)
+    for link in ("FL_hip", "FR_hip"):
+        assert link in go2.skipped_links
+        li = go2.link_names.index(link)
+        pts = link_points(model.visuals[link], link) @ poses[li, :3, :3].T + poses[li, :3, 3]
+        inside = np.zeros(len(pts), dtype=bool)
+        for e in range(go2.n_ellipsoids):
+            inside |= mahalanobis(pts, c[e], r[e], go2.semi_axes[e]) <= 1.0
+        assert inside.all(), link
+
+
+def test_pickle_round_trip(panda):
+    import pickle
+
+    r2 = pickle.loads(pickle.dumps(panda))
+    q = panda.q_default
+    np.testing.assert_allclose(r2.fk(q[None])[0], panda.fk(q[None])[0])

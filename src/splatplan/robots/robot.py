@@ -213,6 +213,15 @@ class Robot:
     def __exit__(self, *exc) -> None:
         self.close()
 
+    def __getstate__(self) -> dict:  # picklable (worker processes): no pool, lock or device arrays
+        state = self.__dict__.copy()
+        state.update(_lock=None, _pool=None, _wp_cache={})
+        return state
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+        self._lock = threading.Lock()
+
     def __del__(self):  # pragma: no cover - best effort
         try:
             if self._pool is not None:
@@ -237,8 +246,9 @@ class Robot:
         axis by at most rho |dv|, so it contributes max rho over downstream ellipsoid points.
         rho is bounded by |perpendicular part of the ellipsoid centre| + largest semi-axis when
         the ellipsoid is rigidly attached to the joint's link, otherwise by the triangle
-        inequality along the chain (sum of joint offsets, prismatic travel, centre offset,
-        largest semi-axis), which holds in every configuration. A dof driving several joints
+        inequality along the chain: the distance of the next moving joint's origin from the axis
+        (fixed in the joint's frame), plus the lengths of the later joint offsets, prismatic
+        travel, the centre offset and the largest semi-axis, which holds in every configuration. A dof driving several joints
         (mimic) sums |multiplier| x bound over them. Integrating the point's speed along the
         straight segment q1 -> q2 gives the stated inequality for any pair of configurations.
         """
@@ -282,9 +292,21 @@ class Robot:
                 t = t @ kin.origin[k]
             c = (t @ self.ellipsoid_local[e])[:3, 3]
             return float(np.linalg.norm(c - (c @ axis) * axis) + smax)
-        total = float(np.linalg.norm(self.ellipsoid_local[e][:3, 3])) + smax
-        for k in path:
-            total += float(np.linalg.norm(kin.origin[k][:3, 3]))
+        # Down the path from l: the origin of the first moving joint k* is fixed in l's frame, so its
+        # distance from the axis is exact; below it, each hop adds its offset length (and travel).
+        down = list(reversed(path))
+        t = np.eye(4)
+        first = 0
+        for first, k in enumerate(down):
+            t = t @ kin.origin[k]
+            if kin.jtype[k] != FIXED:
+                break
+        p = t[:3, 3]
+        total = float(np.linalg.norm(p - (p @ axis) * axis))
+        total += float(np.linalg.norm(self.ellipsoid_local[e][:3, 3])) + smax
+        for i, k in enumerate(down):
+            if i > first:
+                total += float(np.linalg.norm(kin.origin[k][:3, 3]))
             if kin.jtype[k] == PRISMATIC:
                 lo, hi = self.joint_limits[int(kin.qidx[k])]
                 total += max(abs(lo), abs(hi)) * abs(float(kin.mult[k])) + abs(float(kin.offset[k]))
