@@ -191,3 +191,23 @@ def test_gsplat_checkpoint_without_higher_sh(tmp_path):
     back = load_scene(tmp_path / "c.ckpt", filter_floaters=False)
     assert back.sh_rest is None
     assert_same(s, back)
+
+
+@pytest.mark.parametrize("layout", ["ascii", "big_endian", "float64_and_extra_fields"])
+def test_ply_layouts_read_like_the_float32_file(tmp_path, layout):
+    """Text, big-endian and mixed-type PLYs (fast matrix path or per-field path) give the same scene."""
+    s = random_splats(150, k_sh=3, seed=12)
+    save_scene(s, tmp_path / "a.ply")
+    data = plyfile.PlyData.read(str(tmp_path / "a.ply"))["vertex"].data
+    if layout == "float64_and_extra_fields":
+        wide = np.empty(len(data), dtype=[(n, "<f8" if n.startswith("f_rest") else "<f4") for n in data.dtype.names] + [("label", "u1")])
+        for n in data.dtype.names:
+            wide[n] = data[n]
+        wide["label"] = 7
+        plyfile.PlyData([plyfile.PlyElement.describe(wide, "vertex")]).write(str(tmp_path / "b.ply"))
+    else:
+        el = plyfile.PlyElement.describe(np.array(data), "vertex")
+        plyfile.PlyData([el], text=layout == "ascii", byte_order=">" if layout == "big_endian" else "<").write(str(tmp_path / "b.ply"))
+    a, b = load_scene(tmp_path / "a.ply", filter_floaters=False), load_scene(tmp_path / "b.ply", filter_floaters=False)
+    for name in ("means", "quats", "scales", "opacities", "colors", "sh_rest"):
+        np.testing.assert_allclose(getattr(b, name), getattr(a, name), rtol=1e-6, atol=1e-7)

@@ -63,7 +63,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import SplatplanError
-from .io_common import build_splats, color_to_sh_dc, read_exact, scene_error, sh_dc_to_color
+from .io_common import BLOCK_ROWS, build_splats, color_to_sh_dc, read_exact, scene_error, sh_dc_to_color
 from .splats import Splats
 
 SPZ_MAGIC = 0x5053474E
@@ -297,38 +297,49 @@ def _read_v4_container(path: str | Path) -> tuple[dict, dict[str, np.ndarray], l
 
 
 def _decode(path: str | Path, header: dict, blocks: dict[str, np.ndarray], *, drop_invalid: bool) -> Splats:
-    """Attribute streams (uint8 arrays of the exact sizes) -> Splats in RDF axes."""
+    """Attribute streams (uint8 arrays of the exact sizes) -> Splats in RDF axes.
+
+    Rows are decoded :data:`~splatplan.scenes.io_common.BLOCK_ROWS` at a time into preallocated
+    float32 arrays, so the float64 temporaries stay one block in size.
+    """
     n, version, k = header["n"], header["version"], SH_DIM[header["sh_degree"]]
-    b = blocks["positions"].reshape(n, 3, 3).astype(np.int32)
-    fixed = b[..., 0] | (b[..., 1] << 8) | (b[..., 2] << 16)  # (N, 3) unsigned 24-bit
-    fixed = np.where(fixed & 0x800000, fixed - (1 << 24), fixed)
-    means = fixed.astype(np.float64) / (1 << header["frac_bits"])  # (N, 3) RUB
-    f_dc = (blocks["colors"].reshape(n, 3) / 255.0 - 0.5) / COLOR_SCALE  # (N, 3)
-    scales = np.exp(blocks["scales"].reshape(n, 3) / 16.0 - 10.0)  # (N, 3), always finite
-    if version == 2:
-        xyz = blocks["rotations"].reshape(n, 3) / 127.5 - 1.0  # (N, 3)
-        w = np.sqrt(np.maximum(0.0, 1.0 - np.sum(xyz**2, axis=1)))
-        xyzw = np.concatenate([xyz, w[:, None]], axis=1)  # (N, 4)
-    else:
-        xyzw = unpack_rotation_v3(blocks["rotations"].view("<u4"))
-    quats = np.concatenate([xyzw[:, 3:], xyzw[:, :3]], axis=1)  # (N, 4) wxyz, RUB
+    inv_scale = 1.0 / (1 << header["frac_bits"])
+    means = np.empty((n, 3), dtype=np.float32)
+    quats = np.empty((n, 4), dtype=np.float32)  # wxyz
+    scales = np.empty((n, 3), dtype=np.float32)
+    colors = np.empty((n, 3), dtype=np.float32)
+    pos_u8 = blocks["positions"].reshape(n, 3, 3)
+    col_u8, scl_u8 = blocks["colors"].reshape(n, 3), blocks["scales"].reshape(n, 3)
+    rot = blocks["rotations"].reshape(n, 3) if version == 2 else blocks["rotations"].view("<u4")
+    flip = np.array([1.0, -1.0, -1.0])  # RUB -> RDF: rotate 180 degrees about x
+    for a in range(0, n, BLOCK_ROWS):
+        b = min(n, a + BLOCK_ROWS)
+        p = pos_u8[a:b].astype(np.int32)
+        fixed = p[..., 0] | (p[..., 1] << 8) | (p[..., 2] << 16)  # (M, 3) unsigned 24-bit
+        fixed -= (fixed & 0x800000) << 1  # sign-extend: subtract 2^24 where bit 23 is set
+        means[a:b] = fixed * (inv_scale * flip) + 0.0  # + 0.0: no -0.0 from the flip
+        colors[a:b] = sh_dc_to_color((col_u8[a:b] / 255.0 - 0.5) / COLOR_SCALE)
+        scales[a:b] = np.exp(scl_u8[a:b] / 16.0 - 10.0)  # always finite
+        if version == 2:
+            xyz = rot[a:b] / 127.5 - 1.0  # (M, 3)
+            xyzw = np.concatenate([xyz, np.sqrt(np.maximum(0.0, 1.0 - np.sum(xyz**2, axis=1)))[:, None]], axis=1)
+        else:
+            xyzw = unpack_rotation_v3(rot[a:b])  # (M, 4)
+        quats[a:b, 0] = xyzw[:, 3]
+        quats[a:b, 1:] = xyzw[:, :3] * flip  # wxyz: (w, x, -y, -z)
     sh_rest = None
     if k:  # (N, K, 3), exact in float32; in place, so one float32 copy of the SH block
         sh_rest = blocks["sh"].reshape(n, k, 3).astype(np.float32)
         sh_rest -= np.float32(128.0)
         sh_rest *= (SH_FLIP_RUB_RDF[:k, None] / 128.0).astype(np.float32)  # scale, and RUB -> RDF parity
-
-    # RUB -> RDF: rotate 180 degrees about x
-    means[:, 1:] *= -1.0
-    quats[:, 2:] *= -1.0
     return build_splats(
         path,
         "spz",
         means=means,
         quats=quats,
         scales=scales,
-        opacities=blocks["alphas"] / 255.0,
-        colors=sh_dc_to_color(f_dc),
+        opacities=blocks["alphas"] / np.float32(255.0),
+        colors=colors,
         sh_rest=sh_rest,
         drop_invalid=drop_invalid,
     )
