@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from splatplan.errors import SplatplanError
 from splatplan.render import SplatRenderer, look_at
 from splatplan.render.reference import render_reference
 
@@ -74,3 +75,24 @@ def test_threads_and_chunks_do_not_change_the_images():
         np.testing.assert_array_equal(a.rgb, x.rgb)
         np.testing.assert_array_equal(a.alpha, x.alpha)
     np.testing.assert_array_equal(a.depth, np.concatenate([s.depth for s in singles]))
+
+
+def test_chunks_split_when_the_workspace_cap_is_reached():
+    """Big splats touch every tile: a chunk whose pairs exceed the cap is split, results unchanged."""
+    from splatplan.render import renderer as rmod
+
+    scene = random_scene(40, seed=8)
+    scene.scales[:] = 0.6  # every splat covers most tiles of every view
+    v, k = cameras(64, 64)
+    ref = SplatRenderer(scene, "cpu", threads=1)
+    want = ref.render(v, k, 64, 64)
+    fixed = 4 * 64 * 64 * 20 + ref._scene_bytes  # outputs + scene
+    one_cam = 40 * 16 * rmod._PAIR_BYTES + 40 * rmod._ROW_BYTES  # at most 16 tiles per splat
+    r = SplatRenderer(scene, "cpu", threads=1, max_bytes=fixed + one_cam + 1000)
+    r._chunk_size = lambda b, *a: b  # force one chunk of all 4 cameras: too big, must split
+    got = r.render(v, k, 64, 64)
+    np.testing.assert_array_equal(got.rgb, want.rgb)
+    np.testing.assert_array_equal(got.alpha, want.alpha)
+    tight = SplatRenderer(scene, "cpu", threads=1, max_bytes=fixed + 2000)
+    with pytest.raises(SplatplanError, match="workspace"):
+        tight.render(v, k, 64, 64)

@@ -146,6 +146,7 @@ class SplatRenderer:
         for _ in range(self.threads):
             self._workspaces.put(_Workspace(d))
         self._lock = threading.Lock()
+        self._call_out_bytes = 0
         wp.load_module(rast, device=d)  # compile before any worker thread launches
 
     # ------------------------------------------------------------------ lifetime
@@ -236,6 +237,7 @@ class SplatRenderer:
             out.depth = wp.array(host[1].reshape(-1), dtype=wp.float32, device="cpu", copy=False)
             out.alpha = wp.array(host[2].reshape(-1), dtype=wp.float32, device="cpu", copy=False)
 
+        self._call_out_bytes = out_bytes
         chunk = self._chunk_size(b, width, height, out_bytes)
         starts = list(range(0, b, chunk))
         with self._lock:
@@ -256,9 +258,9 @@ class SplatRenderer:
         """Cameras per chunk: CPU spreads the batch over the workers (one camera per chunk for big
         scenes); CUDA takes as many as the workspace budget allows."""
         n = max(self.n, 1)
-        budget = max(self.max_bytes - out_bytes - self._scene_bytes, 0)
-        per_cam = n * (_ROW_BYTES + _PAIR_BYTES) + math.ceil(width / TILE) * math.ceil(height / TILE) * 8
-        by_mem = max(1, budget // max(per_cam * (1 if self.is_cuda else self.threads), 1))
+        budget = self._workspace_budget()
+        per_cam = n * (_ROW_BYTES + 2 * _PAIR_BYTES) + math.ceil(width / TILE) * math.ceil(height / TILE) * 8  # ~2 tiles per splat
+        by_mem = max(1, budget // max(per_cam, 1))
         if self.is_cuda:
             return int(max(1, min(b, by_mem, _CUDA_MAX_ROWS // n)))
         # small scenes: a few cameras per chunk to amortise launch overhead; big ones: one each
@@ -266,45 +268,59 @@ class SplatRenderer:
         return int(max(1, min(per_thread, by_mem, max(1, (1 << 16) // n))))
 
     def _run_chunk(self, scene, cams, frame, out, cam_base: int, nc: int) -> None:
-        rast = _wp_raster()
-        dev = self.device
         ws: _Workspace = self._workspaces.get()
         try:
-            n = self.n
-            rows = nc * n
-            tiles = nc * frame.tiles_x * frame.tiles_y
-            ws.ensure_tiles(tiles)
-            ranges = ws.ranges
-            ranges.zero_()  # whole buffer: harmless, and empty tiles must read [0, 0)
-            m = 0
-            if rows:
-                ws.ensure_rows(rows)
-                proj = ws.proj
-                wp.launch(rast.project_kernel, dim=rows, inputs=[scene, cams, cam_base, frame, proj], device=dev)
-                wp.utils.array_scan(proj.ntiles[:rows], ws.offsets[:rows], inclusive=True)
-                m = int(ws.offsets[rows - 1 : rows].numpy()[0])
-            if m:
-                pair_bytes = m * _PAIR_BYTES
-                if pair_bytes > self.max_bytes:
-                    raise SplatplanError(
-                        f"the splats cover {m:,} tile slots in {nc} image(s) ({pair_bytes / 2**30:.2f} GiB of sort buffers), "
-                        f"over the {self.max_bytes / 2**30:.2f} GiB cap of one render call; use smaller images"
-                    )
-                ws.ensure_pairs(m)
-                wp.launch(rast.write_keys_kernel, dim=rows, inputs=[proj, n, frame, ws.offsets, ws.keys, ws.vals], device=dev)
-                end_bit = 32 + max(1, int(tiles - 1).bit_length())
-                wp.utils.radix_sort_pairs(ws.keys, ws.vals, m, 0, end_bit)
-                wp.launch(rast.tile_ranges_kernel, dim=m, inputs=[ws.keys, m, ranges], device=dev)
-                wp.launch(rast.gather_kernel, dim=m, inputs=[ws.proj, ws.vals, ws.sorted], device=dev)
-            else:
-                ws.ensure_rows(1)
-                ws.ensure_pairs(1)
-            if self.blend == "tile":
-                wp.launch(rast.blend_tile_kernel, dim=tiles, inputs=[ws.sorted, ranges, frame, cam_base, out], device=dev)
-            else:
-                wp.launch(rast.blend_pixel_kernel, dim=tiles * TILE * TILE, inputs=[ws.sorted, ranges, frame, cam_base, out], device=dev)
+            self._run_range(ws, scene, cams, frame, out, cam_base, nc)
         finally:
             self._workspaces.put(ws)
+
+    def _run_range(self, ws: "_Workspace", scene, cams, frame, out, cam_base: int, nc: int) -> None:
+        """The whole pipeline for cameras cam_base .. cam_base + nc - 1 in one workspace."""
+        rast = _wp_raster()
+        dev = self.device
+        n = self.n
+        rows = nc * n
+        tiles = nc * frame.tiles_x * frame.tiles_y
+        m = 0
+        if rows:
+            ws.ensure_rows(rows)
+            proj = ws.proj
+            wp.launch(rast.project_kernel, dim=rows, inputs=[scene, cams, cam_base, frame, proj], device=dev)
+            wp.utils.array_scan(proj.ntiles[:rows], ws.offsets[:rows], inclusive=True)
+            m = int(ws.offsets[rows - 1 : rows].numpy()[0])
+        if m:
+            budget = self._workspace_budget()
+            need = m * _PAIR_BYTES + rows * _ROW_BYTES
+            if need > budget:
+                if nc > 1:  # more tile slots than estimated: split the chunk (re-projects; rare)
+                    half = nc // 2
+                    self._run_range(ws, scene, cams, frame, out, cam_base, half)
+                    self._run_range(ws, scene, cams, frame, out, cam_base + half, nc - half)
+                    return
+                raise SplatplanError(
+                    f"one {frame.width}x{frame.height} image needs {need / 2**30:.2f} GiB of workspace ({m:,} splat-tile pairs), "
+                    f"over what is left of the {self.max_bytes / 2**30:.2f} GiB cap of one render call; use smaller images"
+                )
+            ws.ensure_pairs(m)
+            ws.ensure_tiles(tiles)
+            ws.ranges.zero_()  # empty tiles must read [0, 0)
+            wp.launch(rast.write_keys_kernel, dim=rows, inputs=[proj, n, frame, ws.offsets, ws.keys, ws.vals], device=dev)
+            end_bit = 32 + max(1, int(tiles - 1).bit_length())
+            wp.utils.radix_sort_pairs(ws.keys, ws.vals, m, 0, end_bit)
+            wp.launch(rast.tile_ranges_kernel, dim=m, inputs=[ws.keys, m, ws.ranges], device=dev)
+            wp.launch(rast.gather_kernel, dim=m, inputs=[ws.proj, ws.vals, ws.sorted], device=dev)
+        else:
+            ws.ensure_pairs(1)
+            ws.ensure_tiles(tiles)
+            ws.ranges.zero_()
+        if self.blend == "tile":
+            wp.launch(rast.blend_tile_kernel, dim=tiles, inputs=[ws.sorted, ws.ranges, frame, cam_base, out], device=dev)
+        else:
+            wp.launch(rast.blend_pixel_kernel, dim=tiles * TILE * TILE, inputs=[ws.sorted, ws.ranges, frame, cam_base, out], device=dev)
+
+    def _workspace_budget(self) -> int:
+        """Bytes one worker's workspace may take in the current call (set by render())."""
+        return max(self.max_bytes - self._call_out_bytes - self._scene_bytes, 0) // self.threads
 
 
 def _output_kind(x) -> str:
@@ -323,7 +339,7 @@ def _wrap(rgb: np.ndarray, depth: np.ndarray, alpha: np.ndarray, kind: str, devi
         return RenderResult(torch.from_numpy(rgb), torch.from_numpy(depth), torch.from_numpy(alpha))
     if kind == "warp":
         return RenderResult(
-            wp.array(rgb, dtype=wp.float32, device="cpu"),
+            wp.array(rgb, dtype=wp.vec3, device="cpu"),
             wp.array(depth, dtype=wp.float32, device="cpu"),
             wp.array(alpha, dtype=wp.float32, device="cpu"),
         )
