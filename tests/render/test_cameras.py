@@ -109,3 +109,20 @@ def test_wrist_camera_on_the_panda():
         res = cam.render(r, panda, q[:1])
     assert res.alpha[0, 15:17, 15:17].min() > 0.7  # centred in the image
     assert np.unravel_index(np.argmax(res.alpha[0]), (32, 32)) in ((15, 15), (15, 16), (16, 15), (16, 16))
+
+
+def test_head_camera_on_the_go2_base():
+    robots = pytest.importorskip("splatplan.robots")
+    try:
+        go2 = robots.load_robot("go2")
+    except Exception as exc:  # pragma: no cover - robot assets missing
+        pytest.skip(f"go2 not loadable: {exc}")
+    head = MountedCamera("base", mount_offset((0.3, 0.0, 0.05), forward=(1, 0, 0), up=(0, 0, 1)))
+    q = np.array([[0.0, 0.0, 0.0], [0.1, 0.2, np.pi / 2], [-0.4, 0.3, -2.0]])  # (K, 3) x, y, yaw
+    c2w = invert_rigid(head.viewmats(go2, q))
+    base = go2.link_poses(q)[:, go2.link_names.index("base")]
+    for i, yaw in enumerate(q[:, 2]):
+        fwd = np.array([np.cos(yaw), np.sin(yaw), 0.0])
+        np.testing.assert_allclose(c2w[i, :3, 2], fwd, atol=1e-9)  # optical axis = heading
+        np.testing.assert_allclose(c2w[i, :3, 1], [0, 0, -1], atol=1e-9)  # image down = world down
+        np.testing.assert_allclose(c2w[i, :3, 3], base[i, :3, 3] + 0.3 * fwd + [0, 0, 0.05], atol=1e-9)

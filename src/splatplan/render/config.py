@@ -67,7 +67,7 @@ class RenderResult:
         alpha: (B, H, W) float32 accumulated opacity 1 - T.
 
     The arrays are numpy unless the cameras came as torch tensors (then torch, on the render
-    device) or Warp arrays (then Warp arrays).
+    device) or Warp arrays (then Warp arrays on the render device, rgb as wp.vec3 (B, H, W)).
     """
 
     rgb: object
