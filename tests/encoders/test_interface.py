@@ -177,3 +177,18 @@ def test_top_level_api():
     import splatplan
 
     assert splatplan.load_encoder("thumbnail").name == "thumbnail16-weight-free"
+
+
+DEVICES = ["cpu"] + (["cuda"] if torch.cuda.is_available() else [])
+
+
+@pytest.mark.parametrize("device", DEVICES)
+def test_devices_keep_data_where_it_is(device, images):
+    enc = load_encoder("dinov2-tiny", random_init=True, image_size=28, device=device)
+    ref = load_encoder("dinov2-tiny", random_init=True, image_size=28).encode(images)
+    x = torch.from_numpy(images).to(device)
+    e = enc.encode(x)
+    assert torch.is_tensor(e) and e.device.type == device
+    cost = ImageCost(enc, x[0], w_patch=1.0)(x)
+    assert cost.device.type == device and cost.shape == (4,)
+    np.testing.assert_allclose(enc.encode(images), ref, rtol=1e-3, atol=1e-3)  # numpy in -> numpy out, same values
