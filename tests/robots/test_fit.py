@@ -13,7 +13,7 @@ from splatplan.robots.fit import EllipsoidSet, fit_link, link_points, load_yaml,
 from splatplan.robots.urdf import Geom
 
 
-@settings(max_examples=25, deadline=None)
+@settings(max_examples=15, deadline=None)
 @given(st.integers(0, 10_000), st.integers(4, 300), st.sampled_from(["blob", "flat", "line", "few"]))
 def test_mvee_contains_every_point(seed, n, kind):
     rng = np.random.default_rng(seed)

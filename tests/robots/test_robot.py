@@ -110,6 +110,18 @@ def test_unknown_and_bad_specs(tmp_path):
     p.write_text("<robot name='x'><link name='a'></robot")
     with pytest.raises(SplatplanError, match="does not parse"):
         load_robot(p)
+    p.write_text("<foo/>")
+    with pytest.raises(SplatplanError, match="root element is <foo>"):
+        load_robot(p)
+    p.write_text('<robot name="r"><link name="a"/><link name="b"/><joint name="j" type="floating"><parent link="a"/><child link="b"/></joint></robot>')
+    with pytest.raises(SplatplanError, match="unsupported type 'floating'"):
+        load_robot(p)
+    p.write_text('<robot name="r"><link name="a"/></robot>')
+    with pytest.raises(SplatplanError, match="no link has collision geometry"):
+        load_robot(p)
+    p.write_text('<robot name="r"><link name="a"><collision><geometry><box size="1 1 1"/></geometry></collision></link></robot>')
+    static = load_robot(p)  # zero dof: a rigid object
+    assert static.dof == 0 and static.fk(np.zeros((2, 0)))[0].shape == (2, 1, 3)
     with pytest.raises(SplatplanError, match="unknown or non-movable joints"):
         load_robot("panda", active=["nope"])
 

@@ -204,7 +204,8 @@ def build_robot(
     shift = {"fixed": 0, "planar": 3, "translation": 3}.get(base)
     if shift is None:
         raise SplatplanError(f"base {base!r}: use 'fixed', 'planar' or 'translation'")
-    kin.qidx = np.where(kin.qidx >= 0, new_index[np.maximum(kin.qidx, 0)] + shift, -1)
+    if len(new_index):
+        kin.qidx = np.where(kin.qidx >= 0, new_index[np.maximum(kin.qidx, 0)] + shift, -1)
     names = [jn for jn in dof_joints if jn in active]
     lim = np.stack([model.lower[keep_dof], model.upper[keep_dof]], axis=1)
     vel = model.velocity[keep_dof]

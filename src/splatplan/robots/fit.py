@@ -201,7 +201,8 @@ def _polytope(g: Geom, link: str):
     if g.kind == "box":
         return trimesh.creation.box(extents=g.size, transform=g.origin)
     if g.mesh is None or not Path(g.mesh).is_file():
-        raise SplatplanError(f"link {link!r}: mesh file {g.mesh} not found")
+        where = f" (resolved to {g.mesh})" if g.ref and g.ref != str(g.mesh) else ""
+        raise SplatplanError(f"link {link!r}: mesh file {g.ref or g.mesh} not found{where}")
     try:
         m = trimesh.load(str(g.mesh), force="mesh")
     except Exception as exc:

@@ -182,7 +182,7 @@ class Robot:
         wp = _wp()
         arr = self.check_q(q, check_limits=False)
         lead = arr.shape[:-1]
-        flat = np.ascontiguousarray(arr.reshape(-1, self.dof), dtype=np.float32)
+        flat = np.ascontiguousarray(arr.reshape(int(np.prod(lead, dtype=np.int64)), self.dof), dtype=np.float32)
         dev = resolve_device(device)
         b = flat.shape[0]
         qw = wp.array(flat, dtype=wp.float32, device=dev)

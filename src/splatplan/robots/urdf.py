@@ -67,6 +67,7 @@ class Geom:
     origin: np.ndarray  # (4, 4) link <- geometry frame
     size: np.ndarray  # box: (3,) full sizes; sphere: (r,); cylinder/capsule: (r, length) along z; mesh: (3,) scale
     mesh: Path | None = None  # resolved mesh file
+    ref: str = ""  # the mesh filename as written in the URDF
 
 
 @dataclass
@@ -137,7 +138,7 @@ def _geoms(link, tag: str, urdf_dir: Path, caps: dict) -> list[Geom]:
         else:
             scale = g.mesh.scale
             scale = np.ones(3) if scale is None else np.broadcast_to(np.asarray(scale, dtype=np.float64), (3,)).copy()
-            out.append(Geom("mesh", origin, scale, resolve_mesh_path(g.mesh.filename, urdf_dir)))
+            out.append(Geom("mesh", origin, scale, resolve_mesh_path(g.mesh.filename, urdf_dir), g.mesh.filename))
     return out
 
 
@@ -149,9 +150,11 @@ def read_urdf(path: str | Path) -> UrdfModel:
     if not path.is_file():
         raise SplatplanError(f"URDF {path} does not exist")
     try:
-        ET.parse(path)  # strict XML check first (yourdfpy silently recovers from broken XML)
+        root = ET.parse(path).getroot()  # strict XML check first (yourdfpy silently recovers from broken XML)
     except ET.ParseError as exc:
         raise SplatplanError(f"URDF {path} does not parse (XML error: {exc})") from None
+    if root.tag != "robot":
+        raise SplatplanError(f"URDF {path} does not parse: the root element is <{root.tag}>, expected <robot name=...>")
     caps = _capsules(path)
     source: object = str(path)
     if caps:  # yourdfpy rejects <capsule>: parse it as a sphere placeholder, replaced below
@@ -164,6 +167,11 @@ def read_urdf(path: str | Path) -> UrdfModel:
         buf = io.BytesIO()
         tree.write(buf)
         source = io.BytesIO(buf.getvalue())
+    import logging
+
+    ylog = logging.getLogger("yourdfpy")
+    level = ylog.level
+    ylog.setLevel(logging.CRITICAL)  # our own one-line errors instead of its log lines
     try:
         u = yourdfpy.URDF.load(
             source,
@@ -175,6 +183,8 @@ def read_urdf(path: str | Path) -> UrdfModel:
         robot = u.robot
     except Exception as exc:  # lxml / yourdfpy raise many types for broken files
         raise SplatplanError(f"URDF {path} does not parse ({exc.__class__.__name__}: {str(exc).splitlines()[0] if str(exc) else ''})") from None
+    finally:
+        ylog.setLevel(level)
     if not robot.links:
         raise SplatplanError(f"URDF {path} has no links")
     links = {l.name: l for l in robot.links}
