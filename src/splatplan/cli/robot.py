@@ -17,6 +17,8 @@ import json
 import sys
 from pathlib import Path
 
+import numpy as np
+
 from ..errors import SplatplanError
 
 
@@ -45,6 +47,9 @@ def cmd_info(args) -> int:
         return 0
     print(f"{robot.name}: {robot.dof} dof, {len(robot.link_names)} links, {robot.n_ellipsoids} ellipsoids, "
           f"{len(robot.self_collision_pairs)} self-collision pairs, smallest semi-axis {robot.min_semi_axis:.4g} m")  # fmt: skip
+    bp = robot.base_pose
+    print(f"  base pose (world <- base): translation {np.round(bp[:3, 3], 4).tolist()}"
+          + ("" if np.allclose(bp[:3, :3], np.eye(3)) else f", rotation {np.round(bp[:3, :3], 4).tolist()}"))  # fmt: skip
     print("  joints (limits, velocity, motion bound = max ellipsoid-point speed per unit joint speed):")
     for j in d["joints"]:
         print(f"    {j['name']:<22} [{j['lower']:9.4g}, {j['upper']:9.4g}]  vel {j['velocity']:7.4g}  default {j['default']:8.4g}  bound {j['motion_bound_m']:.4g} m")
