@@ -1,21 +1,34 @@
-"""Planner benchmarks on the built-in Stonehenge scene (issue targets, this 2-core CPU).
+"""Planner benchmarks (issue targets, this 2-core CPU; every row names the robot body it used).
 
-1. RRT from the scene centre to random free goals on the border, in the plane z = 0.06, sphere
-   r = 0.015, n_sigma = 1: median time after warm-up, success rate over ``--goals`` goals; every
-   returned path is re-checked: ``n_colliding == 0`` on every segment sampled at <= r/2 (endpoints
-   included) and positive clearance to the exact geometry (SDF - r > 0, sampled every 0.002).
-2. MPPI for the planar base (K = 256, T = 30, one body ellipsoid, 2 iterations per MPC step):
-   MPC steps per second while driving towards a goal through the ring.
+1. RRT, sphere r = 0.015, built-in Stonehenge (200k splats), n_sigma = 1, plane z = 0.06: centre ->
+   random free border goals; median time after warm-up, success rate; every returned path is
+   re-checked (``n_colliding == 0`` on every segment sampled at <= r/2, endpoints included) and
+   its clearance to the exact geometry (SDF - r > 0, sampled every r/2).
+2. MPPI, planar base on Stonehenge (K = 256, T = 30, 2 iterations per MPC step) driving through
+   the ring, for two bodies: one sphere r = 0.015 (the README's figure) and the default
+   ``PlanarBase`` body ellipsoid (0.03, 0.015, 0.012). The ellipsoid costs more because the metric
+   kernel has a fast path for spheres only and its search radius grows with the largest semi-axis
+   and the ratio largest / smallest semi-axis.
+3. MPPI, Panda arm (``JointIntegrator(load_robot("panda"))``, all 11 link ellipsoids in the
+   collision cost, one ``query_robot`` per iteration on (K = 256, T = 32, 7)), 1 iteration per MPC
+   step, reaching a target over the built-in tabletop at 200k splats; plus the time of one such
+   collision query on the (unit-size) Stonehenge, where the Panda's ellipsoids (up to 0.24 m
+   semi-axes) each cover a large part of the 1 m scene.
+4. Real captures in ``../shared/data/real`` (skipped when absent), ``splatplan plan`` defaults
+   (sphere r = 0.015, n_sigma = 1, scene-scaled RRT settings, 10 s limit): start and goal drawn
+   automatically as far-apart free points of the robust scene box.
 
-    python benchmarks/planners.py [--goals 50] [--out benchmarks/results/planners.json]
+    python benchmarks/planners.py [--goals 50] [--quick] [--out benchmarks/results/planners.json]
 
-Writes JSON and a markdown table (planners.md) next to it.
+Writes JSON and a markdown table (planners.md) next to it. Timings depend on the machine's load:
+the JSON records the 1-minute load average at the start of each section.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 import time
 from pathlib import Path
@@ -23,6 +36,14 @@ from pathlib import Path
 import numpy as np
 
 RADIUS = 0.015
+REAL = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "real"
+#: real captures planned on (file, short name)
+REAL_SCENES = (("uav4geo_truck.splat", "truck"), ("ARVR_Apartments_Toilet.compressed.ply", "bathroom"),
+               ("equinor_banana_splat.ply", "banana"), ("playcanvas_biker.spz", "biker"))  # fmt: skip
+
+
+def _load() -> float:
+    return float(os.getloadavg()[0])
 
 
 def border_goals(checker, n: int, z: float, rng: np.random.Generator, r_border: float = 0.47) -> np.ndarray:
@@ -38,16 +59,16 @@ def border_goals(checker, n: int, z: float, rng: np.random.Generator, r_border: 
 
 def bench_rrt(scene, gt, n_goals: int, seed: int = 0) -> dict:
     from splatplan.metric import CollisionChecker
-    from splatplan.planners import RRTConfig, plan
-    from splatplan.planners import edge_points
+    from splatplan.planners import RRTConfig, edge_points, plan
     from splatplan.planners.metrics import clearance
     from splatplan.scenes.stonehenge import PLANE_Z
 
+    load = _load()
     checker = CollisionChecker(scene, n_sigma=1.0)
     rng = np.random.default_rng(seed)
     goals = border_goals(checker, n_goals, PLANE_Z, rng)
     start = np.array([0.0, 0.0, PLANE_Z])
-    cfg = RRTConfig(box_lo=(-0.5, -0.5, PLANE_Z), box_hi=(0.5, 0.5, PLANE_Z), time_budget_s=10.0)
+    cfg = RRTConfig(box_lo=(-0.5, -0.5, PLANE_Z), box_hi=(0.5, 0.5, PLANE_Z), time_limit_s=10.0)
     plan(checker, start, goals[0], radius=RADIUS, refine=False, seed=seed, rrt_config=cfg)  # warm-up
     times, ok, n_col, clear, lengths = [], 0, [], [], []
     for i, g in enumerate(goals):
@@ -57,11 +78,13 @@ def bench_rrt(scene, gt, n_goals: int, seed: int = 0) -> dict:
             continue
         ok += 1
         lengths.append(res.length)
-        # every segment sampled at <= r/2, its endpoints included (as the planner checks edges)
+        # every segment sampled at <= r/2, its endpoints included (the planner checks at r/4)
         dense = edge_points(res.path[:-1], res.path[1:], RADIUS / 2, include_start=True).reshape(-1, 3)
         n_col.append(int(checker.query(dense, None, RADIUS).n_colliding.max()))
         clear.append(clearance(res.path, gt.sdf, RADIUS, spacing=RADIUS / 2))
     return {
+        "robot": f"sphere r = {RADIUS}",
+        "scene": f"stonehenge level 1 ({len(scene):,} splats after the floater filter)",
         "n_goals": n_goals,
         "success_rate": ok / n_goals,
         "time_median_s": float(np.median(times)),
@@ -70,16 +93,23 @@ def bench_rrt(scene, gt, n_goals: int, seed: int = 0) -> dict:
         "paths_with_colliding_splats": int(np.sum(np.asarray(n_col) > 0)),
         "min_clearance_exact": float(np.min(clear)) if clear else float("nan"),
         "paths_with_nonpositive_clearance": int(np.sum(np.asarray(clear) <= 0)),
+        "load_avg_1min": load,
     }
 
 
-def bench_mppi(scene, n_steps: int = 40, seed: int = 0) -> dict:
+def bench_mppi_base(scene, body: str, n_steps: int = 40, seed: int = 0) -> dict:
     from splatplan.metric import CollisionChecker
     from splatplan.planners import MPPI, MPPIConfig, PlanarBase
     from splatplan.scenes.stonehenge import PLANE_Z
 
+    load = _load()
     checker = CollisionChecker(scene, n_sigma=1.0)
-    dyn = PlanarBase(height=PLANE_Z, offsets=np.zeros((1, 3)), semi_axes=np.array([[RADIUS, RADIUS, RADIUS]]))
+    if body == "sphere":
+        dyn = PlanarBase(height=PLANE_Z, offsets=np.zeros((1, 3)), semi_axes=np.array([[RADIUS, RADIUS, RADIUS]]))
+        label = f"planar base, one sphere r = {RADIUS}"
+    else:
+        dyn = PlanarBase(height=PLANE_Z)
+        label = "planar base, default body ellipsoid (0.03, 0.015, 0.012)"
     goal = np.array([0.45, 0.1])
     cfg = MPPIConfig(n_samples=256, horizon=30, n_knots=6, dt=0.1, n_iters=2, noise_sigma=(0.1, 0.1, 0.5),
                      u_min=(-0.2, -0.2, -1.0), u_max=(0.2, 0.2, 1.0), seed=seed)  # fmt: skip
@@ -99,15 +129,124 @@ def bench_mppi(scene, n_steps: int = 40, seed: int = 0) -> dict:
         hits += int(checker.query(c, q, a).in_collision.any())
     dt = time.perf_counter() - t0
     return {
-        "K": cfg.n_samples, "T": cfg.horizon, "iters_per_step": cfg.n_iters, "steps": n_steps,
+        "robot": label, "K": cfg.n_samples, "T": cfg.horizon, "iters_per_step": cfg.n_iters, "steps": n_steps,
         "steps_per_s": n_steps / dt, "final_distance_to_goal": float(np.linalg.norm(x[:2] - goal)),
-        "steps_in_collision": hits,
+        "steps_in_collision": hits, "load_avg_1min": load,
     }  # fmt: skip
+
+
+def bench_mppi_panda(n_steps: int, n_splats: int = 200_000, seed: int = 0, quick: bool = False, time_stride: int = 1, stonehenge: bool = True) -> dict:
+    from splatplan.metric import CollisionChecker
+    from splatplan.planners import MPPI, CollisionCost, ControlEffortCost, GoalPoseCost, JointIntegrator, JointLimitCost, MPPIConfig
+    from splatplan.robots import load_robot
+    from splatplan.scenes.builtin import build_builtin
+    from splatplan.scenes.builtin.tabletop import TARGET_REGION
+    from splatplan.scenes.filters import filter_floaters
+
+    load = _load()
+    robot = load_robot("panda")
+    raw, _ = build_builtin("tabletop", seed=seed, n_splats=n_splats)
+    scene, _ = filter_floaters(raw)
+    checker = CollisionChecker(scene, n_sigma=1.0)
+    target = 0.5 * (TARGET_REGION[0] + TARGET_REGION[1])
+    cfg = MPPIConfig(n_samples=256, horizon=32, n_knots=6, dt=0.05, n_iters=1, noise_sigma=0.4, temperature=0.05,
+                     u_min=-1.0, u_max=1.0, seed=seed)  # fmt: skip
+    costs = [
+        CollisionCost(checker, robot, weight=1.0, hit_weight=10.0, s2_cap=cfg.collision_s2_cap, time_stride=time_stride),
+        GoalPoseCost(robot, position=target, link="panda_hand_tcp" if "panda_hand_tcp" in robot.link_names else None, terminal_factor=4.0),
+        ControlEffortCost(0.01),
+        JointLimitCost(robot, weight=100.0),
+    ]
+    dyn = JointIntegrator(robot)
+    mppi = MPPI(dyn, checker, cfg, costs=costs)
+    x = robot.q_default.copy()
+    hand_idx = costs[1].link_index
+    d0 = float(np.linalg.norm(robot.link_poses(x)[hand_idx, :3, 3] - target))
+    mppi.step(x)  # warm-up (builds the metric grids)
+    t0 = time.perf_counter()
+    for _ in range(n_steps):
+        u, info = mppi.step(x)
+        x = dyn.rollout(x, u[None, None, :], cfg.dt)[0, 0]
+    dt = time.perf_counter() - t0
+    hand = robot.link_poses(x)[hand_idx, :3, 3]
+    out = {
+        "robot": f"panda, all {robot.n_ellipsoids} link ellipsoids (semi-axes {robot.min_semi_axis:.3f}..{robot.semi_axes.max():.3f} m)",
+        "scene": f"tabletop ({len(scene):,} splats after the floater filter)",
+        "K": cfg.n_samples, "T": cfg.horizon, "iters_per_step": cfg.n_iters, "steps": n_steps, "collision_time_stride": time_stride,
+        "steps_per_s": n_steps / dt, "configs_per_s": n_steps * cfg.n_samples * cfg.horizon / dt,
+        "final_hand_distance_m": float(np.linalg.norm(hand - target)), "start_hand_distance_m": d0, "load_avg_1min": load,
+    }  # fmt: skip
+    if not stonehenge:
+        return out
+    # one collision query of the same batch size on the unit-size Stonehenge, for comparison
+    from splatplan.scenes.stonehenge import build_stonehenge
+
+    sraw, _ = build_stonehenge(level=1, seed=seed)
+    sh, _ = filter_floaters(sraw)
+    sc = CollisionChecker(sh, n_sigma=1.0).with_config(s2_cap=cfg.collision_s2_cap)
+    n_cfg = 64 if quick else 512  # a slice of the (K, T) batch; the full batch's time is projected
+    qb = np.clip(robot.q_default + np.random.default_rng(seed).normal(scale=0.2, size=(n_cfg, 7)), robot.joint_limits[:, 0], robot.joint_limits[:, 1])
+    sc.query_robot(robot, qb[:4])
+    ts = time.perf_counter()
+    sc.query_robot(robot, qb)
+    t_sh = (time.perf_counter() - ts) * cfg.n_samples * cfg.horizon / n_cfg
+    return {**out, "stonehenge_query_s": t_sh, "stonehenge_splats": len(sh)}
+
+
+def far_free_pairs(checker, robot_radius: float, n_pairs: int, rng: np.random.Generator, n_cand: int = 400) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Start/goal pairs of free points of the robust scene box, far apart (the farthest pair first,
+    then random pairs at least half as far apart)."""
+    from splatplan.planners import robust_scene_box
+
+    lo, hi = robust_scene_box(checker.scene)
+    cand = lo + rng.random((n_cand, 3)) * (hi - lo)
+    free = cand[~checker.collides(cand, None, robot_radius)]
+    d = np.linalg.norm(free[:, None] - free[None], axis=-1)
+    i, j = np.unravel_index(np.argmax(d), d.shape)
+    pairs = [(free[i], free[j])]
+    ii, jj = np.nonzero(np.triu(d >= 0.5 * d.max(), 1))
+    for k in rng.permutation(len(ii))[: max(0, n_pairs - 1)]:
+        pairs.append((free[ii[k]], free[jj[k]]))
+    return pairs
+
+
+def bench_real(n_pairs: int, seed: int = 0, names: tuple[str, ...] | None = None) -> list[dict]:
+    from splatplan.errors import SplatplanError
+    from splatplan.metric import CollisionChecker
+    from splatplan.planners import RRTConfig, plan
+    from splatplan.scenes.load import load_scene
+
+    rows = []
+    for fname, name in REAL_SCENES:
+        path = REAL / fname
+        if not path.exists() or (names is not None and name not in names):
+            continue
+        try:
+            scene = load_scene(path, filter_floaters=True)
+        except SplatplanError as exc:
+            rows.append({"scene": name, "file": fname, "error": str(exc)})
+            continue
+        checker = CollisionChecker(scene, n_sigma=1.0)
+        rng = np.random.default_rng(seed)
+        pairs = far_free_pairs(checker, RADIUS, n_pairs, rng)
+        plan(checker, pairs[0][0], pairs[0][1], radius=RADIUS, refine=False, rrt_config=RRTConfig(time_limit_s=1.0))  # warm-up
+        for k, (s, g) in enumerate(pairs):
+            load = _load()
+            res = plan(checker, s, g, radius=RADIUS, refine=False, seed=seed + k, rrt_config=RRTConfig())
+            st = res.info["settings"]
+            rows.append({
+                "scene": name, "file": fname, "n_splats": len(scene), "robot": f"sphere r = {RADIUS}",
+                "start": s.round(4).tolist(), "goal": g.round(4).tolist(), "distance": float(np.linalg.norm(g - s)),
+                "success": bool(res.success), "time_s": res.time_s, "n_nodes": res.n_nodes, "length": res.length if res.success else None,
+                "stride": st["stride"], "edge_resolution": st["edge_resolution"], "message": res.message, "load_avg_1min": load,
+            })  # fmt: skip
+    return rows
 
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--goals", type=int, default=50)
+    ap.add_argument("--goals", type=int, default=50, help="RRT goals on Stonehenge")
+    ap.add_argument("--quick", action="store_true", help="tiny sizes (smoke test): fewer MPPI steps, 1 real pair, smaller Panda scene")
     ap.add_argument("--out", default=str(Path(__file__).parent / "results" / "planners.json"))
     args = ap.parse_args(argv)
 
@@ -116,22 +255,40 @@ def main(argv: list[str] | None = None) -> int:
 
     raw, gt = build_stonehenge(level=1, seed=0)
     scene, _ = filter_floaters(raw)
+    steps = 5 if args.quick else 40
     rrt = bench_rrt(scene, gt, args.goals)
-    mppi = bench_mppi(scene)
-    result = {"rrt": rrt, "mppi": mppi}
+    mppi = bench_mppi_base(scene, "sphere", n_steps=steps)
+    mppi_body = bench_mppi_base(scene, "body", n_steps=max(2, steps // 4))
+    panda = bench_mppi_panda(n_steps=2 if args.quick else 6, n_splats=20_000 if args.quick else 200_000, quick=args.quick)
+    panda4 = bench_mppi_panda(n_steps=2 if args.quick else 6, n_splats=20_000 if args.quick else 200_000, quick=args.quick, time_stride=4, stonehenge=False)
+    real = bench_real(1, names=("banana",)) if args.quick else bench_real(3)
+    result = {"rrt": rrt, "mppi": mppi, "mppi_default_body": mppi_body, "mppi_panda": panda, "mppi_panda_time_stride_4": panda4, "real": real,
+              "cpu_threads": os.cpu_count()}  # fmt: skip
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(result, indent=2) + "\n")
-    md = "\n".join([
-        "| benchmark | measured | target |",
-        "|---|---|---|",
-        f"| RRT centre -> border, median time after warm-up | {rrt['time_median_s']:.3f} s (p90 {rrt['time_p90_s']:.3f} s) | <= 0.5 s |",
-        f"| RRT success over {rrt['n_goals']} random free border goals | {100 * rrt['success_rate']:.0f}% | >= 95% |",
-        f"| paths with a colliding splat at resolution r/2 | {rrt['paths_with_colliding_splats']} | 0 |",
-        f"| smallest clearance to the exact geometry (SDF - r) | {rrt['min_clearance_exact']:.4f} | > 0 |",
-        f"| MPPI planar base, K=256, T=30, 2 iters/step | {mppi['steps_per_s']:.1f} MPC steps/s | >= 20 |",
-        f"| MPPI: steps in collision / final distance to goal | {mppi['steps_in_collision']} / {mppi['final_distance_to_goal']:.3f} | 0 / - |",
-    ])  # fmt: skip
+    lines = [
+        "| benchmark | robot body | measured | target |",
+        "|---|---|---|---|",
+        f"| RRT centre -> border (Stonehenge), median time after warm-up | {rrt['robot']} | {rrt['time_median_s']:.3f} s (p90 {rrt['time_p90_s']:.3f} s) | <= 0.5 s |",
+        f"| RRT success over {rrt['n_goals']} random free border goals | {rrt['robot']} | {100 * rrt['success_rate']:.0f}% | >= 95% |",
+        f"| paths with a colliding splat at resolution r/2 | {rrt['robot']} | {rrt['paths_with_colliding_splats']} | 0 |",
+        f"| smallest clearance to the exact geometry (SDF - r) | {rrt['robot']} | {rrt['min_clearance_exact']:.4f} | > 0 |",
+        f"| MPPI planar base, K=256, T=30, 2 iters/step | {mppi['robot']} | {mppi['steps_per_s']:.1f} MPC steps/s | >= 20 |",
+        f"| MPPI planar base: steps in collision / final distance to goal | {mppi['robot']} | {mppi['steps_in_collision']} / {mppi['final_distance_to_goal']:.3f} | 0 / - |",
+        f"| MPPI planar base, K=256, T=30, 2 iters/step | {mppi_body['robot']} | {mppi_body['steps_per_s']:.1f} MPC steps/s | - |",
+        f"| MPPI Panda arm, K=256, T=32, 1 iter/step, {panda['scene']} | {panda['robot']} | {panda['steps_per_s']:.2f} MPC steps/s ({panda['configs_per_s']:,.0f} configurations/s) | >= 5 |",
+        f"| same, collision cost on every 4th step (collision_time_stride=4) | {panda4['robot']} | {panda4['steps_per_s']:.2f} MPC steps/s | >= 5 |",
+        f"| one Panda collision query, K=256 x T=32 (projected from a slice), Stonehenge ({panda['stonehenge_splats']:,} splats, 1 m across) | {panda['robot']} | {panda['stonehenge_query_s']:.1f} s | - |",
+    ]
+    for r in real:
+        if "error" in r:
+            lines.append(f"| plan on {r['scene']} ({r['file']}), defaults | sphere r = {RADIUS} | not loadable: {r['error'][:80]} | - |")
+            continue
+        res = f"{r['time_s']:.2f} s, {r['n_nodes']:,} nodes" + ("" if r["success"] else " (no path)")
+        lines.append(f"| plan on {r['scene']} ({r['n_splats']:,} splats), defaults, start -> goal {r['distance']:.2f} apart (stride {r['stride']:.3g}) | {r['robot']} | {res} | <= 10 s |")
+    lines.append(f"\nLoad average (1 min) during the runs: {', '.join(f'{x:.1f}' for x in [rrt['load_avg_1min'], mppi['load_avg_1min'], panda['load_avg_1min']])} on {os.cpu_count()} CPU threads shared with other jobs.")
+    md = "\n".join(lines)
     (out.parent / "planners.md").write_text(md + "\n")
     print(md)
     print(f"wrote {out}")

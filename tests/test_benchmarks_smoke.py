@@ -26,7 +26,7 @@ def test_planners_script(tmp_path):
     import planners
 
     out = tmp_path / "p.json"
-    assert planners.main(["--goals", "2", "--out", str(out)]) == 0
+    assert planners.main(["--goals", "2", "--quick", "--out", str(out)]) == 0
     res = json.loads(out.read_text())
     assert res["rrt"]["success_rate"] == 1.0
     assert res["rrt"]["paths_with_colliding_splats"] == 0
