@@ -272,13 +272,21 @@ class SplatViewer:
                                           position=tuple(c[e]), wxyz=tuple(quat[e]))  # fmt: skip
             self._ell_handles.append(h)
         self._urdf = None
-        urdf_path = getattr(self.robot, "urdf_path", None)
-        if urdf_path is not None and self.kind == "joints":
+        self._urdf_fixed: dict[str, float] = {}
+        info = getattr(self.robot, "info", {}) or {}
+        if info.get("urdf") and self.kind in ("joints", "planar"):
             try:
                 from viser.extras import ViserUrdf
 
-                self._urdf = ViserUrdf(srv, Path(urdf_path), root_node_name="/robot/urdf")
+                if info.get("srdf"):
+                    from ..robots.urdf import read_srdf
+
+                    states = read_srdf(info["srdf"]).group_states
+                    self._urdf_fixed = dict(states.get("standing" if self.kind == "planar" else "default", {}))
+                self._urdf_frame = srv.scene.add_frame("/robot/urdf", show_axes=False)
+                self._urdf = ViserUrdf(srv, Path(info["urdf"]), root_node_name="/robot/urdf")
             except Exception as exc:  # meshes are decoration: the ellipsoids are what the metric sees
+                self._urdf = None
                 print(f"note: robot meshes not shown ({exc.__class__.__name__}: {exc})", flush=True)
         self._hits = srv.scene.add_point_cloud("/metric/colliding_splats", np.zeros((1, 3), np.float32), (255, 0, 0),
                                                point_size=0.004 * self.extent, visible=False)  # fmt: skip
@@ -448,10 +456,20 @@ class SplatViewer:
 
     def _set_urdf(self, q) -> None:
         names = list(self._urdf.get_actuated_joint_names())
-        ours = {n: float(v) for n, v in zip(self.robot.joint_names, q)}
-        fixed = getattr(self.robot, "fixed_joint_values", {}) or {}
-        cfg = np.array([ours.get(n, float(fixed.get(n, 0.0))) for n in names])
+        ours = {} if self.kind == "planar" else {n: float(v) for n, v in zip(self.robot.joint_names, q)}
+        cfg = np.array([ours.get(n, float(np.ravel(self._urdf_fixed.get(n, 0.0))[0])) for n in names])  # SRDF values are lists
         self._urdf.update_cfg(cfg)
+        base = np.asarray(self.robot.base_pose, dtype=np.float64)
+        if self.kind == "planar":  # world <- base = base_pose * (x, y, yaw)
+            pose = np.eye(4)
+            c, s = np.cos(q[2]), np.sin(q[2])
+            pose[:2, :2] = [[c, -s], [s, c]]
+            pose[:2, 3] = q[:2]
+            base = base @ pose
+        from ..scenes.splats import rotmat_to_quat
+
+        self._urdf_frame.position = tuple(float(v) for v in base[:3, 3])
+        self._urdf_frame.wxyz = tuple(float(v) for v in rotmat_to_quat(base[:3, :3]))
 
     def _update_field(self) -> None:
         if self.server is None:
