@@ -164,11 +164,15 @@ def project_kernel(scene: SceneArgs, cams: CamArgs, cam_base: int, frame: FrameA
     j02 = -fx * tx * inv_z * inv_z
     j11 = fy * inv_z
     j12 = -fy * ty * inv_z * inv_z
-    cc = rot * scene.covs[i] * wp.transpose(rot)  # camera-frame covariance
-    # 2D covariance J cc J^T (J = [[j00, 0, j02], [0, j11, j12]]) + low-pass
-    a = j00 * j00 * cc[0, 0] + 2.0 * j00 * j02 * cc[0, 2] + j02 * j02 * cc[2, 2] + _LOW_PASS
-    bb = j00 * j11 * cc[0, 1] + j00 * j12 * cc[0, 2] + j02 * j11 * cc[2, 1] + j02 * j12 * cc[2, 2]
-    d = j11 * j11 * cc[1, 1] + 2.0 * j11 * j12 * cc[1, 2] + j12 * j12 * cc[2, 2] + _LOW_PASS
+    # 2D covariance (J W) Sigma (J W)^T + low-pass, J = [[j00, 0, j02], [0, j11, j12]], W = rot:
+    # rows of J W are m0 = j00 W[0] + j02 W[2] and m1 = j11 W[1] + j12 W[2] (world frame)
+    m0 = j00 * wp.vec3(rot[0, 0], rot[0, 1], rot[0, 2]) + j02 * wp.vec3(rot[2, 0], rot[2, 1], rot[2, 2])
+    m1 = j11 * wp.vec3(rot[1, 0], rot[1, 1], rot[1, 2]) + j12 * wp.vec3(rot[2, 0], rot[2, 1], rot[2, 2])
+    cov = scene.covs[i]
+    s0 = cov * m0
+    a = wp.dot(m0, s0) + _LOW_PASS
+    bb = wp.dot(m1, s0)
+    d = wp.dot(m1, cov * m1) + _LOW_PASS
     det = a * d - bb * bb
     if det <= 0.0:
         return
@@ -198,11 +202,15 @@ def project_kernel(scene: SceneArgs, cams: CamArgs, cam_base: int, frame: FrameA
     sp.depth = z
     lz = (wp.log(wp.float64(z)) - frame.log_near) * frame.key_scale
     sp.dkey = wp.int64(wp.clamp(lz, wp.float64(0.0), wp.float64(4294967295.0)))
-    dirv = scene.means[i] - cams.campos[b]
-    nd = wp.length(dirv)
-    if nd > 0.0:
-        dirv = dirv / nd
-    sp.rgb = sh_color(scene, i, dirv)
+    if scene.sh_deg > 0:
+        dirv = scene.means[i] - cams.campos[b]
+        nd = wp.length(dirv)
+        if nd > 0.0:
+            dirv = dirv / nd
+        sp.rgb = sh_color(scene, i, dirv)
+    else:
+        c0 = scene.colors[i]
+        sp.rgb = wp.vec3(wp.max(c0[0], 0.0), wp.max(c0[1], 0.0), wp.max(c0[2], 0.0))
     sp.rect = wp.vec4i(x0, y0, x1, y1)
     proj.rows[row] = sp
     proj.ntiles[row] = (x1 / _TILE - x0 / _TILE + 1) * (y1 / _TILE - y0 / _TILE + 1)
