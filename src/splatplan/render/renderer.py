@@ -219,8 +219,6 @@ class SplatRenderer:
         fr.log_near = math.log(near)
         fr.key_scale = (2.0**32 - 1.0) / max(math.log(fr.far) - math.log(near), 1e-30)
         fr.bg = wp.vec3(*bg.astype(np.float32))
-        scene = self._scene
-        scene.sh_deg = deg  # the struct is copied at launch; calls are serialised by self._lock
 
         npix = b * height * width
         if self.is_cuda:
@@ -237,17 +235,18 @@ class SplatRenderer:
             out.depth = wp.array(host[1].reshape(-1), dtype=wp.float32, device="cpu", copy=False)
             out.alpha = wp.array(host[2].reshape(-1), dtype=wp.float32, device="cpu", copy=False)
 
-        self._call_out_bytes = out_bytes
-        chunk = self._chunk_size(b, width, height, out_bytes)
-        starts = list(range(0, b, chunk))
-        with self._lock:
-            scene_copy = scene
+        with self._lock:  # one call at a time per renderer (shared workspaces and scene struct)
+            scene = self._scene
+            scene.sh_deg = deg  # the struct's fields are copied at every launch
+            self._call_out_bytes = out_bytes
+            chunk = self._chunk_size(b, width, height, out_bytes)
+            starts = list(range(0, b, chunk))
             if self.is_cuda or self.threads == 1 or len(starts) == 1:
                 for s0 in starts:
-                    self._run_chunk(scene_copy, ca, fr, out, s0, min(chunk, b - s0))
+                    self._run_chunk(scene, ca, fr, out, s0, min(chunk, b - s0))
             else:
                 pool = self._get_pool()
-                futs = [pool.submit(self._run_chunk, scene_copy, ca, fr, out, s0, min(chunk, b - s0)) for s0 in starts]
+                futs = [pool.submit(self._run_chunk, scene, ca, fr, out, s0, min(chunk, b - s0)) for s0 in starts]
                 for f in futs:
                     f.result()
         if host is not None:
