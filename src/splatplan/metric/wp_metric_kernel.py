@@ -142,20 +142,20 @@ def link_valid(links: LinkBatch, q: int, c: wp.vec3, ax: wp.vec3):
 
 
 @wp.func
-def conservative_s2(d: wp.vec3, link_a: wp.mat33, m: wp.mat33, n_sigma: float):
-    """s2~ = max(0, d^T A d - n_sigma |diag(s) R^T (2 A d)|) for splat offset d = mu - c."""
-    ad = link_a * d
-    s2 = wp.dot(d, ad)
-    sigma = wp.length(m * (2.0 * ad))
-    return wp.max(0.0, s2 - n_sigma * sigma)
+def link_s2(d: wp.vec3, dd: float, link_a: wp.mat33, sphere: bool, inv_r2: float, m: wp.mat33, n_sigma: float, s2_cut: float):
+    """s2~ of one splat; for a sphere link (A = I / r^2, so A d = d / r^2) it reuses dd = |d|^2.
 
-
-@wp.func
-def link_s2(d: wp.vec3, dd: float, link_a: wp.mat33, sphere: bool, inv_r2: float, m: wp.mat33, n_sigma: float):
-    """s2~ of one splat; for a sphere link (A = I / r^2, so A d = d / r^2) it reuses dd = |d|^2."""
+    For other links, a splat with s2 > s2_cut = (rho / a_max)^2 is returned as +inf before its
+    inflation is computed: by the radius bound it has s2~ >= cap anyway (this prunes the corners
+    of the bounding sphere of an elongated link cheaply).
+    """
     if sphere:
         return wp.max(0.0, (dd - n_sigma * 2.0 * wp.length(m * d)) * inv_r2)
-    return conservative_s2(d, link_a, m, n_sigma)
+    ad = link_a * d
+    s2 = wp.dot(d, ad)
+    if s2 > s2_cut:
+        return float(wp.inf)
+    return wp.max(0.0, s2 - n_sigma * wp.length(m * (2.0 * ad)))
 
 
 @wp.func
@@ -211,6 +211,7 @@ def metric_full_kernel(
     for j in range(splats.n_tiers):
         rho = search_radius(p.n_sigma, splats.sigma[j], a_min, a_max, cap)
         rho2 = rho * rho
+        s2_cut = rho2 / (a_max * a_max)
         base = splats.offset[j]
         query = wp.hash_grid_query(splats.grid[j], c, rho)
         local = int(0)
@@ -222,7 +223,7 @@ def metric_full_kernel(
                 ns = splat_inflation(splats, p, i)
                 if ns < 0.0:
                     continue
-                v = link_s2(d, dd, a, sphere, inv_r2, splats.mrows[i], ns)
+                v = link_s2(d, dd, a, sphere, inv_r2, splats.mrows[i], ns, s2_cut)
                 best = wp.min(best, v)
                 if v < 1.0:
                     ncol += 1
@@ -293,6 +294,7 @@ def metric_collide_kernel(
     while j < splats.n_tiers and ncol <= k_collide:
         rho = search_radius(p.n_sigma, splats.sigma[j], a_min, a_max, 1.0)
         rho2 = rho * rho
+        s2_cut = rho2 / (a_max * a_max)
         base = splats.offset[j]
         query = wp.hash_grid_query(splats.grid[j], c, rho)
         local = int(0)
@@ -303,7 +305,7 @@ def metric_collide_kernel(
             if dd <= rho2:
                 ns = splat_inflation(splats, p, i)
                 if ns >= 0.0:
-                    if link_s2(d, dd, a, sphere, inv_r2, splats.mrows[i], ns) < 1.0:
+                    if link_s2(d, dd, a, sphere, inv_r2, splats.mrows[i], ns, s2_cut) < 1.0:
                         ncol += 1
         j += 1
     out_hit[q] = ncol > k_collide
