@@ -130,3 +130,14 @@ def test_tree_matches_pinocchio(tree_robot):
         return v
 
     _compare_with_pin(tree_robot, model, values)
+
+
+def test_concurrent_calls_do_not_interfere(tree_robot):
+    """Two threads run FK on one (tree-shaped, scratch-using) robot at once: each gets its own answer."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    qs = [random_q(tree_robot, 6000, seed=s) for s in (10, 11, 12, 13)]
+    with ThreadPoolExecutor(2) as ex:
+        results = list(ex.map(lambda q: tree_robot.fk(q)[0], qs))
+    for q, c in zip(qs, results):
+        np.testing.assert_allclose(c, tree_robot.ellipsoid_frames(q)[0], atol=2e-6)

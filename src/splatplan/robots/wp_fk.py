@@ -190,13 +190,16 @@ def _model(robot, device) -> FKModel:
 
 
 def _scratch(robot, m: FKModel, batch: int, device):
-    """Scratch slots for tree-shaped robots, grown on demand and kept by the robot."""
-    n = max(1, batch * m.n_slots)
+    """Scratch slots: per call for tree-shaped robots (so concurrent calls never share them), a
+    cached 1-element placeholder for chains (no slots, nothing allocated per call)."""
+    if m.n_slots > 0:
+        n = batch * m.n_slots
+        return wp.empty(n, dtype=wp.mat33, device=device), wp.empty(n, dtype=wp.vec3, device=device)
     key = ("scratch", str(device))
     with robot._lock:
         s = robot._wp_cache.get(key)
-        if s is None or s[0].shape[0] < n:
-            s = (wp.empty(n, dtype=wp.mat33, device=device), wp.empty(n, dtype=wp.vec3, device=device))
+        if s is None:
+            s = (wp.empty(1, dtype=wp.mat33, device=device), wp.empty(1, dtype=wp.vec3, device=device))
             robot._wp_cache[key] = s
         return s
 
