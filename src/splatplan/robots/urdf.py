@@ -25,14 +25,6 @@ def share_dir() -> Path | None:
         cand = base / "cmeel.prefix" / "share"
         if (cand / "example-robot-data").is_dir():
             return cand
-    try:
-        import example_robot_data  # noqa: F401  (the package ships a path helper in some versions)
-
-        cand = Path(example_robot_data.__file__).resolve().parents[4] / "share"  # pragma: no cover
-        if (cand / "example-robot-data").is_dir():  # pragma: no cover
-            return cand
-    except Exception:  # pragma: no cover
-        pass
     return None
 
 
