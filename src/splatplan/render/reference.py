@@ -97,7 +97,7 @@ def project_reference(arrs: dict, cam: dict, b: int, width: int, height: int, ne
     cov2 = jac @ cov_c @ np.transpose(jac, (0, 2, 1)) + LOW_PASS * np.eye(2)  # (N, 2, 2) px^2
     a, bb, c = cov2[:, 0, 0], cov2[:, 0, 1], cov2[:, 1, 1]
     det = a * c - bb * bb
-    valid &= det > 0
+    valid &= (det > 0) & np.isfinite(det)
     det = np.where(valid, det, 1.0)
     conic = np.stack([c / det, -bb / det, a / det], axis=1)  # (N, 3) inverse 2D covariance (xx, xy, yy)
     xy = np.stack([fx * p[:, 0] / zs + cx, fy * p[:, 1] / zs + cy], axis=1)  # (N, 2) pixels

@@ -174,7 +174,7 @@ def project_kernel(scene: SceneArgs, cams: CamArgs, cam_base: int, frame: FrameA
     bb = wp.dot(m1, s0)
     d = wp.dot(m1, cov * m1) + _LOW_PASS
     det = a * d - bb * bb
-    if det <= 0.0:
+    if not (det > 0.0) or not wp.isfinite(det):  # also NaN / overflow from absurd scales
         return
     inv_det = 1.0 / det
     u = fx * p[0] * inv_z + intr[2]
