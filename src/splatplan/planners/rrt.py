@@ -28,7 +28,9 @@ between two consecutive checked configurations**; the default ``edge_resolution`
 ``edge_fraction`` (1/4) of the robot's smallest semi-axis. For a single translating sphere the
 inner samples are additionally checked with the radius grown by half the sample spacing (<= r/8
 by default): every point of the swept volume lies within that distance of a sample centre, so at
-n_sigma = 0 the edge is free between the samples too, not only at them.
+n_sigma = 0 the edge is free between the samples too, not only at them. (Growing every semi-axis
+of an anisotropic ellipsoid by m does not contain its Minkowski sum with a ball of radius m, so
+this extra test is used for spheres only.)
 
 **Scene-scaled defaults.** Lengths the user leaves unset are derived from the scene and the robot
 (:meth:`RRT.settings`): the sampling box is the 0.5-99.5 percentile box of the splat means padded
