@@ -47,7 +47,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--device", default="cpu")
     ap.add_argument("--repeats", type=int, default=7)
     ap.add_argument("--batches", default="4096,32768")
-    ap.add_argument("--robot-configs", default="1024", help="Panda configurations per call (comma list; empty: skip)")
+    ap.add_argument("--robot-configs", default="auto", help="Panda configurations per call (comma list; auto: largest batch / 32, at most 1024; empty: skip)")
     ap.add_argument("--out", default=str(Path(__file__).parent / "results" / "metric_throughput.json"))
     args = ap.parse_args(argv)
 
@@ -91,7 +91,9 @@ def main(argv: list[str] | None = None) -> int:
                 "peak_mem_mb": proc_status_mb("VmHWM") - rss0 if hwm_ok and args.device == "cpu" else float("nan"),
             })  # fmt: skip
     device_rows = _device_rows(checker, scene, lo, hi, [int(x) for x in args.batches.split(",")], radius, args.repeats)
-    robot_rows = _robot_rows(scene, args.device, [int(x) for x in args.robot_configs.split(",") if x], args.repeats)
+    batches = [int(x) for x in args.batches.split(",")]
+    rc = [min(1024, max(1, max(batches) // 32))] if args.robot_configs == "auto" else [int(x) for x in args.robot_configs.split(",") if x]
+    robot_rows = _robot_rows(scene, args.device, rc, args.repeats)
     result = {
         "device": checker.device,
         "load_avg_1min": round(os.getloadavg()[0], 2),

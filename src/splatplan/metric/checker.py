@@ -21,6 +21,7 @@ CollisionChecker(...) as checker:`` or garbage collection shuts it down.
 
 from __future__ import annotations
 
+import contextlib
 from dataclasses import replace
 
 import numpy as np
@@ -135,17 +136,18 @@ class CollisionChecker:
             validate: device inputs only: raise on non-finite input (one device sync). Without
                 it, invalid queries read in_collision = True with NaN distances.
         """
-        prep = self._prepare(centers, quats, rots, semi_axes)
-        if prep is None:
-            return self._reference(centers, quats, rots, semi_axes, full=True)
-        kind, shape, b, links, amin, amax, keep = prep
-        if b == 0:
-            return QueryResult(**{k: self._empty(kind, shape, _DTYPES[k]) for k in _FIELDS})
-        ws = self._workspace(out, b)
-        if kind != "numpy":
-            ws.reset_bad()
-        self._impl.query(links, b, amin, amax, self.config, ws.outputs())
-        self._raise_bad(ws, kind, validate)
+        with _torch_stream(centers):
+            prep = self._prepare(centers, quats, rots, semi_axes)
+            if prep is None:
+                return self._reference(centers, quats, rots, semi_axes, full=True)
+            kind, shape, b, links, amin, amax, keep = prep
+            if b == 0:
+                return QueryResult(**{k: self._empty(kind, shape, _DTYPES[k]) for k in _FIELDS})
+            ws = self._workspace(out, b)
+            if kind != "numpy":
+                ws.reset_bad()
+            self._impl.query(links, b, amin, amax, self.config, ws.outputs())
+            self._raise_bad(ws, kind, validate)
         del keep
         return QueryResult(**{k: convert_out(getattr(ws, k), b, shape, kind, False) for k in _FIELDS})
 
@@ -155,17 +157,18 @@ class CollisionChecker:
         Much cheaper than :meth:`query` for RRT edge checks. Shape: the batch shape; type: the
         input's (arguments as in :meth:`query`).
         """
-        prep = self._prepare(centers, quats, rots, semi_axes)
-        if prep is None:
-            return self._reference(centers, quats, rots, semi_axes, full=False)
-        kind, shape, b, links, amin, amax, keep = prep
-        if b == 0:
-            return self._empty(kind, shape, bool)
-        ws = self._workspace(out, b)
-        if kind != "numpy":
-            ws.reset_bad()
-        self._impl.collides(links, b, amin, amax, self.config, ws.in_collision, ws.bad)
-        self._raise_bad(ws, kind, validate)
+        with _torch_stream(centers):
+            prep = self._prepare(centers, quats, rots, semi_axes)
+            if prep is None:
+                return self._reference(centers, quats, rots, semi_axes, full=False)
+            kind, shape, b, links, amin, amax, keep = prep
+            if b == 0:
+                return self._empty(kind, shape, bool)
+            ws = self._workspace(out, b)
+            if kind != "numpy":
+                ws.reset_bad()
+            self._impl.collides(links, b, amin, amax, self.config, ws.in_collision, ws.bad)
+            self._raise_bad(ws, kind, validate)
         del keep
         return convert_out(ws.in_collision, b, shape, kind, False)
 
@@ -180,14 +183,16 @@ class CollisionChecker:
         with ``validate=True``). Joint limits are not enforced: the geometry of any configuration is
         checked (clip first with ``robot.check_q(q, clip=True)`` where limits matter).
         """
-        return self._robot(robot, q, out, validate, full=True)
+        with _torch_stream(q):
+            return self._robot(robot, q, out, validate, full=True)
 
     def collides_robot(self, robot, q, *, out=None, validate=False):
         """(..., E) collision state of every ellipsoid of ``robot`` at ``q`` (see :meth:`query_robot`).
 
         A configuration collides when any of its ellipsoids does: ``collides_robot(...).any(-1)``.
         """
-        return self._robot(robot, q, out, validate, full=False)
+        with _torch_stream(q):
+            return self._robot(robot, q, out, validate, full=False)
 
     def _robot(self, robot, q, out, validate, full: bool):
         kind = array_kind(q)
@@ -343,6 +348,17 @@ class CollisionChecker:
                 r.softmin.astype(np.float32), r.cost.astype(np.float32),
             ).reshape(h.shape)  # fmt: skip
         return _convert_host(res if full else res.in_collision, kind, dev)
+
+
+def _torch_stream(x):
+    """For a CUDA torch tensor: run Warp on torch's current stream (so zero-copy reads and writes are
+    ordered with the caller's torch work); a no-op otherwise."""
+    if array_kind(x) == "torch" and x.device.type == "cuda":
+        from .._warp import wp as _wp
+
+        wp = _wp()
+        return wp.ScopedStream(wp.stream_from_torch(x.device))
+    return contextlib.nullcontext()
 
 
 def _host(x) -> np.ndarray:
