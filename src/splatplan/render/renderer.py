@@ -140,6 +140,11 @@ class SplatRenderer:
         s.sh_deg = 0
         self._scene = s
         self._scene_bytes = self.n * (12 + 36 + 4 + 12 + 12 * self.sh_k)
+        if self.n:
+            lo, hi = arrs["means"].min(axis=0), arrs["means"].max(axis=0)
+            self._centre, self._radius = 0.5 * (lo + hi), 0.5 * float(np.linalg.norm(hi - lo)) * 1.001 + 1e-6
+        else:
+            self._centre, self._radius = np.zeros(3), 1.0
         self.threads = 1 if self.is_cuda else max(1, int(threads or cpu_threads()))
         self._pool: ThreadPoolExecutor | None = None
         self._workspaces: queue.SimpleQueue = queue.SimpleQueue()
@@ -217,7 +222,8 @@ class SplatRenderer:
         fr.tiles_x, fr.tiles_y = math.ceil(width / TILE), math.ceil(height / TILE)
         fr.near, fr.far = near, min(far, 3.0e38)
         fr.log_near = math.log(near)
-        fr.key_scale = (2.0**32 - 1.0) / max(math.log(fr.far) - math.log(near), 1e-30)
+        # farthest view depth a splat mean can have, per camera (bounding sphere of the means)
+        zmax = np.minimum(np.linalg.norm(cam["campos"] - self._centre, axis=1) + self._radius, fr.far)  # (B,)
         fr.bg = wp.vec3(*bg.astype(np.float32))
 
         npix = b * height * width
@@ -243,10 +249,10 @@ class SplatRenderer:
             starts = list(range(0, b, chunk))
             if self.is_cuda or self.threads == 1 or len(starts) == 1:
                 for s0 in starts:
-                    self._run_chunk(scene, ca, fr, out, s0, min(chunk, b - s0))
+                    self._run_chunk(scene, ca, fr, zmax, out, s0, min(chunk, b - s0))
             else:
                 pool = self._get_pool()
-                futs = [pool.submit(self._run_chunk, scene, ca, fr, out, s0, min(chunk, b - s0)) for s0 in starts]
+                futs = [pool.submit(self._run_chunk, scene, ca, fr, zmax, out, s0, min(chunk, b - s0)) for s0 in starts]
                 for f in futs:
                     f.result()
         if host is not None:
@@ -266,25 +272,33 @@ class SplatRenderer:
         per_thread = math.ceil(b / self.threads)
         return int(max(1, min(per_thread, by_mem, max(1, (1 << 16) // n))))
 
-    def _run_chunk(self, scene, cams, frame, out, cam_base: int, nc: int) -> None:
+    def _run_chunk(self, scene, cams, frame, zmax, out, cam_base: int, nc: int) -> None:
         ws: _Workspace = self._workspaces.get()
         try:
-            self._run_range(ws, scene, cams, frame, out, cam_base, nc)
+            self._run_range(ws, scene, cams, frame, zmax, out, cam_base, nc)
         finally:
             self._workspaces.put(ws)
 
-    def _run_range(self, ws: "_Workspace", scene, cams, frame, out, cam_base: int, nc: int) -> None:
-        """The whole pipeline for cameras cam_base .. cam_base + nc - 1 in one workspace."""
+    def _run_range(self, ws: "_Workspace", scene, cams, frame, zmax, out, cam_base: int, nc: int) -> None:
+        """The whole pipeline for cameras cam_base .. cam_base + nc - 1 in one workspace.
+
+        zmax (B,): per camera, the farthest view depth a splat mean can have (sets the depth-key range).
+        """
         rast = _wp_raster()
         dev = self.device
         n = self.n
         rows = nc * n
         tiles = nc * frame.tiles_x * frame.tiles_y
         m = 0
+        tile_bits = max(1, int(tiles - 1).bit_length())
+        depth_bits = 32 - tile_bits if tile_bits <= 12 else 32  # keys of <= 32 bits: two 16-bit sort passes
+        key_max = float(2**depth_bits - 1)
+        zfar = float(zmax[cam_base : cam_base + nc].max())
+        key_scale = key_max / max(math.log(max(zfar, frame.near * 1.0001)) - frame.log_near, 1e-12)
         if rows:
             ws.ensure_rows(rows)
             proj = ws.proj
-            wp.launch(rast.project_kernel, dim=rows, inputs=[scene, cams, cam_base, frame, proj], device=dev)
+            wp.launch(rast.project_kernel, dim=rows, inputs=[scene, cams, cam_base, frame, key_scale, key_max, proj], device=dev)
             wp.utils.array_scan(proj.ntiles[:rows], ws.offsets[:rows], inclusive=True)
             m = int(ws.offsets[rows - 1 : rows].numpy()[0])
         if m:
@@ -293,8 +307,8 @@ class SplatRenderer:
             if need > budget:
                 if nc > 1:  # more tile slots than estimated: split the chunk (re-projects; rare)
                     half = nc // 2
-                    self._run_range(ws, scene, cams, frame, out, cam_base, half)
-                    self._run_range(ws, scene, cams, frame, out, cam_base + half, nc - half)
+                    self._run_range(ws, scene, cams, frame, zmax, out, cam_base, half)
+                    self._run_range(ws, scene, cams, frame, zmax, out, cam_base + half, nc - half)
                     return
                 raise SplatplanError(
                     f"one {frame.width}x{frame.height} image needs {need / 2**30:.2f} GiB of workspace ({m:,} splat-tile pairs), "
@@ -303,10 +317,9 @@ class SplatRenderer:
             ws.ensure_pairs(m)
             ws.ensure_tiles(tiles)
             ws.ranges.zero_()  # empty tiles must read [0, 0)
-            wp.launch(rast.write_keys_kernel, dim=rows, inputs=[proj, n, frame, ws.offsets, ws.keys, ws.vals], device=dev)
-            end_bit = 32 + max(1, int(tiles - 1).bit_length())
-            wp.utils.radix_sort_pairs(ws.keys, ws.vals, m, 0, end_bit)
-            wp.launch(rast.tile_ranges_kernel, dim=m, inputs=[ws.keys, m, ws.ranges], device=dev)
+            wp.launch(rast.write_keys_kernel, dim=rows, inputs=[proj, n, frame, depth_bits, ws.offsets, ws.keys, ws.vals], device=dev)
+            wp.utils.radix_sort_pairs(ws.keys, ws.vals, m, 0, depth_bits + tile_bits)
+            wp.launch(rast.tile_ranges_kernel, dim=m, inputs=[ws.keys, m, depth_bits, ws.ranges], device=dev)
             wp.launch(rast.gather_kernel, dim=m, inputs=[ws.proj, ws.vals, ws.sorted], device=dev)
         else:
             ws.ensure_pairs(1)

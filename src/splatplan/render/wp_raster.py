@@ -7,8 +7,10 @@ Pipeline for a chunk of C cameras (rows r = c * N + i, splat i seen by camera c)
 1. ``project_kernel`` (C*N): view transform, near/far cull, EWA 2D covariance + low-pass,
    conic, SH colour, opacity-aware pixel bounding box, number of 16x16 tiles it touches.
 2. prefix sum of the tile counts (``wp.utils.array_scan``) -> offsets, M pairs in all.
-3. ``write_keys_kernel`` (C*N): one (key, row) pair per touched tile; key = (c * T + tile) << 32
-   | depth key, the depth key a monotone 32-bit quantisation of log(z) (finer than float32).
+3. ``write_keys_kernel`` (C*N): one (key, row) pair per touched tile; key = (c * T + tile) <<
+   depth_bits | depth key, the depth key a monotone quantisation of log(z) over [near, the
+   farthest a splat mean can be] in depth_bits = 32 - tile bits (>= 20; else 32) bits, so that
+   the sort needs two 16-bit passes for up to 4096 tiles.
 4. ``wp.utils.radix_sort_pairs`` over the used bits -> pairs grouped by tile, front to back.
 5. ``tile_ranges_kernel`` (M): [start, end) of each tile's run of pairs.
 6. ``gather_kernel`` (M): copy each pair's projected splat into pair order, so blending streams
@@ -74,7 +76,6 @@ class FrameArgs:
     near: float
     far: float
     log_near: wp.float64  # ln(near)
-    key_scale: wp.float64  # (2^32 - 1) / (ln(far) - ln(near))
     bg: wp.vec3
 
 
@@ -88,7 +89,7 @@ class Splat2D:
     rgb: wp.vec3  # colour at the viewing direction
     depth: float  # view depth z of the mean
     rect: wp.vec4i  # inclusive pixel box x0, y0, x1, y1
-    dkey: wp.int64  # 32-bit depth sort key
+    dkey: wp.int64  # depth sort key (depth_bits wide)
 
 
 @wp.struct
@@ -139,7 +140,10 @@ def sh_color(scene: SceneArgs, i: int, d: wp.vec3) -> wp.vec3:
 
 
 @wp.kernel
-def project_kernel(scene: SceneArgs, cams: CamArgs, cam_base: int, frame: FrameArgs, proj: ProjArgs):
+def project_kernel(
+    scene: SceneArgs, cams: CamArgs, cam_base: int, frame: FrameArgs,
+    key_scale: wp.float64, key_max: wp.float64, proj: ProjArgs,
+):  # fmt: skip
     row = wp.tid()
     c = row // scene.n
     i = row - c * scene.n
@@ -200,8 +204,8 @@ def project_kernel(scene: SceneArgs, cams: CamArgs, cam_base: int, frame: FrameA
     sp.conic = wp.vec3(d * inv_det, -bb * inv_det, a * inv_det)
     sp.opac = o
     sp.depth = z
-    lz = (wp.log(wp.float64(z)) - frame.log_near) * frame.key_scale
-    sp.dkey = wp.int64(wp.clamp(lz, wp.float64(0.0), wp.float64(4294967295.0)))
+    lz = (wp.log(wp.float64(z)) - frame.log_near) * key_scale  # monotone in z
+    sp.dkey = wp.int64(wp.clamp(lz, wp.float64(0.0), key_max))
     if scene.sh_deg > 0:
         dirv = scene.means[i] - cams.campos[b]
         nd = wp.length(dirv)
@@ -218,7 +222,7 @@ def project_kernel(scene: SceneArgs, cams: CamArgs, cam_base: int, frame: FrameA
 
 @wp.kernel
 def write_keys_kernel(
-    proj: ProjArgs, n: int, frame: FrameArgs, offsets: wp.array(dtype=wp.int32),
+    proj: ProjArgs, n: int, frame: FrameArgs, depth_bits: int, offsets: wp.array(dtype=wp.int32),
     keys: wp.array(dtype=wp.int64), vals: wp.array(dtype=wp.int32),
 ):  # fmt: skip
     row = wp.tid()
@@ -234,26 +238,26 @@ def write_keys_kernel(
     for ty in range(r[1] / _TILE, r[3] / _TILE + 1):
         for tx in range(r[0] / _TILE, r[2] / _TILE + 1):
             tile = c * tpi + ty * frame.tiles_x + tx
-            keys[k] = (wp.int64(tile) << wp.int64(32)) | dk
+            keys[k] = (wp.int64(tile) << wp.int64(depth_bits)) | dk
             vals[k] = row
             k += 1
 
 
 @wp.kernel
-def tile_ranges_kernel(keys: wp.array(dtype=wp.int64), m: int, ranges: wp.array(dtype=wp.vec2i)):
+def tile_ranges_kernel(keys: wp.array(dtype=wp.int64), m: int, depth_bits: int, ranges: wp.array(dtype=wp.vec2i)):
     """ranges[tile] = [start, end) of the tile's pairs; ranges must be zeroed before."""
     k = wp.tid()
-    tile = int(keys[k] >> wp.int64(32))
+    tile = int(keys[k] >> wp.int64(depth_bits))
     if k == 0:
         ranges[tile] = wp.vec2i(k, ranges[tile][1])
     else:
-        prev = int(keys[k - 1] >> wp.int64(32))
+        prev = int(keys[k - 1] >> wp.int64(depth_bits))
         if prev != tile:
             ranges[tile] = wp.vec2i(k, ranges[tile][1])
     if k == m - 1:
         ranges[tile] = wp.vec2i(ranges[tile][0], k + 1)
     else:
-        nxt = int(keys[k + 1] >> wp.int64(32))
+        nxt = int(keys[k + 1] >> wp.int64(depth_bits))
         if nxt != tile:
             ranges[tile] = wp.vec2i(ranges[tile][0], k + 1)
 
