@@ -83,7 +83,7 @@ def test_2dgs_disks(device):
 
 
 @pytest.mark.parametrize("device", DEVICES)
-@pytest.mark.parametrize("tiers", [TierConfig(), TierConfig(mode="quantile", quantiles=(0.5, 0.8, 0.95), cell_factor=3.0), TierConfig(mode="quantile", quantiles=(), cell_factor=0.5), TierConfig(class_factor=1.5, min_tier_count=1, tier_overhead=0.0)])
+@pytest.mark.parametrize("tiers", [TierConfig(), TierConfig(mode="quantile", quantiles=(0.5, 0.8, 0.95), cell_factor=3.0), TierConfig(mode="quantile", quantiles=(), cell_factor=0.5), TierConfig(class_factor=1.5, min_tier_count=1, tier_overhead=0.0, sort_min_batch=1)])
 def test_huge_splats_are_never_dropped(device, tiers):
     """Splats far larger than the robot (a few huge floaters and walls) stay exact in every tiering."""
     rng = np.random.default_rng(3)

@@ -146,7 +146,7 @@ class CollisionChecker:
             ws = self._workspace(out, b)
             if kind != "numpy":
                 ws.reset_bad()
-            self._impl.query(links, b, amin, amax, self.config, ws.outputs())
+            self._impl.query(links, b, amin, amax, self.config, ws.outputs(), ws.scratch())
             self._raise_bad(ws, kind, validate)
         del keep
         return QueryResult(**{k: convert_out(getattr(ws, k), b, shape, kind, False) for k in _FIELDS})
@@ -167,7 +167,7 @@ class CollisionChecker:
             ws = self._workspace(out, b)
             if kind != "numpy":
                 ws.reset_bad()
-            self._impl.collides(links, b, amin, amax, self.config, ws.in_collision, ws.bad)
+            self._impl.collides(links, b, amin, amax, self.config, ws.in_collision, ws.bad, ws.scratch())
             self._raise_bad(ws, kind, validate)
         del keep
         return convert_out(ws.in_collision, b, shape, kind, False)
@@ -234,9 +234,9 @@ class CollisionChecker:
         if kind != "numpy":
             ws.reset_bad()
         if full:
-            self._impl.query(links, n, amin, amax, self.config, ws.outputs())
+            self._impl.query(links, n, amin, amax, self.config, ws.outputs(), ws.scratch())
         else:
-            self._impl.collides(links, n, amin, amax, self.config, ws.in_collision, ws.bad)
+            self._impl.collides(links, n, amin, amax, self.config, ws.in_collision, ws.bad, ws.scratch())
         self._raise_bad(ws, kind, validate)
         if full:
             return QueryResult(**{k: convert_out(getattr(ws, k), n, oshape, kind, False) for k in _FIELDS})
@@ -284,7 +284,7 @@ class CollisionChecker:
             return kind, shape, 0, None, 0.0, 0.0, None
         links = LinkBatch()
         links.centers = carr
-        links.rot_mode, links.rot_period = 0, 1
+        links.rot_mode, links.rot_period, links.use_order = 0, 1, 0
         keep = [keep_c, carr]
         if quats is not None:
             links.quats, links.rot_period, k, _ = device_side_rows(quats, "quats", (4,), shape, self.device)

@@ -159,6 +159,7 @@ def host_link_batch(h: HostArrays, device: str, axes_dev=None) -> tuple[LinkBatc
     lb.centers = wp.array(np.ascontiguousarray(h.centers, dtype=np.float32), dtype=wp.vec3, device=device)
     lb.axes = axes_dev if axes_dev is not None else wp.array(np.ascontiguousarray(h.axes, dtype=np.float32), dtype=wp.vec3, device=device)
     lb.axes_period = int(h.axes_period)
+    lb.use_order = 0
     lb.rot_period = int(h.rot_period)
     lb.rot_mode = 0
     if h.quats is not None:
@@ -282,6 +283,8 @@ class MetricWorkspace:
     softmin: object = None  # wp.array(float32)
     cost: object = None  # wp.array(float32)
     bad: object = None  # wp.array(int32) (1,)
+    sort_keys: object = None  # wp.array(int32) (2 * capacity,) scratch of the query sort
+    sort_values: object = None  # wp.array(int32) (2 * capacity,)
     fk_capacity: int = 0
     fk_centers: object = None  # wp.array(vec3) (fk_capacity,) ellipsoid centres from robot FK
     fk_rots: object = None  # wp.array(mat33) (fk_capacity,)
@@ -300,6 +303,8 @@ class MetricWorkspace:
             self.in_collision = wp.empty(cap, dtype=wp.bool, device=d)
             self.softmin = wp.empty(cap, dtype=wp.float32, device=d)
             self.cost = wp.empty(cap, dtype=wp.float32, device=d)
+            self.sort_keys = wp.empty(2 * cap, dtype=wp.int32, device=d)
+            self.sort_values = wp.empty(2 * cap, dtype=wp.int32, device=d)
             self.capacity = cap
             self.reallocations += 1
         return self
@@ -313,6 +318,10 @@ class MetricWorkspace:
             self.fk_capacity = cap
             self.reallocations += 1
         return self
+
+    def scratch(self) -> tuple:
+        """(keys, values) int32 scratch of the query sort."""
+        return self.sort_keys, self.sort_values
 
     def outputs(self) -> MetricOutputs:
         o = MetricOutputs()

@@ -39,6 +39,7 @@ from .wp_metric_kernel import (
     SplatTiers,
     metric_collide_kernel,
     metric_full_kernel,
+    morton_keys_kernel,
     search_radius,
 )
 
@@ -50,7 +51,8 @@ CHUNKS_PER_THREAD = 8
 
 @dataclass
 class TierConfig:
-    """How splats are binned into tiers (a performance knob; results are exact either way)."""
+    """Performance knobs of the Warp backend: how splats are binned into tiers, grid cells, query
+    order (results are exact, and identical, either way)."""
 
     #: "size": geometric size classes of the largest std (default); "quantile": tiers split at
     #: ``quantiles`` of the largest std (the old scheme, kept for comparison).
@@ -72,6 +74,11 @@ class TierConfig:
     cell_factor: float = 1.5  # measured best on Stonehenge (CPU): 0.75-2.0 within 25%
     #: Largest grid dimension per axis (cells wrap around beyond it; results stay exact).
     max_dim: int = 128
+    #: Process the queries of a batch in Morton (Z-curve) order of their centres (a key kernel and a
+    #: radix sort on the device), so neighbouring threads read neighbouring splats: ~1.3x on CPU.
+    sort_queries: bool = True
+    #: ... for batches of at least this many queries.
+    sort_min_batch: int = 1024
 
 
 def quantile_tiers(smax: np.ndarray, quantiles: tuple[float, ...]) -> np.ndarray:
@@ -200,6 +207,11 @@ class WarpMetric:
         self._means_np = means[order].astype(np.float32)  # (N, 3) tier-sorted
         self._mrows_np = (np.transpose(rot, (0, 2, 1)) * scales[order][:, :, None]).astype(np.float32)  # diag(s) R^T
         self._opac_np = np.asarray(scene.opacities, dtype=np.float32)[order]  # (N,) tier-sorted
+        # sorting box for the query order: robust bounds of the splat means (a far shell would make it useless)
+        blo, bhi = np.percentile(means, [1.0, 99.0], axis=0) if len(means) > 1 else (means.min(0), means.max(0))
+        pad = 0.05 * (bhi - blo) + 1e-6
+        self._sort_lo = wp.vec3(*(blo - pad).astype(np.float32))
+        self._sort_scale = wp.vec3(*(1023.0 / (bhi - blo + 2 * pad)).astype(np.float32))
         self._gridsets: dict[tuple[int, ...], _GridSet] = {}  # quantised cell per tier -> grids + data
         self._keys: dict[tuple[float, ...], tuple[int, ...]] = {}  # (n_sigma, cap, a_min, a_max) -> grid key
         self._lock = threading.Lock()
@@ -337,12 +349,29 @@ class WarpMetric:
         for f in futs:
             f.result()
 
-    def query(self, links: LinkBatch, b: int, a_min: float, a_max: float, cfg: MetricConfig, out: MetricOutputs) -> None:
-        """All five outputs of b queries into ``out`` (device arrays of at least b rows)."""
+    def sort_queries(self, links: LinkBatch, b: int, keys, values) -> None:
+        """Set ``links.order`` to a Morton order of the b query centres (int32 scratch ``keys``/``values`` of >= 2b rows)."""
+        links.use_order = 0
+        if not self.tiers.sort_queries or b < self.tiers.sort_min_batch:
+            return
+        wp.launch(morton_keys_kernel, dim=b, inputs=[links.centers, self._sort_lo, self._sort_scale, keys, values], device=self.device)
+        wp.utils.radix_sort_pairs(keys, values, b, 0, 30)
+        links.order = values[:b]
+        links.use_order = 1
+
+    def query(self, links: LinkBatch, b: int, a_min: float, a_max: float, cfg: MetricConfig, out: MetricOutputs, scratch=None) -> None:
+        """All five outputs of b queries into ``out`` (device arrays of at least b rows); ``scratch``:
+        (keys, values) int32 device arrays of >= 2b rows for the query sort (allocated when None)."""
         gs = self.gridset(cfg.n_sigma, cfg.s2_cap, a_min, a_max)
+        self.sort_queries(links, b, *(scratch or self._scratch(b)))
         self._launch(metric_full_kernel, b, [links, gs.tiers, metric_params(cfg, _softmin_power(cfg)), out])
 
-    def collides(self, links: LinkBatch, b: int, a_min: float, a_max: float, cfg: MetricConfig, out_hit, bad) -> None:
+    def collides(self, links: LinkBatch, b: int, a_min: float, a_max: float, cfg: MetricConfig, out_hit, bad, scratch=None) -> None:
         """in_collision of b queries into ``out_hit`` (bool device array of at least b rows)."""
         gs = self.gridset(cfg.n_sigma, 1.0, a_min, a_max)
+        self.sort_queries(links, b, *(scratch or self._scratch(b)))
         self._launch(metric_collide_kernel, b, [links, gs.tiers, metric_params(cfg, 0), out_hit, bad])
+
+    def _scratch(self, b: int):
+        n = 2 * b if self.tiers.sort_queries and b >= self.tiers.sort_min_batch else 1
+        return wp.empty(n, dtype=wp.int32, device=self.device), wp.empty(n, dtype=wp.int32, device=self.device)

@@ -63,6 +63,8 @@ class LinkBatch:
     rot_mode: int  # 0 identity (no rotation given), 1 quaternions, 2 rotation matrices
     rot_period: int
     axes_period: int
+    order: wp.array(dtype=wp.int32)  # (B,) launch position -> query index (spatially sorted), used when use_order == 1
+    use_order: int
 
 
 @wp.struct
@@ -180,6 +182,8 @@ def metric_full_kernel(
     out: MetricOutputs,
 ):
     q = wp.tid() + offset
+    if links.use_order != 0:
+        q = links.order[q]  # neighbouring threads take neighbouring queries: coherent splat reads
     c = links.centers[q]
     ax = links.axes[q % links.axes_period]
     if not link_valid(links, q, c, ax):
@@ -277,6 +281,8 @@ def metric_collide_kernel(
 ):
     """Collision-only variant: radius for cap = 1, stops at the (k+1)-th colliding splat."""
     q = wp.tid() + offset
+    if links.use_order != 0:
+        q = links.order[q]
     c = links.centers[q]
     ax = links.axes[q % links.axes_period]
     if not link_valid(links, q, c, ax):
@@ -316,3 +322,35 @@ def gather_rows_kernel(src: wp.array(dtype=wp.vec3), step: int, dst: wp.array(dt
     """dst[i] = src[i * step]: an evenly spaced sample of a device array (to size the hash grids)."""
     i = wp.tid()
     dst[i] = src[i * step]
+
+
+@wp.func
+def _spread_bits(v: int):
+    """The low 10 bits of v spread to every third bit (Morton interleaving)."""
+    x = v & 0x3FF
+    x = (x | (x << 16)) & 0x030000FF
+    x = (x | (x << 8)) & 0x0300F00F
+    x = (x | (x << 4)) & 0x030C30C3
+    x = (x | (x << 2)) & 0x09249249
+    return x
+
+
+@wp.kernel
+def morton_keys_kernel(
+    centers: wp.array(dtype=wp.vec3),  # (B,)
+    lo: wp.vec3,  # corner of the sorting box (robust scene bounds)
+    scale: wp.vec3,  # 1023 / box size per axis
+    keys: wp.array(dtype=wp.int32),  # (>= 2B,) 30-bit Morton code of the clamped 10-bit cell
+    values: wp.array(dtype=wp.int32),  # (>= 2B,) query index
+):
+    i = wp.tid()
+    c = centers[i]
+    key = int(0)
+    if wp.isfinite(c):
+        p = wp.cw_mul(c - lo, scale)
+        x = int(wp.clamp(p[0], 0.0, 1023.0))
+        y = int(wp.clamp(p[1], 0.0, 1023.0))
+        z = int(wp.clamp(p[2], 0.0, 1023.0))
+        key = _spread_bits(x) | (_spread_bits(y) << 1) | (_spread_bits(z) << 2)
+    keys[i] = key
+    values[i] = i
