@@ -194,9 +194,12 @@ def build_splats(
         if bad.any():
             hint = f" after activation ({activation[name]}, which must be finite in float32)" if name in activation else ""
             problems.append((f"NaN/Inf in '{name}'", hint, bad))
-    q64 = fields["quats"].astype(np.float64)  # (N, 4)
+    quats32 = fields["quats"]
+    qnorm = np.empty(n, dtype=np.float64)  # (N,) computed in float64, block by block
     with np.errstate(invalid="ignore", over="ignore"):
-        qnorm = np.sqrt(np.einsum("ij,ij->i", q64, q64))  # (N,)
+        for a in range(0, n, BLOCK_ROWS):
+            qb = quats32[a : a + BLOCK_ROWS].astype(np.float64)
+            qnorm[a : a + BLOCK_ROWS] = np.sqrt(np.einsum("ij,ij->i", qb, qb))
     zero_q = np.isfinite(qnorm) & (qnorm < ZERO_QUAT_EPS)
     if zero_q.any():
         problems.append(("a zero quaternion (no defined rotation)", "", zero_q))
@@ -224,13 +227,17 @@ def build_splats(
             keep &= ~mask
         info["invalid_dropped"] = {d: int(m.sum()) for d, _, m in problems} | {"total": int((~keep).sum())}
         fields = {k: v[keep] for k, v in fields.items()}
-        q64, qnorm = q64[keep], qnorm[keep]
+        qnorm = qnorm[keep]
 
-    q = q64 / qnorm[:, None]  # (M, 4) unit wxyz
-    q *= np.where(q[:, :1] < 0, -1.0, 1.0)
+    quats32 = fields["quats"]
+    q = np.empty(quats32.shape, dtype=np.float32)  # (M, 4) unit wxyz, w >= 0
+    for a in range(0, len(q), BLOCK_ROWS):
+        qb = quats32[a : a + BLOCK_ROWS].astype(np.float64) / qnorm[a : a + BLOCK_ROWS, None]
+        qb *= np.where(qb[:, :1] < 0, -1.0, 1.0)
+        q[a : a + BLOCK_ROWS] = qb
     return Splats(
         means=fields["means"],
-        quats=q.astype(np.float32),
+        quats=q,
         scales=fields["scales"],
         opacities=np.clip(fields["opacities"], 0.0, 1.0),
         colors=fields["colors"],

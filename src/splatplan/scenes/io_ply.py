@@ -209,6 +209,7 @@ def decode_gaussian_ply(ply: plyfile.PlyData, path: str | Path, *, drop_invalid:
                 colors[a:b, c] = sh_dc_to_color(rows[f"f_dc_{c}"])
             for i in range(3 * k):  # channel-major in the file: f_rest_{c*K + j} -> sh_rest[:, j, c]
                 sh_rest[a:b, i % k, i // k] = rows[f"f_rest_{i}"]
+        rows = mat = None  # release the last block before validating
     return build_splats(
         path,
         "2dgs" if is_2d else "inria",

@@ -308,9 +308,11 @@ def _decode(path: str | Path, header: dict, blocks: dict[str, np.ndarray], *, dr
     quats = np.empty((n, 4), dtype=np.float32)  # wxyz
     scales = np.empty((n, 3), dtype=np.float32)
     colors = np.empty((n, 3), dtype=np.float32)
-    pos_u8 = blocks["positions"].reshape(n, 3, 3)
-    col_u8, scl_u8 = blocks["colors"].reshape(n, 3), blocks["scales"].reshape(n, 3)
-    rot = blocks["rotations"].reshape(n, 3) if version == 2 else blocks["rotations"].view("<u4")
+    # popped, so each stream is freed as soon as it is decoded (the caller keeps no reference)
+    pos_u8 = blocks.pop("positions").reshape(n, 3, 3)
+    col_u8, scl_u8 = blocks.pop("colors").reshape(n, 3), blocks.pop("scales").reshape(n, 3)
+    rot = blocks.pop("rotations")
+    rot = rot.reshape(n, 3) if version == 2 else rot.view("<u4")
     flip = np.array([1.0, -1.0, -1.0])  # RUB -> RDF: rotate 180 degrees about x
     for a in range(0, n, BLOCK_ROWS):
         b = min(n, a + BLOCK_ROWS)
@@ -327,9 +329,10 @@ def _decode(path: str | Path, header: dict, blocks: dict[str, np.ndarray], *, dr
             xyzw = unpack_rotation_v3(rot[a:b])  # (M, 4)
         quats[a:b, 0] = xyzw[:, 3]
         quats[a:b, 1:] = xyzw[:, :3] * flip  # wxyz: (w, x, -y, -z)
+    del pos_u8, col_u8, scl_u8, rot
     sh_rest = None
     if k:  # (N, K, 3), exact in float32; in place, so one float32 copy of the SH block
-        sh_rest = blocks["sh"].reshape(n, k, 3).astype(np.float32)
+        sh_rest = blocks.pop("sh").reshape(n, k, 3).astype(np.float32)
         sh_rest -= np.float32(128.0)
         sh_rest *= (SH_FLIP_RUB_RDF[:k, None] / 128.0).astype(np.float32)  # scale, and RUB -> RDF parity
     return build_splats(
