@@ -13,7 +13,7 @@ import numpy as np
 
 from ..scenes.splats import Splats, quat_to_rotmat
 from .config import (
-    ALPHA_MAX, ALPHA_MIN, DISK_THICKNESS, LOW_PASS, SH_C0, SH_C1, SH_C2, SH_C3, T_MIN, RenderResult, camera_arrays,
+    ALPHA_MAX, ALPHA_MIN, DISK_THICKNESS, LOW_PASS, SH_C1, SH_C2, SH_C3, T_MIN, RenderResult, camera_arrays,
     check_background, check_cameras, check_image_size, check_planes, resolve_sh_degree, scene_sh_degree,
 )  # fmt: skip
 

@@ -27,7 +27,7 @@ k^2 = 2 ln(o / ALPHA_MIN); the ellipse {q <= k^2} lies inside |dx| <= k sqrt(S_x
 from __future__ import annotations
 
 from .._warp import wp as _wp
-from .config import ALPHA_MAX, ALPHA_MIN, LOW_PASS, SH_C0, SH_C1, SH_C2, SH_C3, T_MIN, TILE  # noqa: F401
+from .config import ALPHA_MAX, ALPHA_MIN, LOW_PASS, SH_C1, SH_C2, SH_C3, T_MIN, TILE
 
 wp = _wp()
 wp.set_module_options({"enable_backward": False})  # forward only: halves the compile time
