@@ -2,5 +2,14 @@
 
 from .checker import CollisionChecker
 from .config import MetricConfig, QueryResult
+from .interop import MetricWorkspace
 
-__all__ = ["CollisionChecker", "MetricConfig", "QueryResult"]
+__all__ = ["CollisionChecker", "MetricConfig", "MetricWorkspace", "QueryResult", "TierConfig"]
+
+
+def __getattr__(name: str):
+    if name == "TierConfig":  # lives beside the kernels: importing it loads Warp
+        from .wp_metric import TierConfig
+
+        return TierConfig
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

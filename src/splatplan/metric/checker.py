@@ -22,6 +22,7 @@ CollisionChecker(...) as checker:`` or garbage collection shuts it down.
 from __future__ import annotations
 
 import contextlib
+import threading
 from dataclasses import replace
 
 import numpy as np
@@ -86,6 +87,7 @@ class CollisionChecker:
         self.backend = backend
         self._impl = None
         self._robot_axes: dict = {}  # semi-axes bytes -> (wp.array (E,) vec3, a_min median, a_max median)
+        self._lock = threading.Lock()
         if backend == "warp":
             from .wp_metric import WarpMetric
 
@@ -254,9 +256,10 @@ class CollisionChecker:
             if not np.all(np.isfinite(ax)) or np.any(ax <= 0):
                 raise SplatplanError(f"robot {robot.name!r} has semi-axes that are not finite and > 0")
             hit = (wp.array(ax.astype(np.float32), dtype=wp.vec3, device=self.device), *axes_medians(ax))
-            if len(self._robot_axes) >= 16:
-                self._robot_axes.pop(next(iter(self._robot_axes)))
-            self._robot_axes[key] = hit
+            with self._lock:
+                if len(self._robot_axes) >= 16:
+                    self._robot_axes.clear()
+                self._robot_axes[key] = hit
         return hit
 
     # ------------------------------------------------------------------ plumbing

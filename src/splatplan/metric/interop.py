@@ -24,16 +24,20 @@ import numpy as np
 
 from .._warp import wp as _wp
 from ..errors import SplatplanError
-from .wp_metric_kernel import NO_BAD, LinkBatch, MetricOutputs, gather_rows_kernel
 
-wp = _wp()
+# Warp is loaded on first use, not on import (``import splatplan.metric`` stays light).
 
-_WP_DTYPES = {3: wp.vec3, 4: wp.vec4}
+
+def _wdt(tail: tuple[int, ...]):
+    """Warp dtype of one row with trailing shape ``tail``: (3,) vec3, (4,) vec4, (3, 3) mat33."""
+    wp = _wp()
+    return {(3,): wp.vec3, (4,): wp.vec4, (3, 3): wp.mat33}[tuple(tail)]
 
 
 def array_kind(x) -> str:
     """"warp", "torch" or "numpy" (everything else is taken by ``np.asarray``)."""
-    if isinstance(x, wp.array):
+    warp = sys.modules.get("warp")
+    if warp is not None and isinstance(x, warp.array):
         return "warp"
     torch = sys.modules.get("torch")
     if torch is not None and isinstance(x, torch.Tensor):
@@ -153,8 +157,11 @@ def axes_medians(axes: np.ndarray) -> tuple[float, float]:
     return float(np.median(axes.min(1))), float(np.median(axes.max(1)))
 
 
-def host_link_batch(h: HostArrays, device: str, axes_dev=None) -> tuple[LinkBatch, list]:
+def host_link_batch(h: HostArrays, device: str, axes_dev=None) -> tuple:
     """A :class:`LinkBatch` on ``device`` from validated host arrays; returns (batch, arrays to keep alive)."""
+    from .wp_metric_kernel import LinkBatch
+
+    wp = _wp()
     lb = LinkBatch()
     lb.centers = wp.array(np.ascontiguousarray(h.centers, dtype=np.float32), dtype=wp.vec3, device=device)
     lb.axes = axes_dev if axes_dev is not None else wp.array(np.ascontiguousarray(h.axes, dtype=np.float32), dtype=wp.vec3, device=device)
@@ -176,7 +183,8 @@ def host_link_batch(h: HostArrays, device: str, axes_dev=None) -> tuple[LinkBatc
 
 def device_rows(x, kind: str, name: str, tail: tuple[int, ...], device: str):
     """(wp.array of P rows of dtype vec3/vec4/mat33, leading shape) from a torch tensor or wp.array: O(1) host work."""
-    wdt = wp.mat33 if tail == (3, 3) else _WP_DTYPES[tail[0]]
+    wp = _wp()
+    wdt = _wdt(tail)
     if kind == "torch":
         import torch
 
@@ -226,8 +234,7 @@ def device_side_rows(x, name: str, tail: tuple[int, ...], shape: tuple[int, ...]
         if a.ndim < len(tail) or a.shape[a.ndim - len(tail) :] != tail:
             raise SplatplanError(f"{name} must have shape (..., {', '.join(map(str, tail))}), got {a.shape}")
         a, p = _compact(a, shape, len(tail), name)
-        wdt = wp.mat33 if tail == (3, 3) else _WP_DTYPES[tail[0]]
-        arr = wp.array(np.ascontiguousarray(a, dtype=np.float32), dtype=wdt, device=device)
+        arr = _wp().array(np.ascontiguousarray(a, dtype=np.float32), dtype=_wdt(tail), device=device)
         return arr, p, arr, a
     arr, lead, keep = device_rows(x, k, name, tail, device)
     p = _period(lead, shape)
@@ -240,13 +247,15 @@ def device_side_rows(x, name: str, tail: tuple[int, ...], shape: tuple[int, ...]
             t = keep.reshape(lead + tail).expand(tuple(shape) + tail).contiguous().reshape((-1,) + tail)
         except RuntimeError as exc:
             raise SplatplanError(f"{name} shape {lead + tail} does not broadcast to the batch {tuple(shape)}") from exc
-        wdt = wp.mat33 if tail == (3, 3) else _WP_DTYPES[tail[0]]
-        arr, keep, p = wp.from_torch(t, dtype=wdt), t, max(1, int(np.prod(shape, dtype=np.int64)))
+        arr, keep, p = _wp().from_torch(t, dtype=_wdt(tail)), t, max(1, int(np.prod(shape, dtype=np.int64)))
     return arr, p, keep, None
 
 
 def device_axes_medians(axes: "wp.array", device: str) -> tuple[float, float]:
     """Medians of the smallest / largest semi-axis from at most 1024 evenly spaced device rows (O(1) transfer)."""
+    from .wp_metric_kernel import gather_rows_kernel
+
+    wp = _wp()
     n = axes.shape[0]
     if n <= 1024:
         host = axes.numpy()
@@ -293,6 +302,7 @@ class MetricWorkspace:
 
     def reserve(self, n: int) -> "MetricWorkspace":
         """Make sure the output buffers hold at least n rows."""
+        wp = _wp()
         if self.bad is None:
             self.bad = wp.empty(1, dtype=wp.int32, device=self.device)
         if n > self.capacity:
@@ -311,6 +321,7 @@ class MetricWorkspace:
 
     def reserve_fk(self, n: int) -> "MetricWorkspace":
         """Make sure the FK buffers hold at least n ellipsoids."""
+        wp = _wp()
         if n > self.fk_capacity:
             cap = max(n, 2 * self.fk_capacity)
             self.fk_centers = wp.empty(cap, dtype=wp.vec3, device=self.device)
@@ -323,27 +334,34 @@ class MetricWorkspace:
         """(keys, values) int32 scratch of the query sort."""
         return self.sort_keys, self.sort_values
 
-    def outputs(self) -> MetricOutputs:
+    def outputs(self):
+        """The kernels' :class:`~.wp_metric_kernel.MetricOutputs` over these buffers."""
+        from .wp_metric_kernel import MetricOutputs
+
         o = MetricOutputs()
         o.min_s2, o.n_colliding, o.in_collision = self.min_s2, self.n_colliding, self.in_collision
         o.softmin, o.cost, o.bad = self.softmin, self.cost, self.bad
         return o
 
     def reset_bad(self) -> None:
+        from .wp_metric_kernel import NO_BAD
+
         self.bad.fill_(NO_BAD)
 
     def first_bad(self) -> int | None:
         """Smallest invalid query index of the last call (one device sync), or None."""
+        from .wp_metric_kernel import NO_BAD
+
         v = int(self.bad.numpy()[0])
         return None if v == NO_BAD else v
 
 
-def convert_out(x: "wp.array", b: int, shape: tuple[int, ...], kind: str, copy: bool):
+def convert_out(x, b: int, shape: tuple[int, ...], kind: str, copy: bool):
     """Rows [0, b) of a device buffer as the caller's type, shaped ``shape``."""
     v = x[:b] if x.shape[0] != b else x
     if kind == "numpy":
         a = v.numpy()
         return (a.copy() if copy and v.device.is_cpu else a).reshape(shape)
     if kind == "torch":
-        return wp.to_torch(v).reshape(shape)
+        return _wp().to_torch(v).reshape(shape)
     return v.reshape(shape) if len(shape) else v
