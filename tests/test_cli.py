@@ -142,3 +142,195 @@ def test_broken_scene_files_exit_2(tmp_path):
             assert "Traceback" not in r.stderr and needle in r.stderr, (name, r.stderr)
     _write_ply(tmp_path / "ok.ply", good)
     assert run_cli("info", str(tmp_path / "ok.ply")).returncode == 0
+
+
+# ------------------------------------------------------------------ conventions shared by every command (issue #7)
+def test_version(capsys):
+    from splatplan import __version__
+
+    with pytest.raises(SystemExit) as exc:
+        main(["--version"])
+    assert exc.value.code == 0
+    assert capsys.readouterr().out.strip() == f"splatplan {__version__}"
+
+
+@pytest.mark.parametrize("device, needle", [("gpu", "'gpu' not understood"), ("cuda:7", "cuda:7"), ("cuda:x", "not understood")])
+def test_bad_device_is_one_line(tmp_path, capsys, device, needle):
+    np.save(tmp_path / "p.npy", np.zeros((2, 3)))
+    for argv in (["check", str(BANANA), "--poses", str(tmp_path / "p.npy"), "--robot", "sphere:0.01", "--device", device],
+                 ["eval", "pr", "--out", str(tmp_path / "pr"), "--device", device],
+                 ["demo", "--out", str(tmp_path / "demo"), "--device", device]):  # fmt: skip
+        assert main(argv) == 2, argv
+        err = capsys.readouterr().err
+        assert err.startswith("splatplan: error:") and needle in err and err.count("\n") == 1, err
+    assert not (tmp_path / "pr").exists() and not (tmp_path / "demo").exists()
+
+
+def test_device_auto_resolves_the_same_everywhere():
+    from splatplan._warp import resolve_device
+    from splatplan.cli._common import check_device
+
+    assert check_device("auto") == resolve_device(None) in ("cpu", "cuda:0")
+    assert check_device("cpu") == "cpu"
+
+
+def test_bad_poses_paths_and_seed_exit_2(tmp_path, capsys):
+    np.savez(tmp_path / "p.npz", poses=np.zeros((2, 3)))
+    (tmp_path / "adir").mkdir()
+    cases = [
+        (["check", str(BANANA), "--poses", str(tmp_path / "p.npz"), "--robot", "sphere:0.01"], ".npz archive (arrays: poses)"),
+        (["check", str(BANANA), "--poses", str(tmp_path / "adir"), "--robot", "sphere:0.01"], "is a directory"),
+        (["check", str(BANANA), "--configs", str(tmp_path / "p.npz"), "--robot", "sphere:0.01"], ".npz archive"),
+        (["check", str(BANANA), "--robot", "sphere:0.01"], "exactly one of --poses"),
+        (["scene", "stonehenge", "--out", str(tmp_path / "s.ply"), "--seed=-1"], "--seed"),
+        (["scene", "stonehenge", "--out", str(tmp_path / "adir")], ".ply"),
+    ]
+    for argv, needle in cases:
+        assert main(argv) == 2, argv
+        err = capsys.readouterr().err
+        assert err.startswith("splatplan: error:") and needle in err and err.count("\n") == 1, (needle, err)
+    assert sorted(os.listdir(tmp_path)) == ["adir", "p.npz"]
+
+
+@pytest.mark.parametrize("umask", [0o022, 0o077])
+def test_outputs_follow_the_umask(tmp_path, umask):
+    np.save(tmp_path / "p.npy", np.zeros((3, 3)))
+    old = os.umask(umask)
+    try:
+        assert main(["check", str(BANANA), "--poses", str(tmp_path / "p.npy"), "--robot", "sphere:0.01", "--out", str(tmp_path / "o.npz")]) == 0
+        assert main(["scene", "stonehenge", "--out", str(tmp_path / "s.ply"), "--level", "5"]) == 0
+    finally:
+        os.umask(old)
+    for name in ("o.npz", "s.ply", "s.gt.json"):
+        assert (tmp_path / name).stat().st_mode & 0o777 == 0o666 & ~umask, name
+    assert not [f for f in os.listdir(tmp_path) if f.startswith(".")]  # no temp files or folders left
+
+
+def _loaded_warp(pid: int) -> bool:
+    """True once process ``pid`` has mapped Warp's native library (Linux; True elsewhere after 2 s)."""
+    try:
+        return "warp" in Path(f"/proc/{pid}/maps").read_text()
+    except FileNotFoundError:
+        import time
+
+        time.sleep(2.0)
+        return True
+    except OSError:
+        return False
+
+
+@pytest.mark.parametrize("sig, code", [("SIGINT", 130), ("SIGTERM", 143)])
+def test_interrupt_during_the_kernel_exits_cleanly(tmp_path, sig, code):
+    import signal
+    import time
+
+    np.save(tmp_path / "p.npy", np.zeros((4, 3)))
+    assert main(["check", str(BANANA), "--poses", str(tmp_path / "p.npy"), "--robot", "sphere:0.02", "--device", "cpu"]) == 0  # kernels compiled and cached
+    rng = np.random.default_rng(0)
+    np.save(tmp_path / "p.npy", rng.uniform(-0.3, 0.3, (2_000_000, 3)))  # ~10-20 s of CPU kernel work on 2 cores
+    out = tmp_path / "o.npz"
+    proc = subprocess.Popen([sys.executable, "-m", "splatplan.cli", "check", str(BANANA), "--poses", str(tmp_path / "p.npy"), "--robot", "sphere:0.02",
+                             "--chunk", "32768", "--device", "cpu", "--out", str(out)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)  # fmt: skip
+    t0 = time.monotonic()  # wait until main() runs (its handlers are installed before Warp loads), then ~1 s more
+    while time.monotonic() - t0 < 60 and proc.poll() is None and not _loaded_warp(proc.pid):
+        time.sleep(0.05)
+    time.sleep(1.0)  # the signal lands in loading or in the chunked kernel phase
+    if proc.poll() is not None:
+        pytest.skip("check finished before it could be interrupted (fast machine)")
+    proc.send_signal(getattr(signal, sig))
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == code, (proc.returncode, err)
+    assert "Traceback" not in err and err.strip() in ("splatplan: interrupted", "splatplan: terminated"), err
+    assert sorted(os.listdir(tmp_path)) == ["p.npy"]  # no output, no stray temp file
+
+
+def test_check_robot_configurations(tmp_path, capsys):
+    from splatplan.metric import CollisionChecker
+    from splatplan.robots import load_robot
+    from splatplan.scenes.load import load_scene
+
+    robot = load_robot("panda")
+    rng = np.random.default_rng(0)
+    lim = np.asarray(robot.joint_limits)
+    q = rng.uniform(lim[:, 0], lim[:, 1], (40, robot.dof))
+    np.save(tmp_path / "q.npy", q)
+    out = tmp_path / "o.npz"
+    assert main(["check", str(BANANA), "--robot", "panda", "--configs", str(tmp_path / "q.npy"), "--chunk", "100", "--n-sigma", "0.5",
+                 "--device", "cpu", "--out", str(out)]) == 0  # fmt: skip
+    assert "40 configurations of panda" in capsys.readouterr().out
+    res = np.load(out)
+    e = robot.n_ellipsoids
+    for k in ("min_s2", "n_colliding", "in_collision", "softmin", "cost"):
+        assert res[k].shape == (40, e), k
+    links = res["link_names"]
+    assert res["collision"].shape == (40,) and res["link_in_collision"].shape == (40, len(links))
+    # the same numbers as the API: the checker on the robot's ellipsoids
+    checker = CollisionChecker(load_scene(BANANA), n_sigma=0.5, device="cpu")
+    ref = checker.query(*robot.ellipsoids(q))
+    np.testing.assert_allclose(res["min_s2"], ref.min_s2, rtol=1e-5, atol=1e-6)
+    np.testing.assert_array_equal(res["in_collision"], ref.in_collision)
+    np.testing.assert_array_equal(res["collision"], ref.in_collision.any(axis=1))
+    for j, name in enumerate(links):
+        on_link = np.asarray(robot.ellipsoid_link) == robot.link_names.index(str(name))
+        np.testing.assert_array_equal(res["link_in_collision"][:, j], ref.in_collision[:, on_link].any(axis=1))
+    # wrong shapes and mixed inputs are one-line errors
+    np.save(tmp_path / "bad.npy", q[:, :3])
+    for argv, needle in ((["--robot", "panda", "--configs", str(tmp_path / "bad.npy")], "(B, 7)"),
+                         (["--robot", "panda", "--poses", str(tmp_path / "q.npy")], "--configs")):  # fmt: skip
+        assert main(["check", str(BANANA), *argv]) == 2
+        assert needle in capsys.readouterr().err
+
+
+def test_every_config_field_is_a_flag():
+    import argparse
+    import dataclasses
+
+    from splatplan.cli import build_parser
+    from splatplan.cli.eval import STUDIES, _study
+    from splatplan.metric.config import MetricConfig
+
+    parser = build_parser()
+
+    def sub(p: argparse.ArgumentParser, *names: str) -> argparse.ArgumentParser:
+        for n in names:
+            p = next(a for a in p._actions if isinstance(a, argparse._SubParsersAction)).choices[n]
+        return p
+
+    def dests(p):
+        return {a.dest for a in p._actions}
+
+    assert {f"cfg_{f.name}" for f in dataclasses.fields(MetricConfig)} <= dests(sub(parser, "check"))
+    for name in STUDIES:
+        cls = _study(name)[1]
+        assert {f"cfg_{f.name}" for f in dataclasses.fields(cls)} <= dests(sub(parser, "eval", name)), name
+
+
+def test_config_flags_parse_every_type():
+    from splatplan.cli import build_parser
+    from splatplan.cli._common import config_from_args
+    from splatplan.eval.pr import PRConfig
+    from splatplan.eval.throughput import ThroughputConfig
+
+    p = build_parser()
+    a = p.parse_args(["eval", "pr", "--out", "x", "--quick", "--n-sigmas", "0,1.5", "--n-splats", "none", "--variants", "default,log_mean_exp"])
+    cfg = config_from_args(a, PRConfig, base=PRConfig.quick())
+    assert cfg.n_sigmas == (0.0, 1.5) and cfg.n_splats is None and cfg.variants == ("default", "log_mean_exp")
+    assert cfg.spacing == PRConfig.quick().spacing  # unset flags keep the --quick values
+    a = p.parse_args(["eval", "throughput", "--out", "x", "--rows", "splatnav:1,collisionsplatting:4096", "--timed-queries", "atlasnav=8",
+                      "--baseline-threads", "none,1"])  # fmt: skip
+    cfg = config_from_args(a, ThroughputConfig)
+    assert cfg.rows == (("splatnav", 1), ("collisionsplatting", 4096)) and cfg.timed_queries == {"atlasnav": 8}
+    assert cfg.baseline_threads == (None, 1)
+    with pytest.raises(SystemExit):
+        p.parse_args(["eval", "pr", "--out", "x", "--spacing", "abc"])
+
+
+def test_eval_prints_its_table(tmp_path, capsys):
+    argv = ["eval", "pr", "--quick", "--out", str(tmp_path), "--n-splats", "4000", "--spacing", "0.06", "--n-sigmas", "1",
+            "--variants", "default,opacity_scaled_inflation", "--n-check", "1", "--n-check-clamped", "0", "--device", "cpu"]  # fmt: skip
+    assert main(argv) == 0
+    out = capsys.readouterr().out
+    assert "| method |" in out and "SPLANNING" in out and "fidelity variants" in out and "opacity_scaled_inflation" in out
+    assert str(tmp_path / "pr.md") in out
+    data = json.loads((tmp_path / "pr.json").read_text())
+    assert data["config"]["n_splats"] == 4000 and data["config"]["spacing"] == 0.06 and data["device"] == "cpu"

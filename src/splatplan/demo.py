@@ -53,23 +53,23 @@ def _plot_field(path: Path, fields, gt, z: float, lo, hi, n_kept_floaters: int =
         ax.set_xlabel("x (scene units)")
         ax.set_ylabel("y (scene units)")
         ax.set_title(f"conservatism n_sigma = {ns:g}" + (" (splat centres only)" if ns == 0 else f" (splats grown by {ns:g} std)"))
-    fig.colorbar(im, ax=axes, shrink=0.8, label="conservative scaling distance (min s2~, clipped at 4); dark = close to a splat")
+    fig.colorbar(im, ax=axes, shrink=0.8, label="conservative scaling distance (min s2~), clipped at 4")
     handles = [
         Line2D([], [], color="cyan", lw=0.8, label="s2~ = 1: the sphere touches a splat (inside = collision)"),
         *top_view_handles(gt, z, footprints=False, alpha=0.25),
     ]
     fig.legend(handles=handles, loc="lower center", ncol=2, fontsize=7, frameon=False)
     floaters = (
-        f" The large dark disks that appear at n_sigma = 2 are the {n_kept_floaters} semi-transparent floaters "
-        f"(opacity {floater_opacity[0]:.2f}-{floater_opacity[1]:.2f}) "
-        "that the default filter keeps (it drops only splats that are both faint and large); growing them by 2 std makes them big."
+        f"\nAt n_sigma = 2 the largest dark disks are the {n_kept_floaters} semi-transparent floaters "
+        f"(opacity {floater_opacity[0]:.2f}-{floater_opacity[1]:.2f}) that the default filter keeps (it drops only splats that are both "
+        "faint and large);\nthe smaller disks over open ground are long, thin ground splats whose 2-std inflation reaches the plane."
         if n_kept_floaters
         else ""
     )
     fig.suptitle(
-        f"Where a sphere of radius r = {RADIUS} collides in the plane z = {z} (top view, scene units, z up).{floaters}",
+        f"Where a sphere of radius r = {RADIUS} collides in the plane z = {z} (top view, scene units, z up; dark = close to a splat)."
+        + floaters,
         fontsize=9,
-        wrap=True,
     )
     fig.get_layout_engine().set(rect=(0, 0.08, 1, 1))
     fig.savefig(path, dpi=110)
@@ -103,9 +103,9 @@ def _plot_plans(path: Path, plans, gt, z: float, start, goal) -> None:
     ax.set_xlabel("x (scene units)")
     ax.set_ylabel("y (scene units)")
     handles, _ = ax.get_legend_handles_labels()
-    handles += [Line2D([], [], color="0.3", ls=":", lw=1.0, label="dotted: the RRT path before refinement (same colour)")]
-    handles += top_view_handles(gt, z, inflate=RADIUS)
-    fig.legend(handles=handles, loc="outside lower center", ncol=2, fontsize=7, frameon=False)
+    handles += [Line2D([], [], color="0.3", ls=":", lw=1.0, label="RRT path before refinement\n(dotted, same colour)")]
+    ax.legend(handles=handles, loc="lower right", fontsize=7)
+    fig.legend(handles=top_view_handles(gt, z, inflate=RADIUS), loc="outside lower center", ncol=2, fontsize=7, frameon=False)
     ax.set_title(f"Plans at three conservatism levels n_sigma, sphere r = {RADIUS}, plane z = {z} (top view)", fontsize=9)
     fig.savefig(path, dpi=110)
     plt.close(fig)

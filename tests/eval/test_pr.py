@@ -142,3 +142,24 @@ def test_scene_path_needs_ground_truth(tmp_path):
         run_pr(tmp_path, scene=str(tmp_path / "scene.ply"), gt=None, quick=True)
     with pytest.raises(SplatplanError, match="built-in"):
         run_pr(tmp_path, scene="stonehenge", gt="x.gt.json", quick=True)
+
+
+def test_quick_pr_fidelity_variants(quick_pr):
+    out, res = quick_pr
+    v = res["variants"]
+    assert set(v) == set(res["config"]["variants"])
+    for ns_key, key in (("0", "collisionsplatting_nsigma0"), ("1", "collisionsplatting"), ("2", "collisionsplatting_nsigma2")):
+        # (a) is today's setting: exactly the main table's row
+        assert v["default"]["by_n_sigma"][ns_key]["ap"] == pytest.approx(res["methods"][key]["ap"], abs=1e-12)
+    # opacity_min = t on the default scene removes the same splats as the o < t evaluation filter
+    assert res["config"]["opacity_min"] == res["config"]["eval_opacity_below"]
+    for k in v["opacity_filter"]["by_n_sigma"]:
+        assert v["opacity_min"]["by_n_sigma"][k]["ap"] == pytest.approx(v["opacity_filter"]["by_n_sigma"][k]["ap"], abs=1e-9)
+    # at n_sigma = 0 the inflation options change nothing
+    assert v["opacity_scaled_inflation"]["by_n_sigma"]["0"]["ap"] == pytest.approx(v["default"]["by_n_sigma"]["0"]["ap"], abs=1e-12)
+    assert v["log_mean_exp"]["metric"] == {"softmin_mode": "mean", "softmin_t": res["config"]["lme_t"]}
+    # the sharp log-mean-exp does not underflow in the float32 kernel
+    for chk in res["softmin_check"].values():
+        assert chk["n"] > 0 and chk["n_inf_mismatch"] == 0 and chk["max_abs_dev"] < 1e-3
+    md = (out / "pr.md").read_text()
+    assert "fidelity variants" in md and "beyond the paper" in md and md.count("(`opacity_") >= 2

@@ -47,10 +47,9 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     from ._common import Terminated, check_device, cli_signal_handlers
 
-    parser = build_parser()
-    args = parser.parse_args(argv)
     with cli_signal_handlers():  # Ctrl-C / SIGTERM unwind through every finally (no stray temp files)
         try:
+            args = build_parser().parse_args(argv)  # argparse's own SystemExit (--help, usage errors) passes through
             if getattr(args, "device", None) is not None:
                 args.device = check_device(args.device)  # one meaning everywhere: auto -> cuda:0 or cpu
             return int(args.func(args) or 0)

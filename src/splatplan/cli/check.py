@@ -138,7 +138,9 @@ def cmd_check(args) -> int:
     if (args.poses is None) == (args.configs is None):
         raise SplatplanError("give exactly one of --poses POSES.npy (link poses) or --configs Q.npy (joint configurations)")
     if args.poses is not None and not link:
-        raise SplatplanError(f"--poses is for a single link ({ROBOT_HELP}); for the robot {args.robot!r} give --configs Q.npy (B, dof)")
+        if ":" in args.robot:
+            parse_robot(args.robot)  # a malformed link spec: say so
+        raise SplatplanError(f"--robot {args.robot!r} is a robot: give --configs Q.npy (B, dof) instead of --poses (which is for a single link, {ROBOT_HELP})")
     if args.chunk < 1:
         raise SplatplanError(f"--chunk must be >= 1, got {args.chunk}")
     if args.out and not str(args.out).endswith(".npz"):

@@ -24,12 +24,12 @@ def top_view_handles(scene, z: float, *, footprints: bool = True, inflate: float
         if lab != "ground" and lab not in kinds and box_cross_section(box, z) is not None:
             kinds.append(lab)
     handles = [
-        Patch(fc=_LABEL_COLORS.get(k, "0.4"), ec="k", lw=0.5, alpha=alpha, label=f"stone cut by the plane z = {z:g}: {k.replace('_', ' ')}")
+        Patch(fc=_LABEL_COLORS.get(k, "0.4"), ec="k", lw=0.5, alpha=alpha, label=f"stone at z = {z:g}: {k.replace('_', ' ')}")
         for k in kinds
     ]
     if footprints:
-        handles.append(Line2D([], [], color="0.7", lw=0.8, label="stone outline seen from above (any height)"))
+        handles.append(Line2D([], [], color="0.7", lw=0.8, label="stone outline from above (any height)"))
     if inflate > 0:
-        handles.append(Line2D([], [], color="tab:red", ls="--", lw=0.8, label=f"stone grown by the robot radius r = {inflate:g} (robot centre must stay outside)"))
+        handles.append(Line2D([], [], color="tab:red", ls="--", lw=0.8, label=f"stone grown by the robot radius r = {inflate:g}\n(the robot centre must stay outside)"))
     return handles
 
