@@ -296,7 +296,7 @@ def run_conservatism(out_dir: Path, quick: bool = False, seed: int | None = None
             "rrt": rrt_description(cfg.stride, cfg.batch_size, cfg.edge_resolution, cfg.radius) + f", budget {cfg.time_budget_s:g} s / {cfg.max_nodes:,} nodes",
             "refinement": "one MPPI update over the whole path (RefineConfig defaults)",
             "device": str(base.device),
-            "quick": bool(quick and config is None),
+            "quick": bool(quick),
             "seed": int(cfg.seed),
             "config": {k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(cfg).items()},
         },
@@ -304,7 +304,7 @@ def run_conservatism(out_dir: Path, quick: bool = False, seed: int | None = None
     (out_dir / "conservatism.json").write_text(json.dumps(out, indent=2))
     (out_dir / "conservatism.md").write_text(report(out))
     shown = [ns for ns in (0.0, 0.5, 1.0, 1.5) if ns in paths] or list(paths)[:4]
-    fig, axs = plt.subplots(1, len(shown), figsize=(4 * len(shown), 5.0), squeeze=False)
+    fig, axs = plt.subplots(1, len(shown), figsize=(4 * len(shown), 5.6), squeeze=False)
     axs = axs[0]
     for ax, ns in zip(axs, shown):
         plot_top_view(ax, scene, cfg.plane_z)
@@ -330,7 +330,7 @@ def run_conservatism(out_dir: Path, quick: bool = False, seed: int | None = None
     ]
     fig.legend(handles=handles, loc="lower center", ncol=4, fontsize=7, frameon=False)
     fig.suptitle(f"E3: paths of a sphere (r = {cfg.radius:g}) in the plane z = {cfg.plane_z:g}, top view; larger n_sigma = more conservative", fontsize=10)
-    fig.tight_layout(rect=(0, 0.12, 1, 0.95))
+    fig.tight_layout(rect=(0, 0.16, 1, 0.95))
     fig.savefig(out_dir / "fig4_paths.png", dpi=120)
     plt.close(fig)
     return out

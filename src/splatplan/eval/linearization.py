@@ -238,7 +238,7 @@ def run_linearization(out_dir: Path, quick: bool = False, seed: int | None = Non
             "goals": goals.tolist(),
             "length_dmin_of": "batched RRT path (as the paper's Table III: its M1 row equals Table II's n_sigma=1 RRT column)",
             "device": str(checkers[0].device),
-            "quick": bool(quick and config is None),
+            "quick": bool(quick),
             "seed": int(cfg.seed),
             "config": {k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(cfg).items()},
         },

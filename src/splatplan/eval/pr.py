@@ -157,7 +157,9 @@ class PRConfig:
     plot_points: int = 3000
     #: Seed of the culling-check sample.
     check_seed: int = 0
-    #: CollisionSplatting fidelity variants scored at every n_sigma (see VARIANTS; empty = none).
+    #: CollisionSplatting fidelity variants scored at every n_sigma (empty = none): default (a),
+    #: opacity_filter (b), log_mean_exp (c), log_mean_exp_default_t (c'), opacity_filter+log_mean_exp,
+    #: opacity_min (d1), opacity_scaled_inflation (d2); see VARIANTS.
     variants: tuple[str, ...] = (
         "default",
         "opacity_filter",
@@ -867,7 +869,7 @@ def run_pr(
         "softmin_check": softmin_check,
         "device": str(checker.device),
         "baseline_device": "cpu",
-        "quick": bool(quick and config is None),
+        "quick": bool(quick),
         "note": cfg.note,
         "config": {k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(cfg).items()},
         "threads": threads,

@@ -92,12 +92,15 @@ class ThroughputConfig:
     baseline_threads: tuple[int | None, ...] = (None, 1)
     #: Repeats for CollisionSplatting rows (cheap, so more of them).
     repeats_ours: int = 7
-    #: Built-in Stonehenge level, seed and splat count (None: ~200k at level 1).
+    #: Built-in Stonehenge level (1..5).
     level: int = 1
+    #: Built-in Stonehenge seed.
     seed: int = 0
+    #: Built-in Stonehenge splat count before filtering (None: the level's default, ~200k at level 1).
     n_splats: int | None = None
-    #: Sphere radius (scene units) and our n_sigma.
+    #: Robot sphere radius (scene units).
     radius: float = ROBOT_RADIUS
+    #: CollisionSplatting's n_sigma.
     n_sigma: float = 1.0
     #: Seed of the query generator.
     query_seed: int = 0
@@ -498,7 +501,7 @@ def run_throughput(out_dir: Path, quick: bool = False, device: str = "auto", con
             "batched_baseline_mem_mb": mem,
             "ours_memory_lowest_among_batched": bool(mem and all(ours_mem < v for v in mem.values())),
         },
-        "quick": bool(quick and config is None),
+        "quick": bool(quick),
         "note": cfg.note,
         "config": {k: ([list(x) for x in v] if k == "rows" else v) for k, v in asdict(cfg).items()},
         "seconds_total": time.perf_counter() - t_all,
