@@ -35,11 +35,14 @@ from .interop import (
     array_kind,
     as_host_queries,
     axes_medians,
+    check_device,
     convert_out,
     device_axes_medians,
     device_rows,
     device_side_rows,
     host_link_batch,
+    torch_device_name,
+    warp_device_name,
 )
 
 _FIELDS = ("min_s2", "n_colliding", "in_collision", "softmin", "cost")
@@ -376,9 +379,9 @@ def _host(x) -> np.ndarray:
 def _device_of(x, default: str) -> str:
     k = array_kind(x)
     if k == "torch":
-        return "cpu" if x.device.type == "cpu" else f"cuda:{x.device.index or 0}"
+        return torch_device_name(x)
     if k == "warp":
-        return "cpu" if x.device.is_cpu else str(x.device)
+        return warp_device_name(x)
     return default
 
 
@@ -411,16 +414,12 @@ def _device_q(q, kind: str, dof: int, device: str):
     if kind == "torch":
         import torch
 
-        dev = "cpu" if q.device.type == "cpu" else f"cuda:{q.device.index or 0}"
-        if dev != device:
-            raise SplatplanError(f"q is on {dev} but the checker runs on {device}: move it there or create the checker with device={dev!r}")
+        check_device("q", torch_device_name(q), device)
         if not q.is_floating_point():
             raise SplatplanError(f"q must be a floating-point tensor, got {q.dtype}")
         t = q.detach().to(torch.float32).contiguous().reshape(-1, dof)
         return wp.from_torch(t, dtype=wp.float32)
-    dev = "cpu" if q.device.is_cpu else str(q.device)
-    if dev != device:
-        raise SplatplanError(f"q is on {dev} but the checker runs on {device}: move it there or create the checker with device={dev!r}")
+    check_device("q", warp_device_name(q), device)
     if q.dtype != wp.float32 or not q.is_contiguous:
         raise SplatplanError(f"q as a wp.array must be contiguous float32 shaped (..., {dof})")
     n = int(np.prod(q.shape[:-1], dtype=np.int64)) if q.ndim > 1 else 1

@@ -45,19 +45,19 @@ def array_kind(x) -> str:
     return "numpy"
 
 
-def _torch_device(t) -> str:
+def torch_device_name(t) -> str:
     d = t.device
     return "cpu" if d.type == "cpu" else f"cuda:{d.index if d.index is not None else 0}"
 
 
-def _wp_device(a) -> str:
+def warp_device_name(a) -> str:
     return "cpu" if a.device.is_cpu else str(a.device)
 
 
-def _check_device(name: str, dev: str, want: str) -> None:
+def check_device(name: str, dev: str, want: str) -> None:
     if dev != want:
         raise SplatplanError(
-            f"{name} are on {dev} but the checker runs on {want}: move them there or create the checker with device={dev!r}"
+            f"{name} is on {dev} but the checker runs on {want}: move them there or create the checker with device={dev!r}"
         )
 
 
@@ -188,7 +188,7 @@ def device_rows(x, kind: str, name: str, tail: tuple[int, ...], device: str):
     if kind == "torch":
         import torch
 
-        _check_device(name, _torch_device(x), device)
+        check_device(name, torch_device_name(x), device)
         if x.dtype not in (torch.float32, torch.float64, torch.float16, torch.bfloat16):
             raise SplatplanError(f"{name} must be a floating-point tensor, got {x.dtype}")
         if tuple(x.shape[x.ndim - len(tail) :]) != tail or x.ndim < len(tail):
@@ -197,7 +197,7 @@ def device_rows(x, kind: str, name: str, tail: tuple[int, ...], device: str):
         t = x.detach().to(torch.float32).contiguous().reshape((-1,) + tail)
         return wp.from_torch(t, dtype=wdt), lead, t
     if kind == "warp":
-        _check_device(name, _wp_device(x), device)
+        check_device(name, warp_device_name(x), device)
         if x.dtype == wdt:
             lead = tuple(x.shape)
             arr = x
