@@ -115,6 +115,12 @@ class LinkGeometry:
             self.min_semi_axis = float(robot.min_semi_axis)
             self.max_semi_axis = float(ax.max())
             self.sphere = self.translation and ax.shape[0] == 1 and bool(np.allclose(ax, ax[0, 0]))
+            if self.translation:  # fast path: centres = q + offset, fixed orientations (no FK on the host)
+                q0 = np.asarray(robot.q_default, dtype=np.float64)
+                c0, quat0, _ = robot.ellipsoids(q0[None])
+                self._offset = np.asarray(c0[0], dtype=np.float64) - q0  # (E, 3)
+                self._quat = np.asarray(quat0[0], dtype=np.float64)  # (E, 4) wxyz
+                self._axes = ax
         else:
             self.dof = None
             self.translation = False
@@ -158,6 +164,10 @@ class LinkGeometry:
     def ellipsoids(self, q: np.ndarray):
         """(..., D) -> centers (..., L, 3), quats (..., L, 4) | None, semi_axes (L, 3)."""
         if self.robot is not None:
+            if self.translation:
+                q = np.asarray(q, dtype=np.float64)
+                c = q[..., None, :] + self._offset  # (..., E, 3)
+                return c, np.broadcast_to(self._quat, c.shape[:-1] + (4,)), self._axes
             return self.robot.ellipsoids(q)
         return self._link_poses(q)
 
