@@ -178,7 +178,7 @@ class MPPI:
         self.checker = checker.with_config(s2_cap=cap) if checker is not None and cap is not None else checker
         self.task_cost = task_cost
         self.terminal_cost = terminal_cost
-        self.geometry = _geometry(dynamics)
+        self.geometry = _geometry(dynamics) if checker is not None else None  # robot links for the collision terms
         if costs is None:
             costs = []
             if checker is not None and (cfg.w_collision > 0 or cfg.w_hit > 0):
