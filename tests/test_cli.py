@@ -326,11 +326,13 @@ def test_config_flags_parse_every_type():
 
 
 def test_eval_prints_its_table(tmp_path, capsys):
-    argv = ["eval", "pr", "--quick", "--out", str(tmp_path), "--n-splats", "4000", "--spacing", "0.06", "--n-sigmas", "1",
-            "--variants", "default,opacity_scaled_inflation", "--n-check", "1", "--n-check-clamped", "0", "--device", "cpu"]  # fmt: skip
+    argv = ["eval", "pr", "--quick", "--out", str(tmp_path), "--n-splats", "4000", "--spacing", "0.06", "--n-sigmas", "1", "--baselines", "splanning",
+            "--variants", "default,opacity_filter,opacity_scaled_inflation", "--variant-baseline", "splanning", "--n-check", "1",
+            "--n-check-clamped", "0", "--device", "cpu"]  # fmt: skip
     assert main(argv) == 0
     out = capsys.readouterr().out
-    assert "| method |" in out and "SPLANNING" in out and "fidelity variants" in out and "opacity_scaled_inflation" in out
+    assert "| method |" in out and "| SPLANNING |" in out and "| Splat-Nav |" not in out
+    assert "fidelity variants" in out and "opacity_scaled_inflation" in out and "Reference: SPLANNING" in out
     assert str(tmp_path / "pr.md") in out
     data = json.loads((tmp_path / "pr.json").read_text())
     assert data["config"]["n_splats"] == 4000 and data["config"]["spacing"] == 0.06 and data["device"] == "cpu"
