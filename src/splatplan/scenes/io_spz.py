@@ -75,7 +75,6 @@ LEGACY_HEADER = struct.Struct("<IIIBBBB")  # 16 bytes, inside the gzip payload (
 V4_HEADER = struct.Struct("<IIIBBBBI12x")  # 32 bytes, plain (v4)
 TOC_ENTRY = struct.Struct("<QQ")  # (compressed size, uncompressed size)
 EXT_RECORD = struct.Struct("<II")  # (type, byte length)
-SPZ_HEADER = LEGACY_HEADER  # name kept for callers of the v2/v3 reader
 FLAG_ANTIALIASED = 0x1
 FLAG_EXTENSIONS = 0x2
 #: SH coefficients per channel for SH degree 0..4.
@@ -367,6 +366,8 @@ def encode_spz_streams(splats: Splats, *, version: int = 4, fractional_bits: int
         SplatplanError: empty scene, bad values, an unsupported number of SH coefficients,
             coordinates beyond the fixed-point range, or fractional bits outside 0..23.
     """
+    if version not in SPZ_WRITE_VERSIONS:
+        raise SplatplanError(f"cannot write .spz version {version}; supported: {', '.join(map(str, SPZ_WRITE_VERSIONS))}")
     n = len(splats)
     if n == 0:
         raise SplatplanError("cannot write .spz: the scene has no splats")
@@ -396,8 +397,6 @@ def encode_spz_streams(splats: Splats, *, version: int = 4, fractional_bits: int
         streams["scales"] = u8((np.log(splats.scales.astype(np.float64)) + 10.0) * 16.0)
     q = splats.quats.astype(np.float64) * np.array([1.0, 1.0, -1.0, -1.0])  # (N, 4) wxyz RUB
     xyzw = np.concatenate([q[:, 1:], q[:, :1]], axis=1)
-    if version == 2:
-        raise SplatplanError(f"cannot write .spz version 2; supported: {', '.join(map(str, SPZ_WRITE_VERSIONS))}")
     streams["rotations"] = pack_rotation_v3(xyzw).astype("<u4").tobytes()
     if k:
         sh = splats.sh_rest.astype(np.float64) * SH_FLIP_RUB_RDF[:k, None]  # (N, K, 3) RUB
@@ -426,8 +425,6 @@ def write_spz(splats: Splats, path: str | Path, *, version: int = 4, fractional_
     """
     from .io_ply import atomic_write
 
-    if version not in SPZ_WRITE_VERSIONS:
-        raise SplatplanError(f"cannot write .spz version {version}; supported: {', '.join(map(str, SPZ_WRITE_VERSIONS))}")
     h, streams = encode_spz_streams(splats, version=version, fractional_bits=fractional_bits)
     if version == 4:
         import zstandard
