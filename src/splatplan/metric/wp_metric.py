@@ -197,7 +197,9 @@ class WarpMetric:
             self.class_offset.append(start)
             self.class_count.append(len(idx))
             self.class_sigma.append(float(smax[idx].max()))
-            ext.append(means[idx].max(0) - means[idx].min(0))
+            # robust extent (5-95 percentile box): outliers must not make a class look sparse
+            m = means[idx]
+            ext.append(np.subtract(*np.percentile(m, [95.0, 5.0], axis=0)) if len(idx) >= 20 else m.max(0) - m.min(0))
             start += len(idx)
         self.class_extent = np.asarray(ext)  # (C, 3) bounding-box size of each class's means
         order = np.concatenate(order_parts)
