@@ -12,7 +12,11 @@ lattice, random orientations). Queries: half uniform in the Stonehenge bounds, h
 of a splat mean; sphere r = 0.015, n_sigma = 1. Also the same queries on Stonehenge alone.
 checks/s = queries per second of wall time (median of timed runs after a warm-up).
 
-    python benchmarks/metric_shell.py [--device cpu|cuda] [--repeats 5] [--batch 32768]
+``real_rows`` (when ``--real DIR`` exists, default ``../shared/data/real``): the same comparison on
+real captures (floaters filtered), sphere radius 1% of the smallest side of the 1-99 percentile
+box, half the queries uniform in that box and half near splats.
+
+    python benchmarks/metric_shell.py [--device cpu|cuda] [--repeats 5] [--batch 32768] [--real DIR]
 """
 
 from __future__ import annotations
@@ -60,6 +64,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--batch", type=int, default=32768)
     ap.add_argument("--out", default=str(Path(__file__).parent / "results" / "metric_shell.json"))
+    ap.add_argument("--real", default=str(Path(__file__).resolve().parents[2] / "shared" / "data" / "real"))
     args = ap.parse_args(argv)
 
     from splatplan._warp import cpu_threads, wp
@@ -100,6 +105,7 @@ def main(argv: list[str] | None = None) -> int:
                 row[f"{fn}_checks_per_s"] = args.batch / float(np.median(times))
             rows.append(row)
             checker.close()
+    real_rows = _real_rows(Path(args.real), args.device, args.batch, args.repeats)
     same = all(r["n_colliding_total"] == rows[2 * (i // 2)]["n_colliding_total"] for i, r in enumerate(rows))
     result = {
         "device": checker.device,
@@ -110,6 +116,7 @@ def main(argv: list[str] | None = None) -> int:
         "load_avg_1min_before_after": [round(load0[0], 2), round(os.getloadavg()[0], 2)],
         "exact_counts_agree_between_tierings": bool(same),
         "rows": rows,
+        "real_rows": real_rows,
     }
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -124,8 +131,58 @@ def main(argv: list[str] | None = None) -> int:
             f"| {r['scene']} | {r['tiers']} | {r['n_splats']:,} | {len(r['collides_tier_counts'])} / {len(r['query_tier_counts'])} | "
             f"{r['collides_checks_per_s']:,.0f} | {r['query_checks_per_s']:,.0f} |"
         )
+    if real_rows:
+        print()
+        print("Real captures (floaters filtered), sphere r = 1% of the scene's smallest side")
+        print("| scene | splats | r | tiers | collides checks/s | full query checks/s |")
+        print("|---|---|---|---|---|---|")
+        for r in real_rows:
+            print(f"| {r['scene']} | {r['n_splats']:,} | {r['radius']:.3g} | {r['tiers']} | {r['collides_checks_per_s']:,.0f} | {r['query_checks_per_s']:,.0f} |")
     print(f"wrote {out}")
     return 0
+
+
+def _time(fn, repeats: int) -> float:
+    from splatplan._warp import wp
+
+    times = []
+    for _ in range(repeats):
+        t = time.perf_counter()
+        fn()
+        wp().synchronize()
+        times.append(time.perf_counter() - t)
+    return float(np.median(times))
+
+
+def _real_rows(folder: Path, device: str, batch: int, repeats: int) -> list[dict]:
+    """Quantile vs size-class tiers on every scene file in ``folder`` (none when it is absent)."""
+    if not folder.is_dir():
+        return []
+    import splatplan
+    from splatplan.metric import CollisionChecker
+    from splatplan.metric.wp_metric import TierConfig
+    from splatplan.scenes.filters import filter_floaters
+
+    rows = []
+    for f in sorted(folder.iterdir()):
+        if f.suffix not in (".ply", ".spz", ".splat"):
+            continue
+        scene, _ = filter_floaters(splatplan.load_scene(f))
+        lo, hi = np.percentile(scene.means, [1, 99], axis=0)
+        r = float(np.min(hi - lo)) * 0.01
+        rng = np.random.default_rng(0)
+        h = batch // 2
+        c = np.concatenate([rng.uniform(lo, hi, (h, 3)), scene.means[rng.integers(0, len(scene), batch - h)] + rng.normal(0, r, (batch - h, 3))])
+        for name, tiers in (("quantile (old)", TierConfig(mode="quantile")), ("size classes", TierConfig())):
+            ch = CollisionChecker(scene, n_sigma=1.0, device=device, tiers=tiers)
+            ch.query(c, None, r)
+            ch.collides(c, None, r)
+            row = {"scene": f.name, "n_splats": len(scene), "radius": r, "tiers": name}
+            for fn in ("collides", "query"):
+                row[f"{fn}_checks_per_s"] = batch / _time(lambda fn=fn: getattr(ch, fn)(c, None, r), repeats)
+            rows.append(row)
+            ch.close()
+    return rows
 
 
 if __name__ == "__main__":
