@@ -16,6 +16,7 @@ from dataclasses import replace
 
 from .bspline import UniformBSpline, bspline_basis, bspline_eval, fit_bspline, knot_vector, resample_polyline
 from .costs import CollisionCost, ControlEffortCost, Cost, GoalPoseCost, JointLimitCost, Rollout, StateCost, TerminalCost, total_cost
+from .image_cost import ImageCost
 from .dynamics import Dynamics, HolonomicPoint, JointIntegrator, PlanarBase, sphere_links, yaw_to_quat
 from .metrics import clearance, d_min, densify_path, smoothness
 from .mppi import MPPI, MPPIConfig, MPPIInfo
@@ -30,6 +31,7 @@ __all__ = [
     "Dynamics",
     "EdgeChecker",
     "GoalPoseCost",
+    "ImageCost",
     "JointLimitCost",
     "LinkGeometry",
     "Rollout",

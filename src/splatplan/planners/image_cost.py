@@ -1,0 +1,128 @@
+"""The terminal image cost of MPPI (paper Sec. II-D): render what a robot-mounted camera would see
+at the end of every rollout and compare its embedding with the target image's.
+
+Per MPPI iteration, for the K terminal states x_kT:
+
+1. camera poses: ``world <- camera = link_pose(x_kT) @ offset`` (a
+   :class:`~splatplan.render.MountedCamera`: the Panda's wrist camera through ``robot.link_poses``,
+   the Go2's head camera on its base link), (K, 4, 4);
+2. **one** batched render call (:class:`~splatplan.render.SplatRenderer`: Warp kernels on CPU
+   cores or CUDA), (K, H, W, 3) in [0, 1];
+3. encoder features and ``cost_k = w_global ||g_t - g_k||^2 + w_patch mean_p ||tok_t,p - tok_k,p||^2``
+   (:class:`splatplan.encoders.ImageCost`; patch tokens only for encoders that have them);
+4. times ``weight`` -> (K,) float64.
+
+    cost = ImageCost(renderer, camera, robot, encoder, target_rgb, weight=10.0)
+    mppi = MPPI(JointIntegrator(robot), checker, cfg, costs=[CollisionCost(...), cost, ...])
+
+On CUDA the view matrices go to the renderer as a torch tensor on its device, so the images stay
+on the GPU between the renderer and the encoder (no host copy of the images).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import SplatplanError
+from .costs import Cost, Rollout
+
+__all__ = ["ImageCost"]
+
+
+class ImageCost(Cost):
+    """Terminal image cost over a batch of rollouts (see the module docstring).
+
+    Args:
+        renderer: a :class:`~splatplan.render.SplatRenderer` of the scene (kept open by the caller).
+        camera: a :class:`~splatplan.render.MountedCamera` (link, offset, K, image size).
+        robot: the :class:`~splatplan.robots.Robot` whose configuration the states are (the first
+            ``robot.dof`` state coordinates).
+        encoder: an :class:`~splatplan.encoders.Encoder` (e.g. ``load_encoder("thumbnail")``).
+        target: (H, W, 3) RGB target image in [0, 1] (any size: the encoder resizes both images to
+            its own input size), or a precomputed :class:`splatplan.encoders.ImageCost`.
+        weight: weight of the term.
+        w_global: weight of the global-embedding distance (CLS / pooled / thumbnail).
+        w_patch: weight of the mean patch-token distance (0 for encoders without tokens).
+        background: RGB background of the renders (the target should use the same).
+        keep_images: cache the (K, H, W, 3) renders on the rollout (``rollout.cache["images"]``).
+        time_index: which rollout step is rendered (-1 = the terminal state x_T; a shrinking-horizon
+            MPC sets T - 1 - s after s executed steps so the goal time stays fixed).
+    """
+
+    name = "image"
+
+    def __init__(
+        self,
+        renderer,
+        camera,
+        robot,
+        encoder,
+        target,
+        weight: float = 1.0,
+        w_global: float = 1.0,
+        w_patch: float = 0.0,
+        background=(0.0, 0.0, 0.0),
+        keep_images: bool = False,
+        time_index: int = -1,
+    ) -> None:
+        from ..encoders.base import ImageCost as _EncoderImageCost
+
+        if not np.isfinite(weight) or weight < 0:
+            raise SplatplanError(f"ImageCost weight must be finite and >= 0, got {weight}")
+        self.renderer = renderer
+        self.camera = camera
+        self.robot = robot
+        self.encoder = encoder
+        self.weight = float(weight)
+        self.background = tuple(float(b) for b in background)
+        self.keep_images = bool(keep_images)
+        self.time_index = int(time_index)
+        camera._link_index(robot)  # fail early on a wrong link name
+        if isinstance(target, _EncoderImageCost):
+            self.embedding_cost = target
+        else:
+            img = np.asarray(target, dtype=np.float32)
+            if img.ndim != 3 or img.shape[-1] != 3:
+                raise SplatplanError(f"ImageCost target must be one (H, W, 3) RGB image, got shape {img.shape}")
+            self.embedding_cost = _EncoderImageCost(encoder, img, w_global=w_global, w_patch=w_patch)
+        #: number of render calls made so far (one per evaluated batch)
+        self.n_renders = 0
+
+    # ------------------------------------------------------------------ pieces
+    def viewmats(self, states: np.ndarray) -> np.ndarray:
+        """(K, 4, 4) world-to-camera matrices of terminal states (K, dx)."""
+        q = np.asarray(states, dtype=np.float64)[..., : self.robot.dof]
+        return self.camera.viewmats(self.robot, q).reshape(-1, 4, 4)
+
+    def render(self, states: np.ndarray):
+        """One batched render of the camera views at states (K, dx) -> (K, H, W, 3) (numpy on CPU,
+        a torch tensor on the renderer's CUDA device)."""
+        v = self.viewmats(states)
+        ks = self.camera.Ks((v.shape[0],))
+        if getattr(self.renderer, "is_cuda", False):
+            import torch
+
+            dev = torch.device(self.renderer.device)
+            v = torch.as_tensor(v, dtype=torch.float32, device=dev)
+            ks = torch.as_tensor(ks, dtype=torch.float32, device=dev)
+        res = self.renderer.render(v, ks, self.camera.width, self.camera.height, background=self.background)
+        self.n_renders += 1
+        return res.rgb
+
+    def cost_of_images(self, images) -> np.ndarray:
+        """(K, H, W, 3) images -> (K,) weighted float64 costs."""
+        c = self.embedding_cost(images)
+        if hasattr(c, "detach"):
+            c = c.detach().cpu().numpy()
+        return self.weight * np.asarray(c, dtype=np.float64).reshape(-1)
+
+    def cost_of_states(self, states: np.ndarray) -> np.ndarray:
+        """(K, dx) terminal states -> (K,) weighted costs (one render call)."""
+        return self.cost_of_images(self.render(states))
+
+    # ------------------------------------------------------------------ Cost interface
+    def __call__(self, rollout: Rollout) -> np.ndarray:
+        images = self.render(rollout.states[:, self.time_index])  # (K, H, W, 3): ONE render call per iteration
+        if self.keep_images:
+            rollout.cache["images"] = images
+        return self.cost_of_images(images)

@@ -1,0 +1,370 @@
+"""Image-goal navigation (paper Sec. IV-B, E6): a quadruped explores, recognises the place a target
+image was taken from, and drives there.
+
+1. **Explore**: batched RRT in exploration mode (no goal) over the Go2's planar base (x, y, yaw)
+   grows collision-free nodes from the start (:func:`explore`).
+2. **Index**: the head camera's view at every node, at ``n_headings`` evenly spaced headings, is
+   rendered (batched) and encoded (:func:`build_view_index`).
+3. **Retrieve**: the node and heading whose embedding is closest to the target image's
+   (squared distance, the image cost of the paper) (:func:`retrieve`). A match whose best cost is
+   not clearly below the typical cost (``best / median > weak_ratio``) is reported as **weak** and
+   the robot does not drive unless asked to.
+4. **Drive**: base MPPI with the collision cost (every body and leg ellipsoid) drives to the
+   retrieved node given only its position (:func:`drive_to`). With ``follow_tree`` (default) the
+   goal cost pulls towards a point ``lookahead_m`` ahead along the tree's branch to that node (the
+   tree is the map the exploration built; a bare goal position leaves MPPI stuck behind walls
+   between rooms); ``follow_tree=False`` is the bare setting.
+
+Floor: the Go2's feet touch z = 0 in ``load_robot("go2")``; here the robot is
+:func:`splatplan.tasks.base.load_go2` (feet lifted 4 cm, as in a trot's swing phase) and the metric
+and the exact clearance use the scene **without the floor** (floor splats: flat splats with their
+mean within 5 cm of z = 0 and their normal within 25 deg of vertical; the analytic floor box);
+renders use every splat.
+
+Units: metres, radians; world frame z up; yaw about +z, 0 = looking along +x.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import SplatplanError
+from ._common import TaskScene
+
+__all__ = [
+    "NavigateConfig", "NavScene", "ViewIndex", "Match", "DriveResult", "head_camera", "load_nav_scene", "explore",
+    "build_view_index", "retrieve", "drive_to", "tree_branch", "wrap_angle", "nav_robot",
+]  # fmt: skip
+
+
+@dataclass
+class NavigateConfig:
+    """Knobs of the image-goal navigation (exploration, retrieval, driving)."""
+
+    #: splats of a built-in scene (fewer = faster renders); None = the scene's default
+    n_splats: int | None = 80_000
+    #: conservatism of the metric (n_sigma)
+    n_sigma: float = 1.0
+    #: rendered image side (pixels, square)
+    image_size: int = 64
+    #: horizontal field of view of the head camera (degrees)
+    fov_deg: float = 90.0
+    #: head camera position in the base frame (x forward, y left, z up), metres
+    camera_offset: tuple[float, float, float] = (0.30, 0.0, 0.05)
+    #: render background grey level
+    background: float = 0.5
+    #: start pose (x, y, yaw) of the exploration and of every drive
+    start: tuple[float, float, float] = (-0.8, 0.3, 0.0)
+    #: exploration sampling box lower corner (x, y) (m)
+    box_lo: tuple[float, float] = (-3.9, -2.9)
+    #: exploration sampling box upper corner (x, y) (m)
+    box_hi: tuple[float, float] = (3.9, 2.9)
+    #: nodes of the exploration tree
+    tree_nodes: int = 320
+    #: RRT stride (largest edge, weighted configuration distance)
+    tree_stride: float = 0.45
+    #: wall-clock cap of the exploration (s)
+    tree_time_s: float = 120.0
+    #: largest motion of any ellipsoid point between collision checks along a tree edge (m)
+    edge_resolution_m: float = 0.06
+    #: headings rendered per node (evenly spaced over 360 degrees)
+    n_headings: int = 12
+    #: renders per batch when indexing
+    render_batch: int = 256
+    #: a match is weak when best cost / median cost over all views exceeds this
+    weak_ratio: float = 0.5
+    #: MPPI samples K
+    n_samples: int = 48
+    #: MPPI horizon T (steps)
+    horizon: int = 16
+    #: B-spline knots per control over the horizon
+    n_knots: int = 5
+    #: control period (s)
+    dt: float = 0.1
+    #: MPPI temperature
+    temperature: float = 0.05
+    #: knot noise std (vx m/s, vy m/s, wz rad/s)
+    noise_sigma: tuple[float, float, float] = (0.25, 0.15, 0.5)
+    #: command bounds (vx m/s, vy m/s, wz rad/s), symmetric
+    u_max: tuple[float, float, float] = (0.6, 0.3, 1.0)
+    #: MPPI iterations per MPC step
+    n_iters: int = 1
+    #: weight of the distance to the (carrot) goal, per metre per step
+    w_goal: float = 2.0
+    #: weight of the summed CollisionSplatting cost
+    w_collision: float = 2.0
+    #: cost per (step, ellipsoid) in collision
+    w_hit: float = 20.0
+    #: weight of the control effort
+    w_control: float = 0.01
+    #: neighbourhood of the rollouts' collision cost (s2_cap)
+    collision_s2_cap: float = 1.6
+    #: follow the tree's branch to the retrieved node (False = only the node position)
+    follow_tree: bool = True
+    #: carrot distance ahead along the branch (m)
+    lookahead_m: float = 0.6
+    #: reached when within this distance of the node (m)
+    goal_tol_m: float = 0.15
+    #: MPC step budget of one drive
+    max_steps: int = 400
+    #: seed (RRT sampler, MPPI noise)
+    seed: int = 0
+
+
+def nav_robot(robot=None):
+    """The Go2 of the navigation task (:func:`splatplan.tasks.base.load_go2`) unless one is given."""
+    if robot is not None and not isinstance(robot, str):
+        return robot
+    if robot in (None, "go2"):
+        from .base import load_go2
+
+        return load_go2()
+    from ..robots import load_robot
+
+    return load_robot(robot)
+
+
+def wrap_angle(a):
+    """Angles wrapped to (-pi, pi]."""
+    return (np.asarray(a, np.float64) + np.pi) % (2 * np.pi) - np.pi
+
+
+def head_camera(robot, cfg: NavigateConfig):
+    """The Go2's head camera: on link ``base``, looking along the body's +x, image up = +z."""
+    from ..render import MountedCamera, intrinsics_from_fov, mount_offset
+
+    cam = MountedCamera("base", mount_offset(tuple(cfg.camera_offset), forward=(1.0, 0.0, 0.0), up=(0.0, 0.0, 1.0)),
+                        intrinsics_from_fov(cfg.fov_deg, cfg.image_size, cfg.image_size), cfg.image_size, cfg.image_size)  # fmt: skip
+    cam._link_index(robot)
+    return cam
+
+
+@dataclass
+class NavScene:
+    """The scene twice: every splat for rendering, the floor-free scene for the metric and clearance."""
+
+    render_splats: object
+    task: TaskScene  # checker and analytic geometry without the floor
+
+
+def floor_mask(splats, height: float = 0.05) -> np.ndarray:
+    """(N,) bool: flat splats lying on the floor (mean |z| < height, normal within 25 deg of z)."""
+    from ..scenes.splats import quat_to_rotmat
+
+    rot = quat_to_rotmat(np.asarray(splats.quats, np.float64))  # (N, 3, 3) columns = splat axes
+    k = np.argmin(np.asarray(splats.scales), axis=1)
+    normal = rot[np.arange(len(k)), :, k]  # (N, 3) shortest axis
+    return (np.abs(np.asarray(splats.means)[:, 2]) < height) & (np.abs(normal[:, 2]) > np.cos(np.radians(25)))
+
+
+def load_nav_scene(scene="apartment", cfg: NavigateConfig | None = None, device: str | None = "cpu", seed: int = 0) -> NavScene:
+    """A built-in scene name (or a splat file) -> :class:`NavScene` (floaters filtered)."""
+    from ..metric import CollisionChecker
+    from ..scenes.builtin import BUILTIN_SCENES, build_builtin
+    from ..scenes.filters import filter_floaters
+
+    cfg = cfg or NavigateConfig()
+    name = str(scene)
+    if name in BUILTIN_SCENES:
+        raw, gt = build_builtin(name, seed=seed, n_splats=cfg.n_splats)
+    else:
+        from pathlib import Path
+
+        from ..scenes.load import load_scene
+        from ..scenes.stonehenge import ground_truth_path, load_ground_truth
+
+        p = Path(name)
+        if not p.is_file():
+            raise SplatplanError(f"scene {name!r} is neither a built-in scene ({', '.join(BUILTIN_SCENES)}) nor a file")
+        raw = load_scene(p, filter_floaters=False)
+        gt = load_ground_truth(p) if ground_truth_path(p).is_file() else None
+    splats, _ = filter_floaters(raw)
+    floor = floor_mask(splats)
+    metric_splats = splats.subset(np.flatnonzero(~floor))
+    if gt is not None:
+        gt = gt.select(np.array([lab != "floor" for lab in gt.labels]))
+    checker = CollisionChecker(metric_splats, n_sigma=cfg.n_sigma, device=device)
+    return NavScene(splats, TaskScene(name, metric_splats, checker, gt))
+
+
+def explore(robot, nav: NavScene, cfg: NavigateConfig):
+    """Exploration-mode RRT from ``cfg.start``: returns the :class:`~splatplan.planners.PlanResult`
+    (``tree_nodes`` (N, 3) x, y, yaw; ``tree_parents`` (N,))."""
+    from ..planners import RRT, RRTConfig
+
+    rcfg = RRTConfig(
+        batch_size=64, stride=cfg.tree_stride, edge_resolution=cfg.edge_resolution_m, max_nodes=cfg.tree_nodes, time_limit_s=cfg.tree_time_s, seed=cfg.seed, shortcut=False,
+        box_lo=(cfg.box_lo[0], cfg.box_lo[1], -np.pi), box_hi=(cfg.box_hi[0], cfg.box_hi[1], np.pi),
+    )  # fmt: skip
+    return RRT(nav.task.checker, rcfg, robot=robot).plan(np.asarray(cfg.start, np.float64), None)
+
+
+@dataclass
+class ViewIndex:
+    """Encoded views of the tree: row i = node ``node[i]`` at heading ``yaw[i]``."""
+
+    poses: np.ndarray  # (M, 3) x, y, yaw of each view
+    node: np.ndarray  # (M,) tree node index
+    embeddings: object  # (M, D) encoder output (numpy or torch)
+    encoder: object
+    render_s: float = 0.0
+    encode_s: float = 0.0
+
+
+def build_view_index(robot, nav: NavScene, nodes: np.ndarray, encoder, renderer, cfg: NavigateConfig) -> ViewIndex:
+    """Render and encode every node's view at ``cfg.n_headings`` headings (batched)."""
+    nodes = np.asarray(nodes, np.float64).reshape(-1, 3)
+    cam = head_camera(robot, cfg)
+    yaws = 2 * np.pi * np.arange(cfg.n_headings) / cfg.n_headings
+    poses = np.concatenate([np.repeat(nodes[:, :2], len(yaws), axis=0), np.tile(yaws, len(nodes))[:, None]], axis=1)  # (M, 3)
+    poses[:, 2] = wrap_angle(poses[:, 2])
+    node = np.repeat(np.arange(len(nodes)), len(yaws))
+    embs, t_r, t_e = [], 0.0, 0.0
+    for i in range(0, len(poses), cfg.render_batch):
+        t0 = time.perf_counter()
+        rgb = cam.render(renderer, robot, poses[i : i + cfg.render_batch], background=(cfg.background,) * 3).rgb
+        t1 = time.perf_counter()
+        embs.append(np.asarray(encoder.encode(rgb)))
+        t_r, t_e = t_r + t1 - t0, t_e + time.perf_counter() - t1
+    emb = np.concatenate(embs) if embs else np.zeros((0, encoder.dim), np.float32)
+    return ViewIndex(poses, node, emb, encoder, t_r, t_e)
+
+
+@dataclass
+class Match:
+    """The retrieved view: pose (x, y, yaw), its node, the cost (squared embedding distance),
+    the median cost over all views, and whether the match is weak."""
+
+    index: int
+    node: int
+    pose: np.ndarray
+    cost: float
+    median_cost: float
+    ratio: float
+    weak: bool
+    costs: np.ndarray = field(repr=False, default=None)
+
+    def to_json(self) -> dict:
+        return {"node": int(self.node), "pose": self.pose.round(4).tolist(), "cost": round(self.cost, 6), "median_cost": round(self.median_cost, 6),
+                "ratio": round(self.ratio, 4), "weak": bool(self.weak)}  # fmt: skip
+
+
+def retrieve(index: ViewIndex, target_image, weak_ratio: float = 0.5) -> Match:
+    """The view whose embedding is closest to the target image's (any image size: the encoder
+    resizes it; RGB in [0, 1])."""
+    img = np.asarray(target_image, np.float32)
+    if img.ndim != 3 or img.shape[-1] != 3:
+        raise SplatplanError(f"target image must be (H, W, 3) RGB, got shape {img.shape}")
+    if len(index.poses) == 0:
+        raise SplatplanError("the view index is empty: the exploration tree has no nodes")
+    e_t = np.asarray(index.encoder.encode(img[None]))  # (1, D)
+    costs = np.sum((np.asarray(index.embeddings, np.float64) - e_t.astype(np.float64)) ** 2, axis=1)  # (M,)
+    i = int(np.argmin(costs))
+    med = float(np.median(costs))
+    ratio = float(costs[i] / med) if med > 0 else 1.0
+    return Match(i, int(index.node[i]), index.poses[i].copy(), float(costs[i]), med, ratio, bool(ratio > weak_ratio), costs)
+
+
+def tree_branch(nodes: np.ndarray, parents: np.ndarray, i: int) -> np.ndarray:
+    """(P, 3) tree nodes from the root to node i."""
+    idx = []
+    while i >= 0:
+        idx.append(int(i))
+        i = int(parents[i])
+    return np.asarray(nodes)[idx[::-1]]
+
+
+def _carrot(path_xy: np.ndarray, p: np.ndarray, lookahead: float, progress: int) -> tuple[np.ndarray, int]:
+    """Point ``lookahead`` ahead along the polyline from the closest point at or after segment ``progress``."""
+    if len(path_xy) == 1:
+        return path_xy[0], 0
+    a, b = path_xy[:-1], path_xy[1:]
+    ab = b - a
+    t = np.clip(np.einsum("ij,ij->i", p - a, ab) / np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-12), 0, 1)
+    d = np.linalg.norm(a + t[:, None] * ab - p, axis=1)
+    d[:progress] = np.inf
+    j = int(np.argmin(d))
+    rem = lookahead
+    pt = a[j] + t[j] * ab[j]
+    k = j
+    while k < len(ab):
+        seg = np.linalg.norm(b[k] - pt)
+        if seg >= rem:
+            return pt + (b[k] - pt) * (rem / max(seg, 1e-12)), j
+        rem -= seg
+        pt = b[k]
+        k += 1
+    return path_xy[-1], j
+
+
+@dataclass
+class DriveResult:
+    """One drive: executed states (S + 1, 3), reached flag, final distance to the goal (m),
+    smallest exact clearance over the densified path (m), time, steps."""
+
+    states: np.ndarray
+    reached: bool
+    final_distance_m: float
+    min_clearance_m: float
+    clearance_source: str
+    time_s: float
+    steps: int
+    message: str = ""
+
+
+def drive_to(robot, nav: NavScene, goal_xy, cfg: NavigateConfig, *, start=None, branch: np.ndarray | None = None, progress=None) -> DriveResult:
+    """Base MPPI with the collision cost from ``start`` (default ``cfg.start``) to ``goal_xy``.
+
+    Args:
+        goal_xy: (2,) the retrieved node's position (m).
+        branch: (P, 2+) tree path ending at the goal, followed with a carrot when ``cfg.follow_tree``.
+    """
+    from ..planners import MPPI, MPPIConfig
+    from ..planners.costs import CollisionCost, ControlEffortCost, GoalPoseCost
+    from ..planners.dynamics import PlanarBase
+    from ._common import check_start, trajectory_clearance
+
+    goal = np.asarray(goal_xy, np.float64).reshape(-1)[:2]
+    x = np.asarray(cfg.start if start is None else start, np.float64).reshape(3).copy()
+    check_start(robot, nav.task.checker, x)
+    path = np.asarray(branch, np.float64)[:, :2] if (branch is not None and cfg.follow_tree) else np.stack([x[:2], goal])
+    if np.linalg.norm(path[-1] - goal) > 1e-9:
+        path = np.vstack([path, goal])
+    dyn = PlanarBase(robot)
+    goal_cost = GoalPoseCost(None, position=goal, state_dims=(0, 1), position_weight=cfg.w_goal, terminal_factor=2.0)
+    costs = [
+        CollisionCost(nav.task.checker, robot, weight=cfg.w_collision, hit_weight=cfg.w_hit, s2_cap=cfg.collision_s2_cap),
+        goal_cost,
+        ControlEffortCost(cfg.w_control),
+    ]
+    um = np.asarray(cfg.u_max, np.float64)
+    mcfg = MPPIConfig(n_samples=cfg.n_samples, horizon=cfg.horizon, n_knots=cfg.n_knots, dt=cfg.dt, temperature=cfg.temperature,
+                      noise_sigma=tuple(cfg.noise_sigma), n_iters=cfg.n_iters, u_min=tuple(-um), u_max=tuple(um), seed=cfg.seed)  # fmt: skip
+    mppi = MPPI(dyn, nav.task.checker, mcfg, costs=costs)
+    states = [x.copy()]
+    prog = 0
+    t0 = time.perf_counter()
+    reached = False
+    for step in range(cfg.max_steps):
+        dist = float(np.linalg.norm(x[:2] - goal))
+        if progress is not None:
+            progress(step, dist)
+        if dist < cfg.goal_tol_m:
+            reached = True
+            break
+        carrot, prog = _carrot(path, x[:2], cfg.lookahead_m, prog) if cfg.follow_tree else (goal, 0)
+        goal_cost.position = np.asarray(carrot, np.float64)
+        u, _ = mppi.step(x)
+        x = dyn.rollout(x, u[None, None, :], cfg.dt)[0, 0]
+        x[2] = float(wrap_angle(x[2]))
+        states.append(x.copy())
+    elapsed = time.perf_counter() - t0
+    traj = np.asarray(states)
+    clearance, source, _ = trajectory_clearance(robot, nav.task, traj)
+    dist = float(np.linalg.norm(traj[-1, :2] - goal))
+    reached = reached or dist < cfg.goal_tol_m
+    msg = "" if reached else f"not within {cfg.goal_tol_m} m of the goal after {cfg.max_steps} MPC steps ({dist:.2f} m left)"
+    return DriveResult(traj, bool(reached), dist, clearance, source, elapsed, len(traj) - 1, msg)

@@ -1,0 +1,378 @@
+"""Visual reaching (paper Sec. IV-A, E5): drive a 7-DoF arm so that its wrist camera sees a target
+image, with MPPI over joint-velocity B-splines and the terminal image cost.
+
+Camera: a pinhole camera at the Panda's ``panda_hand_tcp`` frame (OpenCV axes = the TCP axes: it
+looks along the gripper's z axis), :func:`wrist_camera`.
+
+Cost per sample (:mod:`splatplan.planners.costs`, :class:`~splatplan.planners.ImageCost`):
+
+* image: ``w_image ||enc(I_target) - enc(I(x_T))||^2`` (+ patch tokens for encoders that have
+  them) of the wrist view at the goal time, **one batched render per MPPI iteration**;
+* collision (optional: the "with / without collision cost" rows of Table IV): the
+  CollisionSplatting cost of every robot ellipsoid over the horizon, one ``query_robot``;
+* control effort and joint-limit penalty.
+
+Schedule (shrinking horizon, so that the goal time stays fixed): the first MPC step runs
+``plan_iters`` MPPI iterations over the horizon T; then each MPC step applies the first control,
+shifts the knots (warm start) and runs ``iters_per_step`` iterations, the image now rendered at
+step ``T - 1 - s`` of the rollout after ``s`` executed steps. After T steps the arm is where the
+plan ended. The defaults (K = 32, T = 48, 8 knots, dt = 0.05 s, temperature 0.1, 20 + 47 = 67
+iterations) follow the paper's authors' example; images are 64x64 here (224x224 in the paper).
+
+Units: metres, radians, seconds; world frame z up (the tabletop scene's).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import SplatplanError
+from ._common import TaskScene, check_start, load_task_scene, trajectory_clearance
+
+__all__ = ["BEHIND_WALL", "START_CAMERA", "ReachConfig", "ReachResult", "camera_pose_error", "make_reach_goals", "reach_start", "run_reach", "wrist_camera"]
+
+
+@dataclass
+class ReachConfig:
+    """Knobs of :func:`run_reach` (MPPI over joint-velocity B-splines with the image cost)."""
+
+    #: sampled control sequences K per MPPI iteration
+    n_samples: int = 32
+    #: horizon T (control steps); the arm executes T steps in all (shrinking horizon)
+    horizon: int = 48
+    #: B-spline knots per joint over the horizon (>= 4)
+    n_knots: int = 8
+    #: control period (s)
+    dt: float = 0.05
+    #: MPPI temperature (smaller = greedier)
+    temperature: float = 0.1
+    #: std of the knot perturbations (rad/s)
+    noise_sigma: float = 0.5
+    #: MPPI iterations before the first control is applied
+    plan_iters: int = 20
+    #: MPPI iterations per later MPC step
+    iters_per_step: int = 1
+    #: joint velocity bound as a fraction of the robot's velocity limits
+    velocity_scale: float = 0.6
+    #: rendered image side (pixels, square)
+    image_size: int = 64
+    #: horizontal field of view of the wrist camera (degrees)
+    fov_deg: float = 70.0
+    #: render background grey level: a mid grey keeps views of empty space from scoring like dark
+    #: image regions (with a black background the weight-free thumbnail rewards looking away)
+    background: float = 0.5
+    #: weight of the image cost
+    w_image: float = 1.0
+    #: weight of the global-embedding distance inside the image cost
+    w_global: float = 1.0
+    #: weight of the mean patch-token distance inside the image cost (0 = off; needs tokens)
+    w_patch: float = 0.0
+    #: weight of the summed CollisionSplatting cost (with the collision cost only)
+    w_collision: float = 1.0
+    #: cost per (step, ellipsoid) in collision (with the collision cost only)
+    w_hit: float = 10.0
+    #: weight of the control effort sum |qdot|^2 dt
+    w_control: float = 0.01
+    #: weight of the joint-limit penalty
+    w_limits: float = 100.0
+    #: conservatism of the metric (n_sigma)
+    n_sigma: float = 1.0
+    #: neighbourhood of the rollouts' collision cost (checker s2_cap for MPPI queries)
+    collision_s2_cap: float = 1.6
+    #: evaluate the collision cost on every n-th rollout step (1 = every step)
+    collision_time_stride: int = 2
+    #: splats of a built-in scene (fewer = faster renders; the clearance uses the exact geometry)
+    n_splats: int = 60_000
+    #: link carrying the wrist camera (camera axes = link axes, OpenCV: looks along link z)
+    camera_link: str = "panda_hand_tcp"
+    #: success: final camera translation error below this (m) ...
+    position_tol: float = 0.05
+    #: ... rotation error below this (degrees) and positive clearance
+    orientation_tol_deg: float = 15.0
+    #: intermediate wrist views kept for the figures
+    n_views: int = 6
+    #: noise seed
+    seed: int = 0
+
+
+@dataclass
+class ReachResult:
+    """One visual-reaching run.
+
+    Attributes:
+        trajectory: (S + 1, 7) executed joint configurations (rad).
+        final_image: (H, W, 3) wrist view at the end.
+        views: [(step, (H, W, 3) image)] intermediate wrist views.
+        camera_trace: (S + 1, 3) wrist-camera positions (world, m).
+        translation_error_m / rotation_error_deg: final camera pose vs the goal camera pose (NaN
+            without a goal pose).
+        min_clearance_m: smallest clearance of any link ellipsoid over the densified trajectory.
+        image_cost_trace: (S,) lowest sampled image cost per MPC step (weighted).
+        iterations: MPPI iterations in all; time_s: wall clock of the MPC loop.
+    """
+
+    trajectory: np.ndarray
+    final_image: np.ndarray
+    views: list
+    camera_trace: np.ndarray
+    translation_error_m: float
+    rotation_error_deg: float
+    min_clearance_m: float
+    clearance_source: str
+    image_cost_trace: np.ndarray
+    iterations: int
+    time_s: float
+    collision_cost: bool
+    encoder: str
+    success: bool
+    extra: dict = field(default_factory=dict)
+
+    @property
+    def steps_per_s(self) -> float:
+        return (len(self.trajectory) - 1) / self.time_s if self.time_s > 0 else float("nan")
+
+    @property
+    def iterations_per_s(self) -> float:
+        return self.iterations / self.time_s if self.time_s > 0 else float("nan")
+
+    def summary(self) -> dict:
+        """JSON-friendly numbers (no images)."""
+        f = lambda v: None if not np.isfinite(v) else round(float(v), 6)  # noqa: E731
+        return {
+            "success": bool(self.success),
+            "collision_cost": bool(self.collision_cost),
+            "encoder": self.encoder,
+            "translation_error_m": f(self.translation_error_m),
+            "rotation_error_deg": f(self.rotation_error_deg),
+            "min_clearance_m": f(self.min_clearance_m),
+            "clearance_source": self.clearance_source,
+            "mpc_steps": len(self.trajectory) - 1,
+            "mppi_iterations": int(self.iterations),
+            "time_s": round(self.time_s, 3),
+            "mpc_steps_per_s": f(self.steps_per_s),
+            "mppi_iterations_per_s": f(self.iterations_per_s),
+            "final_q": np.asarray(self.trajectory[-1]).round(5).tolist(),
+            **self.extra,
+        }
+
+
+def wrist_camera(robot, image_size: int = 64, fov_deg: float = 70.0, link: str = "panda_hand_tcp"):
+    """The wrist camera: a :class:`~splatplan.render.MountedCamera` at ``link`` (identity offset:
+    the camera looks along the link's z axis, image x along link x)."""
+    from ..render import MountedCamera, intrinsics_from_fov
+
+    cam = MountedCamera(link, np.eye(4), intrinsics_from_fov(fov_deg, image_size, image_size), image_size, image_size)
+    cam._link_index(robot)
+    return cam
+
+
+def camera_pose_error(t: np.ndarray, t_goal: np.ndarray) -> tuple[float, float]:
+    """(translation error m, rotation error deg) between camera poses world <- camera (4, 4)."""
+    pe = float(np.linalg.norm(t[:3, 3] - t_goal[:3, 3]))
+    c = 0.5 * (np.trace(t_goal[:3, :3].T @ t[:3, :3]) - 1.0)
+    return pe, float(np.degrees(np.arccos(np.clip(c, -1.0, 1.0))))
+
+
+#: The studies' start view: the wrist camera above the bin, just behind its front wall, looking straight down
+#: (world frame, metres; the rotation of the Panda's default TCP: x along world x, z down).
+START_CAMERA = (np.array([0.56, 0.0, 0.22]), np.array([[1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, -1.0]]))
+#: Camera region counted as "behind the wall": inside the bin (x, y) and below the front wall's top.
+BEHIND_WALL = (np.array([0.46, -0.28, -0.09]), np.array([0.84, 0.28, 0.15]))
+
+
+def reach_start(robot, camera_link: str = "panda_hand_tcp") -> np.ndarray:
+    """The studies' start configuration: IK of :data:`START_CAMERA` nearest ``q_default``."""
+    from ._ik import solve_ik
+    from ..scenes.splats import rotmat_to_quat
+
+    p, r = START_CAMERA
+    q, pe, re = solve_ik(robot, p, rotmat_to_quat(r), link=camera_link, n_seeds=8, n_iters=150, seed=0, q_init=robot.q_default)
+    ok = (pe < 0.002) & (re < np.radians(1.0))
+    if not np.any(ok):
+        raise SplatplanError(f"the reach start view is not reachable by {robot.name} (IK error {pe[0] * 100:.1f} cm)")
+    q = q[ok]
+    return q[int(np.argmin(np.sum((q - robot.q_default) ** 2, axis=1)))]
+
+
+def make_reach_goals(
+    robot, scene: TaskScene, renderer, camera, *, n: int = 5, q_start=None, spread: float = 0.35, n_behind: int = 2, margin_m: float = 0.02,
+    min_move_m: float = 0.05, max_move_m: float = 0.15, n_candidates: int = 384, seed: int = 0,
+) -> list[dict]:
+    """Random reachable, collision-free goal configurations near ``q_start`` whose wrist view is
+    informative, ``n_behind`` of them with the camera behind the bin's front wall (:data:`BEHIND_WALL`).
+
+    Candidates ``q_start + U(-spread, spread)^7`` (clipped to the limits) are kept when every link
+    ellipsoid clears the exact geometry by ``margin_m``, the metric finds no collision, there is no
+    self-collision, the camera moves ``min_move_m``..``max_move_m`` from the start, and the view
+    is filled by the scene (alpha > 0.98) with contrast (std > 0.05). Goals are then picked far
+    apart from each other (greedy farthest point in camera position).
+
+    Returns:
+        [{"name", "q" (7,), "camera_pose" (4, 4) world <- camera, "clearance_m", "behind_wall"}].
+    """
+    rng = np.random.default_rng(seed)
+    q_start = np.asarray(robot.q_default if q_start is None else q_start, np.float64)
+    lim = np.asarray(robot.joint_limits, np.float64)
+    q = np.clip(q_start + rng.uniform(-spread, spread, (n_candidates, robot.dof)), lim[:, 0] + 0.05, lim[:, 1] - 0.05)
+    li = camera._link_index(robot)
+    t_start = robot.link_poses(q_start)[li] @ camera.offset
+    t = robot.link_poses(q)[:, li] @ camera.offset  # (M, 4, 4)
+    move = np.linalg.norm(t[:, :3, 3] - t_start[:3, 3], axis=1)
+    keep = (move > min_move_m) & (move < max_move_m)
+    q, t = q[keep], t[keep]
+    if scene.analytic is not None and len(q):
+        c, qu, ax = robot.ellipsoids(q)
+        clear = scene.analytic.ellipsoid_clearance(c, qu, ax).min(axis=-1)
+    else:
+        clear = np.full(len(q), np.inf)
+    keep = clear > margin_m
+    if len(q):
+        keep &= ~np.asarray(scene.checker.collides_robot(robot, q)).any(axis=-1) & ~np.asarray(robot.self_collision(q))
+    q, t, clear = q[keep], t[keep], clear[keep]
+    if len(q):
+        res = camera.render(renderer, robot, q)
+        rgb, alpha = np.asarray(res.rgb), np.asarray(res.alpha)
+        keep = (alpha.reshape(len(q), -1).min(axis=1) > 0.98) & (rgb.reshape(len(q), -1).std(axis=1) > 0.05)
+        q, t, clear = q[keep], t[keep], clear[keep]
+    lo, hi = BEHIND_WALL
+    behind = np.all((t[:, :3, 3] > lo) & (t[:, :3, 3] < hi), axis=1)
+    chosen: list[int] = []
+
+    def pick(pool: np.ndarray, count: int) -> None:  # greedy farthest point in camera position
+        for _ in range(max(count, 0)):
+            cand = [int(i) for i in pool if int(i) not in chosen]
+            if not cand:
+                return
+            if not chosen:
+                chosen.append(cand[int(np.argmax(clear[cand]))])
+            else:
+                d = np.min(np.linalg.norm(t[cand][:, None, :3, 3] - t[chosen][None, :, :3, 3], axis=-1), axis=1)
+                chosen.append(cand[int(np.argmax(d))])
+
+    pick(np.flatnonzero(behind), min(n_behind, n))
+    pick(np.arange(len(q)), n - len(chosen))
+    return [
+        {"name": f"goal{j}" + ("_behind_wall" if behind[i] else ""), "q": q[i], "camera_pose": t[i], "clearance_m": float(clear[i]), "behind_wall": bool(behind[i])}
+        for j, i in enumerate(chosen)
+    ]
+
+
+def run_reach(
+    robot,
+    scene,
+    target_image,
+    *,
+    config: ReachConfig | None = None,
+    collision: bool = True,
+    q0=None,
+    encoder="thumbnail",
+    encoder_weights: str | None = None,
+    goal_camera_pose=None,
+    renderer=None,
+    device: str | None = "cpu",
+    progress=None,
+) -> ReachResult:
+    """Reach the view of ``target_image`` with the wrist camera (see the module docstring).
+
+    Args:
+        robot: a 7-DoF arm Robot or name ("panda").
+        scene: a built-in name, a splat file or a :class:`TaskScene`.
+        target_image: (H, W, 3) RGB in [0, 1]; any size (the encoder resizes it).
+        config: :class:`ReachConfig`.
+        collision: include the collision cost.
+        q0: start configuration (default ``robot.q_default``).
+        encoder: an Encoder or a :func:`~splatplan.encoders.load_encoder` name.
+        encoder_weights: weights for a named encoder.
+        goal_camera_pose: (4, 4) world <- camera of the target view, for the error numbers only
+            (the controller never sees it).
+        renderer: a :class:`~splatplan.render.SplatRenderer` of the scene's splats (made here if None).
+        device: metric / renderer / encoder device.
+        progress: optional callable(step, image_cost).
+    """
+    from ..encoders import load_encoder
+    from ..planners import MPPI, MPPIConfig
+    from ..planners.costs import CollisionCost, ControlEffortCost, JointLimitCost
+    from ..planners.dynamics import JointIntegrator
+    from ..planners.image_cost import ImageCost
+    from ..render import SplatRenderer
+    from ..robots import load_robot
+
+    cfg = config or ReachConfig()
+    if cfg.plan_iters < 1 or cfg.iters_per_step < 1:
+        raise SplatplanError("ReachConfig.plan_iters and iters_per_step must be >= 1")
+    robot = load_robot(robot)
+    ts = load_task_scene(scene, n_sigma=cfg.n_sigma, device=device, n_splats=cfg.n_splats)
+    img = np.asarray(target_image, np.float32)
+    if img.ndim != 3 or img.shape[-1] != 3 or not np.all(np.isfinite(img)):
+        raise SplatplanError(f"target image must be a finite (H, W, 3) RGB array, got shape {img.shape}")
+    enc = load_encoder(encoder, weights=encoder_weights, device=device or "cpu") if isinstance(encoder, str) else encoder
+    q = robot.check_q(robot.q_default if q0 is None else q0).reshape(robot.dof).copy()
+    if collision:
+        check_start(robot, ts.checker, q)
+    cam = wrist_camera(robot, cfg.image_size, cfg.fov_deg, cfg.camera_link)
+    own = renderer is None
+    rend = SplatRenderer(ts.splats, device) if own else renderer
+    try:
+        vmax = cfg.velocity_scale * np.asarray(robot.velocity_limits, np.float64)
+        dyn = JointIntegrator(robot, velocity_limits=vmax)
+        image_cost = ImageCost(rend, cam, robot, enc, img, weight=cfg.w_image, w_global=cfg.w_global, w_patch=cfg.w_patch, background=(cfg.background,) * 3)
+        costs = [image_cost, ControlEffortCost(cfg.w_control), JointLimitCost(robot, weight=cfg.w_limits, margin=0.05)]
+        if collision:
+            costs.insert(0, CollisionCost(ts.checker, robot, weight=cfg.w_collision, hit_weight=cfg.w_hit, s2_cap=cfg.collision_s2_cap, time_stride=cfg.collision_time_stride))
+        mcfg = MPPIConfig(
+            n_samples=cfg.n_samples, horizon=cfg.horizon, n_knots=cfg.n_knots, dt=cfg.dt, temperature=cfg.temperature,
+            noise_sigma=cfg.noise_sigma, n_iters=cfg.plan_iters, u_min=tuple(-vmax), u_max=tuple(vmax), seed=cfg.seed,
+        )  # fmt: skip
+        mppi = MPPI(dyn, ts.checker if collision else None, mcfg, costs=costs)
+        states, trace, views = [q.copy()], [], []
+        view_every = max(1, cfg.horizon // max(cfg.n_views, 1))
+        iters = 0
+        t0 = time.perf_counter()
+        for s in range(cfg.horizon):
+            image_cost.time_index = cfg.horizon - 1 - s  # the goal time stays at T
+            mppi.config.n_iters = cfg.plan_iters if s == 0 else cfg.iters_per_step
+            u, info = mppi.step(q)
+            iters += mppi.config.n_iters
+            q = dyn.rollout(q, u[None, None, :], cfg.dt)[0, 0]
+            states.append(q.copy())
+            best = float(np.min(info.cost_terms["image"]))
+            trace.append(best)
+            if progress is not None:
+                progress(s, best)
+            if cfg.n_views > 0 and s % view_every == 0:
+                views.append((s, image_cost.render(q[None])[0]))
+        elapsed = time.perf_counter() - t0
+        final = image_cost.render(q[None])[0]
+        final = final.detach().cpu().numpy() if hasattr(final, "detach") else np.asarray(final)
+        views = [(s, v.detach().cpu().numpy() if hasattr(v, "detach") else np.asarray(v)) for s, v in views]
+    finally:
+        if own:
+            rend.close()
+    traj = np.asarray(states)
+    clearance, source, _ = trajectory_clearance(robot, ts, traj)
+    li = robot.link_names.index(cfg.camera_link)
+    cam_poses = robot.link_poses(traj)[:, li] @ cam.offset  # (S + 1, 4, 4) world <- camera
+    pe = re = float("nan")
+    if goal_camera_pose is not None:
+        pe, re = camera_pose_error(cam_poses[-1], np.asarray(goal_camera_pose, np.float64))
+    success = bool(np.isfinite(pe) and pe < cfg.position_tol and re < cfg.orientation_tol_deg and clearance > 0)
+    return ReachResult(
+        trajectory=traj,
+        final_image=np.clip(final, 0.0, 1.0),
+        views=views,
+        camera_trace=cam_poses[:, :3, 3],
+        translation_error_m=pe,
+        rotation_error_deg=re,
+        min_clearance_m=clearance,
+        clearance_source=source,
+        image_cost_trace=np.asarray(trace),
+        iterations=iters,
+        time_s=elapsed,
+        collision_cost=bool(collision),
+        encoder=enc.name,
+        success=success,
+        extra={"robot": robot.name, "scene": ts.name, "n_splats": len(ts.splats), "image_size": cfg.image_size, "n_samples": cfg.n_samples, "horizon": cfg.horizon},
+    )
