@@ -5,7 +5,8 @@ Kernel arguments are three structs: :class:`LinkBatch` (the query ellipsoids, re
 link matrices are built here, not on the host), :class:`SplatTiers` (the scene in one grid set's
 memory order) and :class:`MetricParams` (the config), plus the outputs.
 
-Splats are stored in *tiers* by size class of their largest standard deviation. Tier ``j`` owns
+Splats are stored in *tiers* (runs of size classes of their largest standard deviation, grouped
+per query size by :mod:`.wp_metric`). Tier ``j`` owns
 the contiguous index range ``[offset[j], offset[j + 1])`` of the splat arrays, a hash grid
 ``grid[j]`` over those means (indices returned by the grid are local to the tier) and
 ``sigma[j]`` = the largest std of any splat in it. A tier's grid may be 1x1x1: every query then
@@ -18,7 +19,13 @@ s2~ >= cap whenever s >= k + sqrt(k^2 + cap), and since s >= |d| / a_max every s
 rho = a_max (k + sqrt(k^2 + cap)) has s2~ >= cap. :func:`search_radius` is that rho (times a
 relative slack of 1e-4 against float32 rounding); it is the one definition of the formula, used by
 the kernels, by the glue (grid cell sizes) and by the tests. The opacity options only shrink the
-inflation (o_i <= 1) or drop splats, so the same radius stays exact.
+inflation (o_i <= 1) or drop splats, so the same radius stays exact. The same bound in s, s2 >
+(rho / a_max)^2, rejects candidates inside the bounding sphere but far outside an elongated link
+before their inflation is computed.
+
+Launch position and query index differ when the glue sorts a batch (Morton order of the centres,
+``LinkBatch.order``): neighbouring threads then read neighbouring splats; every output is still
+written at the query's own index, so results do not depend on the order.
 
 Invalid queries (non-finite centre, rotation or semi-axes, a zero quaternion, a semi-axis <= 0)
 are never reported free: their outputs are min_s2 = softmin = cost = NaN, n_colliding = -1,
