@@ -59,3 +59,12 @@ def test_rejects_when_no_free_curve_exists(checker):
     out = refine_path(checker, path, radius=R, config=cfg)
     assert not out.accepted and "kept the original" in out.message
     np.testing.assert_array_equal(out.path, path)
+
+
+def test_defaults_scale_with_the_robot(checker):
+    y = np.linspace(-0.2, 0.2, 9)
+    zig = np.stack([-0.15 + 0.04 * (np.arange(9) % 2), y, np.full(9, 0.06)], axis=1)
+    for r in (0.015, 0.01):
+        out = refine_path(checker, zig, radius=r, config=RefineConfig(seed=0))
+        assert out.info["knot_spacing"] == pytest.approx(r * 20 / 3)
+        assert out.info["noise_sigma"] == pytest.approx(0.8 * r) and out.info["temperature"] == pytest.approx(r / 3)

@@ -32,22 +32,25 @@ from .rrt import EdgeChecker, path_length
 
 @dataclass
 class RefineConfig:
-    """Knobs of :func:`refine_path` (distances in scene units)."""
+    """Knobs of :func:`refine_path` (distances in scene units of robot motion). Every None is
+    derived from the robot's smallest semi-axis a (the values for the default sphere a = 0.015
+    in brackets), so the refinement scales with the robot like the RRT's defaults."""
 
     #: sampled perturbations K
     n_samples: int = 256
-    #: target arc length between B-spline control points (sets n_knots from the path length)
-    knot_spacing: float = 0.1
+    #: target arc length between B-spline control points (sets n_knots from the path length);
+    #: None = 20/3 a (0.1)
+    knot_spacing: float | None = None
     #: fixed number of control points instead of knot_spacing (None = from knot_spacing)
     n_knots: int | None = None
     #: bounds of the number of control points
     min_knots: int = 5
     max_knots: int = 64
     #: standard deviation of the interior control point perturbations (scene units of motion;
-    #: divided by motion_bound per joint for an arm or base)
-    noise_sigma: float = 0.012
-    #: MPPI temperature lambda (same units as the cost, i.e. scene units)
-    temperature: float = 0.005
+    #: divided by motion_bound per joint for an arm or base); None = 0.8 a (0.012)
+    noise_sigma: float | None = None
+    #: MPPI temperature lambda (same units as the cost, i.e. scene units); None = a / 3 (0.005)
+    temperature: float | None = None
     #: MPPI updates (the paper: 1)
     n_iters: int = 1
     #: spacing of the dense samples on which the cost is evaluated; None = the robot's smallest semi-axis
@@ -145,11 +148,15 @@ def refine_path(
     cost_before = float(_curve_costs(checker, geom, resample_polyline(p, t_cost)[0][None], cfg)[0])
     if length0 <= 0:
         return RefineResult(p.copy(), False, None, cost_before, cost_before, 0, "zero-length path")
-    sigma_q = cfg.noise_sigma / np.where(wq > 0, wq, 1.0)  # (D,) noise in configuration units
+    knot_spacing = float(cfg.knot_spacing) if cfg.knot_spacing is not None else a_min * 20.0 / 3.0
+    noise_sigma = float(cfg.noise_sigma) if cfg.noise_sigma is not None else 0.8 * a_min
+    temperature = float(cfg.temperature) if cfg.temperature is not None else a_min / 3.0
+    sigma_q = noise_sigma / np.where(wq > 0, wq, 1.0)  # (D,) noise in configuration units
+    scales = {"knot_spacing": knot_spacing, "noise_sigma": noise_sigma, "temperature": temperature}
     free_dims = np.ptp(p, axis=0) > 0  # perturb only coordinates the path actually uses
     u_cost = np.linspace(0.0, 1.0, t_cost)
     t_out = int(max(2, math.ceil(length0 * 1.5 / check_res) + 1))  # output density (refined curves are shorter)
-    n_knots = cfg.n_knots or int(np.clip(math.ceil(length0 / cfg.knot_spacing) + 3, cfg.min_knots, cfg.max_knots))
+    n_knots = cfg.n_knots or int(np.clip(math.ceil(length0 / knot_spacing) + 3, cfg.min_knots, cfg.max_knots))
     message = ""
     for attempt in range(1, cfg.max_attempts + 1):
         basis = bspline_basis(n_knots, u_cost)  # (T, n)
@@ -162,7 +169,7 @@ def refine_path(
             samples = knots[None] + eps  # (K, n, D)
             curves = np.einsum("tn,knd->ktd", basis, samples)  # (K, T, D)
             c = _curve_costs(checker, geom, curves, cfg)
-            w = np.exp(-(c - c.min()) / cfg.temperature)
+            w = np.exp(-(c - c.min()) / temperature)
             w /= w.sum()
             knots = np.einsum("k,knd->nd", w, samples)
         candidates = [knots, samples[int(np.argmin(c))]]
@@ -179,8 +186,8 @@ def refine_path(
                     cost_after,
                     attempt,
                     f"accepted the {name} (n_knots={n_knots}, attempt {attempt})",
-                    {"n_knots": n_knots, "length_before": length0, "length_after": path_length(dense, wq)},
+                    {"n_knots": n_knots, "length_before": length0, "length_after": path_length(dense, wq), **scales},
                 )
         message = f"refined curves collide (n_knots={n_knots}); kept the original path"
         n_knots = min(2 * n_knots, max(cfg.max_knots, n_knots))
-    return RefineResult(p.copy(), False, None, cost_before, cost_before, cfg.max_attempts, message, {"length_before": length0})
+    return RefineResult(p.copy(), False, None, cost_before, cost_before, cfg.max_attempts, message, {"length_before": length0, **scales})
