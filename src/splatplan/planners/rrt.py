@@ -34,8 +34,9 @@ this extra test is used for spheres only.)
 
 **Scene-scaled defaults.** Lengths the user leaves unset are derived from the scene and the robot
 (:meth:`RRT.settings`): the sampling box is the 0.5-99.5 percentile box of the splat means padded
-by the robot's largest semi-axis (joint limits for joints), the stride 1/32 of the largest side
-of that box, the goal tolerance half the smallest semi-axis, and the search runs until
+by the robot's largest semi-axis (joint limits for joints; [-pi, pi] for an unlimited yaw), the
+stride 1/32 of the largest side of that box in the weighted metric (``(hi - lo) * motion_bound``),
+the goal tolerance half the smallest semi-axis, and the search runs until
 ``time_limit_s`` (default 10 s) rather than a node count. The chosen values are returned in
 ``PlanResult.info["settings"]``; :meth:`RRTSettings.summary` prints them on one line.
 
