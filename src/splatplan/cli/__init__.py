@@ -28,6 +28,7 @@ _MODULES = (
     "view",
     "encode",
     "render",
+    "tasks",
 )
 
 

@@ -45,6 +45,9 @@ class ImageCost(Cost):
         w_patch: weight of the mean patch-token distance (0 for encoders without tokens).
         background: RGB background of the renders (the target should use the same).
         keep_images: cache the (K, H, W, 3) renders on the rollout (``rollout.cache["images"]``).
+        w_empty: weight of the empty-view term ``mean_pixels(1 - alpha)`` added to each sample's cost:
+            a view of empty space is constant, so a correlation-type embedding (the weight-free
+            thumbnail) cannot tell it from a poor match; 0 = the paper's image cost only.
         time_index: which rollout step is rendered (-1 = the terminal state x_T; a shrinking-horizon
             MPC sets T - 1 - s after s executed steps so the goal time stays fixed).
     """
@@ -63,6 +66,7 @@ class ImageCost(Cost):
         w_patch: float = 0.0,
         background=(0.0, 0.0, 0.0),
         keep_images: bool = False,
+        w_empty: float = 0.0,
         time_index: int = -1,
     ) -> None:
         from ..encoders.base import ImageCost as _EncoderImageCost
@@ -77,6 +81,7 @@ class ImageCost(Cost):
         self.background = tuple(float(b) for b in background)
         self.keep_images = bool(keep_images)
         self.time_index = int(time_index)
+        self.w_empty = float(w_empty)
         camera._link_index(robot)  # fail early on a wrong link name
         if isinstance(target, _EncoderImageCost):
             self.embedding_cost = target
@@ -97,6 +102,9 @@ class ImageCost(Cost):
     def render(self, states: np.ndarray):
         """One batched render of the camera views at states (K, dx) -> (K, H, W, 3) (numpy on CPU,
         a torch tensor on the renderer's CUDA device)."""
+        return self._render(states).rgb
+
+    def _render(self, states: np.ndarray):
         v = self.viewmats(states)
         ks = self.camera.Ks((v.shape[0],))
         if getattr(self.renderer, "is_cuda", False):
@@ -107,22 +115,28 @@ class ImageCost(Cost):
             ks = torch.as_tensor(ks, dtype=torch.float32, device=dev)
         res = self.renderer.render(v, ks, self.camera.width, self.camera.height, background=self.background)
         self.n_renders += 1
-        return res.rgb
+        return res
 
-    def cost_of_images(self, images) -> np.ndarray:
-        """(K, H, W, 3) images -> (K,) weighted float64 costs."""
+    def cost_of_images(self, images, alpha=None) -> np.ndarray:
+        """(K, H, W, 3) images (and their (K, H, W) alpha for the empty-view term) -> (K,) weighted
+        float64 costs."""
         c = self.embedding_cost(images)
         if hasattr(c, "detach"):
             c = c.detach().cpu().numpy()
-        return self.weight * np.asarray(c, dtype=np.float64).reshape(-1)
+        c = np.asarray(c, dtype=np.float64).reshape(-1)
+        if self.w_empty > 0 and alpha is not None:
+            a = alpha.detach().cpu().numpy() if hasattr(alpha, "detach") else np.asarray(alpha)
+            c = c + self.w_empty * (1.0 - a.reshape(len(c), -1).mean(axis=1))
+        return self.weight * c
 
     def cost_of_states(self, states: np.ndarray) -> np.ndarray:
         """(K, dx) terminal states -> (K,) weighted costs (one render call)."""
-        return self.cost_of_images(self.render(states))
+        res = self._render(states)
+        return self.cost_of_images(res.rgb, res.alpha)
 
     # ------------------------------------------------------------------ Cost interface
     def __call__(self, rollout: Rollout) -> np.ndarray:
-        images = self.render(rollout.states[:, self.time_index])  # (K, H, W, 3): ONE render call per iteration
+        res = self._render(rollout.states[:, self.time_index])  # (K, H, W, 3): ONE render call per iteration
         if self.keep_images:
-            rollout.cache["images"] = images
-        return self.cost_of_images(images)
+            rollout.cache["images"] = res.rgb
+        return self.cost_of_images(res.rgb, res.alpha)

@@ -7,7 +7,9 @@ looks along the gripper's z axis), :func:`wrist_camera`.
 Cost per sample (:mod:`splatplan.planners.costs`, :class:`~splatplan.planners.ImageCost`):
 
 * image: ``w_image ||enc(I_target) - enc(I(x_T))||^2`` (+ patch tokens for encoders that have
-  them) of the wrist view at the goal time, **one batched render per MPPI iteration**;
+  them) of the wrist view at the goal time, **one batched render per MPPI iteration**, plus
+  ``w_empty`` x the fraction of the view showing no scene (an empty view is constant, which the
+  weight-free thumbnail scores like a poor match: without it samples escape towards empty space);
 * collision (optional: the "with / without collision cost" rows of Table IV): the
   CollisionSplatting cost of every robot ellipsoid over the horizon, one ``query_robot``;
 * control effort and joint-limit penalty.
@@ -66,12 +68,14 @@ class ReachConfig:
     background: float = 0.5
     #: weight of the image cost
     w_image: float = 1.0
+    #: weight of the empty-view term mean(1 - alpha) of the rendered view (0 = image cost only)
+    w_empty: float = 1.0
     #: weight of the global-embedding distance inside the image cost
     w_global: float = 1.0
     #: weight of the mean patch-token distance inside the image cost (0 = off; needs tokens)
     w_patch: float = 0.0
     #: weight of the summed CollisionSplatting cost (with the collision cost only)
-    w_collision: float = 1.0
+    w_collision: float = 0.1
     #: cost per (step, ellipsoid) in collision (with the collision cost only)
     w_hit: float = 10.0
     #: weight of the control effort sum |qdot|^2 dt
@@ -81,7 +85,7 @@ class ReachConfig:
     #: conservatism of the metric (n_sigma)
     n_sigma: float = 1.0
     #: neighbourhood of the rollouts' collision cost (checker s2_cap for MPPI queries)
-    collision_s2_cap: float = 1.6
+    collision_s2_cap: float = 1.3
     #: evaluate the collision cost on every n-th rollout step (1 = every step)
     collision_time_stride: int = 2
     #: splats of a built-in scene (fewer = faster renders; the clearance uses the exact geometry)
@@ -318,7 +322,7 @@ def run_reach(
     try:
         vmax = cfg.velocity_scale * np.asarray(robot.velocity_limits, np.float64)
         dyn = JointIntegrator(robot, velocity_limits=vmax)
-        image_cost = ImageCost(rend, cam, robot, enc, img, weight=cfg.w_image, w_global=cfg.w_global, w_patch=cfg.w_patch, background=(cfg.background,) * 3)
+        image_cost = ImageCost(rend, cam, robot, enc, img, weight=cfg.w_image, w_global=cfg.w_global, w_patch=cfg.w_patch, background=(cfg.background,) * 3, w_empty=cfg.w_empty)
         costs = [image_cost, ControlEffortCost(cfg.w_control), JointLimitCost(robot, weight=cfg.w_limits, margin=0.05)]
         if collision:
             costs.insert(0, CollisionCost(ts.checker, robot, weight=cfg.w_collision, hit_weight=cfg.w_hit, s2_cap=cfg.collision_s2_cap, time_stride=cfg.collision_time_stride))

@@ -1,0 +1,78 @@
+"""Visual reaching: the terminal image cost term (shape, ordering, one render per evaluation) and a
+tiny MPPI run with the wrist camera."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from splatplan.errors import SplatplanError
+from splatplan.planners import ImageCost, Rollout
+from splatplan.render import SplatRenderer
+
+robots = pytest.importorskip("splatplan.robots")
+
+
+@pytest.fixture(scope="module")
+def setup():
+    from splatplan.encoders import load_encoder
+    from splatplan.tasks._common import load_task_scene
+    from splatplan.tasks.reach import reach_start, wrist_camera
+
+    robot = robots.load_robot("panda")
+    ts = load_task_scene("tabletop", n_splats=20_000)
+    cam = wrist_camera(robot, image_size=24)
+    q0 = reach_start(robot)
+    with SplatRenderer(ts.splats, "cpu") as rend:
+        yield robot, ts, cam, q0, rend, load_encoder("thumbnail", image_size=8)
+
+
+def test_image_cost_shape_and_ordering(setup):
+    robot, ts, cam, q0, rend, enc = setup
+    goal = q0 + np.array([0.15, 0.1, -0.1, 0.1, 0.0, -0.1, 0.2])
+    target = np.asarray(cam.render(rend, robot, goal[None], background=(0.5,) * 3).rgb[0])
+    cost = ImageCost(rend, cam, robot, enc, target, weight=2.0, background=(0.5,) * 3, w_empty=1.0)
+    # K = 5 rollouts of horizon 3; the one ending at the goal must be cheapest
+    ends = np.stack([goal, q0, goal + 0.25, goal - 0.25, q0 + np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.5])])
+    states = np.repeat(ends[:, None, :], 3, axis=1)
+    states[:, 0] = q0
+    roll = Rollout(states, np.zeros((5, 3, 7)), 0.05)
+    n0 = cost.n_renders
+    c = cost(roll)
+    assert c.shape == (5,) and c.dtype == np.float64 and np.all(np.isfinite(c))
+    assert cost.n_renders == n0 + 1  # one batched render for the whole batch
+    assert int(np.argmin(c)) == 0 and c[0] < 1e-3
+    np.testing.assert_allclose(c, cost.cost_of_states(ends), atol=1e-6)
+    # the cost only looks at the chosen time step (terminal by default)
+    cost.time_index = 0
+    assert np.allclose(cost(roll), cost(roll)[0])
+
+
+def test_image_cost_bad_inputs(setup):
+    robot, ts, cam, q0, rend, enc = setup
+    with pytest.raises(SplatplanError, match="RGB"):
+        ImageCost(rend, cam, robot, enc, np.zeros((8, 8)))
+    from splatplan.render import MountedCamera
+
+    with pytest.raises(SplatplanError, match="no link"):
+        ImageCost(rend, MountedCamera("nope"), robot, enc, np.zeros((8, 8, 3)))
+
+
+def test_tiny_reach_run(setup):
+    from splatplan.tasks.reach import ReachConfig, run_reach
+
+    robot, ts, cam, q0, rend, enc = setup
+    goal = q0 + np.array([0.1, 0.05, 0.0, 0.1, 0.0, -0.05, 0.1])
+    target = np.asarray(cam.render(rend, robot, goal[None], background=(0.5,) * 3).rgb[0])
+    cfg = ReachConfig(n_samples=8, horizon=6, n_knots=4, dt=0.1, plan_iters=3, image_size=24, n_views=2, n_splats=20_000)
+    t_goal = robot.link_poses(goal)[robot.link_names.index(cfg.camera_link)]
+    res = run_reach(robot, ts, target, config=cfg, q0=q0, encoder=enc, renderer=rend, goal_camera_pose=t_goal)
+    assert res.trajectory.shape == (cfg.horizon + 1, 7)
+    assert res.iterations == cfg.plan_iters + cfg.horizon - 1
+    assert res.final_image.shape == (24, 24, 3) and len(res.views) >= 1
+    assert np.isfinite(res.translation_error_m) and np.isfinite(res.rotation_error_deg)
+    assert res.clearance_source == "analytic" and np.isfinite(res.min_clearance_m)
+    s = res.summary()
+    assert s["mppi_iterations"] == res.iterations and s["encoder"].startswith("thumbnail")
+    with pytest.raises(SplatplanError, match="RGB"):
+        run_reach(robot, ts, np.zeros((4, 4)), config=cfg, q0=q0, encoder=enc, renderer=rend)
