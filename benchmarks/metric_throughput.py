@@ -17,7 +17,9 @@ ellipsoid always touches ground splats): configurations/s and ellipsoid checks/s
 numpy or as a ``wp.array``. On Stonehenge as built (scale 1: 1 m across, the arm is larger than
 the ring, and each link's neighbourhood holds a large share of the 200k splats) and scaled x4
 (4 m across, stones ~0.8 m: an arm among the stones).
-The 1-minute load average is recorded: the machine is shared, and figures taken under load are noisy.
+The 1-minute load average is recorded: the machine is shared, and wall-clock figures taken under
+load are noisy; ``cpu_equiv_checks_per_s`` (queries per CPU-second of this process times the
+thread count) estimates what an idle machine gives, assuming the threads scale perfectly.
 
     python benchmarks/metric_throughput.py [--device cpu|cuda] [--repeats 7] [--out benchmarks/results/metric_throughput.json]
 
@@ -75,12 +77,13 @@ def main(argv: list[str] | None = None) -> int:
         checker.collides(centers, None, radius)
         wp().synchronize()
         for fn in ("query", "collides"):
-            times = []
+            times, cpu = [], []
             for _ in range(args.repeats):
-                t = time.perf_counter()
+                t, c0 = time.perf_counter(), time.process_time()
                 getattr(checker, fn)(centers, None, radius)
                 wp().synchronize()
                 times.append(time.perf_counter() - t)
+                cpu.append(time.process_time() - c0)
             med = float(np.median(times))
             rows.append({
                 "method": "collisionsplatting" + ("" if fn == "query" else "_collision_only"),
@@ -88,6 +91,7 @@ def main(argv: list[str] | None = None) -> int:
                 "checks_per_s": b / med,
                 "checks_per_s_std": float(np.std([b / t for t in times])),
                 "seconds_median": med,
+                "cpu_equiv_checks_per_s": b * cpu_threads() / float(np.median(cpu)) if args.device == "cpu" else float("nan"),
                 "peak_mem_mb": proc_status_mb("VmHWM") - rss0 if hwm_ok and args.device == "cpu" else float("nan"),
             })  # fmt: skip
     device_rows = _device_rows(checker, scene, lo, hi, [int(x) for x in args.batches.split(",")], radius, args.repeats)
@@ -117,6 +121,9 @@ def main(argv: list[str] | None = None) -> int:
     for r in rows:
         g, c, m = PAPER.get(r["batch"], (float("nan"),) * 3)
         print(f"| {r['method']} | {r['batch']:,} | {r['checks_per_s']:,.0f} | {r['peak_mem_mb']:.1f} | {c:,.1f} | {g:,.1f} | {m} |")
+    if args.device == "cpu":
+        print("checks per CPU-second x threads (what an idle machine would give, read when the wall figures are noisy): "
+              + ", ".join(f"{r['method']} {r['batch']:,}: {r['cpu_equiv_checks_per_s']:,.0f}" for r in rows))
     print()
     print("| inputs | variant | batch | checks/s |")
     print("|---|---|---|---|")
