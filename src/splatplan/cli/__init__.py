@@ -1,8 +1,10 @@
 """Command-line interface. Thin: parse, call the library, print, exit codes.
 
 Exit codes: 0 success, 1 no result within the budget (e.g. ``plan`` found no path), 2 bad input
-or impossible request (one-line message, no traceback), 130 interrupted. Output files are written
-atomically.
+or impossible request (one-line message, no traceback), 130 interrupted (Ctrl-C), 143 terminated
+(SIGTERM). Output files are written atomically, with the umask's permissions; an interrupted
+command leaves no partial output or temporary file behind. ``--device`` means the same in every
+subcommand (``auto`` = CUDA when present, else CPU) and is checked before any work starts.
 
 One module per group of subcommands; each exposes ``register(sub, eval_sub)`` where ``sub`` is
 the top-level subparsers object and ``eval_sub`` the subparsers of ``splatplan eval``. Add a new

@@ -16,12 +16,15 @@ from ._common import (  # noqa: F401
 def cmd_demo(args) -> int:
     from ..demo import run_demo
 
-    run_demo(_out_dir(args.out), device=args.device)
+    if args.seed < 0:
+        raise SplatplanError(f"--seed must be an integer >= 0, got {args.seed}")
+    run_demo(_out_dir(args.out), device=args.device, seed=args.seed)
     return 0
 
 
 def register(sub, eval_sub) -> None:
     s = sub.add_parser("demo", help="the main job on the built-in scene: collision field and plans")
     s.add_argument("--out", default="demo_out", help="output folder (default demo_out)")
+    s.add_argument("--seed", type=int, default=0, help="scene and planner seed, an integer >= 0 (default 0)")
     add_device_arg(s)
     s.set_defaults(func=cmd_demo)
