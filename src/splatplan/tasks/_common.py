@@ -28,9 +28,14 @@ class TaskScene:
     analytic: object | None
 
 
-def load_task_scene(scene, n_sigma: float = 1.0, device: str | None = "cpu", n_splats: int | None = None) -> TaskScene:
+def load_task_scene(scene, n_sigma: float = 1.0, device: str | None = "cpu", n_splats: int | None = None, ground_below: float | None = None) -> TaskScene:
     """A built-in name ("tabletop", "apartment", "stonehenge") or a splat file (its ``.gt.json``
-    beside it is used for the exact clearance when present)."""
+    beside it is used for the exact clearance when present).
+
+    ``ground_below``: for walking robots the floor is terrain, not an obstacle: splats whose centre
+    lies below this height are removed from the collision scene and the analytic boxes labelled
+    "floor"/"ground" from the ground truth (a ground segmentation by height).
+    """
     from ..metric import CollisionChecker
     from ..scenes.builtin import BUILTIN_SCENES, build_builtin
     from ..scenes.filters import filter_floaters
@@ -50,6 +55,11 @@ def load_task_scene(scene, n_sigma: float = 1.0, device: str | None = "cpu", n_s
         raw = load_scene(p, filter_floaters=False)
         gt = load_ground_truth(p) if ground_truth_path(p).is_file() else None
     splats, _ = filter_floaters(raw)
+    if ground_below is not None:
+        splats = splats.subset(splats.means[:, 2] >= ground_below)
+        if gt is not None:
+            gt = gt.select(np.array([lab not in ("floor", "ground") for lab in gt.labels]))
+        name = f"{name} (ground below z = {ground_below:g} removed)"
     return TaskScene(name, splats, CollisionChecker(splats, n_sigma=n_sigma, device=device), gt)
 
 
@@ -130,3 +140,23 @@ class TaskResult:
             if isinstance(v, float) and not np.isfinite(v):
                 d[k] = None
         return d
+
+
+def strided_collision_cost(checker, robot, stride: int = 1, **kw):
+    """A :class:`~splatplan.planners.costs.CollisionCost` that queries every ``stride``-th step of
+    the horizon (always including the last): ``stride`` times fewer ellipsoid queries per MPPI
+    iteration. The cost of the skipped steps is approximated by ``stride`` x the checked ones."""
+    from ..planners.costs import CollisionCost, Rollout
+
+    class _Strided(CollisionCost):
+        def terms(self, rollout: Rollout) -> dict:
+            if stride <= 1:
+                return super().terms(rollout)
+            t = rollout.states.shape[1]
+            idx = np.unique(np.append(np.arange(stride - 1, t, stride), t - 1))
+            sub = Rollout(rollout.states[:, idx], rollout.controls[:, idx], rollout.dt)
+            out = {k: v * (t / len(idx)) for k, v in super().terms(sub).items()}
+            rollout.cache.setdefault("query_strided", sub.cache.get("query"))
+            return out
+
+    return _Strided(checker, robot, **kw)

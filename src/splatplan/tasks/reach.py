@@ -68,6 +68,8 @@ class ReachConfig:
     background: float = 0.5
     #: weight of the image cost
     w_image: float = 1.0
+    #: side the encoder resizes images to (None = its default: 16 for thumbnail, 224 for EfficientNet / DINOv2)
+    encoder_image_size: int | None = None
     #: weight of the empty-view term mean(1 - alpha) of the rendered view (0 = image cost only)
     w_empty: float = 1.0
     #: weight of the global-embedding distance inside the image cost
@@ -312,7 +314,7 @@ def run_reach(
     img = np.asarray(target_image, np.float32)
     if img.ndim != 3 or img.shape[-1] != 3 or not np.all(np.isfinite(img)):
         raise SplatplanError(f"target image must be a finite (H, W, 3) RGB array, got shape {img.shape}")
-    enc = load_encoder(encoder, weights=encoder_weights, device=device or "cpu") if isinstance(encoder, str) else encoder
+    enc = load_encoder(encoder, weights=encoder_weights, device=device or "cpu", image_size=cfg.encoder_image_size) if isinstance(encoder, str) else encoder
     q = robot.check_q(robot.q_default if q0 is None else q0).reshape(robot.dof).copy()
     if collision:
         check_start(robot, ts.checker, q)

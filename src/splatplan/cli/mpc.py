@@ -1,0 +1,120 @@
+"""`splatplan mpc` (arm reaching / quadruped driving under MPPI) and the studies `eval arm`, `eval base`."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import SplatplanError
+from ._common import _out_dir, add_config_args, add_device_arg, config_from_args, write_json
+
+
+def _floats(text: str, n: int, what: str, form: str) -> np.ndarray:
+    try:
+        v = np.asarray([float(x) for x in text.split(",")], dtype=np.float64)
+    except ValueError:
+        raise SplatplanError(f"{what} {text!r}: expected {n} comma-separated numbers {form}") from None
+    if v.shape != (n,) or not np.all(np.isfinite(v)):
+        raise SplatplanError(f"{what} {text!r}: expected {n} finite comma-separated numbers {form}")
+    return v
+
+
+def cmd_mpc(args) -> int:
+    from ..tasks.plot import plot_run
+
+    out = _out_dir(args.out)
+    collision = not args.no_collision
+    tag = "" if collision else " [--no-collision: collision cost OFF]"
+    if args.robot == "panda":
+        from ..robots import load_robot
+        from ..tasks.arm import ArmConfig, run_arm
+
+        if args.goal_pose is None:
+            raise SplatplanError("--robot panda needs --goal-pose X,Y,Z,QW,QX,QY,QZ (metres, wxyz)")
+        gp = _floats(args.goal_pose, 7, "--goal-pose", "X,Y,Z,QW,QX,QY,QZ")
+        if np.linalg.norm(gp[3:]) < 1e-8:
+            raise SplatplanError(f"--goal-pose {args.goal_pose!r}: the quaternion QW,QX,QY,QZ is zero")
+        cfg = config_from_args(args, ArmConfig, "arm_", seed=args.seed)
+        robot = load_robot("panda")
+        scene = args.scene or "tabletop"
+        q0 = None if args.start is None else _floats(args.start, robot.dof, "--start", f"with {robot.dof} joint values")
+        res = run_arm(robot, scene, gp[:3], gp[3:], config=cfg, collision=collision, q0=q0, device=args.device)
+        kind = "arm"
+    elif args.robot == "go2":
+        from ..tasks.base import BaseConfig, load_go2, plan_route, run_base
+
+        if args.goal is None:
+            raise SplatplanError("--robot go2 needs --goal X,Y (metres)")
+        g = _floats(args.goal, 2, "--goal", "X,Y")
+        cfg = config_from_args(args, BaseConfig, "base_", seed=args.seed)
+        robot = load_go2()
+        scene = args.scene or "apartment"
+        start = np.zeros(3) if args.start is None else _floats(args.start, 3, "--start", "X,Y,YAW")
+        route = None
+        if args.route:
+            from ..tasks._common import load_task_scene
+
+            ts = load_task_scene(scene, n_sigma=cfg.n_sigma, device=args.device, ground_below=None if cfg.ground_z is None else cfg.ground_z + cfg.ground_band)
+            route = plan_route(robot, ts.checker, start, g, seed=args.seed)
+        res = run_base(robot, scene, g, start=start, config=cfg, collision=collision, route=route, device=args.device)
+        kind = "base"
+    else:  # argparse choices keep this unreachable
+        raise SplatplanError(f"unknown robot {args.robot!r}: panda or go2")
+    d = res.to_json()
+    write_json(out / "result.json", d)
+    from ..tasks._common import load_task_scene
+
+    ts = load_task_scene(scene, n_sigma=cfg.n_sigma, device=args.device, ground_below=(cfg.ground_z + cfg.ground_band) if kind == "base" and cfg.ground_z is not None else None)
+    fig = plot_run(robot, ts, res, kind=kind)
+    fig.savefig(out / "motion.png", dpi=100)
+    import matplotlib.pyplot as plt
+
+    plt.close(fig)
+    print(
+        f"{robot.name} on {scene}{tag}: {'reached' if res.success else 'NOT reached'}; final position error {res.final_position_error_m * 100:.2f} cm; "
+        f"min clearance {res.min_clearance_m * 100:.2f} cm ({res.clearance_source}); {res.steps_per_s:.2f} MPC steps/s over {res.time_s:.1f} s"
+    )
+    print(f"wrote {out / 'result.json'} and {out / 'motion.png'}{tag}")
+    return 0 if res.success else 1
+
+
+def cmd_eval(args) -> int:
+    out = _out_dir(args.out)
+    if args.study == "arm":
+        from ..eval.arm import run_arm_study
+
+        run_arm_study(out, quick=args.quick, seed=args.seed, device=args.device)
+    else:
+        from ..eval.base import run_base_study
+
+        run_base_study(out, quick=args.quick, seed=args.seed, device=args.device)
+    return 0
+
+
+def register(sub, eval_sub) -> None:
+    from ..tasks.arm import ArmConfig
+    from ..tasks.base import BaseConfig
+
+    s = sub.add_parser("mpc", help="MPPI with the collision cost: Panda reaching (tabletop) or Go2 driving (apartment)")
+    s.add_argument("--robot", required=True, choices=("panda", "go2"), help="panda (7-DoF arm) or go2 (planar base)")
+    s.add_argument("--scene", default=None, help="built-in scene name or a splat file (default tabletop for panda, apartment for go2); files without a .gt.json get a metric clearance")
+    s.add_argument("--goal-pose", default=None, help="panda: X,Y,Z,QW,QX,QY,QZ end-effector goal (metres, wxyz world <- panda_hand_tcp)")
+    s.add_argument("--goal", default=None, help="go2: X,Y goal of the base (metres); e.g. the final node of an RRT path")
+    s.add_argument("--start", default=None, help="start configuration: 7 joint values (panda, default home) or X,Y,YAW (go2, default 0,0,0)")
+    s.add_argument("--no-collision", action="store_true", help="switch the collision cost off (the baseline); every output says so")
+    s.add_argument("--route", action="store_true", help="go2: plan a global RRT route on SE(2) first and track it (default: goal only)")
+    s.add_argument("--out", required=True, help="output folder (result.json, motion.png)")
+    s.add_argument("--seed", type=int, default=0, help="noise seed")
+    add_device_arg(s)
+    add_config_args(s, ArmConfig, prefix="arm_", skip=("seed",), group="panda (ArmConfig) options")
+    add_config_args(s, BaseConfig, prefix="base_", skip=("seed",), group="go2 (BaseConfig) options")
+    s.set_defaults(func=cmd_mpc)
+    for name, help_ in (("arm", "Panda reaching behind a wall of tabletop, with/without the collision cost (paper Table IV, no image)"),
+                        ("base", "Go2 driving to goals in other rooms of apartment given only the goal, with/without the collision cost")):  # fmt: skip
+        e = eval_sub.add_parser(name, help=help_)
+        e.add_argument("--out", required=True, help="output folder")
+        e.add_argument("--quick", action="store_true", help="small version (< 2 min on 2 cores)")
+        e.add_argument("--seed", type=int, default=0)
+        add_device_arg(e)
+        e.set_defaults(func=cmd_eval, study=name)

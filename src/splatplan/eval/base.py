@@ -1,0 +1,104 @@
+"""Base study: the Go2 driving from the living room of ``apartment`` to goals in the other rooms,
+given **only the goal position** (as the final node of an RRT path would be), with and without the
+collision cost.
+
+Goals: random positions in the bedroom and the kitchen where the Go2 stands collision-free at some
+heading with at least 10 cm exact clearance. Start (-2.3, -0.6, yaw 0) in the living room.
+
+``run_base_study(out)`` writes ``base.json`` (same row fields as the arm study, plus the time to
+goal) and ``base.md``.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import asdict, replace
+from pathlib import Path
+
+import numpy as np
+
+from .arm import _mean_std
+
+START = (-2.3, -0.6, 0.0)
+
+
+def pick_goals(n: int, seed: int = 0, min_clearance: float = 0.1) -> list[np.ndarray]:
+    """``n`` goal positions (2,) alternating bedroom / kitchen, free for the Go2 at some heading."""
+    from ..scenes.builtin.apartment import ROOMS, apartment_layout
+    from ..tasks.base import load_go2
+
+    robot = load_go2()
+    gt = apartment_layout(seed).scene
+    gt = gt.select(np.array([lab != "floor" for lab in gt.labels]))
+    rng = np.random.default_rng([seed, 88])
+    rooms = ["bedroom", "kitchen"]
+    out = []
+    for k in range(400):
+        if len(out) == n:
+            break
+        lo, hi = (np.asarray(v, np.float64) for v in ROOMS[rooms[len(out) % 2]])
+        xy = lo + 0.3 + rng.random(2) * (hi - lo - 0.6)
+        yaws = np.linspace(-np.pi, np.pi, 8, endpoint=False)
+        q = np.stack([np.full(8, xy[0]), np.full(8, xy[1]), yaws], axis=1)
+        c, qq, a = robot.ellipsoids(q)
+        if gt.ellipsoid_clearance(c, qq, a).min(axis=-1).max() >= min_clearance:
+            out.append(xy)
+    return out
+
+
+def run_base_study(out_dir, quick: bool = False, seed: int = 0, device: str | None = "cpu") -> dict:
+    """Run the study, write ``base.json`` and ``base.md`` into ``out_dir``; returns the JSON dict."""
+    from ..tasks._common import load_task_scene
+    from ..tasks.base import BaseConfig, load_go2, run_base
+
+    t0 = time.perf_counter()
+    n = 1 if quick else 5
+    cfg = BaseConfig(seed=seed, max_steps=150)
+    if quick:
+        cfg = replace(cfg, n_samples=32, horizon=16, max_steps=30)
+    goals = pick_goals(n, seed=seed)
+    robot = load_go2()
+    ts = load_task_scene("apartment", n_sigma=cfg.n_sigma, device=device, ground_below=cfg.ground_z + cfg.ground_band)
+    trials = []
+    for i, g in enumerate(goals):
+        for collision in (True, False):
+            r = run_base(robot, ts, g, start=START, config=replace(cfg, seed=seed + i), collision=collision, device=device)
+            trials.append({
+                "goal": i, "config": "with_collision" if collision else "without_collision", "goal_position": g.round(4).tolist(),
+                "success": r.success, "min_clearance_m": r.min_clearance_m, "final_error_m": r.final_position_error_m,
+                "time_to_goal_s": r.extra["time_to_goal_s"] if r.success else None, "n_steps": r.extra["n_steps"],
+                "time_s": r.time_s, "steps_per_s": r.steps_per_s,
+            })  # fmt: skip
+            print(f"  goal {i} {g.round(2).tolist()} {'with   ' if collision else 'without'} collision cost: distance {r.final_position_error_m:.2f} m, "
+                  f"clearance {r.min_clearance_m * 100:+.1f} cm, {'reached' if r.success else 'not reached'}, {r.steps_per_s:.2f} steps/s", flush=True)  # fmt: skip
+    rows = []
+    for name in ("with_collision", "without_collision"):
+        t = [x for x in trials if x["config"] == name]
+        reached = [x["time_to_goal_s"] for x in t if x["time_to_goal_s"] is not None]
+        rows.append({
+            "config": name,
+            "min_clearance_m": _mean_std([x["min_clearance_m"] for x in t]),
+            "final_error_m": _mean_std([x["final_error_m"] for x in t]),
+            "time_to_goal_s": _mean_std(reached),
+            "successes": int(sum(x["success"] for x in t)),
+            "positive_clearance": int(sum(x["min_clearance_m"] > 0 for x in t)),
+            "trials": len(t),
+            "steps_per_s": _mean_std([x["steps_per_s"] for x in t]),
+        })  # fmt: skip
+    result = {
+        "study": "base", "quick": bool(quick), "seed": int(seed), "robot": "go2", "scene": "apartment", "start": list(START),
+        "n_splats": len(ts.splats), "config": asdict(cfg), "time_s": time.perf_counter() - t0,
+        "clearance": "exact signed distance from every Go2 ellipsoid to the boxes other than the floor, over the executed trajectory",
+        "success": f"final distance to the goal < {cfg.goal_tol} m and positive clearance throughout",
+        "rows": rows, "trials": trials,
+    }  # fmt: skip
+    out_dir = Path(out_dir)
+    (out_dir / "base.json").write_text(json.dumps(result, indent=1) + "\n")
+    md = ["| config | min clearance (m) | final distance (m) | time to goal (s) | successes | positive clearance | steps/s |", "|---|---|---|---|---|---|---|"]
+    for r in rows:
+        md.append(f"| {r['config']} | {r['min_clearance_m'][0]:+.4f} ± {r['min_clearance_m'][1]:.4f} | {r['final_error_m'][0]:.3f} ± {r['final_error_m'][1]:.3f} | "
+                  f"{r['time_to_goal_s'][0]:.1f} | {r['successes']}/{r['trials']} | {r['positive_clearance']}/{r['trials']} | {r['steps_per_s'][0]:.2f} |")  # fmt: skip
+    (out_dir / "base.md").write_text("\n".join(md) + "\n")
+    print("\n".join(md))
+    return result
