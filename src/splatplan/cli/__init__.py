@@ -31,6 +31,7 @@ _MODULES = (
     "encode",
     "render",
     "tasks",
+    "mpc",
 )
 
 
