@@ -67,7 +67,8 @@ def _check_link(args, checker, scene) -> dict[str, np.ndarray]:
     return out
 
 
-def _check_robot(args, checker, scene) -> dict[str, np.ndarray]:
+def _load_configs(args):
+    """(robot, q (B, dof) float64) from --robot and --configs, validated (before the slow scene load)."""
     from ..robots import load_robot
 
     robot = load_robot(args.robot)
@@ -80,12 +81,15 @@ def _check_robot(args, checker, scene) -> dict[str, np.ndarray]:
     bad = ~np.isfinite(q).all(axis=1)
     if bad.any():
         raise SplatplanError(f"configs file {args.configs}: {int(bad.sum())} row(s) contain NaN or Inf (first: row {int(np.argmax(bad))})")
-    q = robot.check_q(q)
+    return robot, robot.check_q(q)
+
+
+def _check_robot(robot, q: np.ndarray, checker, scene, chunk: int) -> dict[str, np.ndarray]:
     lim = np.asarray(robot.joint_limits, dtype=np.float64)
     outside = ((q < lim[:, 0] - 1e-9) | (q > lim[:, 1] + 1e-9)).any(axis=1)
     e = int(robot.n_ellipsoids)
     b = len(q)
-    per_chunk = max(1, args.chunk // max(1, e))  # configurations per chunk (chunk counts link poses)
+    per_chunk = max(1, chunk // max(1, e))  # configurations per chunk (chunk counts link poses)
     query_robot = getattr(checker, "query_robot", None)
 
     def query(lo: int, hi: int):
@@ -148,11 +152,11 @@ def cmd_check(args) -> int:
     if args.out and not Path(args.out).parent.exists():
         raise SplatplanError(f"output folder {Path(args.out).parent} does not exist")
     cfg = config_from_args(args, MetricConfig).validate()
-    if args.poses is not None:
-        load_poses(args.poses)  # validate before the (slow) scene load
+    # validate the query input before the (slow) scene load
+    robot_q = _load_configs(args) if args.configs is not None else load_poses(args.poses)
     scene = _load(args.scene)
     checker = CollisionChecker(scene, device=args.device, config=cfg)
-    res = _check_link(args, checker, scene) if args.poses is not None else _check_robot(args, checker, scene)
+    res = _check_link(args, checker, scene) if args.poses is not None else _check_robot(*robot_q, checker, scene, args.chunk)
     if args.out:
         with atomic_path(args.out) as tmp:
             with open(tmp, "wb") as f:
