@@ -230,7 +230,8 @@ def test_interrupt_during_the_kernel_exits_cleanly(tmp_path, sig, code):
     np.save(tmp_path / "p.npy", rng.uniform(-0.3, 0.3, (2_000_000, 3)))  # ~10-20 s of CPU kernel work on 2 cores
     out = tmp_path / "o.npz"
     proc = subprocess.Popen([sys.executable, "-m", "splatplan.cli", "check", str(BANANA), "--poses", str(tmp_path / "p.npy"), "--robot", "sphere:0.02",
-                             "--chunk", "32768", "--device", "cpu", "--out", str(out)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)  # fmt: skip
+                             "--chunk", "32768", "--device", "cpu", "--out", str(out)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=lambda: [signal.signal(s, signal.SIG_DFL) for s in (signal.SIGINT, signal.SIGTERM)])  # fmt: skip
     t0 = time.monotonic()  # wait until main() runs (its handlers are installed before Warp loads), then ~1 s more
     while time.monotonic() - t0 < 60 and proc.poll() is None and not _loaded_warp(proc.pid):
         time.sleep(0.05)

@@ -190,13 +190,16 @@ def _raise_terminated(signum, frame):
 @contextmanager
 def cli_signal_handlers():
     """SIGINT -> KeyboardInterrupt and SIGTERM -> :class:`Terminated` while the block runs (main
-    thread only), so every ``finally`` (temp files of :func:`atomic_path`) runs on Ctrl-C or kill."""
+    thread only), so every ``finally`` (temp files of :func:`atomic_path`) runs on Ctrl-C or kill.
+    A signal the caller ignores (SIG_IGN, e.g. ``nohup``-style launchers) stays ignored."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
     old = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
-    signal.signal(signal.SIGINT, signal.default_int_handler)
-    signal.signal(signal.SIGTERM, _raise_terminated)
+    if old[signal.SIGINT] is not signal.SIG_IGN:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+    if old[signal.SIGTERM] is not signal.SIG_IGN:
+        signal.signal(signal.SIGTERM, _raise_terminated)
     try:
         yield
     finally:
@@ -221,8 +224,9 @@ def signals_deferred():
     def record(signum, frame):
         pending.append(signum)
 
-    for s in old:
-        signal.signal(s, record)
+    for s, h in old.items():
+        if h is not signal.SIG_IGN:  # an ignored signal stays ignored
+            signal.signal(s, record)
     try:
         yield
     finally:
