@@ -1,10 +1,11 @@
 """Image-goal navigation (paper Sec. IV-B, E6): a quadruped explores, recognises the place a target
 image was taken from, and drives there.
 
-1. **Explore**: batched RRT in exploration mode (no goal) over the Go2's planar base (x, y, yaw)
-   grows collision-free nodes from the start (:func:`explore`).
-2. **Index**: the head camera's view at every node, at ``n_headings`` evenly spaced headings, is
-   rendered (batched) and encoded (:func:`build_view_index`).
+1. **Explore**: batched RRT in exploration mode (no goal) over the Go2's planar base grows
+   collision-free nodes from the start (:func:`explore`); by default the yaw of the nodes is
+   frozen at ``tree_yaw`` (the tree grows over x, y; see :class:`NavigateConfig`).
+2. **Index**: the head camera's view at every node (thinned to one per ``index_spacing_m``), at
+   ``n_headings`` evenly spaced headings, is rendered (batched) and encoded (:func:`build_view_index`).
 3. **Retrieve**: the node and heading whose embedding is closest to the target image's
    (squared distance, the image cost of the paper) (:func:`retrieve`). A match whose best cost is
    not clearly below the typical cost (``best / median > weak_ratio``) is reported as **weak** and
@@ -36,7 +37,7 @@ from ._common import TaskScene
 
 __all__ = [
     "NavigateConfig", "NavScene", "ViewIndex", "Match", "DriveResult", "head_camera", "load_nav_scene", "explore",
-    "build_view_index", "retrieve", "drive_to", "tree_branch", "wrap_angle", "nav_robot",
+    "build_view_index", "retrieve", "drive_to", "tree_branch", "wrap_angle", "nav_robot", "thin_nodes",
 ]  # fmt: skip
 
 
@@ -63,9 +64,16 @@ class NavigateConfig:
     #: exploration sampling box upper corner (x, y) (m)
     box_hi: tuple[float, float] = (3.9, 2.9)
     #: nodes of the exploration tree
-    tree_nodes: int = 320
+    tree_nodes: int = 900
+    #: heading of every tree node (rad): the tree grows over (x, y) with the yaw frozen (views are
+    #: rendered at every heading anyway, and a frozen yaw passes the doorways in walls x = const
+    #: head-on); None = explore the yaw too (much slower: turning counts as motion)
+    tree_yaw: float | None = 0.0
+    #: index only nodes at least this far (m) from every node indexed before them (greedy thinning
+    #: in tree order); 0 = every node
+    index_spacing_m: float = 0.25
     #: RRT stride (largest edge, weighted configuration distance)
-    tree_stride: float = 0.45
+    tree_stride: float = 0.5
     #: wall-clock cap of the exploration (s)
     tree_time_s: float = 120.0
     #: largest motion of any ellipsoid point between collision checks along a tree edge (m)
@@ -195,11 +203,28 @@ def explore(robot, nav: NavScene, cfg: NavigateConfig):
     (``tree_nodes`` (N, 3) x, y, yaw; ``tree_parents`` (N,))."""
     from ..planners import RRT, RRTConfig
 
+    start = np.asarray(cfg.start, np.float64).copy()
+    ylo, yhi = (-np.pi, np.pi) if cfg.tree_yaw is None else (float(cfg.tree_yaw), float(cfg.tree_yaw))
+    if cfg.tree_yaw is not None:
+        start[2] = float(cfg.tree_yaw)
     rcfg = RRTConfig(
         batch_size=64, stride=cfg.tree_stride, edge_resolution=cfg.edge_resolution_m, max_nodes=cfg.tree_nodes, time_limit_s=cfg.tree_time_s, seed=cfg.seed, shortcut=False,
-        box_lo=(cfg.box_lo[0], cfg.box_lo[1], -np.pi), box_hi=(cfg.box_hi[0], cfg.box_hi[1], np.pi),
+        box_lo=(cfg.box_lo[0], cfg.box_lo[1], ylo), box_hi=(cfg.box_hi[0], cfg.box_hi[1], yhi),
     )  # fmt: skip
-    return RRT(nav.task.checker, rcfg, robot=robot).plan(np.asarray(cfg.start, np.float64), None)
+    return RRT(nav.task.checker, rcfg, robot=robot).plan(start, None)
+
+
+def thin_nodes(nodes: np.ndarray, spacing: float) -> np.ndarray:
+    """Indices of nodes kept by greedy thinning in order: a node is kept when it is at least
+    ``spacing`` (m, in x, y) from every node kept before it."""
+    nodes = np.asarray(nodes, np.float64)
+    if spacing <= 0 or len(nodes) == 0:
+        return np.arange(len(nodes))
+    kept = [0]
+    for i in range(1, len(nodes)):
+        if np.min(np.linalg.norm(nodes[kept, :2] - nodes[i, :2], axis=1)) >= spacing:
+            kept.append(i)
+    return np.asarray(kept)
 
 
 @dataclass
@@ -215,13 +240,15 @@ class ViewIndex:
 
 
 def build_view_index(robot, nav: NavScene, nodes: np.ndarray, encoder, renderer, cfg: NavigateConfig) -> ViewIndex:
-    """Render and encode every node's view at ``cfg.n_headings`` headings (batched)."""
+    """Render and encode the views of the tree's nodes (thinned to ``cfg.index_spacing_m``) at
+    ``cfg.n_headings`` headings (batched). ``ViewIndex.node`` indexes ``nodes``."""
     nodes = np.asarray(nodes, np.float64).reshape(-1, 3)
+    keep = thin_nodes(nodes, cfg.index_spacing_m)
     cam = head_camera(robot, cfg)
     yaws = 2 * np.pi * np.arange(cfg.n_headings) / cfg.n_headings
-    poses = np.concatenate([np.repeat(nodes[:, :2], len(yaws), axis=0), np.tile(yaws, len(nodes))[:, None]], axis=1)  # (M, 3)
+    poses = np.concatenate([np.repeat(nodes[keep, :2], len(yaws), axis=0), np.tile(yaws, len(keep))[:, None]], axis=1)  # (M, 3)
     poses[:, 2] = wrap_angle(poses[:, 2])
-    node = np.repeat(np.arange(len(nodes)), len(yaws))
+    node = np.repeat(keep, len(yaws))
     embs, t_r, t_e = [], 0.0, 0.0
     for i in range(0, len(poses), cfg.render_batch):
         t0 = time.perf_counter()

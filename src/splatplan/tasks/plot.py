@@ -26,7 +26,6 @@ def _draw_scene(ax, scene_splats, analytic, dims, z_cut: float | None, bounds) -
     from matplotlib.patches import Polygon
 
     if analytic is not None:
-        from ..scenes.builtin.stonehenge import box_cross_section
         from ..scenes.builtin.primitives import box_corners
 
         from ..scenes.builtin import apartment, tabletop
@@ -35,25 +34,22 @@ def _draw_scene(ax, scene_splats, analytic, dims, z_cut: float | None, bounds) -
         for i, (box, lab) in enumerate(zip(analytic.boxes, analytic.labels)):
             if lab in ("floor", "ground"):
                 continue
-            if z_cut is not None and dims == (0, 1):
-                sec = box_cross_section(box, z_cut)
-                if sec is None:
-                    continue
-                poly = sec
-            else:
-                from scipy.spatial import ConvexHull
+            if z_cut is not None and box_corners(box)[:, 2].min() > z_cut + 0.3:
+                continue  # far above the robot
+            from scipy.spatial import ConvexHull
 
-                pts = box_corners(box)[:, list(dims)]
-                poly = pts[ConvexHull(pts).vertices]
+            pts = box_corners(box)[:, list(dims)]
+            poly = pts[ConvexHull(pts).vertices]
             fc = palette.get(lab, "0.6")
             ax.add_patch(Polygon(poly, closed=True, fc=fc, ec="k", lw=0.4, alpha=0.6, zorder=1))
     else:
         m = np.asarray(scene_splats.means)
         sel = np.random.default_rng(0).choice(len(m), size=min(len(m), 30000), replace=False)
-        m = m[sel]
+        m, col = m[sel], np.asarray(scene_splats.colors)[sel]
         if z_cut is not None and dims == (0, 1):
-            m = m[np.abs(m[:, 2] - z_cut) < 0.15]
-        ax.scatter(m[:, dims[0]], m[:, dims[1]], s=0.3, c=np.asarray(scene_splats.colors)[sel][: len(m)] if z_cut is None else "0.4", zorder=1)
+            keep = np.abs(m[:, 2] - z_cut) < 0.3
+            m, col = m[keep], col[keep]
+        ax.scatter(m[:, dims[0]], m[:, dims[1]], s=0.3, c=col, zorder=1)
     ax.set_xlim(bounds[0][dims[0]], bounds[1][dims[0]])
     ax.set_ylim(bounds[0][dims[1]], bounds[1][dims[1]])
     ax.set_aspect("equal")
@@ -101,8 +97,8 @@ def plot_run(robot, task_scene, result, *, kind: str, n_frames: int = 6, title: 
         ax.legend(loc="upper right", fontsize=8)
     col = "with collision cost" if result.collision_cost else "WITHOUT collision cost (--no-collision)"
     fig.suptitle(
-        f"{title or robot.name} {col}: {'reached' if result.success else 'not reached'}, final error {result.final_position_error_m * 100:.1f} cm, "
-        f"min clearance {result.min_clearance_m * 100:.1f} cm ({result.clearance_source}); frames colored start (purple) -> end (yellow)",
+        f"{title or robot.name} {col}: {'reached' if result.success else 'not reached'}, final error {result.final_position_error_m * 100:.1f} cm,\n"
+        f"min clearance {result.min_clearance_m * 100:.1f} cm ({result.clearance_source}); robot ellipsoids from start (purple) to end (yellow)",
         fontsize=9,
     )
     return fig

@@ -1,0 +1,95 @@
+"""Arm and base MPPI tasks: tiny runs on small built-in scenes, IK, reachability, start checks."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from splatplan.errors import SplatplanError
+
+
+@pytest.fixture(scope="module")
+def tabletop_small():
+    from splatplan.tasks._common import load_task_scene
+
+    return load_task_scene("tabletop", n_splats=20_000)
+
+
+def test_ik_reaches_a_pose():
+    from splatplan.robots import load_robot
+    from splatplan.tasks._ik import solve_ik
+    from splatplan.tasks.arm import down_quat
+
+    robot = load_robot("panda")
+    q, pe, re = solve_ik(robot, [0.5, 0.1, 0.3], down_quat(0.3), link="panda_hand_tcp", n_seeds=8, n_iters=60)
+    assert pe[0] < 1e-3 and re[0] < 1e-2
+    t = robot.link_poses(q[0])[robot.link_names.index("panda_hand_tcp")]
+    np.testing.assert_allclose(t[:3, 3], [0.5, 0.1, 0.3], atol=1e-3)
+
+
+def test_unreachable_goal_is_reported_before_running():
+    from splatplan.robots import load_robot
+    from splatplan.tasks.arm import check_reachable, down_quat
+
+    robot = load_robot("panda")
+    with pytest.raises(SplatplanError, match="unreachable goal pose"):
+        check_reachable(robot, [1.5, 0.0, 0.3], down_quat(), "panda_hand_tcp")
+    with pytest.raises(SplatplanError, match="unreachable goal pose"):  # inside the reach sphere but not reachable
+        check_reachable(robot, [0.0, 0.0, 1.15], down_quat(), "panda_hand_tcp", n_seeds=4)
+
+
+def test_tiny_arm_run_reduces_goal_error(tabletop_small):
+    from dataclasses import replace
+
+    from splatplan.tasks.arm import ArmConfig, down_quat, run_arm
+
+    goal = np.array([0.45, 0.0, 0.35])
+    cfg = replace(ArmConfig(), n_samples=16, horizon=8, max_steps=12, collision_stride=4)
+    r = run_arm("panda", tabletop_small, goal, down_quat(0.0), config=cfg, check_goal=False)
+    from splatplan.robots import load_robot
+
+    robot = load_robot("panda")
+    e0 = np.linalg.norm(robot.link_poses(robot.q_default)[robot.link_names.index("panda_hand_tcp"), :3, 3] - goal)
+    assert r.final_position_error_m < 0.7 * e0
+    assert r.clearance_source == "analytic" and np.isfinite(r.min_clearance_m)
+    assert r.trajectory.shape[1] == 7 and r.collision_cost
+    d = r.to_json()
+    assert set(d) >= {"success", "trajectory", "min_clearance_m", "final_position_error_m", "time_s", "steps_per_s"}
+
+
+def test_start_in_collision_names_links(tabletop_small):
+    from splatplan.robots import load_robot
+    from splatplan.tasks._common import check_start
+
+    robot = load_robot("panda")
+    q = robot.q_default.copy()
+    q[1] = 1.7  # shoulder forward: the arm lies on the table
+    q[3] = -0.3
+    with pytest.raises(SplatplanError, match=r"in collision.*panda_link\d \(\d+ splats\)"):
+        check_start(robot, tabletop_small.checker, q)
+
+
+def test_tiny_base_run_moves_toward_the_goal():
+    from dataclasses import replace
+
+    from splatplan.tasks.base import BaseConfig, load_go2, run_base
+
+    cfg = replace(BaseConfig(), n_samples=16, horizon=10, max_steps=10)
+    start = np.array([-2.3, -0.6, 0.0])
+    goal = np.array([-1.0, 2.0])
+    r = run_base(load_go2(), "apartment", goal, start=start, config=cfg)
+    assert r.final_position_error_m < np.linalg.norm(start[:2] - goal) - 0.3
+    assert r.min_clearance_m > 0 and r.clearance_source == "analytic"
+    with pytest.raises(SplatplanError, match="collides there at every heading"):
+        run_base(load_go2(), "apartment", (-3.45, 0.4), start=start, config=cfg)  # inside the sofa
+
+
+def test_densify_bounds_motion():
+    from splatplan.robots import load_robot
+    from splatplan.tasks._common import densify
+
+    robot = load_robot("panda")
+    a, b = robot.q_default, robot.q_default + 0.3
+    q = densify(robot, np.stack([a, b]), step_m=0.01)
+    steps = np.sum(robot.motion_bound * np.abs(np.diff(q, axis=0)), axis=1)
+    assert steps.max() <= 0.01 + 1e-12 and np.allclose(q[-1], b)
