@@ -87,6 +87,7 @@ class _State:
     colour_by_metric: bool = True
     show_ellipsoids: bool = True
     field_z: float = 0.0
+    show_field: bool = True
     timings: dict = field(default_factory=lambda: {"pose_update_ms": []})
 
 
@@ -134,7 +135,10 @@ class SplatViewer:
             q0 = self.plan[0].copy()
         elif self.trajectory is not None:
             q0 = self.trajectory[0].copy()
-        self.state = _State(q=q0, n_sigma=cfg.n_sigma, field_z=float(0.5 * (self.lo[2] + self.hi[2])))
+        # the field slice starts at the height of the robot's ellipsoids (clipped to the scene)
+        z0 = float(np.mean(np.asarray(robot.ellipsoids(q0)[0])[..., 2]))
+        self.state = _State(q=q0, n_sigma=cfg.n_sigma, field_z=float(np.clip(z0, self.lo[2], self.hi[2])), show_field=self.kind == "point")
+        self._syncing = False  # True while set_q moves the joint sliders (their callbacks then do nothing)
         self.server = None
         self._lock = threading.Lock()
         self._plan_thread: threading.Thread | None = None
@@ -236,7 +240,7 @@ class SplatViewer:
         if self.tree is not None:
             names.append("/plans/tree")
         names += [f"/plans/{n}" for n, a in (("plan", self.plan), ("trajectory", self.trajectory)) if a is not None and len(a) > 1]
-        return names + ["/metric/field"]
+        return names + (["/metric/field"] if self.state.show_field else [])
 
     def stop(self) -> None:
         if self.server is not None:
@@ -378,6 +382,8 @@ class SplatViewer:
                     s = gui.add_slider(name, min=lo, max=hi, step=(hi - lo) / 200.0, initial_value=float(np.clip(st.q[j], lo, hi)))
 
                     def on(_, j=j, s=s) -> None:
+                        if self._syncing:
+                            return
                         q = self.state.q.copy()
                         q[j] = float(s.value)
                         self.set_q(q)
@@ -393,6 +399,13 @@ class SplatViewer:
                 self.set_q(anim[int(t.value)])
 
         with gui.add_folder("collision field slice"):
+            show = gui.add_checkbox("show the metric on a plane", self.kind == "point")
+
+            @show.on_update
+            def _(_) -> None:
+                st.show_field = bool(show.value)
+                self._update_field()
+
             z = gui.add_slider("plane z", min=float(self.lo[2]), max=float(self.hi[2]), step=float(self.hi[2] - self.lo[2]) / 100.0,
                                initial_value=float(st.field_z))  # fmt: skip
 
@@ -417,6 +430,14 @@ class SplatViewer:
     # ------------------------------------------------------------------ updates
     def set_q(self, q) -> None:
         self.state.q = np.asarray(q, dtype=np.float64).copy()
+        if self.server is not None and self.kind == "joints" and getattr(self, "_sliders", None):
+            self._syncing = True
+            try:
+                for s, v in zip(self._sliders, self.state.q):
+                    if abs(float(s.value) - float(v)) > 1e-9:
+                        s.value = float(np.clip(v, s.min, s.max))
+            finally:
+                self._syncing = False
         self._update_pose()
 
     def _update_pose(self) -> dict:
@@ -475,6 +496,10 @@ class SplatViewer:
         if self.server is None:
             return
         st = self.state
+        if not st.show_field:
+            if getattr(self, "_field", None) is not None:
+                self._field.visible = False
+            return
         res = int(self.config.field_res)
         r = float(np.min(self.robot.semi_axes))  # a probe sphere as small as the robot's smallest semi-axis
         xs = np.linspace(self.lo[0], self.hi[0], res)
@@ -484,7 +509,7 @@ class SplatViewer:
         field = self.checker.with_config(n_sigma=st.n_sigma).query(pts, None, r).min_s2  # (res, res)
         img = colormap(np.minimum(field, 4.0), 0.0, 4.0)
         img[field < 1.0] = (img[field < 1.0] * 0.4).astype(np.uint8)  # darker inside the collision boundary
-        self.server.scene.add_image(
+        self._field = self.server.scene.add_image(
             "/metric/field", img[::-1].copy(),  # row 0 of the image is drawn at +y
             render_width=float(self.hi[0] - self.lo[0]), render_height=float(self.hi[1] - self.lo[1]),
             position=(float(xs.mean()), float(ys.mean()), float(st.field_z)),
