@@ -99,12 +99,36 @@ def trajectory_clearance(robot, scene: TaskScene, states: np.ndarray) -> tuple[f
     q = densify(robot, states)
     if scene.analytic is not None:
         c, quat, ax = robot.ellipsoids(q)
-        per = scene.analytic.ellipsoid_clearance(c, quat, ax).min(axis=-1)
-        return float(per.min()), "analytic", per
-    res = scene.checker.query_robot(robot, q)
-    s2 = np.asarray(res.min_s2, np.float64)  # (S', E)
-    per = ((np.sqrt(np.maximum(s2, 0.0)) - 1.0) * robot.semi_axes.min(axis=1)).min(axis=-1)
-    return float(per.min()), "metric", per
+        per_e = scene.analytic.ellipsoid_clearance(c, quat, ax)  # (S', E)
+        source = "analytic"
+    else:
+        res = scene.checker.query_robot(robot, q)
+        s2 = np.asarray(res.min_s2, np.float64)  # (S', E)
+        per_e = (np.sqrt(np.maximum(s2, 0.0)) - 1.0) * robot.semi_axes.min(axis=1)
+        source = "metric"
+    return float(per_e.min()), source, per_e.min(axis=-1)
+
+
+def moving_ellipsoids(robot) -> np.ndarray:
+    """(E,) bool: ellipsoids whose pose depends on the configuration (not fixed to the base)."""
+    rng = np.random.default_rng(0)
+    lim = np.asarray(robot.joint_limits, np.float64)
+    lo = np.where(np.isfinite(lim[:, 0]), lim[:, 0], -1.0)
+    hi = np.where(np.isfinite(lim[:, 1]), lim[:, 1], 1.0)
+    c, _, _ = robot.ellipsoids(lo + rng.random((4, robot.dof)) * (hi - lo))
+    return np.ptp(c, axis=0).max(axis=-1) > 1e-9
+
+
+def moving_clearance(robot, scene: TaskScene, states: np.ndarray) -> float:
+    """Like :func:`trajectory_clearance` over the ellipsoids that move (the arm's fixed base link
+    excluded: it sits at a constant distance from the table)."""
+    q = densify(robot, states)
+    mov = moving_ellipsoids(robot)
+    if scene.analytic is not None:
+        c, quat, ax = robot.ellipsoids(q)
+        return float(scene.analytic.ellipsoid_clearance(c[:, mov], quat[:, mov], ax[mov]).min())
+    s2 = np.asarray(scene.checker.query_robot(robot, q).min_s2, np.float64)[:, mov]
+    return float(((np.sqrt(np.maximum(s2, 0.0)) - 1.0) * robot.semi_axes[mov].min(axis=1)).min())
 
 
 CLEARANCE_NOTES = {

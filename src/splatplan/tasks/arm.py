@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import SplatplanError
-from ._common import TaskResult, TaskScene, check_start, load_task_scene, strided_collision_cost, trajectory_clearance
+from ._common import TaskResult, TaskScene, check_start, load_task_scene, moving_clearance, strided_collision_cost, trajectory_clearance
 from ._ik import rotation_error, solve_ik
 
 __all__ = ["ArmConfig", "check_reachable", "down_quat", "run_arm"]
@@ -224,6 +224,7 @@ def run_arm(
     pe, re = _ee_error(robot, q, li, p_goal, r_goal)
     traj = np.asarray(states)
     clearance, source, _ = trajectory_clearance(robot, ts, traj)
+    clearance_moving = moving_clearance(robot, ts, traj)
     success = bool(pe < cfg.position_tol and clearance > 0)  # orientation error reported beside it
     ee = robot.link_poses(traj)[:, li, :3, 3]
     return TaskResult(
@@ -238,5 +239,6 @@ def run_arm(
         final_orientation_error_deg=float(np.rad2deg(re)),
         message="" if success else ("in collision" if clearance <= 0 else "goal not reached within max_steps"),
         goal={"position": p_goal.tolist(), "quat_wxyz": None if quat is None else quat.tolist(), "link": cfg.ee_link},
-        extra={"robot": robot.name, "scene": ts.name, "n_steps": n_steps, "ee_trace": ee.round(5).tolist(), "n_splats": len(ts.splats)},
+        extra={"robot": robot.name, "scene": ts.name, "n_steps": n_steps, "ee_trace": ee.round(5).tolist(), "n_splats": len(ts.splats),
+               "min_clearance_moving_links_m": clearance_moving},  # fmt: skip
     )

@@ -47,8 +47,9 @@ class NavigateConfig:
 
     #: splats of a built-in scene (fewer = faster renders); None = the scene's default
     n_splats: int | None = 80_000
-    #: conservatism of the metric (n_sigma)
-    n_sigma: float = 1.0
+    #: conservatism of the metric (n_sigma). 0.5: at 1 the apartment's large level-1 splats leave
+    #: only 11% of random Go2 poses free against 39% by the exact geometry (0.5: 28%, 0.5% missed)
+    n_sigma: float = 0.5
     #: rendered image side (pixels, square)
     image_size: int = 64
     #: horizontal field of view of the head camera (degrees)

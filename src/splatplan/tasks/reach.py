@@ -53,6 +53,9 @@ class ReachConfig:
     temperature: float = 0.1
     #: std of the knot perturbations (rad/s)
     noise_sigma: float = 0.5
+    #: knot noise at the last MPC step as a fraction of noise_sigma (linear in the remaining
+    #: horizon: finer exploration as the goal time approaches); 1 = constant noise
+    noise_final: float = 0.3
     #: MPPI iterations before the first control is applied
     plan_iters: int = 20
     #: MPPI iterations per later MPC step
@@ -333,6 +336,7 @@ def run_reach(
             noise_sigma=cfg.noise_sigma, n_iters=cfg.plan_iters, u_min=tuple(-vmax), u_max=tuple(vmax), seed=cfg.seed,
         )  # fmt: skip
         mppi = MPPI(dyn, ts.checker if collision else None, mcfg, costs=costs)
+        sigma0 = np.array(mppi.sigma, copy=True)
         states, trace, views = [q.copy()], [], []
         view_every = max(1, cfg.horizon // max(cfg.n_views, 1))
         iters = 0
@@ -340,6 +344,7 @@ def run_reach(
         for s in range(cfg.horizon):
             image_cost.time_index = cfg.horizon - 1 - s  # the goal time stays at T
             mppi.config.n_iters = cfg.plan_iters if s == 0 else cfg.iters_per_step
+            mppi.sigma = sigma0 * (cfg.noise_final + (1.0 - cfg.noise_final) * (cfg.horizon - s) / cfg.horizon)
             u, info = mppi.step(q)
             iters += mppi.config.n_iters
             q = dyn.rollout(q, u[None, None, :], cfg.dt)[0, 0]
