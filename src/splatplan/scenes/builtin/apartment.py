@@ -15,8 +15,8 @@ Layout
 * ``living`` room: x in [-4, 0], all of y; ``bedroom``: x in [0, 4], y in [0, 3];
   ``kitchen``: x in [0, 4], y in [-3, 0].
 * doorways (:data:`DOORS`): living <-> bedroom 0.90 m wide; living <-> kitchen 0.25 m (narrower
-  than the Go2: impassable); bedroom <-> kitchen 0.70 m; a second living <-> kitchen doorway of
-  0.60 m near the outer wall.
+  than the Go2: impassable); bedroom <-> kitchen 0.80 m; a second living <-> kitchen doorway of
+  0.80 m near the outer wall.
 * walls 0.10 m thick and :data:`WALL_HEIGHT` tall; furniture per room (sofa, tables, bed,
   wardrobe, counters, ...) and distinctly coloured objects (``object_*``).
 
@@ -56,8 +56,8 @@ ROOMS = {
 DOORS = (
     ("living-bedroom", "x", 0.0, 1.30, 2.20, ("living", "bedroom")),
     ("living-kitchen-narrow", "x", 0.0, -1.10, -0.85, ("living", "kitchen")),
-    ("living-kitchen", "x", 0.0, -2.85, -2.25, ("living", "kitchen")),
-    ("bedroom-kitchen", "y", 0.0, 2.60, 3.30, ("bedroom", "kitchen")),
+    ("living-kitchen", "x", 0.0, -2.90, -2.10, ("living", "kitchen")),
+    ("bedroom-kitchen", "y", 0.0, 2.55, 3.35, ("bedroom", "kitchen")),
 )
 
 LABEL_COLORS = {
