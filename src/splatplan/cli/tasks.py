@@ -30,7 +30,12 @@ def register(sub, eval_sub) -> None:
     from ..tasks.reach import ReachConfig
 
     s = sub.add_parser("navigate", help="image-goal navigation: explore, find the place a target image shows, drive there",
-                       description=(__doc__ or "").strip().splitlines()[0])  # fmt: skip
+                       description="Image-goal navigation with the Go2: an exploration RRT grows collision-free nodes, every node's head-camera view is "
+                                   "rendered at several headings and encoded, the best match to the target image is retrieved, and base MPPI with the "
+                                   "collision cost drives there. The target image may have any size (the encoder resizes it; non-square images are "
+                                   "squashed) and any mode Pillow reads as RGB / RGBA (over black) / grey; an unreadable file is an error (exit 2). "
+                                   "A weak best match (best cost / median cost > --weak-ratio) is reported with its score and the robot does not "
+                                   "drive (exit 1) unless --drive-anyway. Exit 1 also when the drive does not reach the node.")  # fmt: skip
     s.add_argument("--scene", default="apartment", help="built-in scene name (default apartment) or a splat file (its .gt.json beside it gives the exact clearance)")
     s.add_argument("--target-image", required=True, metavar="IMG", help="target image file (PNG/JPEG/...; any size: the encoder resizes it)")
     s.add_argument("--out", required=True, metavar="DIR", help="output folder (result.json, tree.png, match.png)")

@@ -137,7 +137,7 @@ def run_reach_study(out_dir, *, encoder: str = "thumbnail", encoder_weights: str
     t0 = time.perf_counter()
     robot = load_robot("panda")
     ts = load_task_scene("tabletop", n_sigma=cfg.n_sigma, device=device, n_splats=cfg.n_splats)
-    enc = load_encoder(encoder, weights=encoder_weights, device=device)
+    enc = load_encoder(encoder, weights=encoder_weights, device=device, image_size=cfg.encoder_image_size)
     cam = wrist_camera(robot, cfg.image_size, cfg.fov_deg, cfg.camera_link)
     q0 = reach_start(robot, cfg.camera_link)
     bg = (cfg.background,) * 3

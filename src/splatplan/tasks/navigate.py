@@ -65,14 +65,14 @@ class NavigateConfig:
     #: exploration sampling box upper corner (x, y) (m)
     box_hi: tuple[float, float] = (3.9, 2.9)
     #: nodes of the exploration tree
-    tree_nodes: int = 900
+    tree_nodes: int = 1200
     #: heading of every tree node (rad): the tree grows over (x, y) with the yaw frozen (views are
     #: rendered at every heading anyway, and a frozen yaw passes the doorways in walls x = const
     #: head-on); None = explore the yaw too (much slower: turning counts as motion)
     tree_yaw: float | None = 0.0
     #: index only nodes at least this far (m) from every node indexed before them (greedy thinning
     #: in tree order); 0 = every node
-    index_spacing_m: float = 0.25
+    index_spacing_m: float = 0.15
     #: RRT stride (largest edge, weighted configuration distance)
     tree_stride: float = 0.5
     #: wall-clock cap of the exploration (s)
@@ -80,7 +80,7 @@ class NavigateConfig:
     #: largest motion of any ellipsoid point between collision checks along a tree edge (m)
     edge_resolution_m: float = 0.06
     #: headings rendered per node (evenly spaced over 360 degrees)
-    n_headings: int = 12
+    n_headings: int = 24
     #: renders per batch when indexing
     render_batch: int = 256
     #: a match is weak when best cost / median cost over all views exceeds this
@@ -109,6 +109,9 @@ class NavigateConfig:
     w_hit: float = 20.0
     #: weight of the control effort
     w_control: float = 0.01
+    #: conservatism (n_sigma) of the drive's collision cost: more than the exploration's, so the
+    #: executed path keeps a margin where the exploration metric is permissive
+    drive_n_sigma: float = 1.0
     #: neighbourhood of the rollouts' collision cost (s2_cap)
     collision_s2_cap: float = 1.6
     #: follow the tree's branch to the retrieved node (False = only the node position)
@@ -363,15 +366,16 @@ def drive_to(robot, nav: NavScene, goal_xy, cfg: NavigateConfig, *, start=None, 
         path = np.vstack([path, goal])
     dyn = PlanarBase(robot)
     goal_cost = GoalPoseCost(None, position=goal, state_dims=(0, 1), position_weight=cfg.w_goal, terminal_factor=2.0)
+    drive_checker = nav.task.checker.with_config(n_sigma=cfg.drive_n_sigma)
     costs = [
-        CollisionCost(nav.task.checker, robot, weight=cfg.w_collision, hit_weight=cfg.w_hit, s2_cap=cfg.collision_s2_cap),
+        CollisionCost(drive_checker, robot, weight=cfg.w_collision, hit_weight=cfg.w_hit, s2_cap=cfg.collision_s2_cap),
         goal_cost,
         ControlEffortCost(cfg.w_control),
     ]
     um = np.asarray(cfg.u_max, np.float64)
     mcfg = MPPIConfig(n_samples=cfg.n_samples, horizon=cfg.horizon, n_knots=cfg.n_knots, dt=cfg.dt, temperature=cfg.temperature,
                       noise_sigma=tuple(cfg.noise_sigma), n_iters=cfg.n_iters, u_min=tuple(-um), u_max=tuple(um), seed=cfg.seed)  # fmt: skip
-    mppi = MPPI(dyn, nav.task.checker, mcfg, costs=costs)
+    mppi = MPPI(dyn, drive_checker, mcfg, costs=costs)
     states = [x.copy()]
     prog = 0
     t0 = time.perf_counter()

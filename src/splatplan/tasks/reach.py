@@ -208,14 +208,15 @@ def reach_start(robot, camera_link: str = "panda_hand_tcp") -> np.ndarray:
 
 def make_reach_goals(
     robot, scene: TaskScene, renderer, camera, *, n: int = 5, q_start=None, spread: float = 0.35, n_behind: int = 2, margin_m: float = 0.02,
-    min_move_m: float = 0.05, max_move_m: float = 0.15, n_candidates: int = 384, seed: int = 0,
+    min_move_m: float = 0.05, max_move_m: float = 0.15, max_turn_deg: float = 30.0, n_candidates: int = 384, seed: int = 0,
 ) -> list[dict]:
     """Random reachable, collision-free goal configurations near ``q_start`` whose wrist view is
     informative, ``n_behind`` of them with the camera behind the bin's front wall (:data:`BEHIND_WALL`).
 
     Candidates ``q_start + U(-spread, spread)^7`` (clipped to the limits) are kept when every link
     ellipsoid clears the exact geometry by ``margin_m``, the metric finds no collision, there is no
-    self-collision, the camera moves ``min_move_m``..``max_move_m`` from the start, and the view
+    self-collision, the camera moves ``min_move_m``..``max_move_m`` from the start and turns by at
+    most ``max_turn_deg``, and the view
     is filled by the scene (alpha > 0.98) with contrast (std > 0.05). Goals are then picked far
     apart from each other (greedy farthest point in camera position).
 
@@ -230,7 +231,8 @@ def make_reach_goals(
     t_start = robot.link_poses(q_start)[li] @ camera.offset
     t = robot.link_poses(q)[:, li] @ camera.offset  # (M, 4, 4)
     move = np.linalg.norm(t[:, :3, 3] - t_start[:3, 3], axis=1)
-    keep = (move > min_move_m) & (move < max_move_m)
+    turn = np.degrees(np.arccos(np.clip(0.5 * (np.einsum("ij,kij->k", t_start[:3, :3], t[:, :3, :3]) - 1.0), -1.0, 1.0)))
+    keep = (move > min_move_m) & (move < max_move_m) & (turn < max_turn_deg)
     q, t = q[keep], t[keep]
     if scene.analytic is not None and len(q):
         c, qu, ax = robot.ellipsoids(q)
