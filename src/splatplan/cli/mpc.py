@@ -56,7 +56,10 @@ def cmd_mpc(args) -> int:
             from ..tasks._common import load_task_scene
 
             ts = load_task_scene(scene, n_sigma=cfg.n_sigma, device=args.device, ground_below=None if cfg.ground_z is None else cfg.ground_z + cfg.ground_band)
-            route = plan_route(robot, ts.checker, start, g, seed=args.seed)
+            route = plan_route(robot, ts.checker, start, g, time_budget_s=args.route_time, seed=args.seed)
+            if route is None:
+                print(f"no SE(2) route from {start[:2].round(2).tolist()} to {g.round(2).tolist()} within {args.route_time:g} s (try a larger --route-time)")
+                return 1
         res = run_base(robot, scene, g, start=start, config=cfg, collision=collision, route=route, device=args.device)
         kind = "base"
     else:  # argparse choices keep this unreachable
@@ -104,6 +107,7 @@ def register(sub, eval_sub) -> None:
     s.add_argument("--start", default=None, help="start configuration: 7 joint values (panda, default home) or X,Y,YAW (go2, default 0,0,0)")
     s.add_argument("--no-collision", action="store_true", help="switch the collision cost off (the baseline); every output says so")
     s.add_argument("--route", action="store_true", help="go2: plan a global RRT route on SE(2) first and track it (default: goal only)")
+    s.add_argument("--route-time", type=float, default=60.0, help="go2 --route: RRT time budget in seconds (default 60)")
     s.add_argument("--out", required=True, help="output folder (result.json, motion.png)")
     s.add_argument("--seed", type=int, default=0, help="noise seed")
     add_device_arg(s)

@@ -95,21 +95,29 @@ class BaseConfig:
     seed: int = 0
 
 
-def plan_route(robot, checker, start, goal_xy, time_budget_s: float = 30.0, seed: int = 0) -> np.ndarray:
-    """Global route on the base's SE(2) with the batched RRT: (P, 3) configurations (x, y, yaw).
+def plan_route(robot, checker, start, goal_xy, time_budget_s: float = 60.0, seed: int = 0) -> np.ndarray | None:
+    """Global route on the base's SE(2) with the batched RRT: (P, 3) configurations (x, y, yaw),
+    or None when none is found within ``time_budget_s``.
 
-    The goal's yaw is free: the RRT goal is the goal position at the yaw of the straight line from
-    the start (the last edge may turn)."""
+    The goal's yaw is free: the RRT goal is the goal position at the collision-free heading nearest
+    to the bearing from the start."""
     from ..planners import RRT, RRTConfig
 
     start = np.asarray(start, np.float64)
     g = np.asarray(goal_xy, np.float64)
-    yaw = float(np.arctan2(g[1] - start[1], g[0] - start[0]))
+    bearing = float(np.arctan2(g[1] - start[1], g[0] - start[0]))
+    yaws = bearing + np.linspace(-np.pi, np.pi, 24, endpoint=False)
+    yaws = yaws[np.argsort(np.abs(np.angle(np.exp(1j * (yaws - bearing)))))]  # nearest to the bearing first
+    q = np.stack([np.full(len(yaws), g[0]), np.full(len(yaws), g[1]), np.angle(np.exp(1j * yaws))], axis=1)
+    free = ~np.asarray(checker.collides_robot(robot, q)).any(axis=-1)
+    if not free.any():
+        raise SplatplanError(f"goal {g.round(3).tolist()}: the base collides there at every heading; pick a free goal")
+    yaw = float(q[np.argmax(free), 2])
     lo, hi = checker.scene.bounds()
     cfg = RRTConfig(box_lo=(float(lo[0]), float(lo[1]), -np.pi), box_hi=(float(hi[0]), float(hi[1]), np.pi), time_limit_s=time_budget_s, seed=seed, goal_tolerance=0.1)
     res = RRT(checker, cfg, robot=robot).plan(start, np.array([g[0], g[1], yaw]))
     if not res.success:
-        raise SplatplanError(f"no route found from {start[:2].round(2).tolist()} to {g.round(2).tolist()} within {time_budget_s:g} s")
+        return None
     return np.asarray(res.path)
 
 
