@@ -11,10 +11,15 @@ away from them. Cost per sample (:mod:`splatplan.planners.costs`):
 * :class:`CollisionCost`: the CollisionSplatting cost of **every** robot ellipsoid, one
   ``query_robot`` per MPPI iteration on the (K, T, dof) batch, plus a count of colliding ellipsoids
   (and optional self-collision);
-* :class:`ControlEffortCost` and :class:`JointLimitCost`.
+* :class:`ControlEffortCost`, :class:`JointLimitCost`, and a posture term toward the
+  collision-free IK solution of the goal nearest to the start (resolves the 7-DoF redundancy; the
+  task cost is still the end-effector pose).
 
-Warm start by shifting the knots one control period (MPPI's own). The goal pose is checked for
-reachability by IK (:func:`solve_ik`) before any step: an unreachable goal is an error.
+Warm start by shifting the knots one control period (MPPI's own); the knots are an unclamped
+B-spline so that the applied first control is set by knots that shape the whole rollout; the
+knot noise shrinks near the goal (``noise_anneal_m``). The collision cost may query every
+``collision_stride``-th step of the horizon. The goal pose is checked for reachability by IK
+(:func:`~splatplan.tasks._ik.solve_ik`) before any step: an unreachable goal is an error.
 """
 
 from __future__ import annotations

@@ -366,7 +366,7 @@ class AnalyticScene:
 
         Each ellipsoid-box problem is convex (the box SDF is convex, the ellipsoid is convex). The
         positive case is solved by alternating projections between the ellipsoid and the box from
-        the best of 146 surface/interior samples; it returns the length of the final closest-pair
+        the best of 145 surface/interior samples; it returns the length of the final closest-pair
         candidate (an upper bound) and certifies it with a separating-plane lower bound
         ``n.c - |M^T n| - sum_k h_k |n_k|`` (``return_bounds`` gives both; their gap is < 1e-7 m in
         the tests). The negative case maximises ``min_k (h_k - |p_k|)`` over the ellipsoid by
