@@ -39,3 +39,18 @@ def test_no_collision_is_said_everywhere(tmp_path, capsys):
     assert d["collision_cost"] is False and "--no-collision" in d["note"]
     assert set(d) >= {"success", "trajectory", "min_clearance_m", "final_position_error_m", "time_s", "steps_per_s"}
     assert (out / "motion.png").stat().st_size > 1000
+
+
+def test_scene_file_without_ground_truth_uses_the_metric(tmp_path, capsys):
+    import json
+
+    from splatplan.scenes.builtin import write_builtin
+
+    ply, gt = write_builtin("apartment", tmp_path / "apt.ply")
+    gt.unlink()
+    out = tmp_path / "run"
+    rc = main(["mpc", "--robot", "go2", "--scene", str(ply), "--goal=-1.8,-0.6", "--start=-2.3,-0.6,0", "--out", str(out),
+               "--base-max-steps", "3", "--base-n-samples", "8", "--base-horizon", "6"])  # fmt: skip
+    assert rc in (0, 1)
+    d = json.loads((out / "result.json").read_text())
+    assert d["clearance_source"] == "metric" and "metric" in d["clearance_note"] and "(metric)" in capsys.readouterr().out

@@ -45,7 +45,7 @@ def _draw_scene(ax, scene_splats, analytic, dims, z_cut: float | None, bounds) -
     else:
         m = np.asarray(scene_splats.means)
         sel = np.random.default_rng(0).choice(len(m), size=min(len(m), 30000), replace=False)
-        m, col = m[sel], np.asarray(scene_splats.colors)[sel]
+        m, col = m[sel], np.clip(np.asarray(scene_splats.colors, np.float64)[sel], 0.0, 1.0)
         if z_cut is not None and dims == (0, 1):
             keep = np.abs(m[:, 2] - z_cut) < 0.3
             m, col = m[keep], col[keep]
