@@ -96,3 +96,23 @@ def cpu_threads() -> int:
         return max(1, len(os.sched_getaffinity(0)))
     except AttributeError:  # pragma: no cover - non-Linux
         return max(1, os.cpu_count() or 1)
+
+
+def wait_all(futures) -> None:
+    """Wait for every future of a batch of CPU launches, re-raising the first error.
+
+    On Ctrl-C (or an error) while launches still run, the ones not started are cancelled and the
+    running ones are waited for before the exception propagates: the caller must never free
+    the buffers that a running kernel still writes (that segfaulted on interrupts).
+    """
+    import concurrent.futures
+
+    futures = list(futures)
+    try:
+        for f in futures:
+            f.result()
+    except BaseException:
+        for f in futures:
+            f.cancel()
+        concurrent.futures.wait(futures)
+        raise

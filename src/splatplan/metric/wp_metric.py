@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._warp import cpu_threads, resolve_device
+from .._warp import cpu_threads, resolve_device, wait_all
 from .._warp import wp as _wp
 from ..scenes.splats import Splats, quat_to_rotmat
 from .config import COST_REDUCE_CODES, MetricConfig
@@ -348,8 +348,7 @@ class WarpMetric:
             pool.submit(wp.launch, kernel, dim=min(step, b - lo), inputs=[lo, *args], device=self.device)
             for lo in range(0, b, step)
         ]
-        for f in futs:
-            f.result()
+        wait_all(futs)  # on Ctrl-C: cancel what has not started, wait for running launches
 
     def sort_queries(self, links: LinkBatch, b: int, keys, values) -> None:
         """Set ``links.order`` to a Morton order of the b query centres (int32 scratch ``keys``/``values`` of >= 2b rows)."""

@@ -252,9 +252,9 @@ class SplatRenderer:
                     self._run_chunk(scene, ca, fr, zmax, out, s0, min(chunk, b - s0))
             else:
                 pool = self._get_pool()
-                futs = [pool.submit(self._run_chunk, scene, ca, fr, zmax, out, s0, min(chunk, b - s0)) for s0 in starts]
-                for f in futs:
-                    f.result()
+                from .._warp import wait_all
+
+                wait_all(pool.submit(self._run_chunk, scene, ca, fr, zmax, out, s0, min(chunk, b - s0)) for s0 in starts)
         if host is not None:
             return _wrap(*host, kind, dev)
         return _wrap_device(out, b, height, width, kind)

@@ -236,5 +236,6 @@ def launch_fk(robot, q_wp, out_centers, out_rots) -> None:
         if hi > lo:
             wp.launch(fk_kernel, dim=hi - lo, inputs=[m, q_wp, lo, sr, sp, out_centers, out_rots], device=dev)
 
-    for fut in [pool.submit(run, i) for i in range(n_chunks)]:
-        fut.result()
+    from .._warp import wait_all
+
+    wait_all([pool.submit(run, i) for i in range(n_chunks)])  # on Ctrl-C: running launches finish first
