@@ -245,7 +245,10 @@ class WarpMetric:
         args = (float(n_sigma), float(cap), float(a_min), float(a_max))
         key = self._keys.get(args)  # memoised: search_radius in Python scope costs ~0.2 ms a call
         if key is None:
-            rho = [search_radius(args[0], s, args[2], args[3], args[1]) for s in self.class_sigma]
+            # float32 in Python scope: extreme size ratios (a 1e-30 link) overflow to inf; any radius beyond
+            # 1e30 already makes every grid 1x1x1 (every splat visited), so clamp it there
+            rho = [float(search_radius(args[0], s, args[2], args[3], args[1])) for s in self.class_sigma]
+            rho = [r if math.isfinite(r) and r < 1e30 else 1e30 for r in rho]
             groups = self._group_classes(rho)
             cells = tuple(int(math.floor(4 * math.log2(max(rho[j] * self.tiers.cell_factor, 1e-9)))) for _, j in groups)
             key = (groups, cells)
