@@ -19,7 +19,7 @@ def nav_setup():
     from splatplan.encoders import load_encoder
     from splatplan.tasks.navigate import NavigateConfig, load_nav_scene, nav_robot
 
-    cfg = NavigateConfig(image_size=32, n_headings=6, max_steps=12)
+    cfg = NavigateConfig(image_size=32, n_headings=6, max_steps=8)
     robot = nav_robot()
     nav = load_nav_scene("apartment", cfg)
     with SplatRenderer(nav.render_splats, "cpu") as rend:

@@ -11,7 +11,8 @@ image was taken from, and drives there.
    not clearly below the typical cost (``best / median > weak_ratio``) is reported as **weak** and
    the robot does not drive unless asked to.
 4. **Drive**: base MPPI with the collision cost (every body and leg ellipsoid) drives to the
-   retrieved node given only its position (:func:`drive_to`). With ``follow_tree`` (default) the
+   retrieved node given only its position (:func:`drive_to`), holding the tree's heading (a soft
+   cost: the tree's edges were collision-checked at that heading). With ``follow_tree`` (default) the
    goal cost pulls towards a point ``lookahead_m`` ahead along the tree's branch to that node (the
    tree is the map the exploration built; a bare goal position leaves MPPI stuck behind walls
    between rooms); ``follow_tree=False`` is the bare setting.
@@ -104,16 +105,18 @@ class NavigateConfig:
     #: weight of the distance to the (carrot) goal, per metre per step
     w_goal: float = 2.0
     #: weight of the summed CollisionSplatting cost
-    w_collision: float = 2.0
+    w_collision: float = 5.0
     #: cost per (step, ellipsoid) in collision
     w_hit: float = 20.0
+    #: weight of the heading term sum_t wrap(yaw_t - tree_yaw)^2 (the tree's edges were checked at
+    #: that heading; 0 = free heading)
+    w_yaw: float = 1.0
     #: weight of the control effort
     w_control: float = 0.01
-    #: conservatism (n_sigma) of the drive's collision cost: more than the exploration's, so the
-    #: executed path keeps a margin where the exploration metric is permissive
-    drive_n_sigma: float = 1.0
+    #: conservatism (n_sigma) of the drive's collision cost (1.0 closes the 0.9 m doorway for the Go2)
+    drive_n_sigma: float = 0.5
     #: neighbourhood of the rollouts' collision cost (s2_cap)
-    collision_s2_cap: float = 1.6
+    collision_s2_cap: float = 2.0
     #: follow the tree's branch to the retrieved node (False = only the node position)
     follow_tree: bool = True
     #: carrot distance ahead along the branch (m)
@@ -121,7 +124,7 @@ class NavigateConfig:
     #: reached when within this distance of the node (m)
     goal_tol_m: float = 0.15
     #: MPC step budget of one drive
-    max_steps: int = 400
+    max_steps: int = 300
     #: seed (RRT sampler, MPPI noise)
     seed: int = 0
 
@@ -354,7 +357,7 @@ def drive_to(robot, nav: NavScene, goal_xy, cfg: NavigateConfig, *, start=None, 
         branch: (P, 2+) tree path ending at the goal, followed with a carrot when ``cfg.follow_tree``.
     """
     from ..planners import MPPI, MPPIConfig
-    from ..planners.costs import CollisionCost, ControlEffortCost, GoalPoseCost
+    from ..planners.costs import CollisionCost, ControlEffortCost, GoalPoseCost, StateCost
     from ..planners.dynamics import PlanarBase
     from ._common import check_start, trajectory_clearance
 
@@ -372,6 +375,9 @@ def drive_to(robot, nav: NavScene, goal_xy, cfg: NavigateConfig, *, start=None, 
         goal_cost,
         ControlEffortCost(cfg.w_control),
     ]
+    if cfg.w_yaw > 0 and cfg.tree_yaw is not None:
+        yaw0 = float(cfg.tree_yaw)
+        costs.append(StateCost(lambda s: wrap_angle(s[..., 2] - yaw0) ** 2, weight=cfg.w_yaw, name="heading"))
     um = np.asarray(cfg.u_max, np.float64)
     mcfg = MPPIConfig(n_samples=cfg.n_samples, horizon=cfg.horizon, n_knots=cfg.n_knots, dt=cfg.dt, temperature=cfg.temperature,
                       noise_sigma=tuple(cfg.noise_sigma), n_iters=cfg.n_iters, u_min=tuple(-um), u_max=tuple(um), seed=cfg.seed)  # fmt: skip

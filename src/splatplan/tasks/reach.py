@@ -208,7 +208,8 @@ def reach_start(robot, camera_link: str = "panda_hand_tcp") -> np.ndarray:
 
 def make_reach_goals(
     robot, scene: TaskScene, renderer, camera, *, n: int = 5, q_start=None, spread: float = 0.35, n_behind: int = 2, margin_m: float = 0.02,
-    min_move_m: float = 0.05, max_move_m: float = 0.15, max_turn_deg: float = 30.0, n_candidates: int = 384, seed: int = 0,
+    min_move_m: float = 0.05, max_move_m: float = 0.15, max_turn_deg: float = 30.0, n_candidates: int = 1024, seed: int = 0,
+    behind_spread: float = 0.45, behind_max_move_m: float = 0.2,
 ) -> list[dict]:
     """Random reachable, collision-free goal configurations near ``q_start`` whose wrist view is
     informative, ``n_behind`` of them with the camera behind the bin's front wall (:data:`BEHIND_WALL`).
@@ -216,7 +217,8 @@ def make_reach_goals(
     Candidates ``q_start + U(-spread, spread)^7`` (clipped to the limits) are kept when every link
     ellipsoid clears the exact geometry by ``margin_m``, the metric finds no collision, there is no
     self-collision, the camera moves ``min_move_m``..``max_move_m`` from the start and turns by at
-    most ``max_turn_deg``, and the view
+    most ``max_turn_deg`` (half the candidates use ``behind_spread`` and, behind the wall only,
+    ``behind_max_move_m``: reaching behind the wall takes a longer move), and the view
     is filled by the scene (alpha > 0.98) with contrast (std > 0.05). Goals are then picked far
     apart from each other (greedy farthest point in camera position).
 
@@ -226,13 +228,17 @@ def make_reach_goals(
     rng = np.random.default_rng(seed)
     q_start = np.asarray(robot.q_default if q_start is None else q_start, np.float64)
     lim = np.asarray(robot.joint_limits, np.float64)
-    q = np.clip(q_start + rng.uniform(-spread, spread, (n_candidates, robot.dof)), lim[:, 0] + 0.05, lim[:, 1] - 0.05)
+    half = n_candidates // 2
+    sp = np.concatenate([np.full(half, spread), np.full(n_candidates - half, behind_spread)])[:, None]
+    q = np.clip(q_start + rng.uniform(-1.0, 1.0, (n_candidates, robot.dof)) * sp, lim[:, 0] + 0.05, lim[:, 1] - 0.05)
     li = camera._link_index(robot)
     t_start = robot.link_poses(q_start)[li] @ camera.offset
     t = robot.link_poses(q)[:, li] @ camera.offset  # (M, 4, 4)
     move = np.linalg.norm(t[:, :3, 3] - t_start[:3, 3], axis=1)
     turn = np.degrees(np.arccos(np.clip(0.5 * (np.einsum("ij,kij->k", t_start[:3, :3], t[:, :3, :3]) - 1.0), -1.0, 1.0)))
-    keep = (move > min_move_m) & (move < max_move_m) & (turn < max_turn_deg)
+    lo_b, hi_b = BEHIND_WALL
+    in_b = np.all((t[:, :3, 3] > lo_b) & (t[:, :3, 3] < hi_b), axis=1)
+    keep = (move > min_move_m) & (move < np.where(in_b, behind_max_move_m, max_move_m)) & (turn < max_turn_deg)
     q, t = q[keep], t[keep]
     if scene.analytic is not None and len(q):
         c, qu, ax = robot.ellipsoids(q)
