@@ -192,7 +192,7 @@ def run_demo(out_dir: Path, device: str = "auto", seed: int = 0) -> dict:
 def run_reach_demo(out: Path, device: str = "auto") -> dict:
     """One short visual-reaching run (E5): the Panda's wrist camera reaches a goal image in the
     tabletop with MPPI, the terminal image cost (weight-free thumbnail encoder) and the collision
-    cost -> ``demo_reach.png`` (target image, final image, wrist views, camera path). ~30 s on 2 cores."""
+    cost -> ``demo_reach.png`` (target image, final image, wrist views, camera path). ~10 s on 2 cores."""
     from .eval.reach import _plot_goal, quick_config
     from .encoders import load_encoder
     from .render import SplatRenderer

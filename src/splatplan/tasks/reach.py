@@ -209,7 +209,7 @@ def reach_start(robot, camera_link: str = "panda_hand_tcp") -> np.ndarray:
 def make_reach_goals(
     robot, scene: TaskScene, renderer, camera, *, n: int = 5, q_start=None, spread: float = 0.35, n_behind: int = 2, margin_m: float = 0.02,
     min_move_m: float = 0.05, max_move_m: float = 0.15, max_turn_deg: float = 30.0, n_candidates: int = 1024, seed: int = 0,
-    behind_spread: float = 0.45, behind_max_move_m: float = 0.2,
+    behind_spread: float = 0.45, behind_max_move_m: float = 0.2, min_contrast: float = 0.12,
 ) -> list[dict]:
     """Random reachable, collision-free goal configurations near ``q_start`` whose wrist view is
     informative, ``n_behind`` of them with the camera behind the bin's front wall (:data:`BEHIND_WALL`).
@@ -219,7 +219,8 @@ def make_reach_goals(
     self-collision, the camera moves ``min_move_m``..``max_move_m`` from the start and turns by at
     most ``max_turn_deg`` (half the candidates use ``behind_spread`` and, behind the wall only,
     ``behind_max_move_m``: reaching behind the wall takes a longer move), and the view
-    is filled by the scene (alpha > 0.98) with contrast (std > 0.05). Goals are then picked far
+    is filled by the scene (alpha > 0.98) with contrast (pixel std > ``min_contrast``: a plain view of
+    floor and wall is ambiguous for any encoder). Goals are then picked far
     apart from each other (greedy farthest point in camera position).
 
     Returns:
@@ -252,7 +253,7 @@ def make_reach_goals(
     if len(q):
         res = camera.render(renderer, robot, q)
         rgb, alpha = np.asarray(res.rgb), np.asarray(res.alpha)
-        keep = (alpha.reshape(len(q), -1).min(axis=1) > 0.98) & (rgb.reshape(len(q), -1).std(axis=1) > 0.05)
+        keep = (alpha.reshape(len(q), -1).min(axis=1) > 0.98) & (rgb.reshape(len(q), -1).std(axis=1) > min_contrast)
         q, t, clear = q[keep], t[keep], clear[keep]
     lo, hi = BEHIND_WALL
     behind = np.all((t[:, :3, 3] > lo) & (t[:, :3, 3] < hi), axis=1)
