@@ -58,6 +58,12 @@ SECTIONS = {
     "conservatism": markdown_file("conservatism.md"),
     "linearization": markdown_file("linearization.md"),
     "planners": markdown_file("planners.md"),
+    "encoders": markdown_file("encoders.md"),
+    "scene_load": markdown_file("scene_load.md"),
+    "arm": markdown_file("arm.md"),
+    "base": markdown_file("base.md"),
+    "reach": markdown_file("reach.md"),
+    "navigate": markdown_file("navigate.md"),
 }
 
 
