@@ -27,14 +27,24 @@ browser:
 test: $(STAMP) browser
 	$(PY) -m pytest -q
 
-# Every benchmark and study at full size (about 10 minutes on 2 cores), then the README tables.
+# Every benchmark and study at full size (about 40 minutes on 2 cores), then the README tables.
 bench: $(STAMP)
 	$(PY) benchmarks/metric_throughput.py
+	$(PY) benchmarks/metric_shell.py
+	$(PY) benchmarks/robots_fk.py
+	$(PY) benchmarks/render.py
+	$(PY) benchmarks/encoders.py
+	$(PY) benchmarks/scene_load.py
 	$(PY) benchmarks/planners.py
+	$(PY) benchmarks/viewer.py
 	$(VENV)/bin/splatplan eval throughput --out benchmarks/results
 	$(VENV)/bin/splatplan eval pr --out benchmarks/results
 	$(VENV)/bin/splatplan eval conservatism --out benchmarks/results
 	$(VENV)/bin/splatplan eval linearization --out benchmarks/results
+	$(VENV)/bin/splatplan eval arm --out benchmarks/results
+	$(VENV)/bin/splatplan eval base --out benchmarks/results
+	$(VENV)/bin/splatplan eval reach --out benchmarks/results
+	$(VENV)/bin/splatplan eval navigate --out benchmarks/results
 	$(PY) benchmarks/update_readme.py
 
 clean:
