@@ -96,13 +96,7 @@ def main(argv: list[str] | None = None) -> int:
                 "n_colliding_total": int(res.n_colliding.sum()), "n_in_collision": int(hit.sum()),
             }  # fmt: skip
             for fn in ("collides", "query"):
-                times = []
-                for _ in range(args.repeats):
-                    t = time.perf_counter()
-                    getattr(checker, fn)(centers, None, radius)
-                    wp().synchronize()
-                    times.append(time.perf_counter() - t)
-                row[f"{fn}_checks_per_s"] = args.batch / float(np.median(times))
+                row[f"{fn}_checks_per_s"] = args.batch / _time(lambda fn=fn: getattr(checker, fn)(centers, None, radius), args.repeats)
             rows.append(row)
             checker.close()
     real_rows = _real_rows(Path(args.real), args.device, args.batch, args.repeats)
