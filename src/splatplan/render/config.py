@@ -197,6 +197,18 @@ def check_planes(near: float, far: float) -> tuple[float, float]:
     return near, min(far, 3.0e38)
 
 
+def check_render_args(viewmats, Ks, width, height, near, far, background):
+    """Validate the arguments every renderer's ``render`` takes.
+
+    Returns (viewmats (B, 4, 4), Ks (B, 3, 3), width, height, near, far, background (3,)), see
+    :func:`check_cameras`, :func:`check_image_size`, :func:`check_planes`, :func:`check_background`.
+    """
+    width, height = check_image_size(width, height)
+    v, k = check_cameras(viewmats, Ks)
+    near, far = check_planes(near, far)
+    return v, k, width, height, near, far, check_background(background)
+
+
 def estimate_bytes(b: int, width: int, height: int) -> int:
     """Bytes of the outputs of one call (rgb + depth + alpha, float32)."""
     return int(b) * int(width) * int(height) * 5 * 4

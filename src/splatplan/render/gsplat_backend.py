@@ -17,10 +17,7 @@ import numpy as np
 from .._warp import resolve_device
 from ..errors import SplatplanError
 from ..scenes.splats import Splats
-from .config import (
-    DISK_THICKNESS, LOW_PASS, SH_C0, RenderResult, check_background, check_cameras, check_image_size, check_planes,
-    resolve_sh_degree, scene_sh_degree,
-)  # fmt: skip
+from .config import DISK_THICKNESS, LOW_PASS, SH_C0, RenderResult, check_render_args, resolve_sh_degree, scene_sh_degree
 
 
 def gsplat_available() -> bool:
@@ -75,10 +72,7 @@ class GsplatRenderer:
     def render(self, viewmats, Ks, width: int, height: int, *, near: float = 0.01, far: float = 1e10,
                background=(0.0, 0.0, 0.0), sh_degree: int | None = None) -> RenderResult:  # fmt: skip
         torch = self._torch
-        width, height = check_image_size(width, height)
-        v, k = check_cameras(viewmats, Ks)
-        near, far = check_planes(near, far)
-        bg = check_background(background)
+        v, k, width, height, near, far, bg = check_render_args(viewmats, Ks, width, height, near, far, background)
         deg = resolve_sh_degree(sh_degree, self.sh_degree)
         b = v.shape[0]
         dev = self.device

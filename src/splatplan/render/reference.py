@@ -14,7 +14,7 @@ import numpy as np
 from ..scenes.splats import Splats, quat_to_rotmat
 from .config import (
     ALPHA_MAX, ALPHA_MIN, DISK_THICKNESS, LOW_PASS, SH_C1, SH_C2, SH_C3, T_MIN, RenderResult, camera_arrays,
-    check_background, check_cameras, check_image_size, check_planes, resolve_sh_degree, scene_sh_degree,
+    check_render_args, resolve_sh_degree, scene_sh_degree,
 )  # fmt: skip
 
 __all__ = ["scene_arrays", "eval_sh", "project_reference", "render_reference"]
@@ -150,10 +150,7 @@ def render_reference(
     sh_degree: int | None = None,
 ) -> RenderResult:
     """Numpy reference of :func:`splatplan.render` (same arguments and conventions; CPU, slow)."""
-    width, height = check_image_size(width, height)
-    v, k = check_cameras(viewmats, Ks)
-    near, far = check_planes(near, far)
-    bg = check_background(background)
+    v, k, width, height, near, far, bg = check_render_args(viewmats, Ks, width, height, near, far, background)
     arrs = scene_arrays(scene)
     degree = resolve_sh_degree(sh_degree, int(arrs["degree"]))
     cam = camera_arrays(v, k, width, height)

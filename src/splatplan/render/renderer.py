@@ -24,10 +24,7 @@ from .._warp import cpu_threads, resolve_device
 from .._warp import wp as _wp
 from ..errors import SplatplanError
 from ..scenes.splats import Splats
-from .config import (
-    MAX_BYTES, TILE, RenderResult, camera_arrays, check_background, check_cameras, check_image_size, check_planes,
-    estimate_bytes, resolve_sh_degree,
-)  # fmt: skip
+from .config import MAX_BYTES, TILE, RenderResult, camera_arrays, check_render_args, estimate_bytes, resolve_sh_degree
 from .reference import scene_arrays
 
 wp = _wp()
@@ -192,10 +189,7 @@ class SplatRenderer:
         sh_degree: int | None = None,
     ) -> RenderResult:
         """Render B cameras; see :func:`splatplan.render` for the conventions and outputs."""
-        width, height = check_image_size(width, height)
-        v, k = check_cameras(viewmats, Ks)
-        near, far = check_planes(near, far)
-        bg = check_background(background)
+        v, k, width, height, near, far, bg = check_render_args(viewmats, Ks, width, height, near, far, background)
         deg = resolve_sh_degree(sh_degree, self.sh_degree)
         b = v.shape[0]
         out_bytes = estimate_bytes(b, width, height)
@@ -220,7 +214,7 @@ class SplatRenderer:
         fr = rast.FrameArgs()
         fr.width, fr.height = width, height
         fr.tiles_x, fr.tiles_y = math.ceil(width / TILE), math.ceil(height / TILE)
-        fr.near, fr.far = near, min(far, 3.0e38)
+        fr.near, fr.far = near, far  # far already capped at 3e38 by check_planes
         fr.log_near = math.log(near)
         # farthest view depth a splat mean can have, per camera (bounding sphere of the means)
         zmax = np.minimum(np.linalg.norm(cam["campos"] - self._centre, axis=1) + self._radius, fr.far)  # (B,)
