@@ -347,29 +347,10 @@ def save_yaml(ells: EllipsoidSet, path: str | Path, robot: str = "", urdf: str =
         "links": {k: {kk: (float(f"{vv:.6g}") if isinstance(vv, float) else vv) for kk, vv in v.items()} for k, v in ells.report.items()},
         "skipped_links": list(ells.skipped),
     }
-    _atomic_write(Path(path), yaml.safe_dump(doc, sort_keys=False, width=200))
+    from ..cli._common import atomic_path
 
-
-def _atomic_write(path: Path, text: str) -> None:
-    """Write a file through a temp file in the same folder (never a partial file)."""
-    import os
-    import tempfile
-
-    if path.is_dir():
-        raise SplatplanError(f"output {path} is a directory; give a file path")
-    if not path.parent.exists():
-        raise SplatplanError(f"output folder {path.parent} does not exist")
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w") as fh:
-            fh.write(text)
-        mask = os.umask(0o022)
-        os.umask(mask)
-        os.chmod(tmp, 0o666 & ~mask)
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
+    with atomic_path(path) as tmp:
+        tmp.write_text(yaml.safe_dump(doc, sort_keys=False, width=200))
 
 
 def load_yaml(path: str | Path, link_names: list[str] | None = None) -> EllipsoidSet:
