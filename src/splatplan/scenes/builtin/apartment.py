@@ -34,7 +34,7 @@ import numpy as np
 
 from ...errors import SplatplanError
 from ..splats import Splats
-from .primitives import AnalyticScene, make_box, splats_from_boxes
+from .primitives import AnalyticScene, _copy_splats, _yaw_quat, make_box, splats_from_boxes
 
 __all__ = ["DOORS", "N_SPLATS", "ROOMS", "WALL_HEIGHT", "ApartmentLayout", "apartment_layout", "build_apartment", "room_of"]
 
@@ -122,10 +122,6 @@ def _wall_segments(axis: str, coord: float, start: float, end: float, gaps) -> l
     return segs
 
 
-def _yaw(a: float) -> np.ndarray:
-    return np.array([np.cos(a / 2), 0.0, 0.0, np.sin(a / 2)])
-
-
 def _build_layout(seed: int) -> ApartmentLayout:
     rng = np.random.default_rng([int(seed), 9191])
     boxes, labels, colors = [], [], []
@@ -136,7 +132,7 @@ def _build_layout(seed: int) -> ApartmentLayout:
         colors.append(np.asarray(color if color is not None else LABEL_COLORS[label], np.float64))
 
     def block(label: str, x: float, y: float, hx: float, hy: float, h: float, yaw: float = 0.0, color=None) -> None:
-        add(label, (x, y, (h - 0.002) / 2), (hx, hy, (h + 0.002) / 2), _yaw(yaw), color)  # sinks 2 mm
+        add(label, (x, y, (h - 0.002) / 2), (hx, hy, (h + 0.002) / 2), _yaw_quat(yaw), color)  # sinks 2 mm
 
     j = lambda s: rng.uniform(-s, s)  # noqa: E731  small per-seed jitter (m)
     add("floor", (0.0, 0.0, -0.05), (4.2, 3.2, 0.05))
@@ -172,7 +168,7 @@ def _build_layout(seed: int) -> ApartmentLayout:
     block("counter", 3.7, -1.2, 0.30, 0.60, 0.90)
     block("fridge", 3.62, -2.62, 0.33, 0.33, 1.15)
     block("table", 2.0 + j(0.05), -1.4 + j(0.05), 0.50, 0.30, 0.90, j(0.05))  # island
-    add("object_blue_crate", (2.0, -1.4, 0.90 + 0.12 - 0.001), (0.15, 0.12, 0.12), _yaw(rng.uniform(0, np.pi)), OBJECT_COLORS["object_blue_crate"])
+    add("object_blue_crate", (2.0, -1.4, 0.90 + 0.12 - 0.001), (0.15, 0.12, 0.12), _yaw_quat(rng.uniform(0, np.pi)), OBJECT_COLORS["object_blue_crate"])
     block("object_red_bin", 0.4 + j(0.03), -0.4, 0.15, 0.15, 0.40, color=OBJECT_COLORS["object_red_bin"])
     block("object_lime_stool", 1.1 + j(0.03), -1.4 + j(0.03), 0.16, 0.16, 0.45, color=OBJECT_COLORS["object_lime_stool"])
 
@@ -255,9 +251,7 @@ def build_apartment(seed: int = 0, n_splats: int | None = None) -> tuple[Splats,
         (splats, scene): float32 splats (wxyz, linear stds; the last ``info["n_floaters"]`` are
         floaters) and the boxes, in metres with z up.
     """
-    from .tabletop import _copy
-
     n = N_SPLATS if n_splats is None else int(n_splats)
     if n < 1:
         raise SplatplanError(f"n_splats must be >= 1, got {n_splats}")
-    return _copy(_build_cached(int(seed), n)), apartment_layout(seed).scene
+    return _copy_splats(_build_cached(int(seed), n)), apartment_layout(seed).scene

@@ -30,13 +30,13 @@ So ``sdf(p) < r`` (for ``r >= 0``) is the exact ground-truth collision test for 
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
 from ...errors import SplatplanError
-from ..splats import quat_multiply, quat_to_rotmat
+from ..splats import Splats, quat_multiply, quat_to_rotmat
 
 __all__ = ["AnalyticScene", "SurfaceSplatConfig", "box_corners", "box_sdf", "make_box", "splats_from_boxes"]
 
@@ -59,6 +59,24 @@ def make_box(
     if q[0] < 0:
         q = -q
     return np.concatenate([np.asarray(center, np.float64), np.asarray(half_extents, np.float64), q])
+
+
+def _yaw_quat(yaw: float) -> np.ndarray:
+    """wxyz (4,) rotation by ``yaw`` (rad) about +z."""
+    return np.array([np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)])
+
+
+def _copy_splats(s: Splats) -> Splats:
+    """Fresh arrays of a cached built-in scene's splats (``info`` copied too)."""
+    return replace(
+        s,
+        means=s.means.copy(),
+        quats=s.quats.copy(),
+        scales=s.scales.copy(),
+        opacities=s.opacities.copy(),
+        colors=s.colors.copy(),
+        info=dict(s.info),
+    )
 
 
 def box_sdf(

@@ -41,7 +41,7 @@ from pathlib import Path
 import numpy as np
 
 from ...errors import SplatplanError
-from .primitives import AnalyticScene, SurfaceSplatConfig, box_corners, make_box, splats_from_boxes
+from .primitives import AnalyticScene, SurfaceSplatConfig, _copy_splats, _yaw_quat, box_corners, make_box, splats_from_boxes
 from ..splats import SH_C0, Splats, quat_multiply
 
 __all__ = [
@@ -100,10 +100,6 @@ _ENTRANCE_ANGLE = np.deg2rad(40.0)  # direction of the main entrance gap (from +
 
 _GREY = np.array([0.60, 0.58, 0.55])
 _GROUND = np.array([0.33, 0.47, 0.24])
-
-
-def _yaw_quat(yaw: float) -> np.ndarray:
-    return np.array([np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)])
 
 
 def _axis_quat(axis, angle: float) -> np.ndarray:
@@ -430,16 +426,7 @@ def build_stonehenge(level: int = 1, seed: int = 0, n_splats: int | None = None)
     if n < 1:
         raise SplatplanError(f"n_splats must be >= 1, got {n_splats}")
     s, sc = _build_cached(lv, int(seed), n)
-    splats = replace(
-        s,
-        means=s.means.copy(),
-        quats=s.quats.copy(),
-        scales=s.scales.copy(),
-        opacities=s.opacities.copy(),
-        colors=s.colors.copy(),
-        info=dict(s.info),
-    )
-    return splats, AnalyticScene(sc.boxes.copy(), list(sc.labels), json.loads(json.dumps(sc.meta)))
+    return _copy_splats(s), AnalyticScene(sc.boxes.copy(), list(sc.labels), json.loads(json.dumps(sc.meta)))
 
 
 # ---------------------------------------------------------------------------------------------

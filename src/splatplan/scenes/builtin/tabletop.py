@@ -38,7 +38,7 @@ import numpy as np
 
 from ...errors import SplatplanError
 from ..splats import Splats
-from .primitives import AnalyticScene, make_box, splats_from_boxes
+from .primitives import AnalyticScene, _copy_splats, _yaw_quat, make_box, splats_from_boxes
 
 __all__ = ["N_SPLATS", "TABLE_TOP", "TARGET_REGION", "TabletopLayout", "build_tabletop", "tabletop_layout"]
 
@@ -89,10 +89,6 @@ class TabletopLayout:
     front_wall_top: float
 
 
-def _yaw(a: float) -> np.ndarray:
-    return np.array([np.cos(a / 2), 0.0, 0.0, np.sin(a / 2)])
-
-
 def _build_layout(seed: int) -> TabletopLayout:
     rng = np.random.default_rng([int(seed), 4242])
     boxes, labels, colors = [], [], []
@@ -117,18 +113,18 @@ def _build_layout(seed: int) -> TabletopLayout:
     for s in (-1.0, 1.0):
         add("wall_bin", ((x0 + x1) / 2, s * y1, (low_h - 0.001) / 2), ((x1 - x0) / 2 - t, t, (low_h + 0.001) / 2))
     # a side wall on the left
-    add("wall_side", (0.30 + j(0.01), 0.42, 0.17 - 0.0005), (0.22, 0.012, 0.17 + 0.0005), _yaw(j(0.03)))
+    add("wall_side", (0.30 + j(0.01), 0.42, 0.17 - 0.0005), (0.22, 0.012, 0.17 + 0.0005), _yaw_quat(j(0.03)))
     # a low shelf on the right: two posts and a board
     for x in (0.22, 0.52):
         add("shelf", (x, -0.50, 0.10 - 0.0005), (0.015, 0.12, 0.10 + 0.0005))
     add("shelf", (0.37, -0.50, 0.21), (0.17, 0.13, 0.012))
     # coloured objects
-    add("object_red", (0.78 + j(0.01), -0.21 + j(0.01), 0.025), (0.025, 0.025, 0.0255), _yaw(rng.uniform(0, np.pi)), OBJECT_COLORS["object_red"])
-    add("object_yellow", (0.78 + j(0.01), 0.21 + j(0.01), 0.035), (0.03, 0.02, 0.0355), _yaw(rng.uniform(0, np.pi)), OBJECT_COLORS["object_yellow"])
-    add("object_green", (0.20 + j(0.02), 0.25 + j(0.02), 0.04), (0.03, 0.03, 0.0405), _yaw(rng.uniform(0, np.pi)), OBJECT_COLORS["object_green"])
-    add("object_blue", (0.28 + j(0.02), -0.28 + j(0.02), 0.03), (0.05, 0.035, 0.0305), _yaw(rng.uniform(0, np.pi)), OBJECT_COLORS["object_blue"])
-    add("object_purple", (0.37 + j(0.02), -0.50, 0.222 + 0.03 - 0.001), (0.03, 0.03, 0.03), _yaw(rng.uniform(0, np.pi)), OBJECT_COLORS["object_purple"])
-    add("object_orange", (0.30 + j(0.02), 0.58 + j(0.02), 0.04), (0.035, 0.035, 0.0405), _yaw(rng.uniform(0, np.pi)), OBJECT_COLORS["object_orange"])
+    add("object_red", (0.78 + j(0.01), -0.21 + j(0.01), 0.025), (0.025, 0.025, 0.0255), _yaw_quat(rng.uniform(0, np.pi)), OBJECT_COLORS["object_red"])
+    add("object_yellow", (0.78 + j(0.01), 0.21 + j(0.01), 0.035), (0.03, 0.02, 0.0355), _yaw_quat(rng.uniform(0, np.pi)), OBJECT_COLORS["object_yellow"])
+    add("object_green", (0.20 + j(0.02), 0.25 + j(0.02), 0.04), (0.03, 0.03, 0.0405), _yaw_quat(rng.uniform(0, np.pi)), OBJECT_COLORS["object_green"])
+    add("object_blue", (0.28 + j(0.02), -0.28 + j(0.02), 0.03), (0.05, 0.035, 0.0305), _yaw_quat(rng.uniform(0, np.pi)), OBJECT_COLORS["object_blue"])
+    add("object_purple", (0.37 + j(0.02), -0.50, 0.222 + 0.03 - 0.001), (0.03, 0.03, 0.03), _yaw_quat(rng.uniform(0, np.pi)), OBJECT_COLORS["object_purple"])
+    add("object_orange", (0.30 + j(0.02), 0.58 + j(0.02), 0.04), (0.035, 0.035, 0.0405), _yaw_quat(rng.uniform(0, np.pi)), OBJECT_COLORS["object_orange"])
 
     scene = AnalyticScene(
         np.stack(boxes),
@@ -204,16 +200,5 @@ def build_tabletop(seed: int = 0, n_splats: int | None = None) -> tuple[Splats, 
     if n < 1:
         raise SplatplanError(f"n_splats must be >= 1, got {n_splats}")
     s = _build_cached(int(seed), n)
-    return _copy(s), tabletop_layout(seed).scene
+    return _copy_splats(s), tabletop_layout(seed).scene
 
-
-def _copy(s: Splats) -> Splats:
-    return replace(
-        s,
-        means=s.means.copy(),
-        quats=s.quats.copy(),
-        scales=s.scales.copy(),
-        opacities=s.opacities.copy(),
-        colors=s.colors.copy(),
-        info=dict(s.info),
-    )
