@@ -40,6 +40,7 @@ from .interop import (
     device_axes_medians,
     device_rows,
     device_side_rows,
+    host_array,
     host_link_batch,
     torch_device_name,
     warp_device_name,
@@ -204,7 +205,7 @@ class CollisionChecker:
         e = int(robot.n_ellipsoids)
         dof = int(robot.dof)
         if self.backend == "reference":
-            qn = robot.check_q(_host(q), check_limits=False)
+            qn = robot.check_q(host_array(q), check_limits=False)
             c, quat, ax = robot.ellipsoids(qn)
             res = self.query(c, quat, ax) if full else self.collides(c, quat, ax)
             return _convert_host(res, kind, _device_of(q, self.device))
@@ -365,15 +366,6 @@ def _torch_stream(x):
         wp = _wp()
         return wp.ScopedStream(wp.stream_from_torch(x.device))
     return contextlib.nullcontext()
-
-
-def _host(x) -> np.ndarray:
-    k = array_kind(x)
-    if k == "torch":
-        return x.detach().cpu().numpy()
-    if k == "warp":
-        return x.numpy()
-    return np.asarray(x)
 
 
 def _device_of(x, default: str) -> str:

@@ -143,13 +143,18 @@ def _compact(x: np.ndarray, shape: tuple[int, ...], tail: int, name: str) -> tup
     return full.reshape((b,) + tl), max(b, 1)
 
 
-def _to_numpy(x) -> np.ndarray:
+def host_array(x) -> np.ndarray:
+    """A numpy, torch or Warp array as a numpy array on the host (dtype kept)."""
     k = array_kind(x)
     if k == "torch":
-        return x.detach().cpu().numpy().astype(np.float64)
+        return x.detach().cpu().numpy()
     if k == "warp":
-        return np.asarray(x.numpy(), dtype=np.float64)
-    return np.asarray(x, dtype=np.float64)
+        return x.numpy()
+    return np.asarray(x)
+
+
+def _to_numpy(x) -> np.ndarray:
+    return np.asarray(host_array(x), dtype=np.float64)
 
 
 def axes_medians(axes: np.ndarray) -> tuple[float, float]:
