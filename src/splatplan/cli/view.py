@@ -84,17 +84,13 @@ def cmd_view(args) -> int:
 
 
 def register(sub, eval_sub) -> None:
+    from ..viewer.app import ViewerConfig  # numpy only: viser is imported when the server starts
+
     s = sub.add_parser("view", help="open a browser viewer of a scene, robot, plan, tree or MPC run")
     s.add_argument("scene", metavar="SCENE", help="splat file or a built-in scene file")
     s.add_argument("--robot", help="robot: panda | go2 | sphere:R | ellipsoid:A,B,C | path/to.urdf (default: a sphere sized to the scene)")
     s.add_argument("--plan", help="PATH.json written by 'splatplan plan'")
     s.add_argument("--mpc", help="output folder of 'splatplan mpc' (its result.json trajectory is animated)")
     s.add_argument("--tree", help="TREE.npz with 'nodes' (N, D) and 'parents' (N,)")
-    add_config_args(s, ViewerConfigProxy(), group="viewer options")
+    add_config_args(s, ViewerConfig, group="viewer options")
     s.set_defaults(func=cmd_view)
-
-
-def ViewerConfigProxy():  # noqa: N802 - returns the class lazily (viewer imports stay out of --help)
-    from ..viewer.app import ViewerConfig
-
-    return ViewerConfig

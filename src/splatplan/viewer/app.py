@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import json
 import socket
+from collections import deque
 import threading
 import time
 from dataclasses import dataclass, field
@@ -88,7 +89,8 @@ class _State:
     show_ellipsoids: bool = True
     field_z: float = 0.0
     show_field: bool = True
-    timings: dict = field(default_factory=lambda: {"pose_update_ms": []})
+    #: the last 1,000 pose-update times (ms), for the status line and the benchmark
+    timings: dict = field(default_factory=lambda: {"pose_update_ms": deque(maxlen=1000)})
 
 
 class SplatViewer:
@@ -145,13 +147,9 @@ class SplatViewer:
         self.warnings: list[str] = []
         self._check_inside(self.plan, "plan")
         self._check_inside(self.trajectory, "trajectory")
-        # per-splat data for the colouring: diag(s) R^T and a KD-tree over the means
+        # the colouring's candidate search: a KD-tree over the means
         from scipy.spatial import cKDTree
 
-        from ..scenes.splats import quat_to_rotmat
-
-        rot = quat_to_rotmat(scene.quats)
-        self._rot_scaled = np.transpose(rot, (0, 2, 1)) * scene.scales[:, :, None].astype(np.float64)
         self._kdtree = cKDTree(scene.means)
         self._smax = float(scene.scales.max())
 
@@ -183,9 +181,10 @@ class SplatViewer:
     # ------------------------------------------------------------------ robot state
     def collision_state(self, q: np.ndarray | None = None) -> dict:
         """Per-link collision counts at q: {"collides", "per_link": {link: n_colliding}, "min_s2", "ms"}."""
-        q = self.state.q if q is None else q
+        return self._collision_state(*self.robot.ellipsoids(self.state.q if q is None else q))
+
+    def _collision_state(self, c, quat, ax) -> dict:
         t0 = time.perf_counter()
-        c, quat, ax = self.robot.ellipsoids(q)
         res = self.checker.with_config(n_sigma=self.state.n_sigma).query(c, quat, ax)
         per_link: dict[str, int] = {}
         links = np.asarray(self.robot.ellipsoid_link)
@@ -197,15 +196,18 @@ class SplatViewer:
 
     def splat_distances(self, q: np.ndarray | None = None, cap: float = 2.0) -> np.ndarray:
         """Per-splat min over the robot's ellipsoids of s2~ at q (N,); +inf beyond the search ball."""
-        q = self.state.q if q is None else q
-        c, quat, ax = self.robot.ellipsoids(q)
+        return self._splat_distances(*self.robot.ellipsoids(self.state.q if q is None else q), cap=cap)
+
+    def _splat_distances(self, c, quat, ax, cap: float = 2.0) -> np.ndarray:
+        from ..metric.wp_metric_kernel import search_radius  # the metric's one exactness radius
+
         ax = np.broadcast_to(ax, c.shape)
         cand = []
         for e in range(len(c)):
-            k = self.state.n_sigma * self._smax / float(ax[e].min())
-            rho = float(ax[e].max()) * (k + np.sqrt(k * k + cap))  # the metric's exactness radius
+            rho = float(search_radius(self.state.n_sigma, self._smax, float(ax[e].min()), float(ax[e].max()), cap))
             cand.append(np.asarray(self._kdtree.query_ball_point(c[e], rho), dtype=np.int64))
-        return splat_s2_tilde(self.scene.means, self._rot_scaled, c, quat, ax, self.state.n_sigma, cand)
+        s = self.scene
+        return splat_s2_tilde(s.means, s.quats, s.scales, c, quat, ax, self.state.n_sigma, cand)
 
     # ------------------------------------------------------------------ server
     def start(self) -> None:
@@ -445,8 +447,8 @@ class SplatViewer:
             return {}
         st = self.state
         t0 = time.perf_counter()
-        c, quat, ax = self.robot.ellipsoids(st.q)
-        info = self.collision_state(st.q)
+        c, quat, ax = self.robot.ellipsoids(st.q)  # once per update: state, handles and colouring share it
+        info = self._collision_state(c, quat, ax)
         colour = (255, 60, 60) if info["collides"] else (90, 200, 255)
         for e, h in enumerate(self._ell_handles):
             h.position = tuple(float(v) for v in c[e])
@@ -455,7 +457,7 @@ class SplatViewer:
         if self._urdf is not None:
             self._set_urdf(st.q)
         if st.colour_by_metric:
-            d = self.splat_distances(st.q)
+            d = self._splat_distances(c, quat, ax)
             hit = np.flatnonzero(d < 1.0)
             self._hits.points = self.scene.means[hit] if len(hit) else np.zeros((1, 3), np.float32)
             self._hits.colors = np.tile(np.array([[255, 0, 0]], np.uint8), (max(1, len(hit)), 1))

@@ -54,31 +54,30 @@ def ellipsoid_mesh(center, quat, semi_axes, subdivisions: int = 2) -> tuple[np.n
 
 def splat_s2_tilde(
     means: np.ndarray,  # (N, 3) splat means
-    rot_scaled: np.ndarray,  # (N, 3, 3) diag(s) R^T per splat
+    splat_quats: np.ndarray,  # (N, 4) wxyz
+    scales: np.ndarray,  # (N, 3) linear stds
     centers: np.ndarray,  # (E, 3) ellipsoid centres
     quats: np.ndarray,  # (E, 4) wxyz
     semi_axes: np.ndarray,  # (E, 3)
     n_sigma: float,
     candidates: list[np.ndarray] | None = None,  # per ellipsoid: indices of splats to evaluate (None = all)
 ) -> np.ndarray:
-    """Per splat: min over the ellipsoids of s2~ = max(0, d^T A d - n_sigma |diag(s) R^T 2 A d|) (N,).
+    """Per splat: min over the ellipsoids of the metric's s2~ (N,), for colouring.
 
-    Splats not among any ellipsoid's candidates get +inf. The same formula as the metric
-    (``splatplan.metric.reference.conservative_s2_ref``), organised per splat for colouring.
+    Splats not among any ellipsoid's candidates get +inf. Evaluates the metric's own reference
+    (``splatplan.metric.reference.conservative_s2_ref``) on each ellipsoid's candidates.
     """
+    from ..metric.reference import conservative_s2_ref, link_matrices
+
     n = means.shape[0]
     out = np.full(n, np.inf)
-    rots = quat_to_rotmat(np.asarray(quats, dtype=np.float64).reshape(-1, 4))
+    a = link_matrices(np.asarray(quats, dtype=np.float64).reshape(-1, 4), semi_axes, len(centers))  # (E, 3, 3)
     for e in range(len(centers)):
         idx = np.arange(n) if candidates is None else candidates[e]
         if len(idx) == 0:
             continue
-        a = (rots[e] / semi_axes[e] ** 2) @ rots[e].T  # (3, 3)
-        d = means[idx].astype(np.float64) - centers[e]  # (n_e, 3)
-        ad = d @ a.T
-        s2 = np.einsum("ni,ni->n", d, ad)
-        sigma = np.linalg.norm(np.einsum("nij,nj->ni", rot_scaled[idx], 2.0 * ad), axis=1)
-        np.minimum.at(out, idx, np.maximum(0.0, s2 - n_sigma * sigma))
+        _, s2t = conservative_s2_ref(means[idx], splat_quats[idx], scales[idx], centers[e : e + 1], a[e : e + 1], n_sigma)
+        np.minimum.at(out, idx, s2t[0])
     return out
 
 
