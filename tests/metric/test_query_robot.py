@@ -9,6 +9,7 @@ import pytest
 from splatplan._warp import wp as _wp
 from splatplan.errors import SplatplanError
 from splatplan.metric import CollisionChecker, MetricConfig
+from splatplan.robots import load_robot
 from splatplan.scenes.splats import Splats, quat_to_rotmat, rotmat_to_quat
 
 from .conftest import DEVICES, random_quats, random_scene
@@ -123,14 +124,6 @@ def test_query_robot_workspace_and_bad_q(device):
     assert ch.collides_robot(robot, np.zeros(3)).shape == (3,)  # one configuration -> (E,)
 
 
-def _panda():
-    try:
-        from splatplan.robots import load_robot
-    except ImportError:
-        pytest.skip("splatplan.robots not available")
-    return load_robot("panda")
-
-
 def _arm_scene(rng, n=3000) -> Splats:
     """Splats around a Panda's workspace (metres, z up)."""
     s = random_scene(rng, n, scale=0.01)
@@ -140,7 +133,7 @@ def _arm_scene(rng, n=3000) -> Splats:
 
 @pytest.mark.parametrize("device", DEVICES)
 def test_panda_query_robot_matches_explicit_path(device):
-    robot = _panda()
+    robot = load_robot("panda")
     rng = np.random.default_rng(2)
     scene = _arm_scene(rng)
     lo, hi = robot.joint_limits[:, 0], robot.joint_limits[:, 1]
