@@ -191,6 +191,12 @@ class Encoder:
         if tokens and not self.has_tokens:
             raise SplatplanError(f"encoder {self.name} has no patch tokens; use the global embedding only (w_patch = 0)")
         x, kind = images_to_torch(images, self.device)
+        g, t = self._features_torch(x, tokens)
+        return kind.back(g), (kind.back(t) if t is not None else None)
+
+    def _features_torch(self, x: "torch.Tensor", tokens: bool) -> tuple["torch.Tensor", "torch.Tensor | None"]:
+        """:meth:`features` of images already converted by :func:`images_to_torch`: x (B, 3, H, W) on
+        ``self.device`` -> torch tensors (callers check ``has_tokens``)."""
         with torch.set_grad_enabled(bool(x.requires_grad)):
             gs, ts = [], []
             for i in range(0, x.shape[0], self.batch_size):
@@ -207,7 +213,7 @@ class Encoder:
             if self.normalize:
                 g = torch.nn.functional.normalize(g, dim=-1)
                 t = torch.nn.functional.normalize(t, dim=-1) if t is not None else None
-        return kind.back(g), (kind.back(t) if t is not None else None)
+        return g, t
 
     def encode(self, images: Any):
         """(B, H, W, 3) RGB in [0, 1] -> (B, dim) embeddings (same kind as the input)."""
@@ -259,7 +265,7 @@ class ImageCost:
         if (torch.is_tensor(tgt) or isinstance(tgt, np.ndarray)) and tgt.ndim == 3:
             tgt = tgt[None]
         x, _ = images_to_torch(tgt, encoder.device)
-        g, t = encoder.features(x.permute(0, 2, 3, 1), tokens=w_patch > 0)
+        g, t = encoder._features_torch(x, tokens=w_patch > 0)
         self.target_global, self.target_tokens = g.detach(), (t.detach() if t is not None else None)  # (Bt, D), (Bt, P, Dt)
 
     def __call__(self, rendered_images: Any):
@@ -268,7 +274,7 @@ class ImageCost:
         bt = self.target_global.shape[0]
         if bt not in (1, x.shape[0]):
             raise SplatplanError(f"{bt} target images for {x.shape[0]} rendered images: give one target or one per rendered image")
-        g, t = self.encoder.features(x.permute(0, 2, 3, 1), tokens=self.w_patch > 0)
+        g, t = self.encoder._features_torch(x, tokens=self.w_patch > 0)
         cost = self.w_global * ((self.target_global - g) ** 2).sum(dim=1) if self.w_global > 0 else g.new_zeros(g.shape[0])
         if self.w_patch > 0:
             cost = cost + self.w_patch * token_cost(self.target_tokens, t)
