@@ -279,10 +279,8 @@ class CollisionChecker:
                 return kind, h.shape, 0, None, 0.0, 0.0, None
             links, keep = host_link_batch(h, self.device)
             return (kind, h.shape, b, links, *axes_medians(h.axes), keep)
-        from .._warp import wp as _wp
         from .wp_metric_kernel import LinkBatch
 
-        wp = _wp()
         if quats is not None and rots is not None:
             raise SplatplanError("give link orientations as quats or as rots, not both")
         carr, shape, keep_c = device_rows(centers, kind, "centers", (3,), self.device)
@@ -309,7 +307,6 @@ class CollisionChecker:
             amin, amax = axes_medians(host_axes)
         else:
             amin, amax = device_axes_medians(links.axes, self.device)
-        del wp
         return kind, shape, b, links, amin, amax, keep
 
     def _workspace(self, out, n: int) -> MetricWorkspace:
