@@ -90,6 +90,13 @@ def load_scene_with_gt(path: str | Path, gt: str | Path | None, filtered: bool =
     return splats, AnalyticScene.load(gt_path), rep
 
 
+def write_atomic(path: Path, text: str) -> None:
+    """Write a text file atomically (temp file in the same folder, then rename)."""
+    tmp = path.with_name(f".{path.name}.tmp")
+    tmp.write_text(text)
+    tmp.replace(path)
+
+
 def make_queries(
     means: np.ndarray,  # (N, 3) splat means, scene units
     lo: np.ndarray,  # (3,) lower corner of the scene bounds

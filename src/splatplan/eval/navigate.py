@@ -24,6 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ._common import write_atomic
+
 #: Target landmarks (box labels of the apartment; "table" = the coffee table, the first table box),
 #: in order of preference: the first 10 with a valid held-out pose are used.
 LANDMARKS = (
@@ -32,13 +34,6 @@ LANDMARKS = (
 )  # fmt: skip
 #: Retrieval success radius (m).
 RETRIEVAL_RADIUS_M = 0.5
-
-
-def _write(path: Path, text: str) -> None:
-    """Write a text file atomically (temp file in the same folder, then rename)."""
-    tmp = path.with_name(f".{path.name}.tmp")
-    tmp.write_text(text)
-    tmp.replace(path)
 
 
 def quick_config(cfg):
@@ -238,6 +233,6 @@ def run_navigate_study(out_dir, *, encoder: str = "thumbnail", encoder_weights: 
         "clearance_note": "smallest exact signed distance of any Go2 ellipsoid (feet lifted 4 cm) to the apartment's analytic boxes without the floor, over the densified executed path",
         "time_s": round(time.perf_counter() - t0, 1),
     }
-    _write(out / "navigate.json", json.dumps(result, indent=1))
-    _write(out / "navigate.md", markdown(result))
+    write_atomic(out / "navigate.json", json.dumps(result, indent=1))
+    write_atomic(out / "navigate.md", markdown(result))
     return result

@@ -20,15 +20,10 @@ from pathlib import Path
 
 import numpy as np
 
+from ._common import write_atomic
+
 #: Paper Table IV: config -> (clearance m, translation error m, rotation error deg).
 PAPER = {"without_collision": (-0.021, 0.0147, 3.48), "with_collision": (0.017, 0.031, 5.69)}
-
-
-def _write(path: Path, text: str) -> None:
-    """Write a text file atomically (temp file in the same folder, then rename)."""
-    tmp = path.with_name(f".{path.name}.tmp")
-    tmp.write_text(text)
-    tmp.replace(path)
 
 
 def quick_config(cfg):
@@ -172,6 +167,6 @@ def run_reach_study(out_dir, *, encoder: str = "thumbnail", encoder_weights: str
         "clearance_note": "smallest exact signed distance of any link ellipsoid to the tabletop's analytic boxes over the densified executed trajectory (negative = penetration)",
         "time_s": round(time.perf_counter() - t0, 1),
     }
-    _write(out / "reach.json", json.dumps(result, indent=1))
-    _write(out / "reach.md", markdown(result))
+    write_atomic(out / "reach.json", json.dumps(result, indent=1))
+    write_atomic(out / "reach.md", markdown(result))
     return result
