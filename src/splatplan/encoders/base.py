@@ -51,6 +51,13 @@ def resolve_torch_device(device: Any) -> "torch.device":
     return dev
 
 
+def size_hw(image_size: int | tuple[int, int]) -> tuple[int, ...]:
+    """An image size given as one side or (H, W) -> (H, W) ints (length unchecked: callers validate)."""
+    if isinstance(image_size, (int, float)):
+        return (int(image_size), int(image_size))
+    return tuple(int(v) for v in image_size)
+
+
 # ------------------------------------------------------------------------------ array kinds
 @dataclass(frozen=True)
 class _Kind:

@@ -23,7 +23,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import SplatplanError
-from .base import Encoder, require, torch
+from .base import Encoder, require, size_hw, torch
 from .preprocess import imagenet_normalize, resize
 
 #: Architectures by name: Dinov2Config fields and the Hugging Face repository with the weights.
@@ -145,7 +145,7 @@ class Dinov2Encoder(Encoder):
         super().__init__(device=device, batch_size=batch_size, normalize=normalize)
         if pooling not in POOLINGS:
             raise SplatplanError(f"DINOv2 pooling {pooling!r} unknown: use one of {', '.join(POOLINGS)}")
-        hw = (int(image_size), int(image_size)) if isinstance(image_size, (int, float)) else tuple(int(v) for v in image_size)
+        hw = size_hw(image_size)
         patch = int(model.config.patch_size)
         if len(hw) != 2 or min(hw) < patch or any(v % patch for v in hw) or max(hw) > 2048:
             raise SplatplanError(f"DINOv2 image_size {image_size}: expected a multiple of the {patch}-pixel patch between {patch} and 2048 (e.g. 224)")

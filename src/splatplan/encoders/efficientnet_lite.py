@@ -31,7 +31,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import SplatplanError
-from .base import Encoder, images_to_torch, torch
+from .base import Encoder, images_to_torch, size_hw, torch
 from .preprocess import resize
 
 nn = torch.nn
@@ -176,7 +176,7 @@ class EfficientNetLite0Encoder(Encoder):
         super().__init__(device=device, batch_size=batch_size, normalize=normalize)
         if pooling != "mean":
             raise SplatplanError(f"efficientnet-lite0 pooling {pooling!r}: only 'mean' (global average of the head features)")
-        hw = (int(image_size), int(image_size)) if isinstance(image_size, (int, float)) else tuple(int(v) for v in image_size)
+        hw = size_hw(image_size)
         if len(hw) != 2 or min(hw) < 32 or max(hw) > 2048:
             raise SplatplanError(f"efficientnet-lite0 image_size {image_size}: expected 32 to 2048 pixels (e.g. 224)")
         self.model = build_model(weights, random_init=random_init).requires_grad_(False).to(self.device)
