@@ -1,4 +1,4 @@
-"""Shared helpers of the E1 (precision-recall) and E2 (throughput) studies.
+"""Shared helpers of the studies (E1 precision-recall and E2 throughput first of all).
 
 Units and frames: normalised scene units of the built-in Stonehenge (z up, ground top at z = 0,
 x, y in [-0.5, 0.5]); robot = a sphere of radius :data:`ROBOT_RADIUS` (scene units).
@@ -88,6 +88,12 @@ def load_scene_with_gt(path: str | Path, gt: str | Path | None, filtered: bool =
     if filtered:
         splats, rep = filter_floaters(splats)
     return splats, AnalyticScene.load(gt_path), rep
+
+
+def mean_std(v) -> list[float]:
+    """[mean, std] of a list of numbers ([nan, nan] when empty)."""
+    v = np.asarray(v, np.float64)
+    return [float(v.mean()), float(v.std())] if len(v) else [float("nan"), float("nan")]
 
 
 def write_atomic(path: Path, text: str) -> None:

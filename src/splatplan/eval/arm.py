@@ -20,6 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ._common import mean_std, write_atomic
+
 
 def pick_targets(n: int, seed: int = 0, min_goal_clearance: float = 0.01, max_tries: int = 40) -> list[tuple[np.ndarray, np.ndarray]]:
     """``n`` (position (3,), wxyz quat (4,)) targets behind the wall with a collision-free IK goal."""
@@ -63,11 +65,6 @@ def arm_throughput(n_samples: int = 256, horizon: int = 32, n_steps: int = 3, de
             "steps_per_s": r.steps_per_s, "device": str(ts.checker.device)}  # fmt: skip
 
 
-def _mean_std(v) -> list[float]:
-    v = np.asarray(v, np.float64)
-    return [float(v.mean()), float(v.std())] if len(v) else [float("nan"), float("nan")]
-
-
 def run_arm_study(out_dir, quick: bool = False, seed: int = 0, device: str | None = "cpu") -> dict:
     """Run the study, write ``arm.json`` and ``arm.md`` into ``out_dir``; returns the JSON dict."""
     from ..tasks._common import load_task_scene
@@ -97,14 +94,14 @@ def run_arm_study(out_dir, quick: bool = False, seed: int = 0, device: str | Non
         t = [x for x in trials if x["config"] == name]
         rows.append({
             "config": name,
-            "min_clearance_m": _mean_std([x["min_clearance_m"] for x in t]),
-            "min_clearance_moving_links_m": _mean_std([x["min_clearance_moving_links_m"] for x in t]),
-            "final_error_m": _mean_std([x["final_error_m"] for x in t]),
-            "final_orientation_error_deg": _mean_std([x["final_orientation_error_deg"] for x in t]),
+            "min_clearance_m": mean_std([x["min_clearance_m"] for x in t]),
+            "min_clearance_moving_links_m": mean_std([x["min_clearance_moving_links_m"] for x in t]),
+            "final_error_m": mean_std([x["final_error_m"] for x in t]),
+            "final_orientation_error_deg": mean_std([x["final_orientation_error_deg"] for x in t]),
             "successes": int(sum(x["success"] for x in t)),
             "positive_clearance": int(sum(x["min_clearance_m"] > 0 for x in t)),
             "trials": len(t),
-            "steps_per_s": _mean_std([x["steps_per_s"] for x in t]),
+            "steps_per_s": mean_std([x["steps_per_s"] for x in t]),
         })  # fmt: skip
     throughput = None if quick else arm_throughput(device=device)
     result = {
@@ -116,11 +113,11 @@ def run_arm_study(out_dir, quick: bool = False, seed: int = 0, device: str | Non
         "rows": rows, "trials": trials,
     }  # fmt: skip
     out_dir = Path(out_dir)
-    (out_dir / "arm.json").write_text(json.dumps(result, indent=1) + "\n")
+    write_atomic(out_dir / "arm.json", json.dumps(result, indent=1) + "\n")
     md = ["| config | min clearance (m) | min clearance, moving links (m) | final error (m) | orientation error (deg) | successes | positive clearance | steps/s |", "|---|---|---|---|---|---|---|---|"]
     for r in rows:
         md.append(f"| {r['config']} | {r['min_clearance_m'][0]:+.4f} ± {r['min_clearance_m'][1]:.4f} | {r['min_clearance_moving_links_m'][0]:+.4f} ± {r['min_clearance_moving_links_m'][1]:.4f} | {r['final_error_m'][0]:.4f} ± {r['final_error_m'][1]:.4f} | "
                   f"{r['final_orientation_error_deg'][0]:.1f} ± {r['final_orientation_error_deg'][1]:.1f} | {r['successes']}/{r['trials']} | {r['positive_clearance']}/{r['trials']} | {r['steps_per_s'][0]:.2f} |")  # fmt: skip
-    (out_dir / "arm.md").write_text("\n".join(md) + "\n")
+    write_atomic(out_dir / "arm.md", "\n".join(md) + "\n")
     print("\n".join(md))
     return result

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .arm import _mean_std
+from ._common import mean_std, write_atomic
 
 START = (-2.3, -0.6, 0.0)
 
@@ -78,13 +78,13 @@ def run_base_study(out_dir, quick: bool = False, seed: int = 0, device: str | No
         reached = [x["time_to_goal_s"] for x in t if x["time_to_goal_s"] is not None]
         rows.append({
             "config": name,
-            "min_clearance_m": _mean_std([x["min_clearance_m"] for x in t]),
-            "final_error_m": _mean_std([x["final_error_m"] for x in t]),
-            "time_to_goal_s": _mean_std(reached),
+            "min_clearance_m": mean_std([x["min_clearance_m"] for x in t]),
+            "final_error_m": mean_std([x["final_error_m"] for x in t]),
+            "time_to_goal_s": mean_std(reached),
             "successes": int(sum(x["success"] for x in t)),
             "positive_clearance": int(sum(x["min_clearance_m"] > 0 for x in t)),
             "trials": len(t),
-            "steps_per_s": _mean_std([x["steps_per_s"] for x in t]),
+            "steps_per_s": mean_std([x["steps_per_s"] for x in t]),
         })  # fmt: skip
     result = {
         "study": "base", "quick": bool(quick), "seed": int(seed), "robot": "go2", "scene": "apartment", "start": list(START),
@@ -94,11 +94,11 @@ def run_base_study(out_dir, quick: bool = False, seed: int = 0, device: str | No
         "rows": rows, "trials": trials,
     }  # fmt: skip
     out_dir = Path(out_dir)
-    (out_dir / "base.json").write_text(json.dumps(result, indent=1) + "\n")
+    write_atomic(out_dir / "base.json", json.dumps(result, indent=1) + "\n")
     md = ["| config | min clearance (m) | final distance (m) | time to goal (s) | successes | positive clearance | steps/s |", "|---|---|---|---|---|---|---|"]
     for r in rows:
         md.append(f"| {r['config']} | {r['min_clearance_m'][0]:+.4f} ± {r['min_clearance_m'][1]:.4f} | {r['final_error_m'][0]:.3f} ± {r['final_error_m'][1]:.3f} | "
                   f"{r['time_to_goal_s'][0]:.1f} | {r['successes']}/{r['trials']} | {r['positive_clearance']}/{r['trials']} | {r['steps_per_s'][0]:.2f} |")  # fmt: skip
-    (out_dir / "base.md").write_text("\n".join(md) + "\n")
+    write_atomic(out_dir / "base.md", "\n".join(md) + "\n")
     print("\n".join(md))
     return result
