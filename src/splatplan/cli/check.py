@@ -51,12 +51,11 @@ def _chunked_query(checker, n: int, chunk: int, query, desc: str) -> dict[str, n
     return {k: np.concatenate(v) if v else np.zeros(0) for k, v in parts.items()}
 
 
-def _check_link(args, checker, scene) -> dict[str, np.ndarray]:
-    axes = parse_robot(args.robot)
-    centers, quats = load_poses(args.poses)
+def _check_link(axes: np.ndarray, centers: np.ndarray, quats: np.ndarray | None, checker, scene, chunk: int) -> dict[str, np.ndarray]:
+    """Per-pose outputs (B,) of one link with semi-axes ``axes`` (3,) at ``centers`` (B, 3), ``quats`` (B, 4) wxyz or None."""
     b = len(centers)
     out = _chunked_query(
-        checker, b, args.chunk,
+        checker, b, chunk,
         lambda lo, hi: checker.query(centers[lo:hi], None if quats is None else quats[lo:hi], axes),
         desc="check",
     )  # fmt: skip
@@ -137,8 +136,7 @@ def cmd_check(args) -> int:
     from ..metric import CollisionChecker, MetricConfig
 
     link = _is_link_spec(args.robot)
-    if link:
-        parse_robot(args.robot)  # fail fast on a bad spec
+    axes = parse_robot(args.robot) if link else None  # fail fast on a bad spec
     if (args.poses is None) == (args.configs is None):
         raise SplatplanError("give exactly one of --poses POSES.npy (link poses) or --configs Q.npy (joint configurations)")
     if args.poses is not None and not link:
@@ -156,7 +154,7 @@ def cmd_check(args) -> int:
     robot_q = _load_configs(args) if args.configs is not None else load_poses(args.poses)
     scene = _load(args.scene)
     checker = CollisionChecker(scene, device=args.device, config=cfg)
-    res = _check_link(args, checker, scene) if args.poses is not None else _check_robot(*robot_q, checker, scene, args.chunk)
+    res = _check_link(axes, *robot_q, checker, scene, args.chunk) if args.poses is not None else _check_robot(*robot_q, checker, scene, args.chunk)
     if args.out:
         with atomic_path(args.out) as tmp:
             with open(tmp, "wb") as f:
