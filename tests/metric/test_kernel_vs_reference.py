@@ -23,11 +23,7 @@ def _compare(scene: Splats, centers, quats, axes, cfg: MetricConfig, device: str
 
 def _check_against_reference(scene: Splats, centers, quats, axes, cfg: MetricConfig, got, hit, rots=None):
     """Every output of ``got`` (and the collision-only ``hit``) against the float64 brute force."""
-    if rots is not None:
-        w = 1.0 / np.broadcast_to(axes, centers.shape) ** 2
-        a = np.matmul(rots * w[:, None, :], np.swapaxes(rots, 1, 2))
-    else:
-        a = link_matrices(quats, axes, len(centers))
+    a = link_matrices(quats, axes, len(centers), rots)
     keep, ns = splat_inflation_ref(scene.opacities, len(scene), cfg)
     _, s2t = conservative_s2_ref(scene.means[keep], scene.quats[keep], scene.scales[keep], centers, a, ns[keep])  # (B, N)
     want_min = s2t.min(1) if s2t.shape[1] else np.full(len(centers), np.inf)

@@ -12,20 +12,24 @@ from ..scenes.splats import quat_to_rotmat
 from .config import MetricConfig, QueryResult
 
 
-def link_matrices(quats: np.ndarray | None, semi_axes: np.ndarray, batch: int) -> np.ndarray:
+def link_matrices(quats: np.ndarray | None, semi_axes: np.ndarray, batch: int, rots: np.ndarray | None = None) -> np.ndarray:
     """A = R diag(1/a^2, 1/b^2, 1/c^2) R^T per query, float64 (B, 3, 3).
 
     Args:
         quats: wxyz (B, 4) link orientations in the world frame, or None for identity.
         semi_axes: (3,) or (B, 3) semi-axes (a, b, c) in the link frame, scene units.
         batch: B.
+        rots: (B, 3, 3) world <- link rotation matrices, instead of ``quats``.
     """
     w = 1.0 / np.broadcast_to(np.asarray(semi_axes, dtype=np.float64), (batch, 3)) ** 2  # (B, 3)
-    if quats is None:
+    if rots is not None:
+        r = np.asarray(rots, dtype=np.float64).reshape(batch, 3, 3)
+    elif quats is None:
         a = np.zeros((batch, 3, 3))
         a[:, [0, 1, 2], [0, 1, 2]] = w
         return a
-    r = quat_to_rotmat(quats)  # (B, 3, 3)
+    else:
+        r = quat_to_rotmat(quats)  # (B, 3, 3)
     return np.matmul(r * w[:, None, :], np.swapaxes(r, 1, 2))  # R diag(w) R^T
 
 
@@ -84,12 +88,7 @@ def collision_metric_ref(
     """Brute-force reference of all five outputs (see :class:`QueryResult`)."""
     centers = np.asarray(centers, dtype=np.float64).reshape(-1, 3)
     b = centers.shape[0]
-    if rots is not None:
-        r = np.asarray(rots, dtype=np.float64).reshape(b, 3, 3)
-        w = 1.0 / np.broadcast_to(np.asarray(semi_axes, dtype=np.float64), (b, 3)) ** 2
-        a_all = np.matmul(r * w[:, None, :], np.swapaxes(r, 1, 2))
-    else:
-        a_all = link_matrices(quats, semi_axes, b)
+    a_all = link_matrices(quats, semi_axes, b, rots)
     keep, ns = splat_inflation_ref(opacities, len(splat_means), config)
     if not keep.all():
         splat_means, splat_quats, splat_scales, ns = splat_means[keep], splat_quats[keep], splat_scales[keep], ns[keep]
