@@ -78,6 +78,15 @@ class RenderResult:
         return int(self.rgb.shape[0])
 
 
+def thickened_scales(scales: np.ndarray) -> np.ndarray:
+    """(N, 3) float64 copy of the linear stds with 2DGS disks (third std 0) given the third std
+    ``DISK_THICKNESS`` x their larger std (every backend renders disks this way)."""
+    out = np.asarray(scales, dtype=np.float64).copy()
+    disk = out[:, 2] == 0
+    out[disk, 2] = DISK_THICKNESS * out[disk, :2].max(axis=1)
+    return out
+
+
 def scene_sh_degree(sh_rest: np.ndarray | None) -> int:
     """Highest complete SH degree (<= 3) that ``sh_rest`` (N, K, 3) holds."""
     k = 0 if sh_rest is None else int(sh_rest.shape[1])

@@ -17,7 +17,7 @@ import numpy as np
 from .._warp import resolve_device
 from ..errors import SplatplanError
 from ..scenes.splats import Splats
-from .config import DISK_THICKNESS, LOW_PASS, SH_C0, RenderResult, check_render_args, resolve_sh_degree, scene_sh_degree
+from .config import LOW_PASS, SH_C0, RenderResult, check_render_args, resolve_sh_degree, scene_sh_degree, thickened_scales
 
 
 def gsplat_available() -> bool:
@@ -51,9 +51,7 @@ class GsplatRenderer:
         self.n = len(scene)
         if self.n:
             scene.validate()
-        scales = scene.scales.astype(np.float64).copy()
-        disk = scales[:, 2] == 0
-        scales[disk, 2] = DISK_THICKNESS * scales[disk, :2].max(axis=1)  # same thickness as our kernels
+        scales = thickened_scales(scene.scales)  # (N, 3) same disk thickness as our kernels
         self.sh_degree = scene_sh_degree(scene.sh_rest)
         k_rest = (self.sh_degree + 1) ** 2 - 1
         sh0 = (scene.colors.astype(np.float64) - 0.5) / SH_C0  # colours = 0.5 + C0 * sh0

@@ -13,8 +13,8 @@ import numpy as np
 
 from ..scenes.splats import Splats, quat_to_rotmat
 from .config import (
-    ALPHA_MAX, ALPHA_MIN, DISK_THICKNESS, LOW_PASS, SH_C1, SH_C2, SH_C3, T_MIN, RenderResult, camera_arrays,
-    check_render_args, resolve_sh_degree, scene_sh_degree,
+    ALPHA_MAX, ALPHA_MIN, LOW_PASS, SH_C1, SH_C2, SH_C3, T_MIN, RenderResult, camera_arrays,
+    check_render_args, resolve_sh_degree, scene_sh_degree, thickened_scales,
 )  # fmt: skip
 
 __all__ = ["scene_arrays", "eval_sh", "project_reference", "render_reference"]
@@ -28,9 +28,7 @@ def scene_arrays(scene: Splats) -> dict[str, np.ndarray | int]:
     already + 0.5, i.e. ``Splats.colors``), sh (N, K, 3) higher bands (K may be 0) and
     ``degree`` the scene's SH degree.
     """
-    scales = scene.scales.astype(np.float64).copy()  # (N, 3) linear std
-    disk = scales[:, 2] == 0
-    scales[disk, 2] = DISK_THICKNESS * scales[disk, :2].max(axis=1)
+    scales = thickened_scales(scene.scales)  # (N, 3) linear std
     rot = quat_to_rotmat(scene.quats) if len(scene) else np.zeros((0, 3, 3))  # (N, 3, 3) local -> world
     covs = np.einsum("nij,nj,nkj->nik", rot, scales**2, rot)
     sh = scene.sh_rest if scene.sh_rest is not None else np.zeros((len(scene), 0, 3), np.float32)
