@@ -60,12 +60,16 @@ class Kinematics:
         return out
 
 
+def skew(k: np.ndarray) -> np.ndarray:
+    """Cross-product matrix [k]x (3, 3) of a vector k (3,): [k]x v = k x v."""
+    return np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+
+
 def axis_angle_matrix(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
     """Rotation by ``angle`` (...,) about the unit ``axis`` (3,): (..., 3, 3) (Rodrigues)."""
     k = np.asarray(axis, dtype=np.float64)
     c, s = np.cos(angle)[..., None, None], np.sin(angle)[..., None, None]
-    kx = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
-    return c * np.eye(3) + s * kx + (1.0 - c) * np.outer(k, k)
+    return c * np.eye(3) + s * skew(k) + (1.0 - c) * np.outer(k, k)
 
 
 def joint_motion(jtype: int, axis: np.ndarray, q: np.ndarray, qidx: int, mult: float, offset: float) -> np.ndarray | None:

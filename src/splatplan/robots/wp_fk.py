@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from .._warp import wp as _wp
-from .kinematics import FIXED, PLANAR, PRISMATIC, REVOLUTE, TRANSLATION
+from .kinematics import FIXED, PLANAR, PRISMATIC, REVOLUTE, TRANSLATION, skew
 
 wp = _wp()
 wp.set_module_options({"enable_backward": False})  # forward only: halves compile time
@@ -126,10 +126,6 @@ def fk_kernel(
 assert (FIXED, REVOLUTE, PRISMATIC, PLANAR, TRANSLATION) == (0, 1, 2, 3, 4)  # codes used in the kernel
 
 
-def _skew(k: np.ndarray) -> np.ndarray:
-    return np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
-
-
 def model_arrays(robot) -> dict[str, np.ndarray]:
     """The flat frame model of a robot as numpy arrays (float32/int32), device independent."""
     kin = robot.kin
@@ -156,7 +152,7 @@ def model_arrays(robot) -> dict[str, np.ndarray]:
         "offset": kin.offset[frames].astype(np.float32),
         "axis": kin.axis[frames].astype(np.float32),
         "orot": origin[:, :3, :3].astype(np.float32),
-        "arot": (origin[:, :3, :3] @ np.stack([_skew(k) for k in kin.axis[frames]])).astype(np.float32),
+        "arot": (origin[:, :3, :3] @ np.stack([skew(k) for k in kin.axis[frames]])).astype(np.float32),
         "brot": (origin[:, :3, :3] @ np.einsum("fi,fj->fij", kin.axis[frames], kin.axis[frames])).astype(np.float32),
         "opos": origin[:, :3, 3].astype(np.float32),
         "slot": slot,
