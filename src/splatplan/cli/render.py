@@ -55,6 +55,7 @@ def _scene(spec: str, filter_floaters: bool):
 
 def cmd_render(args) -> int:
     from ..render import intrinsics_from_fov, look_at, render
+    from ..render.config import check_image_size
 
     out = Path(args.out)
     if out.suffix.lower() not in _IMAGE_EXT:
@@ -66,7 +67,6 @@ def cmd_render(args) -> int:
     for p in [args.out] + ([args.depth] if args.depth else []):
         if not Path(p).parent.exists():
             raise SplatplanError(f"output folder {Path(p).parent} does not exist")
-    w, h = args.width, args.height
     # camera: viewmat file, or eye + look-at
     if args.viewmat:
         if args.eye or args.look_at:
@@ -76,11 +76,10 @@ def cmd_render(args) -> int:
         if not (args.eye and args.look_at):
             raise SplatplanError("give the camera as --eye X,Y,Z --look-at X,Y,Z (and optionally --up), or --viewmat FILE")
         viewmat = look_at(parse_vec3(args.eye, "--eye"), parse_vec3(args.look_at, "--look-at"), parse_vec3(args.up, "--up"))
+    w, h = check_image_size(args.width, args.height)
     if args.K:
         K = _load_matrix(args.K, (3, 3), "--K", "K")
     else:
-        if w <= 0 or h <= 0:
-            raise SplatplanError(f"image size must be >= 1 pixel, got {w}x{h}")
         K = intrinsics_from_fov(args.fov, w, h)
     bg = parse_vec3(args.background, "--background")
     device = check_device(args.device)
