@@ -90,10 +90,10 @@ def load_scene_with_gt(path: str | Path, gt: str | Path | None, filtered: bool =
     return splats, AnalyticScene.load(gt_path), rep
 
 
-def mean_std(v) -> list[float]:
-    """[mean, std] of a list of numbers ([nan, nan] when empty)."""
-    v = np.asarray(v, np.float64)
-    return [float(v.mean()), float(v.std())] if len(v) else [float("nan"), float("nan")]
+def mean_std(values, finite_only: bool = False) -> list[float]:
+    """[mean, std] of ``values`` (only their finite ones with ``finite_only``); [nan, nan] when there are none."""
+    v = np.asarray([x for x in values if not finite_only or np.isfinite(x)], dtype=np.float64)
+    return [float(v.mean()), float(v.std())] if v.size else [float("nan"), float("nan")]
 
 
 def write_atomic(path: Path, text: str) -> None:

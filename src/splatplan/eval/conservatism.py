@@ -28,7 +28,7 @@ from scipy.spatial import cKDTree
 from ..errors import PlanningError, SplatplanError
 from ..planners import RRTConfig, plan
 from ..planners.metrics import clearance, d_min, smoothness
-from ._common import load_stonehenge_filtered, progress
+from ._common import load_stonehenge_filtered, mean_std, progress
 
 #: The paper's Table II: n_sigma -> (mean, std) per column.
 PAPER_TABLE_II: dict[float, dict[str, tuple[float, float]]] = {
@@ -146,12 +146,6 @@ def free_start(center, checkers, radius: float = RADIUS, max_offset: float = 0.1
     raise PlanningError(f"no collision-free start within {max_offset} of {center}")
 
 
-def mean_std(values) -> list[float]:
-    """[mean, std] of the finite values ([nan, nan] when there are none)."""
-    v = np.asarray([x for x in values if np.isfinite(x)], dtype=np.float64)
-    return [float(v.mean()), float(v.std())] if v.size else [float("nan"), float("nan")]
-
-
 def plan_trials(checker, start, goals, means_tree, sdf, seed: int, time_budget_s: float, tag: str = "", config: ConservatismConfig | None = None) -> tuple[list[dict], list]:
     """Plan start -> each goal (RRT (+ shortcut if SHORTCUT) + refinement) and measure the paths.
 
@@ -203,7 +197,7 @@ def plan_trials(checker, start, goals, means_tree, sdf, seed: int, time_budget_s
 
 def summarise(rows: list[dict], keys=COLUMNS) -> dict:
     ok = [r for r in rows if r]
-    out = {k: mean_std([r[k] for r in ok]) for k in keys}
+    out = {k: mean_std([r[k] for r in ok], finite_only=True) for k in keys}
     out["success_rate"] = len(ok) / max(1, len(rows))
     out["n_trials"] = len(rows)
     return out

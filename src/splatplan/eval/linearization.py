@@ -29,8 +29,8 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ..errors import PlanningError, SplatplanError
-from ._common import progress
-from .conservatism import PLANE_Z, RADIUS, border_goals, free_start, load_scene, mean_std, plan_trials
+from ._common import mean_std, progress
+from .conservatism import PLANE_Z, RADIUS, border_goals, free_start, load_scene, plan_trials
 
 #: The paper's Table III: scene -> (path length mean, std), (closest distance mean, std).
 PAPER_TABLE_III = {
@@ -197,10 +197,10 @@ def run_linearization(out_dir: Path, quick: bool = False, seed: int | None = Non
         rows.append(
             {
                 "level": int(lv),
-                "length": mean_std([r["length_rrt"] for r in ok]),
-                "dmin": mean_std([r["dmin_rrt"] for r in ok]),
-                "length_refined": mean_std([r["length_refined"] for r in ok]),
-                "dmin_refined": mean_std([r["dmin_refined"] for r in ok]),
+                "length": mean_std([r["length_rrt"] for r in ok], finite_only=True),
+                "dmin": mean_std([r["dmin_rrt"] for r in ok], finite_only=True),
+                "length_refined": mean_std([r["length_refined"] for r in ok], finite_only=True),
+                "dmin_refined": mean_std([r["dmin_refined"] for r in ok], finite_only=True),
                 "success_rate": len(ok) / max(1, len(trials)),
                 "n_splats": len(splats),
                 "mean_max_scale": float(splats.scales.max(axis=1).mean()),
