@@ -236,9 +236,8 @@ class Encoder:
 
     def close(self) -> None:
         """Release the model (and device memory). The encoder cannot be used afterwards."""
-        for attr in ("model",):
-            if hasattr(self, attr):
-                setattr(self, attr, None)
+        if hasattr(self, "model"):
+            self.model = None
 
     def __enter__(self):
         return self
