@@ -21,6 +21,7 @@ def _floats(text: str, n: int, what: str, form: str) -> np.ndarray:
 
 
 def cmd_mpc(args) -> int:
+    from ..tasks._common import load_task_scene
     from ..tasks.plot import plot_run
 
     out = _out_dir(args.out)
@@ -39,7 +40,8 @@ def cmd_mpc(args) -> int:
         robot = load_robot("panda")
         scene = args.scene or "tabletop"
         q0 = None if args.start is None else _floats(args.start, robot.dof, "--start", f"with {robot.dof} joint values")
-        res = run_arm(robot, scene, gp[:3], gp[3:], config=cfg, collision=collision, q0=q0, device=args.device)
+        ts = load_task_scene(scene, n_sigma=cfg.n_sigma, device=args.device)  # once: the run and the figure share it
+        res = run_arm(robot, ts, gp[:3], gp[3:], config=cfg, collision=collision, q0=q0, device=args.device)
         kind = "arm"
     elif args.robot == "go2":
         from ..tasks.base import BaseConfig, load_go2, plan_route, run_base
@@ -51,24 +53,19 @@ def cmd_mpc(args) -> int:
         robot = load_go2()
         scene = args.scene or "apartment"
         start = np.zeros(3) if args.start is None else _floats(args.start, 3, "--start", "X,Y,YAW")
+        ts = load_task_scene(scene, n_sigma=cfg.n_sigma, device=args.device, ground_below=None if cfg.ground_z is None else cfg.ground_z + cfg.ground_band)
         route = None
         if args.route:
-            from ..tasks._common import load_task_scene
-
-            ts = load_task_scene(scene, n_sigma=cfg.n_sigma, device=args.device, ground_below=None if cfg.ground_z is None else cfg.ground_z + cfg.ground_band)
             route = plan_route(robot, ts.checker, start, g, time_budget_s=args.route_time, seed=args.seed)
             if route is None:
                 print(f"no SE(2) route from {start[:2].round(2).tolist()} to {g.round(2).tolist()} within {args.route_time:g} s (try a larger --route-time)")
                 return 1
-        res = run_base(robot, scene, g, start=start, config=cfg, collision=collision, route=route, device=args.device)
+        res = run_base(robot, ts, g, start=start, config=cfg, collision=collision, route=route, device=args.device)
         kind = "base"
     else:  # argparse choices keep this unreachable
         raise SplatplanError(f"unknown robot {args.robot!r}: panda or go2")
     d = res.to_json()
     write_json(out / "result.json", d)
-    from ..tasks._common import load_task_scene
-
-    ts = load_task_scene(scene, n_sigma=cfg.n_sigma, device=args.device, ground_below=(cfg.ground_z + cfg.ground_band) if kind == "base" and cfg.ground_z is not None else None)
     fig = plot_run(robot, ts, res, kind=kind)
     fig.savefig(out / "motion.png", dpi=100)
     import matplotlib.pyplot as plt
