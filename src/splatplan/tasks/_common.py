@@ -28,23 +28,15 @@ class TaskScene:
     analytic: object | None
 
 
-def load_task_scene(scene, n_sigma: float = 1.0, device: str | None = "cpu", n_splats: int | None = None, ground_below: float | None = None) -> TaskScene:
-    """A built-in name ("tabletop", "apartment", "stonehenge") or a splat file (its ``.gt.json``
-    beside it is used for the exact clearance when present).
-
-    ``ground_below``: for walking robots the floor is terrain, not an obstacle: splats whose centre
-    lies below this height are removed from the collision scene and the analytic boxes labelled
-    "floor"/"ground" from the ground truth (a ground segmentation by height).
-    """
-    from ..metric import CollisionChecker
+def load_filtered_scene(scene, n_splats: int | None = None, seed: int = 0):
+    """A built-in name or a splat file -> (floater-filtered splats, analytic ground truth or None);
+    a file's ground truth is its ``.gt.json`` beside it when present."""
     from ..scenes.builtin import BUILTIN_SCENES, build_builtin
     from ..scenes.filters import filter_floaters
 
-    if isinstance(scene, TaskScene):
-        return scene
     name = str(scene)
     if name in BUILTIN_SCENES:
-        raw, gt = build_builtin(name, n_splats=n_splats)
+        raw, gt = build_builtin(name, seed=seed, n_splats=n_splats)
     else:
         from ..scenes.load import load_scene
         from ..scenes.stonehenge import ground_truth_path, load_ground_truth
@@ -55,6 +47,23 @@ def load_task_scene(scene, n_sigma: float = 1.0, device: str | None = "cpu", n_s
         raw = load_scene(p, filter_floaters=False)
         gt = load_ground_truth(p) if ground_truth_path(p).is_file() else None
     splats, _ = filter_floaters(raw)
+    return splats, gt
+
+
+def load_task_scene(scene, n_sigma: float = 1.0, device: str | None = "cpu", n_splats: int | None = None, ground_below: float | None = None) -> TaskScene:
+    """A built-in name ("tabletop", "apartment", "stonehenge") or a splat file (its ``.gt.json``
+    beside it is used for the exact clearance when present).
+
+    ``ground_below``: for walking robots the floor is terrain, not an obstacle: splats whose centre
+    lies below this height are removed from the collision scene and the analytic boxes labelled
+    "floor"/"ground" from the ground truth (a ground segmentation by height).
+    """
+    from ..metric import CollisionChecker
+
+    if isinstance(scene, TaskScene):
+        return scene
+    name = str(scene)
+    splats, gt = load_filtered_scene(name, n_splats=n_splats)
     if ground_below is not None:
         splats = splats.subset(splats.means[:, 2] >= ground_below)
         if gt is not None:

@@ -34,7 +34,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import SplatplanError
-from ._common import TaskScene
+from ._common import TaskScene, load_filtered_scene
 
 __all__ = [
     "NavigateConfig", "NavScene", "ViewIndex", "Match", "DriveResult", "head_camera", "load_nav_scene", "explore",
@@ -178,25 +178,10 @@ def floor_mask(splats, height: float = 0.05) -> np.ndarray:
 def load_nav_scene(scene="apartment", cfg: NavigateConfig | None = None, device: str | None = "cpu", seed: int = 0) -> NavScene:
     """A built-in scene name (or a splat file) -> :class:`NavScene` (floaters filtered)."""
     from ..metric import CollisionChecker
-    from ..scenes.builtin import BUILTIN_SCENES, build_builtin
-    from ..scenes.filters import filter_floaters
 
     cfg = cfg or NavigateConfig()
     name = str(scene)
-    if name in BUILTIN_SCENES:
-        raw, gt = build_builtin(name, seed=seed, n_splats=cfg.n_splats)
-    else:
-        from pathlib import Path
-
-        from ..scenes.load import load_scene
-        from ..scenes.stonehenge import ground_truth_path, load_ground_truth
-
-        p = Path(name)
-        if not p.is_file():
-            raise SplatplanError(f"scene {name!r} is neither a built-in scene ({', '.join(BUILTIN_SCENES)}) nor a file")
-        raw = load_scene(p, filter_floaters=False)
-        gt = load_ground_truth(p) if ground_truth_path(p).is_file() else None
-    splats, _ = filter_floaters(raw)
+    splats, gt = load_filtered_scene(name, n_splats=cfg.n_splats, seed=seed)
     floor = floor_mask(splats)
     metric_splats = splats.subset(np.flatnonzero(~floor))
     if gt is not None:
