@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import re
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -77,7 +78,7 @@ def _robot_for(args):
 
 def cmd_plan(args) -> int:
     from ..metric import CollisionChecker, MetricConfig
-    from ..planners import RefineConfig, RRT, RRTConfig, plan, refine_path  # noqa: F401
+    from ..planners import RRT, RefineConfig, RRTConfig, plan
 
     out = Path(args.out)
     if out.suffix != ".json":
@@ -90,8 +91,6 @@ def cmd_plan(args) -> int:
     rrt_cfg = config_from_args(args, RRTConfig, prefix="rrt_", time_limit_s=args.time_limit, seed=args.seed)
     if args.box is not None:
         lo, hi = (parse_config(b, robot, "--box") for b in args.box)
-        from dataclasses import replace
-
         rrt_cfg = replace(rrt_cfg, box_lo=tuple(lo), box_hi=tuple(hi))
     notes = []
     if args.planar:
@@ -104,8 +103,6 @@ def cmd_plan(args) -> int:
             if goal[axis] != h:
                 notes.append(f"goal {'xyz'[axis]} set to the plane's {h:g}")
             goal[axis] = h
-            from dataclasses import replace
-
             frozen = tuple(sorted(set(rrt_cfg.frozen or ()) | {axis}))
             rrt_cfg = replace(rrt_cfg, frozen=frozen)
             if rrt_cfg.box_lo is not None and rrt_cfg.box_hi is not None:
