@@ -24,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .._files import _umask, atomic_path  # noqa: F401 - the commands import atomic_path from here
 from ..errors import SplatplanError
 
 ROBOT_HELP = "robot link: 'sphere:R' or 'ellipsoid:A,B,C' (semi-axes, scene units)"
@@ -94,37 +95,6 @@ def load_poses(path: str) -> tuple[np.ndarray, np.ndarray | None]:
 
 
 # ---------------------------------------------------------------------------- output files
-def _umask() -> int:
-    """The process umask (read by setting and restoring it)."""
-    m = os.umask(0o022)
-    os.umask(m)
-    return m
-
-
-@contextmanager
-def atomic_path(path: str | Path):
-    """Yield a temp path in the destination folder; move it over ``path`` only on success.
-
-    The final file gets the permissions a plain ``open(path, "w")`` would give (0666 minus the
-    umask), not mkstemp's 0600. The temp file is removed on any exception, KeyboardInterrupt and
-    SystemExit included (``main`` turns SIGTERM into SystemExit so this runs then too).
-    """
-    dest = Path(path)
-    if dest.is_dir():
-        raise SplatplanError(f"output {dest} is a directory; give a file path")
-    if dest.parent and not dest.parent.exists():
-        raise SplatplanError(f"output folder {dest.parent} does not exist")
-    fd, tmp = tempfile.mkstemp(prefix=f".{dest.name}.", suffix=dest.suffix, dir=dest.parent or ".")
-    os.close(fd)
-    try:
-        yield Path(tmp)
-        os.chmod(tmp, 0o666 & ~_umask())
-        os.replace(tmp, dest)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-
-
 @contextmanager
 def atomic_dir(folder: str | Path):
     """Yield a fresh temp folder inside ``folder``; the caller moves finished files out of it

@@ -347,7 +347,7 @@ def save_yaml(ells: EllipsoidSet, path: str | Path, robot: str = "", urdf: str =
         "links": {k: {kk: (float(f"{vv:.6g}") if isinstance(vv, float) else vv) for kk, vv in v.items()} for k, v in ells.report.items()},
         "skipped_links": list(ells.skipped),
     }
-    from ..cli._common import atomic_path
+    from .._files import atomic_path
 
     with atomic_path(path) as tmp:
         tmp.write_text(yaml.safe_dump(doc, sort_keys=False, width=200))

@@ -1,0 +1,45 @@
+"""Atomic output files, shared by the library (robot YAMLs) and the CLI.
+
+Frames and units do not apply; this is plumbing. Scene files use
+:func:`splatplan.scenes.io_ply.atomic_write`, which keeps an existing file's mode.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from contextlib import contextmanager
+from pathlib import Path
+
+from .errors import SplatplanError
+
+
+def _umask() -> int:
+    """The process umask (read by setting and restoring it)."""
+    m = os.umask(0o022)
+    os.umask(m)
+    return m
+
+
+@contextmanager
+def atomic_path(path: str | Path):
+    """Yield a temp path in the destination folder; move it over ``path`` only on success.
+
+    The final file gets the permissions a plain ``open(path, "w")`` would give (0666 minus the
+    umask), not mkstemp's 0600. The temp file is removed on any exception, KeyboardInterrupt and
+    SystemExit included (``main`` turns SIGTERM into SystemExit so this runs then too).
+    """
+    dest = Path(path)
+    if dest.is_dir():
+        raise SplatplanError(f"output {dest} is a directory; give a file path")
+    if dest.parent and not dest.parent.exists():
+        raise SplatplanError(f"output folder {dest.parent} does not exist")
+    fd, tmp = tempfile.mkstemp(prefix=f".{dest.name}.", suffix=dest.suffix, dir=dest.parent or ".")
+    os.close(fd)
+    try:
+        yield Path(tmp)
+        os.chmod(tmp, 0o666 & ~_umask())
+        os.replace(tmp, dest)
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
