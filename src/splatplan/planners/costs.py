@@ -28,6 +28,7 @@ from typing import Callable
 import numpy as np
 
 from ..errors import SplatplanError
+from ..metric.config import QueryResult
 from .robot_links import LinkGeometry
 
 
@@ -97,6 +98,12 @@ class CollisionCost(Cost):
     ``weight * sum_{t, e} cost_{kte} + hit_weight * #{(t, e): ellipsoid e in collision at t}``, from
     **one** ``query_robot`` (or ``query`` after host FK) on the whole (K, T, dof) batch.
 
+    Static ellipsoids (``robot.static_ellipsoids``: on links fixed to the world, e.g. the Panda's
+    link0) have the same pose in every sample and step, so their query result is computed once
+    (per checker config) and only the moving ellipsoids are queried on the (K, T) batch; the
+    result (and every cost) is the same as querying all of them (``static_shortcut=False``),
+    up to the float32 summation order of the per-splat cost sum.
+
     Args:
         checker: a :class:`~splatplan.metric.CollisionChecker`.
         robot: a Robot, a dynamics model, or a :class:`LinkGeometry`.
@@ -110,37 +117,136 @@ class CollisionCost(Cost):
         time_stride: evaluate every ``time_stride``-th step only (the last step always), the sums
             scaled by ``time_stride``: ``time_stride`` times fewer queries, at the risk of stepping
             over a thin obstacle between evaluated steps. 1 (default) = every step (the paper).
+            ``"auto"``: the largest stride s with ``s * m <= max_gap_m``, where
+            ``m = sum_j motion_bound_j * speed_bound_j * dt`` bounds how far any point of any
+            ellipsoid moves in one control step (:attr:`Robot.motion_bound`); so no ellipsoid point
+            moves more than ``max_gap_m`` between two evaluated steps (stride 1 when one step
+            already moves more).
+        max_gap_m: the gap of ``time_stride="auto"`` (scene units); None = half the smallest
+            semi-axis of the moving ellipsoids.
+        speed_bound: (dof,) bound on ``|dq_j / dt|`` for ``time_stride="auto"``; None = from the
+            dynamics model given as ``robot`` (a :class:`JointIntegrator`'s velocity clip, a
+            :class:`PlanarBase`'s body-frame limits), else ``robot.velocity_limits``.
+        static_shortcut: query static ellipsoids once (see above); False = query every ellipsoid
+            on the whole batch.
     """
 
     name = "collision"
 
     def __init__(
-        self, checker, robot, weight: float = 1.0, hit_weight: float = 10.0, s2_cap: float | None = 2.0, self_collision_weight: float = 0.0, time_stride: int = 1
+        self,
+        checker,
+        robot,
+        weight: float = 1.0,
+        hit_weight: float = 10.0,
+        s2_cap: float | None = 2.0,
+        self_collision_weight: float = 0.0,
+        time_stride: int | str = 1,
+        max_gap_m: float | None = None,
+        speed_bound=None,
+        static_shortcut: bool = True,
     ) -> None:
         self.checker = checker.with_config(s2_cap=s2_cap) if s2_cap is not None else checker
         self.geometry = _geometry(robot)
         self.weight = float(weight)
         self.hit_weight = float(hit_weight)
         self.self_collision_weight = float(self_collision_weight)
-        if int(time_stride) < 1:
-            raise SplatplanError(f"CollisionCost.time_stride must be >= 1, got {time_stride}")
-        self.time_stride = int(time_stride)
+        rob = self.geometry.robot
+        mask = getattr(rob, "static_ellipsoids", None)
+        use_static = static_shortcut and mask is not None and bool(np.any(mask)) and hasattr(self.checker, "query_robot") and hasattr(rob, "fk")
+        #: (E,) bool static ellipsoids answered from the cache, or None (every ellipsoid queried)
+        self.static = np.asarray(mask, dtype=bool) if use_static else None
+        self._static_cache: dict = {}
+        self.auto_stride = isinstance(time_stride, str)
+        if self.auto_stride:
+            if time_stride != "auto":
+                raise SplatplanError(f"CollisionCost.time_stride must be an integer >= 1 or 'auto', got {time_stride!r}")
+            if self.geometry.weights is None:
+                raise SplatplanError("CollisionCost(time_stride='auto') needs a Robot (its motion_bound), not a bare link_poses callable")
+            self.speed_bound = _speed_bound(robot, self.geometry) if speed_bound is None else np.asarray(speed_bound, dtype=np.float64).reshape(-1)
+            if self.speed_bound.shape != (self.geometry.dof,) or not np.all(np.isfinite(self.speed_bound)) or np.any(self.speed_bound < 0):
+                raise SplatplanError(f"CollisionCost: speed_bound must be {self.geometry.dof} finite values >= 0, got {self.speed_bound}")
+            if max_gap_m is None:
+                ax = np.asarray(rob.semi_axes, dtype=np.float64)
+                moving = ax if self.static is None or self.static.all() else ax[~self.static]
+                max_gap_m = 0.5 * float(moving.min())
+            if not (np.isfinite(max_gap_m) and max_gap_m > 0):
+                raise SplatplanError(f"CollisionCost.max_gap_m must be finite and > 0, got {max_gap_m}")
+            self.max_gap_m = float(max_gap_m)
+            self.time_stride = 1
+        else:
+            if int(time_stride) < 1:
+                raise SplatplanError(f"CollisionCost.time_stride must be >= 1, got {time_stride}")
+            self.time_stride = int(time_stride)
+            self.max_gap_m = None
+            self.speed_bound = None
 
-    def steps(self, t_len: int) -> np.ndarray:
-        """Indices of the evaluated time steps (every time_stride-th, ending at the last)."""
-        return np.arange(t_len - 1, -1, -self.time_stride)[::-1]
+    def step_motion(self, dt: float) -> float:
+        """Bound on how far any ellipsoid point moves in one control step of ``dt`` s ("auto" mode)."""
+        return float(self.geometry.motion(self.speed_bound * float(dt)))
+
+    def stride(self, dt: float, t_len: int) -> int:
+        """The time stride used for a horizon of ``t_len`` steps of ``dt`` s (see ``time_stride``)."""
+        if not self.auto_stride:
+            return self.time_stride
+        m = self.step_motion(dt)
+        if m <= 0:
+            return max(1, int(t_len))
+        return int(min(max(1, np.floor(self.max_gap_m / m * (1 + 1e-12))), max(1, t_len)))
+
+    def steps(self, t_len: int, dt: float | None = None) -> np.ndarray:
+        """Indices of the evaluated time steps (every stride-th, ending at the last)."""
+        s = self.time_stride if dt is None else self.stride(dt, t_len)
+        return np.arange(t_len - 1, -1, -s)[::-1]
+
+    def _static_result(self) -> QueryResult:
+        """Query result (E_static,) of the static ellipsoids, computed once per checker config."""
+        key = (id(self.checker), repr(self.checker.config))
+        hit = self._static_cache.get(key)
+        if hit is None:
+            rob = self.geometry.robot
+            res = self.checker.query_robot(rob, np.asarray(rob.q_default, dtype=np.float64)[None])  # (1, E)
+            hit = QueryResult(**{f: np.asarray(v)[0, self.static].copy() for f, v in res.as_dict().items()})
+            self._static_cache = {key: hit}
+        return hit
+
+    def _query_states(self, states: np.ndarray):
+        """QueryResult (..., E) of every ellipsoid at configurations ``states`` (..., dof)."""
+        if self.static is None:
+            return self.geometry.query(self.checker, states)
+        rob = self.geometry.robot
+        st = self.static
+        mv = ~st
+        static = self._static_result()
+        lead = states.shape[:-1]
+        if not mv.any():
+            return QueryResult(**{f: np.broadcast_to(v, lead + v.shape).copy() for f, v in static.as_dict().items()})
+        centers, rots = rob.fk(states, device=getattr(self.checker, "device", "cpu"))  # (..., E, 3), (..., E, 3, 3) float32
+        res = self.checker.query(centers[..., mv, :], rots=rots[..., mv, :, :], semi_axes=np.asarray(rob.semi_axes)[mv])  # (..., E_moving)
+        self.geometry.n_queries += int(np.size(res.min_s2))
+        out = {}
+        for f, v in res.as_dict().items():
+            v = np.asarray(v)
+            a = np.empty(lead + (st.size,), dtype=v.dtype)
+            a[..., mv] = v
+            a[..., st] = getattr(static, f)
+            out[f] = a
+        return QueryResult(**out)
 
     def query(self, rollout: Rollout):
         """The QueryResult of the evaluated steps, (K, T', L) (computed once, cached)."""
         if "query" not in rollout.cache:
-            states = rollout.states if self.time_stride == 1 else rollout.states[:, self.steps(rollout.states.shape[1])]
-            rollout.cache["query"] = self.geometry.query(self.checker, states)
+            t_len = rollout.states.shape[1]
+            s = self.stride(rollout.dt, t_len)
+            states = rollout.states if s == 1 else rollout.states[:, self.steps(t_len, rollout.dt)]
+            rollout.cache["query"] = self._query_states(states)
+            rollout.cache["collision_stride"] = s
         return rollout.cache["query"]
 
     def terms(self, rollout: Rollout) -> dict[str, np.ndarray]:
         k = rollout.k
         res = self.query(rollout)
-        scale = float(self.time_stride)
+        scale = float(rollout.cache.get("collision_stride", self.time_stride))
         out = {
             "collision": scale * self.weight * np.asarray(res.cost, dtype=np.float64).reshape(k, -1).sum(axis=1),
             "hit": scale * self.hit_weight * np.asarray(res.in_collision).reshape(k, -1).sum(axis=1).astype(np.float64),
@@ -152,6 +258,24 @@ class CollisionCost(Cost):
 
     def __call__(self, rollout: Rollout) -> np.ndarray:
         return np.sum(list(self.terms(rollout).values()), axis=0)
+
+
+def _speed_bound(source, geometry: LinkGeometry) -> np.ndarray:
+    """(dof,) bound on |dq_j / dt| of the robot configuration under the dynamics ``source``."""
+    from .dynamics import HolonomicPoint, JointIntegrator, PlanarBase
+
+    robot = geometry.robot
+    if isinstance(source, JointIntegrator) and source.v_max is not None:
+        return np.asarray(source.v_max, dtype=np.float64).copy()
+    if isinstance(source, PlanarBase) and robot is not None:
+        v = np.asarray(robot.velocity_limits, dtype=np.float64).reshape(3)
+        xy = float(np.hypot(v[0], v[1]))  # body-frame (vx, vy) rotated into the world: |dx|, |dy| <= |v_xy|
+        return np.array([xy, xy, v[2]])
+    if isinstance(source, (HolonomicPoint, PlanarBase)):
+        raise SplatplanError(f"CollisionCost(time_stride='auto'): {type(source).__name__} does not bound its speed; give speed_bound")
+    if robot is None:
+        raise SplatplanError("CollisionCost(time_stride='auto') needs a Robot or speed_bound")
+    return np.asarray(robot.velocity_limits, dtype=np.float64).copy()
 
 
 def _rotation_angle(r: np.ndarray, r_goal: np.ndarray) -> np.ndarray:

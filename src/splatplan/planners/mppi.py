@@ -67,8 +67,13 @@ class MPPIConfig:
     #: much smaller search radius. None = the checker's own s2_cap.
     collision_s2_cap: float | None = 2.0
     #: evaluate the collision cost on every n-th rollout step only (the last always; sums scaled by
-    #: n): n times fewer queries, at the risk of stepping over thin obstacles; 1 = every step
-    collision_time_stride: int = 1
+    #: n): n times fewer queries, at the risk of stepping over thin obstacles; 1 = every step;
+    #: "auto" = the largest n such that no ellipsoid point moves more than collision_max_gap_m
+    #: between evaluated steps (from the robot's motion_bound, its speed limits and the control
+    #: bounds, times dt; see CollisionCost)
+    collision_time_stride: int | str = 1
+    #: gap of collision_time_stride="auto" (scene units); None = half the smallest moving semi-axis
+    collision_max_gap_m: float | None = None
     #: extra cost per (time step, link) in collision (``in_collision``); 0 = the paper's cost only
     w_hit: float = 10.0
     #: weight of the task cost callable
@@ -91,6 +96,16 @@ class MPPIConfig:
             raise SplatplanError("MPPIConfig.dt and temperature must be > 0")
         if self.n_iters < 1:
             raise SplatplanError(f"MPPIConfig.n_iters must be >= 1, got {self.n_iters}")
+        stride = self.collision_time_stride
+        if isinstance(stride, str):
+            if stride != "auto" and not stride.isdigit():
+                raise SplatplanError(f"MPPIConfig.collision_time_stride must be an integer >= 1 or 'auto', got {stride!r}")
+            if stride != "auto":
+                self.collision_time_stride = stride = int(stride)
+        if not isinstance(stride, str) and int(stride) < 1:
+            raise SplatplanError(f"MPPIConfig.collision_time_stride must be >= 1 or 'auto', got {stride}")
+        if self.collision_max_gap_m is not None and not (np.isfinite(self.collision_max_gap_m) and self.collision_max_gap_m > 0):
+            raise SplatplanError(f"MPPIConfig.collision_max_gap_m must be finite and > 0, got {self.collision_max_gap_m}")
         return self
 
 
@@ -144,6 +159,24 @@ def _per_dim(v, du: int, name: str) -> np.ndarray | None:
 _reduce_time = reduce_time  # backward-compatible name
 
 
+def joint_speed_bound(dynamics, u_min, u_max) -> np.ndarray | None:
+    """(dof,) bound on |dq/dt| of a :class:`JointIntegrator` whose controls (joint velocities) are
+    clipped to [u_min, u_max] (per dim or one for all; the B-spline stays inside the knots' bounds)
+    and to its ``v_max``; None for other dynamics (the collision cost then derives its own)."""
+    from .dynamics import JointIntegrator
+
+    if not isinstance(dynamics, JointIntegrator):
+        return None
+    du = int(dynamics.control_dim)
+    v = np.full(du, np.inf) if dynamics.v_max is None else np.asarray(dynamics.v_max, dtype=np.float64).copy()
+    lo, hi = _per_dim(u_min, du, "u_min"), _per_dim(u_max, du, "u_max")
+    if lo is not None and hi is not None:
+        v = np.minimum(v, np.maximum(np.abs(lo), np.abs(hi)))
+    if not np.all(np.isfinite(v)):
+        raise SplatplanError("collision_time_stride='auto' needs bounded joint speeds: give u_min/u_max or velocity limits")
+    return v
+
+
 class MPPI:
     """Sampling-based MPC over B-spline control knots (see the module docstring).
 
@@ -179,10 +212,18 @@ class MPPI:
         self.task_cost = task_cost
         self.terminal_cost = terminal_cost
         self.geometry = _geometry(dynamics) if checker is not None else None  # robot links for the collision terms
+        du = int(dynamics.control_dim)
         if costs is None:
             costs = []
             if checker is not None and (cfg.w_collision > 0 or cfg.w_hit > 0):
-                costs.append(CollisionCost(checker, self.geometry, weight=cfg.w_collision, hit_weight=cfg.w_hit, s2_cap=cap, time_stride=cfg.collision_time_stride))
+                auto = cfg.collision_time_stride == "auto"
+                costs.append(
+                    CollisionCost(
+                        checker, dynamics if auto else self.geometry, weight=cfg.w_collision, hit_weight=cfg.w_hit, s2_cap=cap,
+                        time_stride=cfg.collision_time_stride, max_gap_m=cfg.collision_max_gap_m,
+                        speed_bound=joint_speed_bound(dynamics, cfg.u_min, cfg.u_max) if auto else None,
+                    )
+                )  # fmt: skip
             costs.append(ControlEffortCost(cfg.w_control))
         else:
             costs = list(costs)
@@ -192,7 +233,6 @@ class MPPI:
             costs.append(TerminalCost(terminal_cost, cfg.w_terminal))
         #: the cost objects summed by :meth:`evaluate`
         self.costs = costs
-        du = int(dynamics.control_dim)
         self.du = du
         self.sigma = _per_dim(cfg.noise_sigma, du, "noise_sigma")
         self.u_min = _per_dim(cfg.u_min, du, "u_min")

@@ -38,6 +38,9 @@ class Robot:
         ellipsoid_local: (E, 4, 4) link <- ellipsoid frame.
         semi_axes: (E, 3) float64 metres.
         motion_bound: (dof,) metres per unit of joint motion; see :meth:`_motion_bound`.
+        static_links: (L,) bool, True for links fixed to the world (no actuated or mimic joint
+            between the root and the link): their pose never changes with q.
+        static_ellipsoids: (E,) bool, True for ellipsoids on static links (e.g. Panda's link0).
         fit_report: link -> {source, n, geometry_volume, ellipsoid_volume, volume_ratio}.
         self_collision_pairs: (P, 2) int ellipsoid pairs checked by :meth:`self_collision`.
     """
@@ -84,6 +87,8 @@ class Robot:
         self.skipped_links = list(ellipsoids.skipped)
         self.frame_of_link, self.link_in_frame = rigid_groups(kin)
         self.motion_bound = self._motion_bound()
+        self.static_links = self._static_links()
+        self.static_ellipsoids = self.static_links[self.ellipsoid_link]
         self.self_collision_pairs = self._pairs(disabled_pairs or set())
         self._lock = threading.Lock()
         self._pool: ThreadPoolExecutor | None = None
@@ -228,6 +233,18 @@ class Robot:
                 self._pool.shutdown(wait=False)
         except Exception:
             pass
+
+    # ------------------------------------------------------------------ static links
+
+    def _static_links(self) -> np.ndarray:
+        """(L,) bool: every joint from the root down to the link is fixed (mimic joints move: they
+        are revolute / prismatic joints driven by a dof), so the link's world pose is constant."""
+        kin = self.kin
+        out = np.zeros(kin.n_links, dtype=bool)
+        for l in range(kin.n_links):  # topological order: the parent is done first
+            p = int(kin.parent[l])
+            out[l] = int(kin.jtype[l]) == FIXED and (p < 0 or bool(out[p]))
+        return out
 
     # ------------------------------------------------------------------ motion bound
 
