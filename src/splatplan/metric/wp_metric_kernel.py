@@ -23,6 +23,15 @@ inflation (o_i <= 1) or drop splats, so the same radius stays exact. The same bo
 (rho / a_max)^2, rejects candidates inside the bounding sphere but far outside an elongated link
 before their inflation is computed.
 
+Elongated links search that ball in slabs: with ``n`` = round(a_max / a_mid) (at most
+``MAX_SLABS``) slabs of width ``2 rho / n`` across the long axis u, every splat with s <= rho / a_max
+lies in the slab of its coordinate along u, at most ``rho / n`` from the slab's centre along u and
+``(rho / a_max) a_mid`` across it; so one grid query per slab, of radius
+``sqrt((rho / n)^2 + (rho a_mid / a_max)^2)`` (plus slack against rounding), finds it, and a splat
+found by several slab queries is used only by the query of its own slab. The slabs' boxes hold
+far fewer splats than the ball's box (``n = 1`` is the plain ball); the result is the same set of
+splats, so the outputs are unchanged (sums up to float32 summation order).
+
 Launch position and query index differ when the glue sorts a batch (Morton order of the centres,
 ``LinkBatch.order``): neighbouring threads then read neighbouring splats; every output is still
 written at the query's own index, so results do not depend on the order.
@@ -45,6 +54,10 @@ RHO_SLACK = wp.constant(1.0001)
 SOFTMIN_SKIP = wp.constant(20.0)
 #: bad[0] when every query was valid.
 NO_BAD = 2147483647
+#: Elongated links search their neighbourhood in up to this many slabs along the long axis.
+MAX_SLABS = wp.constant(4)
+#: Relative slack of a slab's ball radius against float32 rounding of the slab assignment.
+SLAB_SLACK = wp.constant(1.001)
 
 
 @wp.func
@@ -168,6 +181,39 @@ def link_s2(d: wp.vec3, dd: float, link_a: wp.mat33, sphere: bool, inv_r2: float
 
 
 @wp.func
+def link_slabs(rot: wp.mat33, ax: wp.vec3, a_mid: float, a_max: float):
+    """(number of slabs, unit long axis in the world) of an elongated link: about a_max / a_mid slabs
+    (at most MAX_SLABS); 1 (and any axis) for a link that is not elongated."""
+    k = int(0)
+    if ax[1] == a_max:
+        k = 1
+    if ax[2] == a_max:
+        k = 2
+    u = wp.vec3(rot[0, k], rot[1, k], rot[2, k])
+    n = int(1)
+    if a_mid > 0.0:
+        n = int(wp.clamp(a_max / a_mid + 0.5, 1.0, float(MAX_SLABS)))
+    return n, u
+
+
+@wp.func
+def slab_radius(rho: float, w: float, mid_ratio: float, n_slab: int):
+    """Radius of the ball around a slab's centre that holds every point of the slab with s <= rho / a_max:
+    half the slab width along the axis, at most (rho / a_max) a_mid across it (plus float slack)."""
+    if n_slab == 1:
+        return rho
+    h = 0.5 * w
+    m = rho * mid_ratio
+    return wp.sqrt(h * h + m * m) * SLAB_SLACK
+
+
+@wp.func
+def slab_index(d: wp.vec3, u: wp.vec3, rho: float, w: float, n_slab: int):
+    """Slab of a point at offset d from the link centre: slabs of width w tile [-rho, rho] along u."""
+    return wp.clamp(int(wp.floor((wp.dot(d, u) + rho) / w)), 0, n_slab - 1)
+
+
+@wp.func
 def splat_inflation(splats: SplatTiers, p: MetricParams, i: int):
     """n_sigma for splat i under the opacity options; -1 when the splat counts as free space."""
     if p.use_opacity == 0:
@@ -201,9 +247,12 @@ def metric_full_kernel(
         out.cost[q] = wp.nan
         wp.atomic_min(out.bad, 0, q)
         return
-    a = link_matrix(link_rotation(links, q), ax)
+    rot = link_rotation(links, q)
+    a = link_matrix(rot, ax)
     a_min = wp.min(ax)
     a_max = wp.max(ax)
+    a_mid = ax[0] + ax[1] + ax[2] - a_min - a_max
+    n_slab, u = link_slabs(rot, ax, a_mid, a_max)
 
     best = float(wp.inf)  # min s2~ over visited splats
     ncol = int(0)  # splats with s2~ < 1
@@ -224,39 +273,45 @@ def metric_full_kernel(
         rho2 = rho * rho
         s2_cut = rho2 / (a_max * a_max)
         base = splats.offset[j]
-        query = wp.hash_grid_query(splats.grid[j], c, rho)
-        local = int(0)
-        while wp.hash_grid_query_next(query, local):
-            i = base + local
-            d = splats.means[i] - c
-            dd = wp.dot(d, d)
-            if dd <= rho2:
-                ns = splat_inflation(splats, p, i)
-                if ns < 0.0:
-                    continue
-                v = link_s2(d, dd, a, sphere, inv_r2, splats.mrows[i], ns, s2_cut)
-                best = wp.min(best, v)
-                if v < 1.0:
-                    ncol += 1
-                if v < cap:
-                    n_nb += 1
-                    eg = wp.exp(-gamma * (v - p.s_min))  # the one exp per neighbour in the common case
-                    cv = p.d_max * wp.min(eg, 1.0)  # d_max exp(-gamma max(v - s_min, 0))
-                    if v < pivot:
-                        acc = acc * wp.exp(-t * (pivot - v)) + 1.0
-                        pivot = v
-                        pg = wp.exp(gamma * (pivot - p.s_min))  # eg * pg = exp(-gamma (v - pivot))
-                    elif p.pow_m > 0:
-                        # t = m gamma: exp(-t (v - pivot)) = (eg * pg)^m, no second exp
-                        e = eg * pg
-                        term = e
-                        for _k in range(p.pow_m - 1):
-                            term = term * e
-                        acc += term
-                    elif t * (v - pivot) < SOFTMIN_SKIP:
-                        acc += wp.exp(-t * (v - pivot))
-                    c_sum += cv
-                    c_max = wp.max(c_max, cv)
+        w = 2.0 * rho / float(n_slab)  # slab width along the long axis
+        r_sub = slab_radius(rho, w, a_mid / a_max, n_slab)
+        for sl in range(n_slab):
+            query = wp.hash_grid_query(splats.grid[j], c + u * (-rho + (float(sl) + 0.5) * w), r_sub)
+            local = int(0)
+            while wp.hash_grid_query_next(query, local):
+                i = base + local
+                d = splats.means[i] - c
+                dd = wp.dot(d, d)
+                if dd <= rho2:
+                    if n_slab > 1:
+                        if slab_index(d, u, rho, w, n_slab) != sl:
+                            continue  # found by the query of another slab (each splat is used once)
+                    ns = splat_inflation(splats, p, i)
+                    if ns < 0.0:
+                        continue
+                    v = link_s2(d, dd, a, sphere, inv_r2, splats.mrows[i], ns, s2_cut)
+                    best = wp.min(best, v)
+                    if v < 1.0:
+                        ncol += 1
+                    if v < cap:
+                        n_nb += 1
+                        eg = wp.exp(-gamma * (v - p.s_min))  # the one exp per neighbour in the common case
+                        cv = p.d_max * wp.min(eg, 1.0)  # d_max exp(-gamma max(v - s_min, 0))
+                        if v < pivot:
+                            acc = acc * wp.exp(-t * (pivot - v)) + 1.0
+                            pivot = v
+                            pg = wp.exp(gamma * (pivot - p.s_min))  # eg * pg = exp(-gamma (v - pivot))
+                        elif p.pow_m > 0:
+                            # t = m gamma: exp(-t (v - pivot)) = (eg * pg)^m, no second exp
+                            e = eg * pg
+                            term = e
+                            for _k in range(p.pow_m - 1):
+                                term = term * e
+                            acc += term
+                        elif t * (v - pivot) < SOFTMIN_SKIP:
+                            acc += wp.exp(-t * (v - pivot))
+                        c_sum += cv
+                        c_max = wp.max(c_max, cv)
 
     out.min_s2[q] = best
     out.n_colliding[q] = ncol
