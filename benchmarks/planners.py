@@ -10,15 +10,19 @@
    kernel has a fast path for spheres only and its search radius grows with the largest semi-axis
    and the ratio largest / smallest semi-axis.
 3. MPPI, Panda arm (``JointIntegrator(load_robot("panda"))``, all 11 link ellipsoids in the
-   collision cost, one ``query_robot`` per iteration on (K = 256, T = 32, 7)), 1 iteration per MPC
-   step, reaching a target over the built-in tabletop at 200k splats; plus the time of one such
+   collision cost, one query per iteration on (K = 256, T = 32, 7); the static link0 is queried
+   once and cached, ``CollisionCost``), 1 iteration per MPC step, reaching a target over the
+   built-in tabletop at 200k splats: every step, every step without the static cache, the
+   ``"auto"`` time stride (with its stride and gap), strides 2 and 4; plus the time of one such
    collision query on the (unit-size) Stonehenge, where the Panda's ellipsoids (up to 0.24 m
    semi-axes) each cover a large part of the 1 m scene.
 4. Real captures in ``../shared/data/real`` (skipped when absent), ``splatplan plan`` defaults
    (sphere r = 0.015, n_sigma = 1, scene-scaled RRT settings, 10 s limit): start and goal drawn
    automatically as far-apart free points of the robust scene box.
 
-    python benchmarks/planners.py [--goals 50] [--quick] [--out benchmarks/results/planners.json]
+    python benchmarks/planners.py [--goals 50] [--quick] [--only panda] [--out benchmarks/results/planners.json]
+
+``--only panda`` reruns just the Panda MPPI rows and merges them into the existing JSON.
 
 Writes JSON and a markdown table (planners.md) next to it. Timings depend on the machine's load:
 the JSON records the 1-minute load average at the start of each section.
@@ -135,50 +139,70 @@ def bench_mppi_base(scene, body: str, n_steps: int = 40, seed: int = 0) -> dict:
     }  # fmt: skip
 
 
-def bench_mppi_panda(n_steps: int, n_splats: int = 200_000, seed: int = 0, quick: bool = False, time_stride: int = 1, stonehenge: bool = True) -> dict:
+def panda_setup(n_splats: int = 200_000, seed: int = 0):
+    """(robot, scene, checker) of the Panda benchmark: the built-in tabletop at ``n_splats``, floaters filtered."""
     from splatplan.metric import CollisionChecker
-    from splatplan.planners import MPPI, CollisionCost, ControlEffortCost, GoalPoseCost, JointIntegrator, JointLimitCost, MPPIConfig
     from splatplan.robots import load_robot
     from splatplan.scenes.builtin import build_builtin
+    from splatplan.scenes.filters import filter_floaters
+
+    robot = load_robot("panda")
+    raw, _ = build_builtin("tabletop", seed=seed, n_splats=n_splats)
+    scene, _ = filter_floaters(raw)
+    return robot, scene, CollisionChecker(scene, n_sigma=1.0)
+
+
+def bench_mppi_panda(
+    n_steps: int, setup=None, seed: int = 0, quick: bool = False, time_stride: int | str = 1, stonehenge: bool = True, static_shortcut: bool = True
+) -> dict:
+    """Panda MPPI over the tabletop; ``time_stride`` an integer or "auto" (see CollisionCost)."""
+    from splatplan.planners import MPPI, CollisionCost, ControlEffortCost, GoalPoseCost, JointIntegrator, JointLimitCost, MPPIConfig
+    from splatplan.planners.mppi import joint_speed_bound
     from splatplan.scenes.builtin.tabletop import TARGET_REGION
     from splatplan.scenes.filters import filter_floaters
 
     load = _load()
-    robot = load_robot("panda")
-    raw, _ = build_builtin("tabletop", seed=seed, n_splats=n_splats)
-    scene, _ = filter_floaters(raw)
-    checker = CollisionChecker(scene, n_sigma=1.0)
+    robot, scene, checker = setup or panda_setup(seed=seed)
     target = 0.5 * (TARGET_REGION[0] + TARGET_REGION[1])
     cfg = MPPIConfig(n_samples=256, horizon=32, n_knots=6, dt=0.05, n_iters=1, noise_sigma=0.4, temperature=0.05,
                      u_min=-1.0, u_max=1.0, seed=seed)  # fmt: skip
+    dyn = JointIntegrator(robot)
+    col = CollisionCost(checker, dyn, weight=1.0, hit_weight=10.0, s2_cap=cfg.collision_s2_cap, time_stride=time_stride,
+                        speed_bound=joint_speed_bound(dyn, cfg.u_min, cfg.u_max), static_shortcut=static_shortcut)  # fmt: skip
     costs = [
-        CollisionCost(checker, robot, weight=1.0, hit_weight=10.0, s2_cap=cfg.collision_s2_cap, time_stride=time_stride),
+        col,
         GoalPoseCost(robot, position=target, link="panda_hand_tcp" if "panda_hand_tcp" in robot.link_names else None, terminal_factor=4.0),
         ControlEffortCost(0.01),
         JointLimitCost(robot, weight=100.0),
     ]
-    dyn = JointIntegrator(robot)
     mppi = MPPI(dyn, checker, cfg, costs=costs)
     x = robot.q_default.copy()
     hand_idx = costs[1].link_index
     d0 = float(np.linalg.norm(robot.link_poses(x)[hand_idx, :3, 3] - target))
     mppi.step(x)  # warm-up (builds the metric grids)
     t0 = time.perf_counter()
+    c0 = time.process_time()
     for _ in range(n_steps):
         u, info = mppi.step(x)
         x = dyn.rollout(x, u[None, None, :], cfg.dt)[0, 0]
     dt = time.perf_counter() - t0
+    cpu = time.process_time() - c0
     hand = robot.link_poses(x)[hand_idx, :3, 3]
+    n_static = int(col.static.sum()) if col.static is not None else 0
     out = {
         "robot": f"panda, all {robot.n_ellipsoids} link ellipsoids (semi-axes {robot.min_semi_axis:.3f}..{robot.semi_axes.max():.3f} m)",
         "scene": f"tabletop ({len(scene):,} splats after the floater filter)",
-        "K": cfg.n_samples, "T": cfg.horizon, "iters_per_step": cfg.n_iters, "steps": n_steps, "collision_time_stride": time_stride,
-        "steps_per_s": n_steps / dt, "configs_per_s": n_steps * cfg.n_samples * cfg.horizon / dt,
+        "K": cfg.n_samples, "T": cfg.horizon, "iters_per_step": cfg.n_iters, "steps": n_steps,
+        "collision_time_stride": col.stride(cfg.dt, cfg.horizon), "time_stride_option": time_stride,
+        "max_gap_m": col.max_gap_m, "step_motion_bound_m": col.step_motion(cfg.dt) if col.auto_stride else None,
+        "static_ellipsoids_cached": n_static,
+        "steps_per_s": n_steps / dt, "configs_per_s": n_steps * cfg.n_samples * cfg.horizon / dt, "cpu_s_per_step": cpu / n_steps,
         "final_hand_distance_m": float(np.linalg.norm(hand - target)), "start_hand_distance_m": d0, "load_avg_1min": load,
     }  # fmt: skip
     if not stonehenge:
         return out
     # one collision query of the same batch size on the unit-size Stonehenge, for comparison
+    from splatplan.metric import CollisionChecker
     from splatplan.scenes.stonehenge import build_stonehenge
 
     sraw, _ = build_stonehenge(level=1, seed=seed)
@@ -191,6 +215,19 @@ def bench_mppi_panda(n_steps: int, n_splats: int = 200_000, seed: int = 0, quick
     sc.query_robot(robot, qb)
     t_sh = (time.perf_counter() - ts) * cfg.n_samples * cfg.horizon / n_cfg
     return {**out, "stonehenge_query_s": t_sh, "stonehenge_splats": len(sh)}
+
+
+def bench_panda_rows(quick: bool = False) -> dict:
+    """Every Panda row: every step (static ellipsoids cached, and not), the auto stride, strides 2 and 4."""
+    setup = panda_setup(n_splats=20_000 if quick else 200_000)
+    n = 2 if quick else 6
+    return {
+        "mppi_panda": bench_mppi_panda(n, setup, quick=quick),
+        "mppi_panda_no_static_cache": bench_mppi_panda(n, setup, quick=quick, stonehenge=False, static_shortcut=False),
+        "mppi_panda_auto_stride": bench_mppi_panda(n, setup, quick=quick, stonehenge=False, time_stride="auto"),
+        "mppi_panda_time_stride_2": bench_mppi_panda(n, setup, quick=quick, stonehenge=False, time_stride=2),
+        "mppi_panda_time_stride_4": bench_mppi_panda(n, setup, quick=quick, stonehenge=False, time_stride=4),
+    }
 
 
 def far_free_pairs(checker, robot_radius: float, n_pairs: int, rng: np.random.Generator, n_cand: int = 400) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -243,30 +280,31 @@ def bench_real(n_pairs: int, seed: int = 0, names: tuple[str, ...] | None = None
     return rows
 
 
-def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--goals", type=int, default=50, help="RRT goals on Stonehenge")
-    ap.add_argument("--quick", action="store_true", help="tiny sizes (smoke test): fewer MPPI steps, 1 real pair, smaller Panda scene")
-    ap.add_argument("--out", default=str(Path(__file__).parent / "results" / "planners.json"))
-    args = ap.parse_args(argv)
+def _panda_lines(result: dict) -> list[str]:
+    panda = result.get("mppi_panda")
+    if panda is None:
+        return []
+    lines = [
+        f"| MPPI Panda arm, K=256, T=32, 1 iter/step, {panda['scene']}, collision cost on every step (static link0 cached) | {panda['robot']} | {panda['steps_per_s']:.2f} MPC steps/s ({panda['configs_per_s']:,.0f} configurations/s) | >= 5 |",
+    ]
+    extra = (
+        ("mppi_panda_no_static_cache", lambda r: "same, every ellipsoid queried on the whole batch (no static cache)"),
+        ("mppi_panda_auto_stride", lambda r: f"same, collision_time_stride='auto' (max gap {r['max_gap_m']:.4f} m; a step moves a point <= {r['step_motion_bound_m']:.3f} m -> stride {r['collision_time_stride']})"),
+        ("mppi_panda_time_stride_2", lambda r: "same, collision cost on every 2nd step (collision_time_stride=2)"),
+        ("mppi_panda_time_stride_4", lambda r: "same, collision cost on every 4th step (collision_time_stride=4)"),
+    )
+    for key, label in extra:
+        r = result.get(key)
+        if r is not None and "steps_per_s" in r:
+            lines.append(f"| {label(r)} | {r['robot']} | {r['steps_per_s']:.2f} MPC steps/s | >= 5 |")
+    if "stonehenge_query_s" in panda:
+        lines.append(f"| one Panda collision query, K=256 x T=32 (projected from a slice), Stonehenge ({panda['stonehenge_splats']:,} splats, 1 m across) | {panda['robot']} | {panda['stonehenge_query_s']:.1f} s | - |")
+    return lines
 
-    from splatplan.scenes.filters import filter_floaters
-    from splatplan.scenes.stonehenge import build_stonehenge
 
-    raw, gt = build_stonehenge(level=1, seed=0)
-    scene, _ = filter_floaters(raw)
-    steps = 5 if args.quick else 40
-    rrt = bench_rrt(scene, gt, args.goals)
-    mppi = bench_mppi_base(scene, "sphere", n_steps=steps)
-    mppi_body = bench_mppi_base(scene, "body", n_steps=max(2, steps // 4))
-    panda = bench_mppi_panda(n_steps=2 if args.quick else 6, n_splats=20_000 if args.quick else 200_000, quick=args.quick)
-    panda4 = bench_mppi_panda(n_steps=2 if args.quick else 6, n_splats=20_000 if args.quick else 200_000, quick=args.quick, time_stride=4, stonehenge=False)
-    real = bench_real(1, names=("banana",)) if args.quick else bench_real(3)
-    result = {"rrt": rrt, "mppi": mppi, "mppi_default_body": mppi_body, "mppi_panda": panda, "mppi_panda_time_stride_4": panda4, "real": real,
-              "cpu_threads": os.cpu_count()}  # fmt: skip
-    out = Path(args.out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(json.dumps(result, indent=2) + "\n")
+def markdown(result: dict) -> str:
+    """The markdown table of a (possibly merged) result JSON."""
+    rrt, mppi, mppi_body = result["rrt"], result["mppi"], result["mppi_default_body"]
     lines = [
         "| benchmark | robot body | measured | target |",
         "|---|---|---|---|",
@@ -277,19 +315,55 @@ def main(argv: list[str] | None = None) -> int:
         f"| MPPI planar base, K=256, T=30, 2 iters/step | {mppi['robot']} | {mppi['steps_per_s']:.1f} MPC steps/s | >= 20 |",
         f"| MPPI planar base: steps in collision / final distance to goal | {mppi['robot']} | {mppi['steps_in_collision']} / {mppi['final_distance_to_goal']:.3f} | 0 / - |",
         f"| MPPI planar base, K=256, T=30, 2 iters/step | {mppi_body['robot']} | {mppi_body['steps_per_s']:.1f} MPC steps/s | - |",
-        f"| MPPI Panda arm, K=256, T=32, 1 iter/step, {panda['scene']} | {panda['robot']} | {panda['steps_per_s']:.2f} MPC steps/s ({panda['configs_per_s']:,.0f} configurations/s) | >= 5 |",
-        f"| same, collision cost on every 4th step (collision_time_stride=4) | {panda4['robot']} | {panda4['steps_per_s']:.2f} MPC steps/s | >= 5 |",
-        f"| one Panda collision query, K=256 x T=32 (projected from a slice), Stonehenge ({panda['stonehenge_splats']:,} splats, 1 m across) | {panda['robot']} | {panda['stonehenge_query_s']:.1f} s | - |",
+        *_panda_lines(result),
     ]
-    for r in real:
+    for r in result.get("real", []):
         if "error" in r:
             lines.append(f"| plan on {r['scene']} ({r['file']}), defaults | sphere r = {RADIUS} | not loadable: {r['error'][:80]} | - |")
             continue
         res = f"{r['time_s']:.2f} s, {r['n_nodes']:,} nodes" + ("" if r["success"] else " (no path)")
         lines.append(f"| plan on {r['scene']} ({r['n_splats']:,} splats), defaults, start -> goal {r['distance']:.2f} apart (stride {r['stride']:.3g}) | {r['robot']} | {res} | <= 10 s |")
-    lines.append(f"\nLoad average (1 min) during the runs: {', '.join(f'{x:.1f}' for x in [rrt['load_avg_1min'], mppi['load_avg_1min'], panda['load_avg_1min']])} on {os.cpu_count()} CPU threads shared with other jobs.")
-    md = "\n".join(lines)
-    (out.parent / "planners.md").write_text(md + "\n")
+    loads = [rrt["load_avg_1min"], mppi["load_avg_1min"]]
+    lines.append(f"\nLoad average (1 min) during the runs: {', '.join(f'{x:.1f}' for x in loads)} (RRT, MPPI base)"
+                 + (f", {result['mppi_panda']['load_avg_1min']:.1f} (Panda)" if "mppi_panda" in result else "")
+                 + f" on {result.get('cpu_threads', os.cpu_count())} CPU threads shared with other jobs.")  # fmt: skip
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--goals", type=int, default=50, help="RRT goals on Stonehenge")
+    ap.add_argument("--quick", action="store_true", help="tiny sizes (smoke test): fewer MPPI steps, 1 real pair, smaller Panda scene")
+    ap.add_argument("--only", choices=("all", "panda"), default="all", help="panda: rerun only the Panda MPPI rows and merge them into the existing JSON")
+    ap.add_argument("--out", default=str(Path(__file__).parent / "results" / "planners.json"))
+    args = ap.parse_args(argv)
+    out = Path(args.out)
+
+    if args.only == "panda":
+        if not out.exists():
+            raise SystemExit(f"--only panda merges into an existing {out}: run the whole benchmark first")
+        result = json.loads(out.read_text())
+        for key in [k for k in result if k.startswith("mppi_panda")]:
+            del result[key]
+        result.update(bench_panda_rows(quick=args.quick))
+        result["cpu_threads"] = os.cpu_count()
+    else:
+        from splatplan.scenes.filters import filter_floaters
+        from splatplan.scenes.stonehenge import build_stonehenge
+
+        raw, gt = build_stonehenge(level=1, seed=0)
+        scene, _ = filter_floaters(raw)
+        steps = 5 if args.quick else 40
+        rrt = bench_rrt(scene, gt, args.goals)
+        mppi = bench_mppi_base(scene, "sphere", n_steps=steps)
+        mppi_body = bench_mppi_base(scene, "body", n_steps=max(2, steps // 4))
+        panda = bench_panda_rows(quick=args.quick)
+        real = bench_real(1, names=("banana",)) if args.quick else bench_real(3)
+        result = {"rrt": rrt, "mppi": mppi, "mppi_default_body": mppi_body, **panda, "real": real, "cpu_threads": os.cpu_count()}
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(result, indent=2) + "\n")
+    md = markdown(result)
+    (out.parent / out.with_suffix(".md").name).write_text(md + "\n")
     print(md)
     print(f"wrote {out}")
     return 0
