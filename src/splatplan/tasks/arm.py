@@ -12,7 +12,7 @@ away from them. Cost per sample (:mod:`splatplan.planners.costs`):
   ``query_robot`` per MPPI iteration on the (K, T, dof) batch, plus a count of colliding ellipsoids
   (and optional self-collision);
 * :class:`ControlEffortCost`, :class:`JointLimitCost`, and a posture term toward the
-  collision-free IK solution of the goal nearest to the start (resolves the 7-DoF redundancy; the
+  IK solution of the goal nearest to the start (collision-free ones only when the collision cost is on; resolves the 7-DoF redundancy; the
   task cost is still the end-effector pose).
 
 Warm start by shifting the knots one control period (MPPI's own); the knots are an unclamped
@@ -79,7 +79,8 @@ class ArmConfig:
     #: weight of the control effort sum |qdot|^2 dt
     w_control: float = 0.01
     #: weight of a posture term sum_t |q_t - q_ref|^2 that resolves the arm's redundancy: q_ref is
-    #: the collision-free IK solution of the goal pose nearest to the start (q_default without IK)
+    #: the IK solution of the goal pose nearest to the start, among the collision-free ones when the
+    #: collision cost is on (the no-collision baseline uses no scene information at all)
     w_posture: float = 1.0
     #: conservatism of the metric (n_sigma)
     n_sigma: float = 1.0
@@ -184,8 +185,10 @@ def run_arm(
     q_ref = np.asarray(robot.q_default, np.float64)
     if check_goal:
         sols = check_reachable(robot, p_goal, quat, cfg.ee_link, seed=cfg.seed)
-        free = ~np.asarray(ts.checker.collides_robot(robot, sols)).any(axis=-1)
-        pool = sols[free] if np.any(free) else sols
+        pool = sols
+        if collision:  # the no-collision baseline knows nothing of the scene: nearest IK solution
+            free = ~np.asarray(ts.checker.collides_robot(robot, sols)).any(axis=-1)
+            pool = sols[free] if np.any(free) else sols
         q_ref = pool[np.argmin(np.sum((pool - q) ** 2, axis=1))]
     check_start(robot, ts.checker, q)
 
