@@ -72,6 +72,10 @@ class TierConfig:
     quantiles: tuple[float, ...] = (0.9, 0.999)
     #: Hash-grid cell width as a fraction of the tier's query radius.
     cell_factor: float = 1.5  # measured best on Stonehenge (CPU): 0.75-2.0 within 25%
+    #: Cell width factor of full queries whose typical link is elongated (median a_max >= 1.5 median
+    #: a_min): the kernel searches such links in slabs along the long axis, each a ball about half
+    #: the link's radius, so finer cells pay (Panda arm on the 200k-splat tabletop: 0.5 ~1.8x faster than 1.5).
+    slab_cell_factor: float = 0.5
     #: Largest grid dimension per axis (cells wrap around beyond it; results stay exact).
     max_dim: int = 128
     #: Process the queries of a batch in Morton (Z-curve) order of their centres (a key kernel and a
@@ -131,8 +135,7 @@ def size_class_tiers(smax: np.ndarray, factor: float = 2.0, min_count: int = 256
 class _GridSet:
     """One hash grid per tier plus the splat data permuted into the grids' cell order."""
 
-    grids: list  # wp.HashGrid per tier (kept alive here)
-    tiers: SplatTiers  # the kernel's view of it
+    tiers: SplatTiers  # the kernel's view of it (cell tables per tier, splats in cell order)
     groups: tuple  # (first, last) size class of each tier
     counts: list  # splats per tier
     sigma: list  # largest std per tier
@@ -239,25 +242,27 @@ class WarpMetric:
             pool.shutdown(wait=True)
 
     # ------------------------------------------------------------------ grids
-    def grid_key(self, n_sigma: float, cap: float, a_min: float, a_max: float) -> tuple:
+    def grid_key(self, n_sigma: float, cap: float, a_min: float, a_max: float, slabs: bool = False) -> tuple:
         """((first, last) class of each tier, quantised (2^(1/4)) cell width of each tier) for a typical
-        query with semi-axes in [a_min, a_max]."""
-        args = (float(n_sigma), float(cap), float(a_min), float(a_max))
+        query with semi-axes in [a_min, a_max]; ``slabs``: the full-query kernel, which searches
+        elongated links in slabs (finer cells, ``slab_cell_factor``, when the typical link is elongated)."""
+        cf = self.tiers.slab_cell_factor if slabs and a_max >= 1.5 * a_min else self.tiers.cell_factor
+        args = (float(n_sigma), float(cap), float(a_min), float(a_max), float(cf))
         key = self._keys.get(args)  # memoised: search_radius in Python scope costs ~0.2 ms a call
         if key is None:
             # float32 in Python scope: extreme size ratios (a 1e-30 link) overflow to inf; any radius beyond
             # 1e30 already makes every grid 1x1x1 (every splat visited), so clamp it there
             rho = [float(search_radius(args[0], s, args[2], args[3], args[1])) for s in self.class_sigma]
             rho = [r if math.isfinite(r) and r < 1e30 else 1e30 for r in rho]
-            groups = self._group_classes(rho)
-            cells = tuple(int(math.floor(4 * math.log2(max(rho[j] * self.tiers.cell_factor, 1e-9)))) for _, j in groups)
+            groups = self._group_classes(rho, cf)
+            cells = tuple(int(math.floor(4 * math.log2(max(rho[j] * cf, 1e-9)))) for _, j in groups)
             key = (groups, cells)
             if len(self._keys) >= 256:
                 self._keys.clear()
             self._keys[args] = key
         return key
 
-    def _group_classes(self, rho: list[float]) -> tuple[tuple[int, int], ...]:
+    def _group_classes(self, rho: list[float], cell_factor: float | None = None) -> tuple[tuple[int, int], ...]:
         """Partition of the classes into tiers (contiguous runs) of least estimated cost per query.
 
         A tier of classes i..j is searched with class j's radius rho_j; class k in it costs about
@@ -267,7 +272,7 @@ class WarpMetric:
         c = len(rho)
         if self.tiers.mode != "size" or c == 1:
             return tuple((j, j) for j in range(c))
-        span = 2.0 + self.tiers.cell_factor
+        span = 2.0 + (self.tiers.cell_factor if cell_factor is None else cell_factor)
         n = np.asarray(self.class_count, dtype=np.float64)
         ext = np.maximum(self.class_extent, 1e-12)
 
@@ -289,13 +294,13 @@ class WarpMetric:
             j = cut[j]
         return tuple(reversed(groups))
 
-    def gridset(self, n_sigma: float, cap: float, a_min: float, a_max: float) -> _GridSet:
+    def gridset(self, n_sigma: float, cap: float, a_min: float, a_max: float, slabs: bool = False) -> _GridSet:
         """Hash grids of every tier for this query radius (cached; safe from several threads).
 
         Each grid set keeps its own copy of the splat data in the grid's cell order, so the
         indices a grid returns walk memory almost sequentially (a large win on CPU caches).
         """
-        key = self.grid_key(n_sigma, cap, a_min, a_max)
+        key = self.grid_key(n_sigma, cap, a_min, a_max, slabs)
         with self._lock:
             gs = self._gridsets.get(key)
             if gs is None:
@@ -306,22 +311,32 @@ class WarpMetric:
             return gs
 
     def _build_gridset(self, key: tuple) -> _GridSet:
+        """One cell table per tier: the tier's splats sorted by cell, cell = floor(p / width) mod dims
+        (Warp's hash-grid rule, dims <= max_dim per axis), and the start of every cell's run, so a
+        query reads each row of cells it covers as one or two contiguous runs."""
         groups, cells = key
-        grids, perm, offsets, sigmas = [], [], [0], []
+        perm, offsets, sigmas, starts, bases, dims_all, inv_ws = [], [0], [], [], [], [], []
+        n_start = 0
         for (ci, cj), q in zip(groups, cells):
             lo = self.class_offset[ci]
             n = self.class_offset[cj] + self.class_count[cj] - lo
             pts = self._means_np[lo : lo + n]
             width = 2.0 ** (q / 4.0)
+            inv_w = np.float32(1.0 / width)
             ext = pts.max(0) - pts.min(0)
             # cells past the extent would only wrap around; a radius larger than the extent -> 1x1x1
             dims = np.array([min(self.tiers.max_dim, max(1, math.ceil(e / width) + 1)) for e in ext], dtype=np.int64)
-            cell = np.mod(np.floor(pts * np.float32(1.0 / width)).astype(np.int64), dims)  # warp's hashing
-            local = np.argsort(cell[:, 2] * dims[0] * dims[1] + cell[:, 1] * dims[0] + cell[:, 0], kind="stable")
+            cell = np.mod(np.floor(pts * inv_w).astype(np.int64), dims)  # float32 product, as in the kernel
+            lin = cell[:, 2] * dims[0] * dims[1] + cell[:, 1] * dims[0] + cell[:, 0]
+            local = np.argsort(lin, kind="stable")
             perm.append(lo + local)
-            g = wp.HashGrid(*(int(d) for d in dims), device=self.device)
-            g.build(wp.array(pts[local], dtype=wp.vec3, device=self.device), width)
-            grids.append(g)
+            n_cells = int(np.prod(dims))
+            counts = np.bincount(lin, minlength=n_cells)
+            starts.append(offsets[-1] + np.concatenate([[0], np.cumsum(counts)]))  # (n_cells + 1,) global splat index
+            bases.append(n_start)
+            n_start += n_cells + 1
+            dims_all.append(dims)
+            inv_ws.append(inv_w)
             offsets.append(offsets[-1] + n)
             sigmas.append(self.class_sigma[cj])  # classes are sorted by sigma: the last one's is the largest
         perm = np.concatenate(perm)
@@ -330,11 +345,14 @@ class WarpMetric:
         t.means = wp.array(self._means_np[perm], dtype=wp.vec3, device=d)
         t.mrows = wp.array(self._mrows_np[perm], dtype=wp.mat33, device=d)
         t.opacity = wp.array(self._opac_np[perm], dtype=wp.float32, device=d)
-        t.grid = wp.array(np.asarray([g.id for g in grids], dtype=np.uint64), dtype=wp.uint64, device=d)
+        t.cell_start = wp.array(np.concatenate(starts).astype(np.int32), dtype=wp.int32, device=d)
+        t.cell_base = wp.array(np.asarray(bases, np.int32), dtype=wp.int32, device=d)
+        t.dims = wp.array(np.asarray(dims_all, np.int32).reshape(-1, 3), dtype=wp.vec3i, device=d)
+        t.inv_w = wp.array(np.asarray(inv_ws, np.float32), dtype=wp.float32, device=d)
         t.offset = wp.array(np.asarray(offsets, np.int32), dtype=wp.int32, device=d)
         t.sigma = wp.array(np.asarray(sigmas, np.float32), dtype=wp.float32, device=d)
-        t.n_tiers = len(grids)
-        return _GridSet(grids=grids, tiers=t, groups=groups, counts=[b - a for a, b in zip(offsets, offsets[1:])], sigma=sigmas)
+        t.n_tiers = len(groups)
+        return _GridSet(tiers=t, groups=groups, counts=[b - a for a, b in zip(offsets, offsets[1:])], sigma=sigmas)
 
     # ------------------------------------------------------------------ launches
     def _launch(self, kernel, b: int, args: list) -> None:
@@ -366,7 +384,7 @@ class WarpMetric:
     def query(self, links: LinkBatch, b: int, a_min: float, a_max: float, cfg: MetricConfig, out: MetricOutputs, scratch=None) -> None:
         """All five outputs of b queries into ``out`` (device arrays of at least b rows); ``scratch``:
         (keys, values) int32 device arrays of >= 2b rows for the query sort (allocated when None)."""
-        gs = self.gridset(cfg.n_sigma, cfg.s2_cap, a_min, a_max)
+        gs = self.gridset(cfg.n_sigma, cfg.s2_cap, a_min, a_max, slabs=True)
         self.sort_queries(links, b, *(scratch or self._scratch(b)))
         self._launch(metric_full_kernel, b, [links, gs.tiers, metric_params(cfg, _softmin_power(cfg)), out])
 

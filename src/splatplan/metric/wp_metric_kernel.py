@@ -7,9 +7,11 @@ memory order) and :class:`MetricParams` (the config), plus the outputs.
 
 Splats are stored in *tiers* (runs of size classes of their largest standard deviation, grouped
 per query size by :mod:`.wp_metric`). Tier ``j`` owns
-the contiguous index range ``[offset[j], offset[j + 1])`` of the splat arrays, a hash grid
-``grid[j]`` over those means (indices returned by the grid are local to the tier) and
-``sigma[j]`` = the largest std of any splat in it. A tier's grid may be 1x1x1: every query then
+the contiguous index range ``[offset[j], offset[j + 1])`` of the splat arrays, sorted by grid cell
+(cell = floor(p / width_j) mod dims_j per axis, the rule of Warp's hash grid), a table
+``cell_start`` of where every cell's run of splats begins, and ``sigma[j]`` = the largest std of any
+splat in it. A query reads each row of cells (along x) it covers as one contiguous run of splats
+(two when the row wraps around), without per-cell hashing. A tier's grid may be 1x1x1: every query then
 visits all of its points (the exhaustive set for huge splats).
 
 Exactness (the query is conservative: it never misses a splat with s2~ < cap but may visit
@@ -94,7 +96,10 @@ class SplatTiers:
     means: wp.array(dtype=wp.vec3)  # (N,) splat means, world frame
     mrows: wp.array(dtype=wp.mat33)  # (N,) diag(s) R^T per splat
     opacity: wp.array(dtype=wp.float32)  # (N,) opacity in [0, 1]
-    grid: wp.array(dtype=wp.uint64)  # (T,) hash-grid ids
+    cell_start: wp.array(dtype=wp.int32)  # tier j's cell k holds splats [cell_start[cell_base[j] + k], cell_start[cell_base[j] + k + 1])
+    cell_base: wp.array(dtype=wp.int32)  # (T,) first entry of tier j in cell_start (its cells + 1 entries)
+    dims: wp.array(dtype=wp.vec3i)  # (T,) grid size per axis; cell (x, y, z) = floor(p / width) mod dims
+    inv_w: wp.array(dtype=wp.float32)  # (T,) 1 / cell width
     offset: wp.array(dtype=wp.int32)  # (T + 1,) tier j = [offset[j], offset[j + 1])
     sigma: wp.array(dtype=wp.float32)  # (T,) largest std in the tier
     n_tiers: int
@@ -178,6 +183,23 @@ def link_s2(d: wp.vec3, dd: float, link_a: wp.mat33, sphere: bool, inv_r2: float
     if s2 > s2_cut:
         return float(wp.inf)
     return wp.max(0.0, s2 - n_sigma * wp.length(m * (2.0 * ad)))
+
+
+@wp.func
+def cell_range(v: float, r: float, inv_w: float, dim: int):
+    """(first cell, number of cells <= dim) along one axis covering [v - r, v + r] (Warp's hash-grid rule)."""
+    lo = wp.clamp(wp.floor((v - r) * inv_w), -1.0e9, 1.0e9)
+    hi = wp.clamp(wp.floor((v + r) * inv_w), -1.0e9, 1.0e9)
+    return int(lo), wp.min(int(hi) - int(lo) + 1, dim)
+
+
+@wp.func
+def wrap(x: int, dim: int):
+    """x mod dim in [0, dim)."""
+    m = x % dim
+    if m < 0:
+        m += dim
+    return m
 
 
 @wp.func
@@ -272,46 +294,64 @@ def metric_full_kernel(
         rho = search_radius(p.n_sigma, splats.sigma[j], a_min, a_max, cap)
         rho2 = rho * rho
         s2_cut = rho2 / (a_max * a_max)
-        base = splats.offset[j]
         w = 2.0 * rho / float(n_slab)  # slab width along the long axis
         r_sub = slab_radius(rho, w, a_mid / a_max, n_slab)
+        inv_w = splats.inv_w[j]
+        dim = splats.dims[j]
+        cb = splats.cell_base[j]
         for sl in range(n_slab):
-            query = wp.hash_grid_query(splats.grid[j], c + u * (-rho + (float(sl) + 0.5) * w), r_sub)
-            local = int(0)
-            while wp.hash_grid_query_next(query, local):
-                i = base + local
-                d = splats.means[i] - c
-                dd = wp.dot(d, d)
-                if dd <= rho2:
-                    if n_slab > 1:
-                        if slab_index(d, u, rho, w, n_slab) != sl:
-                            continue  # found by the query of another slab (each splat is used once)
-                    ns = splat_inflation(splats, p, i)
-                    if ns < 0.0:
-                        continue
-                    v = link_s2(d, dd, a, sphere, inv_r2, splats.mrows[i], ns, s2_cut)
-                    best = wp.min(best, v)
-                    if v < 1.0:
-                        ncol += 1
-                    if v < cap:
-                        n_nb += 1
-                        eg = wp.exp(-gamma * (v - p.s_min))  # the one exp per neighbour in the common case
-                        cv = p.d_max * wp.min(eg, 1.0)  # d_max exp(-gamma max(v - s_min, 0))
-                        if v < pivot:
-                            acc = acc * wp.exp(-t * (pivot - v)) + 1.0
-                            pivot = v
-                            pg = wp.exp(gamma * (pivot - p.s_min))  # eg * pg = exp(-gamma (v - pivot))
-                        elif p.pow_m > 0:
-                            # t = m gamma: exp(-t (v - pivot)) = (eg * pg)^m, no second exp
-                            e = eg * pg
-                            term = e
-                            for _k in range(p.pow_m - 1):
-                                term = term * e
-                            acc += term
-                        elif t * (v - pivot) < SOFTMIN_SKIP:
-                            acc += wp.exp(-t * (v - pivot))
-                        c_sum += cv
-                        c_max = wp.max(c_max, cv)
+            cq = c + u * (-rho + (float(sl) + 0.5) * w)
+            xs, nx = cell_range(cq[0], r_sub, inv_w, dim[0])
+            ys, ny = cell_range(cq[1], r_sub, inv_w, dim[1])
+            zs, nz = cell_range(cq[2], r_sub, inv_w, dim[2])
+            x0 = wrap(xs, dim[0])
+            x1 = x0 + nx - 1  # cells x0..x1 of a row, wrapping past dim[0] - 1 into a second run
+            n_run = 1
+            if x1 >= dim[0]:
+                n_run = 2
+            for iz in range(nz):
+                z = wrap(zs + iz, dim[2])
+                for iy in range(ny):
+                    row = cb + (z * dim[1] + wrap(ys + iy, dim[1])) * dim[0]
+                    for run in range(n_run):
+                        a0 = x0
+                        a1 = wp.min(x1, dim[0] - 1)
+                        if run == 1:
+                            a0 = 0
+                            a1 = x1 - dim[0]
+                        for i in range(splats.cell_start[row + a0], splats.cell_start[row + a1 + 1]):
+                            d = splats.means[i] - c
+                            dd = wp.dot(d, d)
+                            if dd <= rho2:
+                                if n_slab > 1:
+                                    if slab_index(d, u, rho, w, n_slab) != sl:
+                                        continue  # found by the query of another slab (each splat is used once)
+                                ns = splat_inflation(splats, p, i)
+                                if ns < 0.0:
+                                    continue
+                                v = link_s2(d, dd, a, sphere, inv_r2, splats.mrows[i], ns, s2_cut)
+                                best = wp.min(best, v)
+                                if v < 1.0:
+                                    ncol += 1
+                                if v < cap:
+                                    n_nb += 1
+                                    eg = wp.exp(-gamma * (v - p.s_min))  # the one exp per neighbour in the common case
+                                    cv = p.d_max * wp.min(eg, 1.0)  # d_max exp(-gamma max(v - s_min, 0))
+                                    if v < pivot:
+                                        acc = acc * wp.exp(-t * (pivot - v)) + 1.0
+                                        pivot = v
+                                        pg = wp.exp(gamma * (pivot - p.s_min))  # eg * pg = exp(-gamma (v - pivot))
+                                    elif p.pow_m > 0:
+                                        # t = m gamma: exp(-t (v - pivot)) = (eg * pg)^m, no second exp
+                                        e = eg * pg
+                                        term = e
+                                        for _k in range(p.pow_m - 1):
+                                            term = term * e
+                                        acc += term
+                                    elif t * (v - pivot) < SOFTMIN_SKIP:
+                                        acc += wp.exp(-t * (v - pivot))
+                                    c_sum += cv
+                                    c_max = wp.max(c_max, cv)
 
     out.min_s2[q] = best
     out.n_colliding[q] = ncol
@@ -358,24 +398,43 @@ def metric_collide_kernel(
     sphere = a_min == a_max
     inv_r2 = 1.0 / (a_min * a_min)
     k_collide = p.k_collide
-    j = int(0)
-    while j < splats.n_tiers and ncol <= k_collide:
+    for j in range(splats.n_tiers):
+        if ncol > k_collide:
+            break
         rho = search_radius(p.n_sigma, splats.sigma[j], a_min, a_max, 1.0)
         rho2 = rho * rho
         s2_cut = rho2 / (a_max * a_max)
-        base = splats.offset[j]
-        query = wp.hash_grid_query(splats.grid[j], c, rho)
-        local = int(0)
-        while ncol <= k_collide and wp.hash_grid_query_next(query, local):
-            i = base + local
-            d = splats.means[i] - c
-            dd = wp.dot(d, d)
-            if dd <= rho2:
-                ns = splat_inflation(splats, p, i)
-                if ns >= 0.0:
-                    if link_s2(d, dd, a, sphere, inv_r2, splats.mrows[i], ns, s2_cut) < 1.0:
-                        ncol += 1
-        j += 1
+        inv_w = splats.inv_w[j]
+        dim = splats.dims[j]
+        cb = splats.cell_base[j]
+        xs, nx = cell_range(c[0], rho, inv_w, dim[0])
+        ys, ny = cell_range(c[1], rho, inv_w, dim[1])
+        zs, nz = cell_range(c[2], rho, inv_w, dim[2])
+        x0 = wrap(xs, dim[0])
+        x1 = x0 + nx - 1
+        n_run = 1
+        if x1 >= dim[0]:
+            n_run = 2
+        for iz in range(nz):
+            z = wrap(zs + iz, dim[2])
+            for iy in range(ny):
+                row = cb + (z * dim[1] + wrap(ys + iy, dim[1])) * dim[0]
+                for run in range(n_run):
+                    a0 = x0
+                    a1 = wp.min(x1, dim[0] - 1)
+                    if run == 1:
+                        a0 = 0
+                        a1 = x1 - dim[0]
+                    for i in range(splats.cell_start[row + a0], splats.cell_start[row + a1 + 1]):
+                        if ncol > k_collide:
+                            break
+                        d = splats.means[i] - c
+                        dd = wp.dot(d, d)
+                        if dd <= rho2:
+                            ns = splat_inflation(splats, p, i)
+                            if ns >= 0.0:
+                                if link_s2(d, dd, a, sphere, inv_r2, splats.mrows[i], ns, s2_cut) < 1.0:
+                                    ncol += 1
     out_hit[q] = ncol > k_collide
 
 
