@@ -80,8 +80,13 @@ def test_shortcut_gives_the_same_costs(panda, checker, stride):
         a = fast.query(Rollout(roll.states, roll.controls, roll.dt))
         b = slow.query(Rollout(roll.states, roll.controls, roll.dt))
         assert a.min_s2.shape == b.min_s2.shape == (12, len(fast.steps(6)), panda.n_ellipsoids)
-        for f in ("min_s2", "n_colliding", "in_collision"):  # exact outputs: bit-identical
+        for f in ("n_colliding", "in_collision"):  # exact outputs: bit-identical
             np.testing.assert_array_equal(getattr(a, f), getattr(b, f), err_msg=f)
+        # min_s2 is exact below the cap and only known to be >= cap above it (the two queries use
+        # different grids, so they may visit different far splats)
+        cap = fast.checker.config.s2_cap
+        near = (a.min_s2 < cap) | (b.min_s2 < cap)
+        np.testing.assert_array_equal(a.min_s2[near], b.min_s2[near])
         for f in ("cost", "softmin"):  # sums over splats: equal up to float32 summation order
             np.testing.assert_allclose(getattr(a, f), getattr(b, f), rtol=1e-5, atol=1e-7, err_msg=f)
         ta, tb = fast.terms(Rollout(roll.states, roll.controls, roll.dt)), slow.terms(Rollout(roll.states, roll.controls, roll.dt))
@@ -115,7 +120,8 @@ def test_mppi_step_with_the_shortcut_matches_the_full_query(panda, checker):
     a, b = infos
     np.testing.assert_allclose(a.costs, b.costs, rtol=1e-5)
     np.testing.assert_array_equal(a.nominal_in_collision, b.nominal_in_collision)
-    np.testing.assert_array_equal(a.nominal_min_s2, b.nominal_min_s2)
+    near = (a.nominal_min_s2 < 2.0) | (b.nominal_min_s2 < 2.0)
+    np.testing.assert_array_equal(a.nominal_min_s2[near], b.nominal_min_s2[near])
 
 
 def test_go2_cost_queries_every_ellipsoid(checker):
