@@ -120,8 +120,10 @@ def test_mppi_step_with_the_shortcut_matches_the_full_query(panda, checker):
     a, b = infos
     np.testing.assert_allclose(a.costs, b.costs, rtol=1e-5)
     np.testing.assert_array_equal(a.nominal_in_collision, b.nominal_in_collision)
+    # the MPPI update weighs the samples by their costs (equal up to float32 summation order), so
+    # the nominal trajectories agree to rounding, not bit for bit
     near = (a.nominal_min_s2 < 2.0) | (b.nominal_min_s2 < 2.0)
-    np.testing.assert_array_equal(a.nominal_min_s2[near], b.nominal_min_s2[near])
+    np.testing.assert_allclose(a.nominal_min_s2[near], b.nominal_min_s2[near], rtol=1e-5)
 
 
 def test_go2_cost_queries_every_ellipsoid(checker):
