@@ -315,7 +315,7 @@ class WarpMetric:
         (Warp's hash-grid rule, dims <= max_dim per axis), and the start of every cell's run, so a
         query reads each row of cells it covers as one or two contiguous runs."""
         groups, cells = key
-        perm, offsets, sigmas, starts, bases, dims_all, inv_ws = [], [0], [], [], [], [], []
+        perm, offsets, sigmas, starts, bases, dims_all, inv_ws, cell_lo, cell_hi = [], [0], [], [], [], [], [], [], []
         n_start = 0
         for (ci, cj), q in zip(groups, cells):
             lo = self.class_offset[ci]
@@ -326,7 +326,10 @@ class WarpMetric:
             ext = pts.max(0) - pts.min(0)
             # cells past the extent would only wrap around; a radius larger than the extent -> 1x1x1
             dims = np.array([min(self.tiers.max_dim, max(1, math.ceil(e / width) + 1)) for e in ext], dtype=np.int64)
-            cell = np.mod(np.floor(pts * inv_w).astype(np.int64), dims)  # float32 product, as in the kernel
+            vcell = np.floor(pts * inv_w).astype(np.int64)  # float32 product, as in the kernel
+            cell_lo.append(vcell.min(0))
+            cell_hi.append(vcell.max(0))
+            cell = np.mod(vcell, dims)
             lin = cell[:, 2] * dims[0] * dims[1] + cell[:, 1] * dims[0] + cell[:, 0]
             local = np.argsort(lin, kind="stable")
             perm.append(lo + local)
@@ -349,6 +352,8 @@ class WarpMetric:
         t.cell_base = wp.array(np.asarray(bases, np.int32), dtype=wp.int32, device=d)
         t.dims = wp.array(np.asarray(dims_all, np.int32).reshape(-1, 3), dtype=wp.vec3i, device=d)
         t.inv_w = wp.array(np.asarray(inv_ws, np.float32), dtype=wp.float32, device=d)
+        t.cell_lo = wp.array(np.clip(np.asarray(cell_lo), -(2**30), 2**30).astype(np.int32).reshape(-1, 3), dtype=wp.vec3i, device=d)
+        t.cell_hi = wp.array(np.clip(np.asarray(cell_hi), -(2**30), 2**30).astype(np.int32).reshape(-1, 3), dtype=wp.vec3i, device=d)
         t.offset = wp.array(np.asarray(offsets, np.int32), dtype=wp.int32, device=d)
         t.sigma = wp.array(np.asarray(sigmas, np.float32), dtype=wp.float32, device=d)
         t.n_tiers = len(groups)

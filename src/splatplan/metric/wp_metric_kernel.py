@@ -100,6 +100,8 @@ class SplatTiers:
     cell_base: wp.array(dtype=wp.int32)  # (T,) first entry of tier j in cell_start (its cells + 1 entries)
     dims: wp.array(dtype=wp.vec3i)  # (T,) grid size per axis; cell (x, y, z) = floor(p / width) mod dims
     inv_w: wp.array(dtype=wp.float32)  # (T,) 1 / cell width
+    cell_lo: wp.array(dtype=wp.vec3i)  # (T,) smallest floor(p / width) of the tier's splats per axis (before the wrap)
+    cell_hi: wp.array(dtype=wp.vec3i)  # (T,) largest
     offset: wp.array(dtype=wp.int32)  # (T + 1,) tier j = [offset[j], offset[j + 1])
     sigma: wp.array(dtype=wp.float32)  # (T,) largest std in the tier
     n_tiers: int
@@ -186,11 +188,15 @@ def link_s2(d: wp.vec3, dd: float, link_a: wp.mat33, sphere: bool, inv_r2: float
 
 
 @wp.func
-def cell_range(v: float, r: float, inv_w: float, dim: int):
-    """(first cell, number of cells <= dim) along one axis covering [v - r, v + r] (Warp's hash-grid rule)."""
-    lo = wp.clamp(wp.floor((v - r) * inv_w), -1.0e9, 1.0e9)
-    hi = wp.clamp(wp.floor((v + r) * inv_w), -1.0e9, 1.0e9)
-    return int(lo), wp.min(int(hi) - int(lo) + 1, dim)
+def cell_range(v: float, r: float, inv_w: float, dim: int, c_lo: int, c_hi: int):
+    """(first cell, number of cells <= dim; 0 = none) along one axis covering [v - r, v + r] (Warp's
+    hash-grid rule) within the cells [c_lo, c_hi] that hold the tier's splats: no wrapped-around cell
+    beyond the tier's extent is read."""
+    lo = int(wp.clamp(wp.floor((v - r) * inv_w), -1.0e9, 1.0e9))
+    hi = int(wp.clamp(wp.floor((v + r) * inv_w), -1.0e9, 1.0e9))
+    lo = wp.max(lo, c_lo)
+    hi = wp.min(hi, c_hi)
+    return lo, wp.max(wp.min(hi - lo + 1, dim), 0)
 
 
 @wp.func
@@ -299,11 +305,13 @@ def metric_full_kernel(
         inv_w = splats.inv_w[j]
         dim = splats.dims[j]
         cb = splats.cell_base[j]
+        c_lo = splats.cell_lo[j]
+        c_hi = splats.cell_hi[j]
         for sl in range(n_slab):
             cq = c + u * (-rho + (float(sl) + 0.5) * w)
-            xs, nx = cell_range(cq[0], r_sub, inv_w, dim[0])
-            ys, ny = cell_range(cq[1], r_sub, inv_w, dim[1])
-            zs, nz = cell_range(cq[2], r_sub, inv_w, dim[2])
+            xs, nx = cell_range(cq[0], r_sub, inv_w, dim[0], c_lo[0], c_hi[0])
+            ys, ny = cell_range(cq[1], r_sub, inv_w, dim[1], c_lo[1], c_hi[1])
+            zs, nz = cell_range(cq[2], r_sub, inv_w, dim[2], c_lo[2], c_hi[2])
             x0 = wrap(xs, dim[0])
             x1 = x0 + nx - 1  # cells x0..x1 of a row, wrapping past dim[0] - 1 into a second run
             n_run = 1
@@ -407,9 +415,11 @@ def metric_collide_kernel(
         inv_w = splats.inv_w[j]
         dim = splats.dims[j]
         cb = splats.cell_base[j]
-        xs, nx = cell_range(c[0], rho, inv_w, dim[0])
-        ys, ny = cell_range(c[1], rho, inv_w, dim[1])
-        zs, nz = cell_range(c[2], rho, inv_w, dim[2])
+        c_lo = splats.cell_lo[j]
+        c_hi = splats.cell_hi[j]
+        xs, nx = cell_range(c[0], rho, inv_w, dim[0], c_lo[0], c_hi[0])
+        ys, ny = cell_range(c[1], rho, inv_w, dim[1], c_lo[1], c_hi[1])
+        zs, nz = cell_range(c[2], rho, inv_w, dim[2], c_lo[2], c_hi[2])
         x0 = wrap(xs, dim[0])
         x1 = x0 + nx - 1
         n_run = 1
