@@ -225,14 +225,29 @@ def link_slabs(rot: wp.mat33, ax: wp.vec3, a_mid: float, a_max: float):
 
 
 @wp.func
-def slab_radius(rho: float, w: float, mid_ratio: float, n_slab: int):
+def slab_radius(span: float, w: float, mid_ratio: float, n_slab: int):
     """Radius of the ball around a slab's centre that holds every point of the slab with s <= rho / a_max:
-    half the slab width along the axis, at most (rho / a_max) a_mid across it (plus float slack)."""
-    if n_slab == 1:
-        return rho
+    half the slab width along the axis, at most (rho / a_max) a_mid = span mid_ratio across it (plus
+    float slack)."""
     h = 0.5 * w
-    m = rho * mid_ratio
+    m = span * mid_ratio
     return wp.sqrt(h * h + m * m) * SLAB_SLACK
+
+
+@wp.func
+def link_box(ax: wp.vec3, n_sigma_g: float, cap: float):
+    """Half extents (link frame) of a box holding every splat with s2~ < cap, for splats of std <= sigma_g
+    (n_sigma_g = n_sigma sigma_g): |e_k| < n_sigma_g + a_k sqrt(cap + sum_j (n_sigma_g / a_j)^2) (see the
+    module docstring), plus float slack."""
+    k2 = n_sigma_g * n_sigma_g * (1.0 / (ax[0] * ax[0]) + 1.0 / (ax[1] * ax[1]) + 1.0 / (ax[2] * ax[2]))
+    root = wp.sqrt(cap + k2)
+    return wp.vec3(n_sigma_g + ax[0] * root, n_sigma_g + ax[1] * root, n_sigma_g + ax[2] * root) * RHO_SLACK
+
+
+@wp.func
+def box_reach(rot: wp.mat33, h: wp.vec3, i: int):
+    """Half extent along world axis i of the link-frame box of half extents h (rotation rot: world <- link)."""
+    return wp.abs(rot[i, 0]) * h[0] + wp.abs(rot[i, 1]) * h[1] + wp.abs(rot[i, 2]) * h[2]
 
 
 @wp.func
@@ -281,6 +296,11 @@ def metric_full_kernel(
     a_max = wp.max(ax)
     a_mid = ax[0] + ax[1] + ax[2] - a_min - a_max
     n_slab, u = link_slabs(rot, ax, a_mid, a_max)
+    k_long = int(0)  # the long axis (the slabs' axis u)
+    if ax[1] == a_max:
+        k_long = 1
+    if ax[2] == a_max:
+        k_long = 2
 
     best = float(wp.inf)  # min s2~ over visited splats
     ncol = int(0)  # splats with s2~ < 1
@@ -300,18 +320,29 @@ def metric_full_kernel(
         rho = search_radius(p.n_sigma, splats.sigma[j], a_min, a_max, cap)
         rho2 = rho * rho
         s2_cut = rho2 / (a_max * a_max)
-        w = 2.0 * rho / float(n_slab)  # slab width along the long axis
-        r_sub = slab_radius(rho, w, a_mid / a_max, n_slab)
+        # every splat with s2~ < cap lies in the ball of radius rho and in the link-frame box h;
+        # slabs tile [-span, span] along the long axis u
+        h = link_box(ax, p.n_sigma * splats.sigma[j], cap)
+        span = wp.min(rho, h[k_long])
+        w = 2.0 * span / float(n_slab)  # slab width along the long axis
+        r_sub = rho  # one slab: the ball itself
+        if n_slab > 1:
+            r_sub = slab_radius(span, w, rho * a_mid / (a_max * span), n_slab)
+        h_sub = h
+        h_sub[k_long] = 0.5 * w * SLAB_SLACK  # one slab of the box
+        r_x = wp.min(r_sub, box_reach(rot, h_sub, 0))
+        r_y = wp.min(r_sub, box_reach(rot, h_sub, 1))
+        r_z = wp.min(r_sub, box_reach(rot, h_sub, 2))
         inv_w = splats.inv_w[j]
         dim = splats.dims[j]
         cb = splats.cell_base[j]
         c_lo = splats.cell_lo[j]
         c_hi = splats.cell_hi[j]
         for sl in range(n_slab):
-            cq = c + u * (-rho + (float(sl) + 0.5) * w)
-            xs, nx = cell_range(cq[0], r_sub, inv_w, dim[0], c_lo[0], c_hi[0])
-            ys, ny = cell_range(cq[1], r_sub, inv_w, dim[1], c_lo[1], c_hi[1])
-            zs, nz = cell_range(cq[2], r_sub, inv_w, dim[2], c_lo[2], c_hi[2])
+            cq = c + u * (-span + (float(sl) + 0.5) * w)
+            xs, nx = cell_range(cq[0], r_x, inv_w, dim[0], c_lo[0], c_hi[0])
+            ys, ny = cell_range(cq[1], r_y, inv_w, dim[1], c_lo[1], c_hi[1])
+            zs, nz = cell_range(cq[2], r_z, inv_w, dim[2], c_lo[2], c_hi[2])
             x0 = wrap(xs, dim[0])
             x1 = x0 + nx - 1  # cells x0..x1 of a row, wrapping past dim[0] - 1 into a second run
             n_run = 1
@@ -332,7 +363,7 @@ def metric_full_kernel(
                             dd = wp.dot(d, d)
                             if dd <= rho2:
                                 if n_slab > 1:
-                                    if slab_index(d, u, rho, w, n_slab) != sl:
+                                    if slab_index(d, u, span, w, n_slab) != sl:
                                         continue  # found by the query of another slab (each splat is used once)
                                 ns = splat_inflation(splats, p, i)
                                 if ns < 0.0:
