@@ -25,6 +25,13 @@ inflation (o_i <= 1) or drop splats, so the same radius stays exact. The same bo
 (rho / a_max)^2, rejects candidates inside the bounding sphere but far outside an elongated link
 before their inflation is computed.
 
+A second bound holds per link axis: with u = diag(1/a) R^T d (so s = |u|) and |A d| = |diag(1/a) u|
+<= sum_k |u_k| / a_k, s2~ >= sum_k (u_k^2 - 2 k_k |u_k|) = sum_k (|u_k| - k_k)^2 - K^2 with
+k_k = n_sigma sigma_g / a_k and K^2 = sum_k k_k^2; so s2~ < cap implies |u_k| < k_k + sqrt(cap + K^2),
+i.e. the link-frame coordinate |e_k| < n_sigma sigma_g + a_k sqrt(cap + K^2) (:func:`link_box`). The
+full kernel reads only grid cells within both the ball and (the world box around) that link box,
+which is much smaller than the ball for a thin link near big splats.
+
 Elongated links search that ball in slabs: with ``n`` = round(a_max / a_mid) (at most
 ``MAX_SLABS``) slabs of width ``2 rho / n`` across the long axis u, every splat with s <= rho / a_max
 lies in the slab of its coordinate along u, at most ``rho / n`` from the slab's centre along u and
