@@ -437,7 +437,8 @@ def metric_collide_kernel(
         out_hit[q] = True
         wp.atomic_min(bad, 0, q)
         return
-    a = link_matrix(link_rotation(links, q), ax)
+    rot = link_rotation(links, q)
+    a = link_matrix(rot, ax)
     a_min = wp.min(ax)
     a_max = wp.max(ax)
     ncol = int(0)
@@ -455,9 +456,17 @@ def metric_collide_kernel(
         cb = splats.cell_base[j]
         c_lo = splats.cell_lo[j]
         c_hi = splats.cell_hi[j]
-        xs, nx = cell_range(c[0], rho, inv_w, dim[0], c_lo[0], c_hi[0])
-        ys, ny = cell_range(c[1], rho, inv_w, dim[1], c_lo[1], c_hi[1])
-        zs, nz = cell_range(c[2], rho, inv_w, dim[2], c_lo[2], c_hi[2])
+        r_x = rho
+        r_y = rho
+        r_z = rho
+        if not sphere:  # the ball and the link box (module docstring); a sphere's box is never smaller
+            h = link_box(ax, p.n_sigma * splats.sigma[j], 1.0)
+            r_x = wp.min(rho, box_reach(rot, h, 0))
+            r_y = wp.min(rho, box_reach(rot, h, 1))
+            r_z = wp.min(rho, box_reach(rot, h, 2))
+        xs, nx = cell_range(c[0], r_x, inv_w, dim[0], c_lo[0], c_hi[0])
+        ys, ny = cell_range(c[1], r_y, inv_w, dim[1], c_lo[1], c_hi[1])
+        zs, nz = cell_range(c[2], r_z, inv_w, dim[2], c_lo[2], c_hi[2])
         x0 = wrap(xs, dim[0])
         x1 = x0 + nx - 1
         n_run = 1
