@@ -363,7 +363,7 @@ def main(argv: list[str] | None = None) -> int:
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(result, indent=2) + "\n")
     md = markdown(result)
-    (out.parent / out.with_suffix(".md").name).write_text(md + "\n")
+    (out.parent / "planners.md").write_text(md + "\n")
     print(md)
     print(f"wrote {out}")
     return 0
