@@ -73,9 +73,10 @@ class TierConfig:
     #: Hash-grid cell width as a fraction of the tier's query radius.
     cell_factor: float = 1.5  # measured best on Stonehenge (CPU): 0.75-2.0 within 25%
     #: Cell width factor of full queries whose typical link is elongated (median a_max >= 1.5 median
-    #: a_min): the kernel searches such links in slabs along the long axis, each a ball about half
-    #: the link's radius, so finer cells pay (Panda arm on the 200k-splat tabletop: 0.5 ~1.8x faster than 1.5).
-    slab_cell_factor: float = 0.5
+    #: a_min): the kernel reads such links' neighbourhoods in slabs along the long axis, each bounded by
+    #: a ball about half the link's radius and by the link box, so finer cells pay (Panda MPPI rollouts on
+    #: the 200k-splat tabletop, CPU: 0.25 is 1.5x faster than 0.5 and 2.5x faster than 1.0; 0.13-0.35 within 10%).
+    slab_cell_factor: float = 0.25
     #: Largest grid dimension per axis (cells wrap around beyond it; results stay exact).
     max_dim: int = 128
     #: Process the queries of a batch in Morton (Z-curve) order of their centres (a key kernel and a
