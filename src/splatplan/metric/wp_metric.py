@@ -72,10 +72,11 @@ class TierConfig:
     quantiles: tuple[float, ...] = (0.9, 0.999)
     #: Hash-grid cell width as a fraction of the tier's query radius.
     cell_factor: float = 1.5  # measured best on Stonehenge (CPU): 0.75-2.0 within 25%
-    #: Cell width factor of full queries whose typical link is elongated (median a_max >= 1.5 median
-    #: a_min): the kernel reads such links' neighbourhoods in slabs along the long axis, each bounded by
-    #: a ball about half the link's radius and by the link box, so finer cells pay (Panda MPPI rollouts on
-    #: the 200k-splat tabletop, CPU: 0.25 is 1.5x faster than 0.5 and 2.5x faster than 1.0; 0.13-0.35 within 10%).
+    #: Cell width factor of queries whose typical link is elongated (median a_max >= 1.5 median a_min):
+    #: the kernels bound such links' reads by the link box (full queries also split them into slabs
+    #: along the long axis), much tighter than the ball, so finer cells pay (Panda MPPI rollouts on the
+    #: 200k-splat tabletop, CPU: 0.25 is 1.5x faster than 0.5 and 2.5x faster than 1.0; 0.13-0.35 within
+    #: 10%; Panda collides_robot 1.7x faster than with cell_factor).
     slab_cell_factor: float = 0.25
     #: Largest grid dimension per axis (cells wrap around beyond it; results stay exact).
     max_dim: int = 128
@@ -245,8 +246,8 @@ class WarpMetric:
     # ------------------------------------------------------------------ grids
     def grid_key(self, n_sigma: float, cap: float, a_min: float, a_max: float, slabs: bool = False) -> tuple:
         """((first, last) class of each tier, quantised (2^(1/4)) cell width of each tier) for a typical
-        query with semi-axes in [a_min, a_max]; ``slabs``: the full-query kernel, which searches
-        elongated links in slabs (finer cells, ``slab_cell_factor``, when the typical link is elongated)."""
+        query with semi-axes in [a_min, a_max]; ``slabs``: finer cells (``slab_cell_factor``) when the
+        typical link is elongated, whose reads the kernels bound by the link box (and slabs)."""
         cf = self.tiers.slab_cell_factor if slabs and a_max >= 1.5 * a_min else self.tiers.cell_factor
         args = (float(n_sigma), float(cap), float(a_min), float(a_max), float(cf))
         key = self._keys.get(args)  # memoised: search_radius in Python scope costs ~0.2 ms a call
@@ -396,7 +397,7 @@ class WarpMetric:
 
     def collides(self, links: LinkBatch, b: int, a_min: float, a_max: float, cfg: MetricConfig, out_hit, bad, scratch=None) -> None:
         """in_collision of b queries into ``out_hit`` (bool device array of at least b rows)."""
-        gs = self.gridset(cfg.n_sigma, 1.0, a_min, a_max)
+        gs = self.gridset(cfg.n_sigma, 1.0, a_min, a_max, slabs=True)
         self.sort_queries(links, b, *(scratch or self._scratch(b)))
         self._launch(metric_collide_kernel, b, [links, gs.tiers, metric_params(cfg, 0), out_hit, bad])
 
