@@ -17,7 +17,7 @@ from the goal and the local collision checks only (no map search, no route):
 
 * **Structured samples**: next to the Gaussian knot perturbations of the nominal, straight drives
   in ``n_directions`` world directions and the same drives switching to the bearing to the goal
-  after 1 .. n_knots - 3 knots, all turning the base towards their direction of travel
+  after 1/4, 1/2 and 3/4 of the horizon (knots fitted by ridge least squares), all turning the base towards their direction of travel
   (``primitive_turn_rate``). They let MPPI see "along the wall, then through the doorway".
 * **Stagnation recovery** (``recovery``): when the distance to the goal has not improved by
   ``stuck_progress_m`` for ``stuck_steps`` steps, the base sweeps along the blocking obstacle: a
@@ -97,7 +97,7 @@ class BaseConfig:
     #: passes close to the goal, e.g. through a doorway and on, is preferred)
     min_factor: float = 5.0
     #: structured samples: straight drives in this many world directions (one is the bearing to
-    #: the goal) and the same drives turning to the goal after 1 .. n_knots - 3 knots (0 = off)
+    #: the goal) and the same drives turning to the goal after 1/4, 1/2, 3/4 of the horizon (0 = off)
     n_directions: int = 8
     #: speed of the structured samples (m/s)
     primitive_speed: float = 0.8
@@ -110,6 +110,8 @@ class BaseConfig:
     recovery: bool = True
     #: MPC steps without progress that count as stagnation (goal) or a blocked sweep
     stuck_steps: int = 10
+    #: no recovery closer than this to the goal (m): the final approach is slow, not stuck
+    recovery_min_distance_m: float = 0.5
     #: progress (m) that resets the stagnation counter
     stuck_progress_m: float = 0.05
     #: length (m) of the first sweep; each reversal sweeps back twice as far
@@ -206,6 +208,8 @@ class _BasePlanner:
         self.dyn, self.cfg, self.vmax = dyn, cfg, np.asarray(vmax, np.float64)
         self.collision = collision_cost
         self.spline = UniformBSpline(cfg.n_knots, cfg.horizon, clamped=False)  # see tasks.arm
+        bb = self.spline.basis  # (T, n_knots); ridge: the unclamped first / last knots barely act, unregularised they blow up
+        self._basis_pinv = np.linalg.solve(bb.T @ bb + 0.1 * np.eye(cfg.n_knots), bb.T)  # (n_knots, T): controls -> knots
         self.sigma = np.asarray(cfg.noise_sigma, np.float64).reshape(3)
         self.rng = np.random.default_rng(cfg.seed)
         self.knots = np.zeros((cfg.n_knots, 3))  # (n_knots, 3) nominal body-frame (vx, vy, wz)
@@ -234,47 +238,44 @@ class _BasePlanner:
         return out
 
     def _drive_knots(self, x: np.ndarray, v_world: np.ndarray) -> np.ndarray:
-        """(P, n_knots, 2) world-frame velocities per knot -> (P, n_knots, 3) body-frame knots
-        that also turn the base towards its direction of travel at up to ``primitive_turn_rate``."""
+        """(P, T, 2) world-frame velocities per control step -> (P, n_knots, 3) body-frame knots
+        (least-squares fit of the controls) that also turn the base towards its direction of
+        travel at up to ``primitive_turn_rate``."""
         cfg = self.cfg
-        n = cfg.n_knots
-        dt_k = cfg.horizon * cfg.dt / (n - 3)  # time between knots (s)
-        out = np.zeros(v_world.shape[:-1] + (3,))
-        yaw = np.full(len(v_world), float(x[2]))
-        for i in range(n):
-            psi = np.arctan2(v_world[:, i, 1], v_world[:, i, 0])
-            wz = np.clip(np.angle(np.exp(1j * (psi - yaw))) / dt_k, -cfg.primitive_turn_rate, cfg.primitive_turn_rate)
+        p, t_len, _ = v_world.shape
+        u = np.zeros((p, t_len, 3))
+        yaw = np.full(p, float(x[2]))
+        for t in range(t_len):
+            psi = np.arctan2(v_world[:, t, 1], v_world[:, t, 0])
+            wz = np.clip(np.angle(np.exp(1j * (psi - yaw))) / cfg.dt, -cfg.primitive_turn_rate, cfg.primitive_turn_rate)
             c, s_ = np.cos(yaw), np.sin(yaw)
-            out[:, i, 0] = c * v_world[:, i, 0] + s_ * v_world[:, i, 1]
-            out[:, i, 1] = -s_ * v_world[:, i, 0] + c * v_world[:, i, 1]
-            out[:, i, 2] = wz
-            if i >= 1:  # knots 0 and 1 both act at the start of the (unclamped) horizon
-                yaw = yaw + wz * dt_k
-        return out
+            u[:, t, 0] = c * v_world[:, t, 0] + s_ * v_world[:, t, 1]
+            u[:, t, 1] = -s_ * v_world[:, t, 0] + c * v_world[:, t, 1]
+            u[:, t, 2] = wz
+            yaw = yaw + wz * cfg.dt
+        return np.einsum("nt,ptd->pnd", self._basis_pinv, u)
 
     def primitives(self, x: np.ndarray) -> np.ndarray:
         """(P, n_knots, 3) structured samples: straight drives in ``n_directions`` world
-        directions (one is the bearing to the target: the goal, or the detour's heading), and the
-        same drives switching to the bearing to the target (from the predicted switch point)
-        after 1, 2, .. n_knots - 3 knots; all turn the base towards their direction of travel."""
+        directions (one is the bearing to the target: the goal, or the sweep's direction), and
+        the same drives switching to the bearing to the target (from the predicted switch point)
+        after 1/4, 1/2 and 3/4 of the horizon; all turn the base towards their direction of travel."""
         cfg = self.cfg
-        n, m = cfg.n_knots, cfg.n_directions
+        m, t_len = cfg.n_directions, cfg.horizon
         if m <= 0:
-            return np.zeros((0, n, 3))
+            return np.zeros((0, cfg.n_knots, 3))
         tgt = self.goal
         if self.mode == "detour":
             tgt = x[:2] + 10.0 * np.array([np.cos(self.detour["heading"]), np.sin(self.detour["heading"])])
         b = float(np.arctan2(tgt[1] - x[1], tgt[0] - x[0]))
         th = b + 2 * np.pi * np.arange(m) / m  # (m,)
         v = cfg.primitive_speed * np.stack([np.cos(th), np.sin(th)], axis=1)  # (m, 2) world, m/s
-        vw = [np.repeat(v[:, None], n, axis=1)]  # straight
-        span = cfg.horizon * cfg.dt
-        for j in range(2, n - 1):  # switch after knot j - 1
-            t_sw = span * (j - 1.5) / (n - 3)  # the spline passes knot j - 1 .. j around here
-            p_sw = x[:2] + v * max(t_sw, 0.0)  # (m, 2) predicted switch points
-            d = tgt - p_sw
+        vw = [np.repeat(v[:, None], t_len, axis=1)]  # straight
+        for frac in (0.25, 0.5, 0.75):
+            j = max(1, int(round(frac * t_len)))
+            d = tgt - (x[:2] + v * j * cfg.dt)  # (m, 2) from the predicted switch points
             w = cfg.primitive_speed * d / np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-9)
-            k = np.empty((m, n, 2))
+            k = np.empty((m, t_len, 2))
             k[:, :j] = v[:, None]
             k[:, j:] = w[:, None]
             vw.append(k)
@@ -321,16 +322,23 @@ class _BasePlanner:
         first = np.where(hit.any(axis=1), np.argmax(hit, axis=1), len(r))  # (D,) free samples before the first hit
         return np.concatenate([[0.0], r])[first]
 
-    def _start_detour(self, x: np.ndarray) -> None:
-        """Stagnation: follow the obstacle boundary. The obstacle's normal is the mean of the
-        blocked scan directions; the side is the one on which the goal lies from that normal
-        (the other side where an earlier detour started within 0.5 m: that one did not lead out);
-        the walking budget doubles with every detour."""
+    def _normal(self, x: np.ndarray) -> np.ndarray | None:
+        """(2,) the blocking obstacles' direction from the scan: the blocked directions weighted by
+        how short their free run is (None when nothing within ``scan_range_m`` blocks)."""
         cfg = self.cfg
         th = 2 * np.pi * np.arange(cfg.n_scan) / cfg.n_scan
         block = np.maximum(cfg.scan_range_m - self.scan(x), 0.0)  # (D,) m
-        u = np.stack([np.cos(th), np.sin(th)], axis=1)
-        nrm = (block[:, None] * u).sum(axis=0) if block.any() else self.goal - x[:2]
+        nrm = (block[:, None] * np.stack([np.cos(th), np.sin(th)], axis=1)).sum(axis=0)
+        return nrm if np.linalg.norm(nrm) > 0.2 * cfg.scan_range_m else None
+
+    def _start_detour(self, x: np.ndarray) -> None:
+        """Stagnation: sweep along the blocking obstacle, perpendicular to its normal from the
+        scan, on the side on which the goal lies from that normal (the other side where an
+        earlier sweep started within 0.5 m: that one did not lead out)."""
+        cfg = self.cfg
+        nrm = self._normal(x)
+        if nrm is None:
+            nrm = self.goal - x[:2]
         n_ang = float(np.arctan2(nrm[1], nrm[0]))
         b = self.goal - x[:2]
         side = 1.0 if float(np.cos(n_ang) * b[1] - np.sin(n_ang) * b[0]) >= 0 else -1.0  # goal left of the normal: keep the obstacle on the right
@@ -349,7 +357,7 @@ class _BasePlanner:
         dist_now = float(np.linalg.norm(x[:2] - self.goal))
         if dist_now < self.best - cfg.stuck_progress_m:
             self.best, self.best_step = dist_now, self.step_i
-        if self.recovery and self.mode == "goal" and self.step_i - self.best_step >= cfg.stuck_steps:
+        if self.recovery and self.mode == "goal" and self.step_i - self.best_step >= cfg.stuck_steps and dist_now > cfg.recovery_min_distance_m:
             self._start_detour(x)
         if self.mode == "detour":
             det = self.detour
