@@ -220,7 +220,7 @@ def bench_mppi_panda(
 def bench_panda_rows(quick: bool = False) -> dict:
     """Every Panda row: every step (static ellipsoids cached, and not), the auto stride, strides 2 and 4."""
     setup = panda_setup(n_splats=20_000 if quick else 200_000)
-    n = 2 if quick else 6
+    n = 2 if quick else 12
     return {
         "mppi_panda": bench_mppi_panda(n, setup, quick=quick),
         "mppi_panda_no_static_cache": bench_mppi_panda(n, setup, quick=quick, stonehenge=False, static_shortcut=False),
