@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import SplatplanError
-from ._common import TaskResult, TaskScene, check_start, load_task_scene, moving_clearance, strided_collision_cost, trajectory_clearance
+from ._common import TaskResult, TaskScene, check_start, load_task_scene, moving_clearance, trajectory_clearance
 from ._ik import rotation_error, solve_ik
 
 __all__ = ["ArmConfig", "check_reachable", "down_quat", "run_arm"]
@@ -162,7 +162,7 @@ def run_arm(
     """
     from ..planners import MPPI, MPPIConfig
     from ..planners.bspline import UniformBSpline
-    from ..planners.costs import ControlEffortCost, GoalPoseCost, JointLimitCost, StateCost
+    from ..planners.costs import CollisionCost, ControlEffortCost, GoalPoseCost, JointLimitCost, StateCost
     from ..planners.dynamics import JointIntegrator
     from ..robots import load_robot
     from ..scenes.splats import quat_to_rotmat
@@ -202,7 +202,7 @@ def run_arm(
     if cfg.w_posture > 0:
         costs.append(StateCost(lambda s: np.sum((s - q_ref) ** 2, axis=-1), weight=cfg.w_posture, name="posture"))
     if collision:
-        costs.insert(0, strided_collision_cost(ts.checker, robot, cfg.collision_stride, weight=cfg.w_collision, hit_weight=cfg.w_hit, s2_cap=cfg.collision_s2_cap, self_collision_weight=cfg.w_self_collision))
+        costs.insert(0, CollisionCost(ts.checker, robot, weight=cfg.w_collision, hit_weight=cfg.w_hit, s2_cap=cfg.collision_s2_cap, self_collision_weight=cfg.w_self_collision, time_stride=cfg.collision_stride))
     mcfg = MPPIConfig(
         n_samples=cfg.n_samples, horizon=cfg.horizon, n_knots=cfg.n_knots, dt=cfg.dt, temperature=cfg.temperature,
         noise_sigma=cfg.noise_sigma, n_iters=cfg.n_iters, u_min=tuple(-vmax), u_max=tuple(vmax), seed=cfg.seed,
