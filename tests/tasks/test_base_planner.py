@@ -43,7 +43,7 @@ def test_scan_sees_the_wall(apartment):
     robot, ts = apartment
     cfg = BaseConfig()
     p = _BasePlanner(PlanarBase(robot), cfg, np.asarray(robot.velocity_limits), None, np.zeros(2), robot, ts.checker)
-    free = p.scan(np.array([-0.75, 0.4, 0.0]))  # facing the interior wall x = 0 of the living room
+    free = p.scan(np.array([-0.8, -0.3, 0.0]))  # facing the interior wall x = 0 of the living room
     assert free[0] < cfg.scan_range_m  # +x: the wall
     assert free[cfg.n_scan // 2] >= cfg.scan_range_m - 1e-9  # -x: the room
 
