@@ -20,14 +20,16 @@ from the goal and the local collision checks only (no map search, no route):
   after 1/4, 1/2 and 3/4 of the horizon (knots fitted by ridge least squares), all turning the base towards their direction of travel
   (``primitive_turn_rate``). They let MPPI see "along the wall, then through the doorway".
 * **Stagnation recovery** (``recovery``): when the distance to the goal has not improved by
-  ``stuck_progress_m`` for ``stuck_steps`` steps, the base sweeps along the blocking obstacle: a
-  local range scan (``n_scan`` directions, ``scan_range_m``) gives the obstacle's normal, the
-  sweep runs perpendicular to it on the side of the goal (the other side where an earlier sweep
-  started within 0.5 m), and reverses with twice the length when blocked or after
-  ``detour_length_m`` (a doubling search). The sweep's cost is progress along its direction. It
-  ends as soon as a collision-free rollout gets ``detour_exit_margin_m`` closer to the goal than
-  the base ever was and than anything goal mode saw before the sweep; the nominal then becomes
-  that rollout. Every detour, reversal and resume is recorded in ``extra["events"]``.
+  ``stuck_progress_m`` for ``stuck_steps`` steps (and the base is more than
+  ``recovery_min_distance_m`` from the goal), the base sidesteps: it sweeps perpendicular to the
+  bearing to the goal, first to the side ``first_sweep`` (clockwise by default, a fixed convention
+  like the Bug algorithms' turning direction; the other side where an earlier sweep started
+  within 0.5 m), facing its direction of travel (``w_align``), and reverses with twice the length
+  when blocked or after ``detour_length_m`` (a doubling search). The sweep's cost is progress
+  along its direction (``w_sweep``) plus the collision cost. It ends as soon as a collision-free
+  rollout gets ``detour_exit_margin_m`` closer to the goal than the base ever was and than any
+  collision-free rollout of goal mode ever got; the nominal then becomes that rollout. Every
+  sweep, reversal and resume is recorded in ``extra["events"]``.
 
 **Conservatism.** The base runs the metric at ``n_sigma = 0.75``: at n_sigma = 1 the splats'
 inflation (about 0.13 m per side on the walls) leaves **no** collision-free pose of the Go2 (yaw 0)
@@ -104,10 +106,9 @@ class BaseConfig:
     primitive_speed: float = 0.8
     #: turn rate (rad/s) of the structured samples towards their direction of travel
     primitive_turn_rate: float = 1.5
-    #: stagnation recovery: when the distance to the goal has not improved for stuck_steps, sweep
-    #: along the blocking obstacle (perpendicular to its normal from a local range scan), back and
-    #: forth with doubling sweeps, until a collision-free rollout gets clearly closer to the goal
-    #: than ever before
+    #: stagnation recovery: when the distance to the goal has not improved for stuck_steps,
+    #: sidestep perpendicular to the bearing to the goal, back and forth with doubling sweeps,
+    #: until a collision-free rollout gets clearly closer to the goal than ever before
     recovery: bool = True
     #: MPC steps without progress that count as stagnation (goal) or a blocked sweep
     stuck_steps: int = 10
@@ -120,12 +121,9 @@ class BaseConfig:
     #: a detour ends when a collision-free rollout gets this much closer (m) to the goal than the
     #: base ever was or any collision-free rollout of goal mode saw before the detour
     detour_exit_margin_m: float = 0.3
-    #: directions of the local range scan that gives the blocking obstacle's normal
-    n_scan: int = 16
-    #: range (m) of the scan: a direction is free when the base can translate this far
-    scan_range_m: float = 0.6
-    #: spacing (m) of the scan's checks along each direction
-    scan_step_m: float = 0.1
+    #: side of the first sweep: -1 clockwise (right of the bearing to the goal), +1 counterclockwise
+    #: (a fixed convention, like the Bug algorithms' turning direction)
+    first_sweep: int = -1
     #: sweeps: weight of the progress along the sweep direction (per metre, per step)
     w_sweep: float = 0.3
     #: sweeps: weight of facing the sweep direction sum_t (1 - cos(yaw_t - heading)) (walk forward)
@@ -205,7 +203,7 @@ class _BasePlanner:
     """MPPI over body-frame velocity B-splines for the planar base, with structured samples and a
     stagnation recovery (see the module docstring). One :meth:`step` per control period."""
 
-    def __init__(self, dyn, cfg: BaseConfig, vmax: np.ndarray, collision_cost, goal: np.ndarray, robot, checker, recovery: bool = True) -> None:
+    def __init__(self, dyn, cfg: BaseConfig, vmax: np.ndarray, collision_cost, goal: np.ndarray, recovery: bool = True) -> None:
         from ..planners.bspline import UniformBSpline
 
         self.dyn, self.cfg, self.vmax = dyn, cfg, np.asarray(vmax, np.float64)
@@ -226,7 +224,6 @@ class _BasePlanner:
         self.events: list[dict] = []
         self.n_detours = 0
         self.seen = np.inf  # closest approach to the goal of the last goal-mode step's collision-free rollouts (m)
-        self.robot, self.checker = robot, checker
 
     # ---------------------------------------------------------------- samples
     def _clip(self, knots: np.ndarray) -> np.ndarray:
@@ -311,47 +308,20 @@ class _BasePlanner:
         return {"states": states, "dist": dist, "goal": goal, "collision": col, "control": ctrl, "hit": hits_t.any(axis=1), "hits_t": hits_t}
 
     # ---------------------------------------------------------------- recovery
-    def scan(self, x: np.ndarray) -> np.ndarray:
-        """Local range scan: (n_scan,) free distance (m) of the base translated (heading held) from
-        ``x`` in ``n_scan`` world directions, checked every ``scan_step_m`` up to ``scan_range_m``."""
-        cfg = self.cfg
-        th = 2 * np.pi * np.arange(cfg.n_scan) / cfg.n_scan  # (D,) world directions
-        r = cfg.scan_step_m * np.arange(1, int(round(cfg.scan_range_m / cfg.scan_step_m)) + 1)  # (R,) m
-        q = np.empty((len(th), len(r), 3))
-        q[..., 0] = x[0] + np.cos(th)[:, None] * r
-        q[..., 1] = x[1] + np.sin(th)[:, None] * r
-        q[..., 2] = x[2]
-        hit = np.asarray(self.checker.collides_robot(self.robot, q.reshape(-1, 3))).reshape(len(th), len(r), -1).any(axis=-1)  # (D, R)
-        first = np.where(hit.any(axis=1), np.argmax(hit, axis=1), len(r))  # (D,) free samples before the first hit
-        return np.concatenate([[0.0], r])[first]
-
-    def _normal(self, x: np.ndarray) -> np.ndarray | None:
-        """(2,) the blocking obstacles' direction from the scan: the blocked directions weighted by
-        how short their free run is (None when nothing within ``scan_range_m`` blocks)."""
-        cfg = self.cfg
-        th = 2 * np.pi * np.arange(cfg.n_scan) / cfg.n_scan
-        block = np.maximum(cfg.scan_range_m - self.scan(x), 0.0)  # (D,) m
-        nrm = (block[:, None] * np.stack([np.cos(th), np.sin(th)], axis=1)).sum(axis=0)
-        return nrm if np.linalg.norm(nrm) > 0.2 * cfg.scan_range_m else None
-
     def _start_detour(self, x: np.ndarray) -> None:
-        """Stagnation: sweep along the blocking obstacle, perpendicular to its normal from the
-        scan, on the side on which the goal lies from that normal (the other side where an
-        earlier sweep started within 0.5 m: that one did not lead out)."""
+        """Stagnation: sidestep, perpendicular to the bearing to the goal, first to the side
+        ``first_sweep`` (the other side where an earlier sweep started within 0.5 m: that one did
+        not lead out), reversing with doubled length when blocked or done."""
         cfg = self.cfg
-        nrm = self._normal(x)
-        if nrm is None:
-            nrm = self.goal - x[:2]
-        n_ang = float(np.arctan2(nrm[1], nrm[0]))
-        b = self.goal - x[:2]
-        side = 1.0 if float(np.cos(n_ang) * b[1] - np.sin(n_ang) * b[0]) >= 0 else -1.0  # goal left of the normal: keep the obstacle on the right
+        bearing = float(np.arctan2(self.goal[1] - x[1], self.goal[0] - x[0]))
+        side = float(np.sign(cfg.first_sweep) or 1.0)
         for e in self.events:
             if e["event"] == "detour" and np.linalg.norm(np.asarray(e["xy"]) - x[:2]) < 0.5:
                 side = -e["side_sign"]
         self.n_detours += 1
-        self.detour = {"ref": min(self.best, self.seen), "side": side, "heading": n_ang + side * np.pi / 2, "limit": cfg.detour_length_m, "walked": 0.0, "last": x[:2].copy(), "window": [x[:2].copy()]}
+        self.detour = {"ref": min(self.best, self.seen), "side": side, "heading": bearing + side * np.pi / 2, "limit": cfg.detour_length_m, "walked": 0.0, "last": x[:2].copy(), "window": [x[:2].copy()]}
         self.mode = "detour"
-        self.events.append({"step": self.step_i, "event": "detour", "xy": x[:2].round(3).tolist(), "side": "obstacle right" if side > 0 else "obstacle left", "side_sign": side, "distance_m": round(float(self.best), 3)})
+        self.events.append({"step": self.step_i, "event": "detour", "xy": x[:2].round(3).tolist(), "side": "counterclockwise" if side > 0 else "clockwise", "side_sign": side, "distance_m": round(float(self.best), 3)})
 
     # ---------------------------------------------------------------- step
     def step(self, x: np.ndarray) -> np.ndarray:
@@ -394,7 +364,7 @@ class _BasePlanner:
                 resumed = True
         if self.mode == "goal":  # what goal mode can see: the closest approach of a collision-free rollout
             free_d = ev["dist"].min(axis=1)[~ev["hit"]]
-            self.seen = float(free_d.min()) if free_d.size else np.inf
+            self.seen = min(self.seen, float(free_d.min()) if free_d.size else np.inf)  # over every goal-mode step
         if not resumed:
             if self.mode == "detour":
                 d = np.array([np.cos(self.detour["heading"]), np.sin(self.detour["heading"])])
@@ -461,7 +431,7 @@ def run_base(
     collision_cost = None
     if collision:
         collision_cost = strided_collision_cost(ts.checker, robot, cfg.collision_stride, weight=cfg.w_collision, hit_weight=cfg.w_hit, s2_cap=cfg.collision_s2_cap)
-    planner = _BasePlanner(dyn, cfg, vmax, collision_cost, g, robot, ts.checker, recovery=collision and cfg.recovery and route is None)
+    planner = _BasePlanner(dyn, cfg, vmax, collision_cost, g, recovery=collision and cfg.recovery and route is None)
     wps = None if route is None else np.asarray(route, np.float64)[:, :2]
     states = [x.copy()]
     t0 = time.perf_counter()
