@@ -48,6 +48,22 @@ def test_image_cost_shape_and_ordering(setup):
     assert np.allclose(cost(roll), cost(roll)[0])
 
 
+def test_image_cost_log_transform(setup):
+    robot, ts, cam, q0, rend, enc = setup
+    goal = q0 + np.array([0.15, 0.1, -0.1, 0.1, 0.0, -0.1, 0.2])
+    target = np.asarray(cam.render(rend, robot, goal[None], background=(0.5,) * 3).rgb[0])
+    ends = np.stack([goal, q0, goal + 0.1, goal - 0.2])
+    kw = dict(weight=2.0, background=(0.5,) * 3, w_empty=1.0)
+    raw = ImageCost(rend, cam, robot, enc, target, **kw).cost_of_states(ends) / 2.0
+    logc = ImageCost(rend, cam, robot, enc, target, log_eps=0.01, **kw)
+    c = logc.cost_of_states(ends)
+    np.testing.assert_allclose(logc.last_raw, raw, rtol=1e-6, atol=1e-9)
+    np.testing.assert_allclose(c, 2.0 * np.log1p(raw / 0.01), rtol=1e-6, atol=1e-9)
+    assert np.array_equal(np.argsort(c), np.argsort(raw))  # monotone: same ranking of the samples
+    with pytest.raises(SplatplanError, match="log_eps"):
+        ImageCost(rend, cam, robot, enc, target, log_eps=-1.0)
+
+
 def test_image_cost_bad_inputs(setup):
     robot, ts, cam, q0, rend, enc = setup
     with pytest.raises(SplatplanError, match="RGB"):
@@ -68,7 +84,7 @@ def test_tiny_reach_run(setup):
     t_goal = robot.link_poses(goal)[robot.link_names.index(cfg.camera_link)]
     res = run_reach(robot, ts, target, config=cfg, q0=q0, encoder=enc, renderer=rend, goal_camera_pose=t_goal)
     assert res.trajectory.shape == (cfg.horizon + 1, 7)
-    assert res.iterations == cfg.plan_iters + cfg.horizon - 1
+    assert res.iterations == cfg.plan_iters + (cfg.horizon - 1) * cfg.iters_per_step
     assert res.final_image.shape == (24, 24, 3) and len(res.views) >= 1
     assert np.isfinite(res.translation_error_m) and np.isfinite(res.rotation_error_deg)
     assert res.clearance_source == "analytic" and np.isfinite(res.min_clearance_m)

@@ -259,9 +259,12 @@ class ImageCost:
         target_images: (H, W, 3), (1, H, W, 3) or (B, H, W, 3) (one target per rendered row).
         w_global: weight of the global-embedding distance (>= 0).
         w_patch: weight of the mean patch-token distance (>= 0; needs ``encoder.has_tokens``).
+        normalize: L2-normalise the global embedding and every patch token before the distances
+            (cosine distance, ``2 - 2 cos`` in [0, 4]), so the cost scale is the same for every encoder
+            whatever the magnitude of its features.
     """
 
-    def __init__(self, encoder: Encoder, target_images: Any, w_global: float = 1.0, w_patch: float = 0.0) -> None:
+    def __init__(self, encoder: Encoder, target_images: Any, w_global: float = 1.0, w_patch: float = 0.0, normalize: bool = False) -> None:
         if not (np.isfinite(w_global) and np.isfinite(w_patch)) or w_global < 0 or w_patch < 0 or w_global + w_patch <= 0:
             raise SplatplanError(f"image cost weights must be finite, >= 0 and not both 0, got w_global={w_global}, w_patch={w_patch}")
         if w_patch > 0 and not encoder.has_tokens:
@@ -271,8 +274,16 @@ class ImageCost:
         if (torch.is_tensor(tgt) or isinstance(tgt, np.ndarray)) and tgt.ndim == 3:
             tgt = tgt[None]
         x, _ = images_to_torch(tgt, encoder.device)
-        g, t = encoder._features_torch(x, tokens=w_patch > 0)
+        self.normalize = bool(normalize)
+        g, t = self._features(x)
         self.target_global, self.target_tokens = g.detach(), (t.detach() if t is not None else None)  # (Bt, D), (Bt, P, Dt)
+
+    def _features(self, x: "torch.Tensor"):
+        g, t = self.encoder._features_torch(x, tokens=self.w_patch > 0)
+        if self.normalize:
+            g = torch.nn.functional.normalize(g, dim=-1)
+            t = torch.nn.functional.normalize(t, dim=-1) if t is not None else None
+        return g, t
 
     def __call__(self, rendered_images: Any):
         """(B, H, W, 3) renders in [0, 1] -> (B,) costs (same kind as the input)."""
@@ -280,7 +291,7 @@ class ImageCost:
         bt = self.target_global.shape[0]
         if bt not in (1, x.shape[0]):
             raise SplatplanError(f"{bt} target images for {x.shape[0]} rendered images: give one target or one per rendered image")
-        g, t = self.encoder._features_torch(x, tokens=self.w_patch > 0)
+        g, t = self._features(x)
         cost = self.w_global * ((self.target_global - g) ** 2).sum(dim=1) if self.w_global > 0 else g.new_zeros(g.shape[0])
         if self.w_patch > 0:
             cost = cost + self.w_patch * token_cost(self.target_tokens, t)

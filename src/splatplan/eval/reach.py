@@ -28,7 +28,7 @@ PAPER = {"without_collision": (-0.021, 0.0147, 3.48), "with_collision": (0.017, 
 
 def quick_config(cfg):
     """Smaller settings for ``--quick`` (< 2 min on 2 busy cores)."""
-    return replace(cfg, n_samples=16, horizon=24, n_knots=6, dt=0.1, plan_iters=8, image_size=32, n_views=4)
+    return replace(cfg, n_samples=16, horizon=24, n_knots=6, dt=0.1, plan_iters=20, image_size=32, encoder_image_size=32, n_views=4)
 
 
 def _plot_goal(path: Path, robot, scene, goal, target, runs: dict) -> None:
@@ -118,11 +118,10 @@ def markdown(result: dict) -> str:
 
 def run_reach_study(out_dir, *, encoder: str = "thumbnail", encoder_weights: str | None = None, quick: bool = False, device: str = "cpu", config=None, n_goals: int = 5, progress: bool = False) -> dict:
     """Run the study, write ``reach.json``, ``reach.md`` and one PNG per goal into ``out_dir``."""
-    from ..encoders import load_encoder
     from ..render import SplatRenderer
     from ..robots import load_robot
     from ..tasks._common import load_task_scene
-    from ..tasks.reach import ReachConfig, make_reach_goals, reach_start, run_reach, wrist_camera
+    from ..tasks.reach import ReachConfig, make_reach_goals, reach_encoder, reach_start, run_reach, wrist_camera
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -132,7 +131,7 @@ def run_reach_study(out_dir, *, encoder: str = "thumbnail", encoder_weights: str
     t0 = time.perf_counter()
     robot = load_robot("panda")
     ts = load_task_scene("tabletop", n_sigma=cfg.n_sigma, device=device, n_splats=cfg.n_splats)
-    enc = load_encoder(encoder, weights=encoder_weights, device=device, image_size=cfg.encoder_image_size)
+    enc = reach_encoder(encoder, encoder_weights, device, cfg)
     cam = wrist_camera(robot, cfg.image_size, cfg.fov_deg, cfg.camera_link)
     q0 = reach_start(robot, cfg.camera_link)
     bg = (cfg.background,) * 3

@@ -50,6 +50,11 @@ class ImageCost(Cost):
             thumbnail) cannot tell it from a poor match; 0 = the paper's image cost only.
         time_index: which rollout step is rendered (-1 = the terminal state x_T; a shrinking-horizon
             MPC sets T - 1 - s after s executed steps so the goal time stays fixed).
+        log_eps: > 0 scores ``log(1 + c / log_eps)`` instead of the raw distance c (0 = raw): MPPI's
+            weights ``exp(-dC / lambda)`` then see relative progress, so the update stays greedy near
+            the goal where absolute cost differences between samples shrink towards 0.
+        normalize: compare L2-normalised features (cosine distance in [0, 4]: the same cost scale
+            for every encoder; see :class:`splatplan.encoders.ImageCost`).
     """
 
     name = "image"
@@ -68,6 +73,8 @@ class ImageCost(Cost):
         keep_images: bool = False,
         w_empty: float = 0.0,
         time_index: int = -1,
+        log_eps: float = 0.0,
+        normalize: bool = False,
     ) -> None:
         from ..encoders.base import ImageCost as _EncoderImageCost
 
@@ -82,6 +89,11 @@ class ImageCost(Cost):
         self.keep_images = bool(keep_images)
         self.time_index = int(time_index)
         self.w_empty = float(w_empty)
+        if not np.isfinite(log_eps) or log_eps < 0:
+            raise SplatplanError(f"ImageCost log_eps must be finite and >= 0, got {log_eps}")
+        self.log_eps = float(log_eps)
+        #: (K,) unweighted, untransformed costs of the last evaluated batch
+        self.last_raw = np.zeros(0)
         camera._link_index(robot)  # fail early on a wrong link name
         if isinstance(target, _EncoderImageCost):
             self.embedding_cost = target
@@ -89,7 +101,7 @@ class ImageCost(Cost):
             img = np.asarray(target, dtype=np.float32)
             if img.ndim != 3 or img.shape[-1] != 3:
                 raise SplatplanError(f"ImageCost target must be one (H, W, 3) RGB image, got shape {img.shape}")
-            self.embedding_cost = _EncoderImageCost(encoder, img, w_global=w_global, w_patch=w_patch)
+            self.embedding_cost = _EncoderImageCost(encoder, img, w_global=w_global, w_patch=w_patch, normalize=normalize)
         #: number of render calls made so far (one per evaluated batch)
         self.n_renders = 0
 
@@ -119,7 +131,7 @@ class ImageCost(Cost):
 
     def cost_of_images(self, images, alpha=None) -> np.ndarray:
         """(K, H, W, 3) images (and their (K, H, W) alpha for the empty-view term) -> (K,) weighted
-        float64 costs."""
+        float64 costs (log-transformed when ``log_eps > 0``; the raw ones are kept in ``last_raw``)."""
         c = self.embedding_cost(images)
         if hasattr(c, "detach"):
             c = c.detach().cpu().numpy()
@@ -127,6 +139,9 @@ class ImageCost(Cost):
         if self.w_empty > 0 and alpha is not None:
             a = alpha.detach().cpu().numpy() if hasattr(alpha, "detach") else np.asarray(alpha)
             c = c + self.w_empty * (1.0 - a.reshape(len(c), -1).mean(axis=1))
+        self.last_raw = c
+        if self.log_eps > 0:
+            c = np.log1p(np.maximum(c, 0.0) / self.log_eps)
         return self.weight * c
 
     def cost_of_states(self, states: np.ndarray) -> np.ndarray:

@@ -6,20 +6,32 @@ looks along the gripper's z axis), :func:`wrist_camera`.
 
 Cost per sample (:mod:`splatplan.planners.costs`, :class:`~splatplan.planners.ImageCost`):
 
-* image: ``w_image ||enc(I_target) - enc(I(x_T))||^2`` (+ patch tokens for encoders that have
-  them) of the wrist view at the goal time, **one batched render per MPPI iteration**, plus
-  ``w_empty`` x the fraction of the view showing no scene (an empty view is constant, which the
-  weight-free thumbnail scores like a poor match: without it samples escape towards empty space);
+* image: ``w_image log(1 + c / image_log_eps)`` with ``c = ||enc(I_target) - enc(I(x_goal))||^2``
+  (+ patch tokens for encoders that have them; features L2-normalised so that every encoder has
+  the same cost scale) of the wrist view at the goal time, **one batched render per MPPI
+  iteration**, plus ``w_empty`` x the fraction of the view showing no scene inside c (an empty view
+  is constant, which a correlation-type embedding scores like a poor match). The log keeps MPPI
+  weighing relative progress near the goal, where raw differences between samples vanish.
+  The default encoder ``thumbnail`` is here a 5-band Laplacian pyramid of 4..64 px thumbnails
+  (:func:`reach_encoder`): the coarse band gives the basin, the band-pass ones the precision;
 * collision (optional: the "with / without collision cost" rows of Table IV): the
-  CollisionSplatting cost of every robot ellipsoid over the horizon, one ``query_robot``;
+  CollisionSplatting cost of every robot ellipsoid, one ``query_robot``;
 * control effort and joint-limit penalty.
+  These path costs cover the rollout steps up to the goal time only (the tail is never executed).
 
 Schedule (shrinking horizon, so that the goal time stays fixed): the first MPC step runs
-``plan_iters`` MPPI iterations over the horizon T; then each MPC step applies the first control,
-shifts the knots (warm start) and runs ``iters_per_step`` iterations, the image now rendered at
-step ``T - 1 - s`` of the rollout after ``s`` executed steps. After T steps the arm is where the
-plan ended. The defaults (K = 32, T = 48, 8 knots, dt = 0.05 s, temperature 0.1, 20 + 47 = 67
-iterations) follow the paper's authors' example; images are 64x64 here (224x224 in the paper).
+``plan_iters`` MPPI iterations over the horizon T, in chunks of ``plan_chunk`` between which the
+knot noise anneals on image-cost progress (``noise_cost_ref``); then each MPC step applies the
+first control, shifts the knots (warm start; a constant velocity offset puts the plan's goal-time
+state back where it was, ``keep_goal_state``) and runs ``iters_per_step`` iterations at
+``track_temperature`` (nearly greedy: the nominal is always a sample, so it is only replaced by a
+better one), the image now rendered at step ``T - 1 - s`` of the rollout after ``s`` executed
+steps. After T steps the arm is where the plan ended. K = 32, T = 48, 8 knots, dt = 0.05 s and
+temperature 0.1 follow the paper's authors' example; images are 64x64 here (224x224 in the paper).
+
+The controller sees the target image only: no goal pose, configuration or collision information
+enters the without-collision run (the start is an IK solution of a fixed camera pose; the goals
+are chosen collision-free by the study, as in the paper).
 
 Units: metres, radians, seconds; world frame z up (the tabletop scene's).
 """
@@ -34,7 +46,7 @@ import numpy as np
 from ..errors import SplatplanError
 from ._common import TaskScene, check_start, load_task_scene, trajectory_clearance
 
-__all__ = ["BEHIND_WALL", "START_CAMERA", "ReachConfig", "ReachResult", "camera_pose_error", "make_reach_goals", "reach_start", "run_reach", "wrist_camera"]
+__all__ = ["BEHIND_WALL", "START_CAMERA", "ReachConfig", "ReachResult", "camera_pose_error", "make_reach_goals", "reach_encoder", "reach_start", "run_reach", "wrist_camera"]
 
 
 @dataclass
@@ -52,14 +64,33 @@ class ReachConfig:
     #: MPPI temperature (smaller = greedier)
     temperature: float = 0.1
     #: std of the knot perturbations (rad/s)
-    noise_sigma: float = 0.5
+    noise_sigma: float = 0.25
     #: knot noise at the last MPC step as a fraction of noise_sigma (linear in the remaining
     #: horizon: finer exploration as the goal time approaches); 1 = constant noise
     noise_final: float = 0.3
+    #: noise annealing on image-cost progress: the knot noise is further scaled by
+    #: clip(sqrt(c / noise_cost_ref), noise_min_scale, 1), c = raw image cost of the current plan
+    #: (the pose error grows like sqrt(c) near the goal); 0 = off
+    noise_cost_ref: float = 4.0
+    #: lower bound of that scale
+    noise_min_scale: float = 0.03
+    #: with annealing, the initial plan runs in chunks of this many iterations (annealed in between)
+    plan_chunk: int = 5
+    #: MPPI temperature while the arm moves (after the initial plan; None = temperature): a small one
+    #: keeps the plan's nominal (always among the samples) unless a sample beats it, so the warm-started
+    #: plan does not drift through the weighted averaging of one iteration per step
+    track_temperature: float | None = 0.03
+    #: after each warm-start shift, offset the knots so that the plan's state at the goal time stays
+    #: where the plan had it (the least-squares shift alone drifts it over the run)
+    keep_goal_state: bool = True
     #: MPPI iterations before the first control is applied
-    plan_iters: int = 20
+    plan_iters: int = 60
     #: MPPI iterations per later MPC step
     iters_per_step: int = 1
+    #: the last final_steps MPC steps run final_iters iterations each (fine convergence at the goal)
+    final_steps: int = 0
+    #: MPPI iterations per step over the last final_steps steps
+    final_iters: int = 3
     #: joint velocity bound as a fraction of the robot's velocity limits
     velocity_scale: float = 0.6
     #: rendered image side (pixels, square)
@@ -71,8 +102,16 @@ class ReachConfig:
     background: float = 0.5
     #: weight of the image cost
     w_image: float = 1.0
-    #: side the encoder resizes images to (None = its default: 16 for thumbnail, 224 for EfficientNet / DINOv2)
+    #: side the encoder resizes images to (None = its default: 64 for the reach thumbnail pyramid, 224 for EfficientNet / DINOv2)
     encoder_image_size: int | None = None
+    #: bands of the thumbnail encoder's Laplacian pyramid (1 = the single 16x16 thumbnail)
+    thumbnail_levels: int = 5
+    #: image cost scored as log(1 + c / image_log_eps) (0 = the raw distance c): MPPI then weighs
+    #: relative progress, so it keeps converging near the goal where raw differences shrink
+    image_log_eps: float = 0.01
+    #: compare L2-normalised features (cosine distance in [0, 4]): one cost scale for every encoder,
+    #: so the image cost neither swamps nor vanishes beside the collision cost
+    normalize_features: bool = True
     #: weight of the empty-view term mean(1 - alpha) of the rendered view (0 = image cost only)
     w_empty: float = 1.0
     #: weight of the global-embedding distance inside the image cost
@@ -166,6 +205,26 @@ class ReachResult:
             "final_q": np.asarray(self.trajectory[-1]).round(5).tolist(),
             **self.extra,
         }
+
+
+class _UntilGoal:
+    """The path costs (collision, effort, limits) on the rollout steps up to the goal time only: in
+    the shrinking-horizon loop the tail beyond it is never executed, and costing it (a held velocity
+    carrying the arm into a wall) would trade the goal view for a phantom collision."""
+
+    name = "path"
+
+    def __init__(self, costs: list, n_steps: int) -> None:
+        self.costs, self.n_steps = costs, int(n_steps)
+
+    def terms(self, rollout) -> dict:
+        from ..planners.costs import Rollout, total_cost
+
+        n = self.n_steps
+        return total_cost(self.costs, Rollout(rollout.states[:, :n], rollout.controls[:, :n], rollout.dt))[1]
+
+    def __call__(self, rollout) -> np.ndarray:
+        return np.sum(list(self.terms(rollout).values()), axis=0)
 
 
 def wrist_camera(robot, image_size: int = 64, fov_deg: float = 70.0, link: str = "panda_hand_tcp"):
@@ -278,6 +337,22 @@ def make_reach_goals(
     ]
 
 
+def reach_encoder(name: str = "thumbnail", weights: str | None = None, device: str | None = "cpu", config: ReachConfig | None = None):
+    """The encoder of a reach run: :func:`~splatplan.encoders.load_encoder`, except that
+    ``"thumbnail"`` is the ``thumbnail_levels``-band Laplacian pyramid of side
+    ``encoder_image_size`` (default 64) rather than the single 16x16 thumbnail."""
+    from ..encoders import load_encoder
+
+    cfg = config or ReachConfig()
+    if name == "thumbnail" and cfg.thumbnail_levels > 1:
+        from ..encoders.thumbnail import ThumbnailEncoder
+
+        if weights:
+            raise SplatplanError("the thumbnail encoder is weight-free: drop --encoder-weights")
+        return ThumbnailEncoder(size=cfg.encoder_image_size or 64, levels=cfg.thumbnail_levels, device=device or "cpu")
+    return load_encoder(name, weights=weights, device=device or "cpu", image_size=cfg.encoder_image_size)
+
+
 def run_reach(
     robot,
     scene,
@@ -326,7 +401,7 @@ def run_reach(
     img = np.asarray(target_image, np.float32)
     if img.ndim != 3 or img.shape[-1] != 3 or not np.all(np.isfinite(img)):
         raise SplatplanError(f"target image must be a finite (H, W, 3) RGB array, got shape {img.shape}")
-    enc = load_encoder(encoder, weights=encoder_weights, device=device or "cpu", image_size=cfg.encoder_image_size) if isinstance(encoder, str) else encoder
+    enc = reach_encoder(encoder, encoder_weights, device or "cpu", cfg) if isinstance(encoder, str) else encoder
     q = robot.check_q(robot.q_default if q0 is None else q0).reshape(robot.dof).copy()
     if collision:
         check_start(robot, ts.checker, q)
@@ -336,10 +411,12 @@ def run_reach(
     try:
         vmax = cfg.velocity_scale * np.asarray(robot.velocity_limits, np.float64)
         dyn = JointIntegrator(robot, velocity_limits=vmax)
-        image_cost = ImageCost(rend, cam, robot, enc, img, weight=cfg.w_image, w_global=cfg.w_global, w_patch=cfg.w_patch, background=(cfg.background,) * 3, w_empty=cfg.w_empty)
-        costs = [image_cost, ControlEffortCost(cfg.w_control), JointLimitCost(robot, weight=cfg.w_limits, margin=0.05)]
+        image_cost = ImageCost(rend, cam, robot, enc, img, weight=cfg.w_image, w_global=cfg.w_global, w_patch=cfg.w_patch, background=(cfg.background,) * 3, w_empty=cfg.w_empty, log_eps=cfg.image_log_eps, normalize=cfg.normalize_features)
+        path_costs = [ControlEffortCost(cfg.w_control), JointLimitCost(robot, weight=cfg.w_limits, margin=0.05)]
         if collision:
-            costs.insert(0, CollisionCost(ts.checker, robot, weight=cfg.w_collision, hit_weight=cfg.w_hit, s2_cap=cfg.collision_s2_cap, time_stride=cfg.collision_time_stride))
+            path_costs.insert(0, CollisionCost(ts.checker, robot, weight=cfg.w_collision, hit_weight=cfg.w_hit, s2_cap=cfg.collision_s2_cap, time_stride=cfg.collision_time_stride))
+        until_goal = _UntilGoal(path_costs, cfg.horizon)
+        costs = [until_goal, image_cost]
         mcfg = MPPIConfig(
             n_samples=cfg.n_samples, horizon=cfg.horizon, n_knots=cfg.n_knots, dt=cfg.dt, temperature=cfg.temperature,
             noise_sigma=cfg.noise_sigma, n_iters=cfg.plan_iters, u_min=tuple(-vmax), u_max=tuple(vmax), seed=cfg.seed,
@@ -349,17 +426,44 @@ def run_reach(
         states, trace, views = [q.copy()], [], []
         view_every = max(1, cfg.horizon // max(cfg.n_views, 1))
         iters = 0
+        progress_scale = 1.0
+
+        def anneal(c: float) -> float:  # noise scale from the raw image cost of the current plan
+            return float(np.clip(np.sqrt(c / cfg.noise_cost_ref), cfg.noise_min_scale, 1.0)) if cfg.noise_cost_ref > 0 else 1.0
+
         t0 = time.perf_counter()
+        # initial plan over the whole horizon, in chunks so that the noise can anneal on progress between
+        # them (each chunk's warm-start shift is undone: nothing is executed yet)
+        chunk = max(1, cfg.plan_chunk) if cfg.noise_cost_ref > 0 else cfg.plan_iters
+        done = 0
+        while cfg.plan_iters - done > chunk:
+            mppi.config.n_iters = chunk
+            mppi.sigma = sigma0 * progress_scale
+            _, info = mppi.step(q)
+            mppi.reset(info.nominal_knots)
+            done += chunk
+            progress_scale = anneal(float(np.min(image_cost.last_raw)))
+        iters += done
         for s in range(cfg.horizon):
+            mppi.config.temperature = cfg.temperature if s == 0 or cfg.track_temperature is None else cfg.track_temperature
             image_cost.time_index = cfg.horizon - 1 - s  # the goal time stays at T
-            mppi.config.n_iters = cfg.plan_iters if s == 0 else cfg.iters_per_step
-            mppi.sigma = sigma0 * (cfg.noise_final + (1.0 - cfg.noise_final) * (cfg.horizon - s) / cfg.horizon)
+            until_goal.n_steps = cfg.horizon - s  # the rollout's tail beyond the goal time is never executed
+            mppi.config.n_iters = cfg.plan_iters - done if s == 0 else (cfg.final_iters if s >= cfg.horizon - cfg.final_steps else cfg.iters_per_step)
+            mppi.sigma = sigma0 * progress_scale * (cfg.noise_final + (1.0 - cfg.noise_final) * (cfg.horizon - s) / cfg.horizon)
             u, info = mppi.step(q)
             iters += mppi.config.n_iters
             q = dyn.rollout(q, u[None, None, :], cfg.dt)[0, 0]
             states.append(q.copy())
-            best = float(np.min(info.cost_terms["image"]))
+            if cfg.keep_goal_state and s + 1 < cfg.horizon:
+                # the least-squares warm-start shift moves the plan's state at the goal time; a constant
+                # velocity offset (the B-spline basis sums to 1) puts it back where the plan had it
+                m = cfg.horizon - 1 - s  # controls from the new state up to the goal time
+                planned = info.nominal_states[cfg.horizon - 1 - s]
+                shifted = dyn.rollout(q, mppi.spline(mppi.knots[None]), cfg.dt)[0, m - 1]
+                mppi.reset(mppi.knots + (planned - shifted)[: mppi.du] / (m * cfg.dt))
+            best = float(np.min(image_cost.last_raw))  # raw image cost of the updated nominal plan
             trace.append(best)
+            progress_scale = anneal(best)
             if progress is not None:
                 progress(s, best)
             if cfg.n_views > 0 and s % view_every == 0:
