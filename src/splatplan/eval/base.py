@@ -61,7 +61,7 @@ def run_base_study(out_dir, quick: bool = False, seed: int = 0, device: str | No
     n = 1 if quick else 5
     cfg = BaseConfig(seed=seed, max_steps=250)
     if quick:
-        cfg = replace(cfg, n_samples=48, horizon=16, max_steps=90)
+        cfg = replace(cfg, max_steps=130)
     goals = pick_goals(n, seed=seed)
     robot = load_go2()
     ts = load_task_scene("apartment", n_sigma=cfg.n_sigma, device=device, ground_below=cfg.ground_z + cfg.ground_band)

@@ -51,7 +51,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import SplatplanError
-from ._common import TaskResult, check_start, load_task_scene, strided_collision_cost, trajectory_clearance
+from ._common import TaskResult, check_start, load_task_scene, trajectory_clearance
 
 __all__ = ["FOOT_CLEARANCE", "BaseConfig", "load_go2", "plan_route", "run_base"]
 
@@ -297,7 +297,7 @@ class _BasePlanner:
         if self.collision is not None:
             terms = self.collision.terms(ro)
             col = np.sum(list(terms.values()), axis=0)
-            q = ro.cache["query_strided"] if ro.cache.get("query_strided") is not None else ro.cache["query"]
+            q = ro.cache["query"]  # (K, T', E) over the evaluated steps
             hits_t = np.asarray(q.in_collision).reshape(k, q.in_collision.shape[1], -1).any(axis=2)
         ctrl = cfg.w_control * np.sum(controls**2, axis=(1, 2)) * cfg.dt + cfg.w_yaw_rate * np.sum(controls[..., 2] ** 2, axis=1) * cfg.dt
         dist = np.linalg.norm(states[..., :2] - self.goal, axis=-1)  # (K, T) m
@@ -430,7 +430,9 @@ def run_base(
     dyn = PlanarBase(robot)
     collision_cost = None
     if collision:
-        collision_cost = strided_collision_cost(ts.checker, robot, cfg.collision_stride, weight=cfg.w_collision, hit_weight=cfg.w_hit, s2_cap=cfg.collision_s2_cap)
+        from ..planners.costs import CollisionCost
+
+        collision_cost = CollisionCost(ts.checker, robot, weight=cfg.w_collision, hit_weight=cfg.w_hit, s2_cap=cfg.collision_s2_cap, time_stride=cfg.collision_stride)
     planner = _BasePlanner(dyn, cfg, vmax, collision_cost, g, recovery=collision and cfg.recovery and route is None)
     wps = None if route is None else np.asarray(route, np.float64)[:, :2]
     states = [x.copy()]
