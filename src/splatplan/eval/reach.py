@@ -112,7 +112,9 @@ def markdown(result: dict) -> str:
         lines.append(f"| {r['config'].replace('_', ' ')} | {f(r['clearance_m'], 3)} | {f(r['translation_error_m'], 4)} | {f(r['rotation_error_deg'], 2)} | "
                      f"{r['successes']}/{r['trials']} | {p[0]:+.3f} | {p[1]:.4f} | {p[2]:.2f} |")  # fmt: skip
     lines += ["", f"MPC rate on this machine: {result['rows'][0]['mpc_steps_per_s']} MPC steps/s, {result['rows'][0]['mppi_iterations_per_s']} MPPI iterations/s "
-              f"(one batched render of K images per iteration, device {result['device']})."]  # fmt: skip
+              f"(one batched render of K images per iteration, device {result['device']}).",
+              "", f"Encoder: {result.get('encoder_description', '')}. The controller sees the goal image only (no goal pose); "
+              "the without-collision row uses no collision information at all (no collision cost, no start check)."]  # fmt: skip
     return "\n".join(lines) + "\n"
 
 
@@ -154,6 +156,7 @@ def run_reach_study(out_dir, *, encoder: str = "thumbnail", encoder_weights: str
                                "runs": {k: v.summary() for k, v in per.items()}})  # fmt: skip
     result = {
         "encoder": enc.name,
+        "encoder_description": getattr(enc, "description", ""),
         "rows": [_row(k, v) for k, v in runs.items()],
         "paper": {k: {"clearance_m": v[0], "translation_error_m": v[1], "rotation_error_deg": v[2]} for k, v in PAPER.items()},
         "n_goals": len(goals),

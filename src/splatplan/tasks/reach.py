@@ -79,14 +79,14 @@ class ReachConfig:
     #: MPPI temperature while the arm moves (after the initial plan; None = temperature): a small one
     #: keeps the plan's nominal (always among the samples) unless a sample beats it, so the warm-started
     #: plan does not drift through the weighted averaging of one iteration per step
-    track_temperature: float | None = 0.03
+    track_temperature: float | None = 0.02
     #: after each warm-start shift, offset the knots so that the plan's state at the goal time stays
     #: where the plan had it (the least-squares shift alone drifts it over the run)
     keep_goal_state: bool = True
     #: MPPI iterations before the first control is applied
     plan_iters: int = 60
     #: MPPI iterations per later MPC step
-    iters_per_step: int = 1
+    iters_per_step: int = 2
     #: the last final_steps MPC steps run final_iters iterations each (fine convergence at the goal)
     final_steps: int = 0
     #: MPPI iterations per step over the last final_steps steps
