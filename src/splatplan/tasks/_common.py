@@ -173,23 +173,3 @@ class TaskResult:
             if isinstance(v, float) and not np.isfinite(v):
                 d[k] = None
         return d
-
-
-def strided_collision_cost(checker, robot, stride: int = 1, **kw):
-    """A :class:`~splatplan.planners.costs.CollisionCost` that queries every ``stride``-th step of
-    the horizon (always including the last): ``stride`` times fewer ellipsoid queries per MPPI
-    iteration. The cost of the skipped steps is approximated by ``stride`` x the checked ones."""
-    from ..planners.costs import CollisionCost, Rollout
-
-    class _Strided(CollisionCost):
-        def terms(self, rollout: Rollout) -> dict:
-            if stride <= 1:
-                return super().terms(rollout)
-            t = rollout.states.shape[1]
-            idx = np.unique(np.append(np.arange(stride - 1, t, stride), t - 1))
-            sub = Rollout(rollout.states[:, idx], rollout.controls[:, idx], rollout.dt)
-            out = {k: v * (t / len(idx)) for k, v in super().terms(sub).items()}
-            rollout.cache.setdefault("query_strided", sub.cache.get("query"))
-            return out
-
-    return _Strided(checker, robot, **kw)
