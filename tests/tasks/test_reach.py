@@ -92,3 +92,20 @@ def test_tiny_reach_run(setup):
     assert s["mppi_iterations"] == res.iterations and s["encoder"].startswith("thumbnail")
     with pytest.raises(SplatplanError, match="RGB"):
         run_reach(robot, ts, np.zeros((4, 4)), config=cfg, q0=q0, encoder=enc, renderer=rend)
+
+
+def test_multi_start_plan_and_elite(setup):
+    from dataclasses import replace
+
+    from splatplan.tasks.reach import ReachConfig, run_reach
+
+    robot, ts, cam, q0, rend, enc = setup
+    goal = q0 + np.array([0.1, 0.05, 0.0, 0.1, 0.0, -0.05, 0.1])
+    target = np.asarray(cam.render(rend, robot, goal[None], background=(0.5,) * 3).rgb[0])
+    cfg = ReachConfig(n_samples=8, horizon=5, n_knots=4, dt=0.1, plan_iters=4, image_size=24, n_views=0, n_splats=20_000, plan_starts=3, plan_start_iters=2, plan_chunk=1)
+    res = run_reach(robot, ts, target, config=cfg, q0=q0, encoder=enc, renderer=rend)
+    # every start runs plan_start_iters; the chosen one continues to plan_iters
+    assert res.iterations == cfg.plan_iters + (cfg.plan_starts - 1) * cfg.plan_start_iters + (cfg.horizon - 1) * cfg.iters_per_step
+    assert res.trajectory.shape == (cfg.horizon + 1, 7) and np.all(np.isfinite(res.trajectory))
+    res2 = run_reach(robot, ts, target, config=replace(cfg, elite=True), q0=q0, encoder=enc, renderer=rend)
+    assert res2.iterations == res.iterations and np.all(np.isfinite(res2.trajectory))

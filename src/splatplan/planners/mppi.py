@@ -84,6 +84,10 @@ class MPPIConfig:
     w_terminal: float = 1.0
     #: seed of the noise generator
     seed: int = 0
+    #: elitism (opt-in): within one step, sample 1 of every later iteration is the lowest-cost sample
+    #: seen so far, and the step ends on it when it beats the updated nominal (one extra evaluation
+    #: then); the plan then never gets worse within a step. False = plain MPPI
+    elite: bool = False
 
     def validate(self) -> "MPPIConfig":
         if self.n_samples < 2:
@@ -283,18 +287,26 @@ class MPPI:
         cfg = self.config
         x = np.asarray(x, dtype=np.float64).reshape(-1)
         k, n = cfg.n_samples, cfg.n_knots
+        elite_knots, elite_cost = None, np.inf  # (n, du) lowest-cost sample of this step (cfg.elite)
         for _ in range(cfg.n_iters):
             eps = self.rng.standard_normal((k, n, self.du)) * self.sigma  # (K, n, du)
             eps[0] = 0.0  # keep the nominal itself among the samples
             samples = self._clip(self.knots[None] + eps)  # (K, n, du)
+            if elite_knots is not None:
+                samples[1] = elite_knots  # the best sample so far competes again
             total, terms, states, _, _ = self.evaluate(x, samples)
             c = np.where(np.isfinite(total), total, np.inf)
             cmin = float(np.min(c))
+            if cfg.elite and cmin < elite_cost:
+                elite_knots, elite_cost = samples[int(np.argmin(c))].copy(), cmin
             w = np.exp(-(c - cmin) / cfg.temperature)  # (K,)
             w /= w.sum()
             self.knots = self._clip(np.einsum("k,knd->nd", w, samples))
         best = int(np.argmin(c))
         nom_total, _, nom_states, nom_controls, nom_res = self.evaluate(x, self.knots[None])
+        if elite_knots is not None and elite_cost < float(nom_total[0]):
+            self.knots = elite_knots  # the weighted mean is worse than the best sample seen: keep that
+            nom_total, _, nom_states, nom_controls, nom_res = self.evaluate(x, self.knots[None])
         if self.checker is not None and (nom_res is None or nom_res.min_s2.shape[1] != cfg.horizon):
             # collision terms off (or evaluated on a time stride): still report every step
             nom_res = self.geometry.query(self.checker, nom_states)  # (1, T, L)

@@ -85,6 +85,14 @@ class ReachConfig:
     keep_goal_state: bool = True
     #: MPPI iterations before the first control is applied
     plan_iters: int = 60
+    #: multi-start initial plan: this many plans (noise seeds seed, seed + 1, ...) each run
+    #: plan_start_iters iterations from zero velocity; the lowest-cost one continues (1 = one start)
+    plan_starts: int = 1
+    #: MPPI iterations of each start of a multi-start initial plan (counted within plan_iters)
+    plan_start_iters: int = 20
+    #: MPPI elitism (MPPIConfig.elite): the best sample seen in a step competes in its later
+    #: iterations and replaces a worse weighted mean at the step's end
+    elite: bool = False
     #: MPPI iterations per later MPC step
     iters_per_step: int = 2
     #: the last final_steps MPC steps run final_iters iterations each (fine convergence at the goal)
@@ -419,7 +427,7 @@ def run_reach(
         costs = [until_goal, image_cost]
         mcfg = MPPIConfig(
             n_samples=cfg.n_samples, horizon=cfg.horizon, n_knots=cfg.n_knots, dt=cfg.dt, temperature=cfg.temperature,
-            noise_sigma=cfg.noise_sigma, n_iters=cfg.plan_iters, u_min=tuple(-vmax), u_max=tuple(vmax), seed=cfg.seed,
+            noise_sigma=cfg.noise_sigma, n_iters=cfg.plan_iters, u_min=tuple(-vmax), u_max=tuple(vmax), seed=cfg.seed, elite=cfg.elite,
         )  # fmt: skip
         mppi = MPPI(dyn, ts.checker if collision else None, mcfg, costs=costs)
         sigma0 = np.array(mppi.sigma, copy=True)
@@ -436,6 +444,26 @@ def run_reach(
         # them (each chunk's warm-start shift is undone: nothing is executed yet)
         chunk = max(1, cfg.plan_chunk) if cfg.noise_cost_ref > 0 else cfg.plan_iters
         done = 0
+        if cfg.plan_starts > 1:
+            # multi-start: several short plans from zero velocity, each with its own noise; the best continues
+            n0 = min(cfg.plan_start_iters, cfg.plan_iters - 1)
+            starts = []
+            for j in range(cfg.plan_starts):
+                mppi.rng = np.random.default_rng(cfg.seed + j)
+                mppi.reset()
+                scale, left = 1.0, n0
+                while left > 0:
+                    mppi.config.n_iters = min(chunk, left)
+                    mppi.sigma = sigma0 * scale
+                    _, info = mppi.step(q)
+                    mppi.reset(info.nominal_knots)
+                    left -= mppi.config.n_iters
+                    scale = anneal(float(np.min(image_cost.last_raw)))
+                starts.append((info.nominal_cost, j, info.nominal_knots, scale, mppi.rng))
+            _, _, knots, progress_scale, mppi.rng = min(starts, key=lambda e: (e[0], e[1]))
+            mppi.reset(knots)
+            done = n0  # the chosen start's iterations; the other starts' are extra
+            iters += n0 * (cfg.plan_starts - 1)
         while cfg.plan_iters - done > chunk:
             mppi.config.n_iters = chunk
             mppi.sigma = sigma0 * progress_scale
