@@ -84,7 +84,8 @@ def test_tiny_reach_run(setup):
     t_goal = robot.link_poses(goal)[robot.link_names.index(cfg.camera_link)]
     res = run_reach(robot, ts, target, config=cfg, q0=q0, encoder=enc, renderer=rend, goal_camera_pose=t_goal)
     assert res.trajectory.shape == (cfg.horizon + 1, 7)
-    assert res.iterations == cfg.plan_iters + (cfg.horizon - 1) * cfg.iters_per_step
+    extra_starts = (cfg.plan_starts - 1) * min(cfg.plan_start_iters, cfg.plan_iters - 1)  # multi-start initial plan
+    assert res.iterations == cfg.plan_iters + extra_starts + (cfg.horizon - 1) * cfg.iters_per_step
     assert res.final_image.shape == (24, 24, 3) and len(res.views) >= 1
     assert np.isfinite(res.translation_error_m) and np.isfinite(res.rotation_error_deg)
     assert res.clearance_source == "analytic" and np.isfinite(res.min_clearance_m)

@@ -19,8 +19,11 @@ Cost per sample (:mod:`splatplan.planners.costs`, :class:`~splatplan.planners.Im
 * control effort and joint-limit penalty.
   These path costs cover the rollout steps up to the goal time only (the tail is never executed).
 
-Schedule (shrinking horizon, so that the goal time stays fixed): the first MPC step runs
-``plan_iters`` MPPI iterations over the horizon T, in chunks of ``plan_chunk`` between which the
+Schedule (shrinking horizon, so that the goal time stays fixed): the initial plan starts
+``plan_starts`` times from zero velocity with different noise seeds, ``plan_start_iters`` MPPI
+iterations each, and continues the lowest-cost one (the image cost's goal basin is narrow, a few
+centimetres: one start often settles in a look-alike view 7 cm off); the first MPC step runs
+``plan_iters`` MPPI iterations in all over the horizon T, in chunks of ``plan_chunk`` between which the
 knot noise anneals on image-cost progress (``noise_cost_ref``); then each MPC step applies the
 first control, shifts the knots (warm start; a constant velocity offset puts the plan's goal-time
 state back where it was, ``keep_goal_state``) and runs ``iters_per_step`` iterations at
@@ -87,9 +90,9 @@ class ReachConfig:
     plan_iters: int = 60
     #: multi-start initial plan: this many plans (noise seeds seed, seed + 1, ...) each run
     #: plan_start_iters iterations from zero velocity; the lowest-cost one continues (1 = one start)
-    plan_starts: int = 1
+    plan_starts: int = 3
     #: MPPI iterations of each start of a multi-start initial plan (counted within plan_iters)
-    plan_start_iters: int = 20
+    plan_start_iters: int = 30
     #: MPPI elitism (MPPIConfig.elite): the best sample seen in a step competes in its later
     #: iterations and replaces a worse weighted mean at the step's end
     elite: bool = False
