@@ -259,6 +259,8 @@ def run_robot_demo(out: Path, device: str = "auto") -> dict:
     plt.close(fig)
     summary["go2"] = {k: getattr(base, k) for k in ("success", "final_position_error_m", "min_clearance_m", "steps_per_s")}
     print(f"quadruped (Go2, apartment, K = {bcfg.n_samples}, T = {bcfg.horizon}): distance to goal {base.final_position_error_m:.2f} m, "
-          f"min clearance {100 * base.min_clearance_m:+.1f} cm (exact), time to goal {base.extra['time_to_goal_s']:.1f} s, {base.steps_per_s:.2f} MPC steps/s")  # fmt: skip
+          f"min clearance {100 * base.min_clearance_m:+.1f} cm (exact), "
+          + (f"time to goal {base.extra['time_to_goal_s']:.1f} s" if base.success else "goal not reached")
+          + f", {base.steps_per_s:.2f} MPC steps/s")  # fmt: skip
     print(f"wrote {out / 'demo_arm.png'} and {out / 'demo_go2.png'} in {time.perf_counter() - t0:.1f} s")
     return summary

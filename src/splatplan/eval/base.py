@@ -5,8 +5,9 @@ collision cost.
 Goals: random positions in the bedroom and the kitchen where the Go2 stands collision-free at some
 heading with at least 10 cm exact clearance. Start (-2.3, -0.6, yaw 0) in the living room: the
 straight line to the kitchen goals runs into the 0.25 m living-kitchen doorway (narrower than the
-Go2), the trap that the planner's stagnation sweeps (:mod:`splatplan.tasks.base`) must get out of
-through the 0.8 m doorway near the outer wall or through the bedroom. The base's metric runs at
+Go2), a trap that the local planner (:mod:`splatplan.tasks.base`) must get out of through the
+0.8 m doorway near the outer wall or through the bedroom; it does not (the kitchen goals fail with
+and without the optional stagnation sweeps). The base's metric runs at
 n_sigma = 0.75 (:class:`~splatplan.tasks.base.BaseConfig`; at 1 the 0.8 m living-kitchen doorway
 admits no collision-free pose); the reported clearance is the exact one to the boxes.
 
