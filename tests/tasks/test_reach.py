@@ -110,3 +110,10 @@ def test_multi_start_plan_and_elite(setup):
     assert res.trajectory.shape == (cfg.horizon + 1, 7) and np.all(np.isfinite(res.trajectory))
     res2 = run_reach(robot, ts, target, config=replace(cfg, elite=True), q0=q0, encoder=enc, renderer=rend)
     assert res2.iterations == res.iterations and np.all(np.isfinite(res2.trajectory))
+
+
+def test_reach_rejects_zero_plan_starts():
+    from splatplan.tasks.reach import ReachConfig, run_reach
+
+    with pytest.raises(SplatplanError, match="plan_starts"):
+        run_reach("panda", "tabletop", np.zeros((8, 8, 3), np.float32), config=ReachConfig(plan_starts=0))

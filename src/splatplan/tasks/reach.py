@@ -407,6 +407,8 @@ def run_reach(
     cfg = config or ReachConfig()
     if cfg.plan_iters < 1 or cfg.iters_per_step < 1:
         raise SplatplanError("ReachConfig.plan_iters and iters_per_step must be >= 1")
+    if cfg.plan_starts < 1 or cfg.plan_start_iters < 1:
+        raise SplatplanError(f"ReachConfig.plan_starts and plan_start_iters must be >= 1, got {cfg.plan_starts} and {cfg.plan_start_iters}")
     robot = load_robot(robot)
     ts = load_task_scene(scene, n_sigma=cfg.n_sigma, device=device, n_splats=cfg.n_splats)
     img = np.asarray(target_image, np.float32)
