@@ -87,7 +87,8 @@ class Robot:
         self.skipped_links = list(ellipsoids.skipped)
         self.frame_of_link, self.link_in_frame = rigid_groups(kin)
         self.motion_bound = self._motion_bound()
-        self.static_links = self._static_links()
+        # a link is static when its rigid group's frame is the root and the root is fixed to the world
+        self.static_links = (kin.parent[self.frame_of_link] < 0) & (kin.jtype[self.frame_of_link] == FIXED)
         self.static_ellipsoids = self.static_links[self.ellipsoid_link]
         self.self_collision_pairs = self._pairs(disabled_pairs or set())
         self._lock = threading.Lock()
@@ -233,18 +234,6 @@ class Robot:
                 self._pool.shutdown(wait=False)
         except Exception:
             pass
-
-    # ------------------------------------------------------------------ static links
-
-    def _static_links(self) -> np.ndarray:
-        """(L,) bool: every joint from the root down to the link is fixed (mimic joints move: they
-        are revolute / prismatic joints driven by a dof), so the link's world pose is constant."""
-        kin = self.kin
-        out = np.zeros(kin.n_links, dtype=bool)
-        for l in range(kin.n_links):  # topological order: the parent is done first
-            p = int(kin.parent[l])
-            out[l] = int(kin.jtype[l]) == FIXED and (p < 0 or bool(out[p]))
-        return out
 
     # ------------------------------------------------------------------ motion bound
 
