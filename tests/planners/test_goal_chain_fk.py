@@ -6,8 +6,9 @@ import numpy as np
 import pytest
 
 from splatplan.planners import GoalPoseCost
-from splatplan.planners.costs import Rollout, _chain_pose, _link_chain
+from splatplan.planners.costs import Rollout
 from splatplan.robots import load_robot
+from splatplan.robots.kinematics import chain_pose, link_chain
 
 
 @pytest.mark.parametrize("name", ["panda", "go2"])
@@ -16,7 +17,7 @@ def test_chain_pose_matches_the_reference_fk(name):
     q = robot.q_default + np.random.default_rng(0).normal(0, 0.5, (3, 4, robot.dof))
     ref = robot.link_poses(q)  # (3, 4, L, 4, 4)
     for l in range(len(robot.link_names)):
-        np.testing.assert_allclose(_chain_pose(_link_chain(robot.kin, l), q), ref[..., l, :, :], atol=1e-12)
+        np.testing.assert_allclose(chain_pose(link_chain(robot.kin, l), q), ref[..., l, :, :], atol=1e-12)
 
 
 def test_goal_cost_uses_the_chain():

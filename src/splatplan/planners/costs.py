@@ -29,6 +29,7 @@ import numpy as np
 
 from ..errors import SplatplanError
 from ..metric.config import QueryResult
+from ..robots.kinematics import chain_pose, link_chain
 from .robot_links import LinkGeometry
 
 
@@ -339,7 +340,7 @@ class GoalPoseCost(Cost):
                 raise SplatplanError(f"GoalPoseCost: robot {robot.name} has no link {name!r}; links: {', '.join(names)}")
             self.link_index = names.index(name)
             if hasattr(robot, "kin"):
-                self._chain = _link_chain(robot.kin, self.link_index)
+                self._chain = link_chain(robot.kin, self.link_index)
             if self.position.shape != (3,):
                 raise SplatplanError(f"GoalPoseCost: the goal position must be (3,) for a link, got {self.position.shape}")
         elif self.position.shape != (len(self.state_dims),):
@@ -359,7 +360,7 @@ class GoalPoseCost(Cost):
         else:
             key = ("link_pose", self.link_index)
             if key not in rollout.cache:
-                rollout.cache[key] = _chain_pose(self._chain, np.asarray(rollout.states, dtype=np.float64))  # (K, T, 4, 4)
+                rollout.cache[key] = chain_pose(self._chain, np.asarray(rollout.states, dtype=np.float64))  # (K, T, 4, 4)
             t = rollout.cache[key]
         return t[..., :3, 3], t[..., :3, :3]
 
@@ -374,41 +375,6 @@ class GoalPoseCost(Cost):
     def __call__(self, rollout: Rollout) -> np.ndarray:
         c = self.per_step(rollout)
         return c.sum(axis=1) + self.terminal_factor * c[:, -1]
-
-
-def _link_chain(kin, link: int) -> tuple[list, np.ndarray]:
-    """The moving joints from the root down to ``link`` with the constant transforms between them:
-    ([(fixed (4, 4) before the joint, jtype, axis, qidx, mult, offset), ...], fixed (4, 4) after the last)."""
-    from ..robots.kinematics import FIXED
-
-    path = []
-    k = int(link)
-    while k >= 0:
-        path.append(k)
-        k = int(kin.parent[k])
-    segments, pre = [], np.eye(4)
-    for l in reversed(path):  # root first; the root's origin is world <- base
-        pre = pre @ kin.origin[l]
-        if int(kin.jtype[l]) != FIXED:
-            segments.append((pre, int(kin.jtype[l]), kin.axis[l], int(kin.qidx[l]), float(kin.mult[l]), float(kin.offset[l])))
-            pre = np.eye(4)
-    return segments, pre
-
-
-def _chain_pose(chain: tuple[list, np.ndarray], q: np.ndarray) -> np.ndarray:
-    """World <- link (..., 4, 4) of the link of ``chain`` at configurations q (..., dof): the
-    reference FK of :func:`~splatplan.robots.kinematics.link_poses_ref` restricted to the link's
-    ancestors, fixed joints folded into constant transforms."""
-    from ..robots.kinematics import joint_motion
-
-    segments, tail = chain
-    t = None
-    for pre, jtype, axis, qidx, mult, offset in segments:
-        t = np.broadcast_to(pre, q.shape[:-1] + (4, 4)) if t is None else t @ pre
-        t = t @ joint_motion(jtype, axis, q, qidx, mult, offset)
-    if t is None:
-        return np.broadcast_to(tail, q.shape[:-1] + (4, 4)).copy()
-    return t @ tail
 
 
 class ControlEffortCost(Cost):

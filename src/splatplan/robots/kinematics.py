@@ -104,6 +104,37 @@ def link_poses_ref(kin: Kinematics, q: np.ndarray) -> np.ndarray:
     return out
 
 
+def link_chain(kin: Kinematics, link: int) -> tuple[list, np.ndarray]:
+    """The moving joints from the root down to ``link`` with the constant transforms between them:
+    ([(fixed (4, 4) before the joint, jtype, axis, qidx, mult, offset), ...], fixed (4, 4) after the last)."""
+    path = []
+    k = int(link)
+    while k >= 0:
+        path.append(k)
+        k = int(kin.parent[k])
+    segments, pre = [], np.eye(4)
+    for l in reversed(path):  # root first; the root's origin is world <- base
+        pre = pre @ kin.origin[l]
+        if int(kin.jtype[l]) != FIXED:
+            segments.append((pre, int(kin.jtype[l]), kin.axis[l], int(kin.qidx[l]), float(kin.mult[l]), float(kin.offset[l])))
+            pre = np.eye(4)
+    return segments, pre
+
+
+def chain_pose(chain: tuple[list, np.ndarray], q: np.ndarray) -> np.ndarray:
+    """World <- link (..., 4, 4) of the link of ``chain`` at configurations q (..., dof): the
+    reference FK of :func:`link_poses_ref` restricted to the link's ancestors, fixed joints folded
+    into constant transforms (what a cost on one link needs, without FK of every link)."""
+    segments, tail = chain
+    t = None
+    for pre, jtype, axis, qidx, mult, offset in segments:
+        t = np.broadcast_to(pre, q.shape[:-1] + (4, 4)) if t is None else t @ pre
+        t = t @ joint_motion(jtype, axis, q, qidx, mult, offset)
+    if t is None:
+        return np.broadcast_to(tail, q.shape[:-1] + (4, 4)).copy()
+    return t @ tail
+
+
 def bake_fixed(kin: Kinematics, keep: np.ndarray, values: np.ndarray) -> Kinematics:
     """Turn every joint with ``keep[l] == False`` into a fixed joint at ``values[l]`` (its joint value)."""
     origin = kin.origin.copy()
