@@ -163,6 +163,14 @@ def _per_dim(v, du: int, name: str) -> np.ndarray | None:
 _reduce_time = reduce_time  # backward-compatible name
 
 
+def mppi_weights(costs: np.ndarray, temperature: float) -> np.ndarray:
+    """MPPI weights (K,) of sample costs (K,): exp(-(c - min c) / temperature), normalised to sum
+    to 1; non-finite costs weigh 0. The update is ``einsum("k,knd->nd", w, samples)``."""
+    c = np.where(np.isfinite(costs), costs, np.inf)
+    w = np.exp(-(c - float(np.min(c))) / temperature)
+    return w / w.sum()
+
+
 def joint_speed_bound(dynamics, u_min, u_max) -> np.ndarray | None:
     """(dof,) bound on |dq/dt| of a :class:`JointIntegrator` whose controls (joint velocities) are
     clipped to [u_min, u_max] (per dim or one for all; the B-spline stays inside the knots' bounds)
@@ -299,8 +307,7 @@ class MPPI:
             cmin = float(np.min(c))
             if cfg.elite and cmin < elite_cost:
                 elite_knots, elite_cost = samples[int(np.argmin(c))].copy(), cmin
-            w = np.exp(-(c - cmin) / cfg.temperature)  # (K,)
-            w /= w.sum()
+            w = mppi_weights(c, cfg.temperature)  # (K,)
             self.knots = self._clip(np.einsum("k,knd->nd", w, samples))
         best = int(np.argmin(c))
         nom_total, _, nom_states, nom_controls, nom_res = self.evaluate(x, self.knots[None])

@@ -226,20 +226,11 @@ class _BasePlanner:
         self.step_i = 0
         self.detour: dict | None = None
         self.events: list[dict] = []
-        self.n_detours = 0
         self.seen = np.inf  # closest approach to the goal of the last goal-mode step's collision-free rollouts (m)
 
     # ---------------------------------------------------------------- samples
     def _clip(self, knots: np.ndarray) -> np.ndarray:
         return np.clip(knots, -self.vmax, self.vmax)
-
-    def _world_to_knot(self, yaw: float, v_world: np.ndarray) -> np.ndarray:
-        """(..., 2) world-frame velocities -> (..., 3) body-frame (vx, vy, 0) at heading ``yaw``."""
-        c, s = np.cos(yaw), np.sin(yaw)
-        out = np.zeros(v_world.shape[:-1] + (3,))
-        out[..., 0] = c * v_world[..., 0] + s * v_world[..., 1]
-        out[..., 1] = -s * v_world[..., 0] + c * v_world[..., 1]
-        return out
 
     def _drive_knots(self, x: np.ndarray, v_world: np.ndarray) -> np.ndarray:
         """(P, T, 2) world-frame velocities per control step -> (P, n_knots, 3) body-frame knots
@@ -288,7 +279,7 @@ class _BasePlanner:
     # ---------------------------------------------------------------- costs
     def evaluate(self, x: np.ndarray, knots: np.ndarray) -> dict:
         """Roll out and cost (K, n_knots, 3) knots: states (K, T, 3), per-step goal distances
-        (K, T), goal-mode cost, collision cost and first-hit flags (K,)."""
+        (K, T), goal-mode cost, collision cost and in-collision flags (K,)."""
         from ..planners.costs import Rollout
 
         cfg = self.cfg
@@ -297,19 +288,19 @@ class _BasePlanner:
         ro = Rollout(states, controls, cfg.dt)
         k = len(knots)
         col = np.zeros(k)
-        hits_t = np.zeros((k, 1), bool)  # (K, T') any ellipsoid in collision at each checked step
+        hit = np.zeros(k, bool)  # (K,) any ellipsoid in collision at any checked step
         if self.collision is not None:
             terms = self.collision.terms(ro)
             col = np.sum(list(terms.values()), axis=0)
             q = ro.cache["query"]  # (K, T', E) over the evaluated steps
-            hits_t = np.asarray(q.in_collision).reshape(k, q.in_collision.shape[1], -1).any(axis=2)
+            hit = np.asarray(q.in_collision).reshape(k, -1).any(axis=1)
         ctrl = cfg.w_control * np.sum(controls**2, axis=(1, 2)) * cfg.dt + cfg.w_yaw_rate * np.sum(controls[..., 2] ** 2, axis=1) * cfg.dt
         dist = np.linalg.norm(states[..., :2] - self.goal, axis=-1)  # (K, T) m
         goal = cfg.w_goal * (dist.sum(axis=1) + cfg.terminal_factor * dist[:, -1] + cfg.min_factor * dist.min(axis=1))
         if cfg.w_heading > 0:
             bearing = np.arctan2(self.goal[1] - states[..., 1], self.goal[0] - states[..., 0])
             goal = goal + cfg.w_heading * np.where(dist < 0.3, 0.0, 1.0 - np.cos(states[..., 2] - bearing)).sum(axis=1)
-        return {"states": states, "dist": dist, "goal": goal, "collision": col, "control": ctrl, "hit": hits_t.any(axis=1), "hits_t": hits_t}
+        return {"states": states, "dist": dist, "goal": goal, "collision": col, "control": ctrl, "hit": hit}
 
     # ---------------------------------------------------------------- recovery
     def _start_detour(self, x: np.ndarray) -> None:
@@ -322,7 +313,6 @@ class _BasePlanner:
         for e in self.events:
             if e["event"] == "detour" and np.linalg.norm(np.asarray(e["xy"]) - x[:2]) < 0.5:
                 side = -e["side_sign"]
-        self.n_detours += 1
         self.detour = {"ref": min(self.best, self.seen), "side": side, "heading": bearing + side * np.pi / 2, "limit": cfg.detour_length_m, "walked": 0.0, "last": x[:2].copy(), "window": [x[:2].copy()]}
         self.mode = "detour"
         self.events.append({"step": self.step_i, "event": "detour", "xy": x[:2].round(3).tolist(), "side": "counterclockwise" if side > 0 else "clockwise", "side_sign": side, "distance_m": round(float(self.best), 3)})
@@ -330,6 +320,8 @@ class _BasePlanner:
     # ---------------------------------------------------------------- step
     def step(self, x: np.ndarray) -> np.ndarray:
         """One control period from (x, y, yaw): returns the body-frame command (vx, vy, wz)."""
+        from ..planners.mppi import mppi_weights
+
         cfg = self.cfg
         dist_now = float(np.linalg.norm(x[:2] - self.goal))
         if dist_now < self.best - cfg.stuck_progress_m:
@@ -377,10 +369,7 @@ class _BasePlanner:
                 total = base - cfg.w_sweep * prog.sum(axis=1) + cfg.w_align * align
             else:
                 total = base + ev["goal"]
-            c = np.where(np.isfinite(total), total, np.inf)
-            w = np.exp(-(c - c.min()) / cfg.temperature)
-            w /= w.sum()
-            self.knots = self._clip(np.einsum("k,knd->nd", w, samples))
+            self.knots = self._clip(np.einsum("k,knd->nd", mppi_weights(total, cfg.temperature), samples))
         u0 = self.spline(self.knots[None])[0, 0].copy()
         self.knots = self._clip(self.spline.shift(self.knots))  # warm start: shift by one period
         self.step_i += 1
