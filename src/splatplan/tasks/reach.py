@@ -448,6 +448,15 @@ def run_reach(
         # initial plan over the whole horizon, in chunks so that the noise can anneal on progress between
         # them (each chunk's warm-start shift is undone: nothing is executed yet)
         chunk = max(1, cfg.plan_chunk) if cfg.noise_cost_ref > 0 else cfg.plan_iters
+        def plan_chunk(n: int, scale: float):
+            """n MPPI iterations at noise sigma0 * scale, nothing executed (the warm-start shift is
+            undone); returns the step's info and the noise scale annealed on the plan's image cost."""
+            mppi.config.n_iters = n
+            mppi.sigma = sigma0 * scale
+            _, info = mppi.step(q)
+            mppi.reset(info.nominal_knots)
+            return info, anneal(float(np.min(image_cost.last_raw)))
+
         done = 0
         if cfg.plan_starts > 1:
             # multi-start: several short plans from zero velocity, each with its own noise; the best continues
@@ -458,24 +467,17 @@ def run_reach(
                 mppi.reset()
                 scale, left = 1.0, n0
                 while left > 0:
-                    mppi.config.n_iters = min(chunk, left)
-                    mppi.sigma = sigma0 * scale
-                    _, info = mppi.step(q)
-                    mppi.reset(info.nominal_knots)
-                    left -= mppi.config.n_iters
-                    scale = anneal(float(np.min(image_cost.last_raw)))
+                    n = min(chunk, left)
+                    info, scale = plan_chunk(n, scale)
+                    left -= n
                 starts.append((info.nominal_cost, j, info.nominal_knots, scale, mppi.rng))
             _, _, knots, progress_scale, mppi.rng = min(starts, key=lambda e: (e[0], e[1]))
             mppi.reset(knots)
             done = n0  # the chosen start's iterations; the other starts' are extra
             iters += n0 * (cfg.plan_starts - 1)
         while cfg.plan_iters - done > chunk:
-            mppi.config.n_iters = chunk
-            mppi.sigma = sigma0 * progress_scale
-            _, info = mppi.step(q)
-            mppi.reset(info.nominal_knots)
+            info, progress_scale = plan_chunk(chunk, progress_scale)
             done += chunk
-            progress_scale = anneal(float(np.min(image_cost.last_raw)))
         iters += done
         for s in range(cfg.horizon):
             mppi.config.temperature = cfg.temperature if s == 0 or cfg.track_temperature is None else cfg.track_temperature
