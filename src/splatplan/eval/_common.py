@@ -96,6 +96,24 @@ def mean_std(values, finite_only: bool = False) -> list[float]:
     return [float(v.mean()), float(v.std())] if v.size else [float("nan"), float("nan")]
 
 
+def config_rows(trials: list[dict], fields: tuple[str, ...], extra=None) -> list[dict]:
+    """Summary rows of a with/without-collision study: per config, [mean, std] of every trial field
+    in ``fields``, then ``extra(trials of the config) -> dict`` (optional), the successes, the trials
+    with positive clearance (``min_clearance_m > 0``), the trial count and the MPC rate."""
+    rows = []
+    for name in ("with_collision", "without_collision"):
+        t = [x for x in trials if x["config"] == name]
+        row = {"config": name, **{f: mean_std([x[f] for x in t]) for f in fields}, **(extra(t) if extra else {})}
+        row.update(
+            successes=int(sum(x["success"] for x in t)),
+            positive_clearance=int(sum(x["min_clearance_m"] > 0 for x in t)),
+            trials=len(t),
+            steps_per_s=mean_std([x["steps_per_s"] for x in t]),
+        )
+        rows.append(row)
+    return rows
+
+
 def write_atomic(path: Path, text: str) -> None:
     """Write a text file atomically (temp file in the same folder, then rename)."""
     tmp = path.with_name(f".{path.name}.tmp")

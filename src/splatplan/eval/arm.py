@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._common import mean_std, write_atomic
+from ._common import config_rows, write_atomic
 
 #: Start configuration of the study (rad): gripper down, tool centre at (0.34, 0, 0.06) m in front of
 #: the front wall (IK of that pose; 4.5 cm exact clearance of the moving links).
@@ -99,20 +99,7 @@ def run_arm_study(out_dir, quick: bool = False, seed: int = 0, device: str | Non
             })  # fmt: skip
             print(f"  target {i} {'with   ' if collision else 'without'} collision cost: error {r.final_position_error_m * 100:.2f} cm, "
                   f"{r.final_orientation_error_deg:.1f} deg, clearance {r.min_clearance_m * 100:+.2f} cm, {r.steps_per_s:.2f} steps/s", flush=True)  # fmt: skip
-    rows = []
-    for name in ("with_collision", "without_collision"):
-        t = [x for x in trials if x["config"] == name]
-        rows.append({
-            "config": name,
-            "min_clearance_m": mean_std([x["min_clearance_m"] for x in t]),
-            "min_clearance_moving_links_m": mean_std([x["min_clearance_moving_links_m"] for x in t]),
-            "final_error_m": mean_std([x["final_error_m"] for x in t]),
-            "final_orientation_error_deg": mean_std([x["final_orientation_error_deg"] for x in t]),
-            "successes": int(sum(x["success"] for x in t)),
-            "positive_clearance": int(sum(x["min_clearance_m"] > 0 for x in t)),
-            "trials": len(t),
-            "steps_per_s": mean_std([x["steps_per_s"] for x in t]),
-        })  # fmt: skip
+    rows = config_rows(trials, ("min_clearance_m", "min_clearance_moving_links_m", "final_error_m", "final_orientation_error_deg"))
     throughput = None if quick else arm_throughput(device=device)
     result = {
         "throughput": throughput,

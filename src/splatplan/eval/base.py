@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._common import mean_std, write_atomic
+from ._common import config_rows, mean_std, write_atomic
 
 START = (-2.3, -0.6, 0.0)
 
@@ -78,20 +78,7 @@ def run_base_study(out_dir, quick: bool = False, seed: int = 0, device: str | No
             })  # fmt: skip
             print(f"  goal {i} {g.round(2).tolist()} {'with   ' if collision else 'without'} collision cost: distance {r.final_position_error_m:.2f} m, "
                   f"clearance {r.min_clearance_m * 100:+.1f} cm, {'reached' if r.success else 'not reached'}, {r.steps_per_s:.2f} steps/s", flush=True)  # fmt: skip
-    rows = []
-    for name in ("with_collision", "without_collision"):
-        t = [x for x in trials if x["config"] == name]
-        reached = [x["time_to_goal_s"] for x in t if x["time_to_goal_s"] is not None]
-        rows.append({
-            "config": name,
-            "min_clearance_m": mean_std([x["min_clearance_m"] for x in t]),
-            "final_error_m": mean_std([x["final_error_m"] for x in t]),
-            "time_to_goal_s": mean_std(reached),
-            "successes": int(sum(x["success"] for x in t)),
-            "positive_clearance": int(sum(x["min_clearance_m"] > 0 for x in t)),
-            "trials": len(t),
-            "steps_per_s": mean_std([x["steps_per_s"] for x in t]),
-        })  # fmt: skip
+    rows = config_rows(trials, ("min_clearance_m", "final_error_m"), extra=lambda t: {"time_to_goal_s": mean_std([x["time_to_goal_s"] for x in t if x["time_to_goal_s"] is not None])})
     result = {
         "study": "base", "quick": bool(quick), "seed": int(seed), "robot": "go2", "scene": "apartment", "start": list(START),
         "n_splats": len(ts.splats), "config": asdict(cfg), "time_s": time.perf_counter() - t0,
