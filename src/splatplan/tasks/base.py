@@ -56,11 +56,14 @@ import numpy as np
 from ..errors import SplatplanError
 from ._common import TaskResult, check_start, load_task_scene, trajectory_clearance
 
-__all__ = ["FOOT_CLEARANCE", "BaseConfig", "load_go2", "plan_route", "run_base"]
+__all__ = ["FOOT_CLEARANCE", "START", "BaseConfig", "ObstacleMemory", "geodesic_field", "load_go2", "plan_route", "run_base"]
 
 #: The Go2's feet ellipsoids are lifted this far (m) above the floor (as in a trot's swing phase), so
 #: the floor itself is not a collision.
 FOOT_CLEARANCE = 0.04
+#: Default start (x, y, yaw) of the base in the built-in ``apartment``: the living room, the base
+#: study's start (the origin lies in the x = 0 wall).
+START = (-2.3, -0.6, 0.0)
 
 
 def load_go2():
@@ -157,6 +160,21 @@ class BaseConfig:
     ground_z: float | None = 0.0
     #: thickness of the removed ground band (m)
     ground_band: float = 0.03
+    #: sensed-obstacle memory (off by default): a coarse occupancy grid, unknown = free, filled with
+    #: the cells sensed within sensor_radius_m of the base every MPC step; the goal cost then uses
+    #: the geodesic distance to the goal on it instead of the straight line (see ObstacleMemory)
+    memory: bool = False
+    #: memory: sensing radius around the base (m); nothing beyond it is sensed
+    sensor_radius_m: float = 2.5
+    #: memory: grid cell size (m)
+    memory_cell_m: float = 0.1
+    #: memory: a cell is blocked when the base collides there at every one of this many headings
+    memory_yaws: int = 8
+    #: memory: cells closer than this (m) to a blocked cell cost more to cross (an inflation layer,
+    #: as in navigation costmaps: the geodesic keeps to the middle of passages and doorways)
+    memory_inflation_m: float = 0.3
+    #: memory: extra cost factor of a cell next to a blocked one (falls linearly to 0 at memory_inflation_m)
+    memory_inflation_cost: float = 2.0
     #: noise seed
     seed: int = 0
 
@@ -203,11 +221,242 @@ def _free_yaw(robot, checker, xy) -> float | None:
     return float(yaws[np.argmax(free)]) if free.any() else None
 
 
+class ObstacleMemory:
+    """Sensed-obstacle memory of the planar base: a coarse 2D occupancy grid, *unknown = free* at
+    the start (the freespace assumption of navigation in unknown terrain, as in D* Lite), and the
+    geodesic distance to the goal over it.
+
+    Grid: square cells of ``cell`` metres over the xy box ``lo`` .. ``hi`` (world frame), cell
+    (i, j) centred at ``origin + (i + 0.5, j + 0.5) * cell`` with the origin snapped to a multiple
+    of ``cell``. :meth:`sense` checks every not yet sensed cell whose centre lies within
+    ``radius`` of the base: the cell is **blocked** when the robot collides there at every one of
+    ``n_yaws`` headings (``checker.collides_robot``, one batched call at yaw 0 for the new cells,
+    one more at the other headings for those that collide at yaw 0). Sensed cells are memoised (the
+    scene is static); a range sensor without occlusion (it also senses through a wall within the
+    radius), nothing beyond the radius.
+
+    Field: 8-connected Dijkstra (``scipy.sparse.csgraph.dijkstra``; diagonals only where both
+    side cells are free, no corner cutting) from the goal over the not-blocked cells, recomputed
+    only when a sense marks new cells blocked. The goal enters through a virtual source linked to
+    the free cells within 1.5 cells of it (edge = Euclidean distance). Blocked and unreachable
+    cells take the largest value among their filled neighbours plus one cell per ring (so a wall
+    never reads closer to the goal than the free side a rollout enters it from). :meth:`distance`
+    interpolates bilinearly between cell centres and adds the Euclidean distance outside the grid.
+    """
+
+    def __init__(self, robot, checker, lo, hi, goal, cell: float = 0.1, radius: float = 2.5, n_yaws: int = 8, inflation_m: float = 0.3, inflation_cost: float = 2.0) -> None:
+        if cell <= 0 or radius <= 0 or n_yaws < 1 or inflation_m < 0 or inflation_cost < 0:
+            raise SplatplanError(
+                f"obstacle memory: memory_cell_m ({cell}) and sensor_radius_m ({radius}) must be > 0, memory_yaws ({n_yaws}) >= 1, "
+                f"memory_inflation_m ({inflation_m}) and memory_inflation_cost ({inflation_cost}) >= 0"
+            )
+        self.robot, self.checker = robot, checker
+        self.cell, self.radius = float(cell), float(radius)
+        self.inflation_m, self.inflation_cost = float(inflation_m), float(inflation_cost)
+        self.yaws = np.linspace(0.0, 2 * np.pi, int(n_yaws), endpoint=False)  # (Y,) rad, yaw 0 first
+        lo, hi = np.asarray(lo, np.float64)[:2], np.asarray(hi, np.float64)[:2]
+        self.origin = np.floor(lo / self.cell) * self.cell  # (2,) world xy of the grid's corner
+        self.shape = tuple(int(v) for v in np.maximum(np.ceil((hi - self.origin) / self.cell), 1))  # (NX, NY)
+        ix, iy = np.meshgrid(np.arange(self.shape[0]), np.arange(self.shape[1]), indexing="ij")
+        self.centers = self.origin + (np.stack([ix, iy], axis=-1) + 0.5) * self.cell  # (NX, NY, 2) world xy, metres
+        self.sensed = np.zeros(self.shape, bool)  # (NX, NY) checked once
+        self.blocked = np.zeros(self.shape, bool)  # (NX, NY) robot collides at every heading
+        self.goal = np.asarray(goal, np.float64).reshape(-1)[:2].copy()
+        self.stats = {"n_sensed": 0, "n_blocked": 0, "n_queries": 0, "n_recomputes": 0, "sense_s": 0.0, "field_s": 0.0}
+        self._recompute()
+
+    # ---------------------------------------------------------------- sensing
+    def sense(self, xy) -> int:
+        """Sense the unsensed cells within ``radius`` of ``xy`` (2,); recompute the field when any
+        is blocked. Returns the number of newly blocked cells."""
+        t0 = time.perf_counter()
+        xy = np.asarray(xy, np.float64).reshape(-1)[:2]
+        r_cells = int(np.ceil(self.radius / self.cell)) + 1
+        c = np.floor((xy - self.origin) / self.cell).astype(int)
+        a0, b0 = np.maximum(c - r_cells, 0), np.minimum(c + r_cells + 1, self.shape)
+        if np.any(b0 <= a0):
+            return 0
+        win = (slice(a0[0], b0[0]), slice(a0[1], b0[1]))
+        new = (~self.sensed[win]) & (np.linalg.norm(self.centers[win] - xy, axis=-1) <= self.radius)
+        if not new.any():
+            self.stats["sense_s"] += time.perf_counter() - t0
+            return 0
+        idx = np.argwhere(new) + a0  # (C, 2) cell indices
+        blocked = self._blocked_at(self.centers[idx[:, 0], idx[:, 1]])  # (C,)
+        self.sensed[idx[:, 0], idx[:, 1]] = True
+        self.blocked[idx[:, 0], idx[:, 1]] = blocked
+        n_new = int(blocked.sum())
+        self.stats["n_sensed"] += len(idx)
+        self.stats["n_blocked"] += n_new
+        self.stats["sense_s"] += time.perf_counter() - t0
+        if n_new:
+            self._recompute()
+        return n_new
+
+    def _blocked_at(self, xy: np.ndarray) -> np.ndarray:
+        """(C,) True where the robot at xy (C, 2) collides at every heading of ``yaws``."""
+        q = np.concatenate([xy, np.full((len(xy), 1), self.yaws[0])], axis=1)  # (C, 3) x, y, yaw
+        blocked = np.asarray(self.checker.collides_robot(self.robot, q)).any(axis=-1)  # (C,)
+        self.stats["n_queries"] += len(q)
+        rest = np.flatnonzero(blocked)
+        if len(rest) and len(self.yaws) > 1:  # the other headings only where yaw 0 collides
+            y = self.yaws[1:]
+            q = np.concatenate([np.repeat(xy[rest], len(y), axis=0), np.tile(y, len(rest))[:, None]], axis=1)  # (R * (Y-1), 3)
+            hit = np.asarray(self.checker.collides_robot(self.robot, q)).any(axis=-1).reshape(len(rest), len(y))
+            self.stats["n_queries"] += len(q)
+            blocked[rest] = hit.all(axis=1)
+        return blocked
+
+    # ---------------------------------------------------------------- field
+    def _recompute(self) -> None:
+        t0 = time.perf_counter()
+        self.cost = np.ones(self.shape)  # (NX, NY) per-cell step cost factor >= 1
+        if self.inflation_m > 0 and self.inflation_cost > 0 and self.blocked.any():
+            from scipy.ndimage import distance_transform_edt
+
+            d = distance_transform_edt(~self.blocked) * self.cell  # (NX, NY) m from each cell centre to the nearest blocked one
+            self.cost += self.inflation_cost * np.clip(1.0 - (d - self.cell) / self.inflation_m, 0.0, 1.0)
+        self.field = geodesic_field(self.blocked, self.origin, self.cell, self.goal, self.cost)  # (NX, NY) metres (cost-weighted)
+        gx, gy = np.gradient(self.field, self.cell)
+        self._grad = np.stack([gx, gy], axis=-1)  # (NX, NY, 2) d field / d xy
+        self.stats["n_recomputes"] += 1
+        self.stats["field_s"] += time.perf_counter() - t0
+
+    def _bilinear(self, grid: np.ndarray, xy: np.ndarray):
+        """Bilinear interpolation of ``grid`` (NX, NY, ...) at xy (..., 2) clamped into the grid;
+        also returns the distance from xy to its clamped point (m)."""
+        u = (xy - self.origin) / self.cell - 0.5  # (..., 2) continuous cell coordinates
+        uc = np.clip(u, 0.0, np.asarray(self.shape) - 1.0)
+        i0 = np.minimum(np.floor(uc).astype(int), np.asarray(self.shape) - 2).clip(0)
+        f = uc - i0
+        i1 = np.minimum(i0 + 1, np.asarray(self.shape) - 1)
+        fx, fy = f[..., 0], f[..., 1]
+        if grid.ndim == 3:
+            fx, fy = fx[..., None], fy[..., None]
+        v = (grid[i0[..., 0], i0[..., 1]] * (1 - fx) * (1 - fy) + grid[i1[..., 0], i0[..., 1]] * fx * (1 - fy)
+             + grid[i0[..., 0], i1[..., 1]] * (1 - fx) * fy + grid[i1[..., 0], i1[..., 1]] * fx * fy)  # fmt: skip
+        return v, np.linalg.norm(u - uc, axis=-1) * self.cell
+
+    def distance(self, xy) -> np.ndarray:
+        """(...,) geodesic distance (m) to the goal from xy (..., 2), world frame."""
+        v, out = self._bilinear(self.field, np.asarray(xy, np.float64))
+        return v + out
+
+    def heading(self, xy) -> np.ndarray:
+        """(...,) direction (rad, world frame) of steepest descent of the field at xy (..., 2)."""
+        g, _ = self._bilinear(self._grad, np.asarray(xy, np.float64))
+        return np.arctan2(-g[..., 1], -g[..., 0])
+
+
+def geodesic_field(blocked: np.ndarray, origin, cell: float, goal, cost: np.ndarray | None = None) -> np.ndarray:
+    """(NX, NY) geodesic distance (m) from every cell centre to ``goal`` (2,) over the not-blocked
+    cells of ``blocked`` (NX, NY), each step weighted by the mean ``cost`` (NX, NY) >= 1 of its two
+    cells (None: 1, the plain path length; see :class:`ObstacleMemory`; slow reference:
+    :func:`_geodesic_field_reference`)."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import dijkstra
+
+    nx, ny = blocked.shape
+    n = nx * ny
+    free = ~blocked
+    cost = np.ones((nx, ny)) if cost is None else np.asarray(cost, np.float64)
+    ids = np.arange(n).reshape(nx, ny)
+    rows, cols, w = [], [], []
+    for dx, dy in ((1, 0), (0, 1), (1, 1), (1, -1)):  # each undirected edge once: (i, j) -> (i + dx, j + dy)
+        ra, rb = slice(0, nx - dx), slice(dx, nx)
+        ca, cb = slice(max(0, -dy), ny - max(0, dy)), slice(max(0, dy), ny + min(0, dy))
+        ok = free[ra, ca] & free[rb, cb]
+        if dx and dy:  # diagonal: both side cells (i + dx, j) and (i, j + dy) free
+            ok &= free[rb, ca] & free[ra, cb]
+        rows.append(ids[ra, ca][ok])
+        cols.append(ids[rb, cb][ok])
+        step = cell * (np.sqrt(2.0) if dx and dy else 1.0)
+        w.append(step * 0.5 * (cost[ra, ca] + cost[rb, cb])[ok])
+    g = np.asarray(goal, np.float64)[:2]
+    centers = np.asarray(origin, np.float64) + (np.stack(np.meshgrid(np.arange(nx), np.arange(ny), indexing="ij"), -1) + 0.5) * cell
+    d_goal = np.linalg.norm(centers - g, axis=-1)  # (NX, NY)
+    near = free & (d_goal <= 1.5 * cell)
+    if not near.any():  # the goal's cells are all blocked: link the nearest cell anyway
+        near = d_goal == d_goal.min()
+    rows.append(np.full(int(near.sum()), n))
+    cols.append(ids[near])
+    w.append(np.maximum(d_goal[near] * cost[near], 1e-9))  # a stored 0 would read as no edge
+    graph = coo_matrix((np.concatenate(w), (np.concatenate(rows), np.concatenate(cols))), shape=(n + 1, n + 1)).tocsr()
+    dist = dijkstra(graph, directed=False, indices=n)[:n].reshape(nx, ny)
+    return _fill_undefined(dist, cell)
+
+
+def _fill_undefined(dist: np.ndarray, cell: float) -> np.ndarray:
+    """Blocked / unreachable cells (inf) take the largest finite 3x3 neighbour plus one cell, ring
+    by ring outwards from the reachable free space."""
+    from scipy.ndimage import grey_dilation
+
+    f = np.where(np.isfinite(dist), dist, -np.inf)
+    if not np.isfinite(f).any():
+        return np.zeros_like(dist)
+    while True:
+        und = ~np.isfinite(f)
+        if not und.any():
+            return f
+        d = grey_dilation(f, size=(3, 3), mode="nearest")
+        ring = und & np.isfinite(d)
+        f[ring] = d[ring] + cell
+
+
+def _geodesic_field_reference(blocked: np.ndarray, origin, cell: float, goal, cost: np.ndarray | None = None) -> np.ndarray:
+    """Slow, obviously correct reference of :func:`geodesic_field` (heapq Dijkstra over dicts)."""
+    import heapq
+
+    nx, ny = blocked.shape
+    cost = np.ones((nx, ny)) if cost is None else cost
+    g = np.asarray(goal, np.float64)[:2]
+    center = lambda i, j: np.asarray(origin, np.float64) + (np.array([i, j]) + 0.5) * cell  # noqa: E731
+    dist = np.full((nx, ny), np.inf)
+    heap = []
+    starts = [(i, j) for i in range(nx) for j in range(ny) if not blocked[i, j] and np.linalg.norm(center(i, j) - g) <= 1.5 * cell]
+    if not starts:
+        dd = {(i, j): np.linalg.norm(center(i, j) - g) for i in range(nx) for j in range(ny)}
+        m = min(dd.values())
+        starts = [k for k, v in dd.items() if v == m]
+    for i, j in starts:
+        d0 = float(np.linalg.norm(center(i, j) - g)) * cost[i, j]
+        if d0 < dist[i, j]:
+            dist[i, j] = d0
+            heapq.heappush(heap, (d0, i, j))
+    while heap:
+        d, i, j = heapq.heappop(heap)
+        if d > dist[i, j] or blocked[i, j]:
+            continue
+        for di in (-1, 0, 1):
+            for dj in (-1, 0, 1):
+                a, b = i + di, j + dj
+                if (di, dj) == (0, 0) or not (0 <= a < nx and 0 <= b < ny) or blocked[a, b]:
+                    continue
+                if di and dj and (blocked[i + di, j] or blocked[i, j + dj]):
+                    continue
+                nd = d + cell * (np.sqrt(2.0) if di and dj else 1.0) * 0.5 * (cost[i, j] + cost[a, b])
+                if nd < dist[a, b] - 1e-12:
+                    dist[a, b] = nd
+                    heapq.heappush(heap, (nd, a, b))
+    out = dist.copy()
+    while not np.isfinite(out).all():
+        nxt = out.copy()
+        for i in range(nx):
+            for j in range(ny):
+                if np.isfinite(out[i, j]):
+                    continue
+                nb = [out[a, b] for a in range(max(i - 1, 0), min(i + 2, nx)) for b in range(max(j - 1, 0), min(j + 2, ny)) if np.isfinite(out[a, b])]
+                if nb:
+                    nxt[i, j] = max(nb) + cell
+        out = nxt
+    return out
+
+
 class _BasePlanner:
     """MPPI over body-frame velocity B-splines for the planar base, with structured samples and a
     stagnation recovery (see the module docstring). One :meth:`step` per control period."""
 
-    def __init__(self, dyn, cfg: BaseConfig, vmax: np.ndarray, collision_cost, goal: np.ndarray, recovery: bool = True) -> None:
+    def __init__(self, dyn, cfg: BaseConfig, vmax: np.ndarray, collision_cost, goal: np.ndarray, recovery: bool = True, memory: ObstacleMemory | None = None) -> None:
         from ..planners.bspline import UniformBSpline
 
         self.dyn, self.cfg, self.vmax = dyn, cfg, np.asarray(vmax, np.float64)
@@ -220,6 +469,7 @@ class _BasePlanner:
         self.knots = np.zeros((cfg.n_knots, 3))  # (n_knots, 3) nominal body-frame (vx, vy, wz)
         self.goal = np.asarray(goal, np.float64)
         self.recovery = bool(recovery)
+        self.memory = memory  # ObstacleMemory: geodesic goal distance and heading (None: straight line)
         self.mode = "goal"
         self.best = np.inf  # best distance to the goal reached so far (m)
         self.best_step = 0
@@ -262,10 +512,13 @@ class _BasePlanner:
         tgt = self.goal
         if self.mode == "detour":
             tgt = x[:2] + 10.0 * np.array([np.cos(self.detour["heading"]), np.sin(self.detour["heading"])])
-        b = float(np.arctan2(tgt[1] - x[1], tgt[0] - x[0]))
+        geo = self.memory is not None and self.mode == "goal"  # the target's direction: descent of the memory's field
+        b = float(self.memory.heading(x[:2])) if geo else float(np.arctan2(tgt[1] - x[1], tgt[0] - x[0]))
         th = b + 2 * np.pi * np.arange(m) / m  # (m,)
         v = cfg.primitive_speed * np.stack([np.cos(th), np.sin(th)], axis=1)  # (m, 2) world, m/s
         vw = [np.repeat(v[:, None], t_len, axis=1)]  # straight
+        if geo:  # the same drives following the field's descent from their switch points, and two pure followers
+            return self._drive_knots(x, np.concatenate(vw + self._followers(x, v, t_len)))
         for frac in (0.25, 0.5, 0.75):
             j = max(1, int(round(frac * t_len)))
             d = tgt - (x[:2] + v * j * cfg.dt)  # (m, 2) from the predicted switch points
@@ -275,6 +528,25 @@ class _BasePlanner:
             k[:, j:] = w[:, None]
             vw.append(k)
         return self._drive_knots(x, np.concatenate(vw))
+
+    def _followers(self, x: np.ndarray, v: np.ndarray, t_len: int) -> list[np.ndarray]:
+        """Memory mode: (m, T, 2) world velocities of the drives ``v`` (m, 2) switching after 1/4,
+        1/2, 3/4 of the horizon to following the descent of the geodesic field (a streamline
+        integrated from the predicted switch point), and (2, T, 2) pure followers at full and half
+        ``primitive_speed``."""
+        cfg = self.cfg
+        out = []
+        for frac in (0.25, 0.5, 0.75, 0.0):
+            j = int(round(frac * t_len))
+            vel = np.repeat(v[:, None], t_len, axis=1) if j else np.zeros((2, t_len, 2))  # (P, T, 2) world, m/s
+            speed = np.full((len(vel), 1), cfg.primitive_speed) if j else cfg.primitive_speed * np.array([[1.0], [0.5]])  # (P, 1) m/s
+            p = x[:2] + vel[:, 0] * j * cfg.dt  # (P, 2) world, the switch points
+            for t in range(j, t_len):
+                h = self.memory.heading(p)
+                vel[:, t] = speed * np.stack([np.cos(h), np.sin(h)], axis=1)
+                p = p + vel[:, t] * cfg.dt
+            out.append(vel)
+        return out
 
     # ---------------------------------------------------------------- costs
     def evaluate(self, x: np.ndarray, knots: np.ndarray) -> dict:
@@ -295,10 +567,14 @@ class _BasePlanner:
             q = ro.cache["query"]  # (K, T', E) over the evaluated steps
             hit = np.asarray(q.in_collision).reshape(k, -1).any(axis=1)
         ctrl = cfg.w_control * np.sum(controls**2, axis=(1, 2)) * cfg.dt + cfg.w_yaw_rate * np.sum(controls[..., 2] ** 2, axis=1) * cfg.dt
-        dist = np.linalg.norm(states[..., :2] - self.goal, axis=-1)  # (K, T) m
-        goal = cfg.w_goal * (dist.sum(axis=1) + cfg.terminal_factor * dist[:, -1] + cfg.min_factor * dist.min(axis=1))
+        dist = np.linalg.norm(states[..., :2] - self.goal, axis=-1)  # (K, T) m, straight line
+        gd = dist if self.memory is None else self.memory.distance(states[..., :2])  # (K, T) m, geodesic on the memory
+        goal = cfg.w_goal * (gd.sum(axis=1) + cfg.terminal_factor * gd[:, -1] + cfg.min_factor * gd.min(axis=1))
         if cfg.w_heading > 0:
-            bearing = np.arctan2(self.goal[1] - states[..., 1], self.goal[0] - states[..., 0])
+            if self.memory is None:
+                bearing = np.arctan2(self.goal[1] - states[..., 1], self.goal[0] - states[..., 0])
+            else:  # face along the geodesic
+                bearing = self.memory.heading(states[..., :2])
             goal = goal + cfg.w_heading * np.where(dist < 0.3, 0.0, 1.0 - np.cos(states[..., 2] - bearing)).sum(axis=1)
         return {"states": states, "dist": dist, "goal": goal, "collision": col, "control": ctrl, "hit": hit}
 
@@ -323,6 +599,8 @@ class _BasePlanner:
         from ..planners.mppi import mppi_weights
 
         cfg = self.cfg
+        if self.memory is not None:
+            self.memory.sense(x[:2])
         dist_now = float(np.linalg.norm(x[:2] - self.goal))
         if dist_now < self.best - cfg.stuck_progress_m:
             self.best, self.best_step = dist_now, self.step_i
@@ -426,7 +704,11 @@ def run_base(
         from ..planners.costs import CollisionCost
 
         collision_cost = CollisionCost(ts.checker, robot, weight=cfg.w_collision, hit_weight=cfg.w_hit, s2_cap=cfg.collision_s2_cap, time_stride=cfg.collision_stride)
-    planner = _BasePlanner(dyn, cfg, vmax, collision_cost, g, recovery=collision and cfg.recovery and route is None)
+    memory = None
+    if cfg.memory and route is None:
+        memory = ObstacleMemory(robot, ts.checker, lo, hi, g, cell=cfg.memory_cell_m, radius=cfg.sensor_radius_m, n_yaws=cfg.memory_yaws,
+                                inflation_m=cfg.memory_inflation_m, inflation_cost=cfg.memory_inflation_cost)  # fmt: skip
+    planner = _BasePlanner(dyn, cfg, vmax, collision_cost, g, recovery=collision and cfg.recovery and route is None, memory=memory)
     wps = None if route is None else np.asarray(route, np.float64)[:, :2]
     states = [x.copy()]
     t0 = time.perf_counter()
@@ -461,5 +743,6 @@ def run_base(
         clearance_source=source,
         message="" if success else ("in collision" if clearance <= 0 else "goal not reached within max_steps"),
         goal={"position": g.tolist()},
-        extra={"robot": robot.name, "scene": ts.name, "n_steps": n_steps, "time_to_goal_s": n_steps * cfg.dt, "route": None if wps is None else wps.round(4).tolist(), "n_splats": len(ts.splats), "events": planner.events},
+        extra={"robot": robot.name, "scene": ts.name, "n_steps": n_steps, "time_to_goal_s": n_steps * cfg.dt, "route": None if wps is None else wps.round(4).tolist(), "n_splats": len(ts.splats), "events": planner.events,
+               "memory": None if memory is None else {**memory.stats, "cell_m": memory.cell, "sensor_radius_m": memory.radius, "n_yaws": len(memory.yaws), "shape": list(memory.shape)}},
     )
