@@ -1,0 +1,110 @@
+"""The Go2 base planner's sensed-obstacle memory (``BaseConfig.memory``): the occupancy grid, the
+geodesic field against its slow reference, and a U-trap that only the memory gets out of."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+H = 0.6  # wall height (m); the Go2 stands ~0.45 m tall
+
+
+def _scene(walls):
+    """A TaskScene of 0.1 m thick walls ((x0, y0, x1, y1) segments, metres, z up) plus two small
+    posts at (-3, -3) and (3.5, 3) that set the scene box; splats sampled on the boxes."""
+    from splatplan.metric import CollisionChecker
+    from splatplan.scenes.builtin.primitives import AnalyticScene, SurfaceSplatConfig, make_box, splats_from_boxes
+    from splatplan.tasks._common import TaskScene
+
+    boxes = []
+    for x0, y0, x1, y1 in walls:
+        c = ((x0 + x1) / 2, (y0 + y1) / 2, H / 2)
+        boxes.append(make_box(c, (max(abs(x1 - x0) / 2, 0.05), max(abs(y1 - y0) / 2, 0.05), H / 2)))
+    boxes += [make_box((-3.0, -3.0, 0.05), (0.05, 0.05, 0.05)), make_box((3.5, 3.0, 0.05), (0.05, 0.05, 0.05))]
+    gt = AnalyticScene(np.stack(boxes), ["wall"] * len(boxes))
+    splats = splats_from_boxes(gt, 6000, config=SurfaceSplatConfig(floater_fraction=0.0), seed=0)
+    return TaskScene("walls", splats, CollisionChecker(splats, n_sigma=0.75), gt)
+
+
+@pytest.fixture(scope="module")
+def go2():
+    from splatplan.tasks.base import load_go2
+
+    return load_go2()
+
+
+def test_grid_marks_a_wall_blocked_and_free_space_free(go2):
+    from splatplan.tasks.base import ObstacleMemory
+
+    ts = _scene([(1.0, -1.5, 1.0, 1.5)])  # a wall along y at x = 1
+    lo, hi = ts.splats.bounds()
+    mem = ObstacleMemory(go2, ts.checker, lo, hi, goal=(2.5, 0.0), cell=0.1, radius=2.0)
+    assert not mem.blocked.any() and not mem.sensed.any()  # unknown = free
+    field0 = mem.field.copy()
+    assert mem.sense(np.array([0.0, 0.0])) > 0
+    at = lambda x, y: tuple(np.floor((np.array([x, y]) - mem.origin) / mem.cell).astype(int))  # noqa: E731
+    assert mem.blocked[at(1.0, 0.0)] and mem.blocked[at(1.0, 1.0)]  # on the wall
+    assert not mem.blocked[at(0.0, 0.0)] and not mem.blocked[at(-1.0, 1.0)] and mem.sensed[at(-1.0, 1.0)]  # free space
+    assert not mem.sensed[at(2.5, 0.0)] and not mem.sensed[at(-2.9, -2.9)]  # beyond the radius: unknown
+    d = np.linalg.norm(mem.centers - [0.0, 0.0], axis=-1)
+    assert mem.sensed[d <= 2.0].all() and not mem.sensed[d > 2.0 + 1e-9].any()
+    # the base's own footprint: blocked cells are exactly those where every heading collides
+    idx = np.argwhere(mem.sensed)[::7]
+    xy = mem.centers[idx[:, 0], idx[:, 1]]
+    q = np.concatenate([np.repeat(xy, len(mem.yaws), 0), np.tile(mem.yaws, len(xy))[:, None]], axis=1)
+    every = np.asarray(ts.checker.collides_robot(go2, q)).any(-1).reshape(len(xy), -1).all(axis=1)
+    np.testing.assert_array_equal(mem.blocked[idx[:, 0], idx[:, 1]], every)
+    # memoised: sensing again from the same place checks nothing
+    n = mem.stats["n_queries"]
+    assert mem.sense(np.array([0.0, 0.0])) == 0 and mem.stats["n_queries"] == n
+    # the field now goes around the wall: behind it, farther than before
+    assert mem.distance(np.array([0.0, 0.0])) > field0[at(0.0, 0.0)] + 0.5
+
+
+def test_geodesic_around_a_wall_is_longer_than_the_straight_line():
+    from splatplan.tasks.base import geodesic_field
+
+    blocked = np.zeros((40, 30), bool)
+    blocked[20, 3:] = True  # a wall at x = 2.05 from y = 0.3 up, gap below
+    goal = np.array([3.0, 2.0])
+    f = geodesic_field(blocked, (0.0, 0.0), 0.1, goal)
+    ctr = lambda i, j: (np.array([i, j]) + 0.5) * 0.1  # noqa: E731
+    straight = np.linalg.norm(ctr(10, 20) - goal)
+    around = np.linalg.norm(ctr(10, 20) - ctr(19, 1)) + np.linalg.norm(ctr(21, 1) - goal)  # through the gap
+    assert f[10, 20] > straight + 1.0 and f[10, 20] >= around - 0.05
+    assert f[10, 20] <= 1.09 * (around + 0.2)  # 8-connected paths are at most ~8% longer than straight ones
+    # open space: 8-connected distance between the straight line and 1.083x it
+    o = geodesic_field(np.zeros((40, 30), bool), (0.0, 0.0), 0.1, goal)
+    e = np.linalg.norm(np.stack(np.meshgrid(np.arange(40), np.arange(30), indexing="ij"), -1) * 0.1 + 0.05 - goal, axis=-1)
+    assert np.all(o >= e - 0.1 - 1e-9) and np.all(o <= 1.083 * e + 0.15)
+    # blocked cells read no closer to the goal than the free cells next to them
+    assert f[20, 20] >= min(f[19, 20], f[21, 20])
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_geodesic_field_matches_the_reference(seed):
+    from splatplan.tasks.base import _geodesic_field_reference, geodesic_field
+
+    rng = np.random.default_rng(seed)
+    nx, ny = rng.integers(1, 14, 2)
+    blocked = rng.random((nx, ny)) < rng.uniform(0.0, 0.6)
+    origin, cell = rng.uniform(-1, 1, 2), rng.uniform(0.05, 0.3)
+    goal = origin + rng.random(2) * np.array([nx, ny]) * cell
+    cost = None if seed % 2 else 1.0 + 2.0 * rng.random((nx, ny))
+    np.testing.assert_allclose(geodesic_field(blocked, origin, cell, goal, cost), _geodesic_field_reference(blocked, origin, cell, goal, cost), rtol=1e-9, atol=1e-9)
+
+
+def test_memory_escapes_a_u_trap_that_plain_mppi_does_not(go2):
+    from splatplan.tasks.base import BaseConfig, run_base
+
+    # a U open to the left; the base starts inside, the goal lies behind the U's bottom
+    ts = _scene([(1.0, -1.1, 1.0, 1.1), (-1.5, 1.1, 1.0, 1.1), (-1.5, -1.1, 1.0, -1.1)])
+    cfg = BaseConfig(max_steps=90, ground_z=None, seed=0)
+    start, goal = (0.0, 0.0, 0.0), (2.5, 0.0)
+    plain = run_base(go2, ts, goal, start=start, config=cfg)
+    mem = run_base(go2, ts, goal, start=start, config=replace(cfg, memory=True))
+    assert not plain.success and plain.final_position_error_m > 1.0 and plain.min_clearance_m > 0
+    assert mem.success and mem.min_clearance_m > 0, (mem.final_position_error_m, mem.min_clearance_m)
+    assert mem.extra["memory"]["n_blocked"] > 0 and mem.extra["memory"]["sense_s"] < mem.time_s
