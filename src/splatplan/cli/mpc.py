@@ -44,7 +44,7 @@ def cmd_mpc(args) -> int:
         res = run_arm(robot, ts, gp[:3], gp[3:], config=cfg, collision=collision, q0=q0, device=args.device)
         kind = "arm"
     elif args.robot == "go2":
-        from ..tasks.base import BaseConfig, load_go2, plan_route, run_base
+        from ..tasks.base import START, BaseConfig, load_go2, plan_route, run_base
 
         if args.goal is None:
             raise SplatplanError("--robot go2 needs --goal X,Y (metres)")
@@ -52,7 +52,8 @@ def cmd_mpc(args) -> int:
         cfg = config_from_args(args, BaseConfig, "base_", seed=args.seed)
         robot = load_go2()
         scene = args.scene or "apartment"
-        start = np.zeros(3) if args.start is None else _floats(args.start, 3, "--start", "X,Y,YAW")
+        default = np.asarray(START, np.float64) if scene == "apartment" else np.zeros(3)  # the origin lies in the apartment's x = 0 wall
+        start = default if args.start is None else _floats(args.start, 3, "--start", "X,Y,YAW")
         ts = load_task_scene(scene, n_sigma=cfg.n_sigma, device=args.device, ground_below=None if cfg.ground_z is None else cfg.ground_z + cfg.ground_band)
         route = None
         if args.route:
@@ -101,7 +102,7 @@ def register(sub, eval_sub) -> None:
     s.add_argument("--scene", default=None, help="built-in scene name or a splat file (default tabletop for panda, apartment for go2); files without a .gt.json get a metric clearance")
     s.add_argument("--goal-pose", default=None, help="panda: X,Y,Z,QW,QX,QY,QZ end-effector goal (metres, wxyz world <- panda_hand_tcp)")
     s.add_argument("--goal", default=None, help="go2: X,Y goal of the base (metres); e.g. the final node of an RRT path")
-    s.add_argument("--start", default=None, help="start configuration: 7 joint values (panda, default home) or X,Y,YAW (go2, default 0,0,0)")
+    s.add_argument("--start", default=None, help="start configuration: 7 joint values (panda, default home) or X,Y,YAW (go2; default -2.3,-0.6,0 in the living room of apartment, the base study's start, else 0,0,0)")
     s.add_argument("--no-collision", action="store_true", help="switch the collision cost off (the baseline); every output says so")
     s.add_argument("--route", action="store_true", help="go2: plan a global RRT route on SE(2) first and track it (default: goal only)")
     s.add_argument("--route-time", type=float, default=60.0, help="go2 --route: RRT time budget in seconds (default 60)")
