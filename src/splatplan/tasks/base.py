@@ -262,7 +262,7 @@ class ObstacleMemory:
         self.sensed = np.zeros(self.shape, bool)  # (NX, NY) checked once
         self.blocked = np.zeros(self.shape, bool)  # (NX, NY) robot collides at every heading
         self.goal = np.asarray(goal, np.float64).reshape(-1)[:2].copy()
-        self.stats = {"n_sensed": 0, "n_blocked": 0, "n_queries": 0, "n_recomputes": 0, "sense_s": 0.0, "field_s": 0.0}
+        self.stats = {"n_sensed": 0, "n_blocked": 0, "n_queries": 0, "n_recomputes": 0, "sense_s": 0.0, "field_s": 0.0, "first_sense_s": None}
         self._recompute()
 
     # ---------------------------------------------------------------- sensing
@@ -289,6 +289,8 @@ class ObstacleMemory:
         self.stats["n_sensed"] += len(idx)
         self.stats["n_blocked"] += n_new
         self.stats["sense_s"] += time.perf_counter() - t0
+        if self.stats["first_sense_s"] is None:  # the whole disc at once: the one large sense
+            self.stats["first_sense_s"] = time.perf_counter() - t0
         if n_new:
             self._recompute()
         return n_new
