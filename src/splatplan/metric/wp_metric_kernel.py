@@ -41,6 +41,23 @@ found by several slab queries is used only by the query of its own slab. The sla
 far fewer splats than the ball's box (``n = 1`` is the plain ball); the result is the same set of
 splats, so the outputs are unchanged (sums up to float32 summation order).
 
+ROW_CLIP (full kernel). A splat with s2 > s2_cut = (rho / a_max)^2 is rejected anyway, so only the
+ellipsoid E = {p : (p - c)^T A (p - c) <= s2_cut} (intersected with the query's ball) can hold
+neighbours. For a row of cells (a tube y in [y0, y1], z in [z0, z1]) the x extent of E on the tube
+is [c_x + min m - h, c_x + max m + h] with m(dy, dz) = -(A_xy dy + A_xz dz) / A_xx (linear: its extremes
+are at the rectangle's corners) and h = sqrt((s2_cut - q_min) / A_xx), q_min the minimum over the
+rectangle of the yz Schur complement form q = [dy dz] (A_yz - b b^T / A_xx) [dy dz]^T (convex: 0 inside,
+else on an edge, where the 1-D minimiser is clamped); the row is skipped when q_min > s2_cut. The
+kernel reads only the cells of that x interval (also clipped to the ball), in rows holding more than
+``ROW_CLIP_MIN`` splats and only when no axis's cell range wrapped onto itself (else a cell does not
+stand for one unwrapped position). Margins: s2_cut grown by 2% and q_min shrunk by 2%, far above the
+float32 error of the Schur complement (about (a_max / a_min)^2 ulps) for links with a_max <= 50 a_min,
+the only ones clipped; the cell bounds are padded by 1% of a cell. The set of splats scanned shrinks,
+never the set with s2~ < cap, so the outputs are unchanged. It matters for elongated links near dense
+surfaces, whose axis-aligned boxes hold ~10x more splats than their ellipsoid (Panda links near the
+table: the full query ~1.5x faster). The collision-only kernel scans whole rows: its early exit keeps
+candidates cheap, and clipping measured slower there.
+
 Launch position and query index differ when the glue sorts a batch (Morton order of the centres,
 ``LinkBatch.order``): neighbouring threads then read neighbouring splats; every output is still
 written at the query's own index, so results do not depend on the order.
@@ -67,6 +84,15 @@ NO_BAD = 2147483647
 MAX_SLABS = wp.constant(4)
 #: Relative slack of a slab's ball radius against float32 rounding of the slab assignment.
 SLAB_SLACK = wp.constant(1.001)
+#: Row clipping (ROW_CLIP in the module docstring) only for links with a_max / a_min up to this:
+#: the float32 Schur complement loses about (a_max / a_min)^2 ulps, which the margins below cover.
+ROW_CLIP_MAX_RATIO = wp.constant(50.0)
+#: Margins of the clipped rows against float32 rounding: the ellipsoid's level is grown by 2% and the
+#: tube's smallest level q shrunk by 2%, which is larger than 2 (a_max / a_min)^2 ulps for ratio <= 50.
+ROW_S_GROW = wp.constant(1.02)
+ROW_Q_SHRINK = wp.constant(0.98)
+#: Rows holding at most this many splats are scanned whole (clipping costs more than it saves).
+ROW_CLIP_MIN = wp.constant(8)
 
 
 @wp.func
@@ -196,14 +222,105 @@ def link_s2(d: wp.vec3, dd: float, link_a: wp.mat33, sphere: bool, inv_r2: float
 
 @wp.func
 def cell_range(v: float, r: float, inv_w: float, dim: int, c_lo: int, c_hi: int):
-    """(first cell, number of cells <= dim; 0 = none) along one axis covering [v - r, v + r] (Warp's
-    hash-grid rule) within the cells [c_lo, c_hi] that hold the tier's splats: no wrapped-around cell
-    beyond the tier's extent is read."""
+    """(first cell, number of cells <= dim; 0 = none, complete) along one axis covering [v - r, v + r]
+    (Warp's hash-grid rule) within the cells [c_lo, c_hi] that hold the tier's splats: no wrapped-around
+    cell beyond the tier's extent is read. ``complete``: the range needs at most ``dim`` cells, so it
+    does not wrap onto itself and every visited cell stands for one unwrapped cell index."""
     lo = int(wp.clamp(wp.floor((v - r) * inv_w), -1.0e9, 1.0e9))
     hi = int(wp.clamp(wp.floor((v + r) * inv_w), -1.0e9, 1.0e9))
     lo = wp.max(lo, c_lo)
     hi = wp.min(hi, c_hi)
-    return lo, wp.max(wp.min(hi - lo + 1, dim), 0)
+    return lo, wp.max(wp.min(hi - lo + 1, dim), 0), hi - lo + 1 <= dim
+
+
+@wp.func
+def row_bounds(yy: int, zz: int, inv_w: float):
+    """World y and z intervals of the unwrapped cell row (yy, zz), padded for float32 rounding of
+    the cell rule floor(p * inv_w) (1% of a cell plus a relative ulp margin)."""
+    py = 0.01 + 1.0e-6 * wp.abs(float(yy))
+    pz = 0.01 + 1.0e-6 * wp.abs(float(zz))
+    w = 1.0 / inv_w
+    return (float(yy) - py) * w, (float(yy) + 1.0 + py) * w, (float(zz) - pz) * w, (float(zz) + 1.0 + pz) * w
+
+
+@wp.func
+def schur_form(a: wp.mat33):
+    """(1 / a_xx, a_xy, a_xz) and the yz Schur complement (c_yy, c_yz, c_zz) of the link matrix, for :func:`row_x_span`."""
+    inv_axx = 1.0 / a[0, 0]
+    bxy = a[0, 1]
+    bxz = a[0, 2]
+    e1 = wp.vec3(inv_axx, bxy, bxz)
+    e2 = wp.vec3(a[1, 1] - bxy * bxy * inv_axx, a[1, 2] - bxy * bxz * inv_axx, a[2, 2] - bxz * bxz * inv_axx)
+    return e1, e2
+
+
+@wp.func
+def run_count(cell_start: wp.array(dtype=wp.int32), row: int, x0: int, n: int, dim: int):
+    """Number of splats in the n cells of a row from wrapped cell x0 on (wrapping like the scan)."""
+    x1 = x0 + n - 1
+    if x1 < dim:
+        return cell_start[row + x1 + 1] - cell_start[row + x0]
+    return cell_start[row + dim] - cell_start[row + x0] + cell_start[row + x1 - dim + 1] - cell_start[row]
+
+
+@wp.func
+def x_cell(x: float, inv_w: float, side: float):
+    """Unwrapped x cell of a span end, moved outwards (side -1: low end, +1: high end) by the float32
+    margin of :func:`row_bounds`."""
+    v = x * inv_w
+    return int(wp.clamp(wp.floor(v + side * (0.01 + 1.0e-6 * wp.abs(v))), -1.0e9, 1.0e9))
+
+
+@wp.func
+def row_x_span(c: wp.vec3, e1: wp.vec3, e2: wp.vec3, s_cut: float, cb: wp.vec3, rb: float, y0: float, y1: float, z0: float, z1: float, ball_only: bool):
+    """(x_lo, x_hi) world x interval holding every point p of the tube y in [y0, y1], z in [z0, z1]
+    with (p - c)^T a (p - c) <= s_cut (the link's s2 <= s2_cut ellipsoid) and |p - cb| <= rb (the
+    query ball); x_lo > x_hi when the tube misses either (see ROW_CLIP in the module docstring)."""
+    # ball: the tube's nearest point to cb in y and z
+    ey = wp.max(wp.max(y0 - cb[1], cb[1] - y1), 0.0)
+    ez = wp.max(wp.max(z0 - cb[2], cb[2] - z1), 0.0)
+    r2 = rb * rb - ey * ey - ez * ez
+    if r2 < 0.0:
+        return 1.0, 0.0
+    hb = wp.sqrt(r2)
+    if ball_only:  # a sphere link: its s2 <= s2_cut ellipsoid is the ball itself
+        return cb[0] - hb, cb[0] + hb
+    # ellipsoid: x = c_x + m(dy, dz) +- sqrt((s - q(dy, dz)) / a_xx), m linear, q the Schur complement form
+    inv_axx = e1[0]
+    bxy = e1[1]
+    bxz = e1[2]
+    cyy = e2[0]
+    cyz = e2[1]
+    czz = e2[2]
+    dy0 = y0 - c[1]
+    dy1 = y1 - c[1]
+    dz0 = z0 - c[2]
+    dz1 = z1 - c[2]
+    qmin = float(0.0)
+    if not (dy0 <= 0.0 and dy1 >= 0.0 and dz0 <= 0.0 and dz1 >= 0.0):
+        # the convex q has its minimum (0 at the centre) outside the rectangle: on an edge
+        qmin = float(wp.inf)
+        for e in range(2):
+            dy = dy0
+            if e == 1:
+                dy = dy1
+            dz = wp.clamp(-cyz * dy / czz, dz0, dz1)
+            qmin = wp.min(qmin, cyy * dy * dy + 2.0 * cyz * dy * dz + czz * dz * dz)
+            dz = dz0
+            if e == 1:
+                dz = dz1
+            dy = wp.clamp(-cyz * dz / cyy, dy0, dy1)
+            qmin = wp.min(qmin, cyy * dy * dy + 2.0 * cyz * dy * dz + czz * dz * dz)
+        qmin = wp.max(qmin * ROW_Q_SHRINK, 0.0)
+    s = s_cut * ROW_S_GROW
+    if qmin > s:
+        return 1.0, 0.0
+    h = wp.sqrt((s - qmin) * inv_axx)
+    m_lo = -(wp.max(bxy * dy0, bxy * dy1) + wp.max(bxz * dz0, bxz * dz1)) * inv_axx
+    m_hi = -(wp.min(bxy * dy0, bxy * dy1) + wp.min(bxz * dz0, bxz * dz1)) * inv_axx
+    x_lo = wp.max(c[0] + m_lo - h, cb[0] - hb)
+    x_hi = wp.min(c[0] + m_hi + h, cb[0] + hb)
+    return x_lo, x_hi
 
 
 @wp.func
@@ -303,6 +420,8 @@ def metric_full_kernel(
     a_max = wp.max(ax)
     a_mid = ax[0] + ax[1] + ax[2] - a_min - a_max
     n_slab, u = link_slabs(rot, ax, a_mid, a_max)
+    clip_ok = a_max <= ROW_CLIP_MAX_RATIO * a_min  # rows clipped to the link's ellipsoid (ROW_CLIP)
+    e1, e2 = schur_form(a)
     k_long = int(0)  # the long axis (the slabs' axis u)
     if ax[1] == a_max:
         k_long = 1
@@ -347,18 +466,33 @@ def metric_full_kernel(
         c_hi = splats.cell_hi[j]
         for sl in range(n_slab):
             cq = c + u * (-span + (float(sl) + 0.5) * w)
-            xs, nx = cell_range(cq[0], r_x, inv_w, dim[0], c_lo[0], c_hi[0])
-            ys, ny = cell_range(cq[1], r_y, inv_w, dim[1], c_lo[1], c_hi[1])
-            zs, nz = cell_range(cq[2], r_z, inv_w, dim[2], c_lo[2], c_hi[2])
-            x0 = wrap(xs, dim[0])
-            x1 = x0 + nx - 1  # cells x0..x1 of a row, wrapping past dim[0] - 1 into a second run
-            n_run = 1
-            if x1 >= dim[0]:
-                n_run = 2
+            xs, nx, fx = cell_range(cq[0], r_x, inv_w, dim[0], c_lo[0], c_hi[0])
+            ys, ny, fy = cell_range(cq[1], r_y, inv_w, dim[1], c_lo[1], c_hi[1])
+            zs, nz, fz = cell_range(cq[2], r_z, inv_w, dim[2], c_lo[2], c_hi[2])
+            clip = clip_ok and fx and fy and fz
+            x0s = wrap(xs, dim[0])
             for iz in range(nz):
                 z = wrap(zs + iz, dim[2])
                 for iy in range(ny):
                     row = cb + (z * dim[1] + wrap(ys + iy, dim[1])) * dim[0]
+                    xa = int(0)  # cells xs + xa .. xs + xb of this row (unwrapped)
+                    xb = nx - 1
+                    if clip and run_count(splats.cell_start, row, x0s, nx, dim[0]) > ROW_CLIP_MIN:
+                        y0, y1, z0, z1 = row_bounds(ys + iy, zs + iz, inv_w)
+                        xl, xh = row_x_span(c, e1, e2, s2_cut, cq, r_sub, y0, y1, z0, z1, sphere)
+                        if xl > xh:
+                            continue
+                        xa = wp.max(xa, x_cell(xl, inv_w, -1.0) - xs)
+                        xb = wp.min(xb, x_cell(xh, inv_w, 1.0) - xs)
+                        if xb < xa:
+                            continue
+                    x0 = x0s + xa
+                    if x0 >= dim[0]:
+                        x0 -= dim[0]
+                    x1 = x0 + xb - xa  # cells x0..x1 of a row, wrapping past dim[0] - 1 into a second run
+                    n_run = 1
+                    if x1 >= dim[0]:
+                        n_run = 2
                     for run in range(n_run):
                         a0 = x0
                         a1 = wp.min(x1, dim[0] - 1)
@@ -464,9 +598,10 @@ def metric_collide_kernel(
             r_x = wp.min(rho, box_reach(rot, h, 0))
             r_y = wp.min(rho, box_reach(rot, h, 1))
             r_z = wp.min(rho, box_reach(rot, h, 2))
-        xs, nx = cell_range(c[0], r_x, inv_w, dim[0], c_lo[0], c_hi[0])
-        ys, ny = cell_range(c[1], r_y, inv_w, dim[1], c_lo[1], c_hi[1])
-        zs, nz = cell_range(c[2], r_z, inv_w, dim[2], c_lo[2], c_hi[2])
+        xs, nx, _fx = cell_range(c[0], r_x, inv_w, dim[0], c_lo[0], c_hi[0])
+        ys, ny, _fy = cell_range(c[1], r_y, inv_w, dim[1], c_lo[1], c_hi[1])
+        zs, nz, _fz = cell_range(c[2], r_z, inv_w, dim[2], c_lo[2], c_hi[2])
+        # whole rows (no ROW_CLIP): the early exit keeps candidates cheap here, and clipping measured slower
         x0 = wrap(xs, dim[0])
         x1 = x0 + nx - 1
         n_run = 1
