@@ -16,7 +16,8 @@ n_sigma = 0.75 (:class:`~splatplan.tasks.base.BaseConfig`; at 1 the 0.8 m living
 admits no collision-free pose); the reported clearance is the exact one to the boxes.
 
 ``run_base_study(out)`` writes ``base.json`` (same row fields as the arm study, plus the time to
-goal) and ``base.md``.
+goal; ``rows_meaning`` says what each row is, ``memory_cost`` the time spent sensing and on the
+geodesic field) and ``base.md``.
 """
 
 from __future__ import annotations
