@@ -117,3 +117,32 @@ def test_reach_rejects_zero_plan_starts():
 
     with pytest.raises(SplatplanError, match="plan_starts"):
         run_reach("panda", "tabletop", np.zeros((8, 8, 3), np.float32), config=ReachConfig(plan_starts=0))
+
+
+def test_goal_refiner_ill_conditioned_quadratic():
+    """The refiner keeps the plan unless a sample beats it (monotone), and its covariance follows a
+    narrow valley: on a 7-D quadratic with condition number 1e4 it gets 1e-3 of the start cost."""
+    from splatplan.tasks.reach import GoalRefiner
+
+    rng = np.random.default_rng(3)
+    rot = np.linalg.qr(rng.standard_normal((7, 7)))[0]
+    scale = np.logspace(0, 4, 7)
+
+    def f(x):  # (K, 7) -> (K,)
+        return np.sum(scale * (x @ rot.T) ** 2, axis=-1)
+
+    x = rot.T @ (0.05 / np.sqrt(scale)) * 10.0  # off the minimum along every axis
+    f0 = prev = float(f(x[None])[0])
+    ref = GoalRefiner(7, 32, 0.05, rng=np.random.default_rng(0))
+    for _ in range(150):
+        d = ref.sample()
+        assert d.shape == (32, 7) and np.all(d[0] == 0.0)
+        b = ref.update(d, f(x[None] + d))
+        x = x + d[b]
+        cur = float(f(x[None])[0])
+        assert cur <= prev
+        prev = cur
+    assert prev < 1e-3 * f0
+    assert abs(np.linalg.det(ref.cov) - 1.0) < 1e-6
+    with pytest.raises(SplatplanError, match="GoalRefiner"):
+        GoalRefiner(7, 1, 0.05)

@@ -102,6 +102,21 @@ class ReachConfig:
     final_steps: int = 0
     #: MPPI iterations per step over the last final_steps steps
     final_iters: int = 3
+    #: goal-state refinement (:class:`GoalRefiner`): iterations per MPC step whose K samples move
+    #: only the plan's state at the goal time, by joint offsets (a constant velocity offset on every
+    #: knot); the cheapest sample (the plan itself among them) is kept
+    refine_iters: int = 0
+    #: refinement iterations after the initial plan (before the first control)
+    refine_plan_iters: int = 0
+    #: initial std of those joint offsets (rad); it grows x refine_grow after an improving
+    #: iteration and shrinks x refine_shrink otherwise, within [refine_sigma_min, refine_sigma]
+    refine_sigma: float = 0.05
+    #: lower bound of the refinement std (rad)
+    refine_sigma_min: float = 0.002
+    #: growth of the refinement std after an improvement
+    refine_grow: float = 1.5
+    #: shrink of the refinement std after an iteration without improvement
+    refine_shrink: float = 0.6
     #: joint velocity bound as a fraction of the robot's velocity limits
     velocity_scale: float = 0.6
     #: rendered image side (pixels, square)
@@ -236,6 +251,63 @@ class _UntilGoal:
 
     def __call__(self, rollout) -> np.ndarray:
         return np.sum(list(self.terms(rollout).values()), axis=0)
+
+
+class GoalRefiner:
+    """Elitist evolution strategy with covariance adaptation for the plan's goal-time state.
+
+    Each iteration samples K offsets ``d_k = sigma A z_k`` (``A A^T = C``, ``z_k ~ N(0, I)``, row 0 =
+    0: the current plan), and :meth:`update` keeps the cheapest (so the plan never gets worse), adapts
+    ``sigma`` to success (x ``grow`` after an improvement, x ``shrink`` otherwise, within
+    [``sigma_min``, ``sigma``]) and C with the rank-one and rank-mu updates of CMA-ES (Hansen, "The
+    CMA Evolution Strategy: A Tutorial", 2016) from the mu = K / 4 best offsets, normalised to
+    det C = 1. Near the goal the image cost is a narrow valley (translating the camera while turning
+    it to keep looking at the same point barely changes the view): an isotropic search then only
+    accepts tiny steps, the learned C stretches the samples along the valley.
+    """
+
+    def __init__(self, dim: int, n_samples: int, sigma: float, *, sigma_min: float = 0.002, grow: float = 1.5, shrink: float = 0.6, rng=None) -> None:
+        if n_samples < 2 or not sigma > 0:
+            raise SplatplanError(f"GoalRefiner needs n_samples >= 2 and sigma > 0, got {n_samples} and {sigma}")
+        self.dim, self.n_samples = int(dim), int(n_samples)
+        self.sigma_max, self.sigma_min = float(sigma), float(min(sigma_min, sigma))
+        self.sigma, self.grow, self.shrink = float(sigma), float(grow), float(shrink)
+        self.rng = rng if rng is not None else np.random.default_rng(0)
+        self.cov = np.eye(self.dim)  # (dim, dim) search shape, det 1
+        self.path = np.zeros(self.dim)  # evolution path of the selected steps
+        self.mu = max(1, (self.n_samples - 1) // 4)
+        w = np.log(self.mu + 0.5) - np.log(np.arange(1, self.mu + 1))
+        self.weights = w / w.sum()  # (mu,) recombination weights, best first
+        self.mu_eff = 1.0 / float(np.sum(self.weights**2))
+        n, me = self.dim, self.mu_eff
+        self.c_path = 4.0 / (n + 4.0)
+        self.c_one = 2.0 / ((n + 1.3) ** 2 + me)
+        self.c_mu = min(1.0 - self.c_one, 2.0 * (me - 2.0 + 1.0 / me) / ((n + 2.0) ** 2 + me))
+        self._y = np.zeros((self.n_samples, self.dim))
+
+    def sample(self) -> np.ndarray:
+        """(K, dim) offsets; row 0 is 0."""
+        a = np.linalg.cholesky(self.cov)
+        self._y = self.rng.standard_normal((self.n_samples, self.dim)) @ a.T  # (K, dim) in units of sigma
+        self._y[0] = 0.0
+        return self.sigma * self._y
+
+    def update(self, offsets: np.ndarray, costs: np.ndarray) -> int:
+        """Costs (K,) of the last :meth:`sample`'s offsets -> index of the sample to keep (0 = the plan)."""
+        c = np.where(np.isfinite(costs), np.asarray(costs, np.float64), np.inf)
+        order = np.argsort(c, kind="stable")
+        best = int(order[0]) if c[order[0]] < c[0] else 0
+        sel = np.array([i for i in order if i != 0][: self.mu])
+        if np.all(np.isfinite(c[sel])):
+            y = self._y[sel]  # (mu, dim)
+            cp = self.c_path
+            self.path = (1.0 - cp) * self.path + np.sqrt(cp * (2.0 - cp) * self.mu_eff) * (self.weights @ y)
+            cov = (1.0 - self.c_one - self.c_mu) * self.cov + self.c_one * np.outer(self.path, self.path) + self.c_mu * np.einsum("i,ij,ik->jk", self.weights, y, y)
+            ev = np.linalg.eigvalsh(cov)
+            if ev[0] > 0:
+                self.cov = cov / np.exp(np.mean(np.log(ev)))
+        self.sigma = float(np.clip(self.sigma * (self.grow if best else self.shrink), self.sigma_min, self.sigma_max))
+        return best
 
 
 def wrist_camera(robot, image_size: int = 64, fov_deg: float = 70.0, link: str = "panda_hand_tcp"):
@@ -457,6 +529,16 @@ def run_reach(
             mppi.reset(info.nominal_knots)
             return info, anneal(float(np.min(image_cost.last_raw)))
 
+        refiner = GoalRefiner(robot.dof, cfg.n_samples, cfg.refine_sigma, sigma_min=cfg.refine_sigma_min, grow=cfg.refine_grow, shrink=cfg.refine_shrink, rng=np.random.default_rng([cfg.seed, 1]))
+
+        def refine(n: int, m: int) -> None:
+            """n refinement iterations of the plan's state at the goal time (m controls ahead): offset d_k
+            moves it through the knot offset d_k / (m dt) (the B-spline basis sums to 1)."""
+            for _ in range(n):
+                d = refiner.sample()  # (K, 7) rad, row 0 = 0 (the plan itself)
+                samples = np.clip(mppi.knots[None] + d[:, None, :] / (m * cfg.dt), -vmax, vmax)  # (K, n_knots, 7)
+                mppi.reset(samples[refiner.update(d, mppi.evaluate(q, samples)[0])])
+
         done = 0
         if cfg.plan_starts > 1:
             # multi-start: several short plans from zero velocity, each with its own noise; the best continues
@@ -479,10 +561,17 @@ def run_reach(
             info, progress_scale = plan_chunk(chunk, progress_scale)
             done += chunk
         iters += done
+        if cfg.refine_plan_iters > 0:
+            image_cost.time_index = cfg.horizon - 1
+            refine(cfg.refine_plan_iters, cfg.horizon)
+            iters += cfg.refine_plan_iters
         for s in range(cfg.horizon):
             mppi.config.temperature = cfg.temperature if s == 0 or cfg.track_temperature is None else cfg.track_temperature
             image_cost.time_index = cfg.horizon - 1 - s  # the goal time stays at T
             until_goal.n_steps = cfg.horizon - s  # the rollout's tail beyond the goal time is never executed
+            if s > 0 and cfg.refine_iters > 0:
+                refine(cfg.refine_iters, cfg.horizon - s)
+                iters += cfg.refine_iters
             mppi.config.n_iters = cfg.plan_iters - done if s == 0 else (cfg.final_iters if s >= cfg.horizon - cfg.final_steps else cfg.iters_per_step)
             mppi.sigma = sigma0 * progress_scale * (cfg.noise_final + (1.0 - cfg.noise_final) * (cfg.horizon - s) / cfg.horizon)
             u, info = mppi.step(q)
