@@ -1,5 +1,7 @@
 """The Go2 base planner's sensed-obstacle memory (``BaseConfig.memory``): the occupancy grid, the
-geodesic field against its slow reference, and a U-trap that only the memory gets out of."""
+geodesic field against its slow reference, the sensor's line of sight (against a dense-sampling
+and a metric reference; a wall hides what is behind it until the base drives around it), and a
+U-trap that only the memory gets out of."""
 
 from __future__ import annotations
 
@@ -40,7 +42,7 @@ def test_grid_marks_a_wall_blocked_and_free_space_free(go2):
 
     ts = _scene([(1.0, -1.5, 1.0, 1.5)])  # a wall along y at x = 1
     lo, hi = ts.splats.bounds()
-    mem = ObstacleMemory(go2, ts.checker, lo, hi, goal=(2.5, 0.0), cell=0.1, radius=2.0)
+    mem = ObstacleMemory(go2, ts.checker, lo, hi, goal=(2.5, 0.0), cell=0.1, radius=2.0, occlusion=False)  # the whole disc
     assert not mem.blocked.any() and not mem.sensed.any()  # unknown = free
     field0 = mem.field.copy()
     assert mem.sense(np.array([0.0, 0.0])) > 0
@@ -108,3 +110,72 @@ def test_memory_escapes_a_u_trap_that_plain_mppi_does_not(go2):
     assert not plain.success and plain.final_position_error_m > 1.0 and plain.min_clearance_m > 0
     assert mem.success and mem.min_clearance_m > 0, (mem.final_position_error_m, mem.min_clearance_m)
     assert mem.extra["memory"]["n_blocked"] > 0 and mem.extra["memory"]["sense_s"] < mem.time_s
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_line_of_sight_matches_dense_sampling_of_the_segment(seed):
+    from splatplan.tasks.base import line_of_sight
+
+    rng = np.random.default_rng(seed)
+    opaque = rng.random((30, 24)) < rng.uniform(0.02, 0.15)  # (MX, MY) squares of res
+    origin, res = rng.uniform(-1, 1, 2), 0.05
+    size = np.array(opaque.shape) * res
+    p0 = origin + rng.uniform(0.1, 0.9, 2) * size
+    p1 = origin + rng.uniform(-0.1, 1.1, (200, 2)) * size  # some end outside the grid (clear there)
+    end = [0.0, 0.1, 0.07, 0.3][seed]
+    fast = line_of_sight(opaque, origin, res, p0, p1, end=end)
+    ref = []
+    for q in p1:
+        L = np.linalg.norm(q - p0)
+        t = np.linspace(0.0, 1.0 - end / L, 4000) if L > end else np.zeros(0)
+        ij = np.floor((p0 + t[:, None] * (q - p0) - origin) / res).astype(int)
+        ok = (ij >= 0).all(1) & (ij < opaque.shape).all(1)
+        ref.append(not opaque[ij[ok, 0], ij[ok, 1]].any())
+    ref = np.asarray(ref)
+    assert not (fast & ~ref).any()  # every sampled point of a visible segment lies in a clear square
+    assert (fast == ref).mean() >= 0.97, (fast == ref).mean()  # the rest: corner clips between samples
+    assert line_of_sight(np.ones((4, 4), bool), (0.0, 0.0), 0.05, (0.1, 0.1), np.array([[0.12, 0.1], [0.18, 0.1]]), end=0.05).tolist() == [True, False]
+
+
+def test_line_of_sight_is_conservative_against_the_metric_along_the_segment(go2):
+    from splatplan.tasks.base import ObstacleMemory, _line_of_sight_reference, line_of_sight
+
+    ts = _scene([(1.0, -1.5, 1.0, 1.5), (-1.0, 0.8, -0.2, 0.8)])
+    lo, hi = ts.splats.bounds()
+    mem = ObstacleMemory(go2, ts.checker, lo, hi, goal=(2.5, 0.0), cell=0.1, radius=2.5)
+    rng = np.random.default_rng(1)
+    p0, tg = np.array([0.0, 0.3]), rng.uniform([-1.5, -2.0], [2.2, 2.0], (120, 2))
+    mem._sense_opacity(p0, 3.0)
+    fast = line_of_sight(mem.opaque, mem.origin, mem.sight_res, p0, tg, end=mem.cell)
+    ref = _line_of_sight_reference(ts.checker, mem.sensor_height, p0, tg, end=mem.cell)
+    assert not (fast & ~ref).any()  # visible implies the metric finds every point of the segment free
+    assert (fast == ref).mean() >= 0.9 and 10 < fast.sum() < len(tg) - 10, ((fast == ref).mean(), fast.sum())
+
+
+def test_a_wall_hides_the_cells_behind_it_until_the_base_drives_around_it(go2):
+    from splatplan.tasks.base import ObstacleMemory
+
+    ts = _scene([(1.0, -1.5, 1.0, 1.5)])  # a wall along y at x = 1, y in [-1.5, 1.5]
+    lo, hi = ts.splats.bounds()
+    mem = ObstacleMemory(go2, ts.checker, lo, hi, goal=(2.5, 0.0), cell=0.1, radius=2.0)
+    at = lambda x, y: tuple(np.floor((np.array([x, y]) - mem.origin) / mem.cell).astype(int))  # noqa: E731
+    mem.sense(np.array([0.0, 0.0]))
+    assert mem.sensed[at(-1.0, 1.0)] and not mem.blocked[at(-1.0, 1.0)] and mem.sensed[at(0.5, -1.0)]  # in the open: sensed
+    assert not mem.sensed[at(1.5, 0.0)] and not mem.sensed[at(1.8, 0.5)] and not mem.blocked[1 + at(1.0, 0.0)[0] :].any()  # behind the wall: unknown
+    # the wall's near side is seen: on every row along the wall a blocked cell in front of it, so the field goes around
+    rows = range(at(0.0, -1.4)[1], at(0.0, 1.4)[1] + 1)
+    assert all(mem.blocked[at(0.7, 0.0)[0] : at(1.0, 0.0)[0] + 1, j].any() for j in rows)
+    assert mem.distance(np.array([0.0, 0.0])) > np.linalg.norm([2.5, 0.0]) + 1.0
+    n_unseen = int((~mem.sensed & (np.linalg.norm(mem.centers, axis=-1) <= 2.0)).sum())
+    assert n_unseen > 50 and mem.stats["n_occluded"] == n_unseen
+    q = mem.stats["n_queries"]
+    mem.sense(np.array([0.0, 0.0]))  # nothing new in sight: no robot queries (the hidden cells are only ray-tested)
+    assert mem.stats["n_queries"] == q and mem.stats["n_occluded"] == 2 * n_unseen
+    for y in np.arange(0.0, 2.3, 0.4):  # drive up past the wall's end and around it
+        mem.sense(np.array([0.0, y]))
+    assert not mem.sensed[at(1.5, 0.0)]
+    for x in np.arange(0.4, 2.0, 0.4):
+        mem.sense(np.array([x, 2.2]))
+    mem.sense(np.array([1.8, 1.0]))
+    assert mem.sensed[at(1.5, 0.0)] and mem.sensed[at(1.8, 0.5)] and not mem.blocked[at(1.8, 0.5)]
+    assert mem.blocked[at(1.2, 0.0)]  # and now the far side of the wall

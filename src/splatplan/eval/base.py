@@ -10,14 +10,14 @@ straight line to the kitchen goals runs into the 0.25 m living-kitchen doorway (
 Go2), a trap that the local planner (:mod:`splatplan.tasks.base`) must get out of through the
 0.8 m doorway near the outer wall or through the bedroom. Plain MPPI does not (the kitchen goals
 fail with and without the optional stagnation sweeps); with the memory, the goal cost follows the
-geodesic distance on the cells sensed so far (unknown = free), and the base learns the walls
-where it drives near them. The base's metric runs at
+geodesic distance on the cells sensed so far (unknown = free) that were in the sensor's line of
+sight (``BaseConfig.sensor_occlusion``), and the base learns the walls where it sees them. The base's metric runs at
 n_sigma = 0.75 (:class:`~splatplan.tasks.base.BaseConfig`; at 1 the 0.8 m living-kitchen doorway
 admits no collision-free pose); the reported clearance is the exact one to the boxes.
 
 ``run_base_study(out)`` writes ``base.json`` (same row fields as the arm study, plus the time to
-goal; ``rows_meaning`` says what each row is, ``memory_cost`` the time spent sensing and on the
-geodesic field) and ``base.md``.
+goal; ``rows_meaning`` says what each row is, ``memory_cost`` the time spent sensing (of it
+``sight_s`` on the line of sight) and on the geodesic field) and ``base.md``.
 """
 
 from __future__ import annotations
@@ -35,7 +35,7 @@ from ._common import config_rows, mean_std, write_atomic
 #: The rows: config name -> (collision cost, memory, what the row is).
 CONFIGS = {
     "with_collision": (True, False, "plain MPPI with the collision cost, straight-line goal term (shows the local minimum)"),
-    "with_collision_memory": (True, True, "the same plus the sensed-obstacle memory: geodesic goal term on the cells sensed within sensor_radius_m (the target row)"),
+    "with_collision_memory": (True, True, "the same plus the sensed-obstacle memory: geodesic goal term on the cells sensed within sensor_radius_m and in line of sight (the target row)"),
     "without_collision": (False, False, "no collision cost (baseline: drives through the walls)"),
 }
 
@@ -87,7 +87,8 @@ def run_base_study(out_dir, quick: bool = False, seed: int = 0, device: str | No
                 "success": r.success, "min_clearance_m": r.min_clearance_m, "final_error_m": r.final_position_error_m,
                 "time_to_goal_s": r.extra["time_to_goal_s"] if r.success else None, "n_steps": r.extra["n_steps"],
                 "time_s": r.time_s, "steps_per_s": r.steps_per_s, "n_detours": sum(e["event"] == "detour" for e in r.extra["events"]),
-                "memory": {k: mem[k] for k in ("n_sensed", "n_blocked", "n_queries", "n_recomputes", "sense_s", "first_sense_s", "field_s")} if mem else None,
+                "memory": {k: mem.get(k) for k in ("n_sensed", "n_blocked", "n_queries", "n_recomputes", "sense_s", "first_sense_s", "field_s",
+                                                    "occlusion", "n_rays", "n_occluded", "n_opacity_queries", "sight_s")} if mem else None,
             })  # fmt: skip
             print(f"  goal {i} {g.round(2).tolist()} {name:22s}: distance {r.final_position_error_m:.2f} m, clearance {r.min_clearance_m * 100:+.1f} cm, "
                   f"{'reached' if r.success else 'not reached'}, {r.extra['n_steps']} steps, {r.steps_per_s:.2f} steps/s", flush=True)  # fmt: skip
@@ -99,6 +100,7 @@ def run_base_study(out_dir, quick: bool = False, seed: int = 0, device: str | No
     mt = [x for x in trials if x["memory"]]
     sensing = {
         "sense_s": float(sum(x["memory"]["sense_s"] for x in mt)), "first_sense_s": float(sum(x["memory"]["first_sense_s"] or 0.0 for x in mt)), "field_s": float(sum(x["memory"]["field_s"] for x in mt)),
+        "sight_s": float(sum(x["memory"].get("sight_s") or 0.0 for x in mt)), "occlusion": bool(cfg.sensor_occlusion), "sensor_height_m": float(cfg.sensor_height_m),
         "run_s": float(sum(x["time_s"] for x in mt)), "n_steps": int(sum(x["n_steps"] for x in mt)),
     }  # fmt: skip
     result = {
@@ -119,7 +121,8 @@ def run_base_study(out_dir, quick: bool = False, seed: int = 0, device: str | No
     if sensing["run_s"] > 0:
         md.append(f"- memory cost over the `with_collision_memory` runs: sensing {sensing['sense_s']:.1f} s + geodesic field {sensing['field_s']:.1f} s "
                   f"of {sensing['run_s']:.1f} s ({100 * (sensing['sense_s'] + sensing['field_s']) / sensing['run_s']:.0f} %, {sensing['n_steps']} MPC steps; "
-                  f"the first sense of each run, the whole disc, {sensing['first_sense_s']:.1f} s of it)")  # fmt: skip
+                  f"the first sense of each run, the whole disc, {sensing['first_sense_s']:.1f} s of it"
+                  + (f"; line of sight at z = {sensing['sensor_height_m']:.2f} m, {sensing['sight_s']:.1f} s of the sensing)" if sensing["occlusion"] else "; no occlusion: senses through walls)"))  # fmt: skip
     write_atomic(out_dir / "base.md", "\n".join(md) + "\n")
     print("\n".join(md))
     return result
