@@ -37,8 +37,11 @@ from the goal and the collision checks near the base only (no prior map, no rout
   navigation stacks get out of local minima with no prior map (the freespace assumption of D*
   Lite in unknown terrain). The base keeps a coarse occupancy grid (``memory_cell_m``) of the
   scene box, *unknown = free* at the start; every MPC step it senses the cells within
-  ``sensor_radius_m`` that it has not sensed before (blocked: the Go2 collides there at every one
-  of ``memory_yaws`` headings; batched ``collides_robot`` calls, memoised). The goal terms d_t
+  ``sensor_radius_m`` that it has not sensed before and that are in its line of sight
+  (``sensor_occlusion``, on by default: like a 2D lidar at ``sensor_height_m``, the segment to the
+  cell is free of scene surfaces by the metric up to one cell before the cell's centre; cells out
+  of sight stay unknown and are tried again every step) (blocked: the Go2 collides there at every
+  one of ``memory_yaws`` headings; batched ``collides_robot`` calls, memoised). The goal terms d_t
   above then read the **geodesic** distance to the goal on that grid (8-connected Dijkstra over
   the not-blocked cells, recomputed only when new cells are blocked, bilinear between cell
   centres) with an inflation layer (``memory_inflation_m``, ``memory_inflation_cost``: cells
@@ -47,9 +50,10 @@ from the goal and the collision checks near the base only (no prior map, no rout
   backed out); the heading term faces the field's descent, and the structured drives switch to
   following that descent (streamlines) instead of the bearing to the goal, plus two pure
   followers. The collision cost is unchanged: the field only shapes the goal cost. The sensor
-  has no occlusion (it senses through a wall within the radius) and nothing beyond it; no map of
-  the scene is built before driving. In the base study it reaches the two kitchen goals that
-  plain MPPI misses (5/5 against 3/5).
+  sees nothing beyond its radius nor behind a surface; no map of the scene is built before
+  driving. In the base study it reaches the two kitchen goals that plain MPPI misses (5/5 against
+  3/5; with the line of sight as without it, in 21-24 s against 16-17 s: the base learns less of
+  the wall ahead of time).
 
 **Conservatism.** The base runs the metric at ``n_sigma = 0.75``: at n_sigma = 1 the splats'
 inflation (about 0.13 m per side on the walls) leaves **no** collision-free pose of the Go2 (yaw 0)
@@ -447,8 +451,8 @@ def line_of_sight(opaque: np.ndarray, origin, res: float, p0, p1, end: float = 0
     squares it first enters within ``end`` metres of its end point (a segment no longer than
     ``end`` is always visible; squares outside the grid are clear).
 
-    Exact grid traversal (Amanatides & Woo, vectorised over the segments, one numpy step per
-    square crossed): every square the segment passes through is tested, so every point of a
+    Exact grid traversal (Amanatides & Woo, vectorised over the segments still running, one numpy
+    step per square crossed; a segment stops at its first opaque square or at the cut): every square the segment passes through is tested, so every point of a
     visible segment up to ``end`` before p1 lies in a clear square. A segment through a square's
     corner exactly visits one of the two side squares. Slow reference: :func:`_line_of_sight_reference`."""
     p0 = np.asarray(p0, np.float64).reshape(2)
@@ -465,20 +469,27 @@ def line_of_sight(opaque: np.ndarray, origin, res: float, p0, p1, end: float = 0
         t_max = np.where(d > 0, (cell + 1 - u0) / d, np.where(d < 0, (cell - u0) / d, np.inf))  # (C, 2) t of the next boundary
     mx, my = opaque.shape
 
-    def hits(c, active):
-        inside = active & (c[:, 0] >= 0) & (c[:, 0] < mx) & (c[:, 1] >= 0) & (c[:, 1] < my)
+    def hits(c):
+        inside = (c[:, 0] >= 0) & (c[:, 0] < mx) & (c[:, 1] >= 0) & (c[:, 1] < my)
         out = np.zeros(len(c), bool)
         out[inside] = opaque[c[inside, 0], c[inside, 1]]
         return out
 
-    blocked = hits(cell, t_end >= 0.0)  # the sensor's own square, entered at t = 0
-    for k in range(int(n_steps.max(initial=0))):
-        ax = (t_max[:, 1] < t_max[:, 0]).astype(np.int64)  # (C,) axis of the next boundary (x on ties)
-        rows = np.arange(len(d))
-        entry = t_max[rows, ax]  # (C,) t at which the next square is entered
+    blocked = hits(cell) & (t_end >= 0.0)  # (C,) the sensor's own square, entered at t = 0
+    act = np.flatnonzero(~blocked & (n_steps > 0))  # rays still running
+    cell, t_max, t_delta, step, t_end, n_left = cell[act], t_max[act], t_delta[act], step[act], t_end[act], n_steps[act]
+    while len(act):
+        rows = np.arange(len(act))
+        ax = (t_max[:, 1] < t_max[:, 0]).astype(np.int64)  # (A,) axis of the next boundary (x on ties)
+        entry = t_max[rows, ax]  # (A,) t at which the next square is entered
         cell[rows, ax] += step[rows, ax]
         t_max[rows, ax] += t_delta[rows, ax]
-        blocked |= hits(cell, (k < n_steps) & (entry <= t_end))
+        n_left = n_left - 1
+        live = entry <= t_end  # squares entered past the cut are not tested, nor any after them
+        hit = live & hits(cell)
+        blocked[act[hit]] = True
+        keep = live & ~hit & (n_left > 0)
+        act, cell, t_max, t_delta, step, t_end, n_left = act[keep], cell[keep], t_max[keep], t_delta[keep], step[keep], t_end[keep], n_left[keep]
     return ~blocked
 
 
