@@ -85,7 +85,8 @@ def test_tiny_reach_run(setup):
     res = run_reach(robot, ts, target, config=cfg, q0=q0, encoder=enc, renderer=rend, goal_camera_pose=t_goal)
     assert res.trajectory.shape == (cfg.horizon + 1, 7)
     extra_starts = (cfg.plan_starts - 1) * min(cfg.plan_start_iters, cfg.plan_iters - 1)  # multi-start initial plan
-    assert res.iterations == cfg.plan_iters + extra_starts + (cfg.horizon - 1) * cfg.iters_per_step
+    refinements = cfg.refine_plan_iters + (cfg.horizon - 1) * cfg.refine_iters  # goal-state refinement
+    assert res.iterations == cfg.plan_iters + extra_starts + refinements + (cfg.horizon - 1) * cfg.iters_per_step
     assert res.final_image.shape == (24, 24, 3) and len(res.views) >= 1
     assert np.isfinite(res.translation_error_m) and np.isfinite(res.rotation_error_deg)
     assert res.clearance_source == "analytic" and np.isfinite(res.min_clearance_m)
@@ -106,7 +107,8 @@ def test_multi_start_plan_and_elite(setup):
     cfg = ReachConfig(n_samples=8, horizon=5, n_knots=4, dt=0.1, plan_iters=4, image_size=24, n_views=0, n_splats=20_000, plan_starts=3, plan_start_iters=2, plan_chunk=1)
     res = run_reach(robot, ts, target, config=cfg, q0=q0, encoder=enc, renderer=rend)
     # every start runs plan_start_iters; the chosen one continues to plan_iters
-    assert res.iterations == cfg.plan_iters + (cfg.plan_starts - 1) * cfg.plan_start_iters + (cfg.horizon - 1) * cfg.iters_per_step
+    refinements = cfg.refine_plan_iters + (cfg.horizon - 1) * cfg.refine_iters
+    assert res.iterations == cfg.plan_iters + (cfg.plan_starts - 1) * cfg.plan_start_iters + refinements + (cfg.horizon - 1) * cfg.iters_per_step
     assert res.trajectory.shape == (cfg.horizon + 1, 7) and np.all(np.isfinite(res.trajectory))
     res2 = run_reach(robot, ts, target, config=replace(cfg, elite=True), q0=q0, encoder=enc, renderer=rend)
     assert res2.iterations == res.iterations and np.all(np.isfinite(res2.trajectory))

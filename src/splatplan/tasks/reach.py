@@ -12,8 +12,11 @@ Cost per sample (:mod:`splatplan.planners.costs`, :class:`~splatplan.planners.Im
   iteration**, plus ``w_empty`` x the fraction of the view showing no scene inside c (an empty view
   is constant, which a correlation-type embedding scores like a poor match). The log keeps MPPI
   weighing relative progress near the goal, where raw differences between samples vanish.
-  The default encoder ``thumbnail`` is here a 5-band Laplacian pyramid of 4..64 px thumbnails
-  (:func:`reach_encoder`): the coarse band gives the basin, the band-pass ones the precision;
+  The default encoder ``thumbnail`` is here a 2-band Laplacian pyramid of 4 and 8 px thumbnails
+  of the 64 px render (:func:`reach_encoder`). Area averaging makes it a smooth function of the
+  camera pose; finer bands (16..64 px) of these renders vary with every sub-pixel shift of the
+  splats' texture, which roughens the cost into look-alike minima a few centimetres off (the
+  4..64 px pyramid left one goal of the study 7 cm off and converged slowly on the others);
 * collision (optional: the "with / without collision cost" rows of Table IV): the
   CollisionSplatting cost of every robot ellipsoid, one ``query_robot``;
 * control effort and joint-limit penalty.
@@ -21,10 +24,13 @@ Cost per sample (:mod:`splatplan.planners.costs`, :class:`~splatplan.planners.Im
 
 Schedule (shrinking horizon, so that the goal time stays fixed): the initial plan starts
 ``plan_starts`` times from zero velocity with different noise seeds, ``plan_start_iters`` MPPI
-iterations each, and continues the lowest-cost one (the image cost's goal basin is narrow, a few
-centimetres: one start often settles in a look-alike view 7 cm off); the first MPC step runs
+iterations each, and continues the lowest-cost one; the first MPC step runs
 ``plan_iters`` MPPI iterations in all over the horizon T, in chunks of ``plan_chunk`` between which the
-knot noise anneals on image-cost progress (``noise_cost_ref``); then each MPC step applies the
+knot noise anneals on image-cost progress (``noise_cost_ref``), then ``refine_plan_iters``
+goal-state refinements (:class:`GoalRefiner`: samples that move only the plan's state at the goal
+time, with a learned covariance: near the goal the image cost is a narrow valley, camera
+translation traded against rotation, where isotropic knot noise only finds tiny improvements);
+each later MPC step starts with ``refine_iters`` refinements. Each MPC step applies the
 first control, shifts the knots (warm start; a constant velocity offset puts the plan's goal-time
 state back where it was, ``keep_goal_state``) and runs ``iters_per_step`` iterations at
 ``track_temperature`` (nearly greedy: the nominal is always a sample, so it is only replaced by a
@@ -105,9 +111,9 @@ class ReachConfig:
     #: goal-state refinement (:class:`GoalRefiner`): iterations per MPC step whose K samples move
     #: only the plan's state at the goal time, by joint offsets (a constant velocity offset on every
     #: knot); the cheapest sample (the plan itself among them) is kept
-    refine_iters: int = 0
+    refine_iters: int = 1
     #: refinement iterations after the initial plan (before the first control)
-    refine_plan_iters: int = 0
+    refine_plan_iters: int = 20
     #: initial std of those joint offsets (rad); it grows x refine_grow after an improving
     #: iteration and shrinks x refine_shrink otherwise, within [refine_sigma_min, refine_sigma]
     refine_sigma: float = 0.05
@@ -128,10 +134,10 @@ class ReachConfig:
     background: float = 0.5
     #: weight of the image cost
     w_image: float = 1.0
-    #: side the encoder resizes images to (None = its default: 64 for the reach thumbnail pyramid, 224 for EfficientNet / DINOv2)
+    #: side the encoder resizes images to (None = its default: 8 for the reach thumbnail pyramid, 224 for EfficientNet / DINOv2)
     encoder_image_size: int | None = None
     #: bands of the thumbnail encoder's Laplacian pyramid (1 = the single 16x16 thumbnail)
-    thumbnail_levels: int = 5
+    thumbnail_levels: int = 2
     #: image cost scored as log(1 + c / image_log_eps) (0 = the raw distance c): MPPI then weighs
     #: relative progress, so it keeps converging near the goal where raw differences shrink
     image_log_eps: float = 0.01
@@ -423,7 +429,7 @@ def make_reach_goals(
 def reach_encoder(name: str = "thumbnail", weights: str | None = None, device: str | None = "cpu", config: ReachConfig | None = None):
     """The encoder of a reach run: :func:`~splatplan.encoders.load_encoder`, except that
     ``"thumbnail"`` is the ``thumbnail_levels``-band Laplacian pyramid of side
-    ``encoder_image_size`` (default 64) rather than the single 16x16 thumbnail."""
+    ``encoder_image_size`` (default 8: bands of 4 and 8 px) rather than the single 16x16 thumbnail."""
     from ..encoders import load_encoder
 
     cfg = config or ReachConfig()
@@ -432,7 +438,7 @@ def reach_encoder(name: str = "thumbnail", weights: str | None = None, device: s
 
         if weights:
             raise SplatplanError("the thumbnail encoder is weight-free: drop --encoder-weights")
-        return ThumbnailEncoder(size=cfg.encoder_image_size or 64, levels=cfg.thumbnail_levels, device=device or "cpu")
+        return ThumbnailEncoder(size=cfg.encoder_image_size or 8, levels=cfg.thumbnail_levels, device=device or "cpu")
     return load_encoder(name, weights=weights, device=device or "cpu", image_size=cfg.encoder_image_size)
 
 
