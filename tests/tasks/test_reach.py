@@ -84,7 +84,7 @@ def test_tiny_reach_run(setup):
     t_goal = robot.link_poses(goal)[robot.link_names.index(cfg.camera_link)]
     res = run_reach(robot, ts, target, config=cfg, q0=q0, encoder=enc, renderer=rend, goal_camera_pose=t_goal)
     assert res.trajectory.shape == (cfg.horizon + 1, 7)
-    extra_starts = (cfg.plan_starts - 1) * min(cfg.plan_start_iters, cfg.plan_iters - 1)  # multi-start initial plan
+    extra_starts = (cfg.plan_starts - 1) * min(cfg.plan_start_iters, cfg.plan_iters - 1) + cfg.plan_starts * cfg.plan_start_refine  # multi-start initial plan
     refinements = cfg.refine_plan_iters + (cfg.horizon - 1) * cfg.refine_iters  # goal-state refinement
     assert res.iterations == cfg.plan_iters + extra_starts + refinements + (cfg.horizon - 1) * cfg.iters_per_step
     assert res.final_image.shape == (24, 24, 3) and len(res.views) >= 1
@@ -108,7 +108,8 @@ def test_multi_start_plan_and_elite(setup):
     res = run_reach(robot, ts, target, config=cfg, q0=q0, encoder=enc, renderer=rend)
     # every start runs plan_start_iters; the chosen one continues to plan_iters
     refinements = cfg.refine_plan_iters + (cfg.horizon - 1) * cfg.refine_iters
-    assert res.iterations == cfg.plan_iters + (cfg.plan_starts - 1) * cfg.plan_start_iters + refinements + (cfg.horizon - 1) * cfg.iters_per_step
+    assert res.iterations == cfg.plan_iters + (cfg.plan_starts - 1) * cfg.plan_start_iters + cfg.plan_starts * cfg.plan_start_refine + refinements + (cfg.horizon - 1) * cfg.iters_per_step
+    assert len(res.extra["plan_start_costs"]) == cfg.plan_starts
     assert res.trajectory.shape == (cfg.horizon + 1, 7) and np.all(np.isfinite(res.trajectory))
     res2 = run_reach(robot, ts, target, config=replace(cfg, elite=True), q0=q0, encoder=enc, renderer=rend)
     assert res2.iterations == res.iterations and np.all(np.isfinite(res2.trajectory))

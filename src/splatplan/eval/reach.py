@@ -28,7 +28,7 @@ PAPER = {"without_collision": (-0.021, 0.0147, 3.48), "with_collision": (0.017, 
 
 def quick_config(cfg):
     """Smaller settings for ``--quick`` (< 2 min on 2 busy cores)."""
-    return replace(cfg, n_samples=16, horizon=24, n_knots=6, dt=0.1, plan_iters=20, plan_start_iters=10, refine_plan_iters=10, image_size=32, n_views=4)
+    return replace(cfg, n_samples=16, horizon=24, n_knots=6, dt=0.1, plan_iters=20, plan_start_iters=10, plan_start_refine=5, refine_plan_iters=10, image_size=32, n_views=4)
 
 
 def _plot_goal(path: Path, robot, scene, goal, target, runs: dict) -> None:

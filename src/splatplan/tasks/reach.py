@@ -24,7 +24,8 @@ Cost per sample (:mod:`splatplan.planners.costs`, :class:`~splatplan.planners.Im
 
 Schedule (shrinking horizon, so that the goal time stays fixed): the initial plan starts
 ``plan_starts`` times from zero velocity with different noise seeds, ``plan_start_iters`` MPPI
-iterations each, and continues the lowest-cost one; the first MPC step runs
+iterations each, then ``plan_start_refine`` goal-state refinements (below; the starts' local
+minima are compared, not their progress), and continues the lowest-cost one; the first MPC step runs
 ``plan_iters`` MPPI iterations in all over the horizon T, in chunks of ``plan_chunk`` between which the
 knot noise anneals on image-cost progress (``noise_cost_ref``), then ``refine_plan_iters``
 goal-state refinements (:class:`GoalRefiner`: samples that move only the plan's state at the goal
@@ -99,6 +100,9 @@ class ReachConfig:
     plan_starts: int = 3
     #: MPPI iterations of each start of a multi-start initial plan (counted within plan_iters)
     plan_start_iters: int = 30
+    #: goal-state refinement iterations ending each start of a multi-start plan, before the starts
+    #: are compared (a look-alike view and the goal's basin then differ in cost; 0 = compare as is)
+    plan_start_refine: int = 10
     #: MPPI elitism (MPPIConfig.elite): the best sample seen in a step competes in its later
     #: iterations and replaces a worse weighted mean at the step's end
     elite: bool = False
@@ -535,17 +539,27 @@ def run_reach(
             mppi.reset(info.nominal_knots)
             return info, anneal(float(np.min(image_cost.last_raw)))
 
-        refiner = GoalRefiner(robot.dof, cfg.n_samples, cfg.refine_sigma, sigma_min=cfg.refine_sigma_min, grow=cfg.refine_grow, shrink=cfg.refine_shrink, rng=np.random.default_rng([cfg.seed, 1]))
+        def new_refiner(*key: int) -> GoalRefiner:
+            rng = np.random.default_rng([cfg.seed, 1, *key])
+            return GoalRefiner(robot.dof, cfg.n_samples, cfg.refine_sigma, sigma_min=cfg.refine_sigma_min, grow=cfg.refine_grow, shrink=cfg.refine_shrink, rng=rng)
 
-        def refine(n: int, m: int) -> None:
+        refiner = new_refiner()
+
+        def refine(n: int, m: int) -> float:
             """n refinement iterations of the plan's state at the goal time (m controls ahead): offset d_k
-            moves it through the knot offset d_k / (m dt) (the B-spline basis sums to 1)."""
+            moves it through the knot offset d_k / (m dt) (the B-spline basis sums to 1). Returns the
+            total cost of the kept plan (inf when n = 0)."""
+            kept = np.inf
             for _ in range(n):
                 d = refiner.sample()  # (K, 7) rad, row 0 = 0 (the plan itself)
                 samples = np.clip(mppi.knots[None] + d[:, None, :] / (m * cfg.dt), -vmax, vmax)  # (K, n_knots, 7)
-                mppi.reset(samples[refiner.update(d, mppi.evaluate(q, samples)[0])])
+                total = mppi.evaluate(q, samples)[0]
+                b = refiner.update(d, total)
+                mppi.reset(samples[b])
+                kept = float(total[b])
+            return kept
 
-        done = 0
+        done, start_costs = 0, []
         if cfg.plan_starts > 1:
             # multi-start: several short plans from zero velocity, each with its own noise; the best continues
             n0 = min(cfg.plan_start_iters, cfg.plan_iters - 1)
@@ -558,11 +572,16 @@ def run_reach(
                     n = min(chunk, left)
                     info, scale = plan_chunk(n, scale)
                     left -= n
-                starts.append((info.nominal_cost, j, info.nominal_knots, scale, mppi.rng))
-            _, _, knots, progress_scale, mppi.rng = min(starts, key=lambda e: (e[0], e[1]))
+                cost, knots = info.nominal_cost, info.nominal_knots
+                if cfg.plan_start_refine > 0:  # compare the starts' local minima, not their progress
+                    refiner = new_refiner(j)
+                    cost, knots = refine(cfg.plan_start_refine, cfg.horizon), mppi.knots.copy()
+                starts.append((cost, j, knots, scale, mppi.rng, refiner))
+            start_costs = [round(float(e[0]), 4) for e in starts]
+            _, _, knots, progress_scale, mppi.rng, refiner = min(starts, key=lambda e: (e[0], e[1]))
             mppi.reset(knots)
             done = n0  # the chosen start's iterations; the other starts' are extra
-            iters += n0 * (cfg.plan_starts - 1)
+            iters += n0 * (cfg.plan_starts - 1) + cfg.plan_start_refine * cfg.plan_starts
         while cfg.plan_iters - done > chunk:
             info, progress_scale = plan_chunk(chunk, progress_scale)
             done += chunk
@@ -628,5 +647,5 @@ def run_reach(
         collision_cost=bool(collision),
         encoder=enc.name,
         success=success,
-        extra={"robot": robot.name, "scene": ts.name, "n_splats": len(ts.splats), "image_size": cfg.image_size, "n_samples": cfg.n_samples, "horizon": cfg.horizon},
+        extra={"robot": robot.name, "scene": ts.name, "n_splats": len(ts.splats), "image_size": cfg.image_size, "n_samples": cfg.n_samples, "horizon": cfg.horizon, "plan_start_costs": start_costs},
     )
