@@ -56,7 +56,7 @@ import numpy as np
 from ..errors import SplatplanError
 from ._common import TaskScene, check_start, load_task_scene, trajectory_clearance
 
-__all__ = ["BEHIND_WALL", "START_CAMERA", "ReachConfig", "ReachResult", "camera_pose_error", "make_reach_goals", "reach_encoder", "reach_start", "run_reach", "wrist_camera"]
+__all__ = ["BEHIND_WALL", "START_CAMERA", "GoalRefiner", "ReachConfig", "ReachResult", "camera_pose_error", "make_reach_goals", "reach_encoder", "reach_start", "run_reach", "wrist_camera"]
 
 
 @dataclass
@@ -112,7 +112,7 @@ class ReachConfig:
     final_steps: int = 0
     #: MPPI iterations per step over the last final_steps steps
     final_iters: int = 3
-    #: goal-state refinement (:class:`GoalRefiner`): iterations per MPC step whose K samples move
+    #: goal-state refinement (GoalRefiner): iterations per MPC step whose K samples move
     #: only the plan's state at the goal time, by joint offsets (a constant velocity offset on every
     #: knot); the cheapest sample (the plan itself among them) is kept
     refine_iters: int = 1
