@@ -54,7 +54,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import SplatplanError
-from ._common import TaskScene, check_start, load_task_scene, trajectory_clearance
+from ._common import TaskScene, check_start, load_task_scene, moving_clearance, trajectory_clearance
 
 __all__ = ["BEHIND_WALL", "START_CAMERA", "GoalRefiner", "ReachConfig", "ReachResult", "camera_pose_error", "make_reach_goals", "reach_encoder", "reach_start", "run_reach", "wrist_camera"]
 
@@ -647,5 +647,7 @@ def run_reach(
         collision_cost=bool(collision),
         encoder=enc.name,
         success=success,
-        extra={"robot": robot.name, "scene": ts.name, "n_splats": len(ts.splats), "image_size": cfg.image_size, "n_samples": cfg.n_samples, "horizon": cfg.horizon, "plan_start_costs": start_costs},
+        extra={"robot": robot.name, "scene": ts.name, "n_splats": len(ts.splats), "image_size": cfg.image_size, "n_samples": cfg.n_samples, "horizon": cfg.horizon, "plan_start_costs": start_costs,
+               # the moving links only: the Panda's fixed link0 sits 2.2 cm above the table whatever the arm does
+               "min_clearance_moving_links_m": round(float(moving_clearance(robot, ts, traj)), 6)},
     )
