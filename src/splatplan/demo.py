@@ -254,7 +254,7 @@ def run_robot_demo(out: Path, device: str = "auto") -> dict:
     go2 = load_go2()
     tsb = load_task_scene("apartment", n_sigma=bcfg.n_sigma, device=dev, ground_below=bcfg.ground_z + bcfg.ground_band)
     base = run_base(go2, tsb, (2.09, -0.45), start=(-2.3, -0.6, 0.0), config=bcfg, device=dev)
-    fig = plot_run(go2, tsb, base, kind="base", title="Go2 to the kitchen (goal only, sensed-obstacle memory)")
+    fig = plot_run(go2, tsb, base, kind="base", title="Go2 (goal only, memory)")
     fig.savefig(out / "demo_go2.png", dpi=90)
     plt.close(fig)
     summary["go2"] = {k: getattr(base, k) for k in ("success", "final_position_error_m", "min_clearance_m", "steps_per_s")}

@@ -179,3 +179,35 @@ def test_a_wall_hides_the_cells_behind_it_until_the_base_drives_around_it(go2):
     mem.sense(np.array([1.8, 1.0]))
     assert mem.sensed[at(1.5, 0.0)] and mem.sensed[at(1.8, 0.5)] and not mem.blocked[at(1.8, 0.5)]
     assert mem.blocked[at(1.2, 0.0)]  # and now the far side of the wall
+
+
+def test_memory_maps_reach_the_plot_not_the_json():
+    """The sensed grid travels in TaskResult.maps (drawn by plot_run), never into result JSON."""
+    import json
+
+    import numpy as np
+
+    from splatplan.tasks._common import TaskResult
+    from splatplan.tasks.plot import _draw_memory
+
+    blocked = np.zeros((4, 3), bool)
+    blocked[1, 1] = True
+    sensed = np.ones((4, 3), bool)
+    maps = {"memory_blocked": blocked, "memory_sensed": sensed, "memory_origin": np.array([-0.2, -0.1]), "memory_cell": 0.1}
+    res = TaskResult(success=True, trajectory=np.zeros((2, 3)), min_clearance_m=0.1, final_position_error_m=0.0, time_s=1.0, steps_per_s=1.0,
+                     collision_cost=True, clearance_source="analytic", maps=maps)  # fmt: skip
+    d = res.to_json()
+    assert "maps" not in d
+    json.dumps(d)  # serialisable
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots()
+    _draw_memory(ax, maps)
+    img = ax.images[0]
+    assert np.allclose(img.get_extent(), [-0.2, 0.2, -0.1, 0.2])  # (4, 3) cells of 0.1 m from the corner
+    labels = [h.get_label() for h in ax.get_lines()]
+    assert "sensed blocked (memory)" in labels and "sensed free (memory)" in labels
+    plt.close(fig)

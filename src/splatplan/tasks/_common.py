@@ -162,9 +162,13 @@ class TaskResult:
     message: str = ""
     goal: dict = field(default_factory=dict)
     extra: dict = field(default_factory=dict)
+    #: arrays for pictures only, not written to JSON (the base's sensed-obstacle memory: "memory_blocked"
+    #: (NX, NY) bool, "memory_sensed" (NX, NY) bool, "memory_origin" (2,) world xy of the grid corner, "memory_cell" m)
+    maps: dict = field(default_factory=dict)
 
     def to_json(self) -> dict:
         d = asdict(self)
+        d.pop("maps", None)
         d["trajectory"] = np.asarray(self.trajectory).round(6).tolist()
         d["clearance_note"] = CLEARANCE_NOTES[self.clearance_source]
         if not self.collision_cost:

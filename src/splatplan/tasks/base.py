@@ -545,4 +545,5 @@ def run_base(
         extra={"robot": robot.name, "scene": ts.name, "n_steps": n_steps, "time_to_goal_s": n_steps * cfg.dt, "route": None if wps is None else wps.round(4).tolist(), "n_splats": len(ts.splats), "events": planner.events,
                "memory": None if memory is None else {**memory.stats, "cell_m": memory.cell, "sensor_radius_m": memory.radius, "n_yaws": len(memory.yaws), "shape": list(memory.shape),
                                                         "occlusion": memory.occlusion, "sensor_height_m": memory.sensor_height}},
+        maps={} if memory is None else {"memory_blocked": memory.blocked.copy(), "memory_sensed": memory.sensed.copy(), "memory_origin": memory.origin.copy(), "memory_cell": memory.cell},
     )

@@ -57,6 +57,23 @@ def _draw_scene(ax, scene_splats, analytic, dims, z_cut: float | None, bounds) -
     ax.set_ylabel("xyz"[dims[1]] + " (m)")
 
 
+def _draw_memory(ax, maps: dict) -> None:
+    """The base's sensed-obstacle memory under the run: sensed free cells light grey, sensed blocked
+    cells (the robot collides there at every heading) dark grey; unsensed cells left blank."""
+    from matplotlib.colors import ListedColormap
+
+    blocked = np.asarray(maps["memory_blocked"], bool)  # (NX, NY)
+    sensed = np.asarray(maps["memory_sensed"], bool)
+    img = np.where(sensed, np.where(blocked, 2.0, 1.0), np.nan).T  # (NY, NX) for imshow
+    ox, oy = (float(v) for v in maps["memory_origin"])
+    c = float(maps["memory_cell"])
+    ext = (ox, ox + c * blocked.shape[0], oy, oy + c * blocked.shape[1])
+    cmap = ListedColormap([(0.85, 0.85, 0.85, 0.35), (0.3, 0.3, 0.3, 0.45)])
+    ax.imshow(img, origin="lower", extent=ext, cmap=cmap, vmin=1.0, vmax=2.0, interpolation="nearest", zorder=1)
+    ax.plot([], [], "s", color=(0.85, 0.85, 0.85, 0.8), label="sensed free (memory)")
+    ax.plot([], [], "s", color=(0.3, 0.3, 0.3, 0.6), label="sensed blocked (memory)")
+
+
 def plot_run(robot, task_scene, result, *, kind: str, n_frames: int = 6, title: str = ""):
     """A Figure of the run: ``kind`` "arm" (top and side views) or "base" (top view at body height)."""
     import matplotlib
@@ -84,6 +101,9 @@ def plot_run(robot, task_scene, result, *, kind: str, n_frames: int = 6, title: 
     cmap = plt.get_cmap("viridis")
     for ax, (dims, name) in zip(axes[0], views):
         _draw_scene(ax, task_scene.splats, an, dims, z_cut, (lo, hi))
+        maps = getattr(result, "maps", None) or {}
+        if kind == "base" and "memory_blocked" in maps:
+            _draw_memory(ax, maps)
         for j, f in enumerate(frames):
             c, q, a = robot.ellipsoids(traj[f])
             for poly in _ellipse_outlines(c, q, a, dims):
