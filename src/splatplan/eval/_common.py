@@ -96,12 +96,13 @@ def mean_std(values, finite_only: bool = False) -> list[float]:
     return [float(v.mean()), float(v.std())] if v.size else [float("nan"), float("nan")]
 
 
-def config_rows(trials: list[dict], fields: tuple[str, ...], extra=None) -> list[dict]:
-    """Summary rows of a with/without-collision study: per config, [mean, std] of every trial field
-    in ``fields``, then ``extra(trials of the config) -> dict`` (optional), the successes, the trials
-    with positive clearance (``min_clearance_m > 0``), the trial count and the MPC rate."""
+def config_rows(trials: list[dict], fields: tuple[str, ...], extra=None, configs: tuple[str, ...] = ("with_collision", "without_collision")) -> list[dict]:
+    """Summary rows of a study, one per name in ``configs`` (trials carry it as ``"config"``): [mean,
+    std] of every trial field in ``fields``, then ``extra(trials of the config) -> dict`` (optional),
+    the successes, the trials with positive clearance (``min_clearance_m > 0``), the trial count and
+    the MPC rate."""
     rows = []
-    for name in ("with_collision", "without_collision"):
+    for name in configs:
         t = [x for x in trials if x["config"] == name]
         row = {"config": name, **{f: mean_std([x[f] for x in t]) for f in fields}, **(extra(t) if extra else {})}
         row.update(

@@ -92,11 +92,8 @@ def run_base_study(out_dir, quick: bool = False, seed: int = 0, device: str | No
             })  # fmt: skip
             print(f"  goal {i} {g.round(2).tolist()} {name:22s}: distance {r.final_position_error_m:.2f} m, clearance {r.min_clearance_m * 100:+.1f} cm, "
                   f"{'reached' if r.success else 'not reached'}, {r.extra['n_steps']} steps, {r.steps_per_s:.2f} steps/s", flush=True)  # fmt: skip
-    rows = []
-    for name in CONFIGS:  # config_rows summarises the with/without pair; each config in turn as its "with_collision"
-        t = [{**x, "config": "with_collision"} for x in trials if x["config"] == name]
-        row = config_rows(t, ("min_clearance_m", "final_error_m"), extra=lambda t: {"time_to_goal_s": mean_std([x["time_to_goal_s"] for x in t if x["time_to_goal_s"] is not None])})[0]
-        rows.append({**row, "config": name})
+    rows = config_rows(trials, ("min_clearance_m", "final_error_m"), configs=tuple(CONFIGS),
+                        extra=lambda t: {"time_to_goal_s": mean_std([x["time_to_goal_s"] for x in t if x["time_to_goal_s"] is not None])})  # fmt: skip
     mt = [x for x in trials if x["memory"]]
     sensing = {
         "sense_s": float(sum(x["memory"]["sense_s"] for x in mt)), "first_sense_s": float(sum(x["memory"]["first_sense_s"] or 0.0 for x in mt)), "field_s": float(sum(x["memory"]["field_s"] for x in mt)),
