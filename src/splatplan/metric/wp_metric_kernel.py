@@ -234,11 +234,17 @@ def cell_range(v: float, r: float, inv_w: float, dim: int, c_lo: int, c_hi: int)
 
 
 @wp.func
+def cell_pad(v: float):
+    """Margin (in cells) around cell coordinate v against float32 rounding of the cell rule
+    floor(p * inv_w): 1% of a cell plus a relative ulp margin."""
+    return 0.01 + 1.0e-6 * wp.abs(v)
+
+
+@wp.func
 def row_bounds(yy: int, zz: int, inv_w: float):
-    """World y and z intervals of the unwrapped cell row (yy, zz), padded for float32 rounding of
-    the cell rule floor(p * inv_w) (1% of a cell plus a relative ulp margin)."""
-    py = 0.01 + 1.0e-6 * wp.abs(float(yy))
-    pz = 0.01 + 1.0e-6 * wp.abs(float(zz))
+    """World y and z intervals of the unwrapped cell row (yy, zz), padded by :func:`cell_pad`."""
+    py = cell_pad(float(yy))
+    pz = cell_pad(float(zz))
     w = 1.0 / inv_w
     return (float(yy) - py) * w, (float(yy) + 1.0 + py) * w, (float(zz) - pz) * w, (float(zz) + 1.0 + pz) * w
 
@@ -265,10 +271,9 @@ def run_count(cell_start: wp.array(dtype=wp.int32), row: int, x0: int, n: int, d
 
 @wp.func
 def x_cell(x: float, inv_w: float, side: float):
-    """Unwrapped x cell of a span end, moved outwards (side -1: low end, +1: high end) by the float32
-    margin of :func:`row_bounds`."""
+    """Unwrapped x cell of a span end, moved outwards (side -1: low end, +1: high end) by :func:`cell_pad`."""
     v = x * inv_w
-    return int(wp.clamp(wp.floor(v + side * (0.01 + 1.0e-6 * wp.abs(v))), -1.0e9, 1.0e9))
+    return int(wp.clamp(wp.floor(v + side * cell_pad(v)), -1.0e9, 1.0e9))
 
 
 @wp.func
