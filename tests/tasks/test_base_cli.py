@@ -20,3 +20,14 @@ def test_go2_default_start_in_apartment_is_the_study_start(tmp_path):
     np.testing.assert_allclose(d["trajectory"][0], START)
     mem = d["extra"]["memory"]
     assert mem["sensor_radius_m"] == 0.5 and 0 < mem["n_sensed"] <= 2 * np.pi * (0.5 / 0.1) ** 2
+
+
+def test_bad_memory_flags_exit_2_with_one_line(tmp_path, capsys):
+    """Impossible memory settings are named on one stderr line, exit 2, and no result is written."""
+    for flag, value in (("--base-memory-cell-m", "0"), ("--base-sensor-radius-m", "-1"), ("--base-sensor-height-m", "nan"), ("--base-memory-yaws", "0")):
+        out = tmp_path / flag.strip("-")
+        rc = main(["mpc", "--robot", "go2", "--scene", "apartment", "--goal=1.1,1.8", "--out", str(out), "--base-memory", "true", flag, value])
+        err = capsys.readouterr().err.strip().splitlines()
+        assert rc == 2, (flag, err)
+        assert len(err) == 1 and "obstacle memory" in err[0] and "Traceback" not in err[0], (flag, err)
+        assert not (out / "result.json").exists() and not (out / "motion.png").exists()
