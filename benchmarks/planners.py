@@ -139,7 +139,7 @@ def bench_mppi_base(scene, body: str, n_steps: int = 40, seed: int = 0) -> dict:
     }  # fmt: skip
 
 
-def panda_setup(n_splats: int = 200_000, seed: int = 0):
+def panda_setup(n_splats: int = 200_000, seed: int = 0, device: str = "cpu"):
     """(robot, scene, checker) of the Panda benchmark: the built-in tabletop at ``n_splats``, floaters filtered."""
     from splatplan.metric import CollisionChecker
     from splatplan.robots import load_robot
@@ -149,13 +149,30 @@ def panda_setup(n_splats: int = 200_000, seed: int = 0):
     robot = load_robot("panda")
     raw, _ = build_builtin("tabletop", seed=seed, n_splats=n_splats)
     scene, _ = filter_floaters(raw)
-    return robot, scene, CollisionChecker(scene, n_sigma=1.0)
+    return robot, scene, CollisionChecker(scene, n_sigma=1.0, device=device)
+
+
+def _timed(fn, spent: dict, key: str):
+    """``fn`` that adds its wall time to ``spent[key]``."""
+
+    def wrapped(*a, **kw):
+        t = time.perf_counter()
+        try:
+            return fn(*a, **kw)
+        finally:
+            spent[key] += time.perf_counter() - t
+
+    return wrapped
 
 
 def bench_mppi_panda(
-    n_steps: int, setup=None, seed: int = 0, quick: bool = False, time_stride: int | str = 1, stonehenge: bool = True, static_shortcut: bool = True
+    n_steps: int, setup=None, seed: int = 0, quick: bool = False, time_stride: int | str = 1, stonehenge: bool = True, static_shortcut: bool = True,
+    n_samples: int = 256, profile: bool = False,
 ) -> dict:
-    """Panda MPPI over the tabletop; ``time_stride`` an integer or "auto" (see CollisionCost)."""
+    """Panda MPPI over the tabletop; ``time_stride`` an integer or "auto" (see CollisionCost).
+
+    ``profile``: also report the wall seconds per MPC step spent in each cost object (the rest is
+    sampling, the B-spline, rollouts and the weights)."""
     from splatplan.planners import MPPI, CollisionCost, ControlEffortCost, GoalPoseCost, JointIntegrator, JointLimitCost, MPPIConfig
     from splatplan.planners.mppi import joint_speed_bound
     from splatplan.scenes.builtin.tabletop import TARGET_REGION
@@ -164,7 +181,7 @@ def bench_mppi_panda(
     load = _load()
     robot, scene, checker = setup or panda_setup(seed=seed)
     target = 0.5 * (TARGET_REGION[0] + TARGET_REGION[1])
-    cfg = MPPIConfig(n_samples=256, horizon=32, n_knots=6, dt=0.05, n_iters=1, noise_sigma=0.4, temperature=0.05,
+    cfg = MPPIConfig(n_samples=n_samples, horizon=32, n_knots=6, dt=0.05, n_iters=1, noise_sigma=0.4, temperature=0.05,
                      u_min=-1.0, u_max=1.0, seed=seed)  # fmt: skip
     dyn = JointIntegrator(robot)
     col = CollisionCost(checker, dyn, weight=1.0, hit_weight=10.0, s2_cap=cfg.collision_s2_cap, time_stride=time_stride,
@@ -176,10 +193,15 @@ def bench_mppi_panda(
         JointLimitCost(robot, weight=100.0),
     ]
     mppi = MPPI(dyn, checker, cfg, costs=costs)
+    spent = {type(c).__name__: 0.0 for c in costs}
+    if profile:
+        for c in costs:
+            c.terms = _timed(c.terms, spent, type(c).__name__)
     x = robot.q_default.copy()
     hand_idx = costs[1].link_index
     d0 = float(np.linalg.norm(robot.link_poses(x)[hand_idx, :3, 3] - target))
     mppi.step(x)  # warm-up (builds the metric grids)
+    spent.update({k: 0.0 for k in spent})
     t0 = time.perf_counter()
     c0 = time.process_time()
     for _ in range(n_steps):
@@ -198,7 +220,10 @@ def bench_mppi_panda(
         "static_ellipsoids_cached": n_static,
         "steps_per_s": n_steps / dt, "configs_per_s": n_steps * cfg.n_samples * cfg.horizon / dt, "cpu_s_per_step": cpu / n_steps,
         "final_hand_distance_m": float(np.linalg.norm(hand - target)), "start_hand_distance_m": d0, "load_avg_1min": load,
+        "device": str(checker.device),
     }  # fmt: skip
+    if profile:
+        out["cost_s_per_step"] = {k: v / n_steps for k, v in spent.items()}
     if not stonehenge:
         return out
     # one collision query of the same batch size on the unit-size Stonehenge, for comparison
