@@ -37,7 +37,7 @@ def device_name(device: str) -> str:
     return f"{platform.processor() or platform.machine()} CPU, {os.cpu_count()} cores"
 
 
-def bench_reach(device: str, size: int, encoder: str, quick: bool) -> dict:
+def bench_reach(device: str, size: int, encoder: str, quick: bool, backend: str = "warp") -> dict:
     from splatplan.encoders import load_encoder
     from splatplan.eval.reach import quick_config
     from splatplan.render import SplatRenderer
@@ -60,9 +60,14 @@ def bench_reach(device: str, size: int, encoder: str, quick: bool) -> dict:
         import numpy as np
 
         target = np.asarray(target.cpu() if hasattr(target, "cpu") else target)
-        r = run_reach(robot, ts, target, config=cfg, collision=True, q0=q0, encoder=enc, goal_camera_pose=g["camera_pose"], renderer=rend, device=device)
+        run_rend = rend
+        if backend == "gsplat":
+            from splatplan.render.gsplat_backend import GsplatRenderer
+
+            run_rend = GsplatRenderer(ts.splats, device)
+        r = run_reach(robot, ts, target, config=cfg, collision=True, q0=q0, encoder=enc, goal_camera_pose=g["camera_pose"], renderer=run_rend, device=device)
     return {
-        "encoder": enc.name, "image_size": cfg.image_size, "K": cfg.n_samples, "T": cfg.horizon, "device": device,
+        "encoder": enc.name, "renderer": backend, "image_size": cfg.image_size, "K": cfg.n_samples, "T": cfg.horizon, "device": device,
         "mpc_steps": len(r.trajectory) - 1, "mppi_iterations": r.iterations, "time_s": r.time_s,
         "mpc_steps_per_s": r.steps_per_s, "mppi_iterations_per_s": r.iterations_per_s,
         "translation_error_m": r.translation_error_m, "rotation_error_deg": r.rotation_error_deg, "min_clearance_m": r.min_clearance_m,
@@ -72,15 +77,16 @@ def bench_reach(device: str, size: int, encoder: str, quick: bool) -> dict:
 
 def markdown(res: dict) -> str:
     lines = [f"Device: {res['device_name']} ({res['device']}). Panda: tabletop, {res['panda'][0]['scene'] if res['panda'] else '-'}, T = 32, 1 MPPI iteration per step.", "",
-             "| task | K | MPC steps/s | collision cost ms/step | other costs ms/step | target |", "|---|---|---|---|---|---|"]  # fmt: skip
+             "| task | K | MPC steps/s | collision cost ms/step (query alone, q on the device) | other costs ms/step | target |", "|---|---|---|---|---|---|"]  # fmt: skip
     for p in res["panda"]:
         c = p.get("cost_s_per_step", {})
         col = 1e3 * c.get("CollisionCost", float("nan"))
         other = 1e3 * sum(v for k, v in c.items() if k != "CollisionCost")
         tgt = ">= 100 (GPU)" if p["K"] == 1024 else "-"
-        lines.append(f"| Panda MPPI, collision cost every step | {p['K']} | {p['steps_per_s']:.1f} | {col:.1f} | {other:.1f} | {tgt} |")
+        qo = 1e3 * p.get("query_only_s", {}).get("device_q_workspace", float("nan"))
+        lines.append(f"| Panda MPPI, collision cost every step | {p['K']} | {p['steps_per_s']:.1f} | {col:.1f} ({qo:.1f}) | {other:.1f} | {tgt} |")
     for r in res["reach"]:
-        lines.append(f"| visual reaching {r['image_size']}x{r['image_size']}, {r['encoder']} (T = {r['T']}) | {r['K']} | {r['mpc_steps_per_s']:.2f} "
+        lines.append(f"| visual reaching {r['image_size']}x{r['image_size']}, {r['encoder']}, {r['renderer']} renderer (T = {r['T']}) | {r['K']} | {r['mpc_steps_per_s']:.2f} "
                      f"({r['mppi_iterations_per_s']:.1f} MPPI iterations/s) | - | - | >= 5 at 224 (GPU) |")  # fmt: skip
     return "\n".join(lines)
 
@@ -92,6 +98,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--steps", type=int, default=20, help="timed MPC steps per Panda row")
     ap.add_argument("--reach-size", type=int, default=224)
     ap.add_argument("--reach-encoders", default="thumbnail,dinov2-vits14", help="comma list; empty: skip the reach rows")
+    ap.add_argument("--reach-backends", default="warp", help="renderers of the reach rows: warp, gsplat (CUDA only), comma list")
     ap.add_argument("--quick", action="store_true", help="smoke test: 20k splats, 2 steps, the reach study's quick settings")
     ap.add_argument("--out", default=str(HERE / "results" / "gpu_rates.json"))
     args = ap.parse_args(argv)
@@ -104,9 +111,10 @@ def main(argv: list[str] | None = None) -> int:
             res["panda"].append(r)
             print(f"panda K={k}: {r['steps_per_s']:.2f} steps/s, costs {r['cost_s_per_step']}", flush=True)
     for enc in [e for e in args.reach_encoders.split(",") if e]:
-        r = bench_reach(args.device, args.reach_size, enc, args.quick)
-        res["reach"].append(r)
-        print(f"reach {enc}: {r['mpc_steps_per_s']:.2f} steps/s, {r['mppi_iterations_per_s']:.1f} it/s", flush=True)
+        for backend in [b for b in args.reach_backends.split(",") if b]:
+            r = bench_reach(args.device, args.reach_size, enc, args.quick, backend)
+            res["reach"].append(r)
+            print(f"reach {enc} {backend}: {r['mpc_steps_per_s']:.2f} steps/s, {r['mppi_iterations_per_s']:.1f} it/s", flush=True)
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(res, indent=2) + "\n")

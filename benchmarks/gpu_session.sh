@@ -4,20 +4,24 @@
 # zstandard, yourdfpy, trimesh, tyro + docstring-parser + typeguard, gsplat; the robots' URDFs
 # travel as a cmeel share folder put on PYTHONPATH):
 #
-#   benchmarks/gpu_session.sh a|b|all OUT_DIR
+#   benchmarks/gpu_session.sh OUT_DIR STAGE...      STAGE: all, or any of
 #
-#   a: starts gsplat's kernel build in the background (it outlives the call), then the MPC rates
-#      (benchmarks/gpu_rates.py), metric throughput on CUDA, and the metric / robots / planners /
-#      render / encoders tests (CPU and CUDA parametrisations).
-#   b: render, encoder and FK throughput on CUDA, then the gsplat comparison tests once gsplat's
-#      build is done.
+#   gsplat   start gsplat's kernel build in the background (minutes; it outlives the call)
+#   rates    MPC rates (benchmarks/gpu_rates.py: Panda MPPI K = 256 / 1024, reaching at 224 px)
+#   metric   metric throughput on CUDA (benchmarks/metric_throughput.py)
+#   tests    the metric / robots / planners / render / encoders tests (CPU and CUDA cases; or $TEST_PATHS)
+#   bench    render, encoder and FK throughput on CUDA
+#   arm      the arm study (E4 behind the wall) on CUDA, --quick
+#   gtests   the gsplat comparison tests (wait for the build)
 #
 # Each stage runs under its own time limit; its log and JSON go to /tmp/gpu-results, which is
 # packed into OUT_DIR/results.tgz after every stage (so a stage that runs out of time still
 # leaves the others' results). A one-line summary per stage goes to stdout.
 set -u
-group=${1:?stage group a|b|all}
-out=${2:?output folder}
+out=${1:?output folder}
+shift
+stages=("$@")
+[[ ${stages[*]} == all ]] && stages=(gsplat rates metric tests bench arm gtests)
 res=/tmp/gpu-results
 mkdir -p "$res" "$out"
 export SPLATPLAN_WARP_CACHE=${SPLATPLAN_WARP_CACHE:-/tmp/warp-cache} PYTHONUNBUFFERED=1
@@ -35,22 +39,25 @@ stage() {  # stage NAME SECONDS CMD...
   tar -C "$res" -czf "$out/results.tgz" .
 }
 
-if [[ $group == a || $group == all ]]; then
-  nvidia-smi --query-gpu=name,memory.total,driver_version --format=csv,noheader >"$res/device.txt" 2>&1
-  $py -c "import torch, warp; print('torch', torch.__version__, 'warp', warp.config.version)" >>"$res/device.txt" 2>&1
-  cat "$res/device.txt"
-  # gsplat compiles its CUDA kernels on first import (several minutes): start it now, detached
-  setsid nohup $py -c "from gsplat.cuda._backend import _C; print('gsplat built', _C is not None)" >"$res/gsplat_build.log" 2>&1 </dev/null &
-  stage gpu_rates 240 $py benchmarks/gpu_rates.py --device cuda --out "$res/gpu_rates.json"
-  stage metric_throughput 120 $py benchmarks/metric_throughput.py --device cuda --out "$res/metric_throughput_cuda.json"
-  stage tests 200 $py -m pytest -q -p no:cacheprovider -n 6 tests/metric tests/robots tests/planners tests/render tests/encoders
-fi
-if [[ $group == b || $group == all ]]; then
-  stage render 120 $py benchmarks/render.py --device cuda --sizes 64,224 --example '' --out "$res/render_cuda.json"
-  stage encoders 120 $py benchmarks/encoders.py --device cuda --encoders thumbnail,dinov2-vits14 --out "$res/encoders_cuda.json"
-  stage robots_fk 90 $py benchmarks/robots_fk.py --device cuda --out "$res/robots_fk_cuda.json"
-  for _ in $(seq 60); do grep -q "gsplat built\|Error" "$res/gsplat_build.log" 2>/dev/null && break; sleep 5; done
-  echo "gsplat build: $(tail -n 1 "$res/gsplat_build.log" | cut -c1-200)"
-  stage gsplat_tests 150 $py -m pytest -q -p no:cacheprovider tests/render/test_gsplat_backend.py
-fi
+nvidia-smi --query-gpu=name,memory.total,driver_version --format=csv,noheader >"$res/device.txt" 2>&1
+$py -c "import torch, warp; print('torch', torch.__version__, 'warp', warp.config.version)" >>"$res/device.txt" 2>&1
+cat "$res/device.txt"
+for s in "${stages[@]}"; do
+  case $s in
+    gsplat)  # gsplat compiles its CUDA kernels on first import: start it detached
+      setsid nohup $py -c "from gsplat.cuda._backend import _C; print('gsplat built', _C is not None)" >"$res/gsplat_build.log" 2>&1 </dev/null & ;;
+    rates) stage gpu_rates 300 $py benchmarks/gpu_rates.py --device cuda --reach-backends warp,gsplat --out "$res/gpu_rates.json" ;;
+    metric) stage metric_throughput 120 $py benchmarks/metric_throughput.py --device cuda --out "$res/metric_throughput_cuda.json" ;;
+    tests) stage tests 200 $py -m pytest -q -p no:cacheprovider -n 6 ${TEST_PATHS:-tests/metric tests/robots tests/planners tests/render tests/encoders} ;;
+    bench)
+      stage render 120 $py benchmarks/render.py --device cuda --sizes 64,224 --example '' --out "$res/render_cuda.json"
+      stage encoders 120 $py benchmarks/encoders.py --device cuda --encoders thumbnail,dinov2-vits14 --out "$res/encoders_cuda.json"
+      stage robots_fk 90 $py benchmarks/robots_fk.py --device cuda --out "$res/robots_fk_cuda.json" ;;
+    arm) stage arm 200 $py -m splatplan.cli eval arm --quick --device cuda --out "$res/arm_cuda" ;;
+    gtests)
+      for _ in $(seq 60); do grep -q "gsplat built\|Error" "$res/gsplat_build.log" 2>/dev/null && break; sleep 5; done
+      stage gsplat_tests 150 $py -m pytest -q -p no:cacheprovider tests/render/test_gsplat_backend.py ;;
+    *) echo "unknown stage $s" ;;
+  esac
+done
 tar -C "$res" -czf "$out/results.tgz" .

@@ -165,6 +165,30 @@ def _timed(fn, spent: dict, key: str):
     return wrapped
 
 
+def _query_only_s(robot, checker, col, x, n: int, seed: int, repeats: int = 5) -> dict:
+    """Median seconds of the collision query alone on n configurations near ``x`` (moving
+    ellipsoids, FK on the device): q from numpy, and q already on the device (wp.array)."""
+    from splatplan._warp import wp as _wp
+
+    wp = _wp()
+    rng = np.random.default_rng(seed)
+    q = np.clip(x + rng.normal(scale=0.1, size=(n, robot.dof)), robot.joint_limits[:, 0], robot.joint_limits[:, 1])
+    mv = np.flatnonzero(~col.static) if col.static is not None else None
+    qw = wp.array(q.astype(np.float32), dtype=wp.float32, device=checker.device)
+    ws = checker.workspace(n * robot.n_ellipsoids)
+    out = {}
+    for name, arg, kw in (("numpy_q", q, {}), ("device_q_workspace", qw, {"out": ws})):
+        checker.query_robot(robot, arg, ellipsoids=mv, **kw)
+        ts = []
+        for _ in range(repeats):
+            t = time.perf_counter()
+            r = checker.query_robot(robot, arg, ellipsoids=mv, **kw)
+            _ = np.asarray(r.cost.numpy() if hasattr(r.cost, "numpy") else r.cost)[:1]  # wait for the device
+            ts.append(time.perf_counter() - t)
+        out[name] = float(np.median(ts))
+    return out
+
+
 def bench_mppi_panda(
     n_steps: int, setup=None, seed: int = 0, quick: bool = False, time_stride: int | str = 1, stonehenge: bool = True, static_shortcut: bool = True,
     n_samples: int = 256, profile: bool = False,
@@ -174,6 +198,7 @@ def bench_mppi_panda(
     ``profile``: also report the wall seconds per MPC step spent in each cost object (the rest is
     sampling, the B-spline, rollouts and the weights)."""
     from splatplan.planners import MPPI, CollisionCost, ControlEffortCost, GoalPoseCost, JointIntegrator, JointLimitCost, MPPIConfig
+    from splatplan.planners.costs import fk_device
     from splatplan.planners.mppi import joint_speed_bound
     from splatplan.scenes.builtin.tabletop import TARGET_REGION
     from splatplan.scenes.filters import filter_floaters
@@ -188,7 +213,7 @@ def bench_mppi_panda(
                         speed_bound=joint_speed_bound(dyn, cfg.u_min, cfg.u_max), static_shortcut=static_shortcut)  # fmt: skip
     costs = [
         col,
-        GoalPoseCost(robot, position=target, link="panda_hand_tcp" if "panda_hand_tcp" in robot.link_names else None, terminal_factor=4.0),
+        GoalPoseCost(robot, position=target, link="panda_hand_tcp" if "panda_hand_tcp" in robot.link_names else None, terminal_factor=4.0, device=fk_device(checker)),
         ControlEffortCost(0.01),
         JointLimitCost(robot, weight=100.0),
     ]
@@ -224,6 +249,7 @@ def bench_mppi_panda(
     }  # fmt: skip
     if profile:
         out["cost_s_per_step"] = {k: v / n_steps for k, v in spent.items()}
+        out["query_only_s"] = _query_only_s(robot, checker, col, x, cfg.n_samples * cfg.horizon, seed)
     if not stonehenge:
         return out
     # one collision query of the same batch size on the unit-size Stonehenge, for comparison

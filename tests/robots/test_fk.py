@@ -141,3 +141,23 @@ def test_concurrent_calls_do_not_interfere(tree_robot):
         results = list(ex.map(lambda q: tree_robot.fk(q)[0], qs))
     for q, c in zip(qs, results):
         np.testing.assert_allclose(c, tree_robot.ellipsoid_frames(q)[0], atol=2e-6)
+
+
+@pytest.mark.parametrize("name", ["panda", "go2"])
+def test_fk_of_an_ellipsoid_subset_and_of_link_frames(name):
+    """Robot.fk(ellipsoids=...) gives those columns of the full FK; links=... gives link frames."""
+    from splatplan.robots import load_robot
+
+    robot = load_robot(name)
+    q = random_q(robot, 64, seed=3)
+    for device in devices():
+        c, r = robot.fk(q, device=device)
+        sub = [robot.n_ellipsoids - 1, 0, 2]  # any order
+        cs, rs = robot.fk(q, device=device, ellipsoids=sub)
+        np.testing.assert_array_equal(cs, c[:, sub])
+        np.testing.assert_array_equal(rs, r[:, sub])
+        links = [len(robot.link_names) - 1, 1]
+        cl, rl = robot.fk(q, device=device, links=links)
+        t = robot.link_poses(q)[:, links]
+        np.testing.assert_allclose(cl, t[..., :3, 3], atol=2e-5)
+        np.testing.assert_allclose(rl, t[..., :3, :3], atol=2e-5)

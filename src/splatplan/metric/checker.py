@@ -179,7 +179,7 @@ class CollisionChecker:
         return convert_out(ws.in_collision, b, shape, kind, False)
 
     # ------------------------------------------------------------------ robots
-    def query_robot(self, robot, q, *, out=None, validate=False) -> QueryResult:
+    def query_robot(self, robot, q, *, ellipsoids=None, out=None, validate=False) -> QueryResult:
         """All five outputs for every collision ellipsoid of ``robot`` at joint configurations ``q``.
 
         ``q`` (..., dof) (numpy, torch or wp float32) -> forward kinematics on the device
@@ -188,25 +188,34 @@ class CollisionChecker:
         O(1) host work (NaN joint values make their ellipsoids read in_collision = True, or raise
         with ``validate=True``). Joint limits are not enforced: the geometry of any configuration is
         checked (clip first with ``robot.check_q(q, clip=True)`` where limits matter).
+        ``ellipsoids``: only these ellipsoid indices (outputs (..., len(ellipsoids)) in that order),
+        e.g. the moving ones when the static ones were queried once.
         """
         with _torch_stream(q):
-            return self._robot(robot, q, out, validate, full=True)
+            return self._robot(robot, q, out, validate, full=True, subset=ellipsoids)
 
-    def collides_robot(self, robot, q, *, out=None, validate=False):
+    def collides_robot(self, robot, q, *, ellipsoids=None, out=None, validate=False):
         """(..., E) collision state of every ellipsoid of ``robot`` at ``q`` (see :meth:`query_robot`).
 
         A configuration collides when any of its ellipsoids does: ``collides_robot(...).any(-1)``.
         """
         with _torch_stream(q):
-            return self._robot(robot, q, out, validate, full=False)
+            return self._robot(robot, q, out, validate, full=False, subset=ellipsoids)
 
-    def _robot(self, robot, q, out, validate, full: bool):
+    def _robot(self, robot, q, out, validate, full: bool, subset=None):
         kind = array_kind(q)
-        e = int(robot.n_ellipsoids)
+        sub = None
+        if subset is not None:
+            sub = [int(i) for i in np.asarray(subset).reshape(-1)]
+            if not sub or min(sub) < 0 or max(sub) >= robot.n_ellipsoids:
+                raise SplatplanError(f"ellipsoids must be a non-empty list of indices in 0..{robot.n_ellipsoids - 1}, got {subset}")
+        e = int(robot.n_ellipsoids) if sub is None else len(sub)
         dof = int(robot.dof)
         if self.backend == "reference":
             qn = robot.check_q(host_array(q), check_limits=False)
             c, quat, ax = robot.ellipsoids(qn)
+            if sub is not None:
+                c, quat, ax = c[..., sub, :], quat[..., sub, :], ax[sub]
             res = self.query(c, quat, ax) if full else self.collides(c, quat, ax)
             return _convert_host(res, kind, _device_of(q, self.device))
         from .._warp import wp as _wp
@@ -232,8 +241,11 @@ class CollisionChecker:
         ws = self._workspace(out, n)
         ws.reserve_fk(n)
         centers, rots = ws.fk_centers[:n], ws.fk_rots[:n]
-        robot.fk_wp(qw, centers, rots)
-        axes, amin, amax = self._axes_for(robot)
+        if sub is None:
+            robot.fk_wp(qw, centers, rots)
+        else:
+            robot.fk_wp(qw, centers, rots, ellipsoids=sub)
+        axes, amin, amax = self._axes_for(robot, sub)
         links = LinkBatch()
         links.centers, links.rots, links.axes = centers, rots, axes
         links.rot_mode, links.rot_period, links.axes_period = 2, n, e
@@ -248,12 +260,14 @@ class CollisionChecker:
             return QueryResult(**{k: convert_out(getattr(ws, k), n, oshape, kind, False) for k in _FIELDS})
         return convert_out(ws.in_collision, n, oshape, kind, False)
 
-    def _axes_for(self, robot):
-        """Robot semi-axes (E,) on the device plus their grid-sizing medians (cached by value)."""
+    def _axes_for(self, robot, subset=None):
+        """Robot semi-axes (E,) (or of the ellipsoids ``subset``) on the device plus their
+        grid-sizing medians (cached by value)."""
         from .._warp import wp as _wp
 
         wp = _wp()
-        ax = np.ascontiguousarray(np.asarray(robot.semi_axes, dtype=np.float64).reshape(-1, 3))
+        ax = np.asarray(robot.semi_axes, dtype=np.float64).reshape(-1, 3)
+        ax = np.ascontiguousarray(ax if subset is None else ax[subset])
         key = ax.tobytes()
         hit = self._robot_axes.get(key)
         if hit is None:

@@ -222,8 +222,11 @@ class CollisionCost(Cost):
         lead = states.shape[:-1]
         if not mv.any():
             return QueryResult(**{f: np.broadcast_to(v, lead + v.shape).copy() for f, v in static.as_dict().items()})
-        centers, rots = rob.fk(states, device=getattr(self.checker, "device", "cpu"))  # (..., E, 3), (..., E, 3, 3) float32
-        res = self.checker.query(centers[..., mv, :], rots=rots[..., mv, :, :], semi_axes=np.asarray(rob.semi_axes)[mv])  # (..., E_moving)
+        if hasattr(self.checker, "query_robot"):  # FK of the moving ellipsoids and the metric on the checker's device
+            res = self.checker.query_robot(rob, states, ellipsoids=np.flatnonzero(mv))  # (..., E_moving)
+        else:
+            centers, rots = rob.fk(states, device=getattr(self.checker, "device", "cpu"), ellipsoids=np.flatnonzero(mv))  # (..., E_moving, 3 | 3x3)
+            res = self.checker.query(centers, rots=rots, semi_axes=np.asarray(rob.semi_axes)[mv])  # (..., E_moving)
         self.geometry.n_queries += int(np.size(res.min_s2))
         out = {}
         for f, v in res.as_dict().items():
@@ -279,6 +282,12 @@ def _speed_bound(source, geometry: LinkGeometry) -> np.ndarray:
     return np.asarray(robot.velocity_limits, dtype=np.float64).copy()
 
 
+def fk_device(checker) -> str | None:
+    """The FK device of :class:`GoalPoseCost` for a checker: its CUDA device, None (host numpy) on CPU."""
+    dev = str(getattr(checker, "device", "cpu"))
+    return dev if dev.startswith("cuda") else None
+
+
 def _rotation_angle(r: np.ndarray, r_goal: np.ndarray) -> np.ndarray:
     """Geodesic angle (rad) between rotations r (..., 3, 3) and r_goal (3, 3)."""
     tr = np.einsum("...ij,ij->...", r, r_goal)  # trace(r_goal^T r)
@@ -302,6 +311,9 @@ class GoalPoseCost(Cost):
         state_dims: state coordinates that are the position when ``robot`` is None.
         position_weight, orientation_weight: weights of the two parts.
         terminal_factor: extra weight on the final step.
+        device: where the link's forward kinematics runs: None = float64 numpy on the host (its
+            chain only); a device name ("cuda:0", "cpu") = the Warp FK kernel there (float32). On a
+            GPU that is ~50x faster for K = 1024, T = 32 batches (pass :func:`fk_device` of the checker).
     """
 
     name = "goal"
@@ -316,8 +328,10 @@ class GoalPoseCost(Cost):
         position_weight: float = 1.0,
         orientation_weight: float = 0.2,
         terminal_factor: float = 0.0,
+        device: str | None = None,
     ) -> None:
         self.robot = robot
+        self.device = None if device is None else str(device)
         self.position = np.asarray(position, dtype=np.float64).reshape(-1)
         self.state_dims = tuple(int(i) for i in state_dims)
         self.position_weight = float(position_weight)
@@ -352,6 +366,12 @@ class GoalPoseCost(Cost):
         """Positions (K, T, 3 or len(state_dims)) and rotations (K, T, 3, 3) | None."""
         if self.robot is None:
             return rollout.states[..., list(self.state_dims)], None
+        if self.device is not None and hasattr(self.robot, "fk"):
+            key = ("link_pose_fk", self.link_index)
+            if key not in rollout.cache:
+                c, r = self.robot.fk(rollout.states, device=self.device, links=[self.link_index])  # (K, T, 1, 3), (K, T, 1, 3, 3)
+                rollout.cache[key] = (c[..., 0, :].astype(np.float64), r[..., 0, :, :].astype(np.float64))
+            return rollout.cache[key]
         if self._chain is None:
             key = "link_poses"
             if key not in rollout.cache:

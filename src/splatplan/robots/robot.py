@@ -167,23 +167,29 @@ class Robot:
 
     # ------------------------------------------------------------------ Warp FK
 
-    def fk_wp(self, q_wp, out_centers, out_rots) -> None:
+    def fk_wp(self, q_wp, out_centers, out_rots, ellipsoids=None) -> None:
         """Device-resident FK (Warp kernel; CPU launches split across this robot's thread pool).
 
         Args:
             q_wp: wp.array(dtype=float32, ndim=2) (B, dof) on any device.
             out_centers: wp.array(dtype=wp.vec3) (B*E,) world frame, same device.
             out_rots: wp.array(dtype=wp.mat33) (B*E,) world <- ellipsoid frame, same device.
+            ellipsoids: None (all E) or a list of ellipsoid indices (then E = its length, rows in
+                its order), e.g. only the moving ones.
         Row b*E + e holds ellipsoid e of configuration b. Nothing is copied to the host.
         """
-        from .wp_fk import launch_fk
+        from .wp_fk import attachments, launch_fk
 
-        launch_fk(self, q_wp, out_centers, out_rots)
+        launch_fk(self, q_wp, out_centers, out_rots, attachments(self, ellipsoids=ellipsoids))
 
-    def fk(self, q, device: str | None = "cpu") -> tuple[np.ndarray, np.ndarray]:
-        """Convenience: numpy q (..., dof) -> Warp FK -> numpy (centres (..., E, 3), rotations (..., E, 3, 3)) float32."""
+    def fk(self, q, device: str | None = "cpu", ellipsoids=None, links=None) -> tuple[np.ndarray, np.ndarray]:
+        """Convenience: numpy q (..., dof) -> Warp FK -> numpy (centres (..., E, 3), rotations (..., E, 3, 3)) float32.
+
+        ``ellipsoids``: a subset of ellipsoid indices (E = its length); ``links``: link indices
+        instead (their frames' origins and world <- link rotations; E = its length)."""
         from .._warp import resolve_device
         from .._warp import wp as _wp
+        from .wp_fk import attachments, launch_fk
 
         wp = _wp()
         arr = self.check_q(q, check_limits=False)
@@ -191,11 +197,12 @@ class Robot:
         flat = np.ascontiguousarray(arr.reshape(int(np.prod(lead, dtype=np.int64)), self.dof), dtype=np.float32)
         dev = resolve_device(device)
         b = flat.shape[0]
+        att = attachments(self, ellipsoids=ellipsoids, links=links)
+        e = self.n_ellipsoids if att is None else len(att.links)
         qw = wp.array(flat, dtype=wp.float32, device=dev)
-        oc = wp.empty(b * self.n_ellipsoids, dtype=wp.vec3, device=dev)
-        orr = wp.empty(b * self.n_ellipsoids, dtype=wp.mat33, device=dev)
-        self.fk_wp(qw, oc, orr)
-        e = self.n_ellipsoids
+        oc = wp.empty(b * e, dtype=wp.vec3, device=dev)
+        orr = wp.empty(b * e, dtype=wp.mat33, device=dev)
+        launch_fk(self, qw, oc, orr, att)
         return oc.numpy().reshape(lead + (e, 3)), orr.numpy().reshape(lead + (e, 3, 3))
 
     def _thread_pool(self) -> ThreadPoolExecutor:

@@ -8,6 +8,10 @@ not its immediate successor is also stored in a per-configuration scratch slot (
 the Panda need none). Each frame writes its ellipsoids' world centres and rotations:
 row b*E + e = ellipsoid e of configuration b, rotation = world <- ellipsoid frame.
 
+What a frame writes are *attachments*: (link, link <- attachment transform) pairs, by default the
+robot's ellipsoids. :func:`attachments` makes others: a subset of the ellipsoids (the moving ones
+of a collision cost) or bare link frames (an end effector's pose), same kernel, E = their count.
+
 Float32 throughout; the float64 numpy reference is :meth:`Robot.link_poses` /
 :meth:`Robot.ellipsoid_frames`, and tests compare both on random configurations.
 """
@@ -126,8 +130,40 @@ def fk_kernel(
 assert (FIXED, REVOLUTE, PRISMATIC, PLANAR, TRANSLATION) == (0, 1, 2, 3, 4)  # codes used in the kernel
 
 
-def model_arrays(robot) -> dict[str, np.ndarray]:
-    """The flat frame model of a robot as numpy arrays (float32/int32), device independent."""
+class Attachments:
+    """What the FK kernel writes per configuration: A (link, link <- attachment) pairs.
+
+    Attributes:
+        key: hashable identity (model cache key).
+        links: (A,) int link indices.
+        local: (A, 4, 4) link <- attachment transforms.
+    """
+
+    def __init__(self, key, links, local) -> None:
+        self.key = key
+        self.links = np.asarray(links, dtype=np.int64).reshape(-1)
+        self.local = np.asarray(local, dtype=np.float64).reshape(-1, 4, 4)
+        if self.links.size == 0:
+            raise ValueError("attachments: at least one is needed")
+
+
+def attachments(robot, ellipsoids=None, links=None) -> Attachments | None:
+    """None (every ellipsoid, the default), a subset of the ellipsoids (sorted index list, output
+    in that order), or the frames of the links ``links`` (indices; identity local transforms)."""
+    if links is not None:
+        li = tuple(int(i) for i in np.asarray(links).reshape(-1))
+        return Attachments(("links", li), li, np.broadcast_to(np.eye(4), (len(li), 4, 4)))
+    if ellipsoids is None:
+        return None
+    ei = tuple(int(i) for i in np.asarray(ellipsoids).reshape(-1))
+    if ei == tuple(range(robot.n_ellipsoids)):
+        return None
+    return Attachments(("ellipsoids", ei), robot.ellipsoid_link[list(ei)], robot.ellipsoid_local[list(ei)])
+
+
+def model_arrays(robot, attach: Attachments | None = None) -> dict[str, np.ndarray]:
+    """The flat frame model of a robot as numpy arrays (float32/int32), device independent;
+    ``attach``: what each configuration writes (default: every ellipsoid)."""
     kin = robot.kin
     frames = [l for l in range(kin.n_links) if kin.parent[l] < 0 or kin.jtype[l] != FIXED]
     fid = {l: i for i, l in enumerate(frames)}
@@ -140,9 +176,11 @@ def model_arrays(robot) -> dict[str, np.ndarray]:
     need = [i for i in range(len(frames)) if any(c != i + 1 for c in kids.get(i, []))]
     slot = -np.ones(len(frames), dtype=np.int32)
     slot[need] = np.arange(len(need), dtype=np.int32)
-    ell_frame = np.array([fid[int(fol[l])] for l in robot.ellipsoid_link], dtype=np.int64)
+    a_link = robot.ellipsoid_link if attach is None else attach.links
+    a_local = robot.ellipsoid_local if attach is None else attach.local
+    ell_frame = np.array([fid[int(fol[l])] for l in a_link], dtype=np.int64)
     order = np.argsort(ell_frame, kind="stable")
-    local = rel[robot.ellipsoid_link] @ robot.ellipsoid_local  # (E, 4, 4) frame <- ellipsoid
+    local = rel[a_link] @ a_local  # (E, 4, 4) frame <- ellipsoid
     start = np.searchsorted(ell_frame[order], np.arange(len(frames) + 1)).astype(np.int32)
     return {
         "parent": parent,
@@ -163,15 +201,15 @@ def model_arrays(robot) -> dict[str, np.ndarray]:
     }
 
 
-def _model(robot, device) -> FKModel:
-    key = ("model", str(device))
+def _model(robot, device, attach: Attachments | None = None) -> FKModel:
+    key = ("model", str(device), None if attach is None else attach.key)
     with robot._lock:
         m = robot._wp_cache.get(key)
         if m is None:
-            a = model_arrays(robot)
+            a = model_arrays(robot, attach)
             m = FKModel()
             m.n_frames = len(a["parent"])
-            m.n_ell = robot.n_ellipsoids
+            m.n_ell = len(a["ell_id"])
             m.n_slots = int((a["slot"] >= 0).sum())
             for name in ("parent", "jtype", "qidx", "slot", "ell_start", "ell_id"):
                 setattr(m, name, wp.array(a[name], dtype=wp.int32, device=device))
@@ -200,21 +238,21 @@ def _scratch(robot, m: FKModel, batch: int, device):
         return s
 
 
-def launch_fk(robot, q_wp, out_centers, out_rots) -> None:
+def launch_fk(robot, q_wp, out_centers, out_rots, attach: Attachments | None = None) -> None:
     """Validate shapes/dtypes (O(1) host work) and launch :func:`fk_kernel` (see ``Robot.fk_wp``)."""
     from ..errors import SplatplanError
 
     if not isinstance(q_wp, wp.array) or q_wp.ndim != 2 or q_wp.dtype != wp.float32 or q_wp.shape[1] != robot.dof:
         raise SplatplanError(f"fk_wp: q must be a wp.array of float32 with shape (B, {robot.dof})")
     b = q_wp.shape[0]
-    e = robot.n_ellipsoids
+    e = robot.n_ellipsoids if attach is None else len(attach.links)
     dev = q_wp.device
     for name, arr, dt in (("out_centers", out_centers, wp.vec3), ("out_rots", out_rots, wp.mat33)):
         if not isinstance(arr, wp.array) or arr.dtype != dt or arr.ndim != 1 or arr.shape[0] < b * e or arr.device != dev:
             raise SplatplanError(f"fk_wp: {name} must be a wp.array of {dt.__name__} with at least B*E = {b * e} rows on {dev}")
     if b == 0:
         return
-    m = _model(robot, dev)
+    m = _model(robot, dev, attach)
     sr, sp = _scratch(robot, m, b, dev)
     if not dev.is_cpu:
         wp.launch(fk_kernel, dim=b, inputs=[m, q_wp, 0, sr, sp, out_centers, out_rots], device=dev)

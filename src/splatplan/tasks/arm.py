@@ -162,7 +162,7 @@ def run_arm(
     """
     from ..planners import MPPI, MPPIConfig
     from ..planners.bspline import UniformBSpline
-    from ..planners.costs import CollisionCost, ControlEffortCost, GoalPoseCost, JointLimitCost, StateCost
+    from ..planners.costs import CollisionCost, ControlEffortCost, GoalPoseCost, JointLimitCost, StateCost, fk_device
     from ..planners.dynamics import JointIntegrator
     from ..robots import load_robot
     from ..scenes.splats import quat_to_rotmat
@@ -195,7 +195,8 @@ def run_arm(
     vmax = cfg.velocity_scale * np.asarray(robot.velocity_limits, np.float64)
     dyn = JointIntegrator(robot, velocity_limits=vmax)
     costs = [
-        GoalPoseCost(robot, position=p_goal, quat=quat, link=cfg.ee_link, position_weight=cfg.w_position, orientation_weight=cfg.w_orientation, terminal_factor=cfg.terminal_factor),
+        GoalPoseCost(robot, position=p_goal, quat=quat, link=cfg.ee_link, position_weight=cfg.w_position, orientation_weight=cfg.w_orientation, terminal_factor=cfg.terminal_factor,
+                     device=fk_device(ts.checker)),
         ControlEffortCost(cfg.w_control),
         JointLimitCost(robot, weight=cfg.w_limits, margin=0.05),
     ]

@@ -358,10 +358,22 @@ def reach_start(robot, camera_link: str = "panda_hand_tcp") -> np.ndarray:
     return q[int(np.argmin(np.sum((q - robot.q_default) ** 2, axis=1)))]
 
 
+def _scaled_camera(camera, width: int):
+    """``camera`` (a MountedCamera) at ``width`` pixels wide, same field of view and aspect."""
+    from ..render import MountedCamera
+
+    if camera.width == width:
+        return camera
+    s = width / camera.width
+    k = np.asarray(camera.K, np.float64).copy()
+    k[:2] *= s
+    return MountedCamera(camera.link_name, camera.offset, k, width, max(1, round(camera.height * s)))
+
+
 def make_reach_goals(
     robot, scene: TaskScene, renderer, camera, *, n: int = 5, q_start=None, spread: float = 0.35, n_behind: int = 2, margin_m: float = 0.02,
     min_move_m: float = 0.05, max_move_m: float = 0.15, max_turn_deg: float = 30.0, n_candidates: int = 1024, seed: int = 0,
-    behind_spread: float = 0.45, behind_max_move_m: float = 0.2, min_contrast: float = 0.12,
+    behind_spread: float = 0.45, behind_max_move_m: float = 0.2, min_contrast: float = 0.12, view_check_px: int = 64,
 ) -> list[dict]:
     """Random reachable, collision-free goal configurations near ``q_start`` whose wrist view is
     informative, ``n_behind`` of them with the camera behind the bin's front wall (:data:`BEHIND_WALL`).
@@ -372,8 +384,9 @@ def make_reach_goals(
     most ``max_turn_deg`` (half the candidates use ``behind_spread`` and, behind the wall only,
     ``behind_max_move_m``: reaching behind the wall takes a longer move), and the view
     is filled by the scene (alpha > 0.98) with contrast (pixel std > ``min_contrast``: a plain view of
-    floor and wall is ambiguous for any encoder). Goals are then picked far
-    apart from each other (greedy farthest point in camera position).
+    floor and wall is ambiguous for any encoder). The view is judged at most ``view_check_px``
+    pixels wide (same field of view, scaled intrinsics): at 224 px single edge pixels of a full
+    view fall below the alpha bar, and goals for large images would not exist. Goals are then picked far apart from each other (greedy farthest point in camera position).
 
     Returns:
         [{"name", "q" (7,), "camera_pose" (4, 4) world <- camera, "clearance_m", "behind_wall"}].
@@ -403,7 +416,8 @@ def make_reach_goals(
         keep &= ~np.asarray(scene.checker.collides_robot(robot, q)).any(axis=-1) & ~np.asarray(robot.self_collision(q))
     q, t, clear = q[keep], t[keep], clear[keep]
     if len(q):
-        res = camera.render(renderer, robot, q)
+        check_cam = _scaled_camera(camera, min(camera.width, view_check_px))
+        res = check_cam.render(renderer, robot, q)
         rgb, alpha = np.asarray(res.rgb), np.asarray(res.alpha)
         keep = (alpha.reshape(len(q), -1).min(axis=1) > 0.98) & (rgb.reshape(len(q), -1).std(axis=1) > min_contrast)
         q, t, clear = q[keep], t[keep], clear[keep]
