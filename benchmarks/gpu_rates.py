@@ -96,6 +96,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--device", default="cuda")
     ap.add_argument("--samples", default="256,1024", help="Panda MPPI sample counts K (comma list; empty: skip)")
     ap.add_argument("--steps", type=int, default=20, help="timed MPC steps per Panda row")
+    ap.add_argument("--lanes-sweep", default="", help="also time the Panda query alone at these TierConfig.lanes (comma list)")
     ap.add_argument("--reach-size", type=int, default=224)
     ap.add_argument("--reach-encoders", default="thumbnail,dinov2-vits14", help="comma list; empty: skip the reach rows")
     ap.add_argument("--reach-backends", default="warp", help="renderers of the reach rows: warp, gsplat (CUDA only), comma list")
@@ -107,9 +108,10 @@ def main(argv: list[str] | None = None) -> int:
     if ks:
         setup = panda_setup(n_splats=20_000 if args.quick else 200_000, device=args.device)
         for k in ks:
-            r = bench_mppi_panda(2 if args.quick else args.steps, setup, quick=args.quick, stonehenge=False, n_samples=k, profile=True)
+            sweep = tuple(int(x) for x in args.lanes_sweep.split(",") if x)
+            r = bench_mppi_panda(2 if args.quick else args.steps, setup, quick=args.quick, stonehenge=False, n_samples=k, profile=True, lanes_sweep=sweep)
             res["panda"].append(r)
-            print(f"panda K={k}: {r['steps_per_s']:.2f} steps/s, costs {r['cost_s_per_step']}", flush=True)
+            print(f"panda K={k}: {r['steps_per_s']:.2f} steps/s, costs {r['cost_s_per_step']}, query alone {r['query_only_s']}", flush=True)
     for enc in [e for e in args.reach_encoders.split(",") if e]:
         for backend in [b for b in args.reach_backends.split(",") if b]:
             r = bench_reach(args.device, args.reach_size, enc, args.quick, backend)

@@ -7,7 +7,8 @@
 #   benchmarks/gpu_session.sh OUT_DIR STAGE...      STAGE: all, or any of
 #
 #   gsplat   start gsplat's kernel build in the background (minutes; it outlives the call)
-#   rates    MPC rates (benchmarks/gpu_rates.py: Panda MPPI K = 256 / 1024, reaching at 224 px)
+#   rates    MPC rates (benchmarks/gpu_rates.py: Panda MPPI K = 256 / 1024, reaching at 224 px;
+#            $RATES_ARGS replaces its options)
 #   metric   metric throughput on CUDA (benchmarks/metric_throughput.py)
 #   tests    the metric / robots / planners / render / encoders tests (CPU and CUDA cases; or $TEST_PATHS)
 #   bench    render, encoder and FK throughput on CUDA
@@ -46,7 +47,7 @@ for s in "${stages[@]}"; do
   case $s in
     gsplat)  # gsplat compiles its CUDA kernels on first import: start it detached
       setsid nohup $py -c "from gsplat.cuda._backend import _C; print('gsplat built', _C is not None)" >"$res/gsplat_build.log" 2>&1 </dev/null & ;;
-    rates) stage gpu_rates 300 $py benchmarks/gpu_rates.py --device cuda --reach-backends warp,gsplat --out "$res/gpu_rates.json" ;;
+    rates) stage gpu_rates 300 $py benchmarks/gpu_rates.py --device cuda ${RATES_ARGS:---reach-backends warp,gsplat --lanes-sweep 1,2,4,8,16} --out "$res/gpu_rates.json" ;;
     metric) stage metric_throughput 120 $py benchmarks/metric_throughput.py --device cuda --out "$res/metric_throughput_cuda.json" ;;
     tests) stage tests 200 $py -m pytest -q -p no:cacheprovider -n 6 ${TEST_PATHS:-tests/metric tests/robots tests/planners tests/render tests/encoders} ;;
     bench)

@@ -165,9 +165,12 @@ def _timed(fn, spent: dict, key: str):
     return wrapped
 
 
-def _query_only_s(robot, checker, col, x, n: int, seed: int, repeats: int = 5) -> dict:
+def _query_only_s(robot, checker, col, x, n: int, seed: int, repeats: int = 5, lanes: tuple[int, ...] = ()) -> dict:
     """Median seconds of the collision query alone on n configurations near ``x`` (moving
-    ellipsoids, FK on the device): q from numpy, and q already on the device (wp.array)."""
+    ellipsoids, FK on the device): q from numpy, and q already on the device (wp.array); and for
+    each of ``lanes`` (threads per query, TierConfig.lanes) with q on the device."""
+    from dataclasses import replace
+
     from splatplan._warp import wp as _wp
 
     wp = _wp()
@@ -186,12 +189,28 @@ def _query_only_s(robot, checker, col, x, n: int, seed: int, repeats: int = 5) -
             _ = np.asarray(r.cost.numpy() if hasattr(r.cost, "numpy") else r.cost)[:1]  # wait for the device
             ts.append(time.perf_counter() - t)
         out[name] = float(np.median(ts))
+    impl = checker._impl  # benchmark only: the same grids with another lane count
+    keep = impl.tiers
+    try:
+        for n_l in lanes:
+            impl.tiers = replace(keep, lanes=n_l)
+            checker.query_robot(robot, qw, ellipsoids=mv, out=ws)
+            ts = []
+            for _ in range(repeats):
+                t = time.perf_counter()
+                r = checker.query_robot(robot, qw, ellipsoids=mv, out=ws)
+                _ = r.cost.numpy()[:1]
+                ts.append(time.perf_counter() - t)
+            out[f"lanes_{n_l}"] = float(np.median(ts))
+    finally:
+        impl.tiers = keep
+    out["lanes_default"] = impl.lanes
     return out
 
 
 def bench_mppi_panda(
     n_steps: int, setup=None, seed: int = 0, quick: bool = False, time_stride: int | str = 1, stonehenge: bool = True, static_shortcut: bool = True,
-    n_samples: int = 256, profile: bool = False,
+    n_samples: int = 256, profile: bool = False, lanes_sweep: tuple[int, ...] = (),
 ) -> dict:
     """Panda MPPI over the tabletop; ``time_stride`` an integer or "auto" (see CollisionCost).
 
@@ -249,7 +268,7 @@ def bench_mppi_panda(
     }  # fmt: skip
     if profile:
         out["cost_s_per_step"] = {k: v / n_steps for k, v in spent.items()}
-        out["query_only_s"] = _query_only_s(robot, checker, col, x, cfg.n_samples * cfg.horizon, seed)
+        out["query_only_s"] = _query_only_s(robot, checker, col, x, cfg.n_samples * cfg.horizon, seed, lanes=lanes_sweep)
     if not stonehenge:
         return out
     # one collision query of the same batch size on the unit-size Stonehenge, for comparison

@@ -33,12 +33,14 @@ from .._warp import wp as _wp
 from ..scenes.splats import Splats, quat_to_rotmat
 from .config import COST_REDUCE_CODES, MetricConfig
 from .wp_metric_kernel import (
+    LanePartials,
     LinkBatch,
     MetricOutputs,
     MetricParams,
     SplatTiers,
     metric_collide_kernel,
     metric_full_kernel,
+    metric_lanes_combine_kernel,
     morton_keys_kernel,
     search_radius,
 )
@@ -85,6 +87,12 @@ class TierConfig:
     sort_queries: bool = True
     #: ... for batches of at least this many queries.
     sort_min_batch: int = 1024
+    #: Threads per query in the full kernel (``query``): lane l takes every lanes-th splat of each
+    #: cell run it visits, and a second kernel sums the lanes in order. On a GPU the lanes of a
+    #: query run in one warp over the same cells (coalesced reads, even work); on a CPU one thread
+    #: per query is best. None = 8 on CUDA, 1 on CPU. Counts and flags are the same for any value,
+    #: float sums up to summation order.
+    lanes: int | None = None
 
 
 def quantile_tiers(smax: np.ndarray, quantiles: tuple[float, ...]) -> np.ndarray:
@@ -388,12 +396,36 @@ class WarpMetric:
         links.order = values[:b]
         links.use_order = 1
 
+    @property
+    def lanes(self) -> int:
+        """Threads per query of the full kernel (:attr:`TierConfig.lanes`, resolved for this device)."""
+        n = self.tiers.lanes
+        if n is None:
+            n = 1 if self.device == "cpu" else 8
+        if int(n) < 1:
+            raise ValueError(f"TierConfig.lanes must be >= 1, got {n}")
+        return int(n)
+
+    def _lane_partials(self, b: int, lanes: int) -> LanePartials:
+        lp = LanePartials()
+        lp.lanes = lanes
+        n = b * lanes if lanes > 1 else 1  # lanes == 1: never read
+        d = self.device
+        for name, dt in (("best", wp.float32), ("ncol", wp.int32), ("n_nb", wp.int32), ("pivot", wp.float32), ("acc", wp.float32), ("c_sum", wp.float32), ("c_max", wp.float32)):
+            setattr(lp, name, wp.empty(n, dtype=dt, device=d))
+        return lp
+
     def query(self, links: LinkBatch, b: int, a_min: float, a_max: float, cfg: MetricConfig, out: MetricOutputs, scratch=None) -> None:
         """All five outputs of b queries into ``out`` (device arrays of at least b rows); ``scratch``:
         (keys, values) int32 device arrays of >= 2b rows for the query sort (allocated when None)."""
         gs = self.gridset(cfg.n_sigma, cfg.s2_cap, a_min, a_max, slabs=True)
         self.sort_queries(links, b, *(scratch or self._scratch(b)))
-        self._launch(metric_full_kernel, b, [links, gs.tiers, metric_params(cfg, _softmin_power(cfg)), out])
+        lanes = self.lanes
+        lp = self._lane_partials(b, lanes)
+        params = metric_params(cfg, _softmin_power(cfg))
+        self._launch(metric_full_kernel, b * lanes, [links, gs.tiers, params, out, lp])
+        if lanes > 1:
+            wp.launch(metric_lanes_combine_kernel, dim=b, inputs=[lp, params, out], device=self.device)
 
     def collides(self, links: LinkBatch, b: int, a_min: float, a_max: float, cfg: MetricConfig, out_hit, bad, scratch=None) -> None:
         """in_collision of b queries into ``out_hit`` (bool device array of at least b rows)."""

@@ -62,6 +62,14 @@ Launch position and query index differ when the glue sorts a batch (Morton order
 ``LinkBatch.order``): neighbouring threads then read neighbouring splats; every output is still
 written at the query's own index, so results do not depend on the order.
 
+LANES (full kernel, ``LanePartials``). With ``lanes`` > 1 each query has that many adjacent threads:
+lane l walks the same tiers, slabs and cell rows as every other lane of its query and takes the
+splats start + l, start + l + lanes, ... of each cell run, so on a GPU the lanes of a warp read
+neighbouring splats and share the control flow (one thread per query leaves a warp waiting for its
+busiest query). Each lane writes its partial sums; ``metric_lanes_combine_kernel`` reduces them in
+lane order (deterministic) and writes the outputs. Counts, flags and min s2~ equal the one-thread
+results; the softmin and cost sums differ only in float summation order.
+
 Invalid queries (non-finite centre, rotation or semi-axes, a zero quaternion, a semi-axis <= 0)
 are never reported free: their outputs are min_s2 = softmin = cost = NaN, n_colliding = -1,
 in_collision = True, and the smallest invalid query index is written to ``bad[0]``.
@@ -167,6 +175,23 @@ class MetricOutputs:
     softmin: wp.array(dtype=wp.float32)  # (B,)
     cost: wp.array(dtype=wp.float32)  # (B,)
     bad: wp.array(dtype=wp.int32)  # (1,) smallest invalid query index, NO_BAD if none
+
+
+@wp.struct
+class LanePartials:
+    """Several threads ("lanes") per query in the full kernel (LANES in the module docstring):
+    lane l of query q takes every ``lanes``-th splat of each visited cell run and writes its
+    partial sums at row q * lanes + l; :func:`metric_lanes_combine_kernel` reduces them in lane
+    order. ``lanes == 1``: the kernel writes the outputs itself (these arrays are not read)."""
+
+    lanes: int
+    best: wp.array(dtype=wp.float32)  # (B * lanes,) min s2~
+    ncol: wp.array(dtype=wp.int32)  # splats with s2~ < 1
+    n_nb: wp.array(dtype=wp.int32)  # |N(q)| seen by the lane; -1: invalid query (lane 0 wrote the outputs)
+    pivot: wp.array(dtype=wp.float32)  # softmin pivot of the lane
+    acc: wp.array(dtype=wp.float32)  # sum exp(-t (s2~ - pivot)) of the lane
+    c_sum: wp.array(dtype=wp.float32)
+    c_max: wp.array(dtype=wp.float32)
 
 
 @wp.func
@@ -398,6 +423,29 @@ def splat_inflation(splats: SplatTiers, p: MetricParams, i: int):
     return p.n_sigma
 
 
+@wp.func
+def write_outputs(out: MetricOutputs, q: int, p: MetricParams, best: float, ncol: int, n_nb: int, pivot: float, acc: float, c_sum: float, c_max: float):
+    """The five outputs of query q from its accumulated sums (one thread, or the lanes combined)."""
+    t = p.softmin_t
+    out.min_s2[q] = best
+    out.n_colliding[q] = ncol
+    out.in_collision[q] = ncol > p.k_collide
+    if n_nb > 0:
+        soft = pivot - wp.log(acc) / t
+        if p.softmin_mean != 0:
+            soft += wp.log(float(n_nb)) / t
+        out.softmin[q] = soft
+        if p.reduce_code == 0:
+            out.cost[q] = c_sum / float(n_nb)
+        elif p.reduce_code == 1:
+            out.cost[q] = c_sum
+        else:
+            out.cost[q] = c_max
+    else:
+        out.softmin[q] = float(wp.inf)
+        out.cost[q] = 0.0
+
+
 @wp.kernel
 def metric_full_kernel(
     offset: int,  # first query handled by this launch (CPU launches split the batch)
@@ -405,19 +453,25 @@ def metric_full_kernel(
     splats: SplatTiers,
     p: MetricParams,
     out: MetricOutputs,
+    lp: LanePartials,
 ):
-    q = wp.tid() + offset
+    tid = wp.tid() + offset  # one thread per (query, lane): lanes of a query are adjacent threads
+    lane = tid % lp.lanes
+    q = tid // lp.lanes
     if links.use_order != 0:
         q = links.order[q]  # neighbouring threads take neighbouring queries: coherent splat reads
     c = links.centers[q]
     ax = links.axes[q % links.axes_period]
     if not link_valid(links, q, c, ax):
-        out.min_s2[q] = wp.nan
-        out.n_colliding[q] = -1
-        out.in_collision[q] = True
-        out.softmin[q] = wp.nan
-        out.cost[q] = wp.nan
-        wp.atomic_min(out.bad, 0, q)
+        if lane == 0:
+            out.min_s2[q] = wp.nan
+            out.n_colliding[q] = -1
+            out.in_collision[q] = True
+            out.softmin[q] = wp.nan
+            out.cost[q] = wp.nan
+            wp.atomic_min(out.bad, 0, q)
+        if lp.lanes > 1:
+            lp.n_nb[q * lp.lanes + lane] = -1
         return
     rot = link_rotation(links, q)
     a = link_matrix(rot, ax)
@@ -504,7 +558,7 @@ def metric_full_kernel(
                         if run == 1:
                             a0 = 0
                             a1 = x1 - dim[0]
-                        for i in range(splats.cell_start[row + a0], splats.cell_start[row + a1 + 1]):
+                        for i in range(splats.cell_start[row + a0] + lane, splats.cell_start[row + a1 + 1], lp.lanes):
                             d = splats.means[i] - c
                             dd = wp.dot(d, d)
                             if dd <= rho2:
@@ -538,23 +592,47 @@ def metric_full_kernel(
                                     c_sum += cv
                                     c_max = wp.max(c_max, cv)
 
-    out.min_s2[q] = best
-    out.n_colliding[q] = ncol
-    out.in_collision[q] = ncol > p.k_collide
-    if n_nb > 0:
-        soft = pivot - wp.log(acc) / t
-        if p.softmin_mean != 0:
-            soft += wp.log(float(n_nb)) / t
-        out.softmin[q] = soft
-        if p.reduce_code == 0:
-            out.cost[q] = c_sum / float(n_nb)
-        elif p.reduce_code == 1:
-            out.cost[q] = c_sum
-        else:
-            out.cost[q] = c_max
+    if lp.lanes == 1:
+        write_outputs(out, q, p, best, ncol, n_nb, pivot, acc, c_sum, c_max)
     else:
-        out.softmin[q] = float(wp.inf)
-        out.cost[q] = 0.0
+        k = q * lp.lanes + lane
+        lp.best[k] = best
+        lp.ncol[k] = ncol
+        lp.n_nb[k] = n_nb
+        lp.pivot[k] = pivot
+        lp.acc[k] = acc
+        lp.c_sum[k] = c_sum
+        lp.c_max[k] = c_max
+
+
+@wp.kernel
+def metric_lanes_combine_kernel(lp: LanePartials, p: MetricParams, out: MetricOutputs):
+    """Reduce the lanes' partial sums of each query in lane order (deterministic) and write its outputs."""
+    q = wp.tid()
+    base = q * lp.lanes
+    if lp.n_nb[base] < 0:
+        return  # invalid query: written by its lane 0
+    best = float(wp.inf)
+    ncol = int(0)
+    n_nb = int(0)
+    pivot = float(wp.inf)
+    c_sum = float(0.0)
+    c_max = float(0.0)
+    for l in range(lp.lanes):
+        k = base + l
+        best = wp.min(best, lp.best[k])
+        ncol += lp.ncol[k]
+        c_sum += lp.c_sum[k]
+        c_max = wp.max(c_max, lp.c_max[k])
+        if lp.n_nb[k] > 0:
+            n_nb += lp.n_nb[k]
+            pivot = wp.min(pivot, lp.pivot[k])
+    acc = float(0.0)
+    for l in range(lp.lanes):
+        k = base + l
+        if lp.n_nb[k] > 0:
+            acc += lp.acc[k] * wp.exp(-p.softmin_t * (lp.pivot[k] - pivot))
+    write_outputs(out, q, p, best, ncol, n_nb, pivot, acc, c_sum, c_max)
 
 
 @wp.kernel
