@@ -65,6 +65,8 @@ def bench_reach(device: str, size: int, encoder: str, quick: bool, backend: str 
             from splatplan.render.gsplat_backend import GsplatRenderer
 
             run_rend = GsplatRenderer(ts.splats, device)
+        cam.render(run_rend, robot, g["q"][None], background=(cfg.background,) * 3)  # warm-up: kernels built / loaded outside the timing
+        enc.encode(target[None])
         r = run_reach(robot, ts, target, config=cfg, collision=True, q0=q0, encoder=enc, goal_camera_pose=g["camera_pose"], renderer=run_rend, device=device)
     return {
         "encoder": enc.name, "renderer": backend, "image_size": cfg.image_size, "K": cfg.n_samples, "T": cfg.horizon, "device": device,
@@ -73,6 +75,37 @@ def bench_reach(device: str, size: int, encoder: str, quick: bool, backend: str 
         "translation_error_m": r.translation_error_m, "rotation_error_deg": r.rotation_error_deg, "min_clearance_m": r.min_clearance_m,
         "note": "random DINOv2 weights: the rate is real, the errors are not meaningful" if random else "",
     }  # fmt: skip
+
+
+def tune_panda(robot, scene, device: str, x, factors: list[float], lanes: list[int], n: int, seed: int = 0, repeats: int = 5) -> list[dict]:
+    """Panda collision query alone (moving ellipsoids, q on the device) on n configurations near
+    ``x`` for each TierConfig (slab_cell_factor, lanes): the GPU's best grid and thread layout."""
+    import numpy as np
+
+    from splatplan._warp import wp as _wp
+    from splatplan.metric import CollisionChecker
+    from splatplan.metric.wp_metric import TierConfig
+
+    wp = _wp()
+    rng = np.random.default_rng(seed)
+    q = np.clip(x + rng.normal(scale=0.1, size=(n, robot.dof)), robot.joint_limits[:, 0], robot.joint_limits[:, 1])
+    mv = np.flatnonzero(~robot.static_ellipsoids)
+    rows = []
+    for f in factors:
+        for n_l in lanes:
+            ck = CollisionChecker(scene, n_sigma=1.0, device=device, tiers=TierConfig(slab_cell_factor=f, lanes=n_l)).with_config(s2_cap=2.0)
+            qw = wp.array(q.astype(np.float32), dtype=wp.float32, device=ck.device)
+            ws = ck.workspace(n * robot.n_ellipsoids)
+            ck.query_robot(robot, qw, ellipsoids=mv, out=ws)
+            ts = []
+            for _ in range(repeats):
+                t = time.perf_counter()
+                r = ck.query_robot(robot, qw, ellipsoids=mv, out=ws)
+                _ = r.cost.numpy()[:1]
+                ts.append(time.perf_counter() - t)
+            rows.append({"slab_cell_factor": f, "lanes": n_l, "seconds": float(np.median(ts)), "configs": n})
+            print(f"tune slab_cell_factor={f} lanes={n_l}: {1e3 * rows[-1]['seconds']:.2f} ms", flush=True)
+    return rows
 
 
 def markdown(res: dict) -> str:
@@ -97,6 +130,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--samples", default="256,1024", help="Panda MPPI sample counts K (comma list; empty: skip)")
     ap.add_argument("--steps", type=int, default=20, help="timed MPC steps per Panda row")
     ap.add_argument("--lanes-sweep", default="", help="also time the Panda query alone at these TierConfig.lanes (comma list)")
+    ap.add_argument("--tune-factors", default="", help="time the Panda query at these TierConfig.slab_cell_factor values (comma list) ...")
+    ap.add_argument("--tune-lanes", default="4,8,16", help="... and these lanes")
     ap.add_argument("--reach-size", type=int, default=224)
     ap.add_argument("--reach-encoders", default="thumbnail,dinov2-vits14", help="comma list; empty: skip the reach rows")
     ap.add_argument("--reach-backends", default="warp", help="renderers of the reach rows: warp, gsplat (CUDA only), comma list")
@@ -111,6 +146,10 @@ def main(argv: list[str] | None = None) -> int:
             sweep = tuple(int(x) for x in args.lanes_sweep.split(",") if x)
             r = bench_mppi_panda(2 if args.quick else args.steps, setup, quick=args.quick, stonehenge=False, n_samples=k, profile=True, lanes_sweep=sweep)
             res["panda"].append(r)
+            if k == ks[-1] and args.tune_factors:
+                res["tune"] = tune_panda(setup[0], setup[1], args.device, r.pop("_final_x"), [float(f) for f in args.tune_factors.split(",")],
+                                         [int(v) for v in args.tune_lanes.split(",")], k * 32)  # fmt: skip
+            r.pop("_final_x", None)
             print(f"panda K={k}: {r['steps_per_s']:.2f} steps/s, costs {r['cost_s_per_step']}, query alone {r['query_only_s']}", flush=True)
     for enc in [e for e in args.reach_encoders.split(",") if e]:
         for backend in [b for b in args.reach_backends.split(",") if b]:

@@ -166,8 +166,8 @@ def _timed(fn, spent: dict, key: str):
 
 
 def _query_only_s(robot, checker, col, x, n: int, seed: int, repeats: int = 5, lanes: tuple[int, ...] = ()) -> dict:
-    """Median seconds of the collision query alone on n configurations near ``x`` (moving
-    ellipsoids, FK on the device): q from numpy, and q already on the device (wp.array); and for
+    """Median seconds of the collision query alone (the cost's checker: its s2_cap) on n
+    configurations near ``x`` (moving ellipsoids, FK on the device): q from numpy, and q already on the device (wp.array); and for
     each of ``lanes`` (threads per query, TierConfig.lanes) with q on the device."""
     from dataclasses import replace
 
@@ -267,8 +267,9 @@ def bench_mppi_panda(
         "device": str(checker.device),
     }  # fmt: skip
     if profile:
+        out["_final_x"] = x.copy()  # for follow-up timings (gpu_rates pops it)
         out["cost_s_per_step"] = {k: v / n_steps for k, v in spent.items()}
-        out["query_only_s"] = _query_only_s(robot, checker, col, x, cfg.n_samples * cfg.horizon, seed, lanes=lanes_sweep)
+        out["query_only_s"] = _query_only_s(robot, col.checker, col, x, cfg.n_samples * cfg.horizon, seed, lanes=lanes_sweep)
     if not stonehenge:
         return out
     # one collision query of the same batch size on the unit-size Stonehenge, for comparison
