@@ -14,6 +14,7 @@
 #   bench    render, encoder and FK throughput on CUDA
 #   arm      the arm study (E4 behind the wall) on CUDA, --quick
 #   gtests   the gsplat comparison tests (wait for the build)
+#   studies  the arm, base and reach studies at full size on CUDA (reach at 224 px)
 #
 # Each stage runs under its own time limit; its log and JSON go to /tmp/gpu-results, which is
 # packed into OUT_DIR/results.tgz after every stage (so a stage that runs out of time still
@@ -58,6 +59,10 @@ for s in "${stages[@]}"; do
     gtests)
       for _ in $(seq 60); do grep -q "gsplat built\|Error" "$res/gsplat_build.log" 2>/dev/null && break; sleep 5; done
       stage gsplat_tests 150 $py -m pytest -q -p no:cacheprovider tests/render/test_gsplat_backend.py ;;
+    studies)
+      stage arm_full 240 $py -m splatplan.cli eval arm --device cuda --out "$res/arm_gpu"
+      stage reach_full 300 $py -m splatplan.cli eval reach --device cuda --image-size 224 --out "$res/reach_gpu"
+      stage base_full 300 $py -m splatplan.cli eval base --device cuda --out "$res/base_gpu" ;;
     *) echo "unknown stage $s" ;;
   esac
 done

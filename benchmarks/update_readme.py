@@ -38,6 +38,60 @@ def metric_throughput() -> str | None:
     return "\n".join(lines)
 
 
+def gpu() -> str | None:
+    """The lent-GPU results: MPC rates (gpu_rates.json), metric, render, encoder and FK throughput on CUDA."""
+    p = RESULTS / "gpu_rates.json"
+    if not p.exists():
+        return None
+    r = json.loads(p.read_text())
+    md = (RESULTS / "gpu_rates.md").read_text().strip() if (RESULTS / "gpu_rates.md").exists() else ""
+    lines = [md]
+    b = r.get("before_this_change")
+    if b:
+        lines += ["", f"Before the GPU work of this round ({b['note'].split('(')[-1].rstrip(')')}): Panda MPPI {b['panda_K256_steps_per_s']:.1f} steps/s at K = 256 and "
+                  f"{b['panda_K1024_steps_per_s']:.1f} at K = 1024 (collision cost {b['panda_K1024_collision_ms']:.0f} ms, goal-pose FK on the host {b['panda_K1024_goal_ms']:.0f} ms per step)."]  # fmt: skip
+    q = {p_["K"]: p_.get("query_only_s", {}) for p_ in r.get("panda", [])}
+    if q:
+        lanes = sorted({int(k.split("_")[1]) for v in q.values() for k in v if k.startswith("lanes_") and k != "lanes_default"})
+        lines += ["", "Panda collision query alone (moving ellipsoids, q on the device), ms, by threads per query (`TierConfig.lanes`; default 8 on CUDA):", "",
+                  "| configurations | " + " | ".join(f"lanes {n}" for n in lanes) + " |", "|---|" + "---|" * len(lanes)]  # fmt: skip
+        for k, v in q.items():
+            lines.append(f"| {k * 32:,} (K = {k}) | " + " | ".join(f"{1e3 * v.get(f'lanes_{n}', float('nan')):.1f}" for n in lanes) + " |")
+    t = r.get("tune")
+    if t:
+        fs = sorted({x["slab_cell_factor"] for x in t["rows"]})
+        ls = sorted({x["lanes"] for x in t["rows"]})
+        lines += ["", f"Grid cell width for elongated links (`slab_cell_factor`) x lanes, Panda query alone, ms ({t['rows'][0]['configs']:,} configurations):", "",
+                  "| slab_cell_factor | " + " | ".join(f"lanes {n}" for n in ls) + " |", "|---|" + "---|" * len(ls)]  # fmt: skip
+        for f in fs:
+            cell = {x["lanes"]: x["seconds"] for x in t["rows"] if x["slab_cell_factor"] == f}
+            lines.append(f"| {f} | " + " | ".join(f"{1e3 * cell[n]:.1f}" for n in ls) + " |")
+    mt = RESULTS / "metric_throughput_cuda.json"
+    if mt.exists():
+        m = json.loads(mt.read_text())
+        lines += ["", f"Metric throughput on {m['device']} ({m['n_splats']:,} splats, sphere r = {m['radius']}, n_sigma = {m['n_sigma']}):", "",
+                  "| variant | batch | checks/s, numpy inputs | checks/s, device inputs + workspace |", "|---|---|---|---|"]  # fmt: skip
+        dev = {(x["method"], x["batch"]): x["checks_per_s"] for x in m.get("device_rows", [])}
+        for x in m["rows"]:
+            lines.append(f"| {x['method']} | {x['batch']:,} | {x['checks_per_s']:,.0f} | {dev.get((x['method'], x['batch']), float('nan')):,.0f} |")
+    rd = RESULTS / "render_cuda.json"
+    if rd.exists():
+        rr = json.loads(rd.read_text())
+        lines += ["", "Rendering on CUDA (batch of 32 views, Stonehenge 200k splats):", "", "| backend | size | images/s |", "|---|---|---|"]
+        lines += [f"| {x['backend']} | {x['size']}x{x['size']} | {x['images_per_s']:,.0f} |" for x in rr["rows"]]
+    ec = RESULTS / "encoders_cuda.json"
+    if ec.exists():
+        e = json.loads(ec.read_text())
+        lines += ["", f"Encoders on CUDA (batch {e['batch']}, {e['size']}x{e['size']} inputs):", "", "| encoder | images/s |", "|---|---|"]
+        lines += [f"| {x['encoder']} | {x['images_per_s']:,.0f} |" for x in e["rows"]]
+    fk = RESULTS / "robots_fk_cuda.json"
+    if fk.exists():
+        f_ = json.loads(fk.read_text())
+        lines += ["", f"Forward kinematics ({f_['robot']}, {f_['n_ellipsoids']} ellipsoids):", "", "| method | device | batch | configurations/s |", "|---|---|---|---|"]
+        lines += [f"| {x['method']} | {x['device']} | {x['batch']:,} | {x['configs_per_s']:,.0f} |" for x in f_["rows"]]
+    return "\n".join(lines)
+
+
 def markdown_file(name: str):
     def read() -> str | None:
         p = RESULTS / name
@@ -53,6 +107,7 @@ def markdown_file(name: str):
 
 SECTIONS = {
     "metric_throughput": metric_throughput,
+    "gpu": gpu,
     "pr": markdown_file("pr.md"),
     "throughput": markdown_file("throughput.md"),
     "conservatism": markdown_file("conservatism.md"),
