@@ -149,3 +149,33 @@ def test_goal_refiner_ill_conditioned_quadratic():
     assert abs(np.linalg.det(ref.cov) - 1.0) < 1e-6
     with pytest.raises(SplatplanError, match="GoalRefiner"):
         GoalRefiner(7, 1, 0.05)
+
+
+def test_goals_do_not_depend_on_the_image_size(setup):
+    """Views are judged at <= 64 px: the 224 px camera is checked through exactly the 64 px camera
+    (at full size single edge pixels of a filled view fall under the alpha bar and no goal survived),
+    so a 224 px run gets the 64 px goals."""
+    from splatplan.tasks.reach import _scaled_camera, make_reach_goals, wrist_camera
+
+    robot, ts, _, q0, rend, _ = setup
+    c64, c224 = wrist_camera(robot, image_size=64), wrist_camera(robot, image_size=224)
+    s = _scaled_camera(c224, 64)
+    assert (s.width, s.height) == (64, 64) and s.link_name == c64.link_name
+    np.testing.assert_allclose(s.K, c64.K, rtol=1e-12)
+    np.testing.assert_array_equal(s.offset, c64.offset)
+    assert _scaled_camera(c64, 64) is c64
+    kw = dict(n=2, q_start=q0, n_behind=1, n_candidates=256, seed=0, min_contrast=0.0)
+    g64 = make_reach_goals(robot, ts, rend, c64, **kw)
+    g224 = make_reach_goals(robot, ts, rend, c224, **kw)
+    assert [g["name"] for g in g64] == [g["name"] for g in g224]
+    for a, b in zip(g64, g224):
+        np.testing.assert_array_equal(a["q"], b["q"])
+
+
+def test_study_names_a_goal_shortfall(tmp_path, monkeypatch):
+    import splatplan.tasks.reach as reach
+    from splatplan.eval.reach import run_reach_study
+
+    monkeypatch.setattr(reach, "make_reach_goals", lambda *a, **k: [])
+    with pytest.raises(SplatplanError, match="found only 0 of 3 goal configurations"):
+        run_reach_study(tmp_path, n_goals=3, config=reach.ReachConfig(n_splats=20_000, image_size=16))

@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..errors import SplatplanError
 from ._common import write_atomic
 
 #: Paper Table IV: config -> (clearance m, translation error m, rotation error deg).
@@ -142,6 +143,9 @@ def run_reach_study(out_dir, *, encoder: str = "thumbnail", encoder_weights: str
     goals_json = []
     with SplatRenderer(ts.splats, device) as rend:
         goals = make_reach_goals(robot, ts, rend, cam, n=n_goals, q_start=q0, n_behind=min(2, n_goals), seed=cfg.seed)
+        if len(goals) < n_goals:
+            raise SplatplanError(f"found only {len(goals)} of {n_goals} goal configurations (reachable, collision-free, a full and textured wrist view "
+                                 f"within reach of the start): ask for fewer goals or change the seed")  # fmt: skip
         for gi, g in enumerate(goals):
             target = np.asarray(cam.render(rend, robot, g["q"][None], background=bg).rgb[0])
             per = {}
