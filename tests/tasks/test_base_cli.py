@@ -30,4 +30,18 @@ def test_bad_memory_flags_exit_2_with_one_line(tmp_path, capsys):
         err = capsys.readouterr().err.strip().splitlines()
         assert rc == 2, (flag, err)
         assert len(err) == 1 and "obstacle memory" in err[0] and "Traceback" not in err[0], (flag, err)
-        assert not (out / "result.json").exists() and not (out / "motion.png").exists()
+        assert not out.exists(), (flag, "a rejected run leaves no output folder")
+
+
+def test_a_rejected_run_keeps_an_existing_folder_and_its_files(tmp_path, capsys):
+    """Only folders the command made, and only when empty, are removed on failure."""
+    out = tmp_path / "kept"
+    out.mkdir()
+    (out / "mine.txt").write_text("x")
+    nested = tmp_path / "a" / "b" / "c"
+    for target in (out, nested):
+        rc = main(["mpc", "--robot", "go2", "--scene", "apartment", "--goal=1.1,1.8", "--out", str(target), "--base-memory", "true", "--base-memory-yaws", "0"])
+        assert rc == 2
+    capsys.readouterr()
+    assert (out / "mine.txt").read_text() == "x"
+    assert not (tmp_path / "a").exists()

@@ -49,6 +49,17 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    from ._common import CREATED_DIRS, remove_created_empty_dirs
+
+    CREATED_DIRS.clear()
+    rc = _main(argv)
+    if rc not in (0, 1):  # 1: ran, with a negative answer (results written); else rejected or failed
+        remove_created_empty_dirs()
+    CREATED_DIRS.clear()
+    return rc
+
+
+def _main(argv: list[str] | None) -> int:
     from ._common import Terminated, check_device, cli_signal_handlers
 
     with cli_signal_handlers():  # Ctrl-C / SIGTERM unwind through every finally (no stray temp files)

@@ -120,15 +120,36 @@ def write_json(path: str | Path, obj) -> None:
         tmp.write_text(json.dumps(obj, indent=2) + "\n")
 
 
+#: Output folders this process created (deepest last); a command that fails removes the empty ones.
+CREATED_DIRS: list[Path] = []
+
+
 def _out_dir(path: str) -> Path:
     d = Path(path)
     if d.exists() and not d.is_dir():
         raise SplatplanError(f"output folder {d} exists and is not a folder")
+    new = []
+    a = d.absolute()
+    while not a.exists():
+        new.append(a)
+        a = a.parent
     try:
         d.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise SplatplanError(f"cannot create output folder {d}: {exc.strerror}") from None
+    CREATED_DIRS.extend(reversed(new))
     return d
+
+
+def remove_created_empty_dirs() -> None:
+    """Remove the output folders this process created that are still empty (deepest first): a
+    command rejected after making its folder leaves nothing behind."""
+    while CREATED_DIRS:
+        d = CREATED_DIRS.pop()
+        try:
+            d.rmdir()  # only when empty
+        except OSError:
+            pass
 
 
 def _load(path: str, filter_floaters: bool = True):
