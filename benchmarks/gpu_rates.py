@@ -26,7 +26,7 @@ from pathlib import Path
 HERE = Path(__file__).parent
 sys.path.insert(0, str(HERE))
 
-from planners import bench_mppi_panda, panda_setup  # noqa: E402
+from planners import bench_mppi_panda, near_configs, panda_setup, time_query_robot  # noqa: E402
 
 
 def device_name(device: str) -> str:
@@ -87,23 +87,15 @@ def tune_panda(robot, scene, device: str, x, factors: list[float], lanes: list[i
     from splatplan.metric.wp_metric import TierConfig
 
     wp = _wp()
-    rng = np.random.default_rng(seed)
-    q = np.clip(x + rng.normal(scale=0.1, size=(n, robot.dof)), robot.joint_limits[:, 0], robot.joint_limits[:, 1])
+    q = near_configs(robot, x, n, seed)
     mv = np.flatnonzero(~robot.static_ellipsoids)
     rows = []
     for f in factors:
         for n_l in lanes:
             ck = CollisionChecker(scene, n_sigma=1.0, device=device, tiers=TierConfig(slab_cell_factor=f, lanes=n_l)).with_config(s2_cap=2.0)
             qw = wp.array(q.astype(np.float32), dtype=wp.float32, device=ck.device)
-            ws = ck.workspace(n * robot.n_ellipsoids)
-            ck.query_robot(robot, qw, ellipsoids=mv, out=ws)
-            ts = []
-            for _ in range(repeats):
-                t = time.perf_counter()
-                r = ck.query_robot(robot, qw, ellipsoids=mv, out=ws)
-                _ = r.cost.numpy()[:1]
-                ts.append(time.perf_counter() - t)
-            rows.append({"slab_cell_factor": f, "lanes": n_l, "seconds": float(np.median(ts)), "configs": n})
+            sec = time_query_robot(ck, robot, qw, mv, repeats, out=ck.workspace(n * robot.n_ellipsoids))
+            rows.append({"slab_cell_factor": f, "lanes": n_l, "seconds": sec, "configs": n})
             print(f"tune slab_cell_factor={f} lanes={n_l}: {1e3 * rows[-1]['seconds']:.2f} ms", flush=True)
     return rows
 

@@ -165,43 +165,46 @@ def _timed(fn, spent: dict, key: str):
     return wrapped
 
 
+def near_configs(robot, x, n: int, seed: int = 0) -> np.ndarray:
+    """(n, dof) configurations around ``x`` (normal, 0.1 rad), clipped to the joint limits."""
+    rng = np.random.default_rng(seed)
+    return np.clip(x + rng.normal(scale=0.1, size=(n, robot.dof)), robot.joint_limits[:, 0], robot.joint_limits[:, 1])
+
+
+def time_query_robot(checker, robot, q, ellipsoids, repeats: int = 5, **kw) -> float:
+    """Median wall seconds of ``checker.query_robot(robot, q, ellipsoids=...)`` after a warm-up,
+    waiting for the device's results each time."""
+    checker.query_robot(robot, q, ellipsoids=ellipsoids, **kw)
+    ts = []
+    for _ in range(repeats):
+        t = time.perf_counter()
+        r = checker.query_robot(robot, q, ellipsoids=ellipsoids, **kw)
+        _ = np.asarray(r.cost.numpy() if hasattr(r.cost, "numpy") else r.cost)[:1]  # wait for the device
+        ts.append(time.perf_counter() - t)
+    return float(np.median(ts))
+
+
 def _query_only_s(robot, checker, col, x, n: int, seed: int, repeats: int = 5, lanes: tuple[int, ...] = ()) -> dict:
     """Median seconds of the collision query alone (the cost's checker: its s2_cap) on n
-    configurations near ``x`` (moving ellipsoids, FK on the device): q from numpy, and q already on the device (wp.array); and for
-    each of ``lanes`` (threads per query, TierConfig.lanes) with q on the device."""
+    configurations near ``x`` (moving ellipsoids, FK on the device): q from numpy, and q already on
+    the device (wp.array); and for each of ``lanes`` (threads per query, TierConfig.lanes) with q on
+    the device."""
     from dataclasses import replace
 
     from splatplan._warp import wp as _wp
 
     wp = _wp()
-    rng = np.random.default_rng(seed)
-    q = np.clip(x + rng.normal(scale=0.1, size=(n, robot.dof)), robot.joint_limits[:, 0], robot.joint_limits[:, 1])
+    q = near_configs(robot, x, n, seed)
     mv = np.flatnonzero(~col.static) if col.static is not None else None
     qw = wp.array(q.astype(np.float32), dtype=wp.float32, device=checker.device)
     ws = checker.workspace(n * robot.n_ellipsoids)
-    out = {}
-    for name, arg, kw in (("numpy_q", q, {}), ("device_q_workspace", qw, {"out": ws})):
-        checker.query_robot(robot, arg, ellipsoids=mv, **kw)
-        ts = []
-        for _ in range(repeats):
-            t = time.perf_counter()
-            r = checker.query_robot(robot, arg, ellipsoids=mv, **kw)
-            _ = np.asarray(r.cost.numpy() if hasattr(r.cost, "numpy") else r.cost)[:1]  # wait for the device
-            ts.append(time.perf_counter() - t)
-        out[name] = float(np.median(ts))
+    out = {"numpy_q": time_query_robot(checker, robot, q, mv, repeats), "device_q_workspace": time_query_robot(checker, robot, qw, mv, repeats, out=ws)}
     impl = checker._impl  # benchmark only: the same grids with another lane count
     keep = impl.tiers
     try:
         for n_l in lanes:
             impl.tiers = replace(keep, lanes=n_l)
-            checker.query_robot(robot, qw, ellipsoids=mv, out=ws)
-            ts = []
-            for _ in range(repeats):
-                t = time.perf_counter()
-                r = checker.query_robot(robot, qw, ellipsoids=mv, out=ws)
-                _ = r.cost.numpy()[:1]
-                ts.append(time.perf_counter() - t)
-            out[f"lanes_{n_l}"] = float(np.median(ts))
+            out[f"lanes_{n_l}"] = time_query_robot(checker, robot, qw, mv, repeats, out=ws)
     finally:
         impl.tiers = keep
     out["lanes_default"] = impl.lanes
