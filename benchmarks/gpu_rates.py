@@ -45,9 +45,9 @@ def bench_reach(device: str, size: int, encoder: str, quick: bool, backend: str 
     from splatplan.tasks._common import load_task_scene
     from splatplan.tasks.reach import ReachConfig, make_reach_goals, reach_encoder, reach_start, run_reach, wrist_camera
 
-    cfg = ReachConfig(image_size=size)
-    if quick:
-        cfg = quick_config(cfg)
+    from dataclasses import replace
+
+    cfg = replace(quick_config(ReachConfig()) if quick else ReachConfig(), image_size=size)
     robot = load_robot("panda")
     ts = load_task_scene("tabletop", n_sigma=cfg.n_sigma, device=device, n_splats=cfg.n_splats)
     random = encoder.startswith("dinov2")

@@ -32,3 +32,23 @@ def test_planners_script(tmp_path):
     assert res["rrt"]["paths_with_colliding_splats"] == 0
     assert res["mppi"]["steps_in_collision"] == 0
     assert (tmp_path / "planners.md").exists()
+
+
+def test_gpu_rates_script_on_cpu(tmp_path, capsys):
+    """benchmarks/gpu_rates.py (made for a lent GPU) runs on CPU too: Panda rows with the per-cost
+    split, the query-alone and lanes timings, the tuning rows and one tiny reach row."""
+    import gpu_rates
+
+    out = tmp_path / "g.json"
+    argv = ["--device", "cpu", "--quick", "--samples", "8", "--lanes-sweep", "1,2", "--tune-factors", "0.25", "--tune-lanes", "1",
+            "--reach-size", "16", "--reach-encoders", "thumbnail", "--out", str(out)]  # fmt: skip
+    assert gpu_rates.main(argv) == 0
+    res = json.loads(out.read_text())
+    (p,) = res["panda"]
+    assert p["K"] == 8 and p["steps_per_s"] > 0 and "_final_x" not in p
+    assert set(p["cost_s_per_step"]) == {"CollisionCost", "GoalPoseCost", "ControlEffortCost", "JointLimitCost"}
+    assert {"numpy_q", "device_q_workspace", "lanes_1", "lanes_2"} <= set(p["query_only_s"]) and p["query_only_s"]["lanes_default"] == 1
+    assert len(res["tune"]) == 1 and res["tune"][0]["seconds"] > 0
+    (r,) = res["reach"]
+    assert r["image_size"] == 16 and r["mpc_steps_per_s"] > 0
+    assert "| Panda MPPI" in capsys.readouterr().out and out.with_suffix(".md").exists()
