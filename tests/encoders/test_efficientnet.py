@@ -20,6 +20,10 @@ from splatplan.encoders import load_encoder
 from splatplan.encoders.efficientnet_lite import EfficientNetLite0, build_model, load_state_dict, pad_same
 from splatplan.errors import SplatplanError
 
+from .conftest import needs_effnet_weights
+
+needs_effnet_weights()  # every test here reads the packaged ImageNet weights
+
 MILITARY_UNIFORM, CROSSWORD, PING_PONG_BALL, BALLOON = 652, 918, 722, 417
 
 

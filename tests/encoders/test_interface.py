@@ -9,6 +9,8 @@ import torch
 from splatplan.encoders import ImageCost, image_cost, load_encoder
 from splatplan.errors import SplatplanError
 
+from .conftest import needs_effnet_weights
+
 ENCODERS = {
     "thumbnail": dict(),
     "dinov2-tiny": dict(random_init=True, image_size=28),
@@ -18,6 +20,8 @@ ENCODERS = {
 
 @pytest.fixture(scope="module", params=sorted(ENCODERS))
 def enc(request):
+    if request.param.startswith("efficientnet"):
+        needs_effnet_weights()
     return load_encoder(request.param, **ENCODERS[request.param])
 
 
