@@ -247,18 +247,30 @@ class CollisionCost(Cost):
             rollout.cache["collision_stride"] = s
         return rollout.cache["query"]
 
-    def terms(self, rollout: Rollout) -> dict[str, np.ndarray]:
-        k = rollout.k
-        res = self.query(rollout)
-        scale = float(rollout.cache.get("collision_stride", self.time_stride))
-        out = {
+    def _sums(self, res, k: int, scale: float) -> dict[str, np.ndarray]:
+        """The weighted "collision" and "hit" sums (k,) of a QueryResult (k, ...), times ``scale``."""
+        return {
             "collision": scale * self.weight * np.asarray(res.cost, dtype=np.float64).reshape(k, -1).sum(axis=1),
             "hit": scale * self.hit_weight * np.asarray(res.in_collision).reshape(k, -1).sum(axis=1).astype(np.float64),
         }
+
+    def self_terms(self, rollout: Rollout) -> dict[str, np.ndarray]:
+        """{"self_collision": (K,)} when ``self_collision_weight`` > 0, else {}."""
         robot = self.geometry.robot
         if self.self_collision_weight > 0 and robot is not None and hasattr(robot, "self_collision"):
-            out["self_collision"] = self.self_collision_weight * np.asarray(robot.self_collision(rollout.states)).reshape(k, -1).sum(axis=1).astype(np.float64)
-        return out
+            return {"self_collision": self.self_collision_weight * np.asarray(robot.self_collision(rollout.states)).reshape(rollout.k, -1).sum(axis=1).astype(np.float64)}
+        return {}
+
+    def chunk_terms(self, states: np.ndarray, scale: float) -> dict[str, np.ndarray]:
+        """"collision" and "hit" sums (K',) of configurations ``states`` (K', t', dof) over their steps
+        and ellipsoids, times ``scale`` (the time stride): :meth:`terms` for a part of the evaluated
+        steps, so that a pruned evaluation (``MPPIConfig.prune_margin``) can add them up chunk by chunk."""
+        return self._sums(self._query_states(states), states.shape[0], scale)
+
+    def terms(self, rollout: Rollout) -> dict[str, np.ndarray]:
+        res = self.query(rollout)
+        scale = float(rollout.cache.get("collision_stride", self.time_stride))
+        return {**self._sums(res, rollout.k, scale), **self.self_terms(rollout)}
 
     def __call__(self, rollout: Rollout) -> np.ndarray:
         return np.sum(list(self.terms(rollout).values()), axis=0)

@@ -84,6 +84,21 @@ class MPPIConfig:
     w_terminal: float = 1.0
     #: seed of the noise generator
     seed: int = 0
+    #: prune hopeless samples (opt-in): a sample whose cost is proven to exceed the best complete
+    #: sample's by more than ``prune_margin * temperature`` (so its weight is below
+    #: exp(-prune_margin) of the best's, e.g. 4e-18 for 40) is not collision-checked to the end.
+    #: The collision cost is evaluated in ``prune_chunks`` chunks of the horizon: every sample gets
+    #: the first chunk, the ``prune_probe`` cheapest ones all of it (their totals bound the best
+    #: cost), the others the next chunk only while their lower bound (every other cost term, exact,
+    #: plus the collision terms so far, which are >= 0) stays within the margin. The update equals
+    #: the unpruned one to float64 rounding; the costs and terms of pruned samples are those lower
+    #: bounds (``MPPIInfo.n_pruned`` counts them). Needs exactly one CollisionCost among the costs
+    #: and n_samples > prune_probe; None = off
+    prune_margin: float | None = None
+    #: chunks of the horizon's evaluated steps for ``prune_margin``
+    prune_chunks: int = 4
+    #: samples (lowest lower bound after the first chunk) evaluated completely to bound the best cost
+    prune_probe: int = 4
     #: elitism (opt-in): within one step, sample 1 of every later iteration is the lowest-cost sample
     #: seen so far, and the step ends on it when it beats the updated nominal (one extra evaluation
     #: then); the plan then never gets worse within a step. False = plain MPPI
@@ -108,6 +123,10 @@ class MPPIConfig:
                 self.collision_time_stride = stride = int(stride)
         if not isinstance(stride, str) and int(stride) < 1:
             raise SplatplanError(f"MPPIConfig.collision_time_stride must be >= 1 or 'auto', got {stride}")
+        if self.prune_margin is not None and not (np.isfinite(self.prune_margin) and self.prune_margin > 0):
+            raise SplatplanError(f"MPPIConfig.prune_margin must be finite and > 0 (or None: off), got {self.prune_margin}")
+        if self.prune_chunks < 2 or self.prune_probe < 1:
+            raise SplatplanError(f"MPPIConfig.prune_chunks must be >= 2 and prune_probe >= 1, got {self.prune_chunks} and {self.prune_probe}")
         if self.collision_max_gap_m is not None and not (np.isfinite(self.collision_max_gap_m) and self.collision_max_gap_m > 0):
             raise SplatplanError(f"MPPIConfig.collision_max_gap_m must be finite and > 0, got {self.collision_max_gap_m}")
         return self
@@ -130,6 +149,8 @@ class MPPIInfo:
         nominal_min_s2: (T, L) conservative min scaling distance along the nominal trajectory.
         nominal_cost: total cost of the nominal (same terms as ``costs``).
         time_s: wall-clock seconds of the step.
+        n_pruned: samples of the last iteration not collision-checked to the end
+            (``MPPIConfig.prune_margin``; their ``costs`` are lower bounds).
     """
 
     costs: np.ndarray
@@ -144,6 +165,7 @@ class MPPIInfo:
     nominal_min_s2: np.ndarray
     nominal_cost: float
     time_s: float = 0.0
+    n_pruned: int = 0
 
     @property
     def nominal_collides(self) -> bool:
@@ -252,6 +274,7 @@ class MPPI:
         self.spline = UniformBSpline(cfg.n_knots, cfg.horizon)
         self.rng = np.random.default_rng(cfg.seed)
         self.knots = self._clip(np.zeros((cfg.n_knots, du)))  # (n_knots, du) nominal
+        self.n_pruned = 0  # samples pruned by the last evaluate (prune_margin)
 
     # ------------------------------------------------------------------ helpers
     def _clip(self, knots: np.ndarray) -> np.ndarray:
@@ -281,8 +304,49 @@ class MPPI:
         controls = self.spline(knots)  # (K, T, du)
         states = self.dynamics.rollout(x, controls, cfg.dt)  # (K, T, dx)
         rollout = Rollout(states, controls, cfg.dt)
-        total, terms = total_cost(self.costs, rollout)
+        cols = [c for c in self.costs if isinstance(c, CollisionCost)]
+        self.n_pruned = 0
+        if cfg.prune_margin is not None and len(cols) == 1 and rollout.k > cfg.prune_probe:
+            total, terms = self._pruned_cost(rollout, cols[0])
+        else:
+            total, terms = total_cost(self.costs, rollout)
         return total, terms, states, controls, rollout.cache.get("query")
+
+    def _pruned_cost(self, rollout: Rollout, col: CollisionCost) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+        """total (K,), terms of a batch with hopeless samples pruned (see ``MPPIConfig.prune_margin``)."""
+        cfg = self.config
+        k, t_len = rollout.k, rollout.states.shape[1]
+        base, terms = total_cost([c for c in self.costs if c is not col], rollout)  # every other term, exact
+        for name, v in col.self_terms(rollout).items():
+            base = base + v
+            terms[name] = v
+        steps = col.steps(t_len, rollout.dt)
+        scale = float(col.stride(rollout.dt, t_len))
+        chunks = np.array_split(steps, min(cfg.prune_chunks, len(steps)))
+        coll = {"collision": np.zeros(k), "hit": np.zeros(k)}
+
+        def add(idx: np.ndarray, chunk: np.ndarray) -> None:
+            for name, v in col.chunk_terms(rollout.states[idx][:, chunk], scale).items():
+                coll[name][idx] += v
+
+        add(np.arange(k), chunks[0])
+        lower = base + coll["collision"] + coll["hit"]  # lower bounds: the collision terms are >= 0
+        probe = np.argsort(lower, kind="stable")[: cfg.prune_probe]
+        for chunk in chunks[1:]:
+            add(probe, chunk)
+        best = float(np.min(base[probe] + coll["collision"][probe] + coll["hit"][probe]))  # >= the best cost
+        alive = np.ones(k, dtype=bool)
+        alive[probe] = False
+        for chunk in chunks[1:]:
+            lower = base + coll["collision"] + coll["hit"]
+            alive &= lower <= best + cfg.prune_margin * cfg.temperature
+            idx = np.flatnonzero(alive)
+            if idx.size:
+                add(idx, chunk)
+        lower = base + coll["collision"] + coll["hit"]
+        self.n_pruned = int(k - cfg.prune_probe - alive.sum())
+        terms.update(coll)
+        return lower, terms
 
     # ------------------------------------------------------------------ MPC step
     def step(self, x) -> tuple[np.ndarray, MPPIInfo]:
@@ -307,6 +371,7 @@ class MPPI:
             cmin = float(np.min(c))
             if cfg.elite and cmin < elite_cost:
                 elite_knots, elite_cost = samples[int(np.argmin(c))].copy(), cmin
+            n_pruned = self.n_pruned
             w = mppi_weights(c, cfg.temperature)  # (K,)
             self.knots = self._clip(np.einsum("k,knd->nd", w, samples))
         best = int(np.argmin(c))
@@ -334,6 +399,7 @@ class MPPI:
         u0 = nom_controls[0, 0].copy()
         self.knots = self._clip(self.spline.shift(self.knots))  # warm start: shift by one period
         info.time_s = time.perf_counter() - t0
+        info.n_pruned = n_pruned
         return u0, info
 
     def run(
