@@ -124,6 +124,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--lanes-sweep", default="", help="also time the Panda query alone at these TierConfig.lanes (comma list)")
     ap.add_argument("--tune-factors", default="", help="time the Panda query at these TierConfig.slab_cell_factor values (comma list) ...")
     ap.add_argument("--tune-lanes", default="4,8,16", help="... and these lanes")
+    ap.add_argument("--prune-margin", type=float, default=None, help="MPPIConfig.prune_margin of the Panda rows (default: off)")
     ap.add_argument("--reach-size", type=int, default=224)
     ap.add_argument("--reach-encoders", default="thumbnail,dinov2-vits14", help="comma list; empty: skip the reach rows")
     ap.add_argument("--reach-backends", default="warp", help="renderers of the reach rows: warp, gsplat (CUDA only), comma list")
@@ -136,7 +137,9 @@ def main(argv: list[str] | None = None) -> int:
         setup = panda_setup(n_splats=20_000 if args.quick else 200_000, device=args.device)
         for k in ks:
             sweep = tuple(int(x) for x in args.lanes_sweep.split(",") if x)
-            r = bench_mppi_panda(2 if args.quick else args.steps, setup, quick=args.quick, stonehenge=False, n_samples=k, profile=True, lanes_sweep=sweep)
+            r = bench_mppi_panda(2 if args.quick else args.steps, setup, quick=args.quick, stonehenge=False, n_samples=k, profile=True, lanes_sweep=sweep,
+                                 prune_margin=args.prune_margin)  # fmt: skip
+            r.pop("_controls", None)
             res["panda"].append(r)
             if k == ks[-1] and args.tune_factors:
                 res["tune"] = tune_panda(setup[0], setup[1], args.device, r.pop("_final_x"), [float(f) for f in args.tune_factors.split(",")],

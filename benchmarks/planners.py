@@ -213,7 +213,7 @@ def _query_only_s(robot, checker, col, x, n: int, seed: int, repeats: int = 5, l
 
 def bench_mppi_panda(
     n_steps: int, setup=None, seed: int = 0, quick: bool = False, time_stride: int | str = 1, stonehenge: bool = True, static_shortcut: bool = True,
-    n_samples: int = 256, profile: bool = False, lanes_sweep: tuple[int, ...] = (),
+    n_samples: int = 256, profile: bool = False, lanes_sweep: tuple[int, ...] = (), prune_margin: float | None = None,
 ) -> dict:
     """Panda MPPI over the tabletop; ``time_stride`` an integer or "auto" (see CollisionCost).
 
@@ -229,7 +229,7 @@ def bench_mppi_panda(
     robot, scene, checker = setup or panda_setup(seed=seed)
     target = 0.5 * (TARGET_REGION[0] + TARGET_REGION[1])
     cfg = MPPIConfig(n_samples=n_samples, horizon=32, n_knots=6, dt=0.05, n_iters=1, noise_sigma=0.4, temperature=0.05,
-                     u_min=-1.0, u_max=1.0, seed=seed)  # fmt: skip
+                     u_min=-1.0, u_max=1.0, seed=seed, prune_margin=prune_margin)  # fmt: skip
     dyn = JointIntegrator(robot)
     col = CollisionCost(checker, dyn, weight=1.0, hit_weight=10.0, s2_cap=cfg.collision_s2_cap, time_stride=time_stride,
                         speed_bound=joint_speed_bound(dyn, cfg.u_min, cfg.u_max), static_shortcut=static_shortcut)  # fmt: skip
@@ -251,8 +251,11 @@ def bench_mppi_panda(
     spent.update({k: 0.0 for k in spent})
     t0 = time.perf_counter()
     c0 = time.process_time()
+    us, pruned = [], []
     for _ in range(n_steps):
         u, info = mppi.step(x)
+        us.append(u)
+        pruned.append(info.n_pruned)
         x = dyn.rollout(x, u[None, None, :], cfg.dt)[0, 0]
     dt = time.perf_counter() - t0
     cpu = time.process_time() - c0
@@ -267,7 +270,8 @@ def bench_mppi_panda(
         "static_ellipsoids_cached": n_static,
         "steps_per_s": n_steps / dt, "configs_per_s": n_steps * cfg.n_samples * cfg.horizon / dt, "cpu_s_per_step": cpu / n_steps,
         "final_hand_distance_m": float(np.linalg.norm(hand - target)), "start_hand_distance_m": d0, "load_avg_1min": load,
-        "device": str(checker.device),
+        "device": str(checker.device), "prune_margin": prune_margin, "pruned_samples_per_step": float(np.mean(pruned)),
+        "_controls": np.asarray(us),
     }  # fmt: skip
     if profile:
         out["_final_x"] = x.copy()  # for follow-up timings (gpu_rates pops it)
@@ -291,17 +295,27 @@ def bench_mppi_panda(
     return {**out, "stonehenge_query_s": t_sh, "stonehenge_splats": len(sh)}
 
 
+#: MPPIConfig.prune_margin of the pruned Panda row: pruned samples weigh < exp(-40) = 4e-18 of the best
+PRUNE_MARGIN = 40.0
+
+
 def bench_panda_rows(quick: bool = False) -> dict:
     """Every Panda row: every step (static ellipsoids cached, and not), the auto stride, strides 2 and 4."""
     setup = panda_setup(n_splats=20_000 if quick else 200_000)
     n = 2 if quick else 12
-    return {
+    rows = {
         "mppi_panda": bench_mppi_panda(n, setup, quick=quick),
+        "mppi_panda_pruned": bench_mppi_panda(n, setup, quick=quick, stonehenge=False, prune_margin=PRUNE_MARGIN),
         "mppi_panda_no_static_cache": bench_mppi_panda(n, setup, quick=quick, stonehenge=False, static_shortcut=False),
         "mppi_panda_auto_stride": bench_mppi_panda(n, setup, quick=quick, stonehenge=False, time_stride="auto"),
         "mppi_panda_time_stride_2": bench_mppi_panda(n, setup, quick=quick, stonehenge=False, time_stride=2),
         "mppi_panda_time_stride_4": bench_mppi_panda(n, setup, quick=quick, stonehenge=False, time_stride=4),
     }
+    # same seed, same start: the pruned run's controls against the unpruned one's
+    rows["mppi_panda_pruned"]["max_control_diff_vs_unpruned"] = float(np.abs(rows["mppi_panda_pruned"]["_controls"] - rows["mppi_panda"]["_controls"]).max())
+    for r in rows.values():
+        r.pop("_controls", None)
+    return rows
 
 
 def far_free_pairs(checker, robot_radius: float, n_pairs: int, rng: np.random.Generator, n_cand: int = 400) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -362,6 +376,8 @@ def _panda_lines(result: dict) -> list[str]:
         f"| MPPI Panda arm, K=256, T=32, 1 iter/step, {panda['scene']}, collision cost on every step (static link0 cached) | {panda['robot']} | {panda['steps_per_s']:.2f} MPC steps/s ({panda['configs_per_s']:,.0f} configurations/s) | >= 5 |",
     ]
     extra = (
+        ("mppi_panda_pruned", lambda r: f"same, hopeless samples pruned (prune_margin = {r['prune_margin']:g}: weight < {np.exp(-r['prune_margin']):.0e} of the best; "
+                                         f"{r['pruned_samples_per_step']:.0f} of {r['K']} samples per step; controls equal to {r['max_control_diff_vs_unpruned']:.0e})"),
         ("mppi_panda_no_static_cache", lambda r: "same, every ellipsoid queried on the whole batch (no static cache)"),
         ("mppi_panda_auto_stride", lambda r: f"same, collision_time_stride='auto' (max gap {r['max_gap_m']:.4f} m; a step moves a point <= {r['step_motion_bound_m']:.3f} m -> stride {r['collision_time_stride']})"),
         ("mppi_panda_time_stride_2", lambda r: "same, collision cost on every 2nd step (collision_time_stride=2)"),
