@@ -88,6 +88,10 @@ class ArmConfig:
     collision_s2_cap: float = 1.4
     #: query the collision cost on every stride-th step of the horizon (1 = every step)
     collision_stride: int = 2
+    #: prune hopeless samples (MPPIConfig.prune_margin): a sample whose weight is proven below
+    #: exp(-margin) of the best's is not collision-checked to the end (same update to float64
+    #: rounding); None = every sample checked over the whole horizon
+    prune_margin: float | None = 40.0
     #: end-effector link
     ee_link: str = "panda_hand_tcp"
     #: success: final position error below this (m) with a positive clearance throughout
@@ -207,6 +211,7 @@ def run_arm(
     mcfg = MPPIConfig(
         n_samples=cfg.n_samples, horizon=cfg.horizon, n_knots=cfg.n_knots, dt=cfg.dt, temperature=cfg.temperature,
         noise_sigma=cfg.noise_sigma, n_iters=cfg.n_iters, u_min=tuple(-vmax), u_max=tuple(vmax), seed=cfg.seed,
+        prune_margin=cfg.prune_margin,
     )  # fmt: skip
     mppi = MPPI(dyn, ts.checker if collision else None, mcfg, costs=costs)
     # Unclamped knots: the applied first control (c0 + 4 c1 + c2) / 6 is set by knots that shape the
