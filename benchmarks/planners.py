@@ -244,6 +244,8 @@ def bench_mppi_panda(
     if profile:
         for c in costs:
             c.terms = _timed(c.terms, spent, type(c).__name__)
+            if hasattr(c, "chunk_terms"):  # the pruned evaluation's collision queries
+                c.chunk_terms = _timed(c.chunk_terms, spent, type(c).__name__)
     x = robot.q_default.copy()
     hand_idx = costs[1].link_index
     d0 = float(np.linalg.norm(robot.link_poses(x)[hand_idx, :3, 3] - target))

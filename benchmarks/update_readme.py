@@ -50,6 +50,11 @@ def gpu() -> str | None:
     if b:
         lines += ["", f"Before the GPU work of this round ({b['note'].split('(')[-1].rstrip(')')}): Panda MPPI {b['panda_K256_steps_per_s']:.1f} steps/s at K = 256 and "
                   f"{b['panda_K1024_steps_per_s']:.1f} at K = 1024 (collision cost {b['panda_K1024_collision_ms']:.0f} ms, goal-pose FK on the host {b['panda_K1024_goal_ms']:.0f} ms per step)."]  # fmt: skip
+    pr = r.get("pruned_run")
+    if pr:
+        a, b = pr["pruned"], pr["unpruned"]
+        lines += ["", f"Pruned MPPI (`prune_margin` = {a['prune_margin']:g}) on the GPU, K = {a['K']}, a later lease: {a['steps_per_s']:.1f} MPC steps/s against "
+                      f"{b['steps_per_s']:.1f} unpruned back to back ({a['pruned_samples_per_step']:.0f} of {a['K']} samples pruned per step)."]  # fmt: skip
     q = {p_["K"]: p_.get("query_only_s", {}) for p_ in r.get("panda", [])}
     if q:
         lanes = sorted({int(k.split("_")[1]) for v in q.values() for k in v if k.startswith("lanes_") and k != "lanes_default"})
