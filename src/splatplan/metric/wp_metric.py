@@ -190,6 +190,7 @@ class WarpMetric:
     def __init__(self, scene: Splats, device: str | None = "cpu", tiers: TierConfig | None = None) -> None:
         self.device = resolve_device(device)
         self.tiers = tiers or TierConfig()
+        self._lp_one: LanePartials | None = None  # placeholders of the one-lane launch (_lane_partials)
         means = scene.means.astype(np.float64)
         scales = scene.scales.astype(np.float64)
         smax = scales.max(axis=1)  # (N,)
@@ -408,12 +409,18 @@ class WarpMetric:
         return int(n)
 
     def _lane_partials(self, b: int, lanes: int) -> LanePartials:
+        """Partial-sum buffers of b queries x lanes; for one lane (never read or written) one
+        shared set of 1-element placeholders, so the CPU path allocates nothing per call."""
+        if lanes == 1 and self._lp_one is not None:
+            return self._lp_one
         lp = LanePartials()
         lp.lanes = lanes
-        n = b * lanes if lanes > 1 else 1  # lanes == 1: never read
+        n = b * lanes if lanes > 1 else 1
         d = self.device
         for name, dt in (("best", wp.float32), ("ncol", wp.int32), ("n_nb", wp.int32), ("pivot", wp.float32), ("acc", wp.float32), ("c_sum", wp.float32), ("c_max", wp.float32)):
             setattr(lp, name, wp.empty(n, dtype=dt, device=d))
+        if lanes == 1:
+            self._lp_one = lp
         return lp
 
     def query(self, links: LinkBatch, b: int, a_min: float, a_max: float, cfg: MetricConfig, out: MetricOutputs, scratch=None) -> None:

@@ -222,11 +222,8 @@ class CollisionCost(Cost):
         lead = states.shape[:-1]
         if not mv.any():
             return QueryResult(**{f: np.broadcast_to(v, lead + v.shape).copy() for f, v in static.as_dict().items()})
-        if hasattr(self.checker, "query_robot"):  # FK of the moving ellipsoids and the metric on the checker's device
-            res = self.checker.query_robot(rob, states, ellipsoids=np.flatnonzero(mv))  # (..., E_moving)
-        else:
-            centers, rots = rob.fk(states, device=getattr(self.checker, "device", "cpu"), ellipsoids=np.flatnonzero(mv))  # (..., E_moving, 3 | 3x3)
-            res = self.checker.query(centers, rots=rots, semi_axes=np.asarray(rob.semi_axes)[mv])  # (..., E_moving)
+        # FK of the moving ellipsoids and the metric on the checker's device (self.static implies query_robot)
+        res = self.checker.query_robot(rob, states, ellipsoids=np.flatnonzero(mv))  # (..., E_moving)
         self.geometry.n_queries += int(np.size(res.min_s2))
         out = {}
         for f, v in res.as_dict().items():

@@ -148,7 +148,7 @@ class Attachments:
 
 
 def attachments(robot, ellipsoids=None, links=None) -> Attachments | None:
-    """None (every ellipsoid, the default), a subset of the ellipsoids (sorted index list, output
+    """None (every ellipsoid, the default), a subset of the ellipsoids (a list of indices, output
     in that order), or the frames of the links ``links`` (indices; identity local transforms)."""
     if links is not None:
         li = tuple(int(i) for i in np.asarray(links).reshape(-1))
