@@ -93,3 +93,15 @@ def test_densify_bounds_motion():
     q = densify(robot, np.stack([a, b]), step_m=0.01)
     steps = np.sum(robot.motion_bound * np.abs(np.diff(q, axis=0)), axis=1)
     assert steps.max() <= 0.01 + 1e-12 and np.allclose(q[-1], b)
+
+
+def test_bad_prune_margin_exits_2_with_one_line(tmp_path, capsys):
+    """`mpc --robot panda --arm-prune-margin` with an impossible value: one named stderr line, exit 2, no folder."""
+    from splatplan.cli import main
+
+    for value in ("-1", "0", "nan"):
+        out = tmp_path / f"run{value}"
+        rc = main(["mpc", "--robot", "panda", "--scene", "tabletop", "--goal-pose", "0.5,0,0.3,0,1,0,0", "--arm-prune-margin", value, "--out", str(out)])
+        err = capsys.readouterr().err.strip().splitlines()
+        assert rc == 2 and len(err) == 1 and "prune_margin" in err[0] and "Traceback" not in err[0], (value, err)
+        assert not out.exists()
