@@ -495,7 +495,8 @@ class SplatViewer:
         self._urdf_frame.wxyz = tuple(float(v) for v in rotmat_to_quat(base[:3, :3]))
 
     def _update_field(self) -> None:
-        if self.server is None:
+        srv = self.server  # one reference: stop() may clear self.server while this callback runs
+        if srv is None:
             return
         st = self.state
         if not st.show_field:
@@ -511,7 +512,9 @@ class SplatViewer:
         field = self.checker.with_config(n_sigma=st.n_sigma).query(pts, None, r).min_s2  # (res, res)
         img = colormap(np.minimum(field, 4.0), 0.0, 4.0)
         img[field < 1.0] = (img[field < 1.0] * 0.4).astype(np.uint8)  # darker inside the collision boundary
-        self._field = self.server.scene.add_image(
+        if self.server is None:
+            return  # stopped during the query: nothing to draw on (srv still guards a stop right after this check)
+        self._field = srv.scene.add_image(
             "/metric/field", img[::-1].copy(),  # row 0 of the image is drawn at +y
             render_width=float(self.hi[0] - self.lo[0]), render_height=float(self.hi[1] - self.lo[1]),
             position=(float(xs.mean()), float(ys.mean()), float(st.field_z)),
@@ -529,6 +532,7 @@ class SplatViewer:
         else:
             goal[:2] = gp[:2]
         n_sigma = self.state.n_sigma
+        srv = self.server  # one reference: stop() may clear self.server while the worker runs
 
         def work() -> None:
             from ..planners import plan
@@ -546,8 +550,8 @@ class SplatViewer:
             dt = time.perf_counter() - t0
             if res.success:
                 path = np.asarray(res.path, dtype=np.float64)
-                self.server.scene.add_line_segments("/plans/replanned", polyline_segments(self._trace(path)), (255, 0, 200),
-                                                    thickness=0.005 * self.extent)  # fmt: skip
+                srv.scene.add_line_segments("/plans/replanned", polyline_segments(self._trace(path)), (255, 0, 200),
+                                            thickness=0.005 * self.extent)  # fmt: skip
                 self._plan_md.content = f"path found: length {res.length:.3f}, {dt:.2f} s (n_sigma {n_sigma:g})"
             else:
                 self._plan_md.content = f"no path found ({res.message}), {dt:.2f} s"
