@@ -79,7 +79,7 @@ def bench_reach(device: str, size: int, encoder: str, quick: bool, backend: str 
 
 def tune_panda(robot, scene, device: str, x, factors: list[float], lanes: list[int], n: int, seed: int = 0, repeats: int = 5) -> list[dict]:
     """Panda collision query alone (moving ellipsoids, q on the device) on n configurations near
-    ``x`` for each TierConfig (slab_cell_factor, lanes): the GPU's best grid and thread layout."""
+    ``x`` for each TierConfig (elongated_cell_factor, lanes): the GPU's best grid and thread layout."""
     import numpy as np
 
     from splatplan._warp import wp as _wp
@@ -92,11 +92,11 @@ def tune_panda(robot, scene, device: str, x, factors: list[float], lanes: list[i
     rows = []
     for f in factors:
         for n_l in lanes:
-            ck = CollisionChecker(scene, n_sigma=1.0, device=device, tiers=TierConfig(slab_cell_factor=f, lanes=n_l)).with_config(s2_cap=2.0)
+            ck = CollisionChecker(scene, n_sigma=1.0, device=device, tiers=TierConfig(elongated_cell_factor=f, lanes=n_l)).with_config(s2_cap=2.0)
             qw = wp.array(q.astype(np.float32), dtype=wp.float32, device=ck.device)
             sec = time_query_robot(ck, robot, qw, mv, repeats, out=ck.workspace(n * robot.n_ellipsoids))
-            rows.append({"slab_cell_factor": f, "lanes": n_l, "seconds": sec, "configs": n})
-            print(f"tune slab_cell_factor={f} lanes={n_l}: {1e3 * rows[-1]['seconds']:.2f} ms", flush=True)
+            rows.append({"elongated_cell_factor": f, "lanes": n_l, "seconds": sec, "configs": n})
+            print(f"tune elongated_cell_factor={f} lanes={n_l}: {1e3 * rows[-1]['seconds']:.2f} ms", flush=True)
     return rows
 
 
@@ -122,7 +122,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--samples", default="256,1024", help="Panda MPPI sample counts K (comma list; empty: skip)")
     ap.add_argument("--steps", type=int, default=20, help="timed MPC steps per Panda row")
     ap.add_argument("--lanes-sweep", default="", help="also time the Panda query alone at these TierConfig.lanes (comma list)")
-    ap.add_argument("--tune-factors", default="", help="time the Panda query at these TierConfig.slab_cell_factor values (comma list) ...")
+    ap.add_argument("--tune-factors", default="", help="time the Panda query at these TierConfig.elongated_cell_factor values (comma list) ...")
     ap.add_argument("--tune-lanes", default="4,8,16", help="... and these lanes")
     ap.add_argument("--prune-margin", type=float, default=None, help="MPPIConfig.prune_margin of the Panda rows (default: off)")
     ap.add_argument("--reach-size", type=int, default=224)

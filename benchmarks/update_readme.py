@@ -64,12 +64,13 @@ def gpu() -> str | None:
             lines.append(f"| {k * 32:,} (K = {k}) | " + " | ".join(f"{1e3 * v.get(f'lanes_{n}', float('nan')):.1f}" for n in lanes) + " |")
     t = r.get("tune")
     if t:
-        fs = sorted({x["slab_cell_factor"] for x in t["rows"]})
+        cf = lambda x: x.get("elongated_cell_factor", x.get("slab_cell_factor"))  # noqa: E731 (the field's name before the slabs went)
+        fs = sorted({cf(x) for x in t["rows"]})
         ls = sorted({x["lanes"] for x in t["rows"]})
-        lines += ["", f"Grid cell width for elongated links (`slab_cell_factor`) x lanes, Panda query alone, ms ({t['rows'][0]['configs']:,} configurations):", "",
-                  "| slab_cell_factor | " + " | ".join(f"lanes {n}" for n in ls) + " |", "|---|" + "---|" * len(ls)]  # fmt: skip
+        lines += ["", f"Grid cell width for elongated links (`elongated_cell_factor`) x lanes, Panda query alone, ms ({t['rows'][0]['configs']:,} configurations):", "",
+                  "| elongated_cell_factor | " + " | ".join(f"lanes {n}" for n in ls) + " |", "|---|" + "---|" * len(ls)]  # fmt: skip
         for f in fs:
-            cell = {x["lanes"]: x["seconds"] for x in t["rows"] if x["slab_cell_factor"] == f}
+            cell = {x["lanes"]: x["seconds"] for x in t["rows"] if cf(x) == f}
             lines.append(f"| {f} | " + " | ".join(f"{1e3 * cell[n]:.1f}" for n in ls) + " |")
     mt = RESULTS / "metric_throughput_cuda.json"
     if mt.exists():

@@ -22,7 +22,7 @@ def _elongated_links(rng: np.random.Generator, b: int) -> tuple[np.ndarray, np.n
 
 
 def _packed_scene(rng: np.random.Generator, quats: np.ndarray, axes: np.ndarray, centers: np.ndarray, per_link: int) -> Splats:
-    """Splats packed in and just around each link ellipsoid scaled by up to 3.5 (every slab and border populated)."""
+    """Splats packed in and just around each link ellipsoid scaled by up to 3.5 (every border region populated)."""
     rot = quat_to_rotmat(quats)  # (b, 3, 3) world <- link
     u = rng.normal(size=(len(centers), per_link, 3))
     u *= (rng.uniform(0.0, 1.0, (len(centers), per_link, 1)) ** (1 / 3) * 3.5) / np.linalg.norm(u, axis=2, keepdims=True)

@@ -75,11 +75,11 @@ class TierConfig:
     #: Hash-grid cell width as a fraction of the tier's query radius.
     cell_factor: float = 1.5  # measured best on Stonehenge (CPU): 0.75-2.0 within 25%
     #: Cell width factor of queries whose typical link is elongated (median a_max >= 1.5 median a_min):
-    #: the kernels bound such links' reads by the link box (full queries also split them into slabs
-    #: along the long axis), much tighter than the ball, so finer cells pay (Panda MPPI rollouts on the
-    #: 200k-splat tabletop, CPU: 0.25 is 1.5x faster than 0.5 and 2.5x faster than 1.0; 0.13-0.35 within
-    #: 10%; Panda collides_robot 1.7x faster than with cell_factor).
-    slab_cell_factor: float = 0.25
+    #: the kernels bound such links' reads by the link box (full queries also clip each row of cells to
+    #: the link's ellipsoid), much tighter than the ball, so finer cells pay (Panda MPPI rollouts on the
+    #: 200k-splat tabletop, CPU: 0.25 is 1.5x faster than 0.5 and 2.5x faster than 1.0; 0.18-0.35 within
+    #: 15%; Panda collides_robot 1.7x faster than with cell_factor).
+    elongated_cell_factor: float = 0.25
     #: Largest grid dimension per axis (cells wrap around beyond it; results stay exact).
     max_dim: int = 128
     #: Process the queries of a batch in Morton (Z-curve) order of their centres (a key kernel and a
@@ -254,11 +254,11 @@ class WarpMetric:
             pool.shutdown(wait=True)
 
     # ------------------------------------------------------------------ grids
-    def grid_key(self, n_sigma: float, cap: float, a_min: float, a_max: float, slabs: bool = False) -> tuple:
+    def grid_key(self, n_sigma: float, cap: float, a_min: float, a_max: float, elongated: bool = False) -> tuple:
         """((first, last) class of each tier, quantised (2^(1/4)) cell width of each tier) for a typical
-        query with semi-axes in [a_min, a_max]; ``slabs``: finer cells (``slab_cell_factor``) when the
-        typical link is elongated, whose reads the kernels bound by the link box (and slabs)."""
-        cf = self.tiers.slab_cell_factor if slabs and a_max >= 1.5 * a_min else self.tiers.cell_factor
+        query with semi-axes in [a_min, a_max]; ``elongated``: finer cells (``elongated_cell_factor``) when
+        the typical link is elongated, whose reads the kernels bound by the link box."""
+        cf = self.tiers.elongated_cell_factor if elongated and a_max >= 1.5 * a_min else self.tiers.cell_factor
         args = (float(n_sigma), float(cap), float(a_min), float(a_max), float(cf))
         key = self._keys.get(args)  # memoised: search_radius in Python scope costs ~0.2 ms a call
         if key is None:
@@ -306,13 +306,13 @@ class WarpMetric:
             j = cut[j]
         return tuple(reversed(groups))
 
-    def gridset(self, n_sigma: float, cap: float, a_min: float, a_max: float, slabs: bool = False) -> _GridSet:
+    def gridset(self, n_sigma: float, cap: float, a_min: float, a_max: float, elongated: bool = False) -> _GridSet:
         """Hash grids of every tier for this query radius (cached; safe from several threads).
 
         Each grid set keeps its own copy of the splat data in the grid's cell order, so the
         indices a grid returns walk memory almost sequentially (a large win on CPU caches).
         """
-        key = self.grid_key(n_sigma, cap, a_min, a_max, slabs)
+        key = self.grid_key(n_sigma, cap, a_min, a_max, elongated)
         with self._lock:
             gs = self._gridsets.get(key)
             if gs is None:
@@ -426,7 +426,7 @@ class WarpMetric:
     def query(self, links: LinkBatch, b: int, a_min: float, a_max: float, cfg: MetricConfig, out: MetricOutputs, scratch=None) -> None:
         """All five outputs of b queries into ``out`` (device arrays of at least b rows); ``scratch``:
         (keys, values) int32 device arrays of >= 2b rows for the query sort (allocated when None)."""
-        gs = self.gridset(cfg.n_sigma, cfg.s2_cap, a_min, a_max, slabs=True)
+        gs = self.gridset(cfg.n_sigma, cfg.s2_cap, a_min, a_max, elongated=True)
         self.sort_queries(links, b, *(scratch or self._scratch(b)))
         lanes = self.lanes
         lp = self._lane_partials(b, lanes)
@@ -437,7 +437,7 @@ class WarpMetric:
 
     def collides(self, links: LinkBatch, b: int, a_min: float, a_max: float, cfg: MetricConfig, out_hit, bad, scratch=None) -> None:
         """in_collision of b queries into ``out_hit`` (bool device array of at least b rows)."""
-        gs = self.gridset(cfg.n_sigma, 1.0, a_min, a_max, slabs=True)
+        gs = self.gridset(cfg.n_sigma, 1.0, a_min, a_max, elongated=True)
         self.sort_queries(links, b, *(scratch or self._scratch(b)))
         self._launch(metric_collide_kernel, b, [links, gs.tiers, metric_params(cfg, 0), out_hit, bad])
 

@@ -32,15 +32,6 @@ i.e. the link-frame coordinate |e_k| < n_sigma sigma_g + a_k sqrt(cap + K^2) (:f
 full kernel reads only grid cells within both the ball and (the world box around) that link box,
 which is much smaller than the ball for a thin link near big splats.
 
-Elongated links search that ball in slabs: with ``n`` = round(a_max / a_mid) (at most
-``MAX_SLABS``) slabs of width ``2 rho / n`` across the long axis u, every splat with s <= rho / a_max
-lies in the slab of its coordinate along u, at most ``rho / n`` from the slab's centre along u and
-``(rho / a_max) a_mid`` across it; so one grid query per slab, of radius
-``sqrt((rho / n)^2 + (rho a_mid / a_max)^2)`` (plus slack against rounding), finds it, and a splat
-found by several slab queries is used only by the query of its own slab. The slabs' boxes hold
-far fewer splats than the ball's box (``n = 1`` is the plain ball); the result is the same set of
-splats, so the outputs are unchanged (sums up to float32 summation order).
-
 ROW_CLIP (full kernel). A splat with s2 > s2_cut = (rho / a_max)^2 is rejected anyway, so only the
 ellipsoid E = {p : (p - c)^T A (p - c) <= s2_cut} (intersected with the query's ball) can hold
 neighbours. For a row of cells (a tube y in [y0, y1], z in [z0, z1]) the x extent of E on the tube
@@ -58,12 +49,17 @@ surfaces, whose axis-aligned boxes hold ~10x more splats than their ellipsoid (P
 table: the full query ~1.5x faster). The collision-only kernel scans whole rows: its early exit keeps
 candidates cheap, and clipping measured slower there.
 
+An earlier version also cut elongated links into up to 4 slabs along the long axis, one grid query
+each. Once rows were clipped to the ellipsoid, the slabs' overlapping boxes only made splats be read
+twice (CPU: Panda rollouts near the table 1.1-1.2x, random 4:1 and 10:1 links 1.4-1.7x faster without
+them), so every link is one box now.
+
 Launch position and query index differ when the glue sorts a batch (Morton order of the centres,
 ``LinkBatch.order``): neighbouring threads then read neighbouring splats; every output is still
 written at the query's own index, so results do not depend on the order.
 
 LANES (full kernel, ``LanePartials``). With ``lanes`` > 1 each query has that many adjacent threads:
-lane l walks the same tiers, slabs and cell rows as every other lane of its query and takes the
+lane l walks the same tiers and cell rows as every other lane of its query and takes the
 splats start + l, start + l + lanes, ... of each cell run, so on a GPU the lanes of a warp read
 neighbouring splats and share the control flow (one thread per query leaves a warp waiting for its
 busiest query). Each lane writes its partial sums; ``metric_lanes_combine_kernel`` reduces them in
@@ -89,10 +85,6 @@ RHO_SLACK = wp.constant(1.0001)
 SOFTMIN_SKIP = wp.constant(20.0)
 #: bad[0] when every query was valid.
 NO_BAD = 2147483647
-#: Elongated links search their neighbourhood in up to this many slabs along the long axis.
-MAX_SLABS = wp.constant(4)
-#: Relative slack of a slab's ball radius against float32 rounding of the slab assignment.
-SLAB_SLACK = wp.constant(1.001)
 #: Row clipping (ROW_CLIP in the module docstring) only for links with a_max / a_min up to this:
 #: the float32 Schur complement loses about (a_max / a_min)^2 ulps, which the margins below cover.
 ROW_CLIP_MAX_RATIO = wp.constant(50.0)
@@ -364,32 +356,6 @@ def wrap(x: int, dim: int):
 
 
 @wp.func
-def link_slabs(rot: wp.mat33, ax: wp.vec3, a_mid: float, a_max: float):
-    """(number of slabs, unit long axis in the world) of an elongated link: about a_max / a_mid slabs
-    (at most MAX_SLABS); 1 (and any axis) for a link that is not elongated."""
-    k = int(0)
-    if ax[1] == a_max:
-        k = 1
-    if ax[2] == a_max:
-        k = 2
-    u = wp.vec3(rot[0, k], rot[1, k], rot[2, k])
-    n = int(1)
-    if a_mid > 0.0:
-        n = int(wp.clamp(a_max / a_mid + 0.5, 1.0, float(MAX_SLABS)))
-    return n, u
-
-
-@wp.func
-def slab_radius(span: float, w: float, mid_ratio: float, n_slab: int):
-    """Radius of the ball around a slab's centre that holds every point of the slab with s <= rho / a_max:
-    half the slab width along the axis, at most (rho / a_max) a_mid = span mid_ratio across it (plus
-    float slack)."""
-    h = 0.5 * w
-    m = span * mid_ratio
-    return wp.sqrt(h * h + m * m) * SLAB_SLACK
-
-
-@wp.func
 def link_box(ax: wp.vec3, n_sigma_g: float, cap: float):
     """Half extents (link frame) of a box holding every splat with s2~ < cap, for splats of std <= sigma_g
     (n_sigma_g = n_sigma sigma_g): |e_k| < n_sigma_g + a_k sqrt(cap + sum_j (n_sigma_g / a_j)^2) (see the
@@ -403,12 +369,6 @@ def link_box(ax: wp.vec3, n_sigma_g: float, cap: float):
 def box_reach(rot: wp.mat33, h: wp.vec3, i: int):
     """Half extent along world axis i of the link-frame box of half extents h (rotation rot: world <- link)."""
     return wp.abs(rot[i, 0]) * h[0] + wp.abs(rot[i, 1]) * h[1] + wp.abs(rot[i, 2]) * h[2]
-
-
-@wp.func
-def slab_index(d: wp.vec3, u: wp.vec3, rho: float, w: float, n_slab: int):
-    """Slab of a point at offset d from the link centre: slabs of width w tile [-rho, rho] along u."""
-    return wp.clamp(int(wp.floor((wp.dot(d, u) + rho) / w)), 0, n_slab - 1)
 
 
 @wp.func
@@ -478,15 +438,8 @@ def metric_full_kernel(
     a = link_matrix(rot, ax)
     a_min = wp.min(ax)
     a_max = wp.max(ax)
-    a_mid = ax[0] + ax[1] + ax[2] - a_min - a_max
-    n_slab, u = link_slabs(rot, ax, a_mid, a_max)
     clip_ok = a_max <= ROW_CLIP_MAX_RATIO * a_min  # rows clipped to the link's ellipsoid (ROW_CLIP)
     e1, e2 = schur_form(a)
-    k_long = int(0)  # the long axis (the slabs' axis u)
-    if ax[1] == a_max:
-        k_long = 1
-    if ax[2] == a_max:
-        k_long = 2
 
     best = float(wp.inf)  # min s2~ over visited splats
     ncol = int(0)  # splats with s2~ < 1
@@ -506,92 +459,79 @@ def metric_full_kernel(
         rho = search_radius(p.n_sigma, splats.sigma[j], a_min, a_max, cap)
         rho2 = rho * rho
         s2_cut = rho2 / (a_max * a_max)
-        # every splat with s2~ < cap lies in the ball of radius rho and in the link-frame box h;
-        # slabs tile [-span, span] along the long axis u
+        # every splat with s2~ < cap lies in the ball of radius rho and in the link-frame box h
         h = link_box(ax, p.n_sigma * splats.sigma[j], cap)
-        span = wp.min(rho, h[k_long])
-        w = 2.0 * span / float(n_slab)  # slab width along the long axis
-        r_sub = rho  # one slab: the ball itself
-        if n_slab > 1:
-            r_sub = slab_radius(span, w, rho * a_mid / (a_max * span), n_slab)
-        h_sub = h
-        h_sub[k_long] = 0.5 * w * SLAB_SLACK  # one slab of the box
-        r_x = wp.min(r_sub, box_reach(rot, h_sub, 0))
-        r_y = wp.min(r_sub, box_reach(rot, h_sub, 1))
-        r_z = wp.min(r_sub, box_reach(rot, h_sub, 2))
+        r_x = wp.min(rho, box_reach(rot, h, 0))
+        r_y = wp.min(rho, box_reach(rot, h, 1))
+        r_z = wp.min(rho, box_reach(rot, h, 2))
         inv_w = splats.inv_w[j]
         dim = splats.dims[j]
         cb = splats.cell_base[j]
         c_lo = splats.cell_lo[j]
         c_hi = splats.cell_hi[j]
-        for sl in range(n_slab):
-            cq = c + u * (-span + (float(sl) + 0.5) * w)
-            xs, nx, fx = cell_range(cq[0], r_x, inv_w, dim[0], c_lo[0], c_hi[0])
-            ys, ny, fy = cell_range(cq[1], r_y, inv_w, dim[1], c_lo[1], c_hi[1])
-            zs, nz, fz = cell_range(cq[2], r_z, inv_w, dim[2], c_lo[2], c_hi[2])
-            clip = clip_ok and fx and fy and fz
-            x0s = wrap(xs, dim[0])
-            for iz in range(nz):
-                z = wrap(zs + iz, dim[2])
-                for iy in range(ny):
-                    row = cb + (z * dim[1] + wrap(ys + iy, dim[1])) * dim[0]
-                    xa = int(0)  # cells xs + xa .. xs + xb of this row (unwrapped)
-                    xb = nx - 1
-                    if clip and run_count(splats.cell_start, row, x0s, nx, dim[0]) > ROW_CLIP_MIN:
-                        y0, y1, z0, z1 = row_bounds(ys + iy, zs + iz, inv_w)
-                        xl, xh = row_x_span(c, e1, e2, s2_cut, cq, r_sub, y0, y1, z0, z1, sphere)
-                        if xl > xh:
-                            continue
-                        xa = wp.max(xa, x_cell(xl, inv_w, -1.0) - xs)
-                        xb = wp.min(xb, x_cell(xh, inv_w, 1.0) - xs)
-                        if xb < xa:
-                            continue
-                    x0 = x0s + xa
-                    if x0 >= dim[0]:
-                        x0 -= dim[0]
-                    x1 = x0 + xb - xa  # cells x0..x1 of a row, wrapping past dim[0] - 1 into a second run
-                    n_run = 1
-                    if x1 >= dim[0]:
-                        n_run = 2
-                    for run in range(n_run):
-                        a0 = x0
-                        a1 = wp.min(x1, dim[0] - 1)
-                        if run == 1:
-                            a0 = 0
-                            a1 = x1 - dim[0]
-                        for i in range(splats.cell_start[row + a0] + lane, splats.cell_start[row + a1 + 1], lp.lanes):
-                            d = splats.means[i] - c
-                            dd = wp.dot(d, d)
-                            if dd <= rho2:
-                                if n_slab > 1:
-                                    if slab_index(d, u, span, w, n_slab) != sl:
-                                        continue  # found by the query of another slab (each splat is used once)
-                                ns = splat_inflation(splats, p, i)
-                                if ns < 0.0:
-                                    continue
-                                v = link_s2(d, dd, a, sphere, inv_r2, splats.mrows[i], ns, s2_cut)
-                                best = wp.min(best, v)
-                                if v < 1.0:
-                                    ncol += 1
-                                if v < cap:
-                                    n_nb += 1
-                                    eg = wp.exp(-gamma * (v - p.s_min))  # the one exp per neighbour in the common case
-                                    cv = p.d_max * wp.min(eg, 1.0)  # d_max exp(-gamma max(v - s_min, 0))
-                                    if v < pivot:
-                                        acc = acc * wp.exp(-t * (pivot - v)) + 1.0
-                                        pivot = v
-                                        pg = wp.exp(gamma * (pivot - p.s_min))  # eg * pg = exp(-gamma (v - pivot))
-                                    elif p.pow_m > 0:
-                                        # t = m gamma: exp(-t (v - pivot)) = (eg * pg)^m, no second exp
-                                        e = eg * pg
-                                        term = e
-                                        for _k in range(p.pow_m - 1):
-                                            term = term * e
-                                        acc += term
-                                    elif t * (v - pivot) < SOFTMIN_SKIP:
-                                        acc += wp.exp(-t * (v - pivot))
-                                    c_sum += cv
-                                    c_max = wp.max(c_max, cv)
+        xs, nx, fx = cell_range(c[0], r_x, inv_w, dim[0], c_lo[0], c_hi[0])
+        ys, ny, fy = cell_range(c[1], r_y, inv_w, dim[1], c_lo[1], c_hi[1])
+        zs, nz, fz = cell_range(c[2], r_z, inv_w, dim[2], c_lo[2], c_hi[2])
+        clip = clip_ok and fx and fy and fz
+        x0s = wrap(xs, dim[0])
+        for iz in range(nz):
+            z = wrap(zs + iz, dim[2])
+            for iy in range(ny):
+                row = cb + (z * dim[1] + wrap(ys + iy, dim[1])) * dim[0]
+                xa = int(0)  # cells xs + xa .. xs + xb of this row (unwrapped)
+                xb = nx - 1
+                if clip and run_count(splats.cell_start, row, x0s, nx, dim[0]) > ROW_CLIP_MIN:
+                    y0, y1, z0, z1 = row_bounds(ys + iy, zs + iz, inv_w)
+                    xl, xh = row_x_span(c, e1, e2, s2_cut, c, rho, y0, y1, z0, z1, sphere)
+                    if xl > xh:
+                        continue
+                    xa = wp.max(xa, x_cell(xl, inv_w, -1.0) - xs)
+                    xb = wp.min(xb, x_cell(xh, inv_w, 1.0) - xs)
+                    if xb < xa:
+                        continue
+                x0 = x0s + xa
+                if x0 >= dim[0]:
+                    x0 -= dim[0]
+                x1 = x0 + xb - xa  # cells x0..x1 of a row, wrapping past dim[0] - 1 into a second run
+                n_run = 1
+                if x1 >= dim[0]:
+                    n_run = 2
+                for run in range(n_run):
+                    a0 = x0
+                    a1 = wp.min(x1, dim[0] - 1)
+                    if run == 1:
+                        a0 = 0
+                        a1 = x1 - dim[0]
+                    for i in range(splats.cell_start[row + a0] + lane, splats.cell_start[row + a1 + 1], lp.lanes):
+                        d = splats.means[i] - c
+                        dd = wp.dot(d, d)
+                        if dd <= rho2:
+                            ns = splat_inflation(splats, p, i)
+                            if ns < 0.0:
+                                continue
+                            v = link_s2(d, dd, a, sphere, inv_r2, splats.mrows[i], ns, s2_cut)
+                            best = wp.min(best, v)
+                            if v < 1.0:
+                                ncol += 1
+                            if v < cap:
+                                n_nb += 1
+                                eg = wp.exp(-gamma * (v - p.s_min))  # the one exp per neighbour in the common case
+                                cv = p.d_max * wp.min(eg, 1.0)  # d_max exp(-gamma max(v - s_min, 0))
+                                if v < pivot:
+                                    acc = acc * wp.exp(-t * (pivot - v)) + 1.0
+                                    pivot = v
+                                    pg = wp.exp(gamma * (pivot - p.s_min))  # eg * pg = exp(-gamma (v - pivot))
+                                elif p.pow_m > 0:
+                                    # t = m gamma: exp(-t (v - pivot)) = (eg * pg)^m, no second exp
+                                    e = eg * pg
+                                    term = e
+                                    for _k in range(p.pow_m - 1):
+                                        term = term * e
+                                    acc += term
+                                elif t * (v - pivot) < SOFTMIN_SKIP:
+                                    acc += wp.exp(-t * (v - pivot))
+                                c_sum += cv
+                                c_max = wp.max(c_max, cv)
 
     if lp.lanes == 1:
         write_outputs(out, q, p, best, ncol, n_nb, pivot, acc, c_sum, c_max)
