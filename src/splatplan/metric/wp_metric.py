@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._warp import cpu_threads, resolve_device, wait_all
+from .._warp import cpu_threads, launch_split, resolve_device
 from .._warp import wp as _wp
 from ..scenes.splats import Splats, quat_to_rotmat
 from .config import COST_REDUCE_CODES, MetricConfig
@@ -373,20 +373,10 @@ class WarpMetric:
 
     # ------------------------------------------------------------------ launches
     def _launch(self, kernel, b: int, args: list) -> None:
-        """Launch over b queries; on CPU split into several launches per core (Warp runs a CPU launch on one thread)."""
-        n_thr = cpu_threads() if self.device == "cpu" else 1
-        if n_thr == 1 or b < 256:
-            wp.launch(kernel, dim=b, inputs=[0, *args], device=self.device)
-            return
-        # Several chunks per core, taken from the pool as cores free up: query costs vary a lot
-        # (free space vs. dense surfaces), so equal static halves leave a core idle.
-        step = max(128, math.ceil(b / (CHUNKS_PER_THREAD * n_thr)))
-        pool = self._executor()
-        futs = [
-            pool.submit(wp.launch, kernel, dim=min(step, b - lo), inputs=[lo, *args], device=self.device)
-            for lo in range(0, b, step)
-        ]
-        wait_all(futs)  # on Ctrl-C: cancel what has not started, wait for running launches
+        """Launch over b queries (kernel inputs ``[offset, *args]``); on CPU several launches per core
+        from the checker's pool (:func:`~splatplan._warp.launch_split`)."""
+        pool = self._executor() if self.device == "cpu" and cpu_threads() > 1 else None
+        launch_split(kernel, b, [0, *args], self.device, pool, min_split=256, min_step=128, chunks_per_thread=CHUNKS_PER_THREAD)
 
     def sort_queries(self, links: LinkBatch, b: int, keys, values) -> None:
         """Set ``links.order`` to a Morton order of the b query centres (int32 scratch ``keys``/``values`` of >= 2b rows)."""

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .._warp import launch_split
 from .._warp import wp as _wp
 from .kinematics import FIXED, PLANAR, PRISMATIC, REVOLUTE, TRANSLATION, skew
 
@@ -254,22 +255,5 @@ def launch_fk(robot, q_wp, out_centers, out_rots, attach: Attachments | None = N
         return
     m = _model(robot, dev, attach)
     sr, sp = _scratch(robot, m, b, dev)
-    if not dev.is_cpu:
-        wp.launch(fk_kernel, dim=b, inputs=[m, q_wp, 0, sr, sp, out_centers, out_rots], device=dev)
-        return
-    pool = robot._thread_pool()
-    nthreads = pool._max_workers
-    if b < MIN_SPLIT or nthreads == 1:
-        wp.launch(fk_kernel, dim=b, inputs=[m, q_wp, 0, sr, sp, out_centers, out_rots], device=dev)
-        return
-    n_chunks = min(nthreads * CHUNKS_PER_THREAD, -(-b // (MIN_SPLIT // 4)))
-    edges = np.linspace(0, b, n_chunks + 1).astype(np.int64)
-
-    def run(i: int) -> None:
-        lo, hi = int(edges[i]), int(edges[i + 1])
-        if hi > lo:
-            wp.launch(fk_kernel, dim=hi - lo, inputs=[m, q_wp, lo, sr, sp, out_centers, out_rots], device=dev)
-
-    from .._warp import wait_all
-
-    wait_all([pool.submit(run, i) for i in range(n_chunks)])  # on Ctrl-C: running launches finish first
+    pool = robot._thread_pool() if dev.is_cpu and b >= MIN_SPLIT else None
+    launch_split(fk_kernel, b, [m, q_wp, 0, sr, sp, out_centers, out_rots], dev, pool, offset_at=2, min_split=MIN_SPLIT, min_step=MIN_SPLIT // 4, chunks_per_thread=CHUNKS_PER_THREAD)
