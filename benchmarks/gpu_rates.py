@@ -77,9 +77,11 @@ def bench_reach(device: str, size: int, encoder: str, quick: bool, backend: str 
     }  # fmt: skip
 
 
-def tune_panda(robot, scene, device: str, x, factors: list[float], lanes: list[int], n: int, seed: int = 0, repeats: int = 5) -> list[dict]:
+def tune_panda(robot, scene, device: str, x, factors: list[float], lanes: list[int], n: int, seed: int = 0, repeats: int = 5,
+               groups: tuple[bool, ...] = (False,)) -> list[dict]:  # fmt: skip
     """Panda collision query alone (moving ellipsoids, q on the device) on n configurations near
-    ``x`` for each TierConfig (elongated_cell_factor, lanes): the GPU's best grid and thread layout."""
+    ``x`` for each TierConfig (elongated_cell_factor, lanes, group_links): the GPU's best grid and
+    thread layout."""
     import numpy as np
 
     from splatplan._warp import wp as _wp
@@ -90,13 +92,15 @@ def tune_panda(robot, scene, device: str, x, factors: list[float], lanes: list[i
     q = near_configs(robot, x, n, seed)
     mv = np.flatnonzero(~robot.static_ellipsoids)
     rows = []
-    for f in factors:
-        for n_l in lanes:
-            ck = CollisionChecker(scene, n_sigma=1.0, device=device, tiers=TierConfig(elongated_cell_factor=f, lanes=n_l)).with_config(s2_cap=2.0)
-            qw = wp.array(q.astype(np.float32), dtype=wp.float32, device=ck.device)
-            sec = time_query_robot(ck, robot, qw, mv, repeats, out=ck.workspace(n * robot.n_ellipsoids))
-            rows.append({"elongated_cell_factor": f, "lanes": n_l, "seconds": sec, "configs": n})
-            print(f"tune elongated_cell_factor={f} lanes={n_l}: {1e3 * rows[-1]['seconds']:.2f} ms", flush=True)
+    for g in groups:
+        for f in factors:
+            for n_l in lanes:
+                tc = TierConfig(elongated_cell_factor=f, lanes=n_l, group_links=g)
+                ck = CollisionChecker(scene, n_sigma=1.0, device=device, tiers=tc).with_config(s2_cap=2.0)
+                qw = wp.array(q.astype(np.float32), dtype=wp.float32, device=ck.device)
+                sec = time_query_robot(ck, robot, qw, mv, repeats, out=ck.workspace(n * robot.n_ellipsoids))
+                rows.append({"elongated_cell_factor": f, "lanes": n_l, "group_links": g, "seconds": sec, "configs": n})
+                print(f"tune elongated_cell_factor={f} lanes={n_l} group_links={g}: {1e3 * rows[-1]['seconds']:.2f} ms", flush=True)
     return rows
 
 
@@ -124,6 +128,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--lanes-sweep", default="", help="also time the Panda query alone at these TierConfig.lanes (comma list)")
     ap.add_argument("--tune-factors", default="", help="time the Panda query at these TierConfig.elongated_cell_factor values (comma list) ...")
     ap.add_argument("--tune-lanes", default="4,8,16", help="... and these lanes")
+    ap.add_argument("--tune-group-links", default="0,1", help="... and these TierConfig.group_links (0/1, comma list)")
     ap.add_argument("--prune-margin", type=float, default=None, help="MPPIConfig.prune_margin of the Panda rows (default: off)")
     ap.add_argument("--reach-size", type=int, default=224)
     ap.add_argument("--reach-encoders", default="thumbnail,dinov2-vits14", help="comma list; empty: skip the reach rows")
@@ -143,7 +148,8 @@ def main(argv: list[str] | None = None) -> int:
             res["panda"].append(r)
             if k == ks[-1] and args.tune_factors:
                 res["tune"] = tune_panda(setup[0], setup[1], args.device, r.pop("_final_x"), [float(f) for f in args.tune_factors.split(",")],
-                                         [int(v) for v in args.tune_lanes.split(",")], k * 32)  # fmt: skip
+                                         [int(v) for v in args.tune_lanes.split(",")], k * 32,
+                                         groups=tuple(bool(int(v)) for v in args.tune_group_links.split(",") if v))  # fmt: skip
             r.pop("_final_x", None)
             print(f"panda K={k}: {r['steps_per_s']:.2f} steps/s, costs {r['cost_s_per_step']}, query alone {r['query_only_s']}", flush=True)
     for enc in [e for e in args.reach_encoders.split(",") if e]:

@@ -46,6 +46,8 @@ def gpu() -> str | None:
     r = json.loads(p.read_text())
     md = (RESULTS / "gpu_rates.md").read_text().strip() if (RESULTS / "gpu_rates.md").exists() else ""
     lines = [md]
+    if r.get("changes_since"):
+        lines += ["", "Changed since these GPU measurements, not yet measured on a GPU:", ""] + [f"- {c}" for c in r["changes_since"]]
     b = r.get("before_this_change")
     if b:
         lines += ["", f"Before the GPU work of this round ({b['note'].split('(')[-1].rstrip(')')}): Panda MPPI {b['panda_K256_steps_per_s']:.1f} steps/s at K = 256 and "
@@ -69,9 +71,11 @@ def gpu() -> str | None:
         ls = sorted({x["lanes"] for x in t["rows"]})
         lines += ["", f"Grid cell width for elongated links (`elongated_cell_factor`) x lanes, Panda query alone, ms ({t['rows'][0]['configs']:,} configurations):", "",
                   "| elongated_cell_factor | " + " | ".join(f"lanes {n}" for n in ls) + " |", "|---|" + "---|" * len(ls)]  # fmt: skip
-        for f in fs:
-            cell = {x["lanes"]: x["seconds"] for x in t["rows"] if cf(x) == f}
-            lines.append(f"| {f} | " + " | ".join(f"{1e3 * cell[n]:.1f}" for n in ls) + " |")
+        for g in sorted({bool(x.get("group_links", False)) for x in t["rows"]}):
+            for f in fs:
+                cell = {x["lanes"]: x["seconds"] for x in t["rows"] if cf(x) == f and bool(x.get("group_links", False)) == g}
+                if cell:
+                    lines.append(f"| {f}{', group_links' if g else ''} | " + " | ".join(f"{1e3 * cell[n]:.1f}" if n in cell else "-" for n in ls) + " |")
     mt = RESULTS / "metric_throughput_cuda.json"
     if mt.exists():
         m = json.loads(mt.read_text())

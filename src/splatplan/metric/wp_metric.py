@@ -87,6 +87,14 @@ class TierConfig:
     sort_queries: bool = True
     #: ... for batches of at least this many queries.
     sort_min_batch: int = 1024
+    #: Sort a robot batch (semi-axes repeating with a period of at most 512 ellipsoids: ``query_robot``)
+    #: by ellipsoid first, then Morton order, so that neighbouring threads (a GPU warp) hold the same
+    #: link, whose work per query is alike (Panda near the table: 1 to 300 cell rows per query by link).
+    #: The outputs do not change. CPU: no measurable effect. CUDA: not measured yet; a count of the
+    #: per-thread work (cell rows and splats read; Panda K = 256 batch near the table) predicts 1.7x less
+    #: warp time at 1 lane and 1.3x at 8
+    #: (``benchmarks/gpu_rates.py --tune-group-links``).
+    group_links: bool = False
     #: Threads per query in the full kernel (``query``): lane l takes every lanes-th splat of each
     #: cell run it visits, and a second kernel sums the lanes in order. On a GPU the lanes of a
     #: query run in one warp over the same cells (coalesced reads, even work); on a CPU one thread
@@ -379,11 +387,16 @@ class WarpMetric:
         launch_split(kernel, b, [0, *args], self.device, pool, min_split=256, min_step=128, chunks_per_thread=CHUNKS_PER_THREAD)
 
     def sort_queries(self, links: LinkBatch, b: int, keys, values) -> None:
-        """Set ``links.order`` to a Morton order of the b query centres (int32 scratch ``keys``/``values`` of >= 2b rows)."""
+        """Set ``links.order`` to a Morton order of the b query centres (grouped by ellipsoid with
+        ``group_links``; int32 scratch ``keys``/``values`` of >= 2b rows)."""
         links.use_order = 0
         if not self.tiers.sort_queries or b < self.tiers.sort_min_batch:
             return
-        wp.launch(morton_keys_kernel, dim=b, inputs=[links.centers, self._sort_lo, self._sort_scale, keys, values], device=self.device)
+        period, shift = 1, 0
+        if self.tiers.group_links and 1 < links.axes_period <= 512 and links.axes_period < b:
+            period = links.axes_period
+            shift = -(-(period - 1).bit_length() // 3)  # 3 (10 - shift) Morton bits + the group bits <= 30
+        wp.launch(morton_keys_kernel, dim=b, inputs=[links.centers, self._sort_lo, self._sort_scale, keys, values, period, shift], device=self.device)
         wp.utils.radix_sort_pairs(keys, values, b, 0, 30)
         links.order = values[:b]
         links.use_order = 1

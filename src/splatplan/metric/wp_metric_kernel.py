@@ -677,17 +677,23 @@ def morton_keys_kernel(
     centers: wp.array(dtype=wp.vec3),  # (B,)
     lo: wp.vec3,  # corner of the sorting box (robust scene bounds)
     scale: wp.vec3,  # 1023 / box size per axis
-    keys: wp.array(dtype=wp.int32),  # (>= 2B,) 30-bit Morton code of the clamped 10-bit cell
+    keys: wp.array(dtype=wp.int32),  # (>= 2B,) 30-bit sort key (below)
     values: wp.array(dtype=wp.int32),  # (>= 2B,) query index
+    group_period: int,  # > 1: queries i with the same i % group_period (the same robot ellipsoid) sort together
+    shift: int,  # Morton bits dropped per axis to make room for the group index (0 when group_period == 1)
 ):
+    """Key of query i: the Morton code of its clamped 10-bit cell (30 bits), or with groups the group
+    index i % group_period above the Morton code of the (10 - shift)-bit cell (3 (10 - shift) bits)."""
     i = wp.tid()
     c = centers[i]
     key = int(0)
     if wp.isfinite(c):
         p = wp.cw_mul(c - lo, scale)
-        x = int(wp.clamp(p[0], 0.0, 1023.0))
-        y = int(wp.clamp(p[1], 0.0, 1023.0))
-        z = int(wp.clamp(p[2], 0.0, 1023.0))
+        x = int(wp.clamp(p[0], 0.0, 1023.0)) >> shift
+        y = int(wp.clamp(p[1], 0.0, 1023.0)) >> shift
+        z = int(wp.clamp(p[2], 0.0, 1023.0)) >> shift
         key = _spread_bits(x) | (_spread_bits(y) << 1) | (_spread_bits(z) << 2)
+    if group_period > 1:
+        key = key | ((i % group_period) << (3 * (10 - shift)))
     keys[i] = key
     values[i] = i
