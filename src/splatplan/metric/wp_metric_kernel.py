@@ -478,9 +478,12 @@ def metric_full_kernel(
             z = wrap(zs + iz, dim[2])
             for iy in range(ny):
                 row = cb + (z * dim[1] + wrap(ys + iy, dim[1])) * dim[0]
+                n_in = run_count(splats.cell_start, row, x0s, nx, dim[0])
+                if n_in == 0:
+                    continue  # an empty row (most rows around a link in free space)
                 xa = int(0)  # cells xs + xa .. xs + xb of this row (unwrapped)
                 xb = nx - 1
-                if clip and run_count(splats.cell_start, row, x0s, nx, dim[0]) > ROW_CLIP_MIN:
+                if clip and n_in > ROW_CLIP_MIN:
                     y0, y1, z0, z1 = row_bounds(ys + iy, zs + iz, inv_w)
                     xl, xh = row_x_span(c, e1, e2, s2_cut, c, rho, y0, y1, z0, z1, sphere)
                     if xl > xh:
