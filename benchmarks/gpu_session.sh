@@ -15,6 +15,9 @@
 #   arm      the arm study (E4 behind the wall) on CUDA, --quick
 #   gtests   the gsplat comparison tests (wait for the build)
 #   studies  the arm, base and reach studies at full size on CUDA (reach at 224 px)
+#   kernel   issue #8's open GPU target in one go: Panda MPPI at K = 1024 plain and pruned, and the
+#            query alone over lanes 1/4/8 x TierConfig.group_links off/on (the changes listed under
+#            "changes_since" in benchmarks/results/gpu_rates.json have not run on a GPU yet)
 #
 # Each stage runs under its own time limit; its log and JSON go to /tmp/gpu-results, which is
 # packed into OUT_DIR/results.tgz after every stage (so a stage that runs out of time still
@@ -63,6 +66,9 @@ for s in "${stages[@]}"; do
       stage reach_full ${STUDY_S:-300} $py -m splatplan.cli eval reach --device cuda --image-size 224 --out "$res/reach_gpu"
       stage arm_full ${STUDY_S:-300} $py -m splatplan.cli eval arm --device cuda --out "$res/arm_gpu"
       stage base_full ${STUDY_S:-300} $py -m splatplan.cli eval base --device cuda --out "$res/base_gpu" ;;
+    kernel)
+      stage gpu_kernel 300 $py benchmarks/gpu_rates.py --device cuda --samples 1024 --reach-encoders '' --tune-factors 0.25 --tune-lanes 1,4,8 --tune-group-links 0,1 --out "$res/gpu_kernel.json"
+      stage gpu_kernel_pruned 200 $py benchmarks/gpu_rates.py --device cuda --samples 1024 --reach-encoders '' --prune-margin 40 --out "$res/gpu_kernel_pruned.json" ;;
     *) echo "unknown stage $s" ;;
   esac
 done
