@@ -41,3 +41,13 @@ def test_goal_cost_on_a_device_matches_the_host_chain(device):
     host = GoalPoseCost(robot, **kw)(roll)
     dev = GoalPoseCost(robot, device=device, **kw)(Rollout(q, np.zeros_like(q), 0.05))
     np.testing.assert_allclose(dev, host, rtol=1e-4, atol=1e-4)  # float32 FK; angles near 0 lose most
+
+
+def test_fk_device_is_the_checkers():
+    """The arm task's goal cost runs the Warp FK kernel wherever the checker runs (CPU included)."""
+    from types import SimpleNamespace
+
+    from splatplan.planners.costs import fk_device
+
+    assert fk_device(SimpleNamespace(device="cpu")) == "cpu"
+    assert fk_device(SimpleNamespace(device="cuda:0")) == "cuda:0"
