@@ -130,6 +130,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--tune-lanes", default="4,8,16", help="... and these lanes")
     ap.add_argument("--tune-group-links", default="0,1", help="... and these TierConfig.group_links (0/1, comma list)")
     ap.add_argument("--prune-margin", type=float, default=None, help="MPPIConfig.prune_margin of the Panda rows (default: off)")
+    ap.add_argument("--prune-chunks", type=int, default=4, help="MPPIConfig.prune_chunks with --prune-margin (fewer chunks: fewer, larger queries, less pruned)")
     ap.add_argument("--reach-size", type=int, default=224)
     ap.add_argument("--reach-encoders", default="thumbnail,dinov2-vits14", help="comma list; empty: skip the reach rows")
     ap.add_argument("--reach-backends", default="warp", help="renderers of the reach rows: warp, gsplat (CUDA only), comma list")
@@ -143,7 +144,7 @@ def main(argv: list[str] | None = None) -> int:
         for k in ks:
             sweep = tuple(int(x) for x in args.lanes_sweep.split(",") if x)
             r = bench_mppi_panda(2 if args.quick else args.steps, setup, quick=args.quick, stonehenge=False, n_samples=k, profile=True, lanes_sweep=sweep,
-                                 prune_margin=args.prune_margin)  # fmt: skip
+                                 prune_margin=args.prune_margin, prune_chunks=args.prune_chunks)  # fmt: skip
             r.pop("_controls", None)
             res["panda"].append(r)
             if k == ks[-1] and args.tune_factors:

@@ -15,7 +15,8 @@
 #   arm      the arm study (E4 behind the wall) on CUDA, --quick
 #   gtests   the gsplat comparison tests (wait for the build)
 #   studies  the arm, base and reach studies at full size on CUDA (reach at 224 px)
-#   kernel   issue #8's open GPU target in one go: Panda MPPI at K = 1024 plain and pruned, and the
+#   kernel   issue #8's open GPU target in one go: Panda MPPI at K = 1024 plain and pruned (4 and 2
+#            chunks: fewer, larger queries suit a GPU better), and the
 #            query alone over lanes 1/4/8 x TierConfig.group_links off/on (the changes listed under
 #            "changes_since" in benchmarks/results/gpu_rates.json have not run on a GPU yet)
 #
@@ -68,7 +69,8 @@ for s in "${stages[@]}"; do
       stage base_full ${STUDY_S:-300} $py -m splatplan.cli eval base --device cuda --out "$res/base_gpu" ;;
     kernel)
       stage gpu_kernel 300 $py benchmarks/gpu_rates.py --device cuda --samples 1024 --reach-encoders '' --tune-factors 0.25 --tune-lanes 1,4,8 --tune-group-links 0,1 --out "$res/gpu_kernel.json"
-      stage gpu_kernel_pruned 200 $py benchmarks/gpu_rates.py --device cuda --samples 1024 --reach-encoders '' --prune-margin 40 --out "$res/gpu_kernel_pruned.json" ;;
+      stage gpu_kernel_pruned 200 $py benchmarks/gpu_rates.py --device cuda --samples 1024 --reach-encoders '' --prune-margin 40 --out "$res/gpu_kernel_pruned.json"
+      stage gpu_kernel_pruned2 200 $py benchmarks/gpu_rates.py --device cuda --samples 1024 --reach-encoders '' --prune-margin 40 --prune-chunks 2 --out "$res/gpu_kernel_pruned2.json" ;;
     *) echo "unknown stage $s" ;;
   esac
 done

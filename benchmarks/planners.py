@@ -213,7 +213,7 @@ def _query_only_s(robot, checker, col, x, n: int, seed: int, repeats: int = 5, l
 
 def bench_mppi_panda(
     n_steps: int, setup=None, seed: int = 0, quick: bool = False, time_stride: int | str = 1, stonehenge: bool = True, static_shortcut: bool = True,
-    n_samples: int = 256, profile: bool = False, lanes_sweep: tuple[int, ...] = (), prune_margin: float | None = None,
+    n_samples: int = 256, profile: bool = False, lanes_sweep: tuple[int, ...] = (), prune_margin: float | None = None, prune_chunks: int = 4,
 ) -> dict:
     """Panda MPPI over the tabletop; ``time_stride`` an integer or "auto" (see CollisionCost).
 
@@ -229,7 +229,7 @@ def bench_mppi_panda(
     robot, scene, checker = setup or panda_setup(seed=seed)
     target = 0.5 * (TARGET_REGION[0] + TARGET_REGION[1])
     cfg = MPPIConfig(n_samples=n_samples, horizon=32, n_knots=6, dt=0.05, n_iters=1, noise_sigma=0.4, temperature=0.05,
-                     u_min=-1.0, u_max=1.0, seed=seed, prune_margin=prune_margin)  # fmt: skip
+                     u_min=-1.0, u_max=1.0, seed=seed, prune_margin=prune_margin, prune_chunks=prune_chunks)  # fmt: skip
     dyn = JointIntegrator(robot)
     col = CollisionCost(checker, dyn, weight=1.0, hit_weight=10.0, s2_cap=cfg.collision_s2_cap, time_stride=time_stride,
                         speed_bound=joint_speed_bound(dyn, cfg.u_min, cfg.u_max), static_shortcut=static_shortcut)  # fmt: skip
@@ -272,7 +272,7 @@ def bench_mppi_panda(
         "static_ellipsoids_cached": n_static,
         "steps_per_s": n_steps / dt, "configs_per_s": n_steps * cfg.n_samples * cfg.horizon / dt, "cpu_s_per_step": cpu / n_steps,
         "final_hand_distance_m": float(np.linalg.norm(hand - target)), "start_hand_distance_m": d0, "load_avg_1min": load,
-        "device": str(checker.device), "prune_margin": prune_margin, "pruned_samples_per_step": float(np.mean(pruned)),
+        "device": str(checker.device), "prune_margin": prune_margin, "prune_chunks": prune_chunks, "pruned_samples_per_step": float(np.mean(pruned)),
         "_controls": np.asarray(us),
     }  # fmt: skip
     if profile:
