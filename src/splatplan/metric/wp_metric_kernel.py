@@ -347,6 +347,15 @@ def row_x_span(c: wp.vec3, e1: wp.vec3, e2: wp.vec3, s_cut: float, cb: wp.vec3, 
 
 
 @wp.func
+def run_cells(run: int, x0: int, x1: int, dim: int):
+    """Wrapped cells (a0, a1) of the contiguous run ``run`` of a row's unwrapped-order cells x0 .. x1
+    (x0 < dim): run 0 is x0 .. min(x1, dim - 1), run 1 (when x1 >= dim) wraps to 0 .. x1 - dim."""
+    if run == 1:
+        return 0, x1 - dim
+    return x0, wp.min(x1, dim - 1)
+
+
+@wp.func
 def wrap(x: int, dim: int):
     """x mod dim in [0, dim)."""
     m = x % dim
@@ -500,11 +509,7 @@ def metric_full_kernel(
                 if x1 >= dim[0]:
                     n_run = 2
                 for run in range(n_run):
-                    a0 = x0
-                    a1 = wp.min(x1, dim[0] - 1)
-                    if run == 1:
-                        a0 = 0
-                        a1 = x1 - dim[0]
+                    a0, a1 = run_cells(run, x0, x1, dim[0])
                     for i in range(splats.cell_start[row + a0] + lane, splats.cell_start[row + a1 + 1], lp.lanes):
                         d = splats.means[i] - c
                         dd = wp.dot(d, d)
@@ -639,11 +644,7 @@ def metric_collide_kernel(
             for iy in range(ny):
                 row = cb + (z * dim[1] + wrap(ys + iy, dim[1])) * dim[0]
                 for run in range(n_run):
-                    a0 = x0
-                    a1 = wp.min(x1, dim[0] - 1)
-                    if run == 1:
-                        a0 = 0
-                        a1 = x1 - dim[0]
+                    a0, a1 = run_cells(run, x0, x1, dim[0])
                     for i in range(splats.cell_start[row + a0], splats.cell_start[row + a1 + 1]):
                         if ncol > k_collide:
                             break
