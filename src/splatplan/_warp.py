@@ -121,15 +121,15 @@ def wait_all(futures) -> None:
 def launch_split(kernel, dim: int, inputs: list, device, pool=None, *, offset_at: int = 0, min_split: int = 256, min_step: int = 128, chunks_per_thread: int = 8) -> None:
     """Launch ``kernel`` over ``dim`` threads, ``inputs[offset_at]`` being the first thread index of the launch.
 
-    Warp runs a CPU launch on one thread, so on CPU (with a ``pool`` of more than one worker and
-    ``dim >= min_split``) the range is cut into chunks of at least ``min_step`` threads, about
-    ``chunks_per_thread`` per worker, submitted to ``pool`` and taken as workers free up (per-thread
-    costs vary a lot: free space against dense surfaces, so equal halves would leave a core idle).
-    Other devices get one launch. Waits for every chunk (:func:`wait_all`)."""
+    Warp runs a CPU launch on one thread, so the callers give a CPU launch a ``pool`` of worker
+    threads: with more than one worker and ``dim >= min_split`` the range is cut into chunks of at
+    least ``min_step`` threads, about ``chunks_per_thread`` per worker, submitted to ``pool`` and taken
+    as workers free up (per-thread costs vary a lot: free space against dense surfaces, so equal
+    halves would leave a core idle). ``pool`` None (other devices): one launch. Waits for every chunk
+    (:func:`wait_all`)."""
     w = wp()
     n_thr = getattr(pool, "_max_workers", 1) if pool is not None else 1
-    cpu = str(device) == "cpu" or getattr(device, "is_cpu", False)
-    if not cpu or n_thr == 1 or dim < min_split:
+    if n_thr == 1 or dim < min_split:
         args = list(inputs)
         args[offset_at] = 0
         w.launch(kernel, dim=dim, inputs=args, device=device)

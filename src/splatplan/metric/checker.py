@@ -241,7 +241,7 @@ class CollisionChecker:
         ws = self._workspace(out, n)
         ws.reserve_fk(n)
         centers, rots = ws.fk_centers[:n], ws.fk_rots[:n]
-        if sub is None:
+        if sub is None:  # robots of other types may take no subset (the duck-typed fk_wp of the docs)
             robot.fk_wp(qw, centers, rots)
         else:
             robot.fk_wp(qw, centers, rots, ellipsoids=sub)

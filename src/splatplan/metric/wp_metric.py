@@ -262,11 +262,11 @@ class WarpMetric:
             pool.shutdown(wait=True)
 
     # ------------------------------------------------------------------ grids
-    def grid_key(self, n_sigma: float, cap: float, a_min: float, a_max: float, elongated: bool = False) -> tuple:
+    def grid_key(self, n_sigma: float, cap: float, a_min: float, a_max: float) -> tuple:
         """((first, last) class of each tier, quantised (2^(1/4)) cell width of each tier) for a typical
-        query with semi-axes in [a_min, a_max]; ``elongated``: finer cells (``elongated_cell_factor``) when
-        the typical link is elongated, whose reads the kernels bound by the link box."""
-        cf = self.tiers.elongated_cell_factor if elongated and a_max >= 1.5 * a_min else self.tiers.cell_factor
+        query with semi-axes in [a_min, a_max]; finer cells (``elongated_cell_factor``) when the typical
+        link is elongated (a_max >= 1.5 a_min), whose reads the kernels bound by the link box."""
+        cf = self.tiers.elongated_cell_factor if a_max >= 1.5 * a_min else self.tiers.cell_factor
         args = (float(n_sigma), float(cap), float(a_min), float(a_max), float(cf))
         key = self._keys.get(args)  # memoised: search_radius in Python scope costs ~0.2 ms a call
         if key is None:
@@ -314,13 +314,13 @@ class WarpMetric:
             j = cut[j]
         return tuple(reversed(groups))
 
-    def gridset(self, n_sigma: float, cap: float, a_min: float, a_max: float, elongated: bool = False) -> _GridSet:
+    def gridset(self, n_sigma: float, cap: float, a_min: float, a_max: float) -> _GridSet:
         """Hash grids of every tier for this query radius (cached; safe from several threads).
 
         Each grid set keeps its own copy of the splat data in the grid's cell order, so the
         indices a grid returns walk memory almost sequentially (a large win on CPU caches).
         """
-        key = self.grid_key(n_sigma, cap, a_min, a_max, elongated)
+        key = self.grid_key(n_sigma, cap, a_min, a_max)
         with self._lock:
             gs = self._gridsets.get(key)
             if gs is None:
@@ -429,7 +429,7 @@ class WarpMetric:
     def query(self, links: LinkBatch, b: int, a_min: float, a_max: float, cfg: MetricConfig, out: MetricOutputs, scratch=None) -> None:
         """All five outputs of b queries into ``out`` (device arrays of at least b rows); ``scratch``:
         (keys, values) int32 device arrays of >= 2b rows for the query sort (allocated when None)."""
-        gs = self.gridset(cfg.n_sigma, cfg.s2_cap, a_min, a_max, elongated=True)
+        gs = self.gridset(cfg.n_sigma, cfg.s2_cap, a_min, a_max)
         self.sort_queries(links, b, *(scratch or self._scratch(b)))
         lanes = self.lanes
         lp = self._lane_partials(b, lanes)
@@ -440,7 +440,7 @@ class WarpMetric:
 
     def collides(self, links: LinkBatch, b: int, a_min: float, a_max: float, cfg: MetricConfig, out_hit, bad, scratch=None) -> None:
         """in_collision of b queries into ``out_hit`` (bool device array of at least b rows)."""
-        gs = self.gridset(cfg.n_sigma, 1.0, a_min, a_max, elongated=True)
+        gs = self.gridset(cfg.n_sigma, 1.0, a_min, a_max)
         self.sort_queries(links, b, *(scratch or self._scratch(b)))
         self._launch(metric_collide_kernel, b, [links, gs.tiers, metric_params(cfg, 0), out_hit, bad])
 

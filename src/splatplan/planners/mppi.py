@@ -329,24 +329,25 @@ class MPPI:
             for name, v in col.chunk_terms(rollout.states[idx][:, chunk], scale).items():
                 coll[name][idx] += v
 
+        def lower() -> np.ndarray:
+            """(K,) lower bounds of the costs: the collision terms so far are >= 0 (exact once complete)."""
+            return base + coll["collision"] + coll["hit"]
+
         add(np.arange(k), chunks[0])
-        lower = base + coll["collision"] + coll["hit"]  # lower bounds: the collision terms are >= 0
-        probe = np.argsort(lower, kind="stable")[: cfg.prune_probe]
+        probe = np.argsort(lower(), kind="stable")[: cfg.prune_probe]
         for chunk in chunks[1:]:
             add(probe, chunk)
-        best = float(np.min(base[probe] + coll["collision"][probe] + coll["hit"][probe]))  # >= the best cost
+        best = float(np.min(lower()[probe]))  # >= the best cost
         alive = np.ones(k, dtype=bool)
         alive[probe] = False
         for chunk in chunks[1:]:
-            lower = base + coll["collision"] + coll["hit"]
-            alive &= lower <= best + cfg.prune_margin * cfg.temperature
+            alive &= lower() <= best + cfg.prune_margin * cfg.temperature
             idx = np.flatnonzero(alive)
             if idx.size:
                 add(idx, chunk)
-        lower = base + coll["collision"] + coll["hit"]
         self.n_pruned = int(k - cfg.prune_probe - alive.sum())
         terms.update(coll)
-        return lower, terms
+        return lower(), terms
 
     # ------------------------------------------------------------------ MPC step
     def step(self, x) -> tuple[np.ndarray, MPPIInfo]:
@@ -395,11 +396,11 @@ class MPPI:
             nominal_in_collision=np.zeros((cfg.horizon, n_links), dtype=bool) if nom_res is None else nom_res.in_collision[0],
             nominal_min_s2=np.full((cfg.horizon, n_links), np.inf) if nom_res is None else nom_res.min_s2[0],
             nominal_cost=float(nom_total[0]),
+            n_pruned=n_pruned,
         )
         u0 = nom_controls[0, 0].copy()
         self.knots = self._clip(self.spline.shift(self.knots))  # warm start: shift by one period
         info.time_s = time.perf_counter() - t0
-        info.n_pruned = n_pruned
         return u0, info
 
     def run(
