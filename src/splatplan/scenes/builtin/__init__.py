@@ -20,9 +20,9 @@ from typing import Callable
 
 from ...errors import SplatplanError
 from . import apartment, primitives, stonehenge, tabletop
-from .primitives import AnalyticScene, SurfaceSplatConfig, splats_from_boxes
+from .primitives import AnalyticScene, SurfaceSplatConfig, splats_from_boxes, splats_from_scene
 
-__all__ = ["BUILTIN_SCENES", "AnalyticScene", "SurfaceSplatConfig", "build_builtin", "splats_from_boxes", "write_builtin"]
+__all__ = ["BUILTIN_SCENES", "AnalyticScene", "SurfaceSplatConfig", "build_builtin", "splats_from_boxes", "splats_from_scene", "write_builtin"]
 
 
 def _stonehenge(seed: int = 0, n_splats: int | None = None, level: int = 1):

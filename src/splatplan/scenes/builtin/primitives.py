@@ -1,4 +1,4 @@
-"""Analytic scenes: unions of oriented boxes with an exact signed distance.
+"""Analytic scenes: unions of oriented boxes, cylinders and spheres with an exact signed distance.
 
 A built-in scene (see :mod:`.stonehenge`) is a set of solid oriented boxes. The boxes are the
 *ground truth* geometry: splats are sampled from their surfaces, and evaluation studies use
@@ -11,17 +11,24 @@ Units and frames
 * A box row is ``(cx, cy, cz, hx, hy, hz, qw, qx, qy, qz)``: centre (world), half-extents along
   the box's own x/y/z axes, and a **wxyz** unit quaternion rotating the box frame into the world
   frame (``p_world = R @ p_box + c``).
+* A cylinder row is ``(cx, cy, cz, radius, half_height, qw, qx, qy, qz)``: centre (world), radius,
+  half of its height along the cylinder's own **z** axis, wxyz quaternion cylinder -> world
+  (MoveIt's ``cylinder`` primitive ``[height, radius]``, axis along the object's z).
+* A sphere row is ``(cx, cy, cz, radius)``.
+* Primitives are indexed in one order everywhere (labels, colours, ``select``): the boxes, then
+  the cylinders, then the spheres.
 
 Exactness of the signed distance of a union
 -------------------------------------------
-Each box has an exact signed distance ``d_i`` (negative inside). For the union we return
+Each primitive (box, cylinder, sphere) has an exact signed distance ``d_i`` (negative inside). For
+the union we return
 ``min_i d_i``:
 
 * **outside** the union (all ``d_i >= 0``) this is the exact Euclidean distance to the union,
   because the distance to a union of sets is the minimum of the distances to the sets;
 * **inside** the union it is negative (the sign is right) but its magnitude may be *smaller* than
-  the true depth when boxes overlap (the nearest face of the containing box may be buried in
-  another box): ``min_i d_i >= true_sdf``.
+  the true depth when primitives overlap (the nearest face of the containing one may be buried
+  in another): ``min_i d_i >= true_sdf``.
 
 So ``sdf(p) < r`` (for ``r >= 0``) is the exact ground-truth collision test for a sphere of radius
 ``r`` centred at ``p``, which is what the studies need.
@@ -38,11 +45,16 @@ import numpy as np
 from ...errors import SplatplanError
 from ..splats import Splats, quat_multiply, quat_to_rotmat
 
-__all__ = ["AnalyticScene", "SurfaceSplatConfig", "box_corners", "box_sdf", "make_box", "splats_from_boxes"]
+__all__ = [
+    "AnalyticScene", "SurfaceSplatConfig", "box_corners", "box_sdf", "cylinder_sdf", "make_box", "make_cylinder", "make_sphere",
+    "sphere_sdf", "splats_from_boxes", "splats_from_scene",
+]  # fmt: skip
 
 #: Format tag written into JSON files produced by :meth:`AnalyticScene.to_json`.
 JSON_FORMAT = "splatplan.analytic_scene"
-JSON_VERSION = 1
+#: Version 2 added cylinders and spheres; a box-only scene is still written as version 1 (readable by
+#: older releases), and version 1 files load unchanged.
+JSON_VERSION = 2
 
 
 def make_box(
@@ -59,6 +71,22 @@ def make_box(
     if q[0] < 0:
         q = -q
     return np.concatenate([np.asarray(center, np.float64), np.asarray(half_extents, np.float64), q])
+
+
+def make_cylinder(
+    center,  # (3,) world
+    radius: float,
+    half_height: float,  # along the cylinder's own z axis
+    quat=(1.0, 0.0, 0.0, 0.0),  # (4,) wxyz, cylinder -> world
+) -> np.ndarray:
+    """One cylinder row ``(c, radius, half_height, q)`` as float64 (9,), quaternion normalised (w >= 0)."""
+    b = make_box(center, (radius, radius, half_height), quat)
+    return np.concatenate([b[:3], [float(radius), float(half_height)], b[6:10]])
+
+
+def make_sphere(center, radius: float) -> np.ndarray:  # center (3,) world
+    """One sphere row ``(c, radius)`` as float64 (4,)."""
+    return np.concatenate([np.asarray(center, np.float64).reshape(3), [float(radius)]])
 
 
 def _yaw_quat(yaw: float) -> np.ndarray:
@@ -95,6 +123,64 @@ def box_sdf(
     outside = np.linalg.norm(np.maximum(d, 0.0), axis=1)
     inside = np.minimum(d.max(axis=1), 0.0)
     return outside + inside
+
+
+def cylinder_sdf(
+    points: np.ndarray,  # (P, 3) world
+    cyl: np.ndarray,  # (9,) c, radius, half_height, q(wxyz)
+) -> np.ndarray:
+    """Exact signed distance (P,) float64 from ``points`` to one solid cylinder (negative inside).
+
+    Slow, obviously-correct reference: in the cylinder frame the solid is the product of a disk of
+    radius r (x, y) and a segment |z| <= h, so with ``d = (|p_xy| - r, |p_z| - h)`` the distance is
+    ``|max(d, 0)| + min(max(d), 0)`` (the 2-D box formula in the (radial, axial) half-plane).
+    """
+    p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    rot = quat_to_rotmat(cyl[5:9])
+    local = (p - cyl[:3]) @ rot  # (P, 3)
+    d = np.stack([np.hypot(local[:, 0], local[:, 1]) - cyl[3], np.abs(local[:, 2]) - cyl[4]], axis=1)
+    return np.linalg.norm(np.maximum(d, 0.0), axis=1) + np.minimum(d.max(axis=1), 0.0)
+
+
+def sphere_sdf(
+    points: np.ndarray,  # (P, 3) world
+    sph: np.ndarray,  # (4,) c, radius
+) -> np.ndarray:
+    """Exact signed distance (P,) float64 from ``points`` to one solid sphere (negative inside)."""
+    p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    return np.linalg.norm(p - sph[:3], axis=1) - sph[3]
+
+
+def _cyl_sdf_local(p: np.ndarray, prm: np.ndarray) -> np.ndarray:
+    """Cylinder SDF for points p (..., 3) in the cylinder frame, prm (..., 2) = (radius, half_height)."""
+    d0 = np.sqrt(p[..., 0] ** 2 + p[..., 1] ** 2) - prm[..., 0]
+    d1 = np.abs(p[..., 2]) - prm[..., 1]
+    return np.sqrt(np.maximum(d0, 0.0) ** 2 + np.maximum(d1, 0.0) ** 2) + np.minimum(np.maximum(d0, d1), 0.0)
+
+
+def _curved_sdf(
+    p: np.ndarray,  # (P, 3) float64 world
+    cylinders: np.ndarray,  # (C, 9)
+    spheres: np.ndarray,  # (S, 4)
+    chunk: int | None = None,
+) -> np.ndarray:
+    """min over the cylinders and spheres of their exact SDFs, (P,) float64 (inf when there are none)."""
+    out = np.full(p.shape[0], np.inf)
+    n = len(cylinders) + len(spheres)
+    if n == 0 or p.shape[0] == 0:
+        return out
+    if chunk is None:
+        chunk = max(256, int(1_000_000 // (3 * n)))
+    rot = quat_to_rotmat(cylinders[:, 5:9]).reshape(-1, 3, 3) if len(cylinders) else np.zeros((0, 3, 3))
+    for s in range(0, p.shape[0], chunk):
+        ps = p[s : s + chunk]
+        if len(cylinders):
+            local = np.einsum("cmj,mji->cmi", ps[:, None, :] - cylinders[None, :, :3], rot)  # (P', C, 3) = R^T (p - c)
+            out[s : s + chunk] = np.minimum(out[s : s + chunk], _cyl_sdf_local(local, cylinders[None, :, 3:5]).min(axis=1))
+        if len(spheres):
+            d = np.linalg.norm(ps[:, None, :] - spheres[None, :, :3], axis=2) - spheres[None, :, 3]  # (P', S)
+            out[s : s + chunk] = np.minimum(out[s : s + chunk], d.min(axis=1))
+    return out
 
 
 def box_corners(box: np.ndarray) -> np.ndarray:
@@ -170,18 +256,75 @@ def _box_sdf_local(p: np.ndarray, h: np.ndarray) -> np.ndarray:
     return np.linalg.norm(np.maximum(d, 0.0), axis=-1) + np.minimum(d.max(axis=-1), 0.0)
 
 
-def _ellipsoid_box(
-    c: np.ndarray,  # (P, 3) ellipsoid centres in the box frame
-    r: np.ndarray,  # (P, 3, 3) ellipsoid -> box frame rotations
+class _BoxShape:
+    """Box operations in the box frame for :func:`_ellipsoid_convex`; ``prm`` (..., 3) half-extents."""
+
+    sdf = staticmethod(_box_sdf_local)
+
+    @staticmethod
+    def project(p: np.ndarray, prm: np.ndarray) -> np.ndarray:  # (P, 3) closest points of the solid
+        return np.clip(p, -prm, prm)
+
+    @staticmethod
+    def support(n: np.ndarray, prm: np.ndarray) -> np.ndarray:  # (P,) max over the solid of n.x
+        return np.sum(prm * np.abs(n), axis=1)
+
+    @staticmethod
+    def size(prm: np.ndarray) -> np.ndarray:  # (P,) smallest half-size
+        return prm.min(axis=1)
+
+    @staticmethod
+    def depth_step(p: np.ndarray, prm: np.ndarray, ms: np.ndarray, idx: np.ndarray):
+        """(-depth (P,), inside (P,) bool, d(-depth)/du (P, 3)) at p = c + M u (a subgradient)."""
+        margin = prm - np.abs(p)  # (P, 3) depth per axis
+        k = np.argmin(margin, axis=1)
+        g = np.sign(p[idx, k])[:, None] * ms[idx, k, :]  # d(-margin_k)/du
+        return -margin[idx, k], np.all(margin >= 0, axis=1), g
+
+
+class _CylinderShape:
+    """Cylinder operations in the cylinder frame; ``prm`` (..., 2) = (radius, half_height), axis z."""
+
+    sdf = staticmethod(_cyl_sdf_local)
+
+    @staticmethod
+    def project(p: np.ndarray, prm: np.ndarray) -> np.ndarray:
+        rho = np.hypot(p[:, 0], p[:, 1])
+        f = np.minimum(1.0, prm[:, 0] / np.maximum(rho, 1e-300))
+        return np.stack([p[:, 0] * f, p[:, 1] * f, np.clip(p[:, 2], -prm[:, 1], prm[:, 1])], axis=1)
+
+    @staticmethod
+    def support(n: np.ndarray, prm: np.ndarray) -> np.ndarray:
+        return prm[:, 0] * np.hypot(n[:, 0], n[:, 1]) + prm[:, 1] * np.abs(n[:, 2])
+
+    @staticmethod
+    def size(prm: np.ndarray) -> np.ndarray:
+        return prm.min(axis=1)
+
+    @staticmethod
+    def depth_step(p: np.ndarray, prm: np.ndarray, ms: np.ndarray, idx: np.ndarray):
+        rho = np.hypot(p[:, 0], p[:, 1])
+        m_rad, m_ax = prm[:, 0] - rho, prm[:, 1] - np.abs(p[:, 2])
+        radial = m_rad < m_ax
+        e = np.where(rho[:, None] > 1e-300, p[:, :2] / np.maximum(rho, 1e-300)[:, None], np.array([1.0, 0.0]))  # (P, 2) radial unit
+        g_rad = e[:, :1] * ms[:, 0, :] + e[:, 1:] * ms[:, 1, :]  # d(rho)/du
+        g_ax = np.sign(p[:, 2])[:, None] * ms[:, 2, :]  # d|z|/du
+        return -np.minimum(m_rad, m_ax), (m_rad >= 0) & (m_ax >= 0), np.where(radial[:, None], g_rad, g_ax)
+
+
+def _ellipsoid_convex(
+    c: np.ndarray,  # (P, 3) ellipsoid centres in the primitive's frame
+    r: np.ndarray,  # (P, 3, 3) ellipsoid -> primitive frame rotations
     a: np.ndarray,  # (P, 3) semi-axes
-    h: np.ndarray,  # (P, 3) box half-extents
+    h: np.ndarray,  # (P, k) primitive parameters (box: half-extents; cylinder: radius, half-height)
+    shape=_BoxShape,
     n_ap: int = 400,
     n_sub: int = 400,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """min over the solid ellipsoid of the box SDF, with (lower, upper) bounds, each (P,)."""
+    """min over the solid ellipsoid of a convex primitive's SDF, with (lower, upper) bounds, each (P,)."""
     m = r * a[:, None, :]  # (P, 3, 3): p = c + m u, |u| <= 1
     pts = c[:, None, :] + np.einsum("pij,sj->psi", m, _BALL_SAMPLES)  # (P, S, 3)
-    f = _box_sdf_local(pts, h[:, None, :])  # (P, S)
+    f = shape.sdf(pts, h[:, None, :])  # (P, S)
     best = np.argmin(f, axis=1)
     val = f[np.arange(len(c)), best]
     lower, upper = val.copy(), val.copy()
@@ -192,7 +335,7 @@ def _ellipsoid_box(
         p = pts[sep, best[sep]]  # (S', 3) start on the ellipsoid
         act = np.arange(len(p))  # pairs still moving
         for _ in range(n_ap):
-            qb = np.clip(p[act], -hs[act], hs[act])
+            qb = shape.project(p[act], hs[act])
             y = np.einsum("pji,pj->pi", rs[act], qb - cs[act])  # ellipsoid frame
             p_new = cs[act] + np.einsum("pij,pj->pi", rs[act], _project_ellipsoid(y, as_[act]))
             moved = np.max(np.abs(p_new - p[act]), axis=1) >= 1e-12
@@ -200,11 +343,11 @@ def _ellipsoid_box(
             act = act[moved]
             if len(act) == 0:
                 break
-        qb = np.clip(p, -hs, hs)
+        qb = shape.project(p, hs)
         diff = p - qb
         dist = np.linalg.norm(diff, axis=1)
         n = diff / np.maximum(dist, 1e-300)[:, None]
-        lb = np.einsum("pi,pi->p", n, cs) - np.linalg.norm(np.einsum("pji,pj->pi", ms, n), axis=1) - np.sum(hs * np.abs(n), axis=1)
+        lb = np.einsum("pi,pi->p", n, cs) - np.linalg.norm(np.einsum("pji,pj->pi", ms, n), axis=1) - shape.support(n, hs)
         ub = np.minimum(dist, val[sep])
         lower[sep] = np.minimum(np.maximum(lb, 0.0), ub)
         upper[sep] = ub
@@ -215,15 +358,12 @@ def _ellipsoid_box(
         cs, ms, hs = c[pen], m[pen], h[pen]
         u = _BALL_SAMPLES[best[pen]].copy()  # (S', 3)
         idx = np.arange(len(u))
-        best_f = _box_sdf_local(cs + np.einsum("pij,pj->pi", ms, u), hs)
-        s0 = 0.5 * np.minimum(hs.min(axis=1), a[pen].min(axis=1))[:, None]  # first step (m)
+        best_f = shape.sdf(cs + np.einsum("pij,pj->pi", ms, u), hs)
+        s0 = 0.5 * np.minimum(shape.size(hs), a[pen].min(axis=1))[:, None]  # first step (m)
         for it in range(n_sub):
             p = cs + np.einsum("pij,pj->pi", ms, u)
-            margin = hs - np.abs(p)  # (S', 3) depth per axis
-            k = np.argmin(margin, axis=1)
-            fv = -margin[idx, k]
-            best_f = np.minimum(best_f, np.where(np.all(margin >= 0, axis=1), fv, _box_sdf_local(p, hs)))
-            g = np.sign(p[idx, k])[:, None] * ms[idx, k, :]  # d(-margin_k)/du
+            fv, inside, g = shape.depth_step(p, hs, ms, idx)
+            best_f = np.minimum(best_f, np.where(inside, fv, shape.sdf(p, hs)))
             gn2 = np.sum(g * g, axis=1, keepdims=True)
             u = u - s0 * (it + 1.0) ** -0.75 * g / np.maximum(gn2, 1e-300)  # the margin moves ~ the step (m)
             nu = np.linalg.norm(u, axis=1, keepdims=True)
@@ -234,68 +374,142 @@ def _ellipsoid_box(
     return val, lower, upper
 
 
+def _ellipsoid_box(c, r, a, h, n_ap: int = 400, n_sub: int = 400):
+    """:func:`_ellipsoid_convex` for boxes (h (P, 3) half-extents)."""
+    return _ellipsoid_convex(c, r, a, h, _BoxShape, n_ap, n_sub)
+
+
+def _ellipsoid_sphere(
+    c: np.ndarray,  # (P, 3) ellipsoid centres, world
+    rot_e: np.ndarray,  # (P, 3, 3) ellipsoid -> world
+    a: np.ndarray,  # (P, 3) semi-axes
+    sph: np.ndarray,  # (P, 4) spheres (centre world, radius)
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """min over the solid ellipsoid of a sphere's SDF = dist(sphere centre, ellipsoid) - radius (exact).
+
+    ``min_{p in E} |p - s| - r``: the closest point of E to s (s itself when s is inside E, so the
+    value is then exactly -r). The distance comes from the Newton projection (exact to rounding once
+    converged); the lower bound is the separating plane through the projection,
+    ``n.(s - c) - |diag(a) R^T n|`` with n the unit direction from the projection to s.
+    """
+    y = np.einsum("pji,pj->pi", rot_e, sph[:, :3] - c)  # (P, 3) sphere centre in the ellipsoid frame
+    x = _project_ellipsoid(y, a, n_newton=80)
+    diff = y - x
+    dist = np.linalg.norm(diff, axis=1)
+    n = diff / np.maximum(dist, 1e-300)[:, None]
+    lb = np.where(dist > 0, np.einsum("pi,pi->p", n, y) - np.linalg.norm(n * a, axis=1), 0.0)
+    val = dist - sph[:, 3]
+    return val, np.minimum(np.maximum(lb, 0.0) - sph[:, 3], val), val
+
+
 def _ellipsoid_clearance_chunk(
-    boxes: np.ndarray,  # (M, 10)
-    rot_b: np.ndarray,  # (M, 3, 3) box -> world
+    scene: "AnalyticScene",
     c: np.ndarray,  # (Q, 3) world
     rot_e: np.ndarray,  # (Q, 3, 3) ellipsoid -> world
     a: np.ndarray,  # (Q, 3)
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(value, lower, upper) (Q,) of the clearance of Q ellipsoids to every primitive of ``scene``.
+
+    Broad phase over all primitives: the SDF of the ellipsoid's centre d_c gives an upper bound
+    (d_c itself inside, max(d_c - a_min, 0) outside: the ball of radius a_min is inside E) and the
+    lower bound d_c - a_max (the SDF is 1-Lipschitz); only pairs whose lower bound reaches the best
+    upper bound over every primitive are solved."""
     q_n = len(c)
-    local = np.einsum("mji,qmj->qmi", rot_b, c[:, None, :] - boxes[None, :, :3])  # (Q, M, 3) box frame
-    d_c = _box_sdf_local(local, boxes[None, :, 3:6])  # (Q, M) SDF of the centre per box
     a_max, a_min = a.max(1, keepdims=True), a.min(1, keepdims=True)
-    ub = np.where(d_c < 0, d_c, np.maximum(d_c - a_min, 0.0))  # min over the ellipsoid <= this
-    lb = d_c - a_max  # 1-Lipschitz: >= this
-    cand_q, cand_m = np.nonzero(lb <= ub.min(axis=1, keepdims=True) + 1e-12)
-    r_loc = np.einsum("pji,pjk->pik", rot_b[cand_m], rot_e[cand_q])  # (P, 3, 3) ellipsoid -> box frame
-    val, lo, hi = _ellipsoid_box(local[cand_q, cand_m], r_loc, a[cand_q], boxes[cand_m, 3:6])
+    parts = []  # (kind, local centres (Q, M, 3) or None, rotations (M, 3, 3) or None, params (M, k), d_c (Q, M))
+    if len(scene.boxes):
+        boxes, rot_b = scene.boxes, scene._rot
+        local = np.einsum("mji,qmj->qmi", rot_b, c[:, None, :] - boxes[None, :, :3])  # (Q, M, 3) box frame
+        parts.append((_BoxShape, local, rot_b, boxes[:, 3:6], _box_sdf_local(local, boxes[None, :, 3:6])))
+    if len(scene.cylinders):
+        cyl = scene.cylinders
+        rot_c = quat_to_rotmat(cyl[:, 5:9]).reshape(-1, 3, 3)
+        local = np.einsum("mji,qmj->qmi", rot_c, c[:, None, :] - cyl[None, :, :3])
+        parts.append((_CylinderShape, local, rot_c, cyl[:, 3:5], _cyl_sdf_local(local, cyl[None, :, 3:5])))
+    if len(scene.spheres):
+        sph = scene.spheres
+        parts.append((None, None, None, sph, np.linalg.norm(c[:, None, :] - sph[None, :, :3], axis=2) - sph[None, :, 3]))
+    best_ub = np.full((q_n, 1), np.inf)
+    for *_, d_c in parts:
+        ub = np.where(d_c < 0, d_c, np.maximum(d_c - a_min, 0.0))  # min over the ellipsoid <= this
+        best_ub = np.minimum(best_ub, ub.min(axis=1, keepdims=True))
     out, out_lo, out_hi = np.full(q_n, np.inf), np.full(q_n, np.inf), np.full(q_n, np.inf)
-    np.minimum.at(out, cand_q, val)
-    np.minimum.at(out_lo, cand_q, lo)
-    np.minimum.at(out_hi, cand_q, hi)
+    for shape, local, rot_p, prm, d_c in parts:
+        cand_q, cand_m = np.nonzero(d_c - a_max <= best_ub + 1e-12)  # 1-Lipschitz lower bound can reach the best
+        if len(cand_q) == 0:
+            continue
+        if shape is None:  # spheres: closed form
+            val, lo, hi = _ellipsoid_sphere(c[cand_q], rot_e[cand_q], a[cand_q], prm[cand_m])
+        else:
+            r_loc = np.einsum("pji,pjk->pik", rot_p[cand_m], rot_e[cand_q])  # (P, 3, 3) ellipsoid -> primitive frame
+            val, lo, hi = _ellipsoid_convex(local[cand_q, cand_m], r_loc, a[cand_q], prm[cand_m], shape)
+        np.minimum.at(out, cand_q, val)
+        np.minimum.at(out_lo, cand_q, lo)
+        np.minimum.at(out_hi, cand_q, hi)
     return out, out_lo, out_hi
+
+
+def _rows(x, width: int, what: str, size_cols: slice, quat_cols: slice | None) -> np.ndarray:
+    """Validated float64 (N, width) primitive rows (sizes > 0, finite, quaternions normalised)."""
+    b = np.array(x, dtype=np.float64)
+    if b.ndim == 1 and b.size == 0:
+        b = b.reshape(0, width)
+    if b.ndim != 2 or b.shape[1] != width:
+        raise SplatplanError(f"AnalyticScene.{what} has shape {b.shape}, expected (N, {width})")
+    if not np.all(np.isfinite(b)):
+        raise SplatplanError(f"AnalyticScene.{what} contains NaN/Inf")
+    if np.any(b[:, size_cols] <= 0):
+        raise SplatplanError(f"AnalyticScene.{what}: sizes (half-extents, radii, half-heights) must be > 0")
+    if quat_cols is not None:
+        qn = np.linalg.norm(b[:, quat_cols], axis=1)
+        if np.any(qn < 1e-12):
+            raise SplatplanError(f"AnalyticScene.{what}: zero quaternion")
+        b[:, quat_cols] /= qn[:, None]
+    return np.ascontiguousarray(b)
 
 
 @dataclass
 class AnalyticScene:
-    """A union of solid oriented boxes with an exact signed distance (see module docstring).
+    """A union of solid oriented boxes, cylinders and spheres with an exact signed distance (see
+    the module docstring).
 
     Attributes:
         boxes: float64 (M, 10) rows ``(cx, cy, cz, hx, hy, hz, qw, qx, qy, qz)``; centre in the
             world frame (scene units), half-extents in the box frame, wxyz unit quaternion
             rotating the box frame into the world frame.
-        labels: M short names, one per box (e.g. "ground", "sarsen", "lintel"); free-form.
+        labels: one short name per primitive, boxes first, then cylinders, then spheres (e.g.
+            "ground", "sarsen", "Can1"); free-form.
         meta: free-form JSON-serialisable metadata (units, robot radius, generator, ...).
+        cylinders: float64 (C, 9) rows ``(cx, cy, cz, radius, half_height, qw, qx, qy, qz)``; the
+            axis is the cylinder's own z; wxyz cylinder -> world.
+        spheres: float64 (S, 4) rows ``(cx, cy, cz, radius)``.
     """
 
     boxes: np.ndarray
     labels: list[str] = field(default_factory=list)
     meta: dict = field(default_factory=dict)
+    cylinders: np.ndarray = field(default_factory=lambda: np.zeros((0, 9)))
+    spheres: np.ndarray = field(default_factory=lambda: np.zeros((0, 4)))
 
     def __post_init__(self) -> None:
-        b = np.asarray(self.boxes, dtype=np.float64)
-        if b.ndim == 1 and b.size == 0:
-            b = b.reshape(0, 10)
-        if b.ndim != 2 or b.shape[1] != 10:
-            raise SplatplanError(f"AnalyticScene.boxes has shape {b.shape}, expected (M, 10)")
-        if not np.all(np.isfinite(b)):
-            raise SplatplanError("AnalyticScene.boxes contains NaN/Inf")
-        if np.any(b[:, 3:6] <= 0):
-            raise SplatplanError("AnalyticScene.boxes: half-extents must be > 0")
-        qn = np.linalg.norm(b[:, 6:10], axis=1)
-        if np.any(qn < 1e-12):
-            raise SplatplanError("AnalyticScene.boxes: zero quaternion")
-        b[:, 6:10] /= qn[:, None]
-        self.boxes = np.ascontiguousarray(b)
+        self.boxes = _rows(self.boxes, 10, "boxes", size_cols=slice(3, 6), quat_cols=slice(6, 10))
+        self.cylinders = _rows(self.cylinders, 9, "cylinders", size_cols=slice(3, 5), quat_cols=slice(5, 9))
+        self.spheres = _rows(self.spheres, 4, "spheres", size_cols=slice(3, 4), quat_cols=None)
+        n_b, n_c, n_s = len(self.boxes), len(self.cylinders), len(self.spheres)
         if not self.labels:
-            self.labels = ["box"] * len(b)
+            self.labels = ["box"] * n_b + ["cylinder"] * n_c + ["sphere"] * n_s
         self.labels = [str(s) for s in self.labels]
-        if len(self.labels) != len(b):
-            raise SplatplanError(f"AnalyticScene: {len(self.labels)} labels for {len(b)} boxes")
+        if len(self.labels) != n_b + n_c + n_s:
+            raise SplatplanError(f"AnalyticScene: {len(self.labels)} labels for {n_b} boxes + {n_c} cylinders + {n_s} spheres")
 
     def __len__(self) -> int:
-        return int(self.boxes.shape[0])
+        """Number of primitives (boxes + cylinders + spheres)."""
+        return int(len(self.boxes) + len(self.cylinders) + len(self.spheres))
+
+    @property
+    def kinds(self) -> list[str]:
+        """Primitive kind per index ("box", "cylinder", "sphere"), in the labels' order."""
+        return ["box"] * len(self.boxes) + ["cylinder"] * len(self.cylinders) + ["sphere"] * len(self.spheres)
 
     # ------------------------------------------------------------------ geometry
     @property
@@ -315,7 +529,7 @@ class AnalyticScene:
         box_ids: np.ndarray | None = None,
         broad_phase: bool = True,
     ) -> np.ndarray:
-        """Signed distance (P,) float64 from points to the union of boxes (negative inside).
+        """Signed distance (P,) float64 from points to the union of the primitives (negative inside).
 
         Exact outside the union; inside, ``min`` of the box distances (right sign, magnitude may be
         too small where boxes overlap; see the module docstring). Memory is bounded: points are
@@ -328,14 +542,22 @@ class AnalyticScene:
         Args:
             points: (P, 3) or (3,) world coordinates, scene units.
             chunk: points per chunk; default keeps each temporary below ~8 MB.
-            box_ids: optional subset of box indices to take the union over (default: all).
+            box_ids: optional subset of box indices to take the union over (then only those boxes,
+                no cylinders or spheres; default: every primitive).
             broad_phase: cull boxes per cell of points (exact; off = brute force over all boxes).
 
         Returns:
             float64 (P,) signed distances (scene units); a (3,) input gives a (1,) result.
         """
         p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-        boxes = self.boxes if box_ids is None else self.boxes[box_ids]
+        out = self._box_sdf(p, self.boxes if box_ids is None else self.boxes[box_ids], chunk, broad_phase)
+        if box_ids is None and (len(self.cylinders) or len(self.spheres)):
+            out = np.minimum(out, _curved_sdf(p, self.cylinders, self.spheres, chunk))
+        return out
+
+    @staticmethod
+    def _box_sdf(p: np.ndarray, boxes: np.ndarray, chunk: int | None, broad_phase: bool) -> np.ndarray:
+        """min over ``boxes`` (M, 10) of the exact box SDFs at p (P, 3), (P,) float64 (inf when M = 0)."""
         rot = quat_to_rotmat(boxes[:, 6:10]).reshape(-1, 3, 3)
         m = boxes.shape[0]
         if m == 0 or p.shape[0] == 0:
@@ -374,13 +596,18 @@ class AnalyticScene:
         return_bounds: bool = False,
         chunk: int = 4096,
     ):
-        """Smallest signed distance from each solid ellipsoid to the union of boxes, (...,) float64.
+        """Smallest signed distance from each solid ellipsoid to the union of primitives, (...,) float64.
 
         ``clearance(E) = min over points p of E of sdf(p) = min_i min_{p in E} d_i(p)``:
 
-        * positive: the exact Euclidean distance between the ellipsoid and the nearest box;
-        * negative: minus the depth of the ellipsoid's deepest point inside a box (the right sign;
-          for overlapping boxes the depth inside one box, see the module docstring).
+        * positive: the exact Euclidean distance between the ellipsoid and the nearest primitive;
+        * negative: minus the depth of the ellipsoid's deepest point inside a primitive (the right
+          sign; for overlapping primitives the depth inside one of them, see the module docstring).
+
+        Spheres are solved in closed form: ``dist(sphere centre, E) - radius`` (Newton projection
+        onto the ellipsoid; exact in both signs). Boxes and cylinders are solved as below (the
+        cylinder's projection clips the radius and the height, its support along n is
+        ``r |n_xy| + h |n_z|``, its depth ``min(r - |p_xy|, h - |p_z|)``).
 
         Each ellipsoid-box problem is convex (the box SDF is convex, the ellipsoid is convex). The
         positive case is solved by alternating projections between the ellipsoid and the box from
@@ -420,7 +647,7 @@ class AnalyticScene:
             rot_e = quat_to_rotmat(q / np.linalg.norm(q, axis=1, keepdims=True)).reshape(-1, 3, 3)
             for s in range(0, len(c), chunk):
                 sl = slice(s, s + chunk)
-                out[sl], lo_b[sl], hi_b[sl] = _ellipsoid_clearance_chunk(self.boxes, self._rot, c[sl], rot_e[sl], a[sl])
+                out[sl], lo_b[sl], hi_b[sl] = _ellipsoid_clearance_chunk(self, c[sl], rot_e[sl], a[sl])
         if return_bounds:
             return out.reshape(shape), lo_b.reshape(shape), hi_b.reshape(shape)
         return out.reshape(shape)
@@ -436,33 +663,42 @@ class AnalyticScene:
         return g
 
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
-        """World-frame axis-aligned bounds (min, max) of all boxes, each float64 (3,)."""
+        """World-frame axis-aligned bounds (min, max) of all primitives, each float64 (3,)."""
         if len(self) == 0:
-            raise SplatplanError("the analytic scene has no boxes")
-        # |R| h gives the half-size of the AABB of a rotated box.
-        half = np.einsum("mij,mj->mi", np.abs(self._rot), self.boxes[:, 3:6])
-        return (self.boxes[:, :3] - half).min(0), (self.boxes[:, :3] + half).max(0)
+            raise SplatplanError("the analytic scene has no primitives")
+        lo, hi = _primitive_aabbs(self)
+        return lo.min(0), hi.max(0)
 
     def corners(self) -> np.ndarray:
         """float64 (M, 8, 3) world corners of every box."""
         return np.stack([box_corners(b) for b in self.boxes]) if len(self) else np.zeros((0, 8, 3))
 
     def select(self, mask_or_idx) -> "AnalyticScene":
-        """A new scene with the chosen boxes (boolean mask or index array)."""
+        """A new scene with the chosen primitives (boolean mask or index array over all primitives,
+        boxes first, then cylinders, then spheres)."""
         idx = np.arange(len(self))[mask_or_idx]
-        return AnalyticScene(self.boxes[idx].copy(), [self.labels[i] for i in idx], dict(self.meta))
+        nb, nc = len(self.boxes), len(self.cylinders)
+        b, cy, sp = idx[idx < nb], idx[(idx >= nb) & (idx < nb + nc)] - nb, idx[idx >= nb + nc] - nb - nc
+        labels = [self.labels[i] for i in np.concatenate([b, cy + nb, sp + nb + nc])]
+        return AnalyticScene(self.boxes[b].copy(), labels, dict(self.meta), self.cylinders[cy].copy(), self.spheres[sp].copy())
 
     # ------------------------------------------------------------------ serialisation
     def to_json(self) -> dict:
         """A JSON-serialisable dict (float64 values kept with full precision)."""
-        return {
+        d = {
             "format": JSON_FORMAT,
-            "version": JSON_VERSION,
+            "version": JSON_VERSION if len(self.cylinders) or len(self.spheres) else 1,
             "box_layout": "cx cy cz hx hy hz qw qx qy qz (half-extents in the box frame; wxyz box->world)",
             "boxes": self.boxes.tolist(),
             "labels": list(self.labels),
             "meta": self.meta,
         }
+        if len(self.cylinders) or len(self.spheres):  # version 2 (a box-only scene stays readable by version-1 readers)
+            d["cylinder_layout"] = "cx cy cz radius half_height qw qx qy qz (axis = the cylinder's z; wxyz cylinder->world)"
+            d["cylinders"] = self.cylinders.tolist()
+            d["sphere_layout"] = "cx cy cz radius"
+            d["spheres"] = self.spheres.tolist()
+        return d
 
     @classmethod
     def from_json(cls, d: dict) -> "AnalyticScene":
@@ -471,11 +707,13 @@ class AnalyticScene:
             raise SplatplanError(f"not an analytic scene JSON (expected 'format': '{JSON_FORMAT}')")
         if int(d.get("version", -1)) > JSON_VERSION:
             raise SplatplanError(f"analytic scene JSON version {d.get('version')} is newer than supported ({JSON_VERSION})")
-        try:
-            boxes = np.asarray(d["boxes"], dtype=np.float64).reshape(-1, 10)
-        except (KeyError, ValueError, TypeError) as e:
-            raise SplatplanError(f"analytic scene JSON: bad 'boxes' field ({e})") from e
-        return cls(boxes, list(d.get("labels", [])), dict(d.get("meta", {})))
+        rows = {}
+        for key, width in (("boxes", 10), ("cylinders", 9), ("spheres", 4)):
+            try:
+                rows[key] = np.asarray(d[key] if key == "boxes" else d.get(key, []), dtype=np.float64).reshape(-1, width)
+            except (KeyError, ValueError, TypeError) as e:
+                raise SplatplanError(f"analytic scene JSON: bad {key!r} field ({e})") from e
+        return cls(rows["boxes"], list(d.get("labels", [])), dict(d.get("meta", {})), rows["cylinders"], rows["spheres"])
 
     def save(self, path) -> Path:
         """Write :meth:`to_json` to ``path`` (UTF-8 JSON). Returns the path."""
@@ -503,7 +741,7 @@ class AnalyticScene:
 
 @dataclass(frozen=True)
 class SurfaceSplatConfig:
-    """How :func:`splats_from_boxes` turns box surfaces into 3DGS-like splats.
+    """How :func:`splats_from_scene` turns primitive surfaces into 3DGS-like splats.
 
     All lengths are relative to the *local sample spacing* ``h`` (the side of the jittered-grid cell
     a splat was drawn from), so the look is the same at any splat count.
@@ -569,12 +807,16 @@ def _sample_faces(
     spacing: np.ndarray,  # (M,) target grid spacing per box
     faces: np.ndarray,  # (M, 6) bool, which faces to sample
     rng: np.random.Generator,
+    curved_spacing: float | None = None,
 ) -> dict[str, np.ndarray]:
-    """Jittered-grid samples on the chosen faces, with buried samples removed.
+    """Jittered-grid samples on the chosen box faces and on every cylinder and sphere surface
+    (at ``curved_spacing``, default the median box spacing), with buried samples removed.
 
     Returns a dict of arrays over the kept samples S: ``p`` (S, 3) points, ``frame`` (S,) face index
     into ``face_rot``/``face_box``, ``h`` (S,) local spacing (sqrt of the cell area), plus the
-    per-face ``face_rot`` (F, 3, 3) and ``face_box`` (F,) arrays.
+    per-face ``face_rot`` (F, 3, 3) (columns t1, t2, n; n the outward normal) and ``face_box`` (F,)
+    arrays (``face_box`` = primitive index, boxes then cylinders then spheres). A curved surface
+    gets one frame per sample.
     """
     rots = scene.rotations()
     pts, fid, hloc, face_rot, face_box = [], [], [], [], []
@@ -593,22 +835,115 @@ def _sample_faces(
             hloc.append(np.full(na * nb, np.sqrt(da * db)))
             face_rot.append(fr)
             face_box.append(i)
+    face_rot = [np.asarray(face_rot).reshape(-1, 3, 3)]
+    n_box = len(scene.boxes)
+    if len(scene.cylinders) or len(scene.spheres):
+        hs = float(np.median(spacing)) if curved_spacing is None else float(curved_spacing)
+        for k, (loc, frames, hl, owner) in enumerate(_curved_samples(scene, hs, rng)):
+            pts.append(loc)
+            fid.append(sum(len(f) for f in face_rot) + np.arange(len(loc)))
+            hloc.append(hl)
+            face_rot.append(frames)
+            face_box.extend([owner] * len(loc))
     p = np.concatenate(pts) if pts else np.zeros((0, 3))
     fid = np.concatenate(fid) if fid else np.zeros(0, int)
     hl = np.concatenate(hloc) if hloc else np.zeros(0)
     face_box = np.asarray(face_box, dtype=int)
-    face_rot = np.asarray(face_rot).reshape(-1, 3, 3)
-    # Remove samples buried inside another box (contact faces, overlaps, the ground under stones).
+    face_rot = np.concatenate(face_rot) if len(face_rot) > 1 else face_rot[0]
+    # Remove samples buried inside another primitive (contact faces, overlaps, the ground under stones).
     owner = face_box[fid]  # (S,)
     keep = np.ones(len(p), dtype=bool)
     lo, hi = _box_aabbs(scene)
+    curved = len(scene.cylinders) + len(scene.spheres) > 0
     for i in np.unique(owner):
         sel = np.flatnonzero(owner == i)
-        others = np.flatnonzero(np.all(lo <= hi[i] + 1e-9, axis=1) & np.all(hi >= lo[i] - 1e-9, axis=1))
-        others = others[others != i]
-        if len(others):
-            keep[sel] = scene.sdf(p[sel], box_ids=others) >= -1e-9
+        if i < n_box:
+            others = np.flatnonzero(np.all(lo <= hi[i] + 1e-9, axis=1) & np.all(hi >= lo[i] - 1e-9, axis=1))
+            others = others[others != i]
+            if len(others):
+                keep[sel] = scene.sdf(p[sel], box_ids=others) >= -1e-9
+            if curved:
+                keep[sel] &= _curved_sdf(p[sel], scene.cylinders, scene.spheres) >= -1e-9
+        else:
+            j = i - n_box
+            nc = len(scene.cylinders)
+            cyl = np.delete(scene.cylinders, j, axis=0) if j < nc else scene.cylinders
+            sph = np.delete(scene.spheres, j - nc, axis=0) if j >= nc else scene.spheres
+            d = np.minimum(scene.sdf(p[sel], box_ids=np.arange(n_box)), _curved_sdf(p[sel], cyl, sph))
+            keep[sel] = d >= -1e-9
     return {"p": p[keep], "frame": fid[keep], "h": hl[keep], "face_rot": face_rot, "face_box": face_box}
+
+
+def _curved_areas(scene: AnalyticScene) -> np.ndarray:
+    """Surface area per cylinder then per sphere, (C + S,) float64."""
+    cyl, sph = scene.cylinders, scene.spheres
+    return np.concatenate([2 * np.pi * cyl[:, 3] * (2 * cyl[:, 4] + cyl[:, 3]), 4 * np.pi * sph[:, 3] ** 2])
+
+
+def _jittered(n_a: int, n_b: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """(u, v) in [0, 1)^2: one uniform sample per cell of an n_a x n_b grid (stratified)."""
+    ia, ib = np.meshgrid(np.arange(n_a), np.arange(n_b), indexing="ij")
+    return (ia.ravel() + rng.random(n_a * n_b)) / n_a, (ib.ravel() + rng.random(n_a * n_b)) / n_b
+
+
+def _curved_samples(scene: AnalyticScene, h: float, rng: np.random.Generator):
+    """Per cylinder, then per sphere: (points (K, 3) world, frames (K, 3, 3) columns t1 t2 n in the
+    world frame (n the outward normal, right-handed), local spacing (K,), primitive index).
+
+    Surfaces are parametrised so that equal parameter cells have equal area: a cylinder's side by
+    (arc length, height), its caps by a square grid clipped to the disk, a sphere by (longitude,
+    height) (Archimedes: area is uniform in height). Every cell gets one jittered sample.
+    """
+    n_box = len(scene.boxes)
+    for ci, cyl in enumerate(scene.cylinders):
+        r, hh = cyl[3], cyl[4]
+        rot = quat_to_rotmat(cyl[5:9])
+        na, nb = max(3, int(np.ceil(2 * np.pi * r / h))), max(1, int(np.ceil(2 * hh / h)))
+        u, v = _jittered(na, nb, rng)
+        th, z = 2 * np.pi * u, -hh + 2 * hh * v
+        ct, st, zero, one = np.cos(th), np.sin(th), np.zeros_like(th), np.ones_like(th)
+        side_p = np.stack([r * ct, r * st, z], axis=1)
+        side_f = np.stack([np.stack([-st, ct, zero], 1), np.stack([zero, zero, one], 1), np.stack([ct, st, zero], 1)], axis=2)  # (K, 3, 3) columns
+        side_h = np.full(len(th), np.sqrt((2 * np.pi * r / na) * (2 * hh / nb)))
+        nd = max(1, int(np.ceil(2 * r / h)))
+        caps_p, caps_f, caps_h = [], [], []
+        for sign in (1.0, -1.0):
+            u, v = _jittered(nd, nd, rng)
+            x, y = r * (2 * u - 1), r * (2 * v - 1)
+            ok = x * x + y * y <= r * r
+            x, y = x[ok], y[ok]
+            caps_p.append(np.stack([x, y, np.full(len(x), sign * hh)], axis=1))
+            fr = np.eye(3) if sign > 0 else np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])  # columns (t1, t2, n)
+            caps_f.append(np.broadcast_to(fr, (len(x), 3, 3)))
+            caps_h.append(np.full(len(x), 2 * r / nd))
+        loc = np.concatenate([side_p, *caps_p])
+        frames = np.concatenate([side_f, *caps_f])
+        yield loc @ rot.T + cyl[:3], np.einsum("ij,kjl->kil", rot, frames), np.concatenate([side_h, *caps_h]), n_box + ci
+    for si, sph in enumerate(scene.spheres):
+        r = sph[3]
+        na, nb = max(3, int(np.ceil(2 * np.pi * r / h))), max(1, int(np.ceil(2 * r / h)))
+        u, v = _jittered(na, nb, rng)
+        ph, z = 2 * np.pi * u, r * (2 * v - 1)
+        rho = np.sqrt(np.maximum(r * r - z * z, 0.0))
+        n = np.stack([rho * np.cos(ph), rho * np.sin(ph), z], axis=1) / r
+        t1 = np.stack([-np.sin(ph), np.cos(ph), np.zeros_like(ph)], axis=1)
+        t2 = np.cross(n, t1)
+        frames = np.stack([t1, t2, n], axis=2)
+        yield sph[:3] + r * n, frames, np.full(len(ph), np.sqrt((2 * np.pi * r / na) * (2 * r / nb))), n_box + len(scene.cylinders) + si
+
+
+def _primitive_aabbs(scene: AnalyticScene) -> tuple[np.ndarray, np.ndarray]:
+    """Per-primitive world AABBs (lo, hi), each (len(scene), 3), boxes, cylinders, spheres."""
+    lo, hi = _box_aabbs(scene)
+    cyl, sph = scene.cylinders, scene.spheres
+    if len(cyl):
+        axis = quat_to_rotmat(cyl[:, 5:9]).reshape(-1, 3, 3)[:, :, 2]  # (C, 3) world axis
+        # a disk of radius r with normal k extends r sqrt(1 - k_i^2) along world axis i
+        half = np.abs(axis) * cyl[:, 4:5] + cyl[:, 3:4] * np.sqrt(np.maximum(1.0 - axis**2, 0.0))
+        lo, hi = np.concatenate([lo, cyl[:, :3] - half]), np.concatenate([hi, cyl[:, :3] + half])
+    if len(sph):
+        lo, hi = np.concatenate([lo, sph[:, :3] - sph[:, 3:4]]), np.concatenate([hi, sph[:, :3] + sph[:, 3:4]])
+    return lo, hi
 
 
 def _box_aabbs(scene: AnalyticScene) -> tuple[np.ndarray, np.ndarray]:
@@ -617,18 +952,24 @@ def _box_aabbs(scene: AnalyticScene) -> tuple[np.ndarray, np.ndarray]:
     return scene.boxes[:, :3] - half, scene.boxes[:, :3] + half
 
 
-def splats_from_boxes(
+def splats_from_scene(
     scene: AnalyticScene,
     n_splats: int,
     *,
     config: SurfaceSplatConfig = SurfaceSplatConfig(),
-    colors: np.ndarray | None = None,  # (M, 3) base RGB per box
+    colors: np.ndarray | None = None,  # (N, 3) base RGB per primitive (boxes, cylinders, spheres)
     density: np.ndarray | None = None,  # (M,) relative spacing per box (2 = twice the spacing)
     faces: np.ndarray | None = None,  # (M, 6) bool, faces to sample (FACE_NAMES order)
     floater_region: tuple[np.ndarray, np.ndarray] | None = None,
     seed: int | np.random.Generator = 0,
 ):
-    """Sample ~3DGS-like splats on the exposed box surfaces (exactly ``n_splats`` of them).
+    """Sample ~3DGS-like splats on the exposed primitive surfaces (exactly ``n_splats`` of them).
+
+    Box faces, cylinder sides and caps and sphere surfaces are all sampled the same way (a
+    stratified grid of equal-area cells, one jittered sample per cell, a local frame whose third
+    axis is the outward normal). For a scene of boxes only the output is identical, for the same
+    seed, to what this function gave before cylinders and spheres existed (the random draws are the
+    same and in the same order); ``splats_from_boxes`` is the same function under its old name.
 
     Surfaces are sampled on a jittered grid (stratified, so the spacing is even like a trained
     3DGS), buried parts (contact faces, overlaps) are dropped, and each splat gets:
@@ -644,11 +985,12 @@ def splats_from_boxes(
     splats in free space, at least ``floater_clearance`` from the geometry.
 
     Args:
-        scene: the boxes.
+        scene: the primitives.
         n_splats: total number of splats, floaters included.
         config: the look (see :class:`SurfaceSplatConfig`).
-        colors: base RGB per box in [0, 1]; default mid grey.
-        density: relative spacing per box (1 = the base spacing); default all 1.
+        colors: base RGB per primitive in [0, 1] (boxes, cylinders, spheres); default mid grey.
+        density: relative spacing per box (1 = the base spacing); default all 1 (cylinders and
+            spheres use the base spacing).
         faces: which faces of each box to sample; default all.
         floater_region: (lo, hi) world AABB for floaters; default the scene bounds.
         seed: integer seed or a numpy Generator.
@@ -661,10 +1003,12 @@ def splats_from_boxes(
     if n_splats < 1:
         raise SplatplanError(f"n_splats must be >= 1, got {n_splats}")
     rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
-    m = len(scene)
-    colors = np.full((m, 3), 0.5) if colors is None else np.asarray(colors, np.float64).reshape(m, 3)
+    m, n_all = len(scene.boxes), len(scene)
+    colors = np.full((n_all, 3), 0.5) if colors is None else np.asarray(colors, np.float64).reshape(n_all, 3)
     density = np.ones(m) if density is None else np.asarray(density, np.float64).reshape(m)
     faces = np.ones((m, 6), bool) if faces is None else np.asarray(faces, bool).reshape(m, 6)
+    curved_area = _curved_areas(scene)  # (C + S,)
+    dens_all = np.concatenate([density, np.ones(len(curved_area))]) if len(curved_area) else density  # per primitive
     cfg = config
 
     n_float = int(round(cfg.floater_fraction * n_splats))
@@ -678,12 +1022,14 @@ def splats_from_boxes(
         h = box[3:6]
         areas = 4 * np.array([h[1] * h[2], h[1] * h[2], h[0] * h[2], h[0] * h[2], h[0] * h[1], h[0] * h[1]])
         total += float((areas * faces[i]).sum()) / density[i] ** 2
+    if len(curved_area):
+        total += float(curved_area.sum())
     h_base = np.sqrt(total / n_surf) * 3.0
-    pilot = _sample_faces(scene, h_base * density, faces, rng)
-    weighted = float(np.sum(pilot["h"] ** 2 / density[pilot["face_box"][pilot["frame"]]] ** 2))
+    pilot = _sample_faces(scene, h_base * density, faces, rng, curved_spacing=h_base)
+    weighted = float(np.sum(pilot["h"] ** 2 / dens_all[pilot["face_box"][pilot["frame"]]] ** 2))
     h_base = np.sqrt(weighted / n_surf) * 0.98
     for _ in range(5):
-        smp = _sample_faces(scene, h_base * density, faces, rng)
+        smp = _sample_faces(scene, h_base * density, faces, rng, curved_spacing=h_base)
         if len(smp["p"]) >= n_surf:
             break
         h_base *= 0.97 * np.sqrt(len(smp["p"]) / n_surf)
@@ -743,7 +1089,7 @@ def splats_from_boxes(
             if len(fm) == n_float:
                 break
         if len(fm) < n_float:
-            raise SplatplanError("splats_from_boxes: no free space for floaters in floater_region")
+            raise SplatplanError("splats_from_scene: no free space for floaters in floater_region")
         med = float(np.median(scales.max(axis=1)))
         big = rng.uniform(*cfg.floater_size_range, n_float) * med
         fs = big[:, None] * np.concatenate([np.ones((n_float, 1)), rng.uniform(0.3, 1.0, (n_float, 2))], axis=1)
@@ -771,3 +1117,7 @@ def splats_from_boxes(
             "base_spacing": float(h_base),
         },
     )
+
+
+#: The old name of :func:`splats_from_scene` (box scenes give the same splats as before).
+splats_from_boxes = splats_from_scene
