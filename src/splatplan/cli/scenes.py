@@ -45,8 +45,12 @@ def cmd_scene(args) -> int:
     from ..scenes.builtin import BUILTIN_SCENES, write_builtin
     from ..scenes.stonehenge import ground_truth_path
 
+    if args.name == "from-moveit":
+        return _scene_from_moveit(args)
+    if args.source is not None or args.n_splats is not None:
+        raise SplatplanError("a SCENE.yaml and --n-splats go with 'splatplan scene from-moveit SCENE.yaml --out X.ply'")
     if args.name not in BUILTIN_SCENES:
-        raise SplatplanError(f"unknown built-in scene {args.name!r}: available: {', '.join(BUILTIN_SCENES)}")
+        raise SplatplanError(f"unknown built-in scene {args.name!r}: available: {', '.join(BUILTIN_SCENES)}, or from-moveit SCENE.yaml")
     if not 1 <= args.level <= 5:
         raise SplatplanError(f"--level must be 1..5, got {args.level}")
     if not 0 <= args.seed < 2**63:
@@ -69,14 +73,50 @@ def cmd_scene(args) -> int:
     return 0
 
 
+def _check_out_ply(text: str) -> Path:
+    out = Path(text)
+    if out.suffix.lower() != ".ply":
+        raise SplatplanError(f"--out {text}: expected a .ply path")
+    if out.is_dir():
+        raise SplatplanError(f"--out {text} is a directory; give a PATH.ply")
+    if not out.parent.exists():
+        raise SplatplanError(f"output folder {out.parent} does not exist")
+    return out
+
+
+def _scene_from_moveit(args) -> int:
+    """``splatplan scene from-moveit SCENE.yaml --out X.ply``: splats + exact ground truth X.gt.json."""
+    from ..scenes.moveit import DEFAULT_N_SPLATS, load_moveit_scene, write_moveit
+    from ..scenes.stonehenge import ground_truth_path
+
+    if args.source is None:
+        raise SplatplanError("scene from-moveit needs the planning-scene YAML: splatplan scene from-moveit SCENE.yaml --out X.ply")
+    n = DEFAULT_N_SPLATS if args.n_splats is None else int(args.n_splats)
+    if n < 1000:
+        raise SplatplanError(f"--n-splats must be >= 1000, got {n}")
+    if not 0 <= args.seed < 2**63:
+        raise SplatplanError(f"--seed must be an integer >= 0, got {args.seed}")
+    out = _check_out_ply(args.out)
+    load_moveit_scene(args.source)  # reject bad input before any work
+    with atomic_dir(out.parent) as tmp:
+        ply, gt = write_moveit(args.source, tmp / out.name, n_splats=n, seed=args.seed)
+        gt_dest = ground_truth_path(out)
+        move_into(gt, gt_dest)
+        move_into(ply, out)
+    print(f"wrote {out} ({n:,} splats) and its exact ground truth {gt_dest}")
+    return 0
+
+
 def register(sub, eval_sub) -> None:
     s = sub.add_parser("info", help="summarise a splat file")
     s.add_argument("scene", metavar="SCENE", help="splat file (.ply INRIA/2DGS/compressed, .splat, .spz, gsplat .pt)")
     s.add_argument("--json", action="store_true", help="print one JSON object")
     s.set_defaults(func=cmd_info)
-    s = sub.add_parser("scene", help="write a built-in scene with its ground truth")
-    s.add_argument("name", metavar="NAME", help="built-in scene name: stonehenge | tabletop | apartment")
+    s = sub.add_parser("scene", help="write a built-in scene, or splats of a MoveIt planning scene, with its ground truth")
+    s.add_argument("name", metavar="NAME", help="built-in scene name: stonehenge | tabletop | apartment; or from-moveit (then SCENE.yaml)")
+    s.add_argument("source", nargs="?", metavar="SCENE.yaml", help="with from-moveit: a MoveIt planning-scene YAML (box, cylinder, sphere primitives)")
     s.add_argument("--out", required=True, help="PATH.ply (ground truth goes to PATH.gt.json)")
     s.add_argument("--level", type=int, default=1, help="Gaussian-size level 1..5 (larger, fewer splats)")
     s.add_argument("--seed", type=int, default=0, help="layout and sampling seed, an integer >= 0 (default 0)")
+    s.add_argument("--n-splats", type=int, default=None, help="from-moveit only: total splats (default 100000: ~7-8 mm spacing on a metre-scale workcell)")
     s.set_defaults(func=cmd_scene)

@@ -11,6 +11,7 @@ which the CLI applies to user-supplied configurations.
 
 from __future__ import annotations
 
+import copy
 import threading
 from concurrent.futures import ThreadPoolExecutor
 
@@ -111,6 +112,23 @@ class Robot:
 
     def __repr__(self) -> str:
         return f"Robot({self.name!r}, dof={self.dof}, links={len(self.link_names)}, ellipsoids={self.n_ellipsoids})"
+
+    def inflated(self, margin_m: float) -> "Robot":
+        """A copy whose every ellipsoid contains all points within ``margin_m`` of the original one
+        (its Minkowski sum with a ball of radius ``margin_m``); see :func:`inflate_semi_axes`.
+
+        Same kinematics, ellipsoid centres and orientations, joint limits and self-collision pairs;
+        new semi-axes and motion bound. ``info["inflated_by_m"]`` records the margin.
+        """
+        m = float(margin_m)
+        if not (np.isfinite(m) and m >= 0):
+            raise SplatplanError(f"robot {self.name}: the inflation margin must be finite and >= 0, got {margin_m}")
+        out = copy.copy(self)
+        out.__dict__.update(_lock=threading.Lock(), _pool=None, _wp_cache={})
+        out.semi_axes = inflate_semi_axes(self.semi_axes, m)
+        out.motion_bound = out._motion_bound()
+        out.info = {**self.info, "inflated_by_m": m + float(self.info.get("inflated_by_m", 0.0))}
+        return out
 
     # ------------------------------------------------------------------ validation
 
@@ -388,6 +406,31 @@ class Robot:
             "min_semi_axis": self.min_semi_axis,
             **({"info": self.info} if self.info else {}),
         }
+
+
+def inflate_semi_axes(semi_axes: np.ndarray, margin: float) -> np.ndarray:
+    """Semi-axes (..., 3) of an ellipsoid (same centre and axes) containing the Minkowski sum of the
+    ellipsoid ``semi_axes`` (..., 3) with a ball of radius ``margin`` >= 0.
+
+    Growing every semi-axis by m is **not** enough unless the ellipsoid is a sphere: containment of
+    convex bodies is the order of their support functions, and with weights w_i = n_i^2 (a unit
+    direction n in the ellipsoid frame) ``|diag(a + m) n|^2 = E[a^2] + 2m E[a] + m^2`` falls short
+    of ``(|diag(a) n| + m)^2 = E[a^2] + 2m sqrt(E[a^2]) + m^2`` since ``E[a] <= sqrt(E[a^2])``.
+
+    Construction: ``b_i = sqrt((a_i + m)^2 + 2 m t)`` with ``t = (sqrt(a_max) - sqrt(a_min))^2 / 2``.
+    Proof: ``|diag(b) n|^2 = E[a^2] + 2m (E[a] + t) + m^2``, and ``sqrt(E[a^2]) - E[a] <= t`` for any
+    weights: it equals Var(a) / (sqrt(E[a^2]) + E[a]) <= (mu - lo)(hi - mu) / (2 mu) (Bhatia-Davis,
+    mu = E[a] in [lo, hi]), whose maximum over mu (at mu = sqrt(lo hi)) is t. So
+    ``|diag(b) n| >= |diag(a) n| + m`` for every n: the support function of the new ellipsoid is at
+    least the Minkowski sum's. For a sphere t = 0 and b = a + m (exact); otherwise b_i exceeds
+    a_i + m by at most ``m t / (a_i + m)``.
+    """
+    a = np.asarray(semi_axes, dtype=np.float64)
+    m = float(margin)
+    if m == 0:
+        return a.copy()
+    t = 0.5 * (np.sqrt(a.max(axis=-1, keepdims=True)) - np.sqrt(a.min(axis=-1, keepdims=True))) ** 2
+    return np.sqrt((a + m) ** 2 + 2.0 * m * t)
 
 
 def _support(n: np.ndarray, r: np.ndarray, s: np.ndarray) -> np.ndarray:
