@@ -148,7 +148,7 @@ def test_request_for_real_robot_and_scene_kinds():
 def test_mbm_files_load():
     from splatplan.robots import load_robot
 
-    robot = load_robot(MBM / "panda" / "panda_spherized.urdf")
+    robot = load_robot(MBM / "panda" / "panda.urdf")  # (the spherized one takes ~12 s to load)
     for fam in ("table_pick", "box", "bookshelf_small"):
         d = MBM / "problems" / f"{fam}_panda"
         sc = load_moveit_scene(d / "scene0001.yaml")

@@ -46,7 +46,29 @@ def cmd_eval(args) -> int:
     return 0
 
 
+def cmd_mbm(args) -> int:
+    """``splatplan eval mbm``: the MotionBenchMaker benchmark on splats (see splatplan.eval.mbm)."""
+    from ..eval.mbm import MBMConfig, report, run_mbm
+    from ._common import progress
+
+    base = MBMConfig.quick() if args.quick else MBMConfig()
+    cfg = config_from_args(args, MBMConfig, base=base).validate()
+    out = _out_dir(args.out)
+    res = run_mbm(cfg, out, progress=lambda it, **kw: progress(it, **kw))
+    print(report(res).rstrip())
+    print(f"\nwrote {out / 'mbm.json'}, {out / 'mbm.md'}")
+    return 0
+
+
 def register(sub, eval_sub) -> None:
+    from ..eval.mbm import MBMConfig
+
+    s = eval_sub.add_parser("mbm", help="MotionBenchMaker arm problems planned on splats of their scenes (writes mbm.json, mbm.md)",
+                            description="MotionBenchMaker (MBM) Panda problems: MoveIt scenes sampled into splats, planned with the default planner, paths checked against the exact primitives.")  # fmt: skip
+    s.add_argument("--out", required=True, help="output folder (created)")
+    s.add_argument("--quick", action="store_true", help="start from the CI settings (1 problem per family, 30k splats, 5 s); flags still override them")
+    add_config_args(s, MBMConfig, group="benchmark options (MBMConfig)")
+    s.set_defaults(func=cmd_mbm)
     for name, (help_, *_rest) in STUDIES.items():
         mod, cfg_cls, _, _ = _study(name)
         s = eval_sub.add_parser(name, help=help_, description=(mod.__doc__ or help_).strip().splitlines()[0])
