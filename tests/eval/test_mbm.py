@@ -14,7 +14,6 @@ from splatplan.cli import main
 from splatplan.errors import SplatplanError
 from splatplan.eval.mbm import MBMConfig, dense_path, derived_margin, exact_clearance, summarise
 from splatplan.robots import load_robot
-from splatplan.robots.robot import inflate_semi_axes
 from splatplan.scenes.primitives import AnalyticScene, make_box, make_cylinder
 
 REPO = Path(__file__).resolve().parents[2]
@@ -77,12 +76,12 @@ def test_exact_clearance_broad_phase_matches_all_pairs():
     np.testing.assert_allclose(exact_clearance(scene, robot, q), ref, atol=1e-12)
 
 
-def test_derived_margin_fixed_point():
+def test_derived_margin():
     robot = load_robot("panda")
     means = np.random.default_rng(2).random((2000, 3))
-    m, h, r = derived_margin(robot, means, 2.0)
-    assert m == pytest.approx(2.0 * h + 0.5 * r, abs=1e-8)
-    assert r == pytest.approx(0.25 * inflate_semi_axes(robot.semi_axes, m).min(), abs=1e-8)
+    m, h, r = derived_margin(robot, means, 3.0)
+    assert r == pytest.approx(0.25 * robot.min_semi_axis) and m == pytest.approx(3.0 * h + 0.5 * r)
+    assert 0 < h < 0.2
 
 
 def test_summarise_counts():

@@ -20,7 +20,8 @@ floaters then filtered as :func:`~splatplan.scenes.load.load_scene` does), and t
 **The safety margin (why n_sigma 0 needs one).** At n_sigma = 0 a link collides only when a splat
 *mean* lies inside it, so an ellipsoid can slip between means and cut the surface. Let rho be the
 covering radius of the surface by the means (every surface point has a mean within rho) and r the
-edge resolution (no ellipsoid point moves more than r between consecutive checked configurations).
+edge resolution (no ellipsoid point moves more than r between consecutive checked configurations;
+the benchmark asks the planner for r = a quarter of the robot's own smallest semi-axis).
 If the planner checks the robot grown by ``m >= rho + r / 2`` (each ellipsoid replaced by one that
 contains its Minkowski sum with a ball of radius m, :meth:`Robot.inflated`) and finds no mean inside
 at every checked configuration, then no configuration along the edge has a surface point inside
@@ -94,7 +95,8 @@ class MBMConfig:
     #: from the splat spacing (see margin_spacing_factor); 0 = plan with the robot's own model
     margin_m: float | None = None
     #: derived margin = this x the median nearest-neighbour distance of the splat means + r/2
-    margin_spacing_factor: float = 2.0
+    #: (the sampler's covering radius measured 2.3-2.6x that distance: 3 keeps the bound with room)
+    margin_spacing_factor: float = 3.0
     #: measure the true covering radius rho from the ground truth (diagnostic: did m >= rho + r/2
     #: hold? a few seconds per scene)
     check_margin: bool = True
@@ -256,23 +258,14 @@ def covering_radius(scene, means: np.ndarray, spacing: float, seed: int = 0, ove
 
 def derived_margin(robot, means: np.ndarray, factor: float, fraction: float = 0.25) -> tuple[float, float, float]:
     """(margin m, spacing estimate h (median nearest-neighbour distance of the means), edge
-    resolution r of the inflated robot): ``m = factor * h + r / 2`` with ``r = fraction x`` the
-    inflated robot's smallest semi-axis (the planner's default), solved by fixed-point iteration."""
+    resolution r): ``m = factor * h + r / 2`` with ``r = fraction x`` the robot's own smallest
+    semi-axis (the resolution the benchmark asks the planner for, whatever the inflation)."""
     from scipy.spatial import cKDTree
-
-    from ..robots.robot import inflate_semi_axes
 
     d, _ = cKDTree(means).query(means, k=2)
     h = float(np.median(d[:, 1]))
-    m = factor * h
     r = fraction * robot.min_semi_axis
-    for _ in range(20):
-        r = fraction * float(inflate_semi_axes(robot.semi_axes, m).min()) if m > 0 else fraction * robot.min_semi_axis
-        m_new = factor * h + 0.5 * r
-        if abs(m_new - m) < 1e-9:
-            break
-        m = m_new
-    return m, h, r
+    return factor * h + 0.5 * r, h, r
 
 
 # ---------------------------------------------------------------------------------------------
@@ -280,18 +273,20 @@ def derived_margin(robot, means: np.ndarray, factor: float, fraction: float = 0.
 # ---------------------------------------------------------------------------------------------
 
 
-def _plan(checker, start, goal, robot, time_limit: float, seed: int):
-    """Call the public planner with the time limit, whatever its keyword for it."""
+def _plan(checker, start, goal, robot, time_limit: float, seed: int, edge_resolution: float):
+    """Call the public planner with the time limit (whatever its keyword for it) and the edge
+    resolution the margin was derived with (that of the un-inflated robot: the inflated one's
+    default would be coarser and need a larger margin)."""
     from ..planners import RRTConfig, plan
 
     params = inspect.signature(plan).parameters
     kw = {"robot": robot, "seed": seed}
     if "refine" in params:
         kw["refine"] = False
+    cfg = RRTConfig(time_limit_s=time_limit, edge_resolution=edge_resolution)
     if "time_limit" in params:
         kw["time_limit"] = time_limit
-    else:
-        kw["rrt_config"] = RRTConfig(time_limit_s=time_limit)
+    kw["rrt_config"] = cfg
     return plan(checker, start, goal, **kw)
 
 
@@ -312,10 +307,7 @@ def solve_problem(task: MBMTask, ctx: MBMContext) -> dict:
     if cfg.margin_m is None:
         margin, h_nn, res = derived_margin(robot, splats.means, cfg.margin_spacing_factor)
     else:
-        from ..robots.robot import inflate_semi_axes
-
-        margin, h_nn = float(cfg.margin_m), float("nan")
-        res = 0.25 * float(inflate_semi_axes(robot.semi_axes, margin).min())
+        margin, h_nn, res = float(cfg.margin_m), float("nan"), 0.25 * robot.min_semi_axis
     rho = covering_radius(scene, splats.means, base_spacing, seed=cfg.seed) if cfg.check_margin else float("nan")
     plan_robot = robot.inflated(margin) if margin > 0 else robot
     row.update(margin_m=margin, spacing_nn_m=h_nn, rho_measured_m=rho, edge_resolution_m=res,
@@ -329,7 +321,7 @@ def solve_problem(task: MBMTask, ctx: MBMContext) -> dict:
         row.update(start_free=bool(not hit[0]), goal_free=bool(not hit[1]), start_free_unmargined=bool(not hit_own[0]), goal_free_unmargined=bool(not hit_own[1]))
         row.update(solved=False, time_s=None, n_nodes=None, path_length=None, path=None, min_exact_clearance_m=None, message="")
         if row["start_free"] and row["goal_free"]:
-            res_p = _plan(checker, q0, q1, plan_robot, cfg.time_limit, cfg.seed + task.index)
+            res_p = _plan(checker, q0, q1, plan_robot, cfg.time_limit, cfg.seed + task.index, res)
             row.update(solved=bool(res_p.success), time_s=float(res_p.time_s), n_nodes=int(res_p.n_nodes), message=str(res_p.message))
             times = (res_p.info or {}).get("time_split") or (res_p.info or {}).get("times")
             if times is not None:
