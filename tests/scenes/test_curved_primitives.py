@@ -190,3 +190,23 @@ def test_box_scenes_unchanged(name):
     s, _ = build_builtin(name, seed=3, n_splats=20000)
     assert _digest(s) == BOX_ONLY_DIGESTS[name]
     assert splats_from_boxes is splats_from_scene
+
+
+@pytest.mark.parametrize("depth", [1e-4, 1e-3])
+def test_shallow_penetration_is_negative(depth):
+    """An ellipsoid tip cutting a cylinder's side (or a box face) by a tiny depth: no sample of the
+    ellipsoid is inside, alternating projections creep towards the intersection without a separating
+    plane, and the result must still be negative (the depth ascent runs when no certificate exists)."""
+    a = np.array([0.06, 0.02, 0.05])
+    cyl = AnalyticScene(np.zeros((0, 10)), cylinders=make_cylinder([0, 0, 0], 0.03, 0.1)[None])
+    box = AnalyticScene(make_box([0, 0, 0], [0.03, 0.1, 0.1])[None])
+    rot = np.array([np.cos(0.35), 0, np.sin(0.35), 0])  # 40 deg about y: the deepest point stays at y = 0
+    for sc in (cyl, box):
+        # place the ellipsoid so that its support along -x reaches depth `depth` into x < 0.03
+        r = quat_to_rotmat(rot)
+        support = np.linalg.norm(r.T @ np.array([1.0, 0, 0]) * a)
+        c = np.array([0.03 + support - depth, 0.0, 0.0])
+        val, lo, hi = sc.ellipsoid_clearance(c, rot, a, return_bounds=True)
+        assert val < 0 and val == pytest.approx(-depth, abs=0.3 * depth + 2e-5), val
+        val_out = sc.ellipsoid_clearance(c + [2 * depth, 0, 0], rot, a)
+        assert val_out == pytest.approx(depth, abs=1e-6)
