@@ -105,6 +105,11 @@ class RRTConfig:
     frozen: tuple[int, ...] | None = None
     #: greedily shortcut the found path (batched edge checks at edge_resolution)
     shortcut: bool = True
+    #: RRT-Connect: new nodes per iteration (those closest to the other tree) that the other tree
+    #: tries to connect to
+    connect_attempts: int = 4
+    #: RRT-Connect: longest connect run per attempt, in strides (None = all the way to the target)
+    connect_strides: float | None = 8.0
     #: deprecated alias of time_limit_s (overrides it when given)
     time_budget_s: InitVar[float | None] = None
 
@@ -119,6 +124,10 @@ class RRTConfig:
             v = getattr(self, name)
             if v is not None and not (v > 0 and math.isfinite(v)):
                 raise SplatplanError(f"RRTConfig.{name} must be finite and > 0, got {v}")
+        if self.connect_attempts < 1:
+            raise SplatplanError(f"RRTConfig.connect_attempts must be >= 1, got {self.connect_attempts}")
+        if self.connect_strides is not None and not (self.connect_strides >= 1 and math.isfinite(self.connect_strides)):
+            raise SplatplanError(f"RRTConfig.connect_strides must be finite and >= 1 (or None), got {self.connect_strides}")
         if not 0.0 < self.edge_fraction <= 1.0:
             raise SplatplanError(f"RRTConfig.edge_fraction must lie in (0, 1], got {self.edge_fraction}")
         if not 0.0 <= self.goal_bias <= 1.0:
@@ -284,6 +293,8 @@ class EdgeChecker:
         self.geometry = geometry if isinstance(geometry, LinkGeometry) else LinkGeometry(link_poses=geometry)
         self.resolution = float(resolution)
         self.inflate = bool(inflate)
+        #: wall-clock seconds spent in collision checks (statistics)
+        self.time_s = 0.0
 
     @property
     def n_queries(self) -> int:
@@ -297,10 +308,25 @@ class EdgeChecker:
     def edges_free(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         """(E, D), (E, D) -> bool (E,): True where the whole edge (end point included, start
         excluded) is collision-free at ``resolution``. One batched checker call."""
+        k, n = self.free_prefix(a, b)
+        return k == n
+
+    def free_prefix(self, a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """How far along each of E edges the check samples stay free. One batched checker call.
+
+        Args:
+            a: (E, D) edge starts (assumed checked already); b: (E, D) edge ends.
+
+        Returns:
+            k (E,) int64: the number of leading free check samples of each edge (samples
+            ``a + (i / n)(b - a)``, i = 1..k, are free; k == n: the whole edge is free);
+            n (E,) int64: the edge's sample count (see :func:`edge_samples`).
+        """
         a = np.asarray(a, dtype=np.float64)
         b = np.asarray(b, dtype=np.float64)
         if len(a) == 0:
-            return np.zeros(0, dtype=bool)
+            return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
+        t0 = time.perf_counter()
         pts, idx, n = edge_samples(a, b, self.geometry.motion(b - a), self.resolution)  # (P, D)
         if self.inflate:
             last = np.cumsum(n) - 1  # (E,) index of each edge's end point
@@ -310,9 +336,12 @@ class EdgeChecker:
             hit = self.configs_collide(pts, margin)
         else:
             hit = self.configs_collide(pts)  # (P,)
-        bad = np.zeros(len(a), dtype=bool)
-        np.logical_or.at(bad, idx[hit], True)
-        return ~bad
+        first = np.cumsum(n) - n  # (E,) offset of each edge's first sample
+        k = n.copy()
+        hi = np.nonzero(hit)[0]
+        np.minimum.at(k, idx[hi], hi - first[idx[hi]])  # 0-based index of the first hit = free samples before it
+        self.time_s += time.perf_counter() - t0
+        return k, n
 
     def path_free(self, path: np.ndarray) -> bool:
         """Whether every point of a polyline (P, D), sampled at ``resolution``, is collision-free."""
@@ -333,12 +362,13 @@ def check_endpoint(checker, geometry: LinkGeometry | LinkPoses, x: np.ndarray, w
         )
 
 
-def shortcut_path(edges: EdgeChecker, path: np.ndarray) -> np.ndarray:
+def shortcut_path(edges: EdgeChecker, path: np.ndarray, deadline: float | None = None) -> np.ndarray:
     """Greedy shortcutting: from each kept vertex jump to the farthest vertex reachable by a free
     straight edge (all candidate edges of a vertex checked in one batched call).
 
     The result is collision-free at the checker's resolution whenever the input was, never longer
-    than the input, and keeps both endpoints.
+    than the input, and keeps both endpoints. Past ``deadline`` (a ``time.perf_counter()`` value)
+    the rest of the path is kept as it is.
     """
     p = np.asarray(path, dtype=np.float64)
     if len(p) <= 2:
@@ -346,6 +376,9 @@ def shortcut_path(edges: EdgeChecker, path: np.ndarray) -> np.ndarray:
     out = [p[0]]
     i = 0
     while i < len(p) - 1:
+        if deadline is not None and time.perf_counter() > deadline:
+            out.extend(p[i + 1 :])
+            break
         cand = np.arange(i + 2, len(p))
         j = i + 1
         if cand.size:
