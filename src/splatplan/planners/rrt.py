@@ -91,7 +91,8 @@ class RRTConfig:
     max_iters: int | None = None
     #: node budget (None = unlimited: the time limit decides)
     max_nodes: int | None = None
-    #: wall-clock budget of the search in seconds (None = unlimited)
+    #: wall-clock budget in seconds (None = unlimited); through plan() / the CLI it bounds the whole
+    #: call: search, shortcut and refinement
     time_limit_s: float | None = 10.0
     #: seed of the sampler
     seed: int = 0
@@ -412,6 +413,9 @@ class RRT:
             ("panda", "go2", "sphere:0.015", "ellipsoid:A,B,C", a URDF path).
     """
 
+    #: the planner's name in :data:`~splatplan.planners.PLANNERS`
+    name = "rrt"
+
     def __init__(self, checker, config: RRTConfig | None = None, link_poses: LinkPoses | None = None, radius: float = 0.015, robot=None) -> None:
         self.checker = checker
         self.config = (config or RRTConfig()).validate()
@@ -560,8 +564,13 @@ class RRT:
         return RRTSettings(lo, hi, stride, res, tol, connect, cfg.time_limit_s, derived, notes)
 
     # ------------------------------------------------------------------ search
-    def plan(self, start, goal=None) -> PlanResult:
+    def plan(self, start, goal=None, deadline: float | None = None) -> PlanResult:
         """Grow a tree from ``start``; towards ``goal`` (goal mode) or everywhere (goal=None).
+
+        ``deadline`` (a ``time.perf_counter()`` value) ends the search and the shortcut besides
+        ``RRTConfig.time_limit_s`` (:func:`~splatplan.planners.plan` shares one budget this way).
+        ``info["time_split"]`` gives the seconds spent sampling (and steering), in nearest
+        neighbours, in collision checks, shortcutting and the rest.
 
         Raises:
             PlanningError: start or goal in collision, outside the sampling box / scene bounds /
@@ -596,7 +605,8 @@ class RRT:
         frozen = hi <= lo
         span = np.where(frozen, 0.0, hi - lo)
         goal_z = None if goal is None else goal * w
-        info = {"settings": st.as_dict(), "edge_resolution": st.edge_resolution, "stride": st.stride}
+        info = {"settings": st.as_dict(), "edge_resolution": st.edge_resolution, "stride": st.stride, "planner": "rrt"}
+        clock = {"sampling": 0.0, "nearest": 0.0}
 
         def result(success: bool, path: np.ndarray | None, message: str, it: int) -> PlanResult:
             p = np.zeros((0, d)) if path is None else path
@@ -611,7 +621,7 @@ class RRT:
                 tree_parents=parents[:n].copy(),
                 message=message,
                 path_rrt=None if path is None else path.copy(),
-                info={**info, "n_queries": geom.n_queries - q0},
+                info={**info, "n_queries": geom.n_queries - q0, "time_split": _split(time.perf_counter() - t0, clock, edges.time_s, 0.0)},
             )
 
         def trace(i: int) -> np.ndarray:
@@ -623,11 +633,14 @@ class RRT:
 
         if goal is not None and np.linalg.norm(goal_z - zs[0]) <= connect_r and edges.edges_free(start[None], goal[None])[0]:
             raw = np.stack([start, goal])
-            return self._finish(result(True, raw, "direct edge from start to goal is free", 0), edges, t0, w, q0)
+            return self._finish(result(True, raw, "direct edge from start to goal is free", 0), edges, t0, w, q0, clock, deadline)
 
         it = 0
         message = ""
         t_search = time.perf_counter()
+        end = math.inf if deadline is None else float(deadline)
+        if st.time_limit_s is not None:
+            end = min(end, t_search + st.time_limit_s)
         while True:
             if cfg.max_iters is not None and it >= cfg.max_iters:
                 message = f"within the iteration budget ({cfg.max_iters:,} iterations, {n:,} nodes)"
@@ -635,17 +648,23 @@ class RRT:
             if n >= cap_max:
                 message = f"within the node budget ({cfg.max_nodes:,} nodes)"
                 break
-            if st.time_limit_s is not None and time.perf_counter() - t_search > st.time_limit_s:
-                message = f"within {st.time_limit_s:.1f} s ({n:,} nodes)"
+            if time.perf_counter() > end:
+                limit = st.time_limit_s if deadline is None else min(st.time_limit_s or math.inf, deadline - t0)
+                message = f"within {limit:.1f} s ({n:,} nodes)"
                 info["time_limit_hit"] = True
                 break
             it += 1
             nb = cfg.batch_size
+            t1 = time.perf_counter()
             samples = lo + rng.random((nb, d)) * span  # (N, D)
             if goal is not None and cfg.goal_bias > 0:
                 samples[rng.random(nb) < cfg.goal_bias] = goal
             sz = samples * w
+            t2 = time.perf_counter()
             near = np.argmin(cdist(sz, zs[:n], "sqeuclidean"), axis=1)  # (N,)
+            t3 = time.perf_counter()
+            clock["sampling"] += t2 - t1
+            clock["nearest"] += t3 - t2
             base = nodes[near]  # (N, D)
             delta = samples - base
             dist = np.linalg.norm(sz - zs[near], axis=1)  # metric distance
@@ -686,22 +705,32 @@ class RRT:
                         nodes[n], zs[n], parents[n] = goal, goal_z, best
                         cost[n] = cost[best] + float(np.linalg.norm(goal_z - zs[best]))
                         n += 1
-                    return self._finish(result(True, raw, f"goal reached after {it} iterations", it), edges, t0, w, q0)
+                    return self._finish(result(True, raw, f"goal reached after {it} iterations", it), edges, t0, w, q0, clock, deadline)
             if st.goal_tolerance > 0 and np.any(dg <= st.goal_tolerance):
                 best = int(ids[np.argmin(dg)])
-                return self._finish(result(True, trace(best), f"within goal_tolerance after {it} iterations", it), edges, t0, w, q0)
+                return self._finish(result(True, trace(best), f"within goal_tolerance after {it} iterations", it), edges, t0, w, q0, clock, deadline)
 
         if goal is None:
             return result(True, None, f"exploration finished: {message}", it)
         return result(False, None, f"no path found {message}", it)
 
-    def _finish(self, res: PlanResult, edges: EdgeChecker, t0: float, w: np.ndarray, q0: int) -> PlanResult:
+    def _finish(self, res: PlanResult, edges: EdgeChecker, t0: float, w: np.ndarray, q0: int, clock: dict, deadline: float | None) -> PlanResult:
+        c_search = edges.time_s
+        t1 = time.perf_counter()
         if self.config.shortcut and len(res.path) > 2:
-            res.path = shortcut_path(edges, res.path)
+            res.path = shortcut_path(edges, res.path, deadline=deadline)
             res.length = path_length(res.path, w)
         res.info["n_queries"] = edges.n_queries - q0
         res.time_s = time.perf_counter() - t0
+        res.info["time_split"] = _split(res.time_s, clock, c_search, time.perf_counter() - t1)
         return res
+
+
+def _split(total: float, clock: dict, collision: float, shortcut: float) -> dict:
+    """The time split of a search: sampling, nearest, collision, shortcut, other (= the rest) seconds."""
+    out = {"sampling": clock["sampling"], "nearest": clock["nearest"], "collision": collision, "shortcut": shortcut}
+    out["other"] = max(0.0, total - sum(out.values()))
+    return out
 
 
 def _grow(a: np.ndarray, cap: int, fill=0) -> np.ndarray:

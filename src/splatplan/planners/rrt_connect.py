@@ -87,6 +87,8 @@ class RRTConnect(RRT):
     Goal mode only: ``plan(start, goal)``; use :class:`RRT` to explore without a goal.
     """
 
+    name = "rrtconnect"
+
     def plan(self, start, goal=None, deadline: float | None = None) -> PlanResult:
         """Search a path from ``start`` to ``goal`` (configurations (D,)).
 
@@ -128,7 +130,7 @@ class RRTConnect(RRT):
         end = math.inf if deadline is None else float(deadline)
         if st.time_limit_s is not None:
             end = min(end, time.perf_counter() + st.time_limit_s)
-        info = {"settings": st.as_dict(), "edge_resolution": st.edge_resolution, "stride": st.stride, "planner": "rrtconnect"}
+        info = {"settings": st.as_dict(), "edge_resolution": st.edge_resolution, "stride": st.stride, "planner": self.name}
 
         def result(success: bool, path: np.ndarray | None, message: str, it: int) -> PlanResult:
             ta, tb = trees
