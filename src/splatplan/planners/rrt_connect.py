@@ -17,7 +17,10 @@ Two trees grow, one from the start and one from the goal, and take turns. Each i
    always checked configurations); a run that reaches an A node whose own extension was free
    joins the trees: the path is start tree -> joint -> goal tree.
 
-Then the path is shortcut greedily (batched edge checks, :func:`shortcut_path`), as for the RRT.
+Then the path is shortcut greedily (batched edge checks, :func:`shortcut_path`): first with
+doubling candidate offsets (the raw path has a vertex every stride along its connect runs, and
+checking every long candidate edge from every vertex would cost more than the search), then with
+every candidate on the few vertices left.
 
 The lengths (stride, edge resolution, sampling box) are the RRT's (:meth:`RRT.settings`, derived
 from the scene and the robot when unset). Nearest neighbours are brute force: one (N x n) distance
@@ -152,7 +155,9 @@ class RRTConnect(RRT):
             t_short = time.perf_counter()
             c_before = edges.time_s
             if success and cfg.shortcut and len(res.path) > 2:
-                res.path = shortcut_path(edges, res.path, deadline=None if math.isinf(end) else end)
+                dl = None if math.isinf(end) else end
+                res.path = shortcut_path(edges, res.path, deadline=dl, candidates="doubling")
+                res.path = shortcut_path(edges, res.path, deadline=dl)  # every candidate on the few vertices left
                 res.length = path_length(res.path, w)
             t_now = time.perf_counter()
             c_search = c_before
