@@ -6,8 +6,10 @@ Two trees grow, one from the start and one from the goal, and take turns. Each i
    nearest node of A (weighted metric ``|motion_bound * dq|``, as in :mod:`.rrt`) steps at most
    ``stride`` towards each sample.
 2. **Connect**: the ``connect_attempts`` new nodes closest to the other tree B are each the target
-   of a *connect* from B's nearest node: a straight run towards the target of at most
-   ``connect_strides`` strides (RRT-Connect's repeated extension, done as one edge).
+   of a *connect* from B's nearest node: a straight run towards the target (RRT-Connect's repeated
+   extension). A run advances at most ``connect_strides`` strides per iteration and, while it stays
+   free, goes on in the next iterations (at most ``2 * connect_attempts`` runs carried on): a run
+   that hits an obstacle early wastes few checks, one in free space still reaches its target.
 3. **One collision call** checks every new edge of the iteration (the extensions and the connect
    runs) with :meth:`EdgeChecker.free_prefix`, at the edge resolution of the RRT (the same
    guarantee: no point of any robot ellipsoid moves more than ``edge_resolution`` between two
@@ -177,6 +179,7 @@ class RRTConnect(RRT):
             return result(True, np.stack([start, goal]), "direct edge from start to goal is free", 0)
 
         it = 0
+        runs: list[tuple[int, int, int, int]] = []  # connect runs still free, carried to the next iteration
         while True:
             if cfg.max_iters is not None and it >= cfg.max_iters:
                 message = f"within the iteration budget ({cfg.max_iters:,} iterations, {trees[0].n + trees[1].n:,} nodes)"
@@ -208,14 +211,18 @@ class RRTConnect(RRT):
             new[:, frozen] = lo[frozen]
             m = len(new)
             t4 = time.perf_counter()
-            # 2. connect B towards the new nodes closest to it
+            # 2. connect B towards the new nodes closest to it; carry on the runs that were free
             near_b = tb.nearest(new * w) if m else np.zeros(0, dtype=np.int64)  # (M,)
             t5 = time.perf_counter()
             d_b = np.linalg.norm(new * w - tb.zs[near_b], axis=1)  # (M,)
             pick = np.argsort(d_b, kind="stable")[: min(n_conn, m)]  # (C,) indices into new
-            c_from = tb.nodes[near_b[pick]]  # (C, D)
-            frac = np.minimum(1.0, conn_len / np.maximum(d_b[pick], 1e-300))  # (C,) share of the run tried now
-            c_to = c_from + (new[pick] - c_from) * frac[:, None]
+            # a run: (tree it grows, its front node, tree of the target, target node id or -1 - index into new)
+            todo = [(1 - a_id, int(near_b[j]), a_id, -1 - int(j)) for j in pick] + runs
+            c_from = np.array([trees[f].nodes[i] for f, i, _, _ in todo]).reshape(-1, d)  # (C, D)
+            c_tgt = np.array([new[-1 - t] if t < 0 else trees[g].nodes[t] for _, _, g, t in todo]).reshape(-1, d)
+            c_len = np.linalg.norm((c_tgt - c_from) * w, axis=1)  # (C,)
+            frac = np.minimum(1.0, conn_len / np.maximum(c_len, 1e-300))  # (C,) share of the run tried now
+            c_to = c_from + (c_tgt - c_from) * frac[:, None]
             t_sample += (t2 - t1) + (t4 - t3)
             t_near += (t3 - t2) + (t5 - t4)
             # 3. one collision call for every edge of the iteration
@@ -227,13 +234,18 @@ class RRTConnect(RRT):
             new_ids = np.full(m, -1, dtype=np.int64)
             if ext_free.any():
                 new_ids[ext_free] = ta.add(new[ext_free], near[ext_free])
-            for c in range(len(pick)):
-                if kc[c] == nc[c] and frac[c] >= 1.0 and ext_free[pick[c]]:
-                    joint_a, joint_b = int(new_ids[pick[c]]), int(near_b[pick[c]])
-                    pa, pb = ta.trace(joint_a), tb.trace(joint_b)
-                    raw = np.vstack([pa, pb[::-1]]) if a_id == 0 else np.vstack([pb, pa[::-1]])
+            runs = []
+            for c, (f, i_from, g, tgt) in enumerate(todo):
+                if tgt < 0:  # the target is a new node of this iteration: it exists if its extension was free
+                    tgt = int(new_ids[-1 - tgt])
+                    if tgt < 0:
+                        continue  # (its free part still grows the tree below)
+                if kc[c] == nc[c] and frac[c] >= 1.0 and tgt >= 0:
+                    ps, pg = trees[f].trace(i_from), trees[g].trace(tgt)  # root of f -> joint, root of g -> joint
+                    raw = np.vstack([ps, pg[::-1]]) if f == 0 else np.vstack([pg, ps[::-1]])
                     t_sample += time.perf_counter() - t6
                     return result(True, raw, f"trees joined after {it} iterations", it)
+            for c, (f, i_from, g, tgt) in enumerate(todo):
                 if kc[c] == 0:
                     continue
                 # nodes on the check-sample grid, about one per stride, and the last free sample
@@ -243,7 +255,12 @@ class RRTConnect(RRT):
                 if ii.size == 0 or ii[-1] != kc[c]:
                     ii = np.append(ii, kc[c])
                 pts = c_from[c] + (ii / nc[c])[:, None] * (c_to[c] - c_from[c])  # (K, D)
-                parent = np.concatenate([[near_b[pick[c]]], np.arange(tb.n, tb.n + len(ii) - 1)])
-                tb.add(pts, parent)
+                tree = trees[f]
+                parent = np.concatenate([[i_from], np.arange(tree.n, tree.n + len(ii) - 1)])
+                ids = tree.add(pts, parent)
+                if tgt < 0:
+                    tgt = int(new_ids[-1 - tgt])
+                if kc[c] == nc[c] and frac[c] < 1.0 and tgt >= 0 and len(runs) < 2 * n_conn:
+                    runs.append((f, int(ids[-1]), g, tgt))  # free so far: the run goes on next iteration
             t_sample += time.perf_counter() - t6
         return result(False, None, f"no path found {message}", it)
