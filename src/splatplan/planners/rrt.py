@@ -110,7 +110,7 @@ class RRTConfig:
     #: tries to connect to
     connect_attempts: int = 4
     #: RRT-Connect: longest connect run per attempt, in strides (None = all the way to the target)
-    connect_strides: float | None = 8.0
+    connect_strides: float | None = 4.0
     #: deprecated alias of time_limit_s (overrides it when given)
     time_budget_s: InitVar[float | None] = None
 
