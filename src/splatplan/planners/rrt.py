@@ -79,12 +79,12 @@ class RRTConfig:
     edge_resolution: float | None = None
     #: default edge_resolution as a fraction of the robot's smallest semi-axis
     edge_fraction: float = EDGE_FRACTION
-    #: probability that a sample is the goal itself (goal mode only)
+    #: probability that a sample is the goal itself (RRT, goal mode only)
     goal_bias: float = 0.1
-    #: a node closer than this to the goal ends the search even if the last edge to the goal is not
+    #: RRT: a node closer than this to the goal ends the search even if the last edge to the goal is not
     #: free (the path then ends at that node); None = half the robot's smallest semi-axis; 0 = exact
     goal_tolerance: float | None = None
-    #: new nodes within this distance of the goal try a direct collision-checked edge to it;
+    #: RRT: new nodes within this distance of the goal try a direct collision-checked edge to it;
     #: None = 4 * stride
     connect_radius: float | None = None
     #: iteration budget (None = unlimited: the time limit decides)
