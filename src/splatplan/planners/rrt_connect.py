@@ -156,6 +156,7 @@ class RRTConnect(RRT):
             )
             t_short = time.perf_counter()
             c_before = edges.time_s
+            q_before = geom.n_queries
             if success and cfg.shortcut and len(res.path) > 2:
                 dl = None if math.isinf(end) else end
                 res.path = shortcut_path(edges, res.path, deadline=dl, candidates="doubling")
@@ -173,6 +174,7 @@ class RRTConnect(RRT):
             split["other"] = max(0.0, res.time_s - sum(split.values()))
             res.info["time_split"] = split
             res.info["n_queries"] = geom.n_queries - q0
+            res.info["n_queries_shortcut"] = geom.n_queries - q_before
             return res
 
         if edges.edges_free(start[None], goal[None])[0]:
