@@ -160,7 +160,8 @@ class RRTConnect(RRT):
             if success and cfg.shortcut and len(res.path) > 2:
                 dl = None if math.isinf(end) else end
                 res.path = shortcut_path(edges, res.path, deadline=dl, candidates="doubling")
-                res.path = shortcut_path(edges, res.path, deadline=dl)  # every candidate on the few vertices left
+                if len(res.path) > 3:  # (with 3 vertices the one candidate edge was just checked)
+                    res.path = shortcut_path(edges, res.path, deadline=dl)  # every candidate on the few vertices left
                 res.length = path_length(res.path, w)
             t_now = time.perf_counter()
             c_search = c_before
