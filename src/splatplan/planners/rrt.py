@@ -662,7 +662,7 @@ class RRT:
                 message = f"within the node budget ({cfg.max_nodes:,} nodes)"
                 break
             if time.perf_counter() > end:
-                limit = st.time_limit_s if deadline is None else min(st.time_limit_s or math.inf, deadline - t0)
+                limit = st.time_limit_s if st.time_limit_s is not None else deadline - t0  # the budget the user gave
                 message = f"within {limit:.1f} s ({n:,} nodes)"
                 info["time_limit_hit"] = True
                 break
