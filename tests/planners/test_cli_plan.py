@@ -85,3 +85,26 @@ def test_bad_input_exits_2(room, tmp_path, capsys, extra, words):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("splatplan: error:") and words in err[0], err
     assert not out.exists()
+
+
+def test_planner_choice_and_time_split(room, tmp_path, capsys):
+    out = tmp_path / "p.json"
+    code = main(["plan", str(room), "--start", "-0.15,0,0.06", "--goal", "0.15,-0.05,0.06", "--planar", "--planner", "rrtconnect", "--out", str(out)])
+    captured = capsys.readouterr()
+    assert code == 0, captured.err
+    lines = captured.out.splitlines()
+    assert ", rrtconnect, " in lines[0]
+    assert lines[-1].startswith("time split: sampling ") and "collision" in lines[-1] and "refine" in lines[-1]
+    doc = json.loads(out.read_text())
+    assert doc["planner"] == "rrtconnect" and doc["success"]
+    assert sum(doc["time_split"].values()) <= doc["time_s"] + 1e-6
+    assert main(["plan", str(room), "--start", "-0.15,0,0.06", "--goal", "0.15,-0.05,0.06", "--out", str(out)]) == 0
+    assert ", rrt, " in capsys.readouterr().out.splitlines()[0]  # auto: a point robot keeps the RRT
+
+
+def test_bad_planner_name_exits_2(room, tmp_path, capsys):
+    out = tmp_path / "p.json"
+    assert main(["plan", str(room), "--start", "-0.15,0,0.06", "--goal", "0.15,0,0.06", "--planner", "prm", "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("splatplan: error: unknown planner 'prm'"), err
+    assert not out.exists()

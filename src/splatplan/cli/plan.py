@@ -1,4 +1,7 @@
-"""`splatplan plan`: batched RRT (+ refinement) for a robot, from a start to a goal configuration.
+"""`splatplan plan`: batched RRT or RRT-Connect (+ refinement) for a robot, from a start to a goal
+configuration. ``--planner auto`` (the default) runs RRT-Connect for robots with 4 or more dofs and
+the goal-biased RRT otherwise; ``--time-limit`` bounds the whole call, refinement included, and the
+time split (sampling, nearest neighbours, collision, shortcut, refine) is printed.
 
 Exit codes: 0 path found (written to ``--out``), 1 no path within the budget (one line on stderr;
 an existing ``--out`` is kept unless ``--force``), 2 bad input.
@@ -78,7 +81,7 @@ def _robot_for(args):
 
 def cmd_plan(args) -> int:
     from ..metric import CollisionChecker, MetricConfig
-    from ..planners import RRT, RefineConfig, RRTConfig, plan
+    from ..planners import RefineConfig, RRTConfig, format_time_split, make_planner, plan
 
     out = Path(args.out)
     if out.suffix != ".json":
@@ -116,11 +119,14 @@ def cmd_plan(args) -> int:
     mcfg = config_from_args(args, MetricConfig).validate()
     scene = _load(args.scene)
     checker = CollisionChecker(scene, device=args.device, config=mcfg)
-    settings = RRT(checker, rrt_cfg, robot=robot).settings(start, goal)
-    print(f"plan {robot.name} ({robot.dof} dofs, {robot.n_ellipsoids} ellipsoid(s)), n_sigma {mcfg.n_sigma:g}: {settings.summary()}")
+    planner = make_planner(args.planner, checker, rrt_cfg, robot=robot)
+    settings = planner.settings(start, goal)
+    name = planner.name
+    print(f"plan {robot.name} ({robot.dof} dofs, {robot.n_ellipsoids} ellipsoid(s)), {name}, n_sigma {mcfg.n_sigma:g}: {settings.summary()}")
     for note in notes + settings.notes:
         print(f"note: {note}", file=sys.stderr)
-    res = plan(checker, start, goal, robot=robot, refine=args.refine, seed=args.seed, rrt_config=rrt_cfg, refine_config=ref_cfg)
+    res = plan(checker, start, goal, robot=robot, refine=args.refine, seed=args.seed, rrt_config=rrt_cfg, refine_config=ref_cfg, planner=name)
+    split = res.info.get("time_split", {})
     doc = {
         "success": bool(res.success),
         "robot": robot.name,
@@ -133,6 +139,8 @@ def cmd_plan(args) -> int:
         "refined": bool(res.refined),
         "message": res.message,
         "settings": res.info.get("settings"),
+        "planner": name,
+        "time_split": {k: float(v) for k, v in split.items()},
     }
     if not res.success:
         kept = out.exists() and not args.force
@@ -140,10 +148,12 @@ def cmd_plan(args) -> int:
             write_json(out, doc)
         tail = f"; kept the existing {out} (--force overwrites it)" if kept else f" -> {out}"
         print(f"splatplan: {res.message}{tail}", file=sys.stderr)
+        print(f"time split: {format_time_split(split)}")
         return 1
     write_json(out, doc)
     print(f"path found: {len(res.path)} vertices, length {res.length:.4f}{' (refined)' if res.refined else ''}; "
           f"{res.n_nodes:,} nodes, {res.time_s:.3f} s -> {out}")  # fmt: skip
+    print(f"time split: {format_time_split(split)}")
     return 0
 
 
@@ -153,8 +163,8 @@ def register(sub, eval_sub) -> None:
 
     s = sub.add_parser(
         "plan",
-        help="RRT (+ refinement) from a start to a goal configuration of a robot",
-        description="Batched RRT (+ zeroth-order refinement) in the robot's configuration space. Exit codes: 0 path found, "
+        help="RRT / RRT-Connect (+ refinement) from a start to a goal configuration of a robot",
+        description="Batched RRT or RRT-Connect (+ zeroth-order refinement) in the robot's configuration space. Exit codes: 0 path found, "
         "1 no path within the budget (an existing --out is kept unless --force), 2 bad input.",
     )
     allow_negative_values(s)
@@ -168,7 +178,10 @@ def register(sub, eval_sub) -> None:
     s.add_argument("--planar", action="store_true", help="plan at a fixed height along --up: point robots keep that coordinate at "
                    "--height (default the start's); go2 stands on the plane at --height")  # fmt: skip
     s.add_argument("--height", type=float, default=None, help="plane coordinate along --up for --planar / go2 (scene units)")
-    s.add_argument("--time-limit", type=float, default=None, help="RRT wall-clock budget in seconds (default 10; same as --rrt-time-limit-s)")
+    s.add_argument("--planner", default="auto", metavar="NAME", help="auto (rrtconnect for robots with 4 or more dofs, else rrt) | rrt "
+                   "(goal-biased batched RRT) | rrtconnect (batched bidirectional RRT-Connect) (default auto)")  # fmt: skip
+    s.add_argument("--time-limit", type=float, default=None, help="wall-clock budget of the whole call in seconds: search, shortcut and "
+                   "--refine share it (default 10; same as --rrt-time-limit-s)")  # fmt: skip
     s.add_argument("--refine", action="store_true", help="zeroth-order refinement of the RRT path")
     s.add_argument("--seed", type=int, default=0)
     s.add_argument("--force", action="store_true", help="overwrite an existing --out even when no path is found")

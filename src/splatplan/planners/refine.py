@@ -20,6 +20,7 @@
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -94,6 +95,27 @@ class RefineResult:
     info: dict = field(default_factory=dict)
 
 
+#: configurations per cost query of the sampled curves: the deadline is checked between chunks
+COST_CHUNK = 16384
+
+
+class _OutOfTime(Exception):
+    """The deadline passed while the sampled curves were being costed."""
+
+
+def _chunked_costs(checker, geom: LinkGeometry, curves: np.ndarray, cfg: RefineConfig, deadline: float | None) -> np.ndarray:
+    """:func:`_curve_costs` over (K, T, D) in chunks of about COST_CHUNK configurations, checking
+    ``deadline`` (a ``time.perf_counter()`` value) between chunks; raises _OutOfTime past it."""
+    k, t_len = curves.shape[:2]
+    step = max(1, COST_CHUNK // t_len)
+    out = np.empty(k)
+    for i in range(0, k, step):
+        if deadline is not None and time.perf_counter() > deadline:
+            raise _OutOfTime
+        out[i : i + step] = _curve_costs(checker, geom, curves[i : i + step], cfg)
+    return out
+
+
 def _curve_costs(checker, geom: LinkGeometry, curves: np.ndarray, cfg: RefineConfig) -> np.ndarray:
     """Refinement cost of K dense curves (K, T, D) -> (K,) (lengths in the planner metric)."""
     seg = np.linalg.norm(np.diff(curves, axis=1) * geom.distance_scale(), axis=-1)  # (K, T-1)
@@ -113,6 +135,7 @@ def refine_path(
     config: RefineConfig | None = None,
     link_poses: LinkPoses | None = None,
     robot=None,
+    deadline: float | None = None,
 ) -> RefineResult:
     """Refine a collision-free polyline into a shorter, smoother, collision-free B-spline curve.
 
@@ -122,6 +145,8 @@ def refine_path(
         radius: shortcut for ``robot="sphere:<radius>"`` when neither ``robot`` nor ``link_poses``
             is given.
         config: :class:`RefineConfig`.
+        deadline: a ``time.perf_counter()`` value: past it the refinement stops (checked between
+            chunks of cost queries and before each acceptance check) and returns the input path.
         link_poses: (legacy) configurations (..., D) -> link ellipsoids; prefer ``robot``.
         robot: a :class:`~splatplan.robots.Robot` or name; the path is in its configuration space
             and lengths / spacings are in the RRT's metric (|motion_bound * dq|, scene units).
@@ -157,6 +182,15 @@ def refine_path(
     u_cost = np.linspace(0.0, 1.0, t_cost)
     t_out = int(max(2, math.ceil(length0 * 1.5 / check_res) + 1))  # output density (refined curves are shorter)
     n_knots = cfg.n_knots or int(np.clip(math.ceil(length0 / knot_spacing) + 3, cfg.min_knots, cfg.max_knots))
+    try:
+        return _attempts(checker, geom, p, cfg, edges, rng, deadline, cost_before, length0, sigma_q, temperature, scales, free_dims, u_cost, t_out, n_knots, wq)
+    except _OutOfTime:
+        return RefineResult(p.copy(), False, None, cost_before, cost_before, 0, "time limit reached during refinement; kept the original path",
+                            {"length_before": length0, "time_limit_hit": True, **scales})  # fmt: skip
+
+
+def _attempts(checker, geom, p, cfg, edges, rng, deadline, cost_before, length0, sigma_q, temperature, scales, free_dims, u_cost, t_out, n_knots, wq) -> RefineResult:
+    """The fits of :func:`refine_path` (raises _OutOfTime past ``deadline``)."""
     message = ""
     for attempt in range(1, cfg.max_attempts + 1):
         basis = bspline_basis(n_knots, u_cost)  # (T, n)
@@ -168,7 +202,7 @@ def refine_path(
             eps[:, :, ~free_dims] = 0.0
             samples = knots[None] + eps  # (K, n, D)
             curves = np.einsum("tn,knd->ktd", basis, samples)  # (K, T, D)
-            c = _curve_costs(checker, geom, curves, cfg)
+            c = _chunked_costs(checker, geom, curves, cfg, deadline)
             w = np.exp(-(c - c.min()) / temperature)
             w /= w.sum()
             knots = np.einsum("k,knd->nd", w, samples)
@@ -176,6 +210,8 @@ def refine_path(
         basis_out = bspline_basis(n_knots, t_out)
         for name, kn in zip(("weighted mean", "best sample"), candidates):
             dense = basis_out @ kn  # (T_out, D)
+            if deadline is not None and time.perf_counter() > deadline:
+                raise _OutOfTime
             if edges.path_free(dense):
                 cost_after = float(_curve_costs(checker, geom, (basis @ kn)[None], cfg)[0])
                 return RefineResult(

@@ -79,19 +79,20 @@ class RRTConfig:
     edge_resolution: float | None = None
     #: default edge_resolution as a fraction of the robot's smallest semi-axis
     edge_fraction: float = EDGE_FRACTION
-    #: probability that a sample is the goal itself (goal mode only)
+    #: probability that a sample is the goal itself (RRT, goal mode only)
     goal_bias: float = 0.1
-    #: a node closer than this to the goal ends the search even if the last edge to the goal is not
+    #: RRT: a node closer than this to the goal ends the search even if the last edge to the goal is not
     #: free (the path then ends at that node); None = half the robot's smallest semi-axis; 0 = exact
     goal_tolerance: float | None = None
-    #: new nodes within this distance of the goal try a direct collision-checked edge to it;
+    #: RRT: new nodes within this distance of the goal try a direct collision-checked edge to it;
     #: None = 4 * stride
     connect_radius: float | None = None
     #: iteration budget (None = unlimited: the time limit decides)
     max_iters: int | None = None
     #: node budget (None = unlimited: the time limit decides)
     max_nodes: int | None = None
-    #: wall-clock budget of the search in seconds (None = unlimited)
+    #: wall-clock budget in seconds (None = unlimited); through plan() / the CLI it bounds the whole
+    #: call: search, shortcut and refinement
     time_limit_s: float | None = 10.0
     #: seed of the sampler
     seed: int = 0
@@ -105,6 +106,11 @@ class RRTConfig:
     frozen: tuple[int, ...] | None = None
     #: greedily shortcut the found path (batched edge checks at edge_resolution)
     shortcut: bool = True
+    #: RRT-Connect: new nodes per iteration (those closest to the other tree) that the other tree
+    #: tries to connect to
+    connect_attempts: int = 4
+    #: RRT-Connect: longest connect run per attempt, in strides (None = all the way to the target)
+    connect_strides: float | None = 4.0
     #: deprecated alias of time_limit_s (overrides it when given)
     time_budget_s: InitVar[float | None] = None
 
@@ -119,6 +125,10 @@ class RRTConfig:
             v = getattr(self, name)
             if v is not None and not (v > 0 and math.isfinite(v)):
                 raise SplatplanError(f"RRTConfig.{name} must be finite and > 0, got {v}")
+        if self.connect_attempts < 1:
+            raise SplatplanError(f"RRTConfig.connect_attempts must be >= 1, got {self.connect_attempts}")
+        if self.connect_strides is not None and not (self.connect_strides >= 1 and math.isfinite(self.connect_strides)):
+            raise SplatplanError(f"RRTConfig.connect_strides must be finite and >= 1 (or None), got {self.connect_strides}")
         if not 0.0 < self.edge_fraction <= 1.0:
             raise SplatplanError(f"RRTConfig.edge_fraction must lie in (0, 1], got {self.edge_fraction}")
         if not 0.0 <= self.goal_bias <= 1.0:
@@ -284,6 +294,8 @@ class EdgeChecker:
         self.geometry = geometry if isinstance(geometry, LinkGeometry) else LinkGeometry(link_poses=geometry)
         self.resolution = float(resolution)
         self.inflate = bool(inflate)
+        #: wall-clock seconds spent in collision checks (statistics)
+        self.time_s = 0.0
 
     @property
     def n_queries(self) -> int:
@@ -297,10 +309,25 @@ class EdgeChecker:
     def edges_free(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         """(E, D), (E, D) -> bool (E,): True where the whole edge (end point included, start
         excluded) is collision-free at ``resolution``. One batched checker call."""
+        k, n = self.free_prefix(a, b)
+        return k == n
+
+    def free_prefix(self, a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """How far along each of E edges the check samples stay free. One batched checker call.
+
+        Args:
+            a: (E, D) edge starts (assumed checked already); b: (E, D) edge ends.
+
+        Returns:
+            k (E,) int64: the number of leading free check samples of each edge (samples
+            ``a + (i / n)(b - a)``, i = 1..k, are free; k == n: the whole edge is free);
+            n (E,) int64: the edge's sample count (see :func:`edge_samples`).
+        """
         a = np.asarray(a, dtype=np.float64)
         b = np.asarray(b, dtype=np.float64)
         if len(a) == 0:
-            return np.zeros(0, dtype=bool)
+            return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
+        t0 = time.perf_counter()
         pts, idx, n = edge_samples(a, b, self.geometry.motion(b - a), self.resolution)  # (P, D)
         if self.inflate:
             last = np.cumsum(n) - 1  # (E,) index of each edge's end point
@@ -310,9 +337,12 @@ class EdgeChecker:
             hit = self.configs_collide(pts, margin)
         else:
             hit = self.configs_collide(pts)  # (P,)
-        bad = np.zeros(len(a), dtype=bool)
-        np.logical_or.at(bad, idx[hit], True)
-        return ~bad
+        first = np.cumsum(n) - n  # (E,) offset of each edge's first sample
+        k = n.copy()
+        hi = np.nonzero(hit)[0]
+        np.minimum.at(k, idx[hi], hi - first[idx[hi]])  # 0-based index of the first hit = free samples before it
+        self.time_s += time.perf_counter() - t0
+        return k, n
 
     def path_free(self, path: np.ndarray) -> bool:
         """Whether every point of a polyline (P, D), sampled at ``resolution``, is collision-free."""
@@ -333,20 +363,37 @@ def check_endpoint(checker, geometry: LinkGeometry | LinkPoses, x: np.ndarray, w
         )
 
 
-def shortcut_path(edges: EdgeChecker, path: np.ndarray) -> np.ndarray:
+def shortcut_path(edges: EdgeChecker, path: np.ndarray, deadline: float | None = None, candidates: str = "all") -> np.ndarray:
     """Greedy shortcutting: from each kept vertex jump to the farthest vertex reachable by a free
     straight edge (all candidate edges of a vertex checked in one batched call).
 
-    The result is collision-free at the checker's resolution whenever the input was, never longer
-    than the input, and keeps both endpoints.
+    ``candidates``: "all" tries every later vertex; "doubling" tries the vertices i + 2, i + 3,
+    i + 5, i + 9, ... (offsets 1 + 2^m) and the last one, O(log P) edges per vertex instead of
+    O(P): for long paths of many short edges (RRT-Connect's connect runs), where checking every
+    long candidate edge costs more than the search.
+
+    The result is collision-free at the checker's resolution whenever the input was (its vertices
+    are input vertices, its edges checked ones), never longer than the input, and keeps both
+    endpoints. Past ``deadline`` (a ``time.perf_counter()`` value) the rest of the path is kept
+    as it is.
     """
     p = np.asarray(path, dtype=np.float64)
     if len(p) <= 2:
         return p.copy()
+    if candidates not in ("all", "doubling"):
+        raise SplatplanError(f"shortcut candidates must be 'all' or 'doubling', got {candidates!r}")
     out = [p[0]]
     i = 0
     while i < len(p) - 1:
-        cand = np.arange(i + 2, len(p))
+        if deadline is not None and time.perf_counter() > deadline:
+            out.extend(p[i + 1 :])
+            break
+        if candidates == "all":
+            cand = np.arange(i + 2, len(p))
+        else:
+            off = 1 + 2 ** np.arange(int(math.log2(max(1, len(p) - 1 - i))) + 1)  # 2, 3, 5, 9, ...
+            cand = np.unique(np.append(i + off[i + off < len(p) - 1], len(p) - 1))
+            cand = cand[cand >= i + 2]
         j = i + 1
         if cand.size:
             free = edges.edges_free(np.repeat(p[i : i + 1], cand.size, axis=0), p[cand])
@@ -378,6 +425,9 @@ class RRT:
         robot: a :class:`~splatplan.robots.Robot` or a name for :func:`~splatplan.robots.load_robot`
             ("panda", "go2", "sphere:0.015", "ellipsoid:A,B,C", a URDF path).
     """
+
+    #: the planner's name in :data:`~splatplan.planners.PLANNERS`
+    name = "rrt"
 
     def __init__(self, checker, config: RRTConfig | None = None, link_poses: LinkPoses | None = None, radius: float = 0.015, robot=None) -> None:
         self.checker = checker
@@ -527,8 +577,13 @@ class RRT:
         return RRTSettings(lo, hi, stride, res, tol, connect, cfg.time_limit_s, derived, notes)
 
     # ------------------------------------------------------------------ search
-    def plan(self, start, goal=None) -> PlanResult:
+    def plan(self, start, goal=None, deadline: float | None = None) -> PlanResult:
         """Grow a tree from ``start``; towards ``goal`` (goal mode) or everywhere (goal=None).
+
+        ``deadline`` (a ``time.perf_counter()`` value) ends the search and the shortcut besides
+        ``RRTConfig.time_limit_s`` (:func:`~splatplan.planners.plan` shares one budget this way).
+        ``info["time_split"]`` gives the seconds spent sampling (and steering), in nearest
+        neighbours, in collision checks, shortcutting and the rest.
 
         Raises:
             PlanningError: start or goal in collision, outside the sampling box / scene bounds /
@@ -563,7 +618,8 @@ class RRT:
         frozen = hi <= lo
         span = np.where(frozen, 0.0, hi - lo)
         goal_z = None if goal is None else goal * w
-        info = {"settings": st.as_dict(), "edge_resolution": st.edge_resolution, "stride": st.stride}
+        info = {"settings": st.as_dict(), "edge_resolution": st.edge_resolution, "stride": st.stride, "planner": "rrt"}
+        clock = {"sampling": 0.0, "nearest": 0.0}
 
         def result(success: bool, path: np.ndarray | None, message: str, it: int) -> PlanResult:
             p = np.zeros((0, d)) if path is None else path
@@ -578,7 +634,7 @@ class RRT:
                 tree_parents=parents[:n].copy(),
                 message=message,
                 path_rrt=None if path is None else path.copy(),
-                info={**info, "n_queries": geom.n_queries - q0},
+                info={**info, "n_queries": geom.n_queries - q0, "time_split": _split(time.perf_counter() - t0, clock, edges.time_s, 0.0)},
             )
 
         def trace(i: int) -> np.ndarray:
@@ -590,11 +646,14 @@ class RRT:
 
         if goal is not None and np.linalg.norm(goal_z - zs[0]) <= connect_r and edges.edges_free(start[None], goal[None])[0]:
             raw = np.stack([start, goal])
-            return self._finish(result(True, raw, "direct edge from start to goal is free", 0), edges, t0, w, q0)
+            return self._finish(result(True, raw, "direct edge from start to goal is free", 0), edges, t0, w, q0, clock, deadline)
 
         it = 0
         message = ""
         t_search = time.perf_counter()
+        end = math.inf if deadline is None else float(deadline)
+        if st.time_limit_s is not None:
+            end = min(end, t_search + st.time_limit_s)
         while True:
             if cfg.max_iters is not None and it >= cfg.max_iters:
                 message = f"within the iteration budget ({cfg.max_iters:,} iterations, {n:,} nodes)"
@@ -602,17 +661,23 @@ class RRT:
             if n >= cap_max:
                 message = f"within the node budget ({cfg.max_nodes:,} nodes)"
                 break
-            if st.time_limit_s is not None and time.perf_counter() - t_search > st.time_limit_s:
-                message = f"within {st.time_limit_s:.1f} s ({n:,} nodes)"
+            if time.perf_counter() > end:
+                limit = st.time_limit_s if st.time_limit_s is not None else deadline - t0  # the budget the user gave
+                message = f"within {limit:.1f} s ({n:,} nodes)"
                 info["time_limit_hit"] = True
                 break
             it += 1
             nb = cfg.batch_size
+            t1 = time.perf_counter()
             samples = lo + rng.random((nb, d)) * span  # (N, D)
             if goal is not None and cfg.goal_bias > 0:
                 samples[rng.random(nb) < cfg.goal_bias] = goal
             sz = samples * w
+            t2 = time.perf_counter()
             near = np.argmin(cdist(sz, zs[:n], "sqeuclidean"), axis=1)  # (N,)
+            t3 = time.perf_counter()
+            clock["sampling"] += t2 - t1
+            clock["nearest"] += t3 - t2
             base = nodes[near]  # (N, D)
             delta = samples - base
             dist = np.linalg.norm(sz - zs[near], axis=1)  # metric distance
@@ -653,22 +718,32 @@ class RRT:
                         nodes[n], zs[n], parents[n] = goal, goal_z, best
                         cost[n] = cost[best] + float(np.linalg.norm(goal_z - zs[best]))
                         n += 1
-                    return self._finish(result(True, raw, f"goal reached after {it} iterations", it), edges, t0, w, q0)
+                    return self._finish(result(True, raw, f"goal reached after {it} iterations", it), edges, t0, w, q0, clock, deadline)
             if st.goal_tolerance > 0 and np.any(dg <= st.goal_tolerance):
                 best = int(ids[np.argmin(dg)])
-                return self._finish(result(True, trace(best), f"within goal_tolerance after {it} iterations", it), edges, t0, w, q0)
+                return self._finish(result(True, trace(best), f"within goal_tolerance after {it} iterations", it), edges, t0, w, q0, clock, deadline)
 
         if goal is None:
             return result(True, None, f"exploration finished: {message}", it)
         return result(False, None, f"no path found {message}", it)
 
-    def _finish(self, res: PlanResult, edges: EdgeChecker, t0: float, w: np.ndarray, q0: int) -> PlanResult:
+    def _finish(self, res: PlanResult, edges: EdgeChecker, t0: float, w: np.ndarray, q0: int, clock: dict, deadline: float | None) -> PlanResult:
+        c_search = edges.time_s
+        t1 = time.perf_counter()
         if self.config.shortcut and len(res.path) > 2:
-            res.path = shortcut_path(edges, res.path)
+            res.path = shortcut_path(edges, res.path, deadline=deadline)
             res.length = path_length(res.path, w)
         res.info["n_queries"] = edges.n_queries - q0
         res.time_s = time.perf_counter() - t0
+        res.info["time_split"] = _split(res.time_s, clock, c_search, time.perf_counter() - t1)
         return res
+
+
+def _split(total: float, clock: dict, collision: float, shortcut: float) -> dict:
+    """The time split of a search: sampling, nearest, collision, shortcut, other (= the rest) seconds."""
+    out = {"sampling": clock["sampling"], "nearest": clock["nearest"], "collision": collision, "shortcut": shortcut}
+    out["other"] = max(0.0, total - sum(out.values()))
+    return out
 
 
 def _grow(a: np.ndarray, cap: int, fill=0) -> np.ndarray:

@@ -1,0 +1,269 @@
+"""Batched bidirectional RRT (RRT-Connect) on the CollisionSplatting checker.
+
+Two trees grow, one from the start and one from the goal, and take turns. Each iteration:
+
+1. **Extend** the active tree A towards ``batch_size`` uniform samples of the sampling box: the
+   nearest node of A (weighted metric ``|motion_bound * dq|``, as in :mod:`.rrt`) steps at most
+   ``stride`` towards each sample.
+2. **Connect**: the ``connect_attempts`` new nodes closest to the other tree B are each the target
+   of a *connect* from B's nearest node: a straight run towards the target (RRT-Connect's repeated
+   extension). A run advances at most ``connect_strides`` strides per iteration and, while it stays
+   free, goes on in the next iterations (at most ``2 * connect_attempts`` runs carried on): a run
+   that hits an obstacle early wastes few checks, one in free space still reaches its target.
+3. **One collision call** checks every new edge of the iteration (the extensions and the connect
+   runs) with :meth:`EdgeChecker.free_prefix`, at the edge resolution of the RRT (the same
+   guarantee: no point of any robot ellipsoid moves more than ``edge_resolution`` between two
+   consecutive checked configurations).
+4. Free extensions become nodes of A. A connect run that is free up to its first colliding check
+   sample adds that free part to B, one node every stride on the check-sample grid (nodes are
+   always checked configurations); a run that reaches an A node whose own extension was free
+   joins the trees: the path is start tree -> joint -> goal tree.
+
+Then the path is shortcut greedily (batched edge checks, :func:`shortcut_path`): first with
+doubling candidate offsets (the raw path has a vertex every stride along its connect runs, and
+checking every long candidate edge from every vertex would cost more than the search), then with
+every candidate on the few vertices left.
+
+The lengths (stride, edge resolution, sampling box) are the RRT's (:meth:`RRT.settings`, derived
+from the scene and the robot when unset). Nearest neighbours are brute force: one (N x n) distance
+matrix per query over preallocated arrays (the trees stay small enough that this beats rebuilding
+a KD-tree; the time it takes is reported in the time split). Everything random comes from one
+generator seeded by ``RRTConfig.seed``, so a run is deterministic for a seed.
+
+The result's ``info["time_split"]`` gives the seconds spent sampling (and steering), in nearest
+neighbours, in collision checks, in shortcutting and the rest (setup, bookkeeping).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+from scipy.spatial.distance import cdist
+
+from ..errors import PlanningError
+from .rrt import RRT, EdgeChecker, PlanResult, check_endpoint, path_length, shortcut_path
+
+
+class _Tree:
+    """One tree: (cap, D) node configurations, their metric images and parents, grown in place."""
+
+    def __init__(self, root: np.ndarray, w: np.ndarray, cap: int) -> None:
+        d = root.size
+        self.w = w
+        self.nodes = np.empty((cap, d))  # (cap, D) configurations
+        self.zs = np.empty((cap, d))  # (cap, D) the same in the weighted metric
+        self.parents = np.full(cap, -1, dtype=np.int64)  # (cap,)
+        self.nodes[0], self.zs[0] = root, root * w
+        self.n = 1
+
+    def add(self, q: np.ndarray, parents: np.ndarray) -> np.ndarray:
+        """Append nodes (K, D) with parents (K,); returns their ids (K,)."""
+        k = len(q)
+        if self.n + k > len(self.nodes):
+            cap = max(2 * len(self.nodes), self.n + k)
+            for name, fill in (("nodes", 0.0), ("zs", 0.0), ("parents", -1)):
+                a = getattr(self, name)
+                b = np.full((cap,) + a.shape[1:], fill, dtype=a.dtype)
+                b[: self.n] = a[: self.n]
+                setattr(self, name, b)
+        ids = np.arange(self.n, self.n + k)
+        self.nodes[ids], self.zs[ids], self.parents[ids] = q, q * self.w, parents
+        self.n += k
+        return ids
+
+    def nearest(self, z: np.ndarray) -> np.ndarray:
+        """(N, D) metric points -> (N,) index of the nearest node."""
+        return np.argmin(cdist(z, self.zs[: self.n], "sqeuclidean"), axis=1)
+
+    def trace(self, i: int) -> np.ndarray:
+        """(P, D) configurations from the root to node i."""
+        idx = []
+        while i >= 0:
+            idx.append(i)
+            i = int(self.parents[i])
+        return self.nodes[idx[::-1]].copy()
+
+
+class RRTConnect(RRT):
+    """Batched RRT-Connect (see the module docstring); same constructor and settings as :class:`RRT`.
+
+    Goal mode only: ``plan(start, goal)``; use :class:`RRT` to explore without a goal.
+    """
+
+    name = "rrtconnect"
+
+    def plan(self, start, goal=None, deadline: float | None = None) -> PlanResult:
+        """Search a path from ``start`` to ``goal`` (configurations (D,)).
+
+        Args:
+            start, goal: (D,) configurations.
+            deadline: a ``time.perf_counter()`` value the whole call (search and shortcut) stops
+                by, besides ``RRTConfig.time_limit_s`` (used by :func:`~splatplan.planners.plan`
+                to share one budget with the refinement).
+
+        Raises:
+            PlanningError: no goal, start or goal in collision, outside the sampling box / scene
+                bounds / joint limits, or a bad box.
+        """
+        t0 = time.perf_counter()
+        if goal is None:
+            raise PlanningError("RRT-Connect needs a goal; use the RRT planner to explore without one")
+        cfg = self.config
+        st = self.settings(start, goal)
+        start = np.asarray(start, dtype=np.float64).reshape(-1)
+        goal = np.asarray(goal, dtype=np.float64).reshape(-1)
+        d = start.size
+        lo, hi = st.box_lo, st.box_hi
+        geom = self.geometry
+        w = geom.distance_scale()  # (D,) configuration -> metric space
+        edges = EdgeChecker(self.checker, geom, st.edge_resolution, inflate=self.inflate_edges)
+        q0 = geom.n_queries
+        check_endpoint(self.checker, geom, start, "start")
+        check_endpoint(self.checker, geom, goal, "goal")
+        rng = np.random.default_rng(cfg.seed)
+        frozen = hi <= lo
+        span = np.where(frozen, 0.0, hi - lo)
+        stride = st.stride
+        cap_max = math.inf if cfg.max_nodes is None else int(cfg.max_nodes)
+        cap0 = int(min(cap_max, 4096))
+        trees = [_Tree(start, w, cap0), _Tree(goal, w, cap0)]  # 0: from the start, 1: from the goal
+        n_conn = int(cfg.connect_attempts)
+        conn_len = math.inf if cfg.connect_strides is None else float(cfg.connect_strides) * stride
+        t_sample = t_near = 0.0
+        end = math.inf if deadline is None else float(deadline)
+        if st.time_limit_s is not None:
+            end = min(end, time.perf_counter() + st.time_limit_s)
+        info = {"settings": st.as_dict(), "edge_resolution": st.edge_resolution, "stride": st.stride, "planner": self.name}
+
+        def result(success: bool, path: np.ndarray | None, message: str, it: int) -> PlanResult:
+            ta, tb = trees
+            nodes = np.concatenate([ta.nodes[: ta.n], tb.nodes[: tb.n]])
+            parents = np.concatenate([ta.parents[: ta.n], np.where(tb.parents[: tb.n] >= 0, tb.parents[: tb.n] + ta.n, -1)])
+            res = PlanResult(
+                success=success,
+                path=np.zeros((0, d)) if path is None else path,
+                length=math.inf if path is None else path_length(path, w),
+                time_s=0.0,
+                n_nodes=ta.n + tb.n,
+                n_iters=it,
+                tree_nodes=nodes,
+                tree_parents=parents,
+                message=message,
+                path_rrt=None if path is None else path.copy(),
+                info={**info, "tree_sizes": [ta.n, tb.n]},
+            )
+            t_short = time.perf_counter()
+            c_before = edges.time_s
+            q_before = geom.n_queries
+            if success and cfg.shortcut and len(res.path) > 2:
+                dl = None if math.isinf(end) else end
+                res.path = shortcut_path(edges, res.path, deadline=dl, candidates="doubling")
+                if len(res.path) > 3:  # (with 3 vertices the one candidate edge was just checked)
+                    res.path = shortcut_path(edges, res.path, deadline=dl)  # every candidate on the few vertices left
+                res.length = path_length(res.path, w)
+            t_now = time.perf_counter()
+            c_search = c_before
+            res.time_s = t_now - t0
+            split = {
+                "sampling": t_sample,
+                "nearest": t_near,
+                "collision": c_search,
+                "shortcut": t_now - t_short,
+            }
+            split["other"] = max(0.0, res.time_s - sum(split.values()))
+            res.info["time_split"] = split
+            res.info["n_queries"] = geom.n_queries - q0
+            res.info["n_queries_shortcut"] = geom.n_queries - q_before
+            return res
+
+        if edges.edges_free(start[None], goal[None])[0]:
+            return result(True, np.stack([start, goal]), "direct edge from start to goal is free", 0)
+
+        it = 0
+        runs: list[tuple[int, int, int, int]] = []  # connect runs still free, carried to the next iteration
+        while True:
+            if cfg.max_iters is not None and it >= cfg.max_iters:
+                message = f"within the iteration budget ({cfg.max_iters:,} iterations, {trees[0].n + trees[1].n:,} nodes)"
+                break
+            if trees[0].n + trees[1].n >= cap_max:
+                message = f"within the node budget ({cfg.max_nodes:,} nodes)"
+                break
+            if time.perf_counter() > end:
+                limit = st.time_limit_s if st.time_limit_s is not None else deadline - t0  # the budget the user gave
+                message = f"within {limit:.1f} s ({trees[0].n + trees[1].n:,} nodes)"
+                info["time_limit_hit"] = True
+                break
+            a_id = it % 2
+            it += 1
+            ta, tb = trees[a_id], trees[1 - a_id]
+            # 1. extend A towards uniform samples
+            t1 = time.perf_counter()
+            samples = lo + rng.random((cfg.batch_size, d)) * span  # (N, D)
+            sz = samples * w
+            t2 = time.perf_counter()
+            near = ta.nearest(sz)  # (N,)
+            t3 = time.perf_counter()
+            base = ta.nodes[near]
+            dist = np.linalg.norm(sz - ta.zs[near], axis=1)  # (N,) metric distance
+            ok = dist > 1e-12
+            base, near, dist, samples = base[ok], near[ok], dist[ok], samples[ok]
+            step = np.minimum(dist, stride) / np.maximum(dist, 1e-300)
+            new = base + (samples - base) * step[:, None]  # (M, D) steer: at most `stride` towards the sample
+            new[:, frozen] = lo[frozen]
+            m = len(new)
+            t4 = time.perf_counter()
+            # 2. connect B towards the new nodes closest to it; carry on the runs that were free
+            near_b = tb.nearest(new * w) if m else np.zeros(0, dtype=np.int64)  # (M,)
+            t5 = time.perf_counter()
+            d_b = np.linalg.norm(new * w - tb.zs[near_b], axis=1)  # (M,)
+            pick = np.argsort(d_b, kind="stable")[: min(n_conn, m)]  # (C,) indices into new
+            # a run: (tree it grows, its front node, tree of the target, target node id or -1 - index into new)
+            todo = [(1 - a_id, int(near_b[j]), a_id, -1 - int(j)) for j in pick] + runs
+            c_from = np.array([trees[f].nodes[i] for f, i, _, _ in todo]).reshape(-1, d)  # (C, D)
+            c_tgt = np.array([new[-1 - t] if t < 0 else trees[g].nodes[t] for _, _, g, t in todo]).reshape(-1, d)
+            c_len = np.linalg.norm((c_tgt - c_from) * w, axis=1)  # (C,)
+            frac = np.minimum(1.0, conn_len / np.maximum(c_len, 1e-300))  # (C,) share of the run tried now
+            c_to = c_from + (c_tgt - c_from) * frac[:, None]
+            t_sample += (t2 - t1) + (t4 - t3)
+            t_near += (t3 - t2) + (t5 - t4)
+            # 3. one collision call for every edge of the iteration
+            k, n = edges.free_prefix(np.concatenate([base, c_from]), np.concatenate([new, c_to]))
+            t6 = time.perf_counter()
+            ext_free = k[:m] == n[:m]  # (M,)
+            kc, nc = k[m:], n[m:]  # (C,)
+            # 4. grow A by the free extensions, B by the free part of each connect run
+            new_ids = np.full(m, -1, dtype=np.int64)
+            if ext_free.any():
+                new_ids[ext_free] = ta.add(new[ext_free], near[ext_free])
+            runs = []
+            for c, (f, i_from, g, tgt) in enumerate(todo):
+                if tgt < 0:  # the target is a new node of this iteration: it exists if its extension was free
+                    tgt = int(new_ids[-1 - tgt])
+                    if tgt < 0:
+                        continue  # (its free part still grows the tree below)
+                if kc[c] == nc[c] and frac[c] >= 1.0 and tgt >= 0:
+                    ps, pg = trees[f].trace(i_from), trees[g].trace(tgt)  # root of f -> joint, root of g -> joint
+                    raw = np.vstack([ps, pg[::-1]]) if f == 0 else np.vstack([pg, ps[::-1]])
+                    t_sample += time.perf_counter() - t6
+                    return result(True, raw, f"trees joined after {it} iterations", it)
+            for c, (f, i_from, g, tgt) in enumerate(todo):
+                if kc[c] == 0:
+                    continue
+                # nodes on the check-sample grid, about one per stride, and the last free sample
+                seg = float(np.linalg.norm((c_to[c] - c_from[c]) * w))
+                every = max(1, int(stride * nc[c] / max(seg, 1e-300)))
+                ii = np.arange(every, kc[c] + 1, every)
+                if ii.size == 0 or ii[-1] != kc[c]:
+                    ii = np.append(ii, kc[c])
+                pts = c_from[c] + (ii / nc[c])[:, None] * (c_to[c] - c_from[c])  # (K, D)
+                tree = trees[f]
+                parent = np.concatenate([[i_from], np.arange(tree.n, tree.n + len(ii) - 1)])
+                ids = tree.add(pts, parent)
+                if tgt < 0:
+                    tgt = int(new_ids[-1 - tgt])
+                if kc[c] == nc[c] and frac[c] < 1.0 and tgt >= 0 and len(runs) < 2 * n_conn:
+                    runs.append((f, int(ids[-1]), g, tgt))  # free so far: the run goes on next iteration
+            t_sample += time.perf_counter() - t6
+        return result(False, None, f"no path found {message}", it)
