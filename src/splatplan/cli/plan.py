@@ -85,6 +85,12 @@ def cmd_plan(args) -> int:
         raise SplatplanError(f"--out {args.out}: expected a .json path")
     if not out.parent.exists():
         raise SplatplanError(f"output folder {out.parent} does not exist")
+    if args.planner != "rrt" and not args.planner.startswith("ompl:"):
+        raise SplatplanError(f"--planner {args.planner!r}: 'rrt' or 'ompl:NAME' (e.g. ompl:RRTConnect, ompl:BITstar)")
+    if args.planner.startswith("ompl:"):
+        from ..planners.ompl_bridge import _ompl
+
+        _ompl()  # the missing extra is named before any work
     robot = _robot_for(args)
     start = parse_config(args.start, robot, "--start")
     goal = parse_config(args.goal, robot, "--goal")
@@ -120,7 +126,7 @@ def cmd_plan(args) -> int:
     print(f"plan {robot.name} ({robot.dof} dofs, {robot.n_ellipsoids} ellipsoid(s)), n_sigma {mcfg.n_sigma:g}: {settings.summary()}")
     for note in notes + settings.notes:
         print(f"note: {note}", file=sys.stderr)
-    res = plan(checker, start, goal, robot=robot, refine=args.refine, seed=args.seed, rrt_config=rrt_cfg, refine_config=ref_cfg)
+    res = plan(checker, start, goal, robot=robot, refine=args.refine, seed=args.seed, rrt_config=rrt_cfg, refine_config=ref_cfg, planner=args.planner)
     doc = {
         "success": bool(res.success),
         "robot": robot.name,
@@ -170,6 +176,8 @@ def register(sub, eval_sub) -> None:
     s.add_argument("--height", type=float, default=None, help="plane coordinate along --up for --planar / go2 (scene units)")
     s.add_argument("--time-limit", type=float, default=None, help="RRT wall-clock budget in seconds (default 10; same as --rrt-time-limit-s)")
     s.add_argument("--refine", action="store_true", help="zeroth-order refinement of the RRT path")
+    s.add_argument("--planner", default="rrt", help="rrt (ours, default) | ompl:NAME, an OMPL geometric planner on the same checker "
+                   "(ompl:RRTConnect, ompl:RRTstar, ompl:BITstar, ompl:PRM, ...; needs the 'ompl' extra)")  # fmt: skip
     s.add_argument("--seed", type=int, default=0)
     s.add_argument("--force", action="store_true", help="overwrite an existing --out even when no path is found")
     add_device_arg(s)

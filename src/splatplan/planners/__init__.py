@@ -14,6 +14,7 @@ from __future__ import annotations
 import time
 from dataclasses import replace
 
+from ..errors import SplatplanError
 from .bspline import UniformBSpline, bspline_basis, bspline_eval, fit_bspline, knot_vector, resample_polyline
 from .costs import CollisionCost, ControlEffortCost, Cost, GoalPoseCost, JointLimitCost, Rollout, StateCost, TerminalCost, total_cost
 from .image_cost import ImageCost
@@ -85,6 +86,7 @@ def plan(
     rrt_config: RRTConfig | None = None,
     refine_config: RefineConfig | None = None,
     robot=None,
+    planner: str = "rrt",
 ) -> PlanResult:
     """Plan a collision-free path for a robot: batched RRT (+ shortcut) (+ refinement).
 
@@ -100,6 +102,9 @@ def plan(
             Give ``box_lo``/``box_hi`` with equal z (or ``frozen=(2,)``) to plan in a plane.
         refine_config: :class:`RefineConfig` (default: RefineConfig()).
         robot: a :class:`~splatplan.robots.Robot` or a name for :func:`~splatplan.robots.load_robot`.
+        planner: "rrt" (ours) or "ompl:NAME", an OMPL geometric planner on the same checker, box,
+            edge resolution and time limit (:func:`~splatplan.planners.ompl_bridge.plan_ompl`;
+            the ``ompl`` extra; ``refine`` and ``seed`` do not apply there).
 
     Returns:
         :class:`PlanResult`; ``path_rrt`` holds the raw tree path, ``path`` the final one,
@@ -109,6 +114,12 @@ def plan(
     Raises:
         PlanningError: start or goal in collision, outside the scene bounds or the sampling box.
     """
+    if planner.startswith("ompl:"):
+        from .ompl_bridge import plan_ompl
+
+        return plan_ompl(checker, start, goal, robot=robot, name=planner, time_limit_s=None, radius=radius, rrt_config=rrt_config)
+    if planner != "rrt":
+        raise SplatplanError(f"unknown planner {planner!r}: 'rrt' or 'ompl:NAME' (e.g. ompl:RRTConnect)")
     t0 = time.perf_counter()
     cfg = replace(rrt_config or RRTConfig(), seed=seed)
     rrt = RRT(checker, cfg, radius=radius, robot=robot)
