@@ -126,3 +126,19 @@ def test_bad_engines():
         run_tasks(tasks(1), toy, functools.partial(make_ctx, 1.0), engine_from_flags(scheduler="tcp://127.0.0.1:9"), None, progress=False)
     with pytest.raises(SplatplanError, match="unique"):
         run_tasks([Task("a", {}), Task("a", {})], toy, functools.partial(make_ctx, 1.0))
+
+
+def big(spec: dict, ctx: dict) -> dict:
+    return {"scores": np.arange(1000, dtype=np.float64) * spec["i"], "small": np.arange(3), "nan": float("nan")}
+
+
+def test_large_arrays_go_beside_the_file(tmp_path):
+    out = tmp_path / "a.jsonl"
+    factory = functools.partial(make_ctx, 1.0)
+    res = run_tasks(tasks(2), big, factory, {"kind": "dask", "workers": 1}, out, progress=False)
+    assert len(out.read_text()) < 2000 and len(list((tmp_path / "a.jsonl.arrays").glob("*.npy"))) == 2
+    again = run_tasks(tasks(2), big, factory, None, out, progress=False)  # resumed: read back from the files
+    assert again.n_run == 0
+    for r in (res, again):
+        np.testing.assert_array_equal(r.rows["t1"]["scores"], np.arange(1000.0))
+        assert r.rows["t1"]["small"] == [0, 1, 2] and r.rows["t1"]["nan"] is None

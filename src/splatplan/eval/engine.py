@@ -15,7 +15,9 @@ Guarantees:
   worker object (keyed by the pickled factory), never shipped with the tasks: tasks carry only
   their small spec. A context that fails to build fails the task (recorded), not the run.
 * **Results stream to disk** as they finish: one JSON line per task in ``out_path`` (``key``,
-  ``ok``, ``row`` or ``error``, ``seconds``, ``worker``), flushed per line. **A rerun skips every
+  ``ok``, ``row`` or ``error``, ``seconds``, ``worker``), flushed per line. Large numpy arrays in a
+  row (> :data:`ARRAY_INLINE_MAX` elements, e.g. a study's score per grid point) go to
+  ``<out_path>.arrays/*.npy`` and the line refers to them; ``RunResult.rows`` gives them back as arrays. **A rerun skips every
   key already in the file** (resume); a torn last line (a crash mid-write) is dropped first. Failed
   tasks are skipped too unless ``retry_failed``; the last record of a key wins when reading.
 * **A failing task is recorded** with its error (``ok: false``, ``error: "Type: message"``), never
@@ -39,6 +41,7 @@ of them) for the dask engine.
 
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 import os
@@ -171,16 +174,47 @@ def load_results(path: str | Path, repair: bool = False) -> dict[str, dict]:
     return out
 
 
-def _jsonable(x):
-    """numpy scalars / arrays and tuples -> plain JSON values (NaN/inf -> None)."""
+#: arrays with more elements than this are stored beside the results file (``<file>.arrays/``)
+ARRAY_INLINE_MAX = 64
+
+
+def _encode(x, arrays_dir: Path | None, stem: str, path: str = "row"):
+    """A task's row -> JSON values: numpy scalars and small arrays to numbers and lists,
+    tuples to lists, NaN/inf to None; a large array to ``{"__npy__": NAME}`` (saved in
+    ``arrays_dir`` first) or, without one, kept as the array (in-memory runs)."""
+    import numpy as np
+
     if isinstance(x, dict):
-        return {str(k): _jsonable(v) for k, v in x.items()}
+        return {str(k): _encode(v, arrays_dir, stem, f"{path}.{k}") for k, v in x.items()}
     if isinstance(x, (list, tuple)):
-        return [_jsonable(v) for v in x]
+        return [_encode(v, arrays_dir, stem, f"{path}.{i}") for i, v in enumerate(x)]
+    if isinstance(x, np.ndarray) and x.size > ARRAY_INLINE_MAX:
+        if arrays_dir is None:
+            return x
+        arrays_dir.mkdir(exist_ok=True)
+        name = f"{stem}-{hashlib.sha1(path.encode()).hexdigest()[:8]}.npy"
+        tmp = arrays_dir / f".{name}.tmp"
+        with open(tmp, "wb") as f:
+            np.save(f, x, allow_pickle=False)
+        os.replace(tmp, arrays_dir / name)  # the file exists before any line refers to it
+        return {"__npy__": name}
     if hasattr(x, "tolist") and not isinstance(x, (str, bytes)):
-        return _jsonable(x.tolist())
+        return _encode(x.tolist(), arrays_dir, stem, path)
     if isinstance(x, float) and not math.isfinite(x):
         return None
+    return x
+
+
+def _decode(x, arrays_dir: Path | None):
+    """Inverse of :func:`_encode` for stored arrays (``{"__npy__": NAME}`` -> the array)."""
+    if isinstance(x, dict):
+        if set(x) == {"__npy__"} and arrays_dir is not None:
+            import numpy as np
+
+            return np.load(arrays_dir / x["__npy__"], allow_pickle=False)
+        return {k: _decode(v, arrays_dir) for k, v in x.items()}
+    if isinstance(x, list):
+        return [_decode(v, arrays_dir) for v in x]
     return x
 
 
@@ -205,7 +239,7 @@ def _call(fn: Callable, factory: Callable, spec: dict, contexts: dict) -> dict:
                 contexts.clear()  # one context per worker: a new factory replaces the old one
                 contexts[key] = factory()
             ctx = contexts[key]
-        row = _jsonable(fn(spec, ctx))
+        row = fn(spec, ctx)  # shipped as is (numpy arrays pickle compactly); encoded by the client
         if not isinstance(row, dict):
             raise TypeError(f"the task function must return a dict, got {type(row).__name__}")
         return {"ok": True, "row": row, "seconds": time.perf_counter() - t0}
@@ -266,6 +300,7 @@ def run_tasks(
         dup = next(k for k in keys if keys.count(k) > 1)
         raise SplatplanError(f"task keys must be unique; {dup!r} appears more than once")
     done = load_results(out_path, repair=True) if out_path is not None else {}
+    arrays_dir = Path(f"{out_path}.arrays") if out_path is not None else None
     wanted = set(keys)
     finished = {k for k, r in done.items() if k in wanted and (r.get("ok") or not retry_failed)}
     todo = [t for t in tasks if t.key not in finished]
@@ -274,6 +309,12 @@ def run_tasks(
 
     def record(task: Task, rec: dict) -> None:
         rec = {"key": task.key, **rec}
+        if "row" in rec:
+            try:
+                rec["row"] = _encode(rec["row"], arrays_dir, hashlib.sha1(task.key.encode()).hexdigest()[:16])
+                json.dumps(rec["row"], allow_nan=False) if sink is not None else None
+            except (TypeError, ValueError) as exc:  # a row that JSON cannot hold is the task's error
+                rec = {"key": task.key, "ok": False, "error": f"TypeError: the task's row is not JSON-able: {exc}", "seconds": rec.get("seconds")}
         done[task.key] = rec
         if sink is not None:
             sink.write(json.dumps(rec, allow_nan=False) + "\n")
@@ -304,7 +345,7 @@ def run_tasks(
             continue
         res.records[k] = rec
         if rec.get("ok"):
-            res.rows[k] = rec["row"]
+            res.rows[k] = _decode(rec["row"], arrays_dir)
         else:
             res.errors[k] = rec.get("error", "unknown error")
     res.wall_s = time.perf_counter() - t_all
