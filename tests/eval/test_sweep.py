@@ -79,3 +79,11 @@ def test_bad_input_is_one_line_exit_2(spec_dir, tmp_path, capsys, text, extra, m
     rc = main(["sweep", str(spec), "--out", str(tmp_path / "o"), *extra])
     err = capsys.readouterr().err.strip().splitlines()
     assert rc == 2 and len(err) == 1 and msg in err[0], err
+
+
+@pytest.mark.parametrize("study, extra, msg", [("pr", ["--workers", "0"], ">= 1"), ("conservatism", ["--scheduler", "nowhere"], "tcp://HOST:PORT")])
+def test_eval_engine_flags_bad_input(tmp_path, capsys, study, extra, msg):
+    rc = main(["eval", study, "--quick", "--out", str(tmp_path / "o"), *extra])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and len(err) == 1 and msg in err[0], err
+    assert not (tmp_path / "o").exists()  # rejected before any work or output
