@@ -142,3 +142,13 @@ def test_large_arrays_go_beside_the_file(tmp_path):
     for r in (res, again):
         np.testing.assert_array_equal(r.rows["t1"]["scores"], np.arange(1000.0))
         assert r.rows["t1"]["small"] == [0, 1, 2] and r.rows["t1"]["nan"] is None
+
+
+def test_existing_scheduler_by_address(tmp_path):
+    from distributed import LocalCluster
+
+    factory = functools.partial(make_ctx, 2.0)
+    with LocalCluster(host="127.0.0.1", protocol="tcp", n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None) as cl:
+        res = run_tasks(tasks(3), toy, factory, engine_from_flags(scheduler=cl.scheduler_address), tmp_path / "e.jsonl", progress=False)
+    assert res.engine == {"kind": "dask", "workers": 1, "scheduler": cl.scheduler_address}
+    assert values(res) == values(run_tasks(tasks(3), toy, factory, progress=False))
