@@ -87,3 +87,14 @@ def test_eval_engine_flags_bad_input(tmp_path, capsys, study, extra, msg):
     err = capsys.readouterr().err.strip().splitlines()
     assert rc == 2 and len(err) == 1 and msg in err[0], err
     assert not (tmp_path / "o").exists()  # rejected before any work or output
+
+
+def test_check_job(spec_dir):
+    spec = spec_dir / "check.yaml"
+    spec.write_text('scenes: ["scenes/wall.ply"]\njob: check\nn_sigma: [0, 2]\nseeds: 3\nn_configs: 2000\n')
+    out = spec_dir / "check_out"
+    assert main(["sweep", str(spec), "--out", str(out)]) == 0
+    s = json.loads((out / "summary.json").read_text())
+    frac = {g["n_sigma"]: g["colliding_fraction"] for g in s["groups"]}
+    assert 0 < frac[0.0] <= frac[2.0] < 1  # more conservative: more configurations in collision
+    assert "| wall.ply | 2 | 1 |" in (out / "summary.md").read_text()

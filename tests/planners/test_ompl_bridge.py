@@ -110,3 +110,25 @@ def test_missing_extra_says_how_to_install(monkeypatch, tmp_path, capsys):
     rc = main(["plan", "stonehenge.ply", "--start", "0,0,0.06", "--goal", "0.1,0,0.06", "--planner", "ompl:RRTConnect", "--out", str(tmp_path / "p.json")])
     err = capsys.readouterr().err.strip().splitlines()
     assert rc == 2 and len(err) == 1 and "pip install 'splatplan[ompl]'" in err[0]
+
+
+def test_cli_plan_with_ompl_keeps_nanobind_off_stderr(tmp_path):
+    """`splatplan plan --planner ompl:NAME` in a fresh interpreter: a path, and no leak report at exit."""
+    import os
+    import subprocess
+    from pathlib import Path
+
+    from splatplan.scenes.load import save_scene
+
+    save_scene(wall_scene(), tmp_path / "wall.ply")
+    out = tmp_path / "p.json"
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[2] / "src")}
+    cmd = [sys.executable, "-m", "splatplan.cli", "plan", str(tmp_path / "wall.ply"), "--start=-0.15,0,0.06", "--goal", "0.15,0,0.06",
+           "--box", "-0.3,-0.3,0.06", "0.3,0.3,0.06", "--planner", "ompl:RRTConnect", "--time-limit", "2", "--device", "cpu", "--out", str(out)]  # fmt: skip
+    p = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=300)
+    assert p.returncode == 0, p.stderr
+    assert "nanobind" not in p.stderr and "leaked" not in p.stderr, p.stderr
+    import json
+
+    doc = json.loads(out.read_text())
+    assert doc["success"] and len(doc["path"]) >= 2
