@@ -103,6 +103,10 @@ class SweepSpec:
             for i, p in enumerate(self.pairs):
                 if not isinstance(p, dict) or set(p) != {"start", "goal"}:
                     raise SplatplanError(f"sweep spec: pairs[{i}] must be {{start: [...], goal: [...]}}")
+        import re
+
+        if not re.fullmatch(r"auto|cpu|cuda(:\d+)?", str(self.device)):
+            raise SplatplanError(f"sweep spec: device must be auto, cpu, cuda or cuda:N, got {self.device!r}")
         if not isinstance(self.n_configs, int) or self.n_configs < 1:
             raise SplatplanError(f"sweep spec: n_configs must be an integer >= 1, got {self.n_configs}")
         return self
