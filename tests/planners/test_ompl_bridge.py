@@ -132,3 +132,25 @@ def test_cli_plan_with_ompl_keeps_nanobind_off_stderr(tmp_path):
 
     doc = json.loads(out.read_text())
     assert doc["success"] and len(doc["path"]) >= 2
+
+
+def test_ctrl_c_stops_the_search():
+    """SIGINT while OMPL's solve() runs (GIL held, C++ frames on the stack): the search stops at the
+    next callback and KeyboardInterrupt is raised after solve() returns, long before the limit."""
+    import os
+    import signal
+    import threading
+    import time
+
+    box = make_scene([((0.1, -0.08, 0.0), (0.26, 0.08, 0.14))], spacing=0.01)
+    ch = make_checker(box, n_sigma=1.0)
+    timer = threading.Timer(0.5, os.kill, (os.getpid(), signal.SIGINT))
+    t0 = time.perf_counter()
+    timer.start()
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            plan_ompl(ch, (-0.15, 0.0, 0.06), (0.18, 0.0, 0.06), name="RRTConnect", time_limit_s=60.0, radius=R, rrt_config=PLANE)
+    finally:
+        timer.cancel()
+    assert time.perf_counter() - t0 < 30.0
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # the handler is restored
