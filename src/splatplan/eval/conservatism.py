@@ -315,11 +315,10 @@ def run_conservatism(out_dir: Path, quick: bool = False, seed: int | None = None
     import functools
     import hashlib
 
-    from .. import __version__
-    from .engine import Task, run_tasks
+    from .engine import Task, code_version, run_tasks
 
     cfg_dict = {k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(cfg).items()}
-    sig = hashlib.sha1(json.dumps({"config": cfg_dict, "device": str(base.device), "version": __version__}, sort_keys=True).encode()).hexdigest()[:8]
+    sig = hashlib.sha1(json.dumps({"config": cfg_dict, "device": str(base.device), "code": code_version()}, sort_keys=True).encode()).hexdigest()[:8]
     tasks = [
         Task(f"{sig}/ns={float(ns):g}/goal={i}", {"n_sigma": float(ns), "goal": g.tolist(), "start": start.tolist(), "seed": cfg.seed + i, "config": cfg_dict})
         for ns in cfg.n_sigmas

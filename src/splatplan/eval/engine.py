@@ -41,12 +41,14 @@ of them) for the dask engine.
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import math
 import os
 import pickle
 import socket
+import sys
 import threading
 import time
 import traceback
@@ -58,7 +60,7 @@ from typing import Any, Callable, Iterable
 from ..errors import SplatplanError
 from ._common import progress as _progress
 
-__all__ = ["EngineConfig", "RunResult", "Task", "engine_from_flags", "load_results", "run_tasks"]
+__all__ = ["EngineConfig", "RunResult", "Task", "code_version", "engine_from_flags", "load_results", "run_tasks"]
 
 
 @dataclass(frozen=True)
@@ -148,6 +150,18 @@ class RunResult:
     n_skipped: int = 0
     wall_s: float = 0.0
     cluster_start_s: float = 0.0
+
+
+@functools.lru_cache(maxsize=1)
+def code_version() -> str:
+    """A short hash of splatplan's own source files: part of every study's resume keys, so results
+    written by other code are never taken for finished tasks."""
+    root = Path(__file__).resolve().parents[1]  # the splatplan package
+    h = hashlib.sha1()
+    for f in sorted(root.rglob("*.py")):
+        h.update(str(f.relative_to(root)).encode())
+        h.update(f.read_bytes())
+    return h.hexdigest()[:12]
 
 
 # ---------------------------------------------------------------------------- results file
@@ -305,6 +319,8 @@ def run_tasks(
     finished = {k for k, r in done.items() if k in wanted and (r.get("ok") or not retry_failed)}
     todo = [t for t in tasks if t.key not in finished]
     res = RunResult(n_skipped=len(finished))
+    if finished and progress:
+        print(f"resuming: {len(finished)} of {len(tasks)} task(s) already finished in {out_path}", file=sys.stderr)
     sink = open(out_path, "a", encoding="utf-8") if out_path is not None else None  # noqa: SIM115 - closed below
 
     def record(task: Task, rec: dict) -> None:

@@ -733,11 +733,10 @@ def _run_scoring(out_dir: Path, scene: str, gt: str | None, cfg: PRConfig, names
     import functools
     import hashlib
 
-    from .. import __version__
-    from .engine import Task, run_tasks
+    from .engine import Task, code_version, run_tasks
 
     cfg_dict = {k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(cfg).items()}
-    src = {"config": cfg_dict, "scene": str(Path(scene).resolve()) if scene != "stonehenge" else scene, "gt": gt, "device": device, "version": __version__}
+    src = {"config": cfg_dict, "scene": str(Path(scene).resolve()) if scene != "stonehenge" else scene, "gt": gt, "device": device, "code": code_version()}
     sig = hashlib.sha1(json.dumps(src, sort_keys=True, default=str).encode()).hexdigest()[:8]
     specs = [("baseline", n, None) for n in names] + [("cs", "", float(ns)) for ns in cfg.n_sigmas]
     specs += [("variant", v, float(ns)) for v in cfg.variants for ns in cfg.n_sigmas]

@@ -290,9 +290,12 @@ def sweep_task(spec: dict, ctx: SweepContext) -> dict:
 def _signature(spec: SweepSpec) -> str:
     """A short hash of the settings that change a cell's result (not the grid axes): resume keys
     of a changed spec never match old results."""
+    from .engine import code_version
+
     d = asdict(spec)
     for k in ("scenes", "n_sigma", "seeds", "planners"):
         d.pop(k)
+    d["code"] = code_version()
     return hashlib.sha1(json.dumps(d, sort_keys=True, default=str).encode()).hexdigest()[:8]
 
 
