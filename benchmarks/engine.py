@@ -25,7 +25,7 @@ a context build b per worker,
 ``n t`` saturates at ``t / o`` workers. The script prints T(W) for W = 2, 8, 32, 128 from the
 measured t, o and b.
 
-    python benchmarks/engine.py [--quick] [--out benchmarks/results/engine.json]
+    python benchmarks/engine.py [--quick] [--workers 2] [--pairs N] [--max-iters N] [--out benchmarks/results/engine.json]
 
 Timings on this shared 2-core machine are under heavy contention (the JSON records the load
 average); the lead reruns on a quiet machine.
@@ -137,6 +137,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--splats", type=int, default=100_000, help="Stonehenge splats")
     ap.add_argument("--overhead-tasks", type=int, default=400)
+    ap.add_argument("--pairs", type=int, default=None, help="start/goal pairs per job set (default 8 Stonehenge, 6 tabletop)")
+    ap.add_argument("--max-iters", type=int, default=None, help="RRT iterations per plan (default 300 Stonehenge, 150 tabletop)")
     ap.add_argument("--out", default=str(Path(__file__).resolve().parent / "results" / "engine.json"))
     args = ap.parse_args(argv)
     out = Path(args.out)
@@ -148,6 +150,11 @@ def main(argv: list[str] | None = None) -> int:
         "stonehenge": SweepSpec(scenes=["builtin:stonehenge"], robot="sphere:0.015", n_sigma=[0.0, 1.0], pairs=8, max_iters=300, time_limit=120.0, n_splats=args.splats),
         "tabletop": SweepSpec(scenes=["builtin:tabletop"], robot="panda", n_sigma=[1.0], pairs=6, max_iters=150, time_limit=120.0, n_splats=args.splats),
     }
+    for k, spec in sets.items():
+        if args.pairs is not None:
+            sets[k] = spec = replace(spec, pairs=args.pairs)
+        if args.max_iters is not None:
+            sets[k] = replace(spec, max_iters=args.max_iters)
     if args.quick:
         sets = {"stonehenge": replace(sets["stonehenge"], n_sigma=[1.0], pairs=2, max_iters=50, n_splats=20_000)}
     rows = []

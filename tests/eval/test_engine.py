@@ -24,7 +24,9 @@ N_CTX_BUILDS = []
 def make_ctx(scale: float) -> dict:
     """A toy per-worker context; records its pid (serial: in this process)."""
     N_CTX_BUILDS.append(os.getpid())
-    return {"scale": scale, "pid": os.getpid(), "built": time.time()}
+    from splatplan._warp import cpu_threads
+
+    return {"scale": scale, "pid": os.getpid(), "built": time.time(), "threads": cpu_threads()}
 
 
 def toy(spec: dict, ctx: dict) -> dict:
@@ -33,7 +35,7 @@ def toy(spec: dict, ctx: dict) -> dict:
         raise ValueError(f"task {spec['i']} fails on purpose")
     time.sleep(spec.get("sleep", 0.0))
     rng = np.random.default_rng([spec["seed"], spec["i"]])
-    return {"i": spec["i"], "value": float(ctx["scale"] * rng.random()), "ctx_pid": ctx["pid"], "ctx_built": ctx["built"]}
+    return {"i": spec["i"], "value": float(ctx["scale"] * rng.random()), "ctx_pid": ctx["pid"], "ctx_built": ctx["built"], "threads": ctx["threads"]}
 
 
 def tasks(n: int, **extra) -> list[Task]:
@@ -58,6 +60,7 @@ def test_serial_and_dask_same_rows_context_once_per_worker(tmp_path):
     for r in dk.rows.values():
         per_pid.setdefault(r["ctx_pid"], set()).add(r["ctx_built"])
     assert all(len(v) == 1 for v in per_pid.values()) and len(per_pid) <= 2
+    assert {r["threads"] for r in dk.rows.values()} == {1}  # Warp's CPU launches: one thread per worker
     recs = load_results(tmp_path / "dask.jsonl")
     assert sorted(recs) == sorted(f"t{i}" for i in range(12))
 
