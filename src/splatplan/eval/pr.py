@@ -745,7 +745,8 @@ def _run_scoring(out_dir: Path, scene: str, gt: str | None, cfg: PRConfig, names
         key = f"{sig}/{kind}" + (f"/{name}" if name else "") + ("" if ns is None else f"/ns={ns:g}")
         tasks.append(Task(key, {"kind": kind, "name": name, "n_sigma": ns}))
         key_of[(kind, name, ns)] = key
-    factory = functools.partial(make_pr_context, scene, gt, cfg_dict, device)
+    # absolute paths: a worker of an existing cluster may run in another folder
+    factory = functools.partial(make_pr_context, src["scene"], None if gt is None else str(Path(gt).resolve()), cfg_dict, device)
     ran = run_tasks(tasks, pr_task, factory, engine, Path(out_dir) / "pr.results.jsonl", desc="E1 scoring")
     if ran.errors:
         k, e = next(iter(ran.errors.items()))
