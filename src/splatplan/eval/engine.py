@@ -138,8 +138,10 @@ class RunResult:
         engine: the engine that ran this call, as recorded in the outputs: {"kind": "serial"} or
             {"kind": "dask", "workers": N, "scheduler": ADDRESS}.
         n_run: tasks run by this call; n_skipped: tasks found finished in ``out_path``.
-        wall_s: wall-clock seconds of this call (cluster start included).
+        wall_s: wall-clock seconds of this call (cluster start and shutdown included).
         cluster_start_s: seconds to start (or connect to) the cluster (0 for serial).
+        run_s: seconds from the first task's start (serial) or submission (dask) to the last
+            result: the run without the cluster's start and shutdown.
     """
 
     rows: dict[str, dict] = field(default_factory=dict)
@@ -150,6 +152,7 @@ class RunResult:
     n_skipped: int = 0
     wall_s: float = 0.0
     cluster_start_s: float = 0.0
+    run_s: float = 0.0
 
 
 @functools.lru_cache(maxsize=1)
@@ -340,6 +343,7 @@ def run_tasks(
         bar = _progress(total=len(todo), desc=desc, unit="task") if (todo and progress) else None
         if engine.kind == "serial":
             res.engine = {"kind": "serial"}
+            t_run = time.perf_counter()
             contexts: dict = {}
             for t in todo:
                 rec = _call(fn, context_factory, t.spec, contexts)
@@ -347,6 +351,7 @@ def run_tasks(
                 record(t, rec)
                 if bar is not None:
                     bar.update(1)
+            res.run_s = time.perf_counter() - t_run
         else:
             _run_dask(todo, fn, context_factory, engine, record, bar, res)
         if bar is not None:
@@ -412,6 +417,7 @@ def _run_dask(todo: list[Task], fn, factory, engine: EngineConfig, record, bar, 
     try:
         if not todo:
             return
+        t_run = time.perf_counter()
         run_id = uuid.uuid4().hex[:8]
         fut_task = {}
         for t in todo:
@@ -428,6 +434,7 @@ def _run_dask(todo: list[Task], fn, factory, engine: EngineConfig, record, bar, 
             record(t, rec)
             if bar is not None:
                 bar.update(1)
+        res.run_s = time.perf_counter() - t_run
     finally:
         client.close()
         if cluster is not None:
