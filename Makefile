@@ -37,6 +37,7 @@ bench: $(STAMP)
 	$(PY) benchmarks/scene_load.py
 	$(PY) benchmarks/planners.py
 	$(PY) benchmarks/viewer.py
+	$(PY) benchmarks/engine.py
 	$(VENV)/bin/splatplan eval throughput --out benchmarks/results
 	$(VENV)/bin/splatplan eval pr --out benchmarks/results
 	$(VENV)/bin/splatplan eval conservatism --out benchmarks/results

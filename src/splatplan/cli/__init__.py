@@ -32,6 +32,7 @@ _MODULES = (
     "render",
     "tasks",
     "mpc",
+    "sweep",
 )
 
 

@@ -251,6 +251,22 @@ def check_device(device: str) -> str:
     return resolve_device(device)
 
 
+# ---------------------------------------------------------------------------- job engine
+def add_engine_args(parser: argparse.ArgumentParser) -> None:
+    """``--workers N`` (a local Dask cluster on loopback) and ``--scheduler ADDR`` (an existing one);
+    neither: serial, as before. Read back with :func:`engine_from_args`."""
+    g = parser.add_argument_group("job engine (default: serial in this process)")
+    g.add_argument("--workers", type=int, default=None, metavar="N", help="run the tasks on a local Dask cluster of N worker processes (127.0.0.1 only); needs the 'distributed' extra")
+    g.add_argument("--scheduler", default=None, metavar="ADDR", help="run the tasks on an existing Dask cluster, e.g. tcp://10.0.0.5:8786 (workers must have splatplan installed and the scene files at the same paths)")
+
+
+def engine_from_args(args: argparse.Namespace):
+    """The :class:`~splatplan.eval.engine.EngineConfig` of ``--workers`` / ``--scheduler`` (validated)."""
+    from ..eval.engine import engine_from_flags
+
+    return engine_from_flags(getattr(args, "workers", None), getattr(args, "scheduler", None))
+
+
 # ---------------------------------------------------------------------------- config dataclasses -> flags
 def field_docs(cls) -> dict[str, str]:
     """The ``#:`` comment above each field of a dataclass (joined when it spans several lines)."""

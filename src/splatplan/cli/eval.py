@@ -9,7 +9,10 @@ from __future__ import annotations
 
 import importlib
 
-from ._common import _out_dir, add_config_args, add_device_arg, config_from_args
+from ._common import _out_dir, add_config_args, add_device_arg, add_engine_args, config_from_args, engine_from_args
+
+#: studies whose tasks run on the job engine (--workers N / --scheduler ADDR)
+ENGINE_STUDIES = ("pr", "conservatism")
 
 #: study -> (help, module under splatplan.eval, config class, run function, output files)
 STUDIES = {
@@ -34,12 +37,15 @@ def _study(name: str):
 
 def cmd_eval(args) -> int:
     mod, cfg_cls, run, files = _study(args.study)
+    engine = engine_from_args(args) if args.study in ENGINE_STUDIES else None
     base = cfg_cls.quick() if args.quick else cfg_cls()
     cfg = config_from_args(args, cfg_cls, base=base)
     if hasattr(cfg, "validate"):
         cfg.validate()
     out = _out_dir(args.out)
     kw = {"scene": args.scene, "gt": args.gt} if args.study == "pr" else {}
+    if args.study in ENGINE_STUDIES:
+        kw["engine"] = engine
     res = run(out, quick=args.quick, config=cfg, device=args.device, **kw)
     print(mod.report(res).rstrip())
     print(f"\nwrote {', '.join(str(out / f) for f in files)}")
@@ -78,5 +84,7 @@ def register(sub, eval_sub) -> None:
             s.add_argument("--scene", default="stonehenge", help="'stonehenge' (built-in) or a splat file with --gt")
             s.add_argument("--gt", help="ground-truth .gt.json of a scene file (written by 'splatplan scene')")
         add_device_arg(s)
+        if name in ENGINE_STUDIES:
+            add_engine_args(s)
         add_config_args(s, cfg_cls, group=f"study options ({cfg_cls.__name__})")
         s.set_defaults(func=cmd_eval, study=name)

@@ -88,6 +88,10 @@ def cmd_plan(args) -> int:
         raise SplatplanError(f"--out {args.out}: expected a .json path")
     if not out.parent.exists():
         raise SplatplanError(f"output folder {out.parent} does not exist")
+    if args.planner.strip().lower().startswith("ompl:"):
+        from ..planners.ompl_bridge import _ompl
+
+        _ompl()  # the missing extra is named before any work
     robot = _robot_for(args)
     start = parse_config(args.start, robot, "--start")
     goal = parse_config(args.goal, robot, "--goal")
@@ -119,9 +123,10 @@ def cmd_plan(args) -> int:
     mcfg = config_from_args(args, MetricConfig).validate()
     scene = _load(args.scene)
     checker = CollisionChecker(scene, device=args.device, config=mcfg)
-    planner = make_planner(args.planner, checker, rrt_cfg, robot=robot)
-    settings = planner.settings(start, goal)
-    name = planner.name
+    ompl = args.planner.strip().lower().startswith("ompl:")
+    planner = make_planner("auto" if ompl else args.planner, checker, rrt_cfg, robot=robot)
+    settings = planner.settings(start, goal)  # an OMPL planner samples the same box at the same edge resolution
+    name = args.planner.strip() if ompl else planner.name
     print(f"plan {robot.name} ({robot.dof} dofs, {robot.n_ellipsoids} ellipsoid(s)), {name}, n_sigma {mcfg.n_sigma:g}: {settings.summary()}")
     for note in notes + settings.notes:
         print(f"note: {note}", file=sys.stderr)
@@ -179,7 +184,8 @@ def register(sub, eval_sub) -> None:
                    "--height (default the start's); go2 stands on the plane at --height")  # fmt: skip
     s.add_argument("--height", type=float, default=None, help="plane coordinate along --up for --planar / go2 (scene units)")
     s.add_argument("--planner", default="auto", metavar="NAME", help="auto (rrtconnect for robots with 4 or more dofs, else rrt) | rrt "
-                   "(goal-biased batched RRT) | rrtconnect (batched bidirectional RRT-Connect) (default auto)")  # fmt: skip
+                   "(goal-biased batched RRT) | rrtconnect (batched bidirectional RRT-Connect) | ompl:NAME, an OMPL geometric planner on "
+                   "the same checker (ompl:RRTConnect, ompl:RRTstar, ompl:BITstar, ompl:PRM, ...; needs the 'ompl' extra) (default auto)")  # fmt: skip
     s.add_argument("--time-limit", type=float, default=None, help="wall-clock budget of the whole call in seconds: search, shortcut and "
                    "--refine share it (default 10; same as --rrt-time-limit-s)")  # fmt: skip
     s.add_argument("--refine", action="store_true", help="zeroth-order refinement of the RRT path")

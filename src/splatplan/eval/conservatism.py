@@ -146,14 +146,36 @@ def free_start(center, checkers, radius: float = RADIUS, max_offset: float = 0.1
     raise PlanningError(f"no collision-free start within {max_offset} of {center}")
 
 
-def plan_trials(checker, start, goals, means_tree, sdf, seed: int, time_budget_s: float, tag: str = "", config: ConservatismConfig | None = None) -> tuple[list[dict], list]:
-    """Plan start -> each goal (RRT (+ shortcut if SHORTCUT) + refinement) and measure the paths.
+def _plan_one(checker, start, goal, means_tree, sdf, seed: int, rrt_cfg: RRTConfig, radius: float):
+    """One trial: (metric dict, empty on failure; the PlanResult or None on a PlanningError)."""
+    try:
+        res = plan(checker, start, goal, radius=radius, refine=True, seed=seed, rrt_config=rrt_cfg)
+    except PlanningError:
+        return {}, None
+    if not res.success:
+        return {}, res
+    p0 = res.info["path_shortcut"]
+    p1 = res.path
+    return (
+        dict(
+            length_rrt=res.info["length_rrt"],
+            length_refined=res.length,
+            dmin_rrt=d_min(p0, means_tree),
+            dmin_refined=d_min(p1, means_tree),
+            smoothness_rrt=smoothness(p0),
+            smoothness_refined=smoothness(p1),
+            clearance_rrt=clearance(p0, sdf, radius),
+            clearance_refined=clearance(p1, sdf, radius),
+            refined=float(res.refined),
+            time_s=res.time_s,
+            n_nodes=res.n_nodes,
+        ),
+        res,
+    )
 
-    ``config`` supplies the RRT settings and the robot radius (default :class:`ConservatismConfig`).
-    Returns per-trial metric dicts (empty dict for a failure) and the PlanResults (None for an error).
-    """
-    c = config or ConservatismConfig()
-    cfg = RRTConfig(
+
+def _rrt_config(c: "ConservatismConfig", time_budget_s: float) -> RRTConfig:
+    return RRTConfig(
         batch_size=c.batch_size,
         stride=c.stride,
         edge_resolution=c.edge_resolution,
@@ -163,36 +185,56 @@ def plan_trials(checker, start, goals, means_tree, sdf, seed: int, time_budget_s
         max_nodes=c.max_nodes,
         shortcut=SHORTCUT,
     )
+
+
+def plan_trials(checker, start, goals, means_tree, sdf, seed: int, time_budget_s: float, tag: str = "", config: ConservatismConfig | None = None) -> tuple[list[dict], list]:
+    """Plan start -> each goal (RRT (+ shortcut if SHORTCUT) + refinement) and measure the paths.
+
+    ``config`` supplies the RRT settings and the robot radius (default :class:`ConservatismConfig`).
+    Goal i is planned with seed ``seed + i``. Returns per-trial metric dicts (empty dict for a
+    failure) and the PlanResults (None for an error).
+    """
+    c = config or ConservatismConfig()
+    cfg = _rrt_config(c, time_budget_s)
     rows, results = [], []
     for i, g in enumerate(progress(goals, desc=tag)):
-        try:
-            res = plan(checker, start, g, radius=c.radius, refine=True, seed=seed + i, rrt_config=cfg)
-        except PlanningError:
-            rows.append({})
-            results.append(None)
-            continue
+        row, res = _plan_one(checker, start, g, means_tree, sdf, seed + i, cfg, c.radius)
+        rows.append(row)
         results.append(res)
-        if not res.success:
-            rows.append({})
-            continue
-        p0 = res.info["path_shortcut"]
-        p1 = res.path
-        rows.append(
-            dict(
-                length_rrt=res.info["length_rrt"],
-                length_refined=res.length,
-                dmin_rrt=d_min(p0, means_tree),
-                dmin_refined=d_min(p1, means_tree),
-                smoothness_rrt=smoothness(p0),
-                smoothness_refined=smoothness(p1),
-                clearance_rrt=clearance(p0, sdf, c.radius),
-                clearance_refined=clearance(p1, sdf, c.radius),
-                refined=float(res.refined),
-                time_s=res.time_s,
-                n_nodes=res.n_nodes,
-            )
-        )
     return rows, results
+
+
+class ConservatismContext:
+    """Per-worker state of E3's tasks: the scene (loaded once), its checkers per n_sigma, the
+    k-d tree of the splat means and the analytic SDF."""
+
+    def __init__(self, level: int, seed: int, device: str) -> None:
+        from ..metric import CollisionChecker
+
+        self.splats, self.scene = load_scene(level, seed)
+        self.base = CollisionChecker(self.splats, n_sigma=0.0, device=device)
+        self.tree = cKDTree(self.splats.means.astype(np.float64))
+        self._checkers: dict[float, object] = {}
+
+    def checker(self, n_sigma: float):
+        if n_sigma not in self._checkers:
+            self._checkers[n_sigma] = self.base.with_config(n_sigma=float(n_sigma))
+        return self._checkers[n_sigma]
+
+
+def make_context(level: int, seed: int, device: str) -> ConservatismContext:
+    return ConservatismContext(level, seed, device)
+
+
+def conservatism_task(spec: dict, ctx: ConservatismContext) -> dict:
+    """One E3 trial (n_sigma, goal): the metric row plus both paths (for Fig. 4); seeded from ``spec``."""
+    c = ConservatismConfig(**spec["config"])
+    row, res = _plan_one(ctx.checker(float(spec["n_sigma"])), np.asarray(spec["start"]), np.asarray(spec["goal"]), ctx.tree, ctx.scene.sdf,
+                         int(spec["seed"]), _rrt_config(c, c.time_budget_s), c.radius)  # fmt: skip
+    if row and res is not None:
+        row["path_rrt"] = res.info["path_shortcut"]
+        row["path"] = res.path
+    return row
 
 
 def summarise(rows: list[dict], keys=COLUMNS) -> dict:
@@ -232,7 +274,7 @@ def report(out: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
-def run_conservatism(out_dir: Path, quick: bool = False, seed: int | None = None, config: ConservatismConfig | None = None, device: str = "auto") -> dict:
+def run_conservatism(out_dir: Path, quick: bool = False, seed: int | None = None, config: ConservatismConfig | None = None, device: str = "auto", engine=None) -> dict:
     """Run study E3 and write ``conservatism.json``, ``conservatism.md`` and ``fig4_paths.png``.
 
     Args:
@@ -241,6 +283,9 @@ def run_conservatism(out_dir: Path, quick: bool = False, seed: int | None = None
         seed: scene, goal and planner seed (overrides the config's).
         config: explicit knobs (override ``quick``).
         device: metric device ("auto" = CUDA when present, "cpu", "cuda", "cuda:N").
+        engine: where the trials run (:class:`~splatplan.eval.engine.EngineConfig` or its dict;
+            default serial). Every (n_sigma, goal) trial is one task; finished trials stream to
+            ``conservatism.results.jsonl`` and a rerun with the same config skips them.
 
     Returns:
         The JSON content: ``{"rows": [{"n_sigma", "length_rrt": [mean, std], ...}], "setup": {...}}``.
@@ -267,14 +312,32 @@ def run_conservatism(out_dir: Path, quick: bool = False, seed: int | None = None
     start = free_start(np.array([0.0, 0.0, cfg.plane_z]), strict, radius=cfg.radius)
     rng = np.random.default_rng(cfg.seed)
     goals = border_goals(cfg.n_goals, rng, strict, z=cfg.plane_z, radius=cfg.radius)
+    import functools
+    import hashlib
+
+    from .engine import Task, code_version, run_tasks
+
+    cfg_dict = {k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(cfg).items()}
+    sig = hashlib.sha1(json.dumps({"config": cfg_dict, "device": str(base.device), "code": code_version()}, sort_keys=True).encode()).hexdigest()[:8]
+    tasks = [
+        Task(f"{sig}/ns={float(ns):g}/goal={i}", {"n_sigma": float(ns), "goal": g.tolist(), "start": start.tolist(), "seed": cfg.seed + i, "config": cfg_dict})
+        for ns in cfg.n_sigmas
+        for i, g in enumerate(goals)
+    ]
+    factory = functools.partial(make_context, cfg.level, cfg.seed, str(base.device))
+    ran = run_tasks(tasks, conservatism_task, factory, engine, out_dir / "conservatism.results.jsonl", desc="E3 trials")
     rows, paths = [], {}
-    for ns in progress(cfg.n_sigmas, desc="n_sigma"):
-        ch = base.with_config(n_sigma=float(ns))
-        trials, results = plan_trials(ch, start, goals, tree, scene.sdf, cfg.seed, cfg.time_budget_s, tag=f"n_sigma={ns:g}", config=cfg)
+    for ns in cfg.n_sigmas:
+        trials = []
+        for t in tasks:
+            if t.spec["n_sigma"] != float(ns):
+                continue
+            r = ran.rows.get(t.key, {})  # a task that raised counts as a failed trial
+            trials.append({k: (np.nan if v is None else v) for k, v in r.items()})
         row = {"n_sigma": float(ns), **summarise(trials, COLUMNS + ("clearance_rrt", "clearance_refined", "time_s"))}
         row["refined_rate"] = float(np.mean([t["refined"] for t in trials if t])) if any(trials) else 0.0
         rows.append(row)
-        paths[float(ns)] = [(r.info["path_shortcut"], r.path) for r in results if r is not None and r.success]
+        paths[float(ns)] = [(np.asarray(t["path_rrt"]), np.asarray(t["path"])) for t in trials if t]
     out = {
         "rows": rows,
         "setup": {
@@ -290,6 +353,8 @@ def run_conservatism(out_dir: Path, quick: bool = False, seed: int | None = None
             "rrt": rrt_description(cfg.stride, cfg.batch_size, cfg.edge_resolution, cfg.radius) + f", budget {cfg.time_budget_s:g} s / {cfg.max_nodes:,} nodes",
             "refinement": "one MPPI update over the whole path (RefineConfig defaults)",
             "device": str(base.device),
+            "engine": ran.engine,
+            "n_task_errors": len(ran.errors),
             "quick": bool(quick),
             "seed": int(cfg.seed),
             "config": {k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(cfg).items()},

@@ -628,8 +628,135 @@ def _cs_query(chk: Any, pts: np.ndarray, r: float, desc: str) -> tuple[np.ndarra
     return np.concatenate(ms).astype(np.float64), np.concatenate(sm).astype(np.float64)
 
 
+class _PRSetup:
+    """The scene, grid, labels and evaluation set of E1 (the same in the client and every worker)."""
+
+    def __init__(self, scene: str, gt: str | None, cfg: PRConfig) -> None:
+        from ..scenes.filters import filter_floaters
+
+        r = float(cfg.radius)
+        if scene == "stonehenge":
+            from ..scenes.stonehenge import build_stonehenge
+
+            raw, geom = build_stonehenge(level=cfg.level, seed=cfg.seed, n_splats=cfg.n_splats)
+            self.scene_name = f"built-in Stonehenge level {cfg.level} seed {cfg.seed}"
+        else:
+            raw, geom, _ = load_scene_with_gt(scene, gt, filtered=False)
+            self.scene_name = str(scene)
+        self.raw = raw
+        self.splats, self.rep = filter_floaters(raw)  # the default rule: o < 0.1 and max std > 5x median
+        lo, hi = self.splats.bounds()
+        self.grid, self.grid_spec = make_grid(lo - cfg.pad * r, hi + cfg.pad * r, cfg.spacing)  # (Q_all, 3)
+        self.sdf = geom.sdf(self.grid)  # (Q_all,) exact signed distance, scene units
+        self.label_all = self.sdf < r
+        self.reach = self.sdf > -r  # evaluation set
+        self.above = self.reach & (self.grid[:, 2] > r)
+        self.q = self.grid[self.reach]
+        self.y = self.label_all[self.reach]
+        self.near = np.abs(self.sdf[self.reach] - r) < 0.5 * r  # near the decision boundary (for the culling check)
+
+
+class PRContext(_PRSetup):
+    """Per-worker state of E1's scoring tasks: the setup, the checkers, the torch scene tensors."""
+
+    def __init__(self, scene: str, gt: str | None, cfg_dict: dict, device: str) -> None:
+        from ..metric import CollisionChecker
+
+        cfg = PRConfig(**{k: tuple(v) if isinstance(v, list) else v for k, v in cfg_dict.items()})
+        super().__init__(scene, gt, cfg)
+        self.cfg = cfg
+        self.device = device
+        self.checker = CollisionChecker(self.splats, n_sigma=1.0, device=device)
+        self.scenes_v = {"default": self.splats, "opacity": self.raw.subset(self.raw.opacities >= cfg.eval_opacity_below)}
+        self.checkers_v: dict[str, Any] = {"default": self.checker}
+
+    def checker_v(self, kind: str):
+        from ..metric import CollisionChecker
+
+        if kind not in self.checkers_v:
+            self.checkers_v[kind] = CollisionChecker(self.scenes_v[kind], n_sigma=1.0, device=self.device)
+        return self.checkers_v[kind]
+
+
+def make_pr_context(scene: str, gt: str | None, cfg_dict: dict, device: str) -> PRContext:
+    return PRContext(scene, gt, cfg_dict, device)
+
+
+def pr_task(spec: dict, ctx: PRContext) -> dict:
+    """One E1 scoring task (see :func:`run_pr`): CollisionSplatting at one n_sigma, one culled
+    baseline (+ its culling check) or one variant at one n_sigma. Deterministic (no RNG but the
+    culling check's, seeded by ``check_seed``)."""
+    import torch
+
+    cfg, r, t0 = ctx.cfg, float(ctx.cfg.radius), time.perf_counter()
+    if spec["kind"] == "cs":
+        min_s2, softmin = _cs_query(ctx.checker.with_config(n_sigma=float(spec["n_sigma"])), ctx.grid, r, f"CollisionSplatting n_sigma={spec['n_sigma']:g}")
+        return {"min_s2": min_s2, "softmin": softmin, "seconds": time.perf_counter() - t0}
+    if spec["kind"] == "variant":
+        _, kind, changes = variant_settings(spec["name"], cfg)
+        chk = ctx.checker_v(kind).with_config(n_sigma=float(spec["n_sigma"]), **changes)
+        min_s2, softmin = _cs_query(chk, ctx.grid, r, f"{spec['name']} n_sigma={spec['n_sigma']:g}")
+        return {"min_s2": min_s2, "softmin": softmin, "seconds": time.perf_counter() - t0}
+    from ..baselines import BASELINES, as_scene_tensors
+
+    name = spec["name"]
+    info = BASELINES[name]
+    scene_t = as_scene_tensors(ctx.splats, "cpu", torch.float32)
+    full_obj = info.cls(scene_t, "cpu")
+    incl, clamp, rule = _cull_rule(name, full_obj, r)
+    s_eval, cl_eval, n_pairs = culled_collision_scores(info.cls, scene_t, incl, clamp, ctx.q, r, cfg.tile, cfg.block, desc=DISPLAY[name])
+    # deep points (sdf <= -r): far from every splat surface; same culled evaluation
+    s_all = np.full(len(ctx.grid), np.nan)
+    s_all[ctx.reach] = s_eval
+    if (~ctx.reach).any():
+        s_deep, _, _ = culled_collision_scores(info.cls, scene_t, incl, clamp, ctx.grid[~ctx.reach], r, cfg.tile, cfg.block, desc=DISPLAY[name] + " (deep)")
+        s_all[~ctx.reach] = s_deep
+    dt = time.perf_counter() - t0
+    t1 = time.perf_counter()
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)  # batch-1 calls: intra-op threads only add barrier waits on a busy machine
+    try:
+        with torch.no_grad():
+            check = _culling_check(name, full_obj, ctx.q, s_eval, cl_eval, ctx.near, r, cfg)
+    finally:
+        torch.set_num_threads(threads)
+    check["seconds"] = time.perf_counter() - t1
+    return {"s_all": s_all, "cl_eval": cl_eval, "n_pairs": int(n_pairs), "rule": rule, "seconds": dt, "check": check}
+
+
+def _task_key(ran, kind: str, name: str = "", ns: float | None = None) -> str:
+    return ran.key_of[(kind, name, None if ns is None else float(ns))]
+
+
+def _run_scoring(out_dir: Path, scene: str, gt: str | None, cfg: PRConfig, names: tuple[str, ...], device: str, engine):
+    """Every scoring task of E1 on the job engine; the baselines (the heaviest) are submitted first."""
+    import functools
+    import hashlib
+
+    from .engine import Task, code_version, run_tasks
+
+    cfg_dict = {k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(cfg).items()}
+    src = {"config": cfg_dict, "scene": str(Path(scene).resolve()) if scene != "stonehenge" else scene, "gt": gt, "device": device, "code": code_version()}
+    sig = hashlib.sha1(json.dumps(src, sort_keys=True, default=str).encode()).hexdigest()[:8]
+    specs = [("baseline", n, None) for n in names] + [("cs", "", float(ns)) for ns in cfg.n_sigmas]
+    specs += [("variant", v, float(ns)) for v in cfg.variants for ns in cfg.n_sigmas]
+    tasks, key_of = [], {}
+    for kind, name, ns in specs:
+        key = f"{sig}/{kind}" + (f"/{name}" if name else "") + ("" if ns is None else f"/ns={ns:g}")
+        tasks.append(Task(key, {"kind": kind, "name": name, "n_sigma": ns}))
+        key_of[(kind, name, ns)] = key
+    # absolute paths: a worker of an existing cluster may run in another folder
+    factory = functools.partial(make_pr_context, src["scene"], None if gt is None else str(Path(gt).resolve()), cfg_dict, device)
+    ran = run_tasks(tasks, pr_task, factory, engine, Path(out_dir) / "pr.results.jsonl", desc="E1 scoring")
+    if ran.errors:
+        k, e = next(iter(ran.errors.items()))
+        raise SplatplanError(f"E1: {len(ran.errors)} scoring task(s) failed (recorded in {Path(out_dir) / 'pr.results.jsonl'}), e.g. {k}: {e}")
+    ran.key_of = key_of
+    return ran
+
+
 def run_pr(
-    out_dir: Path, scene: str = "stonehenge", gt: str | None = None, quick: bool = False, config: PRConfig | None = None, device: str = "auto"
+    out_dir: Path, scene: str = "stonehenge", gt: str | None = None, quick: bool = False, config: PRConfig | None = None, device: str = "auto", engine=None
 ) -> dict:
     """Run E1 and write ``pr.json``, ``pr.png``, ``pr.md`` into ``out_dir``.
 
@@ -642,6 +769,11 @@ def run_pr(
         device: where CollisionSplatting's kernel runs ("auto" = CUDA when present, "cpu",
             "cuda", "cuda:N"). The baselines' culled tile evaluation is a CPU algorithm (many small
             torch calls on a thread pool) and always runs on the CPU.
+        engine: where the scoring runs (:class:`~splatplan.eval.engine.EngineConfig` or its dict;
+            default serial): each CollisionSplatting n_sigma, each baseline (with its culling
+            check) and each variant x n_sigma is one task; the scene is built once per worker;
+            finished tasks stream to ``pr.results.jsonl`` (scores in ``pr.results.jsonl.arrays/``)
+            and a rerun with the same settings skips them.
 
     Returns:
         The dict written to ``pr.json``.
@@ -650,7 +782,6 @@ def run_pr(
 
     from ..baselines import BASELINES, as_scene_tensors
     from ..metric import CollisionChecker
-    from ..scenes.filters import filter_floaters
 
     cfg = config or (PRConfig.quick() if quick else PRConfig())
     if not (cfg.spacing > 0 and cfg.radius > 0 and cfg.tile > 0):
@@ -670,27 +801,11 @@ def run_pr(
     threads = set_torch_threads()
     r = float(cfg.radius)
 
-    if scene == "stonehenge":
-        if gt is not None:
-            raise SplatplanError("--gt is only for a scene file; the built-in stonehenge carries its own ground truth")
-        from ..scenes.stonehenge import build_stonehenge
-
-        raw, geom = build_stonehenge(level=cfg.level, seed=cfg.seed, n_splats=cfg.n_splats)
-        scene_name = f"built-in Stonehenge level {cfg.level} seed {cfg.seed}"
-    else:
-        raw, geom, _ = load_scene_with_gt(scene, gt, filtered=False)
-        scene_name = str(scene)
-    splats, rep = filter_floaters(raw)  # the default rule: o < 0.1 and max std > 5x median
-
-    lo, hi = splats.bounds()
-    grid, grid_spec = make_grid(lo - cfg.pad * r, hi + cfg.pad * r, cfg.spacing)  # (Q_all, 3)
-    sdf = geom.sdf(grid)  # (Q_all,) exact signed distance, scene units
-    label_all = sdf < r
-    reach = sdf > -r  # evaluation set
-    above = reach & (grid[:, 2] > r)
-    q = grid[reach]
-    y = label_all[reach]
-    near = np.abs(sdf[reach] - r) < 0.5 * r  # near the decision boundary (for the culling check)
+    if scene == "stonehenge" and gt is not None:
+        raise SplatplanError("--gt is only for a scene file; the built-in stonehenge carries its own ground truth")
+    st = _PRSetup(scene, gt, cfg)
+    raw, splats, rep, scene_name = st.raw, st.splats, st.rep, st.scene_name
+    grid, grid_spec, sdf, label_all, reach, above, q, y, near = st.grid, st.grid_spec, st.sdf, st.label_all, st.reach, st.above, st.q, st.y, st.near
     if not y.any():
         raise SplatplanError("no grid point is in collision: is the ground truth in the scene's frame and units?")
 
@@ -707,11 +822,10 @@ def run_pr(
     # --- CollisionSplatting: the kernel on every grid point
     checker = CollisionChecker(splats, n_sigma=1.0, device=device)
     cap = checker.config.s2_cap
+    ran = _run_scoring(out_dir, scene, gt, cfg, names, str(checker.device), engine)
     for ns in cfg.n_sigmas:
-        t0 = time.perf_counter()
-        chk = checker.with_config(n_sigma=float(ns))
-        min_s2, softmin = _cs_query(chk, grid, r, f"CollisionSplatting n_sigma={ns:g}")
-        dt = time.perf_counter() - t0
+        t_cs = ran.rows[_task_key(ran, "cs", ns=ns)]
+        min_s2, softmin, dt = t_cs["min_s2"], t_cs["softmin"], t_cs["seconds"]
         score_min = -np.minimum(min_s2, cap)  # (Q_all,) -min(min_s2, cap)
         score_soft = -softmin  # (Q_all,) -softmin (+inf softmin, empty neighbourhood -> -inf)
         d = summarise(score_soft, None)
@@ -753,20 +867,11 @@ def run_pr(
 
     # --- baselines, culled
     checks: dict[str, dict] = {}
-    scene_t = as_scene_tensors(splats, "cpu", torch.float32)
     for name in names:
         info = BASELINES[name]
-        t0 = time.perf_counter()
-        full_obj = info.cls(scene_t, "cpu")
-        incl, clamp, rule = _cull_rule(name, full_obj, r)
-        s_eval, cl_eval, n_pairs = culled_collision_scores(info.cls, scene_t, incl, clamp, q, r, cfg.tile, cfg.block, desc=DISPLAY[name])
-        dt = time.perf_counter() - t0
-        # deep points (sdf <= -r): far from every splat surface; same culled evaluation
-        s_all = np.full(len(grid), np.nan)
-        s_all[reach] = s_eval
-        if (~reach).any():
-            s_deep, _, _ = culled_collision_scores(info.cls, scene_t, incl, clamp, grid[~reach], r, cfg.tile, cfg.block, desc=DISPLAY[name] + " (deep)")
-            s_all[~reach] = s_deep
+        t_b = ran.rows[_task_key(ran, "baseline", name=name)]
+        s_all, cl_eval, n_pairs, rule, dt = t_b["s_all"], np.asarray(t_b["cl_eval"], bool), t_b["n_pairs"], t_b["rule"], t_b["seconds"]
+        s_eval = s_all[reach]
         d = summarise(s_all, info.collision_threshold)
         methods[name] = {
             "score": {"splatnav": "-min_i max_t K_i", "safersplat": "-min_i h_i", "atlasnav": "-min_i (dist(p, mu_i) - 3 sigma_i - r)", "splanning": "p = 1 - exp(-I/4pi)"}[name],
@@ -779,15 +884,7 @@ def run_pr(
         }
         p, rc, _ = precision_recall_curve(s_eval, y)
         curves[name] = (*_thin_curve(p, rc, cfg.plot_points), d["ap"])
-        t1 = time.perf_counter()
-        torch.set_num_threads(1)  # batch-1 calls: intra-op threads only add barrier waits on a busy machine
-        try:
-            with torch.no_grad():
-                checks[name] = _culling_check(name, full_obj, q, s_eval, cl_eval, near, r, cfg)
-        finally:
-            torch.set_num_threads(threads)
-        checks[name]["seconds"] = time.perf_counter() - t1
-        del full_obj
+        checks[name] = t_b["check"]
 
     # --- fidelity variants of CollisionSplatting (issue #7): same grid, labels and evaluation set
     opaque = raw.subset(raw.opacities >= cfg.eval_opacity_below)  # the paper authors' evaluation filter
@@ -801,9 +898,8 @@ def run_pr(
             checkers_v[kind] = CollisionChecker(scenes_v[kind], n_sigma=1.0, device=device)
         by_ns = {}
         for ns in cfg.n_sigmas:
-            t0 = time.perf_counter()
-            chk = checkers_v[kind].with_config(n_sigma=float(ns), **changes)
-            min_s2_v, soft_v = _cs_query(chk, grid, r, f"{name} n_sigma={ns:g}")
+            t_v = ran.rows[_task_key(ran, "variant", name=name, ns=ns)]
+            min_s2_v, soft_v = t_v["min_s2"], t_v["softmin"]
             d = summarise(-soft_v, None)
             d.update({f"native_{k_}": v for k_, v in _decision_prf(min_s2_v[reach] < 1.0, y).items()})
             by_ns[f"{ns:g}"] = {
@@ -814,7 +910,7 @@ def run_pr(
                 "native_recall": d["native_recall"],
                 "ap_all_points": d["all_points"]["ap"],
                 "ap_above_ground": d["above_ground"]["ap"],
-                "seconds": time.perf_counter() - t0,
+                "seconds": t_v["seconds"],
             }
             if float(ns) == 1.0:
                 p, rc, _ = precision_recall_curve(-soft_v[reach], y)
@@ -881,6 +977,7 @@ def run_pr(
         "note": cfg.note,
         "config": {k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(cfg).items()},
         "threads": threads,
+        "engine": ran.engine,
         "seconds_total": time.perf_counter() - t_all,
     }
     ours, best_base = methods["collisionsplatting"]["ap"], max(methods[n]["ap"] for n in names)

@@ -134,7 +134,10 @@ def plan(
         refine_config: :class:`RefineConfig` (default: RefineConfig()).
         robot: a :class:`~splatplan.robots.Robot` or a name for :func:`~splatplan.robots.load_robot`.
         planner: one of :data:`PLANNERS`: "auto" (RRT-Connect for robots with 4 or more dofs,
-            the goal-biased RRT for point robots and planar bases), "rrt" or "rrtconnect".
+            the goal-biased RRT for point robots and planar bases), "rrt" or "rrtconnect"; or
+            "ompl:NAME", an OMPL geometric planner on the same checker, box, edge resolution and
+            time limit (:func:`~splatplan.planners.ompl_bridge.plan_ompl`; the ``ompl`` extra;
+            ``refine`` and ``seed`` do not apply there).
 
     Returns:
         :class:`PlanResult`; ``path_rrt`` holds the raw tree path, ``path`` the final one,
@@ -148,6 +151,10 @@ def plan(
         PlanningError: start or goal in collision, outside the scene bounds or the sampling box.
         SplatplanError: an unknown planner name.
     """
+    if planner.startswith("ompl:"):
+        from .ompl_bridge import plan_ompl
+
+        return plan_ompl(checker, start, goal, robot=robot, name=planner, time_limit_s=None, radius=radius, rrt_config=rrt_config)
     t0 = time.perf_counter()
     cfg = replace(rrt_config or RRTConfig(), seed=seed)
     deadline = None if cfg.time_limit_s is None else t0 + cfg.time_limit_s

@@ -1,0 +1,204 @@
+"""Job engine benchmark: the same plan jobs serial and on a local Dask cluster of 2 workers.
+
+Job set (until ``eval mbm`` is merged; then rerun on the MotionBenchMaker families): plan jobs of
+``splatplan sweep`` on built-in scenes, run to a fixed RRT iteration budget (``max_iters``) so that
+every job does the same work wherever it runs:
+
+* ``stonehenge``: sphere r = 0.015, built-in Stonehenge (``--splats`` splats), n_sigma 0 and 1,
+  random free start/goal pairs;
+* ``tabletop``: the Panda on the built-in tabletop, n_sigma 1, random free joint-space pairs.
+
+Measured:
+
+* wall time serial (this process; Warp's CPU launches on every core, as today) and on 2 workers
+  (cluster start excluded, and reported on its own), the speedup, and that the per-task rows are
+  identical (timing fields aside);
+* **per-task overhead** (scheduling + data transfer): ``--overhead-tasks`` no-op tasks on the
+  running 2-worker cluster (wall / count: the scheduler's round trip per task, pipelined over both
+  workers), and the extra time per MB of a task returning a 1 MB array;
+* the per-worker context build (scene load + checker) from the first task of each worker.
+
+Model (stated, not measured on a cluster): with W workers in total (N machines x c workers), n
+tasks of mean duration t, per-task overhead o (the scheduler handles tasks one after another) and
+a context build b per worker,
+``T(W) ~= T_start + b + max(n t / W, n o)`` (+ the last task's tail), so the speedup over serial
+``n t`` saturates at ``t / o`` workers. The script prints T(W) for W = 2, 8, 32, 128 from the
+measured t, o and b.
+
+    python benchmarks/engine.py [--quick] [--workers 2] [--pairs N] [--max-iters N] [--out benchmarks/results/engine.json]
+
+Timings on this shared 2-core machine are under heavy contention (the JSON records the load
+average); the lead reruns on a quiet machine.
+"""
+
+from __future__ import annotations
+
+import argparse
+import functools
+import json
+import os
+import statistics
+import sys
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))
+
+
+def noop(spec: dict, ctx) -> dict:
+    """A task that does nothing (measures the engine's own overhead)."""
+    return {"i": spec["i"]}
+
+
+def payload(spec: dict, ctx) -> dict:
+    """A task returning ``spec["mb"]`` MB of float64 (measures data transfer)."""
+    return {"a": np.zeros(int(spec["mb"] * 131072))}
+
+
+def no_context() -> None:
+    return None
+
+
+def _strip(rows: dict) -> dict:
+    return {k: {f: v for f, v in r.items() if f not in ("time_s",)} for k, r in rows.items()}
+
+
+def run_set(name: str, spec, base: Path, out: Path, workers: int) -> dict:
+    from splatplan.eval.engine import run_tasks
+    from splatplan.eval.sweep import build_tasks, expand_scenes, make_context, sweep_task
+
+    tasks = build_tasks(spec, expand_scenes(spec, base))
+    factory = functools.partial(make_context, spec.robot, spec.device, spec.filter_floaters, spec.n_splats)
+    ser = run_tasks(tasks, sweep_task, factory, None, out / f"{name}_serial.jsonl", progress=False)
+    t_ser = ser.run_s
+    dk = run_tasks(tasks, sweep_task, factory, {"kind": "dask", "workers": workers}, out / f"{name}_dask.jsonl", progress=False)
+    t_dk = dk.run_s  # submission of the first task to the last result (cluster start / shutdown apart)
+    task_s = [r["seconds"] for r in ser.records.values()]
+    first = {}
+    for r in dk.records.values():  # the first task of each worker includes the context build
+        first.setdefault(r["worker"], []).append(r["seconds"])
+    same = _strip(ser.rows) == _strip(dk.rows) and not ser.errors and not dk.errors
+    return {
+        "job_set": name,
+        "n_tasks": len(tasks),
+        "serial_s": t_ser,
+        "dask_s": t_dk,
+        "cluster_start_s": dk.cluster_start_s,
+        "dask_wall_incl_start_and_shutdown_s": dk.wall_s,
+        "speedup": t_ser / t_dk,
+        "speedup_incl_start": t_ser / dk.wall_s,
+        "task_s_median": statistics.median(task_s),
+        "task_s_sum": float(sum(task_s)),
+        "first_task_s_per_worker": {k: max(v) for k, v in first.items()},
+        "same_rows": bool(same),
+        "n_solved": int(sum(bool(r.get("success")) for r in ser.rows.values())),
+        "engine": dk.engine,
+    }
+
+
+def overhead(workers: int, n: int) -> dict:
+    from distributed import Client, LocalCluster
+
+    from splatplan.eval.engine import Task, _dask_task
+
+    cluster = LocalCluster(host="127.0.0.1", processes=True, n_workers=workers, threads_per_worker=1, dashboard_address=None, silence_logs=50)
+    client = Client(cluster)
+    try:
+        warm = client.gather([client.submit(_dask_task, noop, no_context, {"i": i}, pure=False) for i in range(2 * workers)])
+        assert all(r["ok"] for r in warm)
+        t0 = time.perf_counter()
+        futs = [client.submit(_dask_task, noop, no_context, Task(f"n{i}", {"i": i}).spec, pure=False) for i in range(n)]
+        client.gather(futs)
+        per_task = (time.perf_counter() - t0) / n
+        res = {}
+        for mb in (0.0, 1.0):
+            m = max(8, n // 10)
+            t0 = time.perf_counter()
+            client.gather([client.submit(_dask_task, payload, no_context, {"mb": mb, "i": i}, pure=False) for i in range(m)])
+            res[mb] = (time.perf_counter() - t0) / m
+        return {"noop_tasks": n, "per_task_s": per_task, "per_task_1mb_s": res[1.0], "per_mb_s": max(0.0, res[1.0] - res[0.0])}
+    finally:
+        client.close()
+        cluster.close()
+
+
+def model(t: float, o: float, b: float, start: float, n: int) -> dict:
+    return {str(w): start + b + max(n * t / w, n * o) + t for w in (1, 2, 8, 32, 128)}
+
+
+def main(argv: list[str] | None = None) -> int:
+    from splatplan.eval.sweep import SweepSpec
+
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="a tiny job set (smoke test)")
+    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--splats", type=int, default=100_000, help="Stonehenge splats")
+    ap.add_argument("--overhead-tasks", type=int, default=400)
+    ap.add_argument("--pairs", type=int, default=None, help="start/goal pairs per job set (default 24 Stonehenge, 12 tabletop)")
+    ap.add_argument("--max-iters", type=int, default=None, help="RRT iterations per plan (default 300 Stonehenge, 150 tabletop)")
+    ap.add_argument("--out", default=str(Path(__file__).resolve().parent / "results" / "engine.json"))
+    args = ap.parse_args(argv)
+    out = Path(args.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    work = out.parent / f".{out.stem}_runs_{os.getpid()}"
+    work.mkdir()
+    load0 = os.getloadavg()[0]
+    sets = {
+        "stonehenge": SweepSpec(scenes=["builtin:stonehenge"], robot="sphere:0.015", n_sigma=[0.0, 1.0], pairs=24, max_iters=300, time_limit=120.0, n_splats=args.splats),
+        "tabletop": SweepSpec(scenes=["builtin:tabletop"], robot="panda", n_sigma=[1.0], pairs=12, max_iters=150, time_limit=120.0, n_splats=args.splats),
+    }
+    for k, spec in sets.items():
+        if args.pairs is not None:
+            sets[k] = spec = replace(spec, pairs=args.pairs)
+        if args.max_iters is not None:
+            sets[k] = replace(spec, max_iters=args.max_iters)
+    if args.quick:
+        sets = {"stonehenge": replace(sets["stonehenge"], n_sigma=[1.0], pairs=2, max_iters=50, n_splats=20_000)}
+    rows = []
+    try:
+        for name, spec in sets.items():
+            rows.append(run_set(name, spec.validate(), Path("."), work, args.workers))
+            print(f"{name}: {rows[-1]['serial_s']:.1f} s serial, {rows[-1]['dask_s']:.1f} s on {args.workers} workers", file=sys.stderr)
+        ov = overhead(args.workers, 50 if args.quick else args.overhead_tasks)
+    finally:
+        for f in sorted(work.rglob("*"), reverse=True):
+            f.unlink() if f.is_file() else f.rmdir()
+        work.rmdir()
+    for r in rows:
+        b = max(r["first_task_s_per_worker"].values()) - r["task_s_median"]
+        r["model_s_by_workers"] = model(r["task_s_sum"] / r["n_tasks"], ov["per_task_s"], max(0.0, b), r["cluster_start_s"], r["n_tasks"])
+    res = {
+        "rows": rows,
+        "overhead": ov,
+        "cores": len(os.sched_getaffinity(0)),
+        "load_avg_1min_start": load0,
+        "load_avg_1min_end": os.getloadavg()[0],
+        "model": "T(W) = T_start + b + max(n t / W, n o) + t; t = mean task s (serial), o = per-task overhead, b = context build per worker",
+        "note": "shared 2-core machine under contention: indicative only; rerun on a quiet machine (and on the MBM families once eval mbm is merged)",
+        "quick": bool(args.quick),
+    }
+    out.write_text(json.dumps(res, indent=2) + "\n")
+    lines = [
+        f"| job set | tasks | serial (s) | {args.workers} workers (s) | speedup | cluster start (s) | median task (s) | same rows | T(8) model | T(32) model |",
+        "|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for r in rows:
+        m = r["model_s_by_workers"]
+        lines.append(
+            f"| {r['job_set']} | {r['n_tasks']} | {r['serial_s']:.1f} | {r['dask_s']:.1f} | {r['speedup']:.2f}x | {r['cluster_start_s']:.1f} | "
+            f"{r['task_s_median']:.2f} | {'yes' if r['same_rows'] else 'NO'} | {m['8']:.1f} | {m['32']:.1f} |"
+        )
+    lines.append("")
+    lines.append(f"per-task overhead (no-op tasks, {args.workers} workers): {1e3 * ov['per_task_s']:.2f} ms; 1 MB result: {1e3 * ov['per_task_1mb_s']:.2f} ms "
+                 f"({1e3 * ov['per_mb_s']:.2f} ms/MB); load average {load0:.1f} -> {res['load_avg_1min_end']:.1f} on {res['cores']} cores")  # fmt: skip
+    text = "\n".join(lines) + "\n"
+    print(text)
+    out.with_suffix(".md").write_text(text)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
