@@ -37,8 +37,9 @@ _MODULES = (
 
 def build_parser() -> argparse.ArgumentParser:
     from .. import __version__
+    from ._common import Parser
 
-    p = argparse.ArgumentParser(prog="splatplan", description="Collision-aware motion planning in Gaussian-splat scenes.")
+    p = Parser(prog="splatplan", description="Collision-aware motion planning in Gaussian-splat scenes.")
     p.add_argument("--version", action="version", version=f"splatplan {__version__}")
     sub = p.add_subparsers(dest="cmd", required=True, metavar="COMMAND")
     ev = sub.add_parser("eval", help="the paper's studies and the robot studies")
@@ -52,11 +53,29 @@ def main(argv: list[str] | None = None) -> int:
     from ._common import CREATED_DIRS, remove_created_empty_dirs
 
     CREATED_DIRS.clear()
-    rc = _main(argv)
+    try:
+        rc = _main(argv)
+        sys.stdout.flush()  # a closed pipe raises here, not at interpreter exit
+    except BrokenPipeError:
+        rc = _broken_pipe()
     if rc not in (0, 1):  # 1: ran, with a negative answer (results written); else rejected or failed
         remove_created_empty_dirs()
     CREATED_DIRS.clear()
     return rc
+
+
+def _broken_pipe() -> int:
+    """stdout was closed early (``splatplan ... | head -1``): end quietly, as ``head``'s writer
+    should. Python's recommended pattern: point stdout at devnull so the interpreter's final flush
+    does not raise again (https://docs.python.org/3/library/signal.html#note-on-sigpipe)."""
+    import os
+
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError):  # stdout without a file descriptor (captured in tests)
+        pass
+    return 0
 
 
 def _main(argv: list[str] | None) -> int:

@@ -25,6 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from .._files import _umask, atomic_path  # noqa: F401 - the commands import atomic_path from here
+from .._config import check_config, check_value
 from ..errors import SplatplanError
 
 ROBOT_HELP = "robot link: 'sphere:R' or 'ellipsoid:A,B,C' (semi-axes, scene units)"
@@ -251,6 +252,68 @@ def check_device(device: str) -> str:
     return resolve_device(device)
 
 
+# ---------------------------------------------------------------------------- plain flags: typed, range-checked values
+class Parser(argparse.ArgumentParser):
+    """The CLI's ArgumentParser (its subparsers inherit it): a usage error is ONE line,
+    ``splatplan: error: MESSAGE`` on stderr, exit 2 (no usage block: ``--help`` shows it)."""
+
+    def error(self, message: str):  # noqa: D102 - argparse's hook
+        self.exit(2, f"splatplan: error: {' '.join(message.split())}\n")
+
+
+def int_arg(*, ge: int | None = None, le: int | None = None):
+    """argparse ``type=`` for an integer flag with a range: ``type=int_arg(ge=0)``."""
+    from .._config import Bounds
+
+    b = Bounds(ge=ge, le=le)
+
+    def parse(text: str) -> int:
+        try:
+            v = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected an integer {b.describe().removesuffix(' and finite').removesuffix('finite')}, got {text!r}".replace("  ", " ")) from None
+        msg = b.problem(v)
+        if msg:
+            raise argparse.ArgumentTypeError(msg)
+        return v
+
+    parse.__name__ = "int"
+    return parse
+
+
+def float_arg(*, ge: float | None = None, gt: float | None = None, le: float | None = None, lt: float | None = None, allow_inf: bool = False):
+    """argparse ``type=`` for a float flag: finite (unless ``allow_inf``) and within the range."""
+    from .._config import Bounds
+
+    b = Bounds(ge=ge, gt=gt, le=le, lt=lt, allow_inf=allow_inf)
+
+    def parse(text: str) -> float:
+        try:
+            v = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected a number ({b.describe()}), got {text!r}") from None
+        msg = b.problem(v)
+        if msg:
+            raise argparse.ArgumentTypeError(msg)
+        return v
+
+    parse.__name__ = "float"
+    return parse
+
+
+#: ``--seed``: numpy's generators take a non-negative integer below 2**63
+SEED = int_arg(ge=0, le=2**63 - 1)
+#: a count of at least one (batch sizes, goals, ...)
+POSITIVE_INT = int_arg(ge=1)
+#: a TCP port
+PORT = int_arg(ge=1, le=65535)
+
+
+def add_seed_arg(parser: argparse.ArgumentParser, help: str = "random seed (integer >= 0; default 0)") -> None:
+    """The ``--seed`` flag (a non-negative integer, checked while parsing)."""
+    parser.add_argument("--seed", type=SEED, default=0, help=help)
+
+
 # ---------------------------------------------------------------------------- config dataclasses -> flags
 def field_docs(cls) -> dict[str, str]:
     """The ``#:`` comment above each field of a dataclass (joined when it spans several lines)."""
@@ -325,7 +388,7 @@ def add_config_args(parser: argparse.ArgumentParser, cls, prefix: str = "", skip
         default = getattr(base, f.name) if base is not None else _field_default(f)
         doc = docs.get(f.name, "")
         help_ = f"{doc} (default {_show(default)})".strip()
-        g.add_argument(flag, dest=f"cfg_{prefix}{f.name}", default=_Unset, type=_parser_for(tp, flag), metavar=_metavar(tp), help=help_.replace("%", "%%"))
+        g.add_argument(flag, dest=f"cfg_{prefix}{f.name}", default=_Unset, type=_parser_for(tp, flag, f), metavar=_metavar(tp), help=help_.replace("%", "%%"))
 
 
 def config_from_args(args: argparse.Namespace, cls, prefix: str = "", base=None, **overrides):
@@ -341,9 +404,16 @@ def config_from_args(args: argparse.Namespace, cls, prefix: str = "", base=None,
             kw[f.name] = None if v is _EXPLICIT_NONE else v
     kw.update({k: v for k, v in overrides.items() if v is not None})
     try:
-        return dataclasses.replace(base, **kw) if base is not None else cls(**kw)
+        cfg = dataclasses.replace(base, **kw) if base is not None else cls(**kw)
     except TypeError as exc:
         raise SplatplanError(f"bad {cls.__name__} options: {exc}") from None
+    # the flags were checked while parsing; this covers the overrides, the base and cross-field rules
+    validate = getattr(cfg, "validate", None)
+    if callable(validate):
+        validate()
+    else:
+        check_config(cfg)
+    return cfg
 
 
 def _is_union(tp) -> bool:
@@ -407,11 +477,21 @@ def _scalar(tp, text: str):
     return text
 
 
-def _parser_for(tp, flag: str):
+def _parser_for(tp, flag: str, f: dataclasses.Field | None = None):
+    """argparse ``type=`` callable of a config field: parse ``tp`` from text, then check the
+    field's declared constraints (:mod:`splatplan._config`) so a bad value is a usage error."""
     inner, optional = _strip_optional(tp)
     origin = typing.get_origin(inner)
 
     def parse(text: str):
+        value = _parse(text)
+        if f is not None and value is not _EXPLICIT_NONE:
+            msg = check_value(f, value)
+            if msg:
+                raise argparse.ArgumentTypeError(msg)
+        return value
+
+    def _parse(text: str):
         try:
             if optional and text.lower() == "none":
                 return _EXPLICIT_NONE
@@ -444,6 +524,6 @@ def _parser_for(tp, flag: str):
                 return out
             return _scalar(inner, text)
         except ValueError:
-            raise argparse.ArgumentTypeError(f"{flag}: cannot read {text!r} as {_metavar(tp)}") from None
+            raise argparse.ArgumentTypeError(f"cannot read {text!r} as {_metavar(tp)}") from None
 
     return parse
