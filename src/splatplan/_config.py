@@ -64,16 +64,10 @@ class Bounds:
     allow_inf: bool = False
 
     def describe(self) -> str:
-        """The range as words: ``> 0 and <= 1``, ``one of 'a', 'b'``."""
-        parts = []
+        """The range as words: ``> 0 and <= 1``, ``one of 'a', 'b'`` (empty when only finiteness)."""
         if self.choices is not None:
-            parts.append("one of " + ", ".join(repr(c) for c in self.choices))
-        for op, v in ((">=", self.ge), (">", self.gt), ("<=", self.le), ("<", self.lt)):
-            if v is not None:
-                parts.append(f"{op} {v:g}")
-        if not self.allow_inf and self.choices is None:
-            parts.append("finite")
-        return " and ".join(parts)
+            return "one of " + ", ".join(repr(c) for c in self.choices)
+        return " and ".join(f"{op} {_fmt(v)}" for op, v in ((">=", self.ge), (">", self.gt), ("<=", self.le), ("<", self.lt)) if v is not None)
 
     def problem(self, value) -> str | None:
         """Why ``value`` (a scalar) is not allowed, or None when it is."""
@@ -83,22 +77,20 @@ class Bounds:
             return None if value in self.choices else f"must be {self.describe()}, got {value!r}"
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             return None
-        if isinstance(value, float):
-            if math.isnan(value) or (math.isinf(value) and not self.allow_inf):
-                return f"must be a finite number{self._range_tail()}, got {value}"
+        rng = self.describe()
+        if isinstance(value, float) and (math.isnan(value) or (math.isinf(value) and not self.allow_inf)):
+            return f"must be a finite number{' ' + rng if rng else ''}, got {value}"
         bad = (
             (self.ge is not None and not value >= self.ge)
             or (self.gt is not None and not value > self.gt)
             or (self.le is not None and not value <= self.le)
             or (self.lt is not None and not value < self.lt)
         )
-        if bad:
-            return f"must be {self.describe()}, got {value}"
-        return None
+        return f"must be {rng}, got {value}" if bad else None
 
-    def _range_tail(self) -> str:
-        d = " and ".join(f"{op} {v:g}" for op, v in ((">=", self.ge), (">", self.gt), ("<=", self.le), ("<", self.lt)) if v is not None)
-        return f" {d}" if d else ""
+
+def _fmt(v) -> str:
+    return str(v) if isinstance(v, int) else f"{v:g}"
 
 
 #: constraints of a float field that declares nothing: finite

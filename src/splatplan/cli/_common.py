@@ -103,7 +103,10 @@ def atomic_dir(folder: str | Path):
     folder = Path(folder)
     if not folder.is_dir():
         raise SplatplanError(f"output folder {folder} does not exist")
-    tmp = tempfile.mkdtemp(prefix=".splatplan-", dir=folder)
+    try:
+        tmp = tempfile.mkdtemp(prefix=".splatplan-", dir=folder)
+    except OSError as exc:  # name the folder the user gave, not the temp folder
+        raise SplatplanError(f"cannot write into {folder}: {exc.strerror or exc}") from None
     try:
         yield Path(tmp)
     finally:
@@ -271,7 +274,8 @@ def int_arg(*, ge: int | None = None, le: int | None = None):
         try:
             v = int(text)
         except ValueError:
-            raise argparse.ArgumentTypeError(f"expected an integer {b.describe().removesuffix(' and finite').removesuffix('finite')}, got {text!r}".replace("  ", " ")) from None
+            rng = b.describe()
+            raise argparse.ArgumentTypeError(f"expected an integer{' ' + rng if rng else ''}, got {text!r}") from None
         msg = b.problem(v)
         if msg:
             raise argparse.ArgumentTypeError(msg)
@@ -291,7 +295,8 @@ def float_arg(*, ge: float | None = None, gt: float | None = None, le: float | N
         try:
             v = float(text)
         except ValueError:
-            raise argparse.ArgumentTypeError(f"expected a number ({b.describe()}), got {text!r}") from None
+            rng = b.describe()
+            raise argparse.ArgumentTypeError(f"expected a number{' ' + rng if rng else ''}, got {text!r}") from None
         msg = b.problem(v)
         if msg:
             raise argparse.ArgumentTypeError(msg)
@@ -301,8 +306,8 @@ def float_arg(*, ge: float | None = None, gt: float | None = None, le: float | N
     return parse
 
 
-#: ``--seed``: numpy's generators take a non-negative integer below 2**63
-SEED = int_arg(ge=0, le=2**63 - 1)
+#: ``--seed``: a non-negative integer that every seeded generator accepts (numpy legacy seeds stop at 2**32 - 1)
+SEED = int_arg(ge=0, le=2**32 - 1)
 #: a count of at least one (batch sizes, goals, ...)
 POSITIVE_INT = int_arg(ge=1)
 #: a TCP port

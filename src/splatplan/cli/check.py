@@ -19,7 +19,7 @@ import numpy as np
 
 from ..errors import SplatplanError
 from ._common import (
-    ROBOT_HELP, _load, add_config_args, add_device_arg, atomic_path, config_from_args, load_npy, load_poses, parse_robot, progress,
+    POSITIVE_INT, ROBOT_HELP, _load, add_config_args, add_device_arg, atomic_path, config_from_args, load_npy, load_poses, parse_robot, progress,
     signals_deferred,
 )  # fmt: skip
 
@@ -179,7 +179,7 @@ def register(sub, eval_sub) -> None:
     s.add_argument("--configs", help="Q.npy: (B, dof) joint configurations of --robot (rad or m; panda: 7 arm joints, go2: x, y, yaw)")
     s.add_argument("--out", help="OUT.npz with min_s2, n_colliding, in_collision, softmin, cost: (B,) per pose, or (B, E) per "
                    "ellipsoid plus collision (B,), link_in_collision (B, L), link_min_s2 (B, L), link_names (L,) for --configs")  # fmt: skip
-    s.add_argument("--chunk", type=int, default=DEFAULT_CHUNK, help=f"link poses per kernel call; Ctrl-C is honoured between calls (default {DEFAULT_CHUNK})")
+    s.add_argument("--chunk", type=POSITIVE_INT, default=DEFAULT_CHUNK, help=f"link poses per kernel call; Ctrl-C is honoured between calls (default {DEFAULT_CHUNK})")
     add_device_arg(s)
     add_config_args(s, MetricConfig, group="metric options (MetricConfig)")
     s.set_defaults(func=cmd_check)

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import SplatplanError
-from ._common import _load, atomic_dir, move_into
+from ._common import SEED, _load, atomic_dir, int_arg, move_into
 
 
 def cmd_info(args) -> int:
@@ -77,6 +77,6 @@ def register(sub, eval_sub) -> None:
     s = sub.add_parser("scene", help="write a built-in scene with its ground truth")
     s.add_argument("name", metavar="NAME", help="built-in scene name: stonehenge | tabletop | apartment")
     s.add_argument("--out", required=True, help="PATH.ply (ground truth goes to PATH.gt.json)")
-    s.add_argument("--level", type=int, default=1, help="Gaussian-size level 1..5 (larger, fewer splats)")
-    s.add_argument("--seed", type=int, default=0, help="layout and sampling seed, an integer >= 0 (default 0)")
+    s.add_argument("--level", type=int_arg(ge=1, le=5), default=1, help="Gaussian-size level 1..5 (larger, fewer splats)")
+    s.add_argument("--seed", type=SEED, default=0, help="layout and sampling seed, an integer >= 0 (default 0)")
     s.set_defaults(func=cmd_scene)

@@ -219,6 +219,10 @@ class SplatViewer:
         import viser
 
         cfg = self.config
+        try:
+            free_port(cfg.host)  # the host must be an address of this machine (binds port 0)
+        except OSError as exc:  # gaierror (unknown name), EADDRNOTAVAIL (another machine's address)
+            raise SplatplanError(f"cannot listen on host {cfg.host!r} ({exc.strerror or exc}); use an address of this machine, e.g. 127.0.0.1 or 0.0.0.0") from None
         if not port_free(cfg.host, cfg.port):
             raise SplatplanError(f"port {cfg.port} on {cfg.host} is in use; try --port {free_port(cfg.host)}")
         self.server = srv = viser.ViserServer(host=cfg.host, port=cfg.port, verbose=False)
