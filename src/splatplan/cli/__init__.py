@@ -1,8 +1,8 @@
 """Command-line interface. Thin: parse, call the library, print, exit codes.
 
 Exit codes: 0 success, 1 no result within the budget (e.g. ``plan`` found no path), 2 bad input
-or impossible request (one-line message, no traceback), 130 interrupted (Ctrl-C), 143 terminated
-(SIGTERM). Output files are written atomically, with the umask's permissions; an interrupted
+or impossible request (one-line message, no traceback), 130 interrupted (Ctrl-C), 141 stdout closed
+early (``| head``; quiet), 143 terminated (SIGTERM). Output files are written atomically, with the umask's permissions; an interrupted
 command leaves no partial output or temporary file behind. ``--device`` means the same in every
 subcommand (``auto`` = CUDA when present, else CPU) and is checked before any work starts.
 
@@ -65,8 +65,8 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _broken_pipe() -> int:
-    """stdout was closed early (``splatplan ... | head -1``): end quietly, as ``head``'s writer
-    should. Python's recommended pattern: point stdout at devnull so the interpreter's final flush
+    """stdout was closed early (``splatplan ... | head -1``): end quietly (no message, exit 141 as
+    for a process ended by SIGPIPE; outputs already written stay, temp files are gone). Python's recommended pattern: point stdout at devnull so the interpreter's final flush
     does not raise again (https://docs.python.org/3/library/signal.html#note-on-sigpipe)."""
     import os
 
@@ -75,7 +75,7 @@ def _broken_pipe() -> int:
         os.dup2(devnull, sys.stdout.fileno())
     except (OSError, ValueError):  # stdout without a file descriptor (captured in tests)
         pass
-    return 0
+    return 141  # 128 + SIGPIPE: what a shell reports for a writer that its reader left
 
 
 def _main(argv: list[str] | None) -> int:

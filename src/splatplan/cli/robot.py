@@ -20,10 +20,11 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import SplatplanError
+from ..robots.fit import MAX_PER_LINK
 from ._common import int_arg
 
-#: ``--per-link``: slabs per link; beyond a few dozen the slabs are thinner than any mesh detail
-PER_LINK = int_arg(ge=1, le=64)
+#: ``--per-link``: ellipsoids (slabs) per link, 1..MAX_PER_LINK
+PER_LINK = int_arg(ge=1, le=MAX_PER_LINK)
 
 
 def _robot_args(p) -> None:

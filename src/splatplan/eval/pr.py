@@ -90,6 +90,7 @@ from typing import Any
 import numpy as np
 
 from .._config import bounded, check_config
+from .._resources import require_bytes
 from ..errors import SplatplanError
 from ._common import DISPLAY, ROBOT_RADIUS, load_scene_with_gt, n_cores, progress, set_torch_threads
 
@@ -297,9 +298,15 @@ def _thin_curve(p: np.ndarray, r: np.ndarray, n: int) -> tuple[np.ndarray, np.nd
 # ---------------------------------------------------------------------------------------------
 
 
+#: bytes per grid cell across the study (centres, exact SDF, labels, every method's scores): an estimate
+GRID_BYTES_PER_CELL = 128
+
+
 def make_grid(lo: np.ndarray, hi: np.ndarray, spacing: float) -> tuple[np.ndarray, dict]:
     """Cell centres of the lattice of ``spacing`` covering [lo, hi] -> ((Q, 3) float64, spec)."""
-    n = np.maximum(1, np.ceil((hi - lo) / spacing - 1e-9).astype(int))  # cells per axis
+    n_float = np.maximum(1.0, np.ceil((np.asarray(hi, np.float64) - lo) / spacing - 1e-9))  # cells per axis (float: no overflow)
+    require_bytes(float(np.prod(n_float)) * GRID_BYTES_PER_CELL, f"the query grid of spacing {spacing:g} ({float(np.prod(n_float)):.3g} cells)", "the resolution: a larger --spacing")
+    n = n_float.astype(int)
     axes = [lo[k] + spacing * (np.arange(n[k]) + 0.5) for k in range(3)]
     pts = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 3)
     spec = {"lo": lo.tolist(), "hi": (lo + spacing * n).tolist(), "spacing": spacing, "shape": n.tolist()}
