@@ -13,6 +13,7 @@ from ._common import SEED, _load, atomic_dir, int_arg, move_into
 
 def cmd_info(args) -> int:
     from ..scenes.filters import filter_floaters
+    from ..scenes.sanity import absurd_splats
 
     s = _load(args.scene, filter_floaters=False)
     lo, hi = s.bounds()
@@ -30,6 +31,7 @@ def cmd_info(args) -> int:
         "max_std_p99": float(np.quantile(smax, 0.99)),
         "opacity_median": float(np.median(s.opacities)),
         "floaters_default_rule": int(rep.n_dropped),
+        "absurd": absurd_splats(s),  # values a corrupt file or a wrong unit gives (scenes.sanity)
     }
     if args.json:
         print(json.dumps(info))
@@ -38,6 +40,8 @@ def cmd_info(args) -> int:
     print(f"  bounds of means (file frame, scene units): min {np.round(lo, 4).tolist()}  max {np.round(hi, 4).tolist()}")
     print(f"  largest std per splat: median {info['max_std_median']:.4g}, p99 {info['max_std_p99']:.4g}; median opacity {info['opacity_median']:.3f}")
     print(f"  SH rest coefficients: {info['sh_rest_coeffs']}; floaters by the default rule (o < 0.1 and max std > 5x median): {info['floaters_default_rule']}")
+    for line in info["absurd"]:
+        print(f"  warning: absurd splats: {line}")
     return 0
 
 
