@@ -380,7 +380,8 @@ def add_config_args(parser: argparse.ArgumentParser, cls, prefix: str = "", skip
     Value syntax: numbers and strings as usual; bools true/false; ``X | None`` fields also take
     ``none``; tuples take comma-separated items (``0,1,2``), tuples of pairs ``a:1,b:2``, dicts
     ``a=1,b=2``; ``Literal`` fields list their choices. ``base`` (an instance) sets the defaults
-    shown in the help.
+    shown in the help. A value outside the field's declared range (``bounded(...)``, see
+    :mod:`splatplan._config`) is a usage error while parsing, with the validator's message.
     """
     docs = field_docs(cls)
     hints = typing.get_type_hints(cls)
