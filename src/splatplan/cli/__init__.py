@@ -79,11 +79,14 @@ def _broken_pipe() -> int:
 
 
 def _main(argv: list[str] | None) -> int:
-    from ._common import Terminated, check_device, cli_signal_handlers
+    from ._common import Terminated, UsageError, check_device, cli_signal_handlers
 
     with cli_signal_handlers():  # Ctrl-C / SIGTERM unwind through every finally (no stray temp files)
         try:
-            args = build_parser().parse_args(argv)  # argparse's own SystemExit (--help, usage errors) passes through
+            try:
+                args = build_parser().parse_args(argv)  # --help / --version exit through argparse's SystemExit
+            except UsageError as exc:  # already printed as one line
+                return int(exc.code)
             if getattr(args, "device", None) is not None:
                 args.device = check_device(args.device)  # one meaning everywhere: auto -> cuda:0 or cpu
             return int(args.func(args) or 0)

@@ -256,12 +256,17 @@ def check_device(device: str) -> str:
 
 
 # ---------------------------------------------------------------------------- plain flags: typed, range-checked values
+class UsageError(SystemExit):
+    """A command line the parser rejects (exit 2); :func:`splatplan.cli.main` returns its code."""
+
+
 class Parser(argparse.ArgumentParser):
     """The CLI's ArgumentParser (its subparsers inherit it): a usage error is ONE line,
     ``splatplan: error: MESSAGE`` on stderr, exit 2 (no usage block: ``--help`` shows it)."""
 
     def error(self, message: str):  # noqa: D102 - argparse's hook
-        self.exit(2, f"splatplan: error: {' '.join(message.split())}\n")
+        print(f"splatplan: error: {' '.join(message.split())}", file=sys.stderr)
+        raise UsageError(2)
 
 
 def int_arg(*, ge: int | None = None, le: int | None = None):
@@ -394,7 +399,7 @@ def add_config_args(parser: argparse.ArgumentParser, cls, prefix: str = "", skip
         default = getattr(base, f.name) if base is not None else _field_default(f)
         doc = docs.get(f.name, "")
         help_ = f"{doc} (default {_show(default)})".strip()
-        g.add_argument(flag, dest=f"cfg_{prefix}{f.name}", default=_Unset, type=_parser_for(tp, flag, f), metavar=_metavar(tp), help=help_.replace("%", "%%"))
+        g.add_argument(flag, dest=f"cfg_{prefix}{f.name}", default=_Unset, type=_parser_for(tp, flag, f, cls.__name__), metavar=_metavar(tp), help=help_.replace("%", "%%"))
 
 
 def config_from_args(args: argparse.Namespace, cls, prefix: str = "", base=None, **overrides):
@@ -483,7 +488,7 @@ def _scalar(tp, text: str):
     return text
 
 
-def _parser_for(tp, flag: str, f: dataclasses.Field | None = None):
+def _parser_for(tp, flag: str, f: dataclasses.Field | None = None, owner: str = ""):
     """argparse ``type=`` callable of a config field: parse ``tp`` from text, then check the
     field's declared constraints (:mod:`splatplan._config`) so a bad value is a usage error."""
     inner, optional = _strip_optional(tp)
@@ -493,8 +498,8 @@ def _parser_for(tp, flag: str, f: dataclasses.Field | None = None):
         value = _parse(text)
         if f is not None and value is not _EXPLICIT_NONE:
             msg = check_value(f, value)
-            if msg:
-                raise argparse.ArgumentTypeError(msg)
+            if msg:  # the library's message, plus the field it sets
+                raise argparse.ArgumentTypeError(f"{msg} ({owner}.{f.name})" if owner else msg)
         return value
 
     def _parse(text: str):
