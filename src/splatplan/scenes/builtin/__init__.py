@@ -18,6 +18,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Callable
 
+from ..._resources import require_bytes
 from ...errors import SplatplanError
 from . import apartment, primitives, stonehenge, tabletop
 from .primitives import AnalyticScene, SurfaceSplatConfig, splats_from_boxes
