@@ -182,9 +182,11 @@ class _Budget(BaseException):
     pass
 
 
-def run_in_process(argv: list[str], budget_s: float) -> tuple[int, str, str, bool, float]:
-    """(exit code, stdout, stderr, interrupted by the budget, seconds) of ``main(argv)``."""
+def run_in_process(argv: list[str], budget_s: float, cwd: Path) -> tuple[int, str, str, bool, float]:
+    """(exit code, stdout, stderr, interrupted by the budget, seconds) of ``main(argv)`` run in
+    ``cwd`` (a hostile value read as a relative output path, e.g. ``--status-file 0``, lands there)."""
     out, err = io.StringIO(), io.StringIO()
+    old_cwd = os.getcwd()
     fired = []
 
     def alarm(signum, frame):
@@ -195,6 +197,7 @@ def run_in_process(argv: list[str], budget_s: float) -> tuple[int, str, str, boo
     signal.setitimer(signal.ITIMER_REAL, budget_s)
     t0 = time.perf_counter()
     try:
+        os.chdir(cwd)
         with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
             try:
                 rc = main(argv)
@@ -210,6 +213,7 @@ def run_in_process(argv: list[str], budget_s: float) -> tuple[int, str, str, boo
     finally:
         signal.setitimer(signal.ITIMER_REAL, 0)
         signal.signal(signal.SIGALRM, old)
+        os.chdir(old_cwd)
     return rc, out.getvalue(), err.getvalue(), bool(fired), time.perf_counter() - t0
 
 
@@ -337,7 +341,7 @@ def test_accepted_cases_run_cleanly(tmp_path):
     failures, summary = [], {}
     for cmd, name, value in picked:
         argv = _fill(build_argv(cmd, name, value, leaf[cmd]), d, free_port())
-        rc, out, err, interrupted, secs = run_in_process(argv, BUDGET_S)
+        rc, out, err, interrupted, secs = run_in_process(argv, BUDGET_S, d)
         probs = check_outcome(argv, rc, out, err, interrupted, secs, d, hashes)
         summary[rc] = summary.get(rc, 0) + 1
         if probs:

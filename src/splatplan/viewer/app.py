@@ -37,8 +37,8 @@ class ViewerConfig:
     host: str = "127.0.0.1"
     #: TCP port of the web page.
     port: int = bounded(8080, ge=1, le=65535)
-    #: Initial conservatism n_sigma of the collision colouring and re-planning (slider in the GUI).
-    n_sigma: float = bounded(1.0, ge=0)
+    #: Initial conservatism n_sigma of the collision colouring and re-planning (slider in the GUI, 0..3).
+    n_sigma: float = bounded(1.0, ge=0, le=3)
     #: Scenes with more splats are randomly decimated to this many for the browser (the metric
     #: still uses every splat); the viewer says so on stdout.
     max_splats: int = bounded(1_000_000, ge=1)
