@@ -25,6 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from .._config import bounded, check_config
+from .._resources import require_bytes
 from ..errors import SplatplanError
 from .geometry import colormap, ellipsoid_mesh, polyline_segments, splat_s2_tilde, tree_segments
 
@@ -114,6 +115,8 @@ class SplatViewer:
         from ..metric import CollisionChecker
 
         self.config = cfg = (config or ViewerConfig()).validate()
+        # the field slice: res^2 probe points, their metric outputs and an RGB image (an estimate per cell)
+        require_bytes(float(cfg.field_res) ** 2 * 128, f"the collision-field slice of {cfg.field_res}^2 cells", "--field-res")
         self.scene = scene
         lo, hi = scene.bounds()
         # robust bounds for the GUI ranges (outliers far away do not stretch the sliders)
