@@ -34,12 +34,23 @@ def atomic_path(path: str | Path):
         raise SplatplanError(f"output {dest} is a directory; give a file path")
     if dest.parent and not dest.parent.exists():
         raise SplatplanError(f"output folder {dest.parent} does not exist")
-    fd, tmp = tempfile.mkstemp(prefix=f".{dest.name}.", suffix=dest.suffix, dir=dest.parent or ".")
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{dest.name}.", suffix=dest.suffix, dir=dest.parent or ".")
+    except OSError as exc:  # name the path the caller gave, not the temp file
+        raise SplatplanError(f"cannot write {dest}: {exc.strerror or exc}") from None
     os.close(fd)
     try:
-        yield Path(tmp)
-        os.chmod(tmp, 0o666 & ~_umask())
-        os.replace(tmp, dest)
+        try:
+            yield Path(tmp)
+        except OSError as exc:
+            if exc.filename is not None and os.path.abspath(exc.filename) == os.path.abspath(tmp):
+                raise SplatplanError(f"cannot write {dest}: {exc.strerror or exc}") from None
+            raise
+        try:
+            os.chmod(tmp, 0o666 & ~_umask())
+            os.replace(tmp, dest)
+        except OSError as exc:
+            raise SplatplanError(f"cannot write {dest}: {exc.strerror or exc}") from None
     finally:
         if os.path.exists(tmp):
             os.unlink(tmp)

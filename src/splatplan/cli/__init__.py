@@ -1,8 +1,8 @@
 """Command-line interface. Thin: parse, call the library, print, exit codes.
 
 Exit codes: 0 success, 1 no result within the budget (e.g. ``plan`` found no path), 2 bad input
-or impossible request (one-line message, no traceback), 130 interrupted (Ctrl-C), 143 terminated
-(SIGTERM). Output files are written atomically, with the umask's permissions; an interrupted
+or impossible request (one-line message, no traceback), 130 interrupted (Ctrl-C), 141 stdout closed
+early (``| head``; quiet), 143 terminated (SIGTERM). Output files are written atomically, with the umask's permissions; an interrupted
 command leaves no partial output or temporary file behind. ``--device`` means the same in every
 subcommand (``auto`` = CUDA when present, else CPU) and is checked before any work starts.
 
@@ -38,8 +38,9 @@ _MODULES = (
 
 def build_parser() -> argparse.ArgumentParser:
     from .. import __version__
+    from ._common import Parser
 
-    p = argparse.ArgumentParser(prog="splatplan", description="Collision-aware motion planning in Gaussian-splat scenes.")
+    p = Parser(prog="splatplan", description="Collision-aware motion planning in Gaussian-splat scenes.")
     p.add_argument("--version", action="version", version=f"splatplan {__version__}")
     sub = p.add_subparsers(dest="cmd", required=True, metavar="COMMAND")
     ev = sub.add_parser("eval", help="the paper's studies and the robot studies")
@@ -53,19 +54,40 @@ def main(argv: list[str] | None = None) -> int:
     from ._common import CREATED_DIRS, remove_created_empty_dirs
 
     CREATED_DIRS.clear()
-    rc = _main(argv)
+    try:
+        rc = _main(argv)
+        sys.stdout.flush()  # a closed pipe raises here, not at interpreter exit
+    except BrokenPipeError:
+        rc = _broken_pipe()
     if rc not in (0, 1):  # 1: ran, with a negative answer (results written); else rejected or failed
         remove_created_empty_dirs()
     CREATED_DIRS.clear()
     return rc
 
 
+def _broken_pipe() -> int:
+    """stdout was closed early (``splatplan ... | head -1``): end quietly (no message, exit 141 as
+    for a process ended by SIGPIPE; outputs already written stay, temp files are gone). Python's recommended pattern: point stdout at devnull so the interpreter's final flush
+    does not raise again (https://docs.python.org/3/library/signal.html#note-on-sigpipe)."""
+    import os
+
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError):  # stdout without a file descriptor (captured in tests)
+        pass
+    return 141  # 128 + SIGPIPE: what a shell reports for a writer that its reader left
+
+
 def _main(argv: list[str] | None) -> int:
-    from ._common import Terminated, check_device, cli_signal_handlers
+    from ._common import Terminated, UsageError, check_device, cli_signal_handlers
 
     with cli_signal_handlers():  # Ctrl-C / SIGTERM unwind through every finally (no stray temp files)
         try:
-            args = build_parser().parse_args(argv)  # argparse's own SystemExit (--help, usage errors) passes through
+            try:
+                args = build_parser().parse_args(argv)  # --help / --version exit through argparse's SystemExit
+            except UsageError as exc:  # already printed as one line
+                return int(exc.code)
             if getattr(args, "device", None) is not None:
                 args.device = check_device(args.device)  # one meaning everywhere: auto -> cuda:0 or cpu
             return int(args.func(args) or 0)

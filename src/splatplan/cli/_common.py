@@ -25,6 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from .._files import _umask, atomic_path  # noqa: F401 - the commands import atomic_path from here
+from .._config import check_config, check_value
 from ..errors import SplatplanError
 
 ROBOT_HELP = "robot link: 'sphere:R' or 'ellipsoid:A,B,C' (semi-axes, scene units)"
@@ -102,7 +103,10 @@ def atomic_dir(folder: str | Path):
     folder = Path(folder)
     if not folder.is_dir():
         raise SplatplanError(f"output folder {folder} does not exist")
-    tmp = tempfile.mkdtemp(prefix=".splatplan-", dir=folder)
+    try:
+        tmp = tempfile.mkdtemp(prefix=".splatplan-", dir=folder)
+    except OSError as exc:  # name the folder the user gave, not the temp folder
+        raise SplatplanError(f"cannot write into {folder}: {exc.strerror or exc}") from None
     try:
         yield Path(tmp)
     finally:
@@ -267,6 +271,75 @@ def engine_from_args(args: argparse.Namespace):
     return engine_from_flags(getattr(args, "workers", None), getattr(args, "scheduler", None))
 
 
+# ---------------------------------------------------------------------------- plain flags: typed, range-checked values
+class UsageError(SystemExit):
+    """A command line the parser rejects (exit 2); :func:`splatplan.cli.main` returns its code."""
+
+
+class Parser(argparse.ArgumentParser):
+    """The CLI's ArgumentParser (its subparsers inherit it): a usage error is ONE line,
+    ``splatplan: error: MESSAGE`` on stderr, exit 2 (no usage block: ``--help`` shows it)."""
+
+    def error(self, message: str):  # noqa: D102 - argparse's hook
+        print(f"splatplan: error: {' '.join(message.split())}", file=sys.stderr)
+        raise UsageError(2)
+
+
+def int_arg(*, ge: int | None = None, le: int | None = None):
+    """argparse ``type=`` for an integer flag with a range: ``type=int_arg(ge=0)``."""
+    from .._config import Bounds
+
+    b = Bounds(ge=ge, le=le)
+
+    def parse(text: str) -> int:
+        try:
+            v = int(text)
+        except ValueError:
+            rng = b.describe()
+            raise argparse.ArgumentTypeError(f"expected an integer{' ' + rng if rng else ''}, got {text!r}") from None
+        msg = b.problem(v)
+        if msg:
+            raise argparse.ArgumentTypeError(msg)
+        return v
+
+    parse.__name__ = "int"
+    return parse
+
+
+def float_arg(*, ge: float | None = None, gt: float | None = None, le: float | None = None, lt: float | None = None, allow_inf: bool = False):
+    """argparse ``type=`` for a float flag: finite (unless ``allow_inf``) and within the range."""
+    from .._config import Bounds
+
+    b = Bounds(ge=ge, gt=gt, le=le, lt=lt, allow_inf=allow_inf)
+
+    def parse(text: str) -> float:
+        try:
+            v = float(text)
+        except ValueError:
+            rng = b.describe()
+            raise argparse.ArgumentTypeError(f"expected a number{' ' + rng if rng else ''}, got {text!r}") from None
+        msg = b.problem(v)
+        if msg:
+            raise argparse.ArgumentTypeError(msg)
+        return v
+
+    parse.__name__ = "float"
+    return parse
+
+
+#: ``--seed``: a non-negative integer that every seeded generator accepts (numpy legacy seeds stop at 2**32 - 1)
+SEED = int_arg(ge=0, le=2**32 - 1)
+#: a count of at least one (batch sizes, goals, ...)
+POSITIVE_INT = int_arg(ge=1)
+#: a TCP port
+PORT = int_arg(ge=1, le=65535)
+
+
+def add_seed_arg(parser: argparse.ArgumentParser, help: str = "random seed (integer >= 0; default 0)") -> None:
+    """The ``--seed`` flag (a non-negative integer, checked while parsing)."""
+    parser.add_argument("--seed", type=SEED, default=0, help=help)
+
+
 # ---------------------------------------------------------------------------- config dataclasses -> flags
 def field_docs(cls) -> dict[str, str]:
     """The ``#:`` comment above each field of a dataclass (joined when it spans several lines)."""
@@ -328,7 +401,8 @@ def add_config_args(parser: argparse.ArgumentParser, cls, prefix: str = "", skip
     Value syntax: numbers and strings as usual; bools true/false; ``X | None`` fields also take
     ``none``; tuples take comma-separated items (``0,1,2``), tuples of pairs ``a:1,b:2``, dicts
     ``a=1,b=2``; ``Literal`` fields list their choices. ``base`` (an instance) sets the defaults
-    shown in the help.
+    shown in the help. A value outside the field's declared range (``bounded(...)``, see
+    :mod:`splatplan._config`) is a usage error while parsing, with the validator's message.
     """
     docs = field_docs(cls)
     hints = typing.get_type_hints(cls)
@@ -341,7 +415,7 @@ def add_config_args(parser: argparse.ArgumentParser, cls, prefix: str = "", skip
         default = getattr(base, f.name) if base is not None else _field_default(f)
         doc = docs.get(f.name, "")
         help_ = f"{doc} (default {_show(default)})".strip()
-        g.add_argument(flag, dest=f"cfg_{prefix}{f.name}", default=_Unset, type=_parser_for(tp, flag), metavar=_metavar(tp), help=help_.replace("%", "%%"))
+        g.add_argument(flag, dest=f"cfg_{prefix}{f.name}", default=_Unset, type=_parser_for(tp, flag, f, cls.__name__), metavar=_metavar(tp), help=help_.replace("%", "%%"))
 
 
 def config_from_args(args: argparse.Namespace, cls, prefix: str = "", base=None, **overrides):
@@ -357,9 +431,16 @@ def config_from_args(args: argparse.Namespace, cls, prefix: str = "", base=None,
             kw[f.name] = None if v is _EXPLICIT_NONE else v
     kw.update({k: v for k, v in overrides.items() if v is not None})
     try:
-        return dataclasses.replace(base, **kw) if base is not None else cls(**kw)
+        cfg = dataclasses.replace(base, **kw) if base is not None else cls(**kw)
     except TypeError as exc:
         raise SplatplanError(f"bad {cls.__name__} options: {exc}") from None
+    # the flags were checked while parsing; this covers the overrides, the base and cross-field rules
+    validate = getattr(cfg, "validate", None)
+    if callable(validate):
+        validate()
+    else:
+        check_config(cfg)
+    return cfg
 
 
 def _is_union(tp) -> bool:
@@ -423,11 +504,21 @@ def _scalar(tp, text: str):
     return text
 
 
-def _parser_for(tp, flag: str):
+def _parser_for(tp, flag: str, f: dataclasses.Field | None = None, owner: str = ""):
+    """argparse ``type=`` callable of a config field: parse ``tp`` from text, then check the
+    field's declared constraints (:mod:`splatplan._config`) so a bad value is a usage error."""
     inner, optional = _strip_optional(tp)
     origin = typing.get_origin(inner)
 
     def parse(text: str):
+        value = _parse(text)
+        if f is not None and value is not _EXPLICIT_NONE:
+            msg = check_value(f, value)
+            if msg:  # the library's message, plus the field it sets
+                raise argparse.ArgumentTypeError(f"{msg} ({owner}.{f.name})" if owner else msg)
+        return value
+
+    def _parse(text: str):
         try:
             if optional and text.lower() == "none":
                 return _EXPLICIT_NONE
@@ -460,6 +551,6 @@ def _parser_for(tp, flag: str):
                 return out
             return _scalar(inner, text)
         except ValueError:
-            raise argparse.ArgumentTypeError(f"{flag}: cannot read {text!r} as {_metavar(tp)}") from None
+            raise argparse.ArgumentTypeError(f"cannot read {text!r} as {_metavar(tp)}") from None
 
     return parse

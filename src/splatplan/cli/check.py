@@ -17,14 +17,17 @@ from pathlib import Path
 
 import numpy as np
 
+from .._resources import require_bytes
 from ..errors import SplatplanError
 from ._common import (
-    ROBOT_HELP, _load, add_config_args, add_device_arg, atomic_path, config_from_args, load_npy, load_poses, parse_robot, progress,
+    POSITIVE_INT, ROBOT_HELP, _load, add_config_args, add_device_arg, atomic_path, config_from_args, load_npy, load_poses, parse_robot, progress,
     signals_deferred,
 )  # fmt: skip
 
 #: queries (link poses) per kernel call: small enough that an interrupt waits < ~1 s on a CPU
 DEFAULT_CHUNK = 65_536
+#: bytes per link pose of one kernel call (inputs float32/float64 + outputs, host and device): an estimate
+CHUNK_BYTES_PER_POSE = 256
 
 _OUTPUTS = ("min_s2", "n_colliding", "in_collision", "softmin", "cost")
 
@@ -143,8 +146,8 @@ def cmd_check(args) -> int:
         if ":" in args.robot:
             parse_robot(args.robot)  # a malformed link spec: say so
         raise SplatplanError(f"--robot {args.robot!r} is a robot: give --configs Q.npy (B, dof) instead of --poses (which is for a single link, {ROBOT_HELP})")
-    if args.chunk < 1:
-        raise SplatplanError(f"--chunk must be >= 1, got {args.chunk}")
+    # one chunk's link poses and outputs (centres, quaternions, semi-axes, five result arrays)
+    require_bytes(float(args.chunk) * CHUNK_BYTES_PER_POSE, f"one --chunk of {args.chunk:,} link poses", "--chunk")
     if args.out and not str(args.out).endswith(".npz"):
         raise SplatplanError(f"--out {args.out}: expected a .npz path")
     if args.out and not Path(args.out).parent.exists():
@@ -179,7 +182,7 @@ def register(sub, eval_sub) -> None:
     s.add_argument("--configs", help="Q.npy: (B, dof) joint configurations of --robot (rad or m; panda: 7 arm joints, go2: x, y, yaw)")
     s.add_argument("--out", help="OUT.npz with min_s2, n_colliding, in_collision, softmin, cost: (B,) per pose, or (B, E) per "
                    "ellipsoid plus collision (B,), link_in_collision (B, L), link_min_s2 (B, L), link_names (L,) for --configs")  # fmt: skip
-    s.add_argument("--chunk", type=int, default=DEFAULT_CHUNK, help=f"link poses per kernel call; Ctrl-C is honoured between calls (default {DEFAULT_CHUNK})")
+    s.add_argument("--chunk", type=POSITIVE_INT, default=DEFAULT_CHUNK, help=f"link poses per kernel call; Ctrl-C is honoured between calls (default {DEFAULT_CHUNK})")
     add_device_arg(s)
     add_config_args(s, MetricConfig, group="metric options (MetricConfig)")
     s.set_defaults(func=cmd_check)

@@ -9,7 +9,7 @@ import numpy as np
 
 from ..errors import SplatplanError
 from ._common import (  # noqa: F401
-    ROBOT_HELP, _load, _out_dir, add_config_args, add_device_arg, atomic_path, config_from_args, load_poses, parse_robot, parse_vec3, write_json,
+    ROBOT_HELP, SEED, _load, _out_dir, add_config_args, add_device_arg, atomic_path, config_from_args, load_poses, parse_robot, parse_vec3, write_json,
 )
 
 
@@ -25,6 +25,6 @@ def cmd_demo(args) -> int:
 def register(sub, eval_sub) -> None:
     s = sub.add_parser("demo", help="the main job on the built-in scene: collision field and plans")
     s.add_argument("--out", default="demo_out", help="output folder (default demo_out)")
-    s.add_argument("--seed", type=int, default=0, help="scene and planner seed, an integer >= 0 (default 0)")
+    s.add_argument("--seed", type=SEED, default=0, help="scene and planner seed, an integer >= 0 (default 0)")
     add_device_arg(s)
     s.set_defaults(func=cmd_demo)

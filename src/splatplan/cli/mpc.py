@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import SplatplanError
-from ._common import _out_dir, add_config_args, add_device_arg, config_from_args, write_json
+from ._common import SEED, _out_dir, add_config_args, add_device_arg, config_from_args, float_arg, write_json
 
 
 def _floats(text: str, n: int, what: str, form: str) -> np.ndarray:
@@ -105,9 +105,9 @@ def register(sub, eval_sub) -> None:
     s.add_argument("--start", default=None, help="start configuration: 7 joint values (panda, default home) or X,Y,YAW (go2; default -2.3,-0.6,0 in the living room of apartment, the base study's start, else 0,0,0)")
     s.add_argument("--no-collision", action="store_true", help="switch the collision cost off (the baseline); every output says so")
     s.add_argument("--route", action="store_true", help="go2: plan a global RRT route on SE(2) first and track it (default: goal only)")
-    s.add_argument("--route-time", type=float, default=60.0, help="go2 --route: RRT time budget in seconds (default 60)")
+    s.add_argument("--route-time", type=float_arg(gt=0), default=60.0, help="go2 --route: RRT time budget in seconds (default 60)")
     s.add_argument("--out", required=True, help="output folder (result.json, motion.png)")
-    s.add_argument("--seed", type=int, default=0, help="noise seed")
+    s.add_argument("--seed", type=SEED, default=0, help="noise seed")
     add_device_arg(s)
     add_config_args(s, ArmConfig, prefix="arm_", skip=("seed",), group="panda (ArmConfig) options")
     add_config_args(s, BaseConfig, prefix="base_", skip=("seed",), group="go2 (BaseConfig) options")
@@ -117,6 +117,6 @@ def register(sub, eval_sub) -> None:
         e = eval_sub.add_parser(name, help=help_)
         e.add_argument("--out", required=True, help="output folder")
         e.add_argument("--quick", action="store_true", help="small version (< 2 min on 2 cores)")
-        e.add_argument("--seed", type=int, default=0)
+        e.add_argument("--seed", type=SEED, default=0, help="random seed (integer >= 0; default 0)")
         add_device_arg(e)
         e.set_defaults(func=cmd_eval, study=name)

@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import SplatplanError
-from ._common import _load, add_config_args, add_device_arg, config_from_args, write_json
+from ._common import SEED, _load, add_config_args, add_device_arg, config_from_args, float_arg, write_json
 
 #: a command-line token starting with a minus and a digit ("-0.3,0,0.06", "-1e-3"): a value, not
 #: an option (argparse's own test accepts only a single plain negative number); a malformed list
@@ -182,14 +182,14 @@ def register(sub, eval_sub) -> None:
     s.add_argument("--up", choices=sorted(_UP), default="z", help="the scene's up axis (default z; real captures are often -y)")
     s.add_argument("--planar", action="store_true", help="plan at a fixed height along --up: point robots keep that coordinate at "
                    "--height (default the start's); go2 stands on the plane at --height")  # fmt: skip
-    s.add_argument("--height", type=float, default=None, help="plane coordinate along --up for --planar / go2 (scene units)")
+    s.add_argument("--height", type=float_arg(), default=None, help="plane coordinate along --up for --planar / go2 (scene units)")
     s.add_argument("--planner", default="auto", metavar="NAME", help="auto (rrtconnect for robots with 4 or more dofs, else rrt) | rrt "
                    "(goal-biased batched RRT) | rrtconnect (batched bidirectional RRT-Connect) | ompl:NAME, an OMPL geometric planner on "
                    "the same checker (ompl:RRTConnect, ompl:RRTstar, ompl:BITstar, ompl:PRM, ...; needs the 'ompl' extra) (default auto)")  # fmt: skip
-    s.add_argument("--time-limit", type=float, default=None, help="wall-clock budget of the whole call in seconds: search, shortcut and "
+    s.add_argument("--time-limit", type=float_arg(gt=0), default=None, help="wall-clock budget of the whole call in seconds: search, shortcut and "
                    "--refine share it (default 10; same as --rrt-time-limit-s)")  # fmt: skip
     s.add_argument("--refine", action="store_true", help="zeroth-order refinement of the RRT path")
-    s.add_argument("--seed", type=int, default=0)
+    s.add_argument("--seed", type=SEED, default=0, help="random seed (integer >= 0; default 0)")
     s.add_argument("--force", action="store_true", help="overwrite an existing --out even when no path is found")
     add_device_arg(s)
     s.add_argument("--out", required=True, help="PATH.json")

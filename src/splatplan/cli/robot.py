@@ -20,11 +20,16 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import SplatplanError
+from ..robots.fit import MAX_PER_LINK
+from ._common import int_arg
+
+#: ``--per-link``: ellipsoids (slabs) per link, 1..MAX_PER_LINK
+PER_LINK = int_arg(ge=1, le=MAX_PER_LINK)
 
 
 def _robot_args(p) -> None:
     p.add_argument("--ellipsoids", default=None, help="YAML with the collision ellipsoids (default: built-in / sidecar / fitted)")
-    p.add_argument("--per-link", type=int, default=1, help="ellipsoids per link when fitting (k >= 1; slabs along the principal axis)")
+    p.add_argument("--per-link", type=PER_LINK, default=1, help="ellipsoids per link when fitting (k >= 1; slabs along the principal axis)")
     p.add_argument("--from-visual", action="store_true", help="fit links without collision geometry to their visual meshes")
 
 
@@ -125,7 +130,7 @@ def register(sub, eval_sub) -> None:
     pf = rs.add_parser("fit", help="fit enclosing ellipsoids to a URDF's link meshes -> YAML (+ PNG)")
     pf.add_argument("urdf", metavar="URDF", help="a .urdf path (or a built-in: panda, go2)")
     pf.add_argument("--out", required=True, help="output ELLIPSOIDS.yaml (a PNG of the fit is written next to it)")
-    pf.add_argument("--per-link", type=int, default=1, help="ellipsoids per link (k >= 1; slabs along the principal axis)")
+    pf.add_argument("--per-link", type=PER_LINK, default=1, help="ellipsoids per link (k >= 1; slabs along the principal axis)")
     pf.add_argument("--from-visual", action="store_true", help="fit links without collision geometry to their visual meshes")
     pf.add_argument("--no-png", action="store_true", help="skip the PNG")
     pf.set_defaults(func=cmd_fit)

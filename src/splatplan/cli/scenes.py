@@ -8,11 +8,12 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import SplatplanError
-from ._common import _load, atomic_dir, move_into
+from ._common import SEED, _load, atomic_dir, int_arg, move_into
 
 
 def cmd_info(args) -> int:
     from ..scenes.filters import filter_floaters
+    from ..scenes.sanity import absurd_splats
 
     s = _load(args.scene, filter_floaters=False)
     lo, hi = s.bounds()
@@ -30,6 +31,7 @@ def cmd_info(args) -> int:
         "max_std_p99": float(np.quantile(smax, 0.99)),
         "opacity_median": float(np.median(s.opacities)),
         "floaters_default_rule": int(rep.n_dropped),
+        "absurd": absurd_splats(s),  # values a corrupt file or a wrong unit gives (scenes.sanity)
     }
     if args.json:
         print(json.dumps(info))
@@ -38,6 +40,8 @@ def cmd_info(args) -> int:
     print(f"  bounds of means (file frame, scene units): min {np.round(lo, 4).tolist()}  max {np.round(hi, 4).tolist()}")
     print(f"  largest std per splat: median {info['max_std_median']:.4g}, p99 {info['max_std_p99']:.4g}; median opacity {info['opacity_median']:.3f}")
     print(f"  SH rest coefficients: {info['sh_rest_coeffs']}; floaters by the default rule (o < 0.1 and max std > 5x median): {info['floaters_default_rule']}")
+    for line in info["absurd"]:
+        print(f"  warning: absurd splats: {line}")
     return 0
 
 
@@ -116,7 +120,7 @@ def register(sub, eval_sub) -> None:
     s.add_argument("name", metavar="NAME", help="built-in scene name: stonehenge | tabletop | apartment; or from-moveit (then SCENE.yaml)")
     s.add_argument("source", nargs="?", metavar="SCENE.yaml", help="with from-moveit: a MoveIt planning-scene YAML (box, cylinder, sphere primitives)")
     s.add_argument("--out", required=True, help="PATH.ply (ground truth goes to PATH.gt.json)")
-    s.add_argument("--level", type=int, default=1, help="Gaussian-size level 1..5 (larger, fewer splats)")
-    s.add_argument("--seed", type=int, default=0, help="layout and sampling seed, an integer >= 0 (default 0)")
-    s.add_argument("--n-splats", type=int, default=None, help="from-moveit only: total splats (default 100000: ~7-8 mm spacing on a metre-scale workcell)")
+    s.add_argument("--level", type=int_arg(ge=1, le=5), default=1, help="Gaussian-size level 1..5 (larger, fewer splats)")
+    s.add_argument("--seed", type=SEED, default=0, help="layout and sampling seed, an integer >= 0 (default 0)")
+    s.add_argument("--n-splats", type=int_arg(ge=1), default=None, help="from-moveit only: total splats (default 100000: ~7-8 mm spacing on a metre-scale workcell)")
     s.set_defaults(func=cmd_scene)

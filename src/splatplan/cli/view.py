@@ -78,9 +78,9 @@ def cmd_view(args) -> int:
             time.sleep(0.25)
     except KeyboardInterrupt:
         print("stopping the viewer", flush=True)
+        return 130  # interrupted, as every command (the CLI's exit codes)
     finally:
         viewer.stop()
-    return 0
 
 
 def register(sub, eval_sub) -> None:

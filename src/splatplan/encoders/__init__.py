@@ -23,6 +23,7 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass
 from typing import Any
 
+from .._config import bounded, check_config
 from ..errors import SplatplanError
 
 #: Names accepted by :func:`load_encoder`.
@@ -38,15 +39,19 @@ class EncoderConfig:
     #: weights: DINOv2 = folder with the Hugging Face config.json + model.safetensors (e.g. facebook/dinov2-small saved with save_pretrained); efficientnet-lite0 = optional .pth state dict (default: the installed package); thumbnail: none
     weights: str | None = None
     #: global embedding: cls | mean (mean of patch tokens) | cls_mean (both concatenated); none = the encoder's default (cls for DINOv2, mean for EfficientNet)
-    pooling: str | None = None
+    pooling: str | None = bounded(None, choices=("cls", "mean", "cls_mean", ""))
     #: side in pixels of the square image the encoder sees (multiple of 14 for DINOv2); none = default (224; 16 for thumbnail)
-    image_size: int | None = None
+    image_size: int | None = bounded(None, ge=1)
     #: L2-normalise embeddings and patch tokens, so that ||e_t - e_r||^2 = 2 - 2 cos
     normalize: bool = False
     #: images per forward pass (bounds memory)
-    batch_size: int = 32
+    batch_size: int = bounded(32, ge=1)
     #: random weights of the same architecture (tests/benchmarks only; the encoder's name then ends in -RANDOM-WEIGHTS)
     random_init: bool = False
+
+    def validate(self) -> "EncoderConfig":
+        """Check every field's declared range (:mod:`splatplan._config`); returns self."""
+        return check_config(self)
 
 
 def load_encoder(name: str | EncoderConfig = "thumbnail", weights: str | None = None, device: Any = "cpu", **options):
@@ -67,8 +72,7 @@ def load_encoder(name: str | EncoderConfig = "thumbnail", weights: str | None = 
             cfg = EncoderConfig(name=name, weights=weights, **options)
         except TypeError as exc:
             raise SplatplanError(f"load_encoder: {exc}") from None
-    if int(cfg.batch_size) < 1:
-        raise SplatplanError(f"encoder batch_size must be >= 1, got {cfg.batch_size}")
+    cfg.validate()
     common = dict(device=device, batch_size=cfg.batch_size, normalize=cfg.normalize)
     if cfg.name == "thumbnail":
         from .thumbnail import ThumbnailEncoder

@@ -25,6 +25,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial import cKDTree
 
+from .._config import bounded, check_config
 from ..errors import PlanningError, SplatplanError
 from ..planners import RRTConfig, plan
 from ..planners.metrics import clearance, d_min, smoothness
@@ -60,28 +61,28 @@ class ConservatismConfig:
     """Knobs of study E3 (defaults = the full run; :meth:`quick` = the < 1 min smoke version)."""
 
     #: n_sigma values to plan with (the same goals for each).
-    n_sigmas: tuple[float, ...] = N_SIGMAS
+    n_sigmas: tuple[float, ...] = bounded(N_SIGMAS, ge=0)
     #: Border goals per n_sigma (all collision-free at the largest n_sigma).
-    n_goals: int = 20
+    n_goals: int = bounded(20, ge=1)
     #: RRT wall-clock budget per plan (s).
-    time_budget_s: float = 60.0
+    time_budget_s: float = bounded(60.0, gt=0)
     #: RRT node budget per plan.
-    max_nodes: int = 50_000
+    max_nodes: int = bounded(50_000, ge=2)
     #: RRT samples drawn (and edges checked) per iteration (the paper grows 32 nodes at a time).
-    batch_size: int = 32
+    batch_size: int = bounded(32, ge=1)
     #: RRT maximum edge length (scene units).
-    stride: float = 0.03
+    stride: float = bounded(0.03, gt=0)
     #: Spacing of the collision checks along RRT edges (scene units); None = the planner's default
     #: for a sphere robot, r/4 (inner samples checked with the sphere grown by half the spacing).
-    edge_resolution: float | None = None
+    edge_resolution: float | None = bounded(None, gt=0)
     #: Robot sphere radius (scene units).
-    radius: float = RADIUS
+    radius: float = bounded(RADIUS, gt=0)
     #: Height of the planning plane (scene units, z up).
     plane_z: float = PLANE_Z
     #: Built-in Stonehenge level (1..5).
-    level: int = 1
+    level: int = bounded(1, ge=1, le=5)
     #: Scene, goal and planner seed (an integer >= 0).
-    seed: int = 0
+    seed: int = bounded(0, ge=0)
 
     @classmethod
     def quick(cls) -> "ConservatismConfig":
@@ -89,6 +90,7 @@ class ConservatismConfig:
         return cls(n_goals=3, time_budget_s=10.0)
 
     def validate(self) -> "ConservatismConfig":
+        check_config(self)  # each field's declared range (splatplan._config); cross-field rules below
         if self.n_goals < 1 or not self.n_sigmas:
             raise SplatplanError("ConservatismConfig: n_goals must be >= 1 and n_sigmas not empty")
         if not (self.radius > 0 and self.stride > 0 and self.time_budget_s > 0):

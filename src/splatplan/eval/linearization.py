@@ -28,6 +28,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial import cKDTree
 
+from .._config import bounded, check_config
 from ..errors import PlanningError, SplatplanError
 from ._common import mean_std, progress
 from .conservatism import PLANE_Z, RADIUS, border_goals, free_start, load_scene, plan_trials
@@ -54,21 +55,21 @@ class LinearizationConfig:
     """Knobs of study E4 (defaults = the full run; :meth:`quick` = the < 1 min smoke version)."""
 
     #: Stonehenge levels whose metric is plotted along the straight path (M1..M5).
-    levels: tuple[int, ...] = LEVELS
+    levels: tuple[int, ...] = bounded(LEVELS, ge=1, le=5)
     #: Levels the planner runs on (the paper's Table III: M1..M3).
-    plan_levels: tuple[int, ...] = PLAN_LEVELS
+    plan_levels: tuple[int, ...] = bounded(PLAN_LEVELS, ge=1, le=5)
     #: Border goals per level (the same goals for every level).
-    n_goals: int = N_GOALS
+    n_goals: int = bounded(N_GOALS, ge=1)
     #: RRT wall-clock budget per plan (s).
-    time_budget_s: float = 60.0
+    time_budget_s: float = bounded(60.0, gt=0)
     #: Conservatism of every checker.
-    n_sigma: float = N_SIGMA
+    n_sigma: float = bounded(N_SIGMA, ge=0)
     #: s2_cap of the metric-along-path plot (min_s2 exact below it: within ~5 robot radii).
-    plot_s2_cap: float = PLOT_S2_CAP
+    plot_s2_cap: float = bounded(PLOT_S2_CAP, ge=1)
     #: Candidate straight segments drawn to pick the plotted one.
-    n_candidates: int = 3000
+    n_candidates: int = bounded(3000, ge=1)
     #: Scene, goal and planner seed (an integer >= 0).
-    seed: int = 0
+    seed: int = bounded(0, ge=0)
 
     @classmethod
     def quick(cls) -> "LinearizationConfig":
@@ -76,6 +77,7 @@ class LinearizationConfig:
         return cls(n_goals=3, time_budget_s=10.0)
 
     def validate(self) -> "LinearizationConfig":
+        check_config(self)  # each field's declared range (splatplan._config); cross-field rules below
         if not set(self.plan_levels) <= set(self.levels) or not all(1 <= lv <= 5 for lv in self.levels):
             raise SplatplanError(f"LinearizationConfig: levels must lie in 1..5 and include plan_levels, got {self.levels} / {self.plan_levels}")
         if self.n_goals < 1 or not self.time_budget_s > 0 or self.n_sigma < 0 or self.seed < 0:

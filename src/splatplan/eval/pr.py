@@ -89,6 +89,8 @@ from typing import Any
 
 import numpy as np
 
+from .._config import bounded, check_config
+from .._resources import require_bytes
 from ..errors import SplatplanError
 from ._common import DISPLAY, ROBOT_RADIUS, load_scene_with_gt, n_cores, progress, set_torch_threads
 
@@ -132,33 +134,33 @@ class PRConfig:
     """Knobs of the precision-recall study (defaults = the full run)."""
 
     #: Lattice spacing of the query grid (scene units); the grid holds the cell centres.
-    spacing: float = 0.01
+    spacing: float = bounded(0.01, gt=0)
     #: Robot sphere radius (scene units).
-    radius: float = ROBOT_RADIUS
+    radius: float = bounded(ROBOT_RADIUS, gt=0)
     #: Padding of the domain (bounding box of the splat means) on every side, in units of radius.
-    pad: float = 1.0
+    pad: float = bounded(1.0, ge=0)
     #: n_sigma values of CollisionSplatting; the headline ``collisionsplatting`` entry uses 1.0.
-    n_sigmas: tuple[float, ...] = (0.0, 1.0, 2.0)
+    n_sigmas: tuple[float, ...] = bounded((0.0, 1.0, 2.0), ge=0)
     #: Baselines to score (a subset of splatnav, safersplat, atlasnav, splanning).
     baselines: tuple[str, ...] = BASELINE_NAMES
     #: Side of the cubic query tiles the culled baselines are evaluated on (scene units).
-    tile: float = 0.02
+    tile: float = bounded(0.02, gt=0)
     #: Side of the coarse blocks used to pre-select candidate Gaussians for the tiles (scene units).
-    block: float = 0.1
+    block: float = bounded(0.1, gt=0)
     #: Built-in Stonehenge level (1..5).
-    level: int = 1
+    level: int = bounded(1, ge=1, le=5)
     #: Built-in Stonehenge seed.
-    seed: int = 0
+    seed: int = bounded(0, ge=0)
     #: Built-in Stonehenge splat count before filtering (None: the level's default, ~200k at level 1).
-    n_splats: int | None = None
+    n_splats: int | None = bounded(None, ge=1)
     #: Queries near the decision boundary re-scored over all Gaussians per culled baseline.
-    n_check: int = 16
+    n_check: int = bounded(16, ge=0)
     #: Clamped queries re-scored over all Gaussians per culled baseline.
-    n_check_clamped: int = 4
+    n_check_clamped: int = bounded(4, ge=0)
     #: Points per plotted curve (curves are thinned for the figure only; metrics use every point).
-    plot_points: int = 3000
+    plot_points: int = bounded(3000, ge=2)
     #: Seed of the culling-check sample.
-    check_seed: int = 0
+    check_seed: int = bounded(0, ge=0)
     #: CollisionSplatting fidelity variants scored at every n_sigma (empty = none): default (a),
     #: opacity_filter (b), log_mean_exp (c), log_mean_exp_default_t (c'), opacity_filter+log_mean_exp,
     #: opacity_min (d1), opacity_scaled_inflation (d2); see VARIANTS.
@@ -172,18 +174,22 @@ class PRConfig:
         "opacity_scaled_inflation",
     )
     #: Opacity threshold of the paper's evaluation filter (variant ``opacity_filter``: every splat below it removed).
-    eval_opacity_below: float = 0.1
+    eval_opacity_below: float = bounded(0.1, ge=0, le=1)
     #: Softmin temperature of the log-mean-exp variants (the paper's sharp "recursive softmin", on s2~).
-    lme_t: float = 300.0
+    lme_t: float = bounded(300.0, gt=0)
     #: opacity_min of the ``opacity_min`` variant (splats below it count as free space).
-    opacity_min: float = 0.1
+    opacity_min: float = bounded(0.1, ge=0, le=1)
     #: Baseline also scored on the ``opacity_filter`` scene for a like-for-like comparison:
     #: "best" (the best AP on the default scene), a baseline name, or "none".
     variant_baseline: str = "best"
     #: Queries near the surface whose log-mean-exp softmin is re-computed in float64 (underflow check).
-    n_softmin_check: int = 64
+    n_softmin_check: int = bounded(64, ge=0)
     #: Free-form note stored in the JSON (e.g. why this is a quick run).
     note: str = ""
+
+    def validate(self) -> "PRConfig":
+        """Check every field's declared range (:mod:`splatplan._config`); returns self."""
+        return check_config(self)
 
     @classmethod
     def quick(cls) -> "PRConfig":
@@ -292,9 +298,15 @@ def _thin_curve(p: np.ndarray, r: np.ndarray, n: int) -> tuple[np.ndarray, np.nd
 # ---------------------------------------------------------------------------------------------
 
 
+#: bytes per grid cell across the study (centres, exact SDF, labels, every method's scores): an estimate
+GRID_BYTES_PER_CELL = 128
+
+
 def make_grid(lo: np.ndarray, hi: np.ndarray, spacing: float) -> tuple[np.ndarray, dict]:
     """Cell centres of the lattice of ``spacing`` covering [lo, hi] -> ((Q, 3) float64, spec)."""
-    n = np.maximum(1, np.ceil((hi - lo) / spacing - 1e-9).astype(int))  # cells per axis
+    n_float = np.maximum(1.0, np.ceil((np.asarray(hi, np.float64) - lo) / spacing - 1e-9))  # cells per axis (float: no overflow)
+    require_bytes(float(np.prod(n_float)) * GRID_BYTES_PER_CELL, f"the query grid of spacing {spacing:g} ({float(np.prod(n_float)):.3g} cells)", "the resolution: a larger --spacing")
+    n = n_float.astype(int)
     axes = [lo[k] + spacing * (np.arange(n[k]) + 0.5) for k in range(3)]
     pts = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 3)
     spec = {"lo": lo.tolist(), "hi": (lo + spacing * n).tolist(), "spacing": spacing, "shape": n.tolist()}
@@ -783,7 +795,7 @@ def run_pr(
     from ..baselines import BASELINES, as_scene_tensors
     from ..metric import CollisionChecker
 
-    cfg = config or (PRConfig.quick() if quick else PRConfig())
+    cfg = (config or (PRConfig.quick() if quick else PRConfig())).validate()
     if not (cfg.spacing > 0 and cfg.radius > 0 and cfg.tile > 0):
         raise SplatplanError("PRConfig: spacing, radius and tile must be > 0")
     for v in cfg.variants:

@@ -48,6 +48,7 @@ from typing import Any
 
 import numpy as np
 
+from .._config import bounded, check_config
 from ..errors import SplatplanError
 from ._common import DISPLAY, ROBOT_RADIUS, make_queries, n_cores
 
@@ -70,9 +71,9 @@ class ThroughputConfig:
     """Knobs of the throughput study (defaults = the full run)."""
 
     #: Timed evaluations after the warm-up; the median is reported.
-    repeats: int = 3
+    repeats: int = bounded(3, ge=1)
     #: Calls per timed evaluation for the batch-1 baselines (rate extrapolated per check).
-    batch1_checks: int = 16
+    batch1_checks: int = bounded(16, ge=1)
     #: Queries actually evaluated per timed run, per method (None or missing = the whole batch).
     timed_queries: dict[str, int] = field(default_factory=lambda: {"atlasnav": 1024, "splanning": 512})
     #: Rows to run: (method, batch). ``collisionsplatting_collision_only`` uses ``collides``.
@@ -89,25 +90,29 @@ class ThroughputConfig:
     #: torch thread counts each baseline row is run with (None = all cores, the paper's setting);
     #: the fastest is reported, all are kept in ``checks_per_s_by_threads``. On a shared machine
     #: torch's OpenMP barriers can make small batch-1 tensors ~10-100x slower with 2 threads than 1.
-    baseline_threads: tuple[int | None, ...] = (None, 1)
+    baseline_threads: tuple[int | None, ...] = bounded((None, 1), ge=1)
     #: Repeats for CollisionSplatting rows (cheap, so more of them).
-    repeats_ours: int = 7
+    repeats_ours: int = bounded(7, ge=1)
     #: Built-in Stonehenge level (1..5).
-    level: int = 1
+    level: int = bounded(1, ge=1, le=5)
     #: Built-in Stonehenge seed.
-    seed: int = 0
+    seed: int = bounded(0, ge=0)
     #: Built-in Stonehenge splat count before filtering (None: the level's default, ~200k at level 1).
-    n_splats: int | None = None
+    n_splats: int | None = bounded(None, ge=1)
     #: Robot sphere radius (scene units).
-    radius: float = ROBOT_RADIUS
+    radius: float = bounded(ROBOT_RADIUS, gt=0)
     #: CollisionSplatting's n_sigma.
-    n_sigma: float = 1.0
+    n_sigma: float = bounded(1.0, ge=0)
     #: Seed of the query generator.
-    query_seed: int = 0
+    query_seed: int = bounded(0, ge=0)
     #: Wall-clock limit of one worker subprocess (s).
-    worker_timeout_s: float = 600.0
+    worker_timeout_s: float = bounded(600.0, gt=0)
     #: Free-form note stored in the JSON.
     note: str = ""
+
+    def validate(self) -> "ThroughputConfig":
+        """Check every field's declared range (:mod:`splatplan._config`); returns self."""
+        return check_config(self)
 
     @classmethod
     def quick(cls) -> "ThroughputConfig":
@@ -420,7 +425,7 @@ def run_throughput(out_dir: Path, quick: bool = False, device: str = "auto", con
     """
     from .._warp import resolve_device
 
-    cfg = config or (ThroughputConfig.quick() if quick else ThroughputConfig())
+    cfg = (config or (ThroughputConfig.quick() if quick else ThroughputConfig())).validate()
     dev = resolve_device(device)  # clear error for a missing GPU
     if dev.startswith("cuda"):
         import torch

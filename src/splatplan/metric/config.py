@@ -6,6 +6,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._config import bounded, check_config
+
 
 @dataclass
 class MetricConfig:
@@ -13,50 +15,35 @@ class MetricConfig:
     (dimensionless: 1 on the link's surface), not metres."""
 
     #: Conservatism: s2~ = max(0, s2 - n_sigma * sigma). 0 = point cloud of splat means.
-    n_sigma: float = 1.0
+    n_sigma: float = bounded(1.0, ge=0)
     #: min_s2 is exact below this value; neighbourhood N(q) = {splats with s2~ < s2_cap}. Must be >= 1.
-    s2_cap: float = 4.0
+    s2_cap: float = bounded(4.0, ge=1)
     #: A link is in collision when more than this many splats have s2~ < 1.
-    k_collide: int = 0
+    k_collide: int = bounded(0, ge=0)
     #: Softmin temperature t in -(1/t) log sum_{i in N(q)} exp(-t s2~_i). An integer multiple of
     #: cost_gamma (default 2x) lets the kernel reuse the cost's exponential (about 20% faster).
-    softmin_t: float = 8.0
+    softmin_t: float = bounded(8.0, gt=0)
     #: MPPI cost per splat d_max * exp(-gamma * max(s2~ - s_min, 0)) ...
-    cost_d_max: float = 1.0
+    cost_d_max: float = bounded(1.0, ge=0)
     #: ... decay factor gamma ...
-    cost_gamma: float = 4.0
+    cost_gamma: float = bounded(4.0, gt=0)
     #: ... and the minimum allowable scaling distance s_min (1 = the link surface).
-    cost_s_min: float = 1.0
+    cost_s_min: float = bounded(1.0, ge=0)
     #: How per-splat costs over N(q) are combined: "mean" (the paper) or "sum" or "max".
-    cost_reduce: str = "mean"
+    cost_reduce: str = bounded("mean", choices=("mean", "sum", "max"))
     #: Softmin aggregation over N(q): "sum" = log-sum-exp -(1/t) log sum exp(-t s2~) (<= min_s2), or
     #: "mean" = log-mean-exp -(1/t) log((1/|N|) sum exp(-t s2~)) (the paper's "recursive softmin", in [min, mean]).
-    softmin_mode: str = "sum"
+    softmin_mode: str = bounded("sum", choices=("sum", "mean"))
     #: Beyond the paper (our option): splats with opacity below this count as free space in every
     #: output (min_s2, n_colliding, collides, softmin, cost). 0 = use every splat (the paper).
-    opacity_min: float = 0.0
+    opacity_min: float = bounded(0.0, ge=0, le=1)
     #: Beyond the paper (our option): inflate each splat by n_sigma * o_i * sigma_i instead of
     #: n_sigma * sigma_i, so faint splats get less conservatism. Still exact (o_i <= 1).
     opacity_scaled_inflation: bool = False
 
     def validate(self) -> "MetricConfig":
-        from ..errors import SplatplanError
-
-        if not (np.isfinite(self.n_sigma) and self.n_sigma >= 0):
-            raise SplatplanError(f"n_sigma must be a finite number >= 0, got {self.n_sigma}")
-        if not (np.isfinite(self.s2_cap) and self.s2_cap >= 1.0):
-            raise SplatplanError(f"s2_cap must be finite and >= 1 (collisions are s2~ < 1), got {self.s2_cap}")
-        if self.k_collide < 0:
-            raise SplatplanError(f"k_collide must be >= 0, got {self.k_collide}")
-        if not self.softmin_t > 0:
-            raise SplatplanError(f"softmin_t must be > 0, got {self.softmin_t}")
-        if self.cost_reduce not in ("mean", "sum", "max"):
-            raise SplatplanError(f"cost_reduce must be 'mean', 'sum' or 'max', got {self.cost_reduce!r}")
-        if self.softmin_mode not in ("sum", "mean"):
-            raise SplatplanError(f"softmin_mode must be 'sum' (log-sum-exp) or 'mean' (log-mean-exp), got {self.softmin_mode!r}")
-        if not (np.isfinite(self.opacity_min) and 0.0 <= self.opacity_min <= 1.0):
-            raise SplatplanError(f"opacity_min must be in [0, 1], got {self.opacity_min}")
-        return self
+        """Check every field's declared range (:mod:`splatplan._config`); returns self."""
+        return check_config(self)
 
 
 COST_REDUCE_CODES = {"mean": 0, "sum": 1, "max": 2}

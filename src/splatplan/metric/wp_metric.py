@@ -28,6 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._config import bounded, check_config
 from .._warp import cpu_threads, launch_split, resolve_device
 from .._warp import wp as _wp
 from ..scenes.splats import Splats, quat_to_rotmat
@@ -58,35 +59,35 @@ class TierConfig:
 
     #: "size": geometric size classes of the largest std (default); "quantile": tiers split at
     #: ``quantiles`` of the largest std (the old scheme, kept for comparison).
-    mode: str = "size"
+    mode: str = bounded("size", choices=("size", "quantile"))
     #: Size classes are [s0 f^k, s0 f^(k+1)) of the largest std, f = class_factor, s0 = the smallest std.
-    class_factor: float = 2.0
+    class_factor: float = bounded(2.0, gt=1)
     #: A class with fewer splats than this merges into the next larger class when that class is
     #: adjacent (at most one factor apart); far larger classes are never merged with it.
-    min_tier_count: int = 256
+    min_tier_count: int = bounded(256, ge=0)
     #: At most this many size classes: the adjacent pair whose merge widens fewest splats' radius merges first.
-    max_tiers: int = 16
+    max_tiers: int = bounded(16, ge=1)
     #: Fixed cost of one tier per query, in splat visits (a grid probe of ~27 cells). For each query
     #: size, adjacent classes whose search radii are so close that a separate tier would not pay
     #: for itself are searched as one tier (a dynamic programme over the estimated cost).
-    tier_overhead: float = 64.0
+    tier_overhead: float = bounded(64.0, ge=0)
     #: mode "quantile": quantiles of the per-splat largest std that separate the tiers.
-    quantiles: tuple[float, ...] = (0.9, 0.999)
+    quantiles: tuple[float, ...] = bounded((0.9, 0.999), gt=0, lt=1)
     #: Hash-grid cell width as a fraction of the tier's query radius.
-    cell_factor: float = 1.5  # measured best on Stonehenge (CPU): 0.75-2.0 within 25%
+    cell_factor: float = bounded(1.5, gt=0)  # measured best on Stonehenge (CPU): 0.75-2.0 within 25%
     #: Cell width factor of queries whose typical link is elongated (median a_max >= 1.5 median a_min):
     #: the kernels bound such links' reads by the link box (full queries also clip each row of cells to
     #: the link's ellipsoid), much tighter than the ball, so finer cells pay (Panda MPPI rollouts on the
     #: 200k-splat tabletop, CPU: 0.25 is 1.5x faster than 0.5 and 2.5x faster than 1.0; 0.18-0.35 within
     #: 15%; Panda collides_robot 1.7x faster than with cell_factor).
-    elongated_cell_factor: float = 0.25
+    elongated_cell_factor: float = bounded(0.25, gt=0)
     #: Largest grid dimension per axis (cells wrap around beyond it; results stay exact).
-    max_dim: int = 128
+    max_dim: int = bounded(128, ge=1)
     #: Process the queries of a batch in Morton (Z-curve) order of their centres (a key kernel and a
     #: radix sort on the device), so neighbouring threads read neighbouring splats: ~1.3x on CPU.
     sort_queries: bool = True
     #: ... for batches of at least this many queries.
-    sort_min_batch: int = 1024
+    sort_min_batch: int = bounded(1024, ge=0)
     #: Sort a robot batch (semi-axes repeating with a period of at most 512 ellipsoids: ``query_robot``)
     #: by ellipsoid first, then Morton order, so that neighbouring threads (a GPU warp) hold the same
     #: link, whose work per query is alike (Panda near the table: 1 to 300 cell rows per query by link).
@@ -101,7 +102,11 @@ class TierConfig:
     #: per query is best. None = 8 on CUDA, 1 on CPU. Counts and flags are the same for any value,
     #: float sums up to summation order. Extra device memory per call: 28 bytes x lanes per query
     #: (the partial sums; 73 MB for 327k queries at 8 lanes).
-    lanes: int | None = None
+    lanes: int | None = bounded(None, ge=1)
+
+    def validate(self) -> "TierConfig":
+        """Check every field's declared range (:mod:`splatplan._config`); returns self."""
+        return check_config(self)
 
 
 def quantile_tiers(smax: np.ndarray, quantiles: tuple[float, ...]) -> np.ndarray:

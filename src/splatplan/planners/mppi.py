@@ -31,6 +31,7 @@ from typing import Callable
 
 import numpy as np
 
+from .._config import bounded, check_config
 from ..errors import SplatplanError
 from .bspline import UniformBSpline
 from .costs import CollisionCost, ControlEffortCost, Cost, Rollout, StateCost, TerminalCost, _geometry, reduce_time, total_cost
@@ -42,30 +43,30 @@ class MPPIConfig:
     """Knobs of :class:`MPPI`. Time in seconds, controls in the dynamics' units."""
 
     #: number of sampled control sequences K per iteration
-    n_samples: int = 256
+    n_samples: int = bounded(256, ge=2)
     #: prediction horizon T (control steps)
-    horizon: int = 30
+    horizon: int = bounded(30, ge=2)
     #: B-spline control points per control dimension over the horizon (>= 4)
-    n_knots: int = 6
+    n_knots: int = bounded(6, ge=4)
     #: control period (s); the horizon spans T * dt seconds
-    dt: float = 0.1
+    dt: float = bounded(0.1, gt=0)
     #: MPPI temperature lambda: smaller = greedier (weights concentrate on the best samples)
-    temperature: float = 1.0
+    temperature: float = bounded(1.0, gt=0)
     #: standard deviation of the knot perturbations, one per control dimension (or one for all)
-    noise_sigma: float | tuple[float, ...] = 0.1
+    noise_sigma: float | tuple[float, ...] = bounded(0.1, ge=0)
     #: MPPI iterations per MPC step
-    n_iters: int = 3
+    n_iters: int = bounded(3, ge=1)
     #: lower control bound per dimension (or one for all); None = unbounded
     u_min: float | tuple[float, ...] | None = None
     #: upper control bound per dimension (or one for all); None = unbounded
     u_max: float | tuple[float, ...] | None = None
     #: weight of the collision cost (checker ``cost`` summed over time and links)
-    w_collision: float = 1.0
+    w_collision: float = bounded(1.0, ge=0)
     #: neighbourhood of the rollouts' collision cost: splats with s2~ below this (the checker's
     #: ``s2_cap`` for MPPI queries). Beyond it a splat's cost d_max exp(-gamma (s2~ - 1)) is below
     #: exp(-gamma (cap - 1)) (1.8% of d_max for the defaults gamma = 4, cap = 2); a smaller cap is a
     #: much smaller search radius. None = the checker's own s2_cap.
-    collision_s2_cap: float | None = 2.0
+    collision_s2_cap: float | None = bounded(2.0, ge=1)
     #: evaluate the collision cost on every n-th rollout step only (the last always; sums scaled by
     #: n): n times fewer queries, at the risk of stepping over thin obstacles; 1 = every step;
     #: "auto" = the largest n such that no ellipsoid point moves more than collision_max_gap_m
@@ -73,17 +74,17 @@ class MPPIConfig:
     #: bounds, times dt; see CollisionCost)
     collision_time_stride: int | str = 1
     #: gap of collision_time_stride="auto" (scene units); None = half the smallest moving semi-axis
-    collision_max_gap_m: float | None = None
+    collision_max_gap_m: float | None = bounded(None, gt=0)
     #: extra cost per (time step, link) in collision (``in_collision``); 0 = the paper's cost only
-    w_hit: float = 10.0
+    w_hit: float = bounded(10.0, ge=0)
     #: weight of the task cost callable
-    w_task: float = 1.0
+    w_task: float = bounded(1.0, ge=0)
     #: weight of the control effort sum_t |u_t|^2 dt
-    w_control: float = 0.01
+    w_control: float = bounded(0.01, ge=0)
     #: weight of the terminal cost callable (e.g. the image cost)
-    w_terminal: float = 1.0
+    w_terminal: float = bounded(1.0, ge=0)
     #: seed of the noise generator
-    seed: int = 0
+    seed: int = bounded(0, ge=0)
     #: prune hopeless samples (opt-in): a sample whose cost is proven to exceed the best complete
     #: sample's by more than ``prune_margin * temperature`` (so its weight is below
     #: exp(-prune_margin) of the best's, e.g. 4e-18 for 40) is not collision-checked to the end.
@@ -94,17 +95,18 @@ class MPPIConfig:
     #: the unpruned one to float64 rounding; the costs and terms of pruned samples are those lower
     #: bounds (``MPPIInfo.n_pruned`` counts them). Needs exactly one CollisionCost among the costs
     #: and n_samples > prune_probe; None = off
-    prune_margin: float | None = None
+    prune_margin: float | None = bounded(None, gt=0)
     #: chunks of the horizon's evaluated steps for ``prune_margin``
-    prune_chunks: int = 4
+    prune_chunks: int = bounded(4, ge=2)
     #: samples (lowest lower bound after the first chunk) evaluated completely to bound the best cost
-    prune_probe: int = 4
+    prune_probe: int = bounded(4, ge=1)
     #: elitism (opt-in): within one step, sample 1 of every later iteration is the lowest-cost sample
     #: seen so far, and the step ends on it when it beats the updated nominal (one extra evaluation
     #: then); the plan then never gets worse within a step. False = plain MPPI
     elite: bool = False
 
     def validate(self) -> "MPPIConfig":
+        check_config(self)  # each field's declared range (splatplan._config); cross-field rules below
         if self.n_samples < 2:
             raise SplatplanError(f"MPPIConfig.n_samples must be >= 2, got {self.n_samples}")
         if self.horizon < 2:

@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .._config import bounded, check_config
 from ..errors import SplatplanError
 from .bspline import bspline_basis, fit_bspline, resample_polyline
 from .robot_links import LinkGeometry, LinkPoses
@@ -38,36 +39,44 @@ class RefineConfig:
     in brackets), so the refinement scales with the robot like the RRT's defaults."""
 
     #: sampled perturbations K
-    n_samples: int = 256
+    n_samples: int = bounded(256, ge=2)
     #: target arc length between B-spline control points (sets n_knots from the path length);
     #: None = 20/3 a (0.1)
-    knot_spacing: float | None = None
+    knot_spacing: float | None = bounded(None, gt=0)
     #: fixed number of control points instead of knot_spacing (None = from knot_spacing)
-    n_knots: int | None = None
+    n_knots: int | None = bounded(None, ge=4)
     #: bounds of the number of control points
-    min_knots: int = 5
-    max_knots: int = 64
+    min_knots: int = bounded(5, ge=4)
+    max_knots: int = bounded(64, ge=4)
     #: standard deviation of the interior control point perturbations (scene units of motion;
     #: divided by motion_bound per joint for an arm or base); None = 0.8 a (0.012)
-    noise_sigma: float | None = None
+    noise_sigma: float | None = bounded(None, ge=0)
     #: MPPI temperature lambda (same units as the cost, i.e. scene units); None = a / 3 (0.005)
-    temperature: float | None = None
+    temperature: float | None = bounded(None, gt=0)
     #: MPPI updates (the paper: 1)
-    n_iters: int = 1
+    n_iters: int = bounded(1, ge=1)
     #: spacing of the dense samples on which the cost is evaluated; None = the robot's smallest semi-axis
-    cost_spacing: float | None = None
+    cost_spacing: float | None = bounded(None, gt=0)
     #: weight of the path length
-    w_length: float = 1.0
+    w_length: float = bounded(1.0, ge=0)
     #: weight of the collision line integral (pushes the curve away from splats within ~2 radii)
-    w_collision: float = 30.0
+    w_collision: float = bounded(30.0, ge=0)
     #: cost per dense sample in collision
-    w_hit: float = 1.0
+    w_hit: float = bounded(1.0, ge=0)
     #: spacing of the acceptance check; None = half the robot's smallest semi-axis
-    check_resolution: float | None = None
+    check_resolution: float | None = bounded(None, gt=0)
     #: fits tried (n_knots doubled after a rejected one)
-    max_attempts: int = 3
+    max_attempts: int = bounded(3, ge=1)
     #: seed of the perturbations
-    seed: int = 0
+    seed: int = bounded(0, ge=0)
+
+    def validate(self) -> "RefineConfig":
+        """Check every field's declared range (:mod:`splatplan._config`) and the cross-field rules; returns self."""
+        check_config(self)
+        if self.min_knots > self.max_knots:
+            raise SplatplanError(f"RefineConfig.min_knots must be <= max_knots, got {self.min_knots} > {self.max_knots}")
+        return self
+
 
 
 @dataclass
@@ -155,7 +164,7 @@ def refine_path(
         :class:`RefineResult`; ``path`` is never in collision at ``check_resolution`` unless the
         input was.
     """
-    cfg = config or RefineConfig()
+    cfg = (config or RefineConfig()).validate()
     p = np.asarray(path, dtype=np.float64)
     if p.ndim != 2 or len(p) < 2:
         raise SplatplanError(f"refine_path needs a path of shape (P >= 2, D), got {p.shape}")

@@ -54,6 +54,7 @@ from dataclasses import InitVar, dataclass, field
 import numpy as np
 from scipy.spatial.distance import cdist
 
+from .._config import bounded, check_config
 from ..errors import PlanningError, SplatplanError
 from .robot_links import EDGE_FRACTION, LinkGeometry, LinkPoses
 
@@ -70,32 +71,32 @@ class RRTConfig:
     derived from the scene and the robot (see the module docstring)."""
 
     #: samples drawn (and edges checked) per iteration; the paper grows 32 nodes at a time
-    batch_size: int = 32
+    batch_size: int = bounded(32, ge=1)
     #: maximum edge length: a sample farther than this from its nearest node is pulled back to it;
     #: None = 1/32 of the largest side of the sampling box
-    stride: float | None = None
+    stride: float | None = bounded(None, gt=0)
     #: largest displacement of any robot ellipsoid point between two consecutive collision checks
     #: along an edge (scene units); None = edge_fraction * the robot's smallest semi-axis
-    edge_resolution: float | None = None
+    edge_resolution: float | None = bounded(None, gt=0)
     #: default edge_resolution as a fraction of the robot's smallest semi-axis
-    edge_fraction: float = EDGE_FRACTION
+    edge_fraction: float = bounded(EDGE_FRACTION, gt=0, le=1)
     #: probability that a sample is the goal itself (RRT, goal mode only)
-    goal_bias: float = 0.1
+    goal_bias: float = bounded(0.1, ge=0, le=1)
     #: RRT: a node closer than this to the goal ends the search even if the last edge to the goal is not
     #: free (the path then ends at that node); None = half the robot's smallest semi-axis; 0 = exact
-    goal_tolerance: float | None = None
+    goal_tolerance: float | None = bounded(None, ge=0)
     #: RRT: new nodes within this distance of the goal try a direct collision-checked edge to it;
     #: None = 4 * stride
-    connect_radius: float | None = None
+    connect_radius: float | None = bounded(None, gt=0)
     #: iteration budget (None = unlimited: the time limit decides)
-    max_iters: int | None = None
+    max_iters: int | None = bounded(None, ge=1)
     #: node budget (None = unlimited: the time limit decides)
-    max_nodes: int | None = None
+    max_nodes: int | None = bounded(None, ge=2)
     #: wall-clock budget in seconds (None = unlimited); through plan() / the CLI it bounds the whole
     #: call: search, shortcut and refinement
-    time_limit_s: float | None = 10.0
+    time_limit_s: float | None = bounded(10.0, gt=0)
     #: seed of the sampler
-    seed: int = 0
+    seed: int = bounded(0, ge=0)
     #: sampling box lower corner (D,); None = derived (robust scene bounds / joint limits).
     #: A side with lo == hi freezes that coordinate (e.g. planar planning at a fixed z)
     box_lo: tuple[float, ...] | None = None
@@ -103,14 +104,14 @@ class RRTConfig:
     box_hi: tuple[float, ...] | None = None
     #: configuration coordinates held at the start's value (planar planning with a derived box,
     #: e.g. (2,) keeps z of a point robot fixed); the goal must have the same values there
-    frozen: tuple[int, ...] | None = None
+    frozen: tuple[int, ...] | None = bounded(None, ge=0)
     #: greedily shortcut the found path (batched edge checks at edge_resolution)
     shortcut: bool = True
     #: RRT-Connect: new nodes per iteration (those closest to the other tree) that the other tree
     #: tries to connect to
-    connect_attempts: int = 4
+    connect_attempts: int = bounded(4, ge=1)
     #: RRT-Connect: longest connect run per attempt, in strides (None = all the way to the target)
-    connect_strides: float | None = 4.0
+    connect_strides: float | None = bounded(4.0, gt=0)
     #: deprecated alias of time_limit_s (overrides it when given)
     time_budget_s: InitVar[float | None] = None
 
@@ -119,6 +120,7 @@ class RRTConfig:
             self.time_limit_s = float(time_budget_s)
 
     def validate(self) -> "RRTConfig":
+        check_config(self)  # each field's declared range (splatplan._config); cross-field rules below
         if self.batch_size < 1:
             raise SplatplanError(f"RRTConfig.batch_size must be >= 1, got {self.batch_size}")
         for name in ("stride", "edge_resolution", "connect_radius", "time_limit_s"):

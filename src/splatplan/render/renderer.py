@@ -24,6 +24,7 @@ from .._warp import cpu_threads, resolve_device
 from .._warp import wp as _wp
 from ..errors import SplatplanError
 from ..scenes.splats import Splats
+from .._resources import require_bytes
 from .config import MAX_BYTES, TILE, RenderResult, camera_arrays, check_render_args, estimate_bytes, resolve_sh_degree
 from .reference import scene_arrays
 
@@ -193,11 +194,7 @@ class SplatRenderer:
         deg = resolve_sh_degree(sh_degree, self.sh_degree)
         b = v.shape[0]
         out_bytes = estimate_bytes(b, width, height)
-        if out_bytes > self.max_bytes:
-            raise SplatplanError(
-                f"{b} image(s) of {width}x{height} need {out_bytes / 2**30:.2f} GiB of output alone, over the "
-                f"{self.max_bytes / 2**30:.2f} GiB cap of one render call; render fewer cameras per call or smaller images"
-            )
+        require_bytes(out_bytes, f"the output of {b} image(s) of {width}x{height} (one render call)", "the image size or the cameras per call", limit=self.max_bytes)
         kind = _output_kind(viewmats)
         if b == 0:
             return _wrap(np.zeros((0, height, width, 3), np.float32), np.zeros((0, height, width), np.float32),
@@ -304,10 +301,7 @@ class SplatRenderer:
                     self._run_range(ws, scene, cams, frame, zmax, out, cam_base, half)
                     self._run_range(ws, scene, cams, frame, zmax, out, cam_base + half, nc - half)
                     return
-                raise SplatplanError(
-                    f"one {frame.width}x{frame.height} image needs {need / 2**30:.2f} GiB of workspace ({m:,} splat-tile pairs), "
-                    f"over what is left of the {self.max_bytes / 2**30:.2f} GiB cap of one render call; use smaller images"
-                )
+                require_bytes(need, f"the workspace of one {frame.width}x{frame.height} image ({m:,} splat-tile pairs)", "the image size", limit=budget)
             ws.ensure_pairs(m)
             ws.ensure_tiles(tiles)
             ws.ranges.zero_()  # empty tiles must read [0, 0)

@@ -30,8 +30,14 @@ from pathlib import Path
 
 import numpy as np
 
+from .._resources import require_work
 from ..errors import SplatplanError
 from .urdf import Geom, UrdfModel
+
+#: Most ellipsoids per link: each is an iterative MVEE fit of one slab (and the volume report is a
+#: Monte Carlo over all of them), so k = 100,000 would run for hours; slabs this thin are already
+#: finer than any link mesh's detail.
+MAX_PER_LINK = 64
 
 #: Relative safety factor applied after the exact containment rescale (float rounding).
 CONTAIN_EPS = 1e-9
@@ -288,8 +294,10 @@ def fit_model(model: UrdfModel, per_link: int | dict[str, int] = 1, from_visual:
         links: restrict to these links (default: all).
     Links with no usable geometry are listed in ``skipped``.
     """
-    if isinstance(per_link, int) and per_link < 1:
-        raise SplatplanError(f"--per-link must be >= 1, got {per_link}")
+    for k in [per_link] if isinstance(per_link, int) else list(per_link.values()):
+        if int(k) < 1:
+            raise SplatplanError(f"--per-link must be >= 1, got {k}")
+        require_work(int(k), MAX_PER_LINK, f"fitting {k} ellipsoids per link", "--per-link")
     names, cs, rs, ss, report, skipped = [], [], [], [], {}, []
     for link in model.kin.link_names:
         if links is not None and link not in links:

@@ -29,6 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._config import bounded, check_config
 from ..errors import SplatplanError
 from ._common import TaskResult, TaskScene, check_start, load_task_scene, moving_clearance, trajectory_clearance
 from ._ik import rotation_error, solve_ik
@@ -41,67 +42,75 @@ class ArmConfig:
     """Knobs of :func:`run_arm` (MPPI over joint-velocity B-splines)."""
 
     #: sampled control sequences K per MPPI iteration
-    n_samples: int = 64
+    n_samples: int = bounded(64, ge=2)
     #: horizon T (control steps)
-    horizon: int = 16
+    horizon: int = bounded(16, ge=2)
     #: B-spline knots per joint over the horizon (>= 4)
-    n_knots: int = 5
+    n_knots: int = bounded(5, ge=4)
     #: control period (s)
-    dt: float = 0.1
+    dt: float = bounded(0.1, gt=0)
     #: MPPI temperature (smaller = greedier)
-    temperature: float = 0.3
+    temperature: float = bounded(0.3, gt=0)
     #: std of the knot perturbations (rad/s)
-    noise_sigma: float = 0.35
+    noise_sigma: float = bounded(0.35, ge=0)
     #: near the goal the noise shrinks: std x clip(position error / this (m), noise_floor, 1)
-    noise_anneal_m: float = 0.3
+    noise_anneal_m: float = bounded(0.3, gt=0)
     #: smallest noise fraction of the annealing
-    noise_floor: float = 0.05
+    noise_floor: float = bounded(0.05, ge=0, le=1)
     #: MPPI iterations per MPC step
-    n_iters: int = 1
+    n_iters: int = bounded(1, ge=1)
     #: maximum MPC steps
-    max_steps: int = 90
+    max_steps: int = bounded(90, ge=1)
     #: joint velocity bound as a fraction of the robot's velocity limits
-    velocity_scale: float = 0.4
+    velocity_scale: float = bounded(0.4, gt=0, le=1)
     #: weight of the end-effector position error (per metre, per step)
-    w_position: float = 4.0
+    w_position: float = bounded(4.0, ge=0)
     #: weight of the end-effector orientation error (per radian, per step)
-    w_orientation: float = 1.0
+    w_orientation: float = bounded(1.0, ge=0)
     #: extra weight of the last step of the goal cost (x the per-step weight)
-    terminal_factor: float = 4.0
+    terminal_factor: float = bounded(4.0, ge=0)
     #: weight of the summed CollisionSplatting cost (every ellipsoid, every step)
-    w_collision: float = 2.0
+    w_collision: float = bounded(2.0, ge=0)
     #: cost per (step, ellipsoid) in collision
-    w_hit: float = 20.0
+    w_hit: float = bounded(20.0, ge=0)
     #: cost per step with a self-collision (0 = off)
-    w_self_collision: float = 0.0
+    w_self_collision: float = bounded(0.0, ge=0)
     #: weight of the joint-limit penalty
-    w_limits: float = 100.0
+    w_limits: float = bounded(100.0, ge=0)
     #: weight of the control effort sum |qdot|^2 dt
-    w_control: float = 0.01
+    w_control: float = bounded(0.01, ge=0)
     #: weight of a posture term sum_t |q_t - q_ref|^2 that resolves the arm's redundancy: q_ref is
     #: the IK solution of the goal pose nearest to the start, among the collision-free ones when the
     #: collision cost is on (the no-collision baseline uses no scene information at all)
-    w_posture: float = 1.0
+    w_posture: float = bounded(1.0, ge=0)
     #: conservatism of the metric (n_sigma)
-    n_sigma: float = 1.0
+    n_sigma: float = bounded(1.0, ge=0)
     #: neighbourhood of the rollouts' collision cost (checker s2_cap for MPPI queries)
-    collision_s2_cap: float = 1.4
+    collision_s2_cap: float = bounded(1.4, ge=1)
     #: query the collision cost on every stride-th step of the horizon (1 = every step)
-    collision_stride: int = 2
+    collision_stride: int = bounded(2, ge=1)
     #: prune hopeless samples (MPPIConfig.prune_margin): a sample whose weight is proven below
     #: exp(-margin) of the best's is not collision-checked to the end (same update to float64
     #: rounding); None = every sample checked over the whole horizon
-    prune_margin: float | None = 40.0
+    prune_margin: float | None = bounded(40.0, gt=0)
     #: end-effector link
     ee_link: str = "panda_hand_tcp"
     #: success: final position error below this (m) with a positive clearance throughout
-    position_tol: float = 0.02
+    position_tol: float = bounded(0.02, gt=0)
     #: orientation error (degrees) that counts as reached for the early stop (reported, not in success)
-    orientation_tol_deg: float = 10.0
+    orientation_tol_deg: float = bounded(10.0, gt=0, le=180)
     #: stop early once the position error is below this (m) and the orientation within tolerance
-    stop_tol: float = 0.008
+    stop_tol: float = bounded(0.008, ge=0)
     #: noise seed
-    seed: int = 0
+    seed: int = bounded(0, ge=0)
+
+    def validate(self) -> "ArmConfig":
+        """Check every field's declared range (:mod:`splatplan._config`) and the cross-field rules; returns self."""
+        check_config(self)
+        if self.n_knots > self.horizon:
+            raise SplatplanError(f"ArmConfig.n_knots must be <= horizon (knots of a spline over the horizon's steps), got n_knots={self.n_knots}, horizon={self.horizon}")
+        return self
+
 
 
 def down_quat(yaw: float = 0.0) -> np.ndarray:
@@ -171,7 +180,7 @@ def run_arm(
     from ..robots import load_robot
     from ..scenes.splats import quat_to_rotmat
 
-    cfg = config or ArmConfig()
+    cfg = (config or ArmConfig()).validate()
     robot = load_robot(robot)
     if cfg.ee_link not in robot.link_names:
         raise SplatplanError(f"robot {robot.name} has no end-effector link {cfg.ee_link!r}; links: {', '.join(robot.link_names)}")

@@ -74,6 +74,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._config import bounded, check_config
 from ..errors import SplatplanError
 from ._common import TaskResult, check_start, load_task_scene, trajectory_clearance
 from .memory import ObstacleMemory, _geodesic_field_reference, _line_of_sight_reference, geodesic_field, line_of_sight  # noqa: F401  (re-exported)
@@ -105,107 +106,113 @@ class BaseConfig:
     """Knobs of :func:`run_base` (MPPI over body-frame velocity B-splines)."""
 
     #: sampled control sequences K per MPPI iteration
-    n_samples: int = 64
+    n_samples: int = bounded(64, ge=2)
     #: horizon T (control steps)
-    horizon: int = 20
+    horizon: int = bounded(20, ge=2)
     #: B-spline knots per control over the horizon
-    n_knots: int = 6
+    n_knots: int = bounded(6, ge=4)
     #: control period (s)
-    dt: float = 0.2
+    dt: float = bounded(0.2, gt=0)
     #: MPPI temperature
-    temperature: float = 0.5
+    temperature: float = bounded(0.5, gt=0)
     #: knot noise std (vx m/s, vy m/s, wz rad/s)
-    noise_sigma: tuple[float, float, float] = (0.6, 0.4, 0.3)
-    #: MPPI iterations per MPC step
-    n_iters: int = 1
+    noise_sigma: tuple[float, float, float] = bounded((0.6, 0.4, 0.3), ge=0)
     #: maximum MPC steps
-    max_steps: int = 250
+    max_steps: int = bounded(250, ge=1)
     #: weight of the distance to the goal (per metre, per step)
-    w_goal: float = 1.0
+    w_goal: float = bounded(1.0, ge=0)
     #: extra weight of the last step of the goal cost
-    terminal_factor: float = 5.0
+    terminal_factor: float = bounded(5.0, ge=0)
     #: weight of the smallest distance to the goal along each rollout (min over t; a rollout that
     #: passes close to the goal, e.g. through a doorway and on, is preferred)
-    min_factor: float = 5.0
+    min_factor: float = bounded(5.0, ge=0)
     #: structured samples: straight drives in this many world directions (one is the bearing to
     #: the goal) and the same drives turning to the goal after 1/4, 1/2, 3/4 of the horizon (0 = off)
-    n_directions: int = 8
+    n_directions: int = bounded(8, ge=0)
     #: speed of the structured samples (m/s)
-    primitive_speed: float = 0.8
+    primitive_speed: float = bounded(0.8, ge=0)
     #: turn rate (rad/s) of the structured samples towards their direction of travel
-    primitive_turn_rate: float = 1.5
+    primitive_turn_rate: float = bounded(1.5, ge=0)
     #: stagnation recovery: when the distance to the goal has not improved for stuck_steps,
     #: sidestep perpendicular to the bearing to the goal, back and forth with doubling sweeps,
     #: until a collision-free rollout gets clearly closer to the goal than ever before (off by
     #: default: see the module docstring)
     recovery: bool = False
     #: MPC steps without progress that count as stagnation (goal) or a blocked sweep
-    stuck_steps: int = 10
+    stuck_steps: int = bounded(10, ge=1)
     #: no recovery closer than this to the goal (m): the final approach is slow, not stuck
-    recovery_min_distance_m: float = 0.5
+    recovery_min_distance_m: float = bounded(0.5, ge=0)
     #: progress (m) that resets the stagnation counter
-    stuck_progress_m: float = 0.05
+    stuck_progress_m: float = bounded(0.05, ge=0)
     #: length (m) of the first sweep; each reversal sweeps back twice as far
-    detour_length_m: float = 2.0
+    detour_length_m: float = bounded(2.0, gt=0)
     #: a detour ends when a collision-free rollout gets this much closer (m) to the goal than the
     #: base ever was or any collision-free rollout of goal mode saw before the detour
-    detour_exit_margin_m: float = 0.3
+    detour_exit_margin_m: float = bounded(0.3, ge=0)
     #: side of the first sweep: -1 clockwise (right of the bearing to the goal), +1 counterclockwise
     #: (a fixed convention, like the Bug algorithms' turning direction)
-    first_sweep: int = -1
+    first_sweep: int = bounded(-1, choices=(-1, 1))
     #: sweeps: weight of the progress along the sweep direction (per metre, per step)
-    w_sweep: float = 0.3
+    w_sweep: float = bounded(0.3, ge=0)
     #: sweeps: weight of facing the sweep direction sum_t (1 - cos(yaw_t - heading)) (walk forward)
-    w_align: float = 1.0
+    w_align: float = bounded(1.0, ge=0)
     #: weight of the yaw rate sum_t wz^2 dt (keeps the heading from drifting; the base walks
     #: sideways when it has to)
-    w_yaw_rate: float = 0.1
+    w_yaw_rate: float = bounded(0.1, ge=0)
     #: weight of facing the goal: sum_t (1 - cos(yaw_t - bearing to the goal)) (a walking robot
     #: moves best forward; 0 = off)
-    w_heading: float = 0.5
+    w_heading: float = bounded(0.5, ge=0)
     #: weight of the summed CollisionSplatting cost
-    w_collision: float = 2.0
+    w_collision: float = bounded(2.0, ge=0)
     #: cost per (step, ellipsoid) in collision (kept small: a large one makes every sample that
     #: grazes a door post lose to standing still, and the base never threads a doorway)
-    w_hit: float = 10.0
+    w_hit: float = bounded(10.0, ge=0)
     #: weight of the control effort
-    w_control: float = 0.02
+    w_control: float = bounded(0.02, ge=0)
     #: conservatism of the metric (n_sigma)
-    n_sigma: float = 0.75
+    n_sigma: float = bounded(0.75, ge=0)
     #: neighbourhood of the rollouts' collision cost (checker s2_cap for MPPI queries)
-    collision_s2_cap: float = 2.0
+    collision_s2_cap: float = bounded(2.0, ge=1)
     #: query the collision cost on every stride-th step of the horizon
-    collision_stride: int = 1
+    collision_stride: int = bounded(1, ge=1)
     #: success: final distance to the goal below this (m)
-    goal_tol: float = 0.2
+    goal_tol: float = bounded(0.2, gt=0)
     #: height of the floor (m): splats below floor + ground_band are terrain, not obstacles (None: keep all)
     ground_z: float | None = 0.0
     #: thickness of the removed ground band (m)
-    ground_band: float = 0.03
+    ground_band: float = bounded(0.03, ge=0)
     #: sensed-obstacle memory (off by default): a coarse occupancy grid, unknown = free, filled with
     #: the cells sensed within sensor_radius_m of the base every MPC step; the goal cost then uses
     #: the geodesic distance to the goal on it instead of the straight line (see ObstacleMemory)
     memory: bool = False
     #: memory: sensing radius around the base (m); nothing beyond it is sensed
-    sensor_radius_m: float = 2.5
+    sensor_radius_m: float = bounded(2.5, gt=0)
     #: memory: grid cell size (m)
-    memory_cell_m: float = 0.1
+    memory_cell_m: float = bounded(0.1, gt=0)
     #: memory: a cell is blocked when the base collides there at every one of this many headings
-    memory_yaws: int = 8
+    memory_yaws: int = bounded(8, ge=1)
     #: memory: cells closer than this (m) to a blocked cell cost more to cross (an inflation layer,
     #: as in navigation costmaps: the geodesic keeps to the middle of passages and doorways)
-    memory_inflation_m: float = 0.3
+    memory_inflation_m: float = bounded(0.3, ge=0)
     #: memory: extra cost factor of a cell next to a blocked one (falls linearly to 0 at memory_inflation_m)
-    memory_inflation_cost: float = 2.0
+    memory_inflation_cost: float = bounded(2.0, ge=0)
     #: memory: line of sight, like a 2D lidar at sensor_height_m: a cell is sensed only once the segment from
     #: the base to its centre is free of scene surfaces (by the metric) up to one cell before the centre;
     #: cells out of sight stay unknown (= free) and are tried again every step (False: senses through walls)
     sensor_occlusion: bool = True
     #: memory: height of the sensor's scan plane above the floor (m; the Go2's body spans ~0.28-0.52 m,
     #: its legs below; lower obstacles are seen over, as a lidar on the body would)
-    sensor_height_m: float = 0.3
+    sensor_height_m: float = bounded(0.3, ge=0)
     #: noise seed
-    seed: int = 0
+    seed: int = bounded(0, ge=0)
+
+    def validate(self) -> "BaseConfig":
+        """Check every field's declared range (:mod:`splatplan._config`) and the cross-field rules; returns self."""
+        check_config(self)
+        if self.n_knots > self.horizon:
+            raise SplatplanError(f"BaseConfig.n_knots must be <= horizon (knots of a spline over the horizon's steps), got n_knots={self.n_knots}, horizon={self.horizon}")
+        return self
+
 
 
 def plan_route(
@@ -479,7 +486,7 @@ def run_base(
     """
     from ..planners.dynamics import PlanarBase
 
-    cfg = config or BaseConfig()
+    cfg = (config or BaseConfig()).validate()
     robot = load_go2() if robot is None or robot == "go2" else robot
     if int(robot.dof) != 3:
         raise SplatplanError(f"run_base needs a planar-base robot (x, y, yaw); {robot.name} has {robot.dof} dofs")

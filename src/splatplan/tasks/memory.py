@@ -12,10 +12,14 @@ import time
 
 import numpy as np
 
+from .._resources import require_bytes
 from ..errors import SplatplanError
 
 __all__ = ["ObstacleMemory", "geodesic_field", "line_of_sight"]
 
+
+#: bytes per grid cell (centres, states, geodesic field, the finer occlusion grid's share): an estimate
+MEMORY_BYTES_PER_CELL = 64
 
 class ObstacleMemory:
     """Sensed-obstacle memory of the planar base: a coarse 2D occupancy grid, *unknown = free* at
@@ -74,6 +78,8 @@ class ObstacleMemory:
         self.yaws = np.linspace(0.0, 2 * np.pi, int(n_yaws), endpoint=False)  # (Y,) rad, yaw 0 first
         lo, hi = np.asarray(lo, np.float64)[:2], np.asarray(hi, np.float64)[:2]
         self.origin = np.floor(lo / self.cell) * self.cell  # (2,) world xy of the grid's corner
+        n_cells = float(np.prod(np.maximum(np.ceil((hi - self.origin) / self.cell), 1)))
+        require_bytes(n_cells * 4 * MEMORY_BYTES_PER_CELL, f"the obstacle memory's grid ({n_cells:.3g} cells of {self.cell:g} m)", "the resolution: a larger --base-memory-cell-m")
         self.shape = tuple(int(v) for v in np.maximum(np.ceil((hi - self.origin) / self.cell), 1))  # (NX, NY)
         ix, iy = np.meshgrid(np.arange(self.shape[0]), np.arange(self.shape[1]), indexing="ij")
         self.centers = self.origin + (np.stack([ix, iy], axis=-1) + 0.5) * self.cell  # (NX, NY, 2) world xy, metres

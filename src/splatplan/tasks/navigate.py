@@ -33,6 +33,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .._config import bounded, check_config
 from ..errors import SplatplanError
 from ._common import TaskScene, load_filtered_scene
 
@@ -47,18 +48,18 @@ class NavigateConfig:
     """Knobs of the image-goal navigation (exploration, retrieval, driving)."""
 
     #: splats of a built-in scene (fewer = faster renders); None = the scene's default
-    n_splats: int | None = 80_000
+    n_splats: int | None = bounded(80_000, ge=1)
     #: conservatism of the metric (n_sigma). 0.5: at 1 the apartment's large level-1 splats leave
     #: only 11% of random Go2 poses free against 39% by the exact geometry (0.5: 28%, 0.5% missed)
-    n_sigma: float = 0.5
+    n_sigma: float = bounded(0.5, ge=0)
     #: rendered image side (pixels, square)
-    image_size: int = 64
+    image_size: int = bounded(64, ge=1)
     #: horizontal field of view of the head camera (degrees)
-    fov_deg: float = 90.0
+    fov_deg: float = bounded(90.0, gt=0, lt=180)
     #: head camera position in the base frame (x forward, y left, z up), metres
     camera_offset: tuple[float, float, float] = (0.30, 0.0, 0.05)
     #: render background grey level
-    background: float = 0.5
+    background: float = bounded(0.5, ge=0, le=1)
     #: start pose (x, y, yaw) of the exploration and of every drive
     start: tuple[float, float, float] = (-0.8, 0.3, 0.0)
     #: exploration sampling box lower corner (x, y) (m)
@@ -66,67 +67,77 @@ class NavigateConfig:
     #: exploration sampling box upper corner (x, y) (m)
     box_hi: tuple[float, float] = (3.9, 2.9)
     #: nodes of the exploration tree
-    tree_nodes: int = 1200
+    tree_nodes: int = bounded(1200, ge=2)
     #: heading of every tree node (rad): the tree grows over (x, y) with the yaw frozen (views are
     #: rendered at every heading anyway, and a frozen yaw passes the doorways in walls x = const
     #: head-on); None = explore the yaw too (much slower: turning counts as motion)
     tree_yaw: float | None = 0.0
     #: index only nodes at least this far (m) from every node indexed before them (greedy thinning
     #: in tree order); 0 = every node
-    index_spacing_m: float = 0.15
+    index_spacing_m: float = bounded(0.15, gt=0)
     #: RRT stride (largest edge, weighted configuration distance)
-    tree_stride: float = 0.5
+    tree_stride: float = bounded(0.5, gt=0)
     #: wall-clock cap of the exploration (s)
-    tree_time_s: float = 120.0
+    tree_time_s: float = bounded(120.0, gt=0)
     #: largest motion of any ellipsoid point between collision checks along a tree edge (m)
-    edge_resolution_m: float = 0.06
+    edge_resolution_m: float = bounded(0.06, gt=0)
     #: headings rendered per node (evenly spaced over 360 degrees)
-    n_headings: int = 24
+    n_headings: int = bounded(24, ge=1)
     #: renders per batch when indexing
-    render_batch: int = 256
+    render_batch: int = bounded(256, ge=1)
     #: a match is weak when best cost / median cost over all views exceeds this
-    weak_ratio: float = 0.5
+    weak_ratio: float = bounded(0.5, gt=0, le=1)
     #: MPPI samples K
-    n_samples: int = 48
+    n_samples: int = bounded(48, ge=2)
     #: MPPI horizon T (steps)
-    horizon: int = 16
+    horizon: int = bounded(16, ge=2)
     #: B-spline knots per control over the horizon
-    n_knots: int = 5
+    n_knots: int = bounded(5, ge=4)
     #: control period (s)
-    dt: float = 0.1
+    dt: float = bounded(0.1, gt=0)
     #: MPPI temperature
-    temperature: float = 0.05
+    temperature: float = bounded(0.05, gt=0)
     #: knot noise std (vx m/s, vy m/s, wz rad/s)
-    noise_sigma: tuple[float, float, float] = (0.25, 0.15, 0.5)
+    noise_sigma: tuple[float, float, float] = bounded((0.25, 0.15, 0.5), ge=0)
     #: command bounds (vx m/s, vy m/s, wz rad/s), symmetric
-    u_max: tuple[float, float, float] = (0.6, 0.3, 1.0)
+    u_max: tuple[float, float, float] = bounded((0.6, 0.3, 1.0), ge=0)
     #: MPPI iterations per MPC step
-    n_iters: int = 1
+    n_iters: int = bounded(1, ge=1)
     #: weight of the distance to the (carrot) goal, per metre per step
-    w_goal: float = 2.0
+    w_goal: float = bounded(2.0, ge=0)
     #: weight of the summed CollisionSplatting cost
-    w_collision: float = 5.0
+    w_collision: float = bounded(5.0, ge=0)
     #: cost per (step, ellipsoid) in collision
-    w_hit: float = 20.0
+    w_hit: float = bounded(20.0, ge=0)
     #: weight of the heading term sum_t wrap(yaw_t - tree_yaw)^2 (the tree's edges were checked at
     #: that heading; 0 = free heading)
-    w_yaw: float = 1.0
+    w_yaw: float = bounded(1.0, ge=0)
     #: weight of the control effort
-    w_control: float = 0.01
+    w_control: float = bounded(0.01, ge=0)
     #: conservatism (n_sigma) of the drive's collision cost (1.0 closes the 0.9 m doorway for the Go2)
-    drive_n_sigma: float = 0.5
+    drive_n_sigma: float = bounded(0.5, ge=0)
     #: neighbourhood of the rollouts' collision cost (s2_cap)
-    collision_s2_cap: float = 2.0
+    collision_s2_cap: float = bounded(2.0, ge=1)
     #: follow the tree's branch to the retrieved node (False = only the node position)
     follow_tree: bool = True
     #: carrot distance ahead along the branch (m)
-    lookahead_m: float = 0.6
+    lookahead_m: float = bounded(0.6, gt=0)
     #: reached when within this distance of the node (m)
-    goal_tol_m: float = 0.15
+    goal_tol_m: float = bounded(0.15, gt=0)
     #: MPC step budget of one drive
-    max_steps: int = 300
+    max_steps: int = bounded(300, ge=1)
     #: seed (RRT sampler, MPPI noise)
-    seed: int = 0
+    seed: int = bounded(0, ge=0)
+
+    def validate(self) -> "NavigateConfig":
+        """Check every field's declared range (:mod:`splatplan._config`) and the cross-field rules; returns self."""
+        check_config(self)
+        if self.n_knots > self.horizon:
+            raise SplatplanError(f"NavigateConfig.n_knots must be <= horizon (knots of a spline over the horizon's steps), got n_knots={self.n_knots}, horizon={self.horizon}")
+        if not all(lo < hi for lo, hi in zip(self.box_lo, self.box_hi)):
+            raise SplatplanError(f"NavigateConfig.box_lo must be < box_hi on both axes, got {self.box_lo} and {self.box_hi}")
+        return self
+
 
 
 def nav_robot(robot=None):
@@ -179,7 +190,7 @@ def load_nav_scene(scene="apartment", cfg: NavigateConfig | None = None, device:
     """A built-in scene name (or a splat file) -> :class:`NavScene` (floaters filtered)."""
     from ..metric import CollisionChecker
 
-    cfg = cfg or NavigateConfig()
+    cfg = (cfg or NavigateConfig()).validate()
     name = str(scene)
     splats, gt = load_filtered_scene(name, n_splats=cfg.n_splats, seed=seed)
     floor = floor_mask(splats)
@@ -195,6 +206,7 @@ def explore(robot, nav: NavScene, cfg: NavigateConfig):
     (``tree_nodes`` (N, 3) x, y, yaw; ``tree_parents`` (N,))."""
     from ..planners import RRT, RRTConfig
 
+    cfg.validate()
     start = np.asarray(cfg.start, np.float64).copy()
     ylo, yhi = (-np.pi, np.pi) if cfg.tree_yaw is None else (float(cfg.tree_yaw), float(cfg.tree_yaw))
     if cfg.tree_yaw is not None:
@@ -234,6 +246,7 @@ class ViewIndex:
 def build_view_index(robot, nav: NavScene, nodes: np.ndarray, encoder, renderer, cfg: NavigateConfig) -> ViewIndex:
     """Render and encode the views of the tree's nodes (thinned to ``cfg.index_spacing_m``) at
     ``cfg.n_headings`` headings (batched). ``ViewIndex.node`` indexes ``nodes``."""
+    cfg.validate()
     nodes = np.asarray(nodes, np.float64).reshape(-1, 3)
     keep = thin_nodes(nodes, cfg.index_spacing_m)
     cam = head_camera(robot, cfg)

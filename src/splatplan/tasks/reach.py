@@ -53,6 +53,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .._config import bounded, check_config
 from ..errors import SplatplanError
 from ._common import TaskScene, check_start, load_task_scene, moving_clearance, trajectory_clearance
 
@@ -64,122 +65,132 @@ class ReachConfig:
     """Knobs of :func:`run_reach` (MPPI over joint-velocity B-splines with the image cost)."""
 
     #: sampled control sequences K per MPPI iteration
-    n_samples: int = 32
+    n_samples: int = bounded(32, ge=2)
     #: horizon T (control steps); the arm executes T steps in all (shrinking horizon)
-    horizon: int = 48
+    horizon: int = bounded(48, ge=2)
     #: B-spline knots per joint over the horizon (>= 4)
-    n_knots: int = 8
+    n_knots: int = bounded(8, ge=4)
     #: control period (s)
-    dt: float = 0.05
+    dt: float = bounded(0.05, gt=0)
     #: MPPI temperature (smaller = greedier)
-    temperature: float = 0.1
+    temperature: float = bounded(0.1, gt=0)
     #: std of the knot perturbations (rad/s)
-    noise_sigma: float = 0.25
+    noise_sigma: float = bounded(0.25, ge=0)
     #: knot noise at the last MPC step as a fraction of noise_sigma (linear in the remaining
     #: horizon: finer exploration as the goal time approaches); 1 = constant noise
-    noise_final: float = 0.3
+    noise_final: float = bounded(0.3, ge=0)
     #: noise annealing on image-cost progress: the knot noise is further scaled by
     #: clip(sqrt(c / noise_cost_ref), noise_min_scale, 1), c = raw image cost of the current plan
     #: (the pose error grows like sqrt(c) near the goal); 0 = off
-    noise_cost_ref: float = 4.0
+    noise_cost_ref: float = bounded(4.0, ge=0)
     #: lower bound of that scale
-    noise_min_scale: float = 0.03
+    noise_min_scale: float = bounded(0.03, ge=0, le=1)
     #: with annealing, the initial plan runs in chunks of this many iterations (annealed in between)
-    plan_chunk: int = 5
+    plan_chunk: int = bounded(5, ge=1)
     #: MPPI temperature while the arm moves (after the initial plan; None = temperature): a small one
     #: keeps the plan's nominal (always among the samples) unless a sample beats it, so the warm-started
     #: plan does not drift through the weighted averaging of one iteration per step
-    track_temperature: float | None = 0.02
+    track_temperature: float | None = bounded(0.02, gt=0)
     #: after each warm-start shift, offset the knots so that the plan's state at the goal time stays
     #: where the plan had it (the least-squares shift alone drifts it over the run)
     keep_goal_state: bool = True
     #: MPPI iterations before the first control is applied
-    plan_iters: int = 60
+    plan_iters: int = bounded(60, ge=1)
     #: multi-start initial plan: this many plans (noise seeds seed, seed + 1, ...) each run
     #: plan_start_iters iterations from zero velocity; the lowest-cost one continues (1 = one start)
-    plan_starts: int = 3
+    plan_starts: int = bounded(3, ge=1)
     #: MPPI iterations of each start of a multi-start initial plan (counted within plan_iters)
-    plan_start_iters: int = 30
+    plan_start_iters: int = bounded(30, ge=1)
     #: goal-state refinement iterations ending each start of a multi-start plan, before the starts
     #: are compared (a look-alike view and the goal's basin then differ in cost; 0 = compare as is)
-    plan_start_refine: int = 10
+    plan_start_refine: int = bounded(10, ge=0)
     #: MPPI elitism (MPPIConfig.elite): the best sample seen in a step competes in its later
     #: iterations and replaces a worse weighted mean at the step's end
     elite: bool = False
     #: MPPI iterations per later MPC step
-    iters_per_step: int = 2
+    iters_per_step: int = bounded(2, ge=1)
     #: the last final_steps MPC steps run final_iters iterations each (fine convergence at the goal)
-    final_steps: int = 0
+    final_steps: int = bounded(0, ge=0)
     #: MPPI iterations per step over the last final_steps steps
-    final_iters: int = 3
+    final_iters: int = bounded(3, ge=1)
     #: goal-state refinement (GoalRefiner): iterations per MPC step whose K samples move
     #: only the plan's state at the goal time, by joint offsets (a constant velocity offset on every
     #: knot); the cheapest sample (the plan itself among them) is kept
-    refine_iters: int = 1
+    refine_iters: int = bounded(1, ge=0)
     #: refinement iterations after the initial plan (before the first control)
-    refine_plan_iters: int = 20
+    refine_plan_iters: int = bounded(20, ge=0)
     #: initial std of those joint offsets (rad); it grows x refine_grow after an improving
     #: iteration and shrinks x refine_shrink otherwise, within [refine_sigma_min, refine_sigma]
-    refine_sigma: float = 0.05
+    refine_sigma: float = bounded(0.05, ge=0)
     #: lower bound of the refinement std (rad)
-    refine_sigma_min: float = 0.002
+    refine_sigma_min: float = bounded(0.002, ge=0)
     #: growth of the refinement std after an improvement
-    refine_grow: float = 1.5
+    refine_grow: float = bounded(1.5, ge=1)
     #: shrink of the refinement std after an iteration without improvement
-    refine_shrink: float = 0.6
+    refine_shrink: float = bounded(0.6, gt=0, le=1)
     #: joint velocity bound as a fraction of the robot's velocity limits
-    velocity_scale: float = 0.6
+    velocity_scale: float = bounded(0.6, gt=0, le=1)
     #: rendered image side (pixels, square)
-    image_size: int = 64
+    image_size: int = bounded(64, ge=1)
     #: horizontal field of view of the wrist camera (degrees)
-    fov_deg: float = 70.0
+    fov_deg: float = bounded(70.0, gt=0, lt=180)
     #: render background grey level: a mid grey keeps views of empty space from scoring like dark
     #: image regions (with a black background the weight-free thumbnail rewards looking away)
-    background: float = 0.5
+    background: float = bounded(0.5, ge=0, le=1)
     #: weight of the image cost
-    w_image: float = 1.0
+    w_image: float = bounded(1.0, ge=0)
     #: side the encoder resizes images to (None = its default: 8 for the reach thumbnail pyramid, 224 for EfficientNet / DINOv2)
-    encoder_image_size: int | None = None
+    encoder_image_size: int | None = bounded(None, ge=1)
     #: bands of the thumbnail encoder's Laplacian pyramid (1 = the single 16x16 thumbnail)
-    thumbnail_levels: int = 2
+    thumbnail_levels: int = bounded(2, ge=1)
     #: image cost scored as log(1 + c / image_log_eps) (0 = the raw distance c): MPPI then weighs
     #: relative progress, so it keeps converging near the goal where raw differences shrink
-    image_log_eps: float = 0.01
+    image_log_eps: float = bounded(0.01, ge=0)
     #: compare L2-normalised features (cosine distance in [0, 4]): one cost scale for every encoder,
     #: so the image cost neither swamps nor vanishes beside the collision cost
     normalize_features: bool = True
     #: weight of the empty-view term mean(1 - alpha) of the rendered view (0 = image cost only)
-    w_empty: float = 1.0
+    w_empty: float = bounded(1.0, ge=0)
     #: weight of the global-embedding distance inside the image cost
-    w_global: float = 1.0
+    w_global: float = bounded(1.0, ge=0)
     #: weight of the mean patch-token distance inside the image cost (0 = off; needs tokens)
-    w_patch: float = 0.0
+    w_patch: float = bounded(0.0, ge=0)
     #: weight of the summed CollisionSplatting cost (with the collision cost only)
-    w_collision: float = 0.1
+    w_collision: float = bounded(0.1, ge=0)
     #: cost per (step, ellipsoid) in collision (with the collision cost only)
-    w_hit: float = 10.0
+    w_hit: float = bounded(10.0, ge=0)
     #: weight of the control effort sum |qdot|^2 dt
-    w_control: float = 0.01
+    w_control: float = bounded(0.01, ge=0)
     #: weight of the joint-limit penalty
-    w_limits: float = 100.0
+    w_limits: float = bounded(100.0, ge=0)
     #: conservatism of the metric (n_sigma)
-    n_sigma: float = 1.0
+    n_sigma: float = bounded(1.0, ge=0)
     #: neighbourhood of the rollouts' collision cost (checker s2_cap for MPPI queries)
-    collision_s2_cap: float = 1.3
+    collision_s2_cap: float = bounded(1.3, ge=1)
     #: evaluate the collision cost on every n-th rollout step (1 = every step)
-    collision_time_stride: int = 2
+    collision_time_stride: int = bounded(2, ge=1)
     #: splats of a built-in scene (fewer = faster renders; the clearance uses the exact geometry)
-    n_splats: int = 60_000
+    n_splats: int = bounded(60_000, ge=1)
     #: link carrying the wrist camera (camera axes = link axes, OpenCV: looks along link z)
     camera_link: str = "panda_hand_tcp"
     #: success: final camera translation error below this (m) ...
-    position_tol: float = 0.05
+    position_tol: float = bounded(0.05, gt=0)
     #: ... rotation error below this (degrees) and positive clearance
-    orientation_tol_deg: float = 15.0
+    orientation_tol_deg: float = bounded(15.0, gt=0, le=180)
     #: intermediate wrist views kept for the figures
-    n_views: int = 6
+    n_views: int = bounded(6, ge=0)
     #: noise seed
-    seed: int = 0
+    seed: int = bounded(0, ge=0)
+
+    def validate(self) -> "ReachConfig":
+        """Check every field's declared range (:mod:`splatplan._config`) and the cross-field rules; returns self."""
+        check_config(self)
+        if self.n_knots > self.horizon:
+            raise SplatplanError(f"ReachConfig.n_knots must be <= horizon (knots of a spline over the horizon's steps), got n_knots={self.n_knots}, horizon={self.horizon}")
+        if self.refine_sigma_min > self.refine_sigma:
+            raise SplatplanError(f"ReachConfig.refine_sigma_min must be <= refine_sigma, got {self.refine_sigma_min} > {self.refine_sigma}")
+        return self
+
 
 
 @dataclass
@@ -450,7 +461,7 @@ def reach_encoder(name: str = "thumbnail", weights: str | None = None, device: s
     ``encoder_image_size`` (default 8: bands of 4 and 8 px) rather than the single 16x16 thumbnail."""
     from ..encoders import load_encoder
 
-    cfg = config or ReachConfig()
+    cfg = (config or ReachConfig()).validate()
     if name == "thumbnail" and cfg.thumbnail_levels > 1:
         from ..encoders.thumbnail import ThumbnailEncoder
 
@@ -500,7 +511,7 @@ def run_reach(
     from ..render import SplatRenderer
     from ..robots import load_robot
 
-    cfg = config or ReachConfig()
+    cfg = (config or ReachConfig()).validate()
     if cfg.plan_iters < 1 or cfg.iters_per_step < 1:
         raise SplatplanError("ReachConfig.plan_iters and iters_per_step must be >= 1")
     if cfg.plan_starts < 1 or cfg.plan_start_iters < 1:

@@ -24,6 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .._config import bounded, check_config
+from .._resources import require_bytes
 from ..errors import SplatplanError
 from .geometry import colormap, ellipsoid_mesh, polyline_segments, splat_s2_tilde, tree_segments
 
@@ -35,19 +37,23 @@ class ViewerConfig:
     #: Interface to listen on (loopback by default: the viewer is not meant to be exposed).
     host: str = "127.0.0.1"
     #: TCP port of the web page.
-    port: int = 8080
-    #: Initial conservatism n_sigma of the collision colouring and re-planning (slider in the GUI).
-    n_sigma: float = 1.0
+    port: int = bounded(8080, ge=1, le=65535)
+    #: Initial conservatism n_sigma of the collision colouring and re-planning (slider in the GUI, 0..3).
+    n_sigma: float = bounded(1.0, ge=0, le=3)
     #: Scenes with more splats are randomly decimated to this many for the browser (the metric
     #: still uses every splat); the viewer says so on stdout.
-    max_splats: int = 1_000_000
+    max_splats: int = bounded(1_000_000, ge=1)
     #: Device of the collision checker: auto | cpu | cuda | cuda:N.
     device: str = "auto"
     #: Resolution (cells per side) of the collision-field slice.
-    field_res: int = 96
+    field_res: int = bounded(96, ge=2)
     #: When set, one JSON line per event (ready, client, n_sigma, pose, plan) is appended here:
     #: a log for tests and benchmarks.
     status_file: str | None = None
+
+    def validate(self) -> "ViewerConfig":
+        """Check every field's declared range (:mod:`splatplan._config`); returns self."""
+        return check_config(self)
 
 
 def port_free(host: str, port: int) -> bool:
@@ -108,7 +114,9 @@ class SplatViewer:
     def __init__(self, scene, robot=None, plan=None, trajectory=None, tree=None, config: ViewerConfig | None = None) -> None:
         from ..metric import CollisionChecker
 
-        self.config = cfg = config or ViewerConfig()
+        self.config = cfg = (config or ViewerConfig()).validate()
+        # the field slice: res^2 probe points, their metric outputs and an RGB image (an estimate per cell)
+        require_bytes(float(cfg.field_res) ** 2 * 128, f"the collision-field slice of {cfg.field_res}^2 cells", "--field-res")
         self.scene = scene
         lo, hi = scene.bounds()
         # robust bounds for the GUI ranges (outliers far away do not stretch the sliders)
@@ -214,6 +222,10 @@ class SplatViewer:
         import viser
 
         cfg = self.config
+        try:
+            free_port(cfg.host)  # the host must be an address of this machine (binds port 0)
+        except OSError as exc:  # gaierror (unknown name), EADDRNOTAVAIL (another machine's address)
+            raise SplatplanError(f"cannot listen on host {cfg.host!r} ({exc.strerror or exc}); use an address of this machine, e.g. 127.0.0.1 or 0.0.0.0") from None
         if not port_free(cfg.host, cfg.port):
             raise SplatplanError(f"port {cfg.port} on {cfg.host} is in use; try --port {free_port(cfg.host)}")
         self.server = srv = viser.ViserServer(host=cfg.host, port=cfg.port, verbose=False)

@@ -18,6 +18,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Callable
 
+from ..._resources import require_bytes
 from ...errors import SplatplanError
 from . import apartment, primitives, stonehenge, tabletop
 from .primitives import AnalyticScene, SurfaceSplatConfig, splats_from_boxes, splats_from_scene
@@ -45,6 +46,10 @@ def _apartment(seed: int = 0, n_splats: int | None = None, level: int = 1):
 BUILTIN_SCENES: dict[str, Callable] = {"stonehenge": _stonehenge, "tabletop": _tabletop, "apartment": _apartment}
 
 
+#: bytes per splat while a built-in scene is sampled (float64 intermediates): an estimate
+SPLAT_BUILD_BYTES = 1024
+
+
 def build_builtin(name: str, seed: int = 0, n_splats: int | None = None, level: int = 1):
     """Splats and exact ground truth of a built-in scene (fresh copies; cached in memory).
 
@@ -59,6 +64,8 @@ def build_builtin(name: str, seed: int = 0, n_splats: int | None = None, level: 
     """
     if name not in BUILTIN_SCENES:
         raise SplatplanError(f"unknown built-in scene {name!r}: available: {', '.join(BUILTIN_SCENES)}")
+    if n_splats is not None:  # the sampler holds several float64 copies of every splat
+        require_bytes(float(n_splats) * SPLAT_BUILD_BYTES, f"{name} with {int(n_splats):,} splats", "the splat count (--n-splats)")
     return BUILTIN_SCENES[name](seed=int(seed), n_splats=n_splats, level=int(level))
 
 

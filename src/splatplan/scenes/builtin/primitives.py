@@ -42,6 +42,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..._config import bounded, check_config
 from ...errors import SplatplanError
 from ..splats import Splats, quat_multiply, quat_to_rotmat
 
@@ -754,38 +755,42 @@ class SurfaceSplatConfig:
     """
 
     #: Tangential std = ``tangential_factor * h`` before jitter (0.5-0.7 makes neighbours overlap).
-    tangential_factor: float = 0.6
+    tangential_factor: float = bounded(0.6, gt=0)
     #: Normal std = ``thickness * smaller tangential std`` (flat splats: 0.1-0.2).
-    thickness: float = 0.15
+    thickness: float = bounded(0.15, gt=0)
     #: Log-std of the per-splat isotropic size jitter (lognormal).
-    size_jitter: float = 0.25
+    size_jitter: float = bounded(0.25, ge=0)
     #: Log-std of the in-plane anisotropy: s_t1 = s exp(+a), s_t2 = s exp(-a), a ~ N(0, this)
     #: clipped at 2 std.
-    anisotropy: float = 0.15
+    anisotropy: float = bounded(0.15, ge=0)
     #: Log-std of the jitter of the normal std (the normal std stays below the tangential ones).
-    thickness_jitter: float = 0.3
+    thickness_jitter: float = bounded(0.3, ge=0)
     #: Std (degrees) of the tilt of a splat's normal axis away from the face normal (0 = exact).
     tilt_deg: float = 0.0
     #: Position noise along the face normal, std = this * h.
-    normal_noise: float = 0.15
+    normal_noise: float = bounded(0.15, ge=0)
     #: Position noise in the face plane, std = this * h.
-    tangential_noise: float = 0.2
+    tangential_noise: float = bounded(0.2, ge=0)
     #: Fraction of splats with a lower opacity drawn from U(low_opacity_range).
-    low_opacity_fraction: float = 0.15
+    low_opacity_fraction: float = bounded(0.15, ge=0, le=1)
     #: Opacity range of the low-opacity splats.
-    low_opacity_range: tuple[float, float] = (0.15, 0.6)
+    low_opacity_range: tuple[float, float] = bounded((0.15, 0.6), ge=0, le=1)
     #: The others get 1 - (1 - min_high_opacity) * U^2 (mostly close to 1).
-    min_high_opacity: float = 0.6
+    min_high_opacity: float = bounded(0.6, ge=0, le=1)
     #: Per-splat colour noise std (RGB, added to the box's base colour, then clipped to [0, 1]).
-    color_noise: float = 0.04
+    color_noise: float = bounded(0.04, ge=0)
     #: Fraction of all splats that are floaters (large, transparent, in free space).
-    floater_fraction: float = 0.0005
+    floater_fraction: float = bounded(0.0005, ge=0, le=1)
     #: Floater max std = U(range) * median over surface splats of their max std.
-    floater_size_range: tuple[float, float] = (8.0, 25.0)
+    floater_size_range: tuple[float, float] = bounded((8.0, 25.0), gt=0)
     #: Fraction of floaters with opacity < 0.1 (the rest get U(0.1, 0.3): a filter misses them).
-    floater_transparent_fraction: float = 0.85
+    floater_transparent_fraction: float = bounded(0.85, ge=0, le=1)
     #: Floaters are kept at least this far (scene units) from the geometry.
-    floater_clearance: float = 0.02
+    floater_clearance: float = bounded(0.02, ge=0)
+
+    def validate(self) -> "SurfaceSplatConfig":
+        """Check every field's declared range (:mod:`splatplan._config`); returns self."""
+        return check_config(self)
 
 
 #: Face ids: 0 +x, 1 -x, 2 +y, 3 -y, 4 +z, 5 -z (in the box frame).

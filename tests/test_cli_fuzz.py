@@ -1,0 +1,362 @@
+"""Fuzz the whole CLI (issue #21): every command and flag, enumerated from the argparse parser.
+
+Each flag that takes a value gets -1, 0, nan, inf and 1e30; each flag or positional that names a
+file or folder also gets a missing file, a directory and an unwritable place (/proc). A case
+passes when it either
+
+- exits 2 with exactly one ``splatplan: error:`` line, or
+- exits 0 or 1 with a sane result (no NaN in the JSON it wrote, no RuntimeWarning), or
+- is still running at the time budget and stops cleanly when interrupted (exit 130),
+
+and never prints a traceback, leaves a temporary file or touches the input files.
+
+Every case is parsed (milliseconds: most hostile values stop there). The cases the parser accepts
+run in-process with cheap base arguments (tiny scenes, --quick, few steps) and a time budget
+(SIGALRM -> KeyboardInterrupt, as Ctrl-C); ``make test`` runs a seeded sample of them,
+``SPLATPLAN_FUZZ_FULL=1`` runs all (about an hour on 2 cores). New commands and flags are
+covered automatically; a new command only needs a cheap base in ``BASE`` to be run, not just parsed.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import hashlib
+import io
+import json
+import math
+import os
+import random
+import re
+import signal
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from splatplan.cli import build_parser, main
+
+DATA = Path(__file__).parent / "data"
+BANANA = str(DATA / "equinor_banana_splat.ply")
+FULL = os.environ.get("SPLATPLAN_FUZZ_FULL", "") not in ("", "0")
+#: accepted cases run per test in the sampled mode (seeded)
+N_SAMPLE = int(os.environ.get("SPLATPLAN_FUZZ_SAMPLE", "10"))
+#: seconds a run may take before it is interrupted (then it must end within GRACE_S more)
+BUDGET_S = float(os.environ.get("SPLATPLAN_FUZZ_BUDGET_S", "2.0"))
+GRACE_S = 20.0
+
+NUMBERS = ("-1", "0", "nan", "inf", "1e30")
+_PATHLIKE = re.compile(r"\b(file|folder|path|dir)\b|\.(npy|npz|json|yaml|png|jpg|urdf|ply)\b|PATH|DIR|IMG|FILE", re.I)
+
+#: cheap base arguments per command: (positionals, options). {d} = the case folder, {img}, {poses}
+#: = fixtures in it. Flags of ``--base-*`` (go2) use BASE_GO2 for mpc.
+BASE: dict[tuple[str, ...], tuple[list[str], list[str]]] = {
+    ("info",): ([BANANA], []),
+    ("scene",): (["stonehenge"], ["--out", "{d}/s.ply"]),
+    ("check",): ([BANANA], ["--robot", "sphere:0.01", "--poses", "{poses}"]),
+    ("robot", "info"): (["panda"], []),
+    ("robot", "fit"): (["panda"], ["--out", "{d}/e.yaml", "--no-png"]),
+    ("plan",): ([BANANA], ["--start", "0,0,0", "--goal", "0.05,0,0", "--out", "{d}/p.json", "--time-limit", "1"]),
+    ("demo",): ([], ["--out", "{d}/demo"]),
+    ("view",): ([BANANA], ["--port", "{port}", "--device", "cpu"]),
+    ("encode",): (["{img}"], ["--encoder", "thumbnail"]),
+    ("render",): ([BANANA], ["--eye", "0,-1,0", "--look-at", "0,0,0", "--width", "16", "--height", "16", "--out", "{d}/r.png"]),
+    ("navigate",): ([], ["--target-image", "{img}", "--out", "{d}/n", "--n-splats", "20000", "--tree-nodes", "20", "--n-headings", "2", "--max-steps", "3"]),
+    ("mpc",): ([], ["--robot", "panda", "--goal-pose", "0.5,0,0.3,0,1,0,0", "--out", "{d}/m", "--arm-max-steps", "2"]),
+    ("eval", "pr"): ([], ["--out", "{d}/o", "--quick"]),
+    ("eval", "throughput"): ([], ["--out", "{d}/o", "--quick"]),
+    ("eval", "conservatism"): ([], ["--out", "{d}/o", "--quick"]),
+    ("eval", "linearization"): ([], ["--out", "{d}/o", "--quick"]),
+    ("eval", "reach"): ([], ["--out", "{d}/o", "--quick"]),
+    ("eval", "navigate"): ([], ["--out", "{d}/o", "--quick"]),
+    ("eval", "arm"): ([], ["--out", "{d}/o", "--quick"]),
+    ("eval", "base"): ([], ["--out", "{d}/o", "--quick"]),
+}
+BASE_GO2 = ([], ["--robot", "go2", "--goal", "1,0", "--out", "{d}/m", "--base-max-steps", "2"])
+#: parsed but never run here: starts worker subprocesses (an interrupt would orphan them)
+PARSE_ONLY = {("eval", "throughput")}
+
+
+def leaf_parsers(parser: argparse.ArgumentParser, path: tuple[str, ...] = ()):
+    """(command path, parser) of every runnable (sub)command."""
+    subs = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
+    if not subs:
+        yield path, parser
+        return
+    for a in subs:
+        for name, sp in a.choices.items():
+            yield from leaf_parsers(sp, path + (name,))
+
+
+def _pathlike(action: argparse.Action) -> bool:
+    text = f"{action.help or ''} {action.metavar or ''} {action.dest}"
+    return action.dest in ("out", "scene", "urdf", "images", "status_file") or bool(_PATHLIKE.search(text))
+
+
+def enumerate_cases() -> list[tuple[tuple[str, ...], str, str]]:
+    """(command, flag or positional dest, hostile value) for every value-taking argument."""
+    cases = []
+    for cmd, p in leaf_parsers(build_parser()):
+        for a in p._actions:
+            if isinstance(a, argparse._HelpAction) or (a.option_strings and a.nargs == 0):
+                continue
+            name = a.option_strings[-1] if a.option_strings else a.dest
+            if not a.option_strings and a.choices is not None:
+                continue  # a nested subcommand name (handled by leaf_parsers)
+            values = list(NUMBERS)
+            if _pathlike(a):
+                values += ["{missing}", "{adir}", "/proc/splatplan-fuzz/x.out"]
+            cases += [(cmd, name, v) for v in values]
+    return cases
+
+
+def build_argv(cmd: tuple[str, ...], name: str, value: str, parser: argparse.ArgumentParser) -> list[str]:
+    pos, opts = BASE_GO2 if cmd == ("mpc",) and name.startswith("--base-") else BASE.get(cmd, ([], []))
+    pos, opts = list(pos), list(opts)
+    pos_actions = [a for a in parser._actions if not a.option_strings]
+    if name.startswith("-"):
+        nargs = next(a.nargs for a in parser._actions if name in a.option_strings)
+        opts += [name] + [value] * (nargs if isinstance(nargs, int) else 1)
+    else:
+        idx = [a.dest for a in pos_actions].index(name)
+        while len(pos) <= idx:
+            pos.append("x")
+        pos[idx] = value
+    # '--flag=-1' keeps a negative number from reading as an option
+    out, i = list(cmd) + pos, 0
+    while i < len(opts):
+        if opts[i].startswith("--") and i + 1 < len(opts) and opts[i + 1].startswith("-") and not opts[i + 1].startswith("--"):
+            out.append(f"{opts[i]}={opts[i + 1]}")
+            i += 2
+        else:
+            out.append(opts[i])
+            i += 1
+    return out
+
+
+def _fill(argv: list[str], d: Path, port: int) -> list[str]:
+    subst = {"{d}": str(d), "{img}": str(d / "img.png"), "{poses}": str(d / "poses.npy"), "{missing}": str(d / "missing" / "x.npy"),
+             "{adir}": str(d / "adir"), "{port}": str(port)}  # fmt: skip
+    out = []
+    for a in argv:
+        for k, v in subst.items():
+            a = a.replace(k, v)
+        out.append(a)
+    return out
+
+
+def _fixtures(d: Path) -> dict[str, str]:
+    from PIL import Image
+
+    d.mkdir(parents=True, exist_ok=True)
+    (d / "adir").mkdir(exist_ok=True)
+    np.save(d / "poses.npy", np.zeros((4, 3)))
+    Image.fromarray(np.full((16, 16, 3), 128, np.uint8)).save(d / "img.png")
+    return {p.name: hashlib.sha256(p.read_bytes()).hexdigest() for p in (d / "poses.npy", d / "img.png")} | {"banana": hashlib.sha256(Path(BANANA).read_bytes()).hexdigest()}
+
+
+def parse_only(argv: list[str]) -> tuple[int | None, str]:
+    """(2, stderr) when the parser rejects argv, (None, '') when it accepts it."""
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
+        try:
+            build_parser_cached().parse_args(argv)
+        except SystemExit as exc:
+            return int(exc.code or 0), err.getvalue()
+    return None, ""
+
+
+_PARSER = None
+
+
+def build_parser_cached() -> argparse.ArgumentParser:
+    global _PARSER
+    if _PARSER is None:
+        _PARSER = build_parser()
+    return _PARSER
+
+
+class _Budget(BaseException):
+    pass
+
+
+def run_in_process(argv: list[str], budget_s: float, cwd: Path) -> tuple[int, str, str, bool, float]:
+    """(exit code, stdout, stderr, interrupted by the budget, seconds) of ``main(argv)`` run in
+    ``cwd`` (a hostile value read as a relative output path, e.g. ``--status-file 0``, lands there)."""
+    out, err = io.StringIO(), io.StringIO()
+    old_cwd = os.getcwd()
+    fired = []
+
+    def alarm(signum, frame):
+        fired.append(True)
+        raise KeyboardInterrupt  # what Ctrl-C does: the CLI must clean up and exit 130
+
+    old = signal.signal(signal.SIGALRM, alarm)
+    signal.setitimer(signal.ITIMER_REAL, budget_s)
+    t0 = time.perf_counter()
+    try:
+        os.chdir(cwd)
+        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+            try:
+                rc = main(argv)
+            except SystemExit as exc:
+                rc = int(exc.code or 0)
+            except KeyboardInterrupt:  # fired outside the CLI's handlers
+                rc = 130
+            except BaseException as exc:  # noqa: BLE001 - an escape: report it as a traceback
+                import traceback
+
+                err.write("Traceback (escaped main):\n" + "".join(traceback.format_exception(exc)))
+                rc = -1
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, old)
+        os.chdir(old_cwd)
+    return rc, out.getvalue(), err.getvalue(), bool(fired), time.perf_counter() - t0
+
+
+def _json_has_nan(path: Path) -> bool:
+    def bad(x):
+        raise ValueError(x)
+
+    try:
+        json.loads(path.read_text(), parse_constant=bad)
+    except ValueError:
+        return True
+    return False
+
+
+_TEMP = re.compile(r"^\.(splatplan-|.+\.[A-Za-z0-9_]{8}\b)")
+
+
+def check_outcome(argv, rc, out, err, interrupted, secs, d: Path, hashes: dict) -> list[str]:
+    """Problems with one run (empty = pass)."""
+    problems = []
+    if "Traceback" in err:
+        problems.append("traceback:\n" + err[-2000:])
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    if rc == 2 and not (len(lines) == 1 and lines[0].startswith("splatplan: error: ")):
+        problems.append(f"exit 2 without exactly one 'splatplan: error:' line: {err[-1000:]!r}")
+    if rc in (0, 1):
+        if "RuntimeWarning" in err:
+            problems.append(f"RuntimeWarning: {err[-500:]!r}")
+        for j in d.rglob("*.json"):
+            if _json_has_nan(j):
+                problems.append(f"NaN/Inf in {j.name}")
+    if rc == 130 and not interrupted:
+        problems.append("exit 130 without an interrupt")
+    if rc not in (0, 1, 2, 130):
+        problems.append(f"exit code {rc}")
+    if secs > BUDGET_S + GRACE_S:
+        problems.append(f"took {secs:.0f} s (budget {BUDGET_S} s + {GRACE_S} s to stop)")
+    for p in d.rglob("*"):
+        if _TEMP.match(p.name):
+            problems.append(f"temporary file left: {p}")
+    now = {p.name: hashlib.sha256(p.read_bytes()).hexdigest() for p in (d / "poses.npy", d / "img.png")}
+    now["banana"] = hashlib.sha256(Path(BANANA).read_bytes()).hexdigest() if "banana" in hashes else None
+    if now != hashes:
+        problems.append("an input file was modified")
+    return problems
+
+
+def _reset(d: Path) -> None:
+    """Remove everything a run wrote (keep the fixtures)."""
+    import shutil
+
+    for p in d.iterdir():
+        if p.name not in ("poses.npy", "img.png", "adir"):
+            shutil.rmtree(p, ignore_errors=True) if p.is_dir() else p.unlink(missing_ok=True)
+    for p in (d / "adir").iterdir():
+        shutil.rmtree(p, ignore_errors=True) if p.is_dir() else p.unlink(missing_ok=True)
+
+
+ALL_CASES = enumerate_cases()
+
+
+def test_enumeration_covers_every_command_and_flag():
+    parser = build_parser()
+    cmds = {c for c, _ in leaf_parsers(parser)}
+    assert {("plan",), ("check",), ("view",), ("mpc",), ("eval", "pr"), ("robot", "fit"), ("navigate",)} <= cmds
+    flags = {(c, n) for c, n, _ in ALL_CASES}
+    assert (("mpc",), "--arm-n-knots") in flags and (("view",), "--port") in flags
+    assert len(flags) > 300  # every value-taking flag of every command
+
+
+def test_every_case_parses_or_fails_in_one_line(tmp_path):
+    """All cases through the parser: a rejection is exactly one 'splatplan: error:' line, exit 2."""
+    d = tmp_path / "case"
+    _fixtures(d)
+    parser = build_parser_cached()
+    leaf = dict(leaf_parsers(parser))
+    bad = []
+    for cmd, name, value in ALL_CASES:
+        argv = _fill(build_argv(cmd, name, value, leaf[cmd]), d, 8765)
+        rc, err = parse_only(argv)
+        if rc is None:
+            continue
+        lines = [ln for ln in err.splitlines() if ln.strip()]
+        if rc != 2 or len(lines) != 1 or not lines[0].startswith("splatplan: error: "):
+            bad.append((argv, rc, err))
+    assert not bad, f"{len(bad)} bad parser outcomes, e.g. {bad[:3]}"
+
+
+def _accepted_cases() -> list[tuple[tuple[str, ...], str, str]]:
+    parser = build_parser_cached()
+    leaf = dict(leaf_parsers(parser))
+    d = Path("/nonexistent-fuzz")
+    return [c for c in ALL_CASES if c[0] not in PARSE_ONLY and parse_only(_fill(build_argv(c[0], c[1], c[2], leaf[c[0]]), d, 8765))[0] is None]
+
+
+def _sample(cases, n: int, seed: int):
+    if FULL or len(cases) <= n:
+        return cases
+    return random.Random(seed).sample(cases, n)
+
+
+_ACCEPTED = None
+
+
+def accepted() -> list:
+    global _ACCEPTED
+    if _ACCEPTED is None:
+        _ACCEPTED = _accepted_cases()
+    return _ACCEPTED
+
+
+@pytest.mark.skipif(threading.current_thread() is not threading.main_thread() or not hasattr(signal, "setitimer"), reason="needs SIGALRM in the main thread")
+def test_accepted_cases_run_cleanly(tmp_path):
+    """The cases the parser accepts (a seeded sample, or all with SPLATPLAN_FUZZ_FULL=1) run with
+    cheap base arguments under a time budget: one-line error, sane result, or a clean interrupt."""
+    from splatplan.viewer.app import free_port
+
+    cases = accepted()
+    assert cases, "nothing accepted: the base arguments are broken"
+    picked = _sample(cases, N_SAMPLE, seed=21)
+    d = tmp_path / "case"
+    hashes = _fixtures(d)
+    parser = build_parser_cached()
+    leaf = dict(leaf_parsers(parser))
+    failures, summary = [], {}
+    for cmd, name, value in picked:
+        argv = _fill(build_argv(cmd, name, value, leaf[cmd]), d, free_port())
+        rc, out, err, interrupted, secs = run_in_process(argv, BUDGET_S, d)
+        probs = check_outcome(argv, rc, out, err, interrupted, secs, d, hashes)
+        summary[rc] = summary.get(rc, 0) + 1
+        if probs:
+            failures.append((" ".join(argv), probs))
+        _reset(d)
+    report = "\n".join(f"{a}\n    " + "\n    ".join(p) for a, p in failures[:10])
+    assert not failures, f"{len(failures)} of {len(picked)} runs failed (exit codes {summary}):\n{report}"
+
+
+def test_base_arguments_are_valid():
+    """Every base command line parses (otherwise its cases would only test the base's own error)."""
+    parser = build_parser_cached()
+    d = Path("/tmp/fuzz-base")
+    for cmd, (pos, opts) in list(BASE.items()) + [(("mpc",), BASE_GO2)]:
+        argv = _fill(list(cmd) + pos + opts, d, 8765)
+        rc, err = parse_only(argv)
+        assert rc is None, (argv, err)
+    assert math.isfinite(BUDGET_S)
