@@ -45,6 +45,9 @@ def build_parser() -> argparse.ArgumentParser:
     eval_sub = ev.add_subparsers(dest="study", required=True, metavar="STUDY")
     for name in _MODULES:
         importlib.import_module(f".{name}", __name__).register(sub, eval_sub)
+    from ._common import allow_negative_values
+
+    allow_negative_values(p)  # every coordinate flag of every command accepts a leading minus
     return p
 
 

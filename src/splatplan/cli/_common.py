@@ -27,6 +27,35 @@ import numpy as np
 from .._files import _umask, atomic_path  # noqa: F401 - the commands import atomic_path from here
 from ..errors import SplatplanError
 
+#: a command-line token starting with a minus and a digit ("-0.3,0,0.06", "-1e-3", "-.5"): a value,
+#: not an option (argparse's own test accepts only a single plain negative number); a malformed
+#: list such as "-0.3,x" then reaches the value parser, which names the problem
+NUMBER_LIST = re.compile(r"^-\.?\d\S*$")
+
+
+def allow_negative_values(parser: argparse.ArgumentParser) -> None:
+    """Let values such as ``-0.3,0,0.06`` follow an option (``--eye -0.6,0,1``), in ``parser``
+    and every subparser below it (``build_parser`` applies it to the whole CLI).
+
+    argparse classifies every token starting with '-' as an option unless it looks like a single
+    negative number; this treats comma lists of numbers as values too (no option of the CLI looks
+    like a number, so nothing is shadowed).
+    """
+    parser._negative_number_matcher = NUMBER_LIST  # noqa: SLF001 - the documented hook is missing
+    for action in parser._actions:  # noqa: SLF001
+        if isinstance(action, argparse._SubParsersAction):  # noqa: SLF001
+            for sub in action.choices.values():
+                allow_negative_values(sub)
+
+
+def finite_float(text: str) -> float:
+    """argparse ``type`` for a finite float flag (NaN and Inf are rejected with one line)."""
+    v = float(text)
+    if not np.isfinite(v):
+        raise argparse.ArgumentTypeError(f"{text!r} is not a finite number")
+    return v
+
+
 ROBOT_HELP = "robot link: 'sphere:R' or 'ellipsoid:A,B,C' (semi-axes, scene units)"
 
 

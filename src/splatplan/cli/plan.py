@@ -11,7 +11,6 @@ vectors are comma lists of the robot's dofs and may start with a minus sign
 
 from __future__ import annotations
 
-import re
 import sys
 from dataclasses import replace
 from pathlib import Path
@@ -19,26 +18,11 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import SplatplanError
-from ._common import _load, add_config_args, add_device_arg, config_from_args, write_json
-
-#: a command-line token starting with a minus and a digit ("-0.3,0,0.06", "-1e-3"): a value, not
-#: an option (argparse's own test accepts only a single plain negative number); a malformed list
-#: such as "-0.3,x" then reaches the value parser, which names the problem
-_NUMBER_LIST = re.compile(r"^-\.?\d\S*$")
+from ._common import _load, add_config_args, add_device_arg, allow_negative_values, config_from_args, write_json
 
 _UP = {"x": (0, 1.0), "y": (1, 1.0), "z": (2, 1.0), "-x": (0, -1.0), "-y": (1, -1.0), "-z": (2, -1.0)}
 
 ROBOT_HELP = "sphere:R | ellipsoid:A,B,C (point robots, dofs x,y,z) | panda (7 joint angles, rad) | go2 (planar base x,y,yaw) | PATH.urdf (default sphere:0.015)"
-
-
-def allow_negative_values(parser) -> None:
-    """Let values such as ``-0.3,0,0.06`` follow an option (``--start -0.3,0,0.06``).
-
-    argparse classifies every token starting with '-' as an option unless it looks like a single
-    negative number; this parser treats comma lists of numbers as values too (it has no option
-    that looks like a number, so nothing is shadowed).
-    """
-    parser._negative_number_matcher = _NUMBER_LIST  # noqa: SLF001 - the documented hook is missing
 
 
 def parse_config(text: str, robot, what: str) -> np.ndarray:

@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import SplatplanError
-from ._common import _load, atomic_dir, move_into
+from ._common import _Unset, _load, add_config_args, allow_negative_values, atomic_dir, config_from_args, move_into, parse_vec3
 
 
 def cmd_info(args) -> int:
@@ -31,6 +32,10 @@ def cmd_info(args) -> int:
         "opacity_median": float(np.median(s.opacities)),
         "floaters_default_rule": int(rep.n_dropped),
     }
+    from ..scenes.align import AlignConfig, default_up_hint, describe_frame
+
+    frame = describe_frame(s, AlignConfig(up_hint=args.up_hint or default_up_hint(args.scene)))
+    info.update(frame)
     if args.json:
         print(json.dumps(info))
         return 0
@@ -38,13 +43,94 @@ def cmd_info(args) -> int:
     print(f"  bounds of means (file frame, scene units): min {np.round(lo, 4).tolist()}  max {np.round(hi, 4).tolist()}")
     print(f"  largest std per splat: median {info['max_std_median']:.4g}, p99 {info['max_std_p99']:.4g}; median opacity {info['opacity_median']:.3f}")
     print(f"  SH rest coefficients: {info['sh_rest_coeffs']}; floaters by the default rule (o < 0.1 and max std > 5x median): {info['floaters_default_rule']}")
+    rl, rh = np.round(frame["robust_bounds_min"], 4).tolist(), np.round(frame["robust_bounds_max"], 4).tolist()
+    pl, ph = frame["robust_percentiles"]
+    print(f"  robust bounds ({pl:g}-{ph:g} percentile of the means): min {rl}  max {rh}")
+    sh = frame["shell"]
+    if sh["count"]:
+        print(f"  shell/outliers: {sh['count']:,} splats outside the robust box, at median radius {sh['radius_median']:.3g} (max {sh['radius_max']:.3g}) from its centre")
+    else:
+        print("  shell/outliers: none outside the robust box")
+    g = frame["up_guess"]
+    if g is None:
+        print(f"  up axis: no guess ({frame['up_note']})")
+    else:
+        print(f"  up axis guess: {g['up_axis']} (normal {g['up']}, confidence {g['confidence']:.2f}); floor at {g['floor_height']:.4g} along it "
+              f"(`splatplan scene align` moves it to z = 0)")  # fmt: skip
+    print(f"  scale: {frame['scale_note']}")
+    for w in frame["warnings"]:
+        print(f"  warning: {w}")
     return 0
+
+
+def cmd_align(args) -> int:
+    """`splatplan scene align IN --out OUT`: write the aligned scene and its transform sidecar."""
+    from ..scenes.align import AlignConfig, align_scene
+    from ..scenes.load import SCENE_EXTENSIONS, save_scene
+
+    if args.input is None:
+        raise SplatplanError("scene align needs an input: splatplan scene align IN --out OUT")
+    out = Path(args.out)
+    if out.is_dir():
+        raise SplatplanError(f"--out {args.out} is a directory; give a PATH.ply")
+    if out.suffix.lower() != ".ply":
+        raise SplatplanError(f"--out {args.out}: expected a .ply path (an INRIA ply)")
+    if not out.parent.exists():
+        raise SplatplanError(f"output folder {out.parent} does not exist")
+    if Path(args.input).resolve() == out.resolve():
+        raise SplatplanError("--out must differ from the input (the input is never overwritten)")
+    from ..scenes.align import default_up_hint
+
+    cfg = config_from_args(args, AlignConfig, prefix="align_")
+    if getattr(args, "cfg_align_up_hint", None) in (None, _Unset):
+        cfg = replace(cfg, up_hint=default_up_hint(args.input))
+    if args.up is not None:
+        cfg = replace(cfg, up=args.up)
+    if args.floor is not None:
+        cfg = replace(cfg, floor=args.floor)
+    if args.scale is not None:
+        cfg = replace(cfg, scale=args.scale)
+    if args.rotate_z is not None:
+        cfg = replace(cfg, rotate_z=args.rotate_z)
+    if args.translate is not None:
+        cfg = replace(cfg, translate=tuple(parse_vec3(args.translate, "--translate")))
+    if args.crop is not None:
+        lo, hi = (parse_vec3(c, "--crop") for c in args.crop)
+        cfg = replace(cfg, crop=tuple(lo) + tuple(hi))
+    cfg.validate()
+    scene = _load(args.input, filter_floaters=False)
+    aligned, res = align_scene(scene, cfg)
+    doc = {"input": str(args.input), "output": str(out), **res.to_json()}
+    side = sidecar_path(out)
+    with atomic_dir(out.parent) as tmp:  # both files appear together or not at all
+        save_scene(aligned, tmp / out.name)
+        (tmp / side.name).write_text(json.dumps(doc, indent=2) + "\n")
+        move_into(tmp / side.name, side)
+        move_into(tmp / out.name, out)
+    g = res.up
+    if g is not None:
+        print(f"up: {g.to_json()['up_axis']} (normal {np.round(g.up, 4).tolist()}, {g.method}, confidence {g.confidence:.2f}); floor at {g.floor_height:.4g} along it -> z = 0")
+    crop = f"; --crop dropped {res.n_cropped:,} of {res.n_in:,} splats" if res.n_cropped else "; every splat kept, in order"
+    print(f"transform (x_out = T [x_in; 1], scale {res.scale:g}):")
+    for row in res.transform:
+        print("  [" + ", ".join(f"{v: .6f}" for v in row) + "]")
+    print(f"wrote {out} ({res.n_out:,} splats{crop}) and {side}")
+    return 0
+
+
+def sidecar_path(out: Path) -> Path:
+    """The transform sidecar of an aligned scene: PATH.ply -> PATH.align.json."""
+    return Path(out).with_suffix(".align.json")
 
 
 def cmd_scene(args) -> int:
     from ..scenes.builtin import BUILTIN_SCENES, write_builtin
     from ..scenes.stonehenge import ground_truth_path
 
+    if args.name == "align":
+        return cmd_align(args)
+    if args.input is not None:
+        raise SplatplanError(f"scene {args.name}: unexpected argument {args.input!r} (only 'scene align IN' takes an input)")
     if args.name not in BUILTIN_SCENES:
         raise SplatplanError(f"unknown built-in scene {args.name!r}: available: {', '.join(BUILTIN_SCENES)}")
     if not 1 <= args.level <= 5:
@@ -73,10 +159,27 @@ def register(sub, eval_sub) -> None:
     s = sub.add_parser("info", help="summarise a splat file")
     s.add_argument("scene", metavar="SCENE", help="splat file (.ply INRIA/2DGS/compressed, .splat, .spz, gsplat .pt)")
     s.add_argument("--json", action="store_true", help="print one JSON object")
+    s.add_argument("--up-hint", default=None, choices=("+x", "-x", "+y", "-y", "+z", "-z"),
+                   help="capture convention that breaks ties between perpendicular bounding planes in the up guess "
+                   "(default +z for files splatplan wrote, with a .align.json/.gt.json beside them, else -y)")  # fmt: skip
     s.set_defaults(func=cmd_info)
-    s = sub.add_parser("scene", help="write a built-in scene with its ground truth")
-    s.add_argument("name", metavar="NAME", help="built-in scene name: stonehenge | tabletop | apartment")
-    s.add_argument("--out", required=True, help="PATH.ply (ground truth goes to PATH.gt.json)")
+    from ..scenes.align import AlignConfig
+
+    s = sub.add_parser("scene", help="write a built-in scene with its ground truth, or align a capture (scene align IN --out OUT)",
+                       description="`scene NAME --out PATH.ply` writes a built-in scene; `scene align IN --out OUT.ply` puts a capture in the "
+                       "robot's world (z up, floor at z = 0; the transform goes to OUT.align.json and is printed).")  # fmt: skip
+    allow_negative_values(s)
+    s.add_argument("name", metavar="NAME", help="built-in scene name: stonehenge | tabletop | apartment, or 'align'")
+    s.add_argument("input", metavar="IN", nargs="?", default=None, help="align: the input splat file")
+    s.add_argument("--out", required=True, help="PATH.ply (built-in: ground truth goes to PATH.gt.json; align: the transform to PATH.align.json)")
+    g = s.add_argument_group("align options")
+    g.add_argument("--up", default=None, help="align: the input's up axis: auto (fitted floor/table plane, default) | +x | -x | +y | -y | +z | -z")
+    g.add_argument("--floor", default=None, help="align: auto (fitted, default) | none | Z (floor height along the up axis, input units) -> z = 0")
+    g.add_argument("--scale", type=float, default=None, help="align: uniform scale after the rotation (default 1)")
+    g.add_argument("--rotate-z", type=float, default=None, help="align: rotation about the new z axis, degrees (default 0)")
+    g.add_argument("--translate", default=None, metavar="X,Y,Z", help="align: translation added last (output units)")
+    g.add_argument("--crop", nargs=2, default=None, metavar=("LO", "HI"), help="align: keep splats in the box LO=X,Y,Z .. HI=X,Y,Z (aligned frame); says how many were dropped")
+    add_config_args(s, AlignConfig, prefix="align_", skip=("up", "floor", "scale", "rotate_z", "translate", "crop"), group="align fit options (AlignConfig)")
     s.add_argument("--level", type=int, default=1, help="Gaussian-size level 1..5 (larger, fewer splats)")
     s.add_argument("--seed", type=int, default=0, help="layout and sampling seed, an integer >= 0 (default 0)")
     s.set_defaults(func=cmd_scene)
