@@ -9,8 +9,10 @@ How ``up = "auto"`` works (all on the splat means, weighted by opacity):
 
 1. **Shell rejection.** Captures are often wrapped in a far "sky shell" of huge splats. Only the
    means inside the robust box (the ``box_percentile`` .. 100 - ``box_percentile`` percentiles of
-   every axis, padded by ``box_pad`` of its size) take part in the fit; the rest are reported as
-   the shell (and still kept in the output).
+   every axis, each splat weighted by opacity / largest std^2 so that a shell of many huge splats
+   hardly counts, padded by ``box_pad`` of its size) take part in the fit; the rest are reported
+   as the shell (and still kept in the output). A shell of many *small* opaque splats is not
+   recognised this way (the percentiles then include it; use ``crop``).
 2. **Plane candidates.** A one-point RANSAC: each hypothesis is a flat splat (smallest std below
    0.3x the middle one) taken as a plane through its mean with its normal; the inliers are the
    means within ``plane_tol`` (a fraction of the robust box's diagonal) whose own normal, when
@@ -20,7 +22,7 @@ How ``up = "auto"`` works (all on the splat means, weighted by opacity):
    planes with at most ``max_below`` of the robust mass beyond them qualify; the up axis is
    their normal, oriented towards the scene.
 4. **Choice.** Rooms have several bounding planes (floor, ceiling, walls). Each candidate scores
-   ``mass * (0.25 + |n . up_hint|)``: the plane's share of the splat mass, favouring the capture
+   ``mass * (0.25 + max(0, n . up_hint))``: the plane's share of the splat mass, favouring the capture
    convention's up axis (``up_hint``, default ``-y`` for INRIA/COLMAP-style y-down captures) as
    a tie-break between perpendicular planes. The confidence reported is
    ``one_sided * (1 - runner_up_score / best_score)`` (1 = one unambiguous bounding plane).
@@ -195,17 +197,33 @@ def nearest_axis(v: np.ndarray) -> str:
     return ("+" if v[i] >= 0 else "-") + "xyz"[i]
 
 
-def robust_box(means: np.ndarray, percentile: float = 1.0, pad: float = 0.1) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(lo (3,), hi (3,), inside (N,) bool): the per-axis percentile box of ``means`` (N, 3),
-    padded by ``pad`` of its size per side; ``inside`` marks the means in it (the rest: a shell
-    or far outliers)."""
+def robust_box(means: np.ndarray, percentile: float = 1.0, pad: float = 0.1, weights: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(lo (3,), hi (3,), inside (N,) bool): the per-axis weighted percentile box of ``means``
+    (N, 3), padded by ``pad`` of its size per side; ``inside`` marks the means in it (the rest: a
+    shell or far outliers). ``weights`` (N,) default 1; :func:`shell_weights` makes a shell of
+    many huge splats count little even when it holds a large share of the splats."""
     m = np.asarray(means, np.float64)
-    lo = np.percentile(m, percentile, axis=0)
-    hi = np.percentile(m, 100.0 - percentile, axis=0)
+    w = np.ones(len(m)) if weights is None else np.asarray(weights, np.float64)
+    lo, hi = np.empty(3), np.empty(3)
+    for k in range(3):
+        o = np.argsort(m[:, k])
+        cw = np.cumsum(w[o])
+        cw /= cw[-1]
+        lo[k] = m[o[min(np.searchsorted(cw, percentile / 100.0), len(o) - 1)], k]
+        hi[k] = m[o[min(np.searchsorted(cw, 1.0 - percentile / 100.0), len(o) - 1)], k]
     size = hi - lo
     lo, hi = lo - pad * size, hi + pad * size
     inside = np.all((m >= lo) & (m <= hi), axis=1)
     return lo, hi, inside
+
+
+def shell_weights(splats: Splats) -> np.ndarray:
+    """(N,) weights of the robust box: opacity / max(largest std, median largest std)^2, so a sky
+    shell or a cloud of huge floaters (large stds) hardly moves the box's percentiles while the
+    scene's surfaces (small, opaque splats) define it."""
+    smax = splats.scales.max(axis=1).astype(np.float64)
+    ref = max(float(np.median(smax)), 1e-12)
+    return splats.opacities.astype(np.float64) / np.maximum(smax, ref) ** 2 + 1e-12
 
 
 def splat_normals(splats: Splats) -> tuple[np.ndarray, np.ndarray]:
@@ -290,7 +308,7 @@ def guess_up(splats: Splats, config: AlignConfig | None = None) -> UpGuess:
     cfg = (config or AlignConfig()).validate()
     if len(splats) < 10:
         raise SplatplanError(f"cannot fit a floor to {len(splats)} splat(s); give --up and --floor")
-    lo, hi, inside = robust_box(splats.means, cfg.box_percentile, cfg.box_pad)
+    lo, hi, inside = robust_box(splats.means, cfg.box_percentile, cfg.box_pad, shell_weights(splats))
     idx = np.flatnonzero(inside)
     rng = np.random.default_rng(cfg.seed)
     if len(idx) > cfg.max_points:
@@ -308,7 +326,7 @@ def guess_up(splats: Splats, config: AlignConfig | None = None) -> UpGuess:
                 "no plane to align to: no large plane bounds the scene (an object scan without a table or floor?); "
                 "give the up axis with --up (+y, -y, +z, ...) and the floor with --floor Z or --floor none"
             )
-        scores = np.array([p.mass * (0.25 + abs(float(p.normal @ hint))) for p in bounding])
+        scores = np.array([p.mass * (0.25 + max(0.0, float(p.normal @ hint))) for p in bounding])
         order = np.argsort(-scores)
         best = bounding[int(order[0])]
         runner = float(scores[order[1]]) if len(order) > 1 else 0.0
@@ -366,7 +384,7 @@ def align_scene(splats: Splats, config: AlignConfig | None = None) -> tuple[Spla
     t = np.array([0.0, 0.0, -s * floor]) + np.asarray(cfg.translate, np.float64)
     out = scale_scene(apply_rigid(splats, r, np.zeros(3)), s)
     out = apply_rigid(out, np.eye(3), t)
-    _, _, inside = robust_box(out.means, cfg.box_percentile, cfg.box_pad)
+    _, _, inside = robust_box(out.means, cfg.box_percentile, cfg.box_pad, shell_weights(out))
     z90 = float(np.percentile(out.means[inside, 2], 90.0))
     if z90 < 0.0:
         raise SplatplanError(
@@ -393,7 +411,7 @@ def absurd_splats(splats: Splats, fraction: float = 0.25, percentile: float = 1.
     """(N,) bool: splats whose largest std exceeds ``fraction`` of the robust box's diagonal (e.g.
     a 2 m std in a 0.5 m scene): sky-shell or broken splats that a collision query would see as
     huge obstacles."""
-    lo, hi, _ = robust_box(splats.means, percentile, 0.0)
+    lo, hi, _ = robust_box(splats.means, percentile, 0.0, shell_weights(splats))
     return splats.scales.max(axis=1) > fraction * float(np.linalg.norm(hi - lo))
 
 
@@ -411,9 +429,9 @@ def describe_frame(splats: Splats, config: AlignConfig | None = None) -> dict:
     transparency and absurd splats (a JSON-ready dict; notes and warnings as sentences)."""
     cfg = config or AlignConfig()
     m = splats.means.astype(np.float64)
-    lo1 = np.percentile(m, cfg.box_percentile, axis=0)
-    hi1 = np.percentile(m, 100.0 - cfg.box_percentile, axis=0)
-    blo, bhi, inside = robust_box(m, cfg.box_percentile, cfg.box_pad)
+    w = shell_weights(splats)
+    lo1, hi1, _ = robust_box(m, cfg.box_percentile, 0.0, w)
+    blo, bhi, inside = robust_box(m, cfg.box_percentile, cfg.box_pad, w)
     centre = 0.5 * (lo1 + hi1)
     out_r = np.linalg.norm(m[~inside] - centre, axis=1)
     d: dict = {
@@ -424,7 +442,7 @@ def describe_frame(splats: Splats, config: AlignConfig | None = None) -> dict:
             "count": int((~inside).sum()),
             "radius_median": float(np.median(out_r)) if len(out_r) else None,
             "radius_max": float(out_r.max()) if len(out_r) else None,
-            "rule": f"means outside the {cfg.box_percentile:g}-{100 - cfg.box_percentile:g} percentile box padded by {cfg.box_pad:g} of its size",
+            "rule": f"means outside the {cfg.box_percentile:g}-{100 - cfg.box_percentile:g} percentile box (weighted by opacity / std^2) padded by {cfg.box_pad:g} of its size",
         },
         "warnings": [],
     }
