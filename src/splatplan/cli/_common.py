@@ -187,6 +187,24 @@ def _load(path: str, filter_floaters: bool = True):
     return load_scene(path, filter_floaters=filter_floaters)
 
 
+def add_terrain_args(parser: argparse.ArgumentParser) -> None:
+    """The ground robots' terrain flags (``--terrain-floor-z``, ``--terrain-step-height``, ...)."""
+    from ..scenes.terrain import TerrainConfig
+
+    add_config_args(parser, TerrainConfig, prefix="terrain_", group="ground robots (go2): terrain (TerrainConfig; see scenes/terrain.py)")
+
+
+def ground_robot_scene(scene, args, n_sigma: float):
+    """The collision scene of a ground robot: ``scene`` without its terrain (the floor's splats up
+    to the step height above the aligned floor), built once; prints what was removed."""
+    from ..scenes.terrain import TerrainConfig, remove_terrain
+
+    cfg = config_from_args(args, TerrainConfig, prefix="terrain_")
+    out, rep = remove_terrain(scene, cfg, n_sigma=n_sigma)
+    print(f"note: {rep.summary()}", file=sys.stderr)
+    return out
+
+
 def progress(iterable=None, **kw):
     """A tqdm progress bar on stderr, shown only when stderr is a terminal (SPLATPLAN_NO_TQDM=1 hides it)."""
     from tqdm import tqdm

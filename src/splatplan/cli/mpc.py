@@ -21,7 +21,7 @@ def _floats(text: str, n: int, what: str, form: str) -> np.ndarray:
 
 
 def cmd_mpc(args) -> int:
-    from ..tasks._common import load_task_scene
+    from ..tasks._common import base_terrain, load_task_scene
     from ..tasks.plot import plot_run
 
     out = _out_dir(args.out)
@@ -54,7 +54,7 @@ def cmd_mpc(args) -> int:
         scene = args.scene or "apartment"
         default = np.asarray(START, np.float64) if scene == "apartment" else np.zeros(3)  # the origin lies in the apartment's x = 0 wall
         start = default if args.start is None else _floats(args.start, 3, "--start", "X,Y,YAW")
-        ts = load_task_scene(scene, n_sigma=cfg.n_sigma, device=args.device, ground_below=None if cfg.ground_z is None else cfg.ground_z + cfg.ground_band)
+        ts = load_task_scene(scene, n_sigma=cfg.n_sigma, device=args.device, terrain=base_terrain(cfg))
         route = None
         if args.route:
             route = plan_route(robot, ts.checker, start, g, time_budget_s=args.route_time, seed=args.seed)

@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import SplatplanError
-from ._common import _load, add_config_args, add_device_arg, allow_negative_values, config_from_args, write_json
+from ._common import _load, add_config_args, add_device_arg, add_terrain_args, allow_negative_values, config_from_args, ground_robot_scene, write_json
 
 _UP = {"x": (0, 1.0), "y": (1, 1.0), "z": (2, 1.0), "-x": (0, -1.0), "-y": (1, -1.0), "-z": (2, -1.0)}
 
@@ -99,6 +99,8 @@ def cmd_plan(args) -> int:
     ref_cfg = config_from_args(args, RefineConfig, prefix="refine_", seed=args.seed)
     mcfg = config_from_args(args, MetricConfig).validate()
     scene = _load(args.scene)
+    if robot.name == "go2":  # a ground robot: the floor's splats are terrain (scenes/terrain.py)
+        scene = ground_robot_scene(scene, args, mcfg.n_sigma)
     checker = CollisionChecker(scene, device=args.device, config=mcfg)
     settings = RRT(checker, rrt_cfg, robot=robot).settings(start, goal)
     print(f"plan {robot.name} ({robot.dof} dofs, {robot.n_ellipsoids} ellipsoid(s)), n_sigma {mcfg.n_sigma:g}: {settings.summary()}")
@@ -159,6 +161,7 @@ def register(sub, eval_sub) -> None:
     add_device_arg(s)
     s.add_argument("--out", required=True, help="PATH.json")
     add_config_args(s, MetricConfig, group="metric options (MetricConfig)")
+    add_terrain_args(s)
     add_config_args(s, RRTConfig, prefix="rrt_", skip=("seed",), group="RRT options (RRTConfig; lengths in scene units of robot motion)")
     add_config_args(s, RefineConfig, prefix="refine_", skip=("seed",), group="refinement options (RefineConfig, with --refine)")
     s.set_defaults(func=cmd_plan)

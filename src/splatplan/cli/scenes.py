@@ -97,6 +97,8 @@ def cmd_align(args) -> int:
     if args.crop is not None:
         lo, hi = (parse_vec3(c, "--crop") for c in args.crop)
         cfg = replace(cfg, crop=tuple(lo) + tuple(hi))
+    if args.drop_floaters:
+        cfg = replace(cfg, drop_floaters=True)
     cfg.validate()
     scene = _load(args.input, filter_floaters=False)
     aligned, res = align_scene(scene, cfg)
@@ -110,7 +112,9 @@ def cmd_align(args) -> int:
     g = res.up
     if g is not None:
         print(f"up: {g.to_json()['up_axis']} (normal {np.round(g.up, 4).tolist()}, {g.method}, confidence {g.confidence:.2f}); floor at {g.floor_height:.4g} along it -> z = 0")
-    crop = f"; --crop dropped {res.n_cropped:,} of {res.n_in:,} splats" if res.n_cropped else "; every splat kept, in order"
+    dropped = [f"--crop dropped {res.n_cropped:,}"] if res.n_cropped else []
+    dropped += [f"--drop-floaters dropped {res.n_floaters:,}"] if res.n_floaters else []
+    crop = f"; {' and '.join(dropped)} of {res.n_in:,} splats (the rest in order)" if dropped else "; every splat kept, in order"
     print(f"transform (x_out = T [x_in; 1], scale {res.scale:g}):")
     for row in res.transform:
         print("  [" + ", ".join(f"{v: .6f}" for v in row) + "]")
@@ -179,7 +183,9 @@ def register(sub, eval_sub) -> None:
     g.add_argument("--rotate-z", type=float, default=None, help="align: rotation about the new z axis, degrees (default 0)")
     g.add_argument("--translate", default=None, metavar="X,Y,Z", help="align: translation added last (output units)")
     g.add_argument("--crop", nargs=2, default=None, metavar=("LO", "HI"), help="align: keep splats in the box LO=X,Y,Z .. HI=X,Y,Z (aligned frame); says how many were dropped")
-    add_config_args(s, AlignConfig, prefix="align_", skip=("up", "floor", "scale", "rotate_z", "translate", "crop"), group="align fit options (AlignConfig)")
+    g.add_argument("--drop-floaters", action="store_true", help="align: drop faint isolated splats (floaters in free space: opacity < 0.3, "
+                   "mean 8-NN distance > 3x the median); says how many")  # fmt: skip
+    add_config_args(s, AlignConfig, prefix="align_", skip=("up", "floor", "scale", "rotate_z", "translate", "crop", "drop_floaters"), group="align fit options (AlignConfig)")
     s.add_argument("--level", type=int, default=1, help="Gaussian-size level 1..5 (larger, fewer splats)")
     s.add_argument("--seed", type=int, default=0, help="layout and sampling seed, an integer >= 0 (default 0)")
     s.set_defaults(func=cmd_scene)

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import SplatplanError
-from ._common import _load, add_config_args, config_from_args
+from ._common import _load, add_config_args, add_terrain_args, config_from_args, ground_robot_scene
 
 
 def _read_plan(path: str) -> np.ndarray:
@@ -70,7 +70,10 @@ def cmd_view(args) -> int:
 
         robot = load_robot(args.robot)
     scene = _load(args.scene)
-    viewer = SplatViewer(scene, robot=robot, plan=plan, trajectory=traj, tree=tree, config=cfg)
+    collision_scene = None
+    if robot is not None and robot.name == "go2":  # a ground robot: the floor's splats are terrain, not obstacles
+        collision_scene = ground_robot_scene(scene, args, cfg.n_sigma)
+    viewer = SplatViewer(scene, robot=robot, plan=plan, trajectory=traj, tree=tree, config=cfg, collision_scene=collision_scene)
     viewer.start()
     print(f"splatplan viewer: {viewer.url}  ({len(scene):,} splats, robot {viewer.robot.name}; Ctrl-C to stop)", flush=True)
     try:
@@ -93,4 +96,5 @@ def register(sub, eval_sub) -> None:
     s.add_argument("--mpc", help="output folder of 'splatplan mpc' (its result.json trajectory is animated)")
     s.add_argument("--tree", help="TREE.npz with 'nodes' (N, D) and 'parents' (N,)")
     add_config_args(s, ViewerConfig, group="viewer options")
+    add_terrain_args(s)
     s.set_defaults(func=cmd_view)

@@ -2,7 +2,7 @@
 
 After :func:`align_scene` the scene's world frame is **z-up, floor at z = 0**, in metres when the
 capture is metric (``scale`` fixes one that is not). Every splat is kept, in order, except with
-``crop`` (the result says how many were dropped). Rotations rotate the splats' wxyz quaternions
+``crop`` or ``drop_floaters`` (the result says how many each dropped). Rotations rotate the splats' wxyz quaternions
 and scaling scales their stds (:mod:`splatplan.scenes.transforms`).
 
 How ``up = "auto"`` works (all on the splat means, weighted by opacity):
@@ -73,6 +73,9 @@ class AlignConfig:
     #: keep only splats whose aligned mean lies in this box LO..HI (6 numbers: x0,y0,z0,x1,y1,z1;
     #: none keeps every splat)
     crop: tuple[float, ...] | None = None
+    #: drop faint isolated splats, floaters in free space (opacity < 0.3 and mean 8-NN distance above
+    #: 3x the scene's median, the floor's splats left out; scenes/filters.py isolated_mask); the count is reported
+    drop_floaters: bool = False
     #: auto up: the capture convention that breaks ties between perpendicular bounding planes
     up_hint: str = "-y"
     #: robust box: per-axis percentile of the means that bounds the fit (and info's robust bounds)
@@ -175,6 +178,7 @@ class AlignResult:
     n_cropped: int
     n_shell: int
     config: AlignConfig
+    n_floaters: int = 0
 
     def to_json(self) -> dict:
         return {
@@ -186,6 +190,7 @@ class AlignResult:
             "n_in": self.n_in,
             "n_out": self.n_out,
             "n_cropped": self.n_cropped,
+            "n_floaters_dropped": self.n_floaters,
             "n_shell_outside_robust_box": self.n_shell,
             "options": {k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(self.config).items()},
         }
@@ -391,6 +396,15 @@ def align_scene(splats: Splats, config: AlignConfig | None = None) -> tuple[Spla
             f"the transform puts the scene below the floor (90% of the splats under z = {z90:.3g}); check --up (its sign), --floor and --translate"
         )
     n_in = len(out)
+    n_floaters = 0
+    if cfg.drop_floaters:
+        from .filters import isolated_mask
+        from .terrain import terrain_mask
+
+        floor = terrain_mask(out, 0.0, 0.05 * s, n_sigma=0.0) if cfg.floor != "none" else np.zeros(len(out), bool)
+        iso = isolated_mask(out.means, out.opacities, candidates=~floor)
+        n_floaters = int(iso.sum())
+        out = out.subset(~iso)
     n_cropped = 0
     if cfg.crop is not None:
         c = np.asarray(cfg.crop, np.float64)
@@ -402,7 +416,7 @@ def align_scene(splats: Splats, config: AlignConfig | None = None) -> tuple[Spla
     transform = np.eye(4)
     transform[:3, :3] = s * r
     transform[:3, 3] = t
-    res = AlignResult(transform, s, guess, n_in, len(out), n_cropped, int((~inside).sum()), cfg)
+    res = AlignResult(transform, s, guess, n_in, len(out), n_cropped, int((~inside).sum()), cfg, n_floaters)
     out.info["align"] = res.to_json()
     return out, res
 
