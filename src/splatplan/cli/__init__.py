@@ -68,6 +68,9 @@ def _main(argv: list[str] | None) -> int:
     with cli_signal_handlers():  # Ctrl-C / SIGTERM unwind through every finally (no stray temp files)
         try:
             args = build_parser().parse_args(argv)  # argparse's own SystemExit (--help, usage errors) passes through
+            from ._common import reject_nan_flags
+
+            reject_nan_flags(args)
             if getattr(args, "device", None) is not None:
                 args.device = check_device(args.device)  # one meaning everywhere: auto -> cuda:0 or cpu
             return int(args.func(args) or 0)

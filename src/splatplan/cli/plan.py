@@ -11,6 +11,7 @@ vectors are comma lists of the robot's dofs and may start with a minus sign
 
 from __future__ import annotations
 
+import argparse
 import sys
 from dataclasses import replace
 from pathlib import Path
@@ -18,9 +19,11 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import SplatplanError
-from ._common import _load, add_config_args, add_device_arg, add_terrain_args, allow_negative_values, config_from_args, ground_robot_scene, write_json
+from ._common import (
+    BASE_POSE_HELP, _load, add_config_args, add_device_arg, add_terrain_args, allow_negative_values, config_from_args, ground_robot_scene,
+    parse_base_pose, robot_at, write_json,
+)  # fmt: skip
 
-_UP = {"x": (0, 1.0), "y": (1, 1.0), "z": (2, 1.0), "-x": (0, -1.0), "-y": (1, -1.0), "-z": (2, -1.0)}
 
 ROBOT_HELP = "sphere:R | ellipsoid:A,B,C (point robots, dofs x,y,z) | panda (7 joint angles, rad) | go2 (planar base x,y,yaw) | PATH.urdf (default sphere:0.015)"
 
@@ -40,24 +43,19 @@ def parse_config(text: str, robot, what: str) -> np.ndarray:
 
 
 def _robot_for(args):
-    """The robot named by --robot; a planar base is posed on the plane given by --up / --height."""
+    """The robot named by --robot, its base placed by --base-pose; a planar base (go2) stands on the
+    floor frame given by --base-pose, raised by --height."""
     from ..robots import load_robot
 
-    robot = load_robot(args.robot)
-    if robot.name == "go2" and (args.up != "z" or args.height is not None):
-        axis, sign = _UP[args.up]
-        up = np.zeros(3)
-        up[axis] = sign
-        # world <- base: base z -> up, base x -> the next world axis (a right-handed frame)
-        x = np.zeros(3)
-        x[(axis + 1) % 3] = 1.0
-        y = np.cross(up, x)
-        pose = np.eye(4)
-        pose[:3, :3] = np.stack([x, y, up], axis=1)
-        stand = float(robot.info.get("standing_height_m", 0.0))
-        pose[:3, 3] = up * ((args.height or 0.0) * sign + stand)
-        robot = load_robot("go2", base_pose=pose)
-    return robot
+    if args.up is not None:
+        raise SplatplanError(
+            f"--up {args.up} was replaced by one frame vocabulary: align the scene once (splatplan scene align IN --up {args.up} --out OUT.ply, "
+            "z up, floor at z = 0) and plan in it; --base-pose X,Y,Z[,QW,QX,QY,QZ] places the robot"
+        )
+    pose = parse_base_pose(args.base_pose)
+    if args.height is not None and args.robot == "go2":
+        pose = (np.eye(4) if pose is None else pose) @ np.array([[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, float(args.height)], [0, 0, 0, 1.0]])
+    return robot_at(args.robot, pose) if pose is not None else load_robot(args.robot)
 
 
 def cmd_plan(args) -> int:
@@ -81,7 +79,7 @@ def cmd_plan(args) -> int:
         if robot.name == "go2":
             notes.append("go2 moves in its base plane already")
         elif robot.dof == 3 and robot.name.split(":")[0] in ("sphere", "ellipsoid"):
-            axis, _ = _UP[args.up]
+            axis = 2
             h = start[axis] if args.height is None else float(args.height)
             start[axis] = h
             if goal[axis] != h:
@@ -150,10 +148,11 @@ def register(sub, eval_sub) -> None:
     s.add_argument("--goal", required=True, help="goal configuration, comma list of the robot's dofs")
     s.add_argument("--box", nargs=2, metavar=("LO", "HI"), help="sampling box corners, comma lists of the robot's dofs (default: "
                    "robust scene bounds padded by the robot size, joint limits for joints; lo == hi freezes a coordinate)")  # fmt: skip
-    s.add_argument("--up", choices=sorted(_UP), default="z", help="the scene's up axis (default z; real captures are often -y)")
-    s.add_argument("--planar", action="store_true", help="plan at a fixed height along --up: point robots keep that coordinate at "
-                   "--height (default the start's); go2 stands on the plane at --height")  # fmt: skip
-    s.add_argument("--height", type=float, default=None, help="plane coordinate along --up for --planar / go2 (scene units)")
+    s.add_argument("--base-pose", default=None, help=BASE_POSE_HELP)
+    s.add_argument("--up", default=None, help=argparse.SUPPRESS)  # removed: say how to align instead
+    s.add_argument("--planar", action="store_true", help="plan at a fixed height z: point robots keep z at "
+                   "--height (default the start's); go2 stands on the plane z = --height")  # fmt: skip
+    s.add_argument("--height", type=float, default=None, help="plane height z for --planar / go2 (scene units; world z up, see `scene align`)")
     s.add_argument("--time-limit", type=float, default=None, help="RRT wall-clock budget in seconds (default 10; same as --rrt-time-limit-s)")
     s.add_argument("--refine", action="store_true", help="zeroth-order refinement of the RRT path")
     s.add_argument("--seed", type=int, default=0)

@@ -95,7 +95,8 @@ def check_start(robot, checker, q0: np.ndarray) -> None:
         names = [robot.link_names[int(robot.ellipsoid_link[e])] for e in np.flatnonzero(hit)]
         counts = np.asarray(res.n_colliding)[0][hit]
         parts = ", ".join(f"{n} ({int(c)} splats)" for n, c in zip(names, counts))
-        raise SplatplanError(f"the start configuration of {robot.name} is in collision (n_sigma = {checker.n_sigma:g}): {parts}; move the start or lower n_sigma")
+        raise SplatplanError(f"the start configuration of {robot.name} is in collision (n_sigma = {checker.n_sigma:g}): {parts}; "
+                             "change the start (--start), move the robot's base (--base-pose) or lower n_sigma")  # fmt: skip
 
 
 def densify(robot, states: np.ndarray, step_m: float = 0.01) -> np.ndarray:
