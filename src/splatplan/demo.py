@@ -196,7 +196,7 @@ def run_reach_demo(out: Path, device: str = "auto") -> dict:
     from .eval.reach import _plot_goal, quick_config
     from .render import SplatRenderer
     from .robots import load_robot
-    from .tasks._common import load_task_scene
+    from .tasks._common import base_terrain, load_task_scene
     from .tasks.reach import ReachConfig, make_reach_goals, reach_encoder, reach_start, run_reach, wrist_camera
     from ._warp import resolve_device
 
@@ -231,7 +231,7 @@ def run_robot_demo(out: Path, device: str = "auto") -> dict:
 
     from ._warp import resolve_device
     from .robots import load_robot
-    from .tasks._common import load_task_scene
+    from .tasks._common import base_terrain, load_task_scene
     from .tasks.arm import ArmConfig, down_quat, run_arm
     from .tasks.base import BaseConfig, load_go2, run_base
     from .tasks.plot import plot_run
@@ -252,7 +252,7 @@ def run_robot_demo(out: Path, device: str = "auto") -> dict:
           f"{arm.final_orientation_error_deg:.1f} deg, min clearance {100 * arm.min_clearance_m:+.2f} cm (exact; moving links {100 * arm.extra['min_clearance_moving_links_m']:+.2f} cm), {arm.steps_per_s:.2f} MPC steps/s")  # fmt: skip
     bcfg = replace(BaseConfig(), max_steps=150, memory=True)
     go2 = load_go2()
-    tsb = load_task_scene("apartment", n_sigma=bcfg.n_sigma, device=dev, ground_below=bcfg.ground_z + bcfg.ground_band)
+    tsb = load_task_scene("apartment", n_sigma=bcfg.n_sigma, device=dev, terrain=base_terrain(bcfg))
     base = run_base(go2, tsb, (2.09, -0.45), start=(-2.3, -0.6, 0.0), config=bcfg, device=dev)
     fig = plot_run(go2, tsb, base, kind="base", title="Go2 (goal only, memory)")
     fig.savefig(out / "demo_go2.png", dpi=90)

@@ -10,11 +10,11 @@ import pytest
 
 @pytest.fixture(scope="module")
 def apartment():
-    from splatplan.tasks._common import load_task_scene
+    from splatplan.tasks._common import base_terrain, load_task_scene
     from splatplan.tasks.base import BaseConfig, load_go2
 
     cfg = BaseConfig()
-    return load_go2(), load_task_scene("apartment", n_sigma=cfg.n_sigma, ground_below=cfg.ground_z + cfg.ground_band)
+    return load_go2(), load_task_scene("apartment", n_sigma=cfg.n_sigma, terrain=base_terrain(cfg))
 
 
 def test_primitives_drive_in_their_directions(apartment):

@@ -47,6 +47,9 @@ def build_parser() -> argparse.ArgumentParser:
     eval_sub = ev.add_subparsers(dest="study", required=True, metavar="STUDY")
     for name in _MODULES:
         importlib.import_module(f".{name}", __name__).register(sub, eval_sub)
+    from ._common import allow_negative_values
+
+    allow_negative_values(p)  # every coordinate flag of every command accepts a leading minus
     return p
 
 
@@ -88,6 +91,9 @@ def _main(argv: list[str] | None) -> int:
                 args = build_parser().parse_args(argv)  # --help / --version exit through argparse's SystemExit
             except UsageError as exc:  # already printed as one line
                 return int(exc.code)
+            from ._common import reject_nan_flags
+
+            reject_nan_flags(args)
             if getattr(args, "device", None) is not None:
                 args.device = check_device(args.device)  # one meaning everywhere: auto -> cuda:0 or cpu
             return int(args.func(args) or 0)

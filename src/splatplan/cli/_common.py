@@ -28,6 +28,38 @@ from .._files import _umask, atomic_path  # noqa: F401 - the commands import ato
 from .._config import check_config, check_value
 from ..errors import SplatplanError
 
+#: a command-line token starting with a minus and a digit ("-0.3,0,0.06", "-1e-3", "-.5") or a
+#: negative axis ("-y"): a value, not an option (argparse's own test accepts only a single plain
+#: negative number); a malformed list such as "-0.3,x" then reaches the value parser, which names
+#: the problem. No option of the CLI is spelt like this.
+NUMBER_LIST = re.compile(r"^-(\.?\d\S*|[xyz])$")
+
+
+def allow_negative_values(parser: argparse.ArgumentParser) -> None:
+    """Let values such as ``-0.3,0,0.06`` follow an option (``--eye -0.6,0,1``), in ``parser``
+    and every subparser below it (``build_parser`` applies it to the whole CLI).
+
+    argparse classifies every token starting with '-' as an option unless it looks like a single
+    negative number; this treats comma lists of numbers as values too (no option of the CLI looks
+    like a number, so nothing is shadowed).
+    """
+    parser._negative_number_matcher = NUMBER_LIST  # noqa: SLF001 - the documented hook is missing
+    for action in parser._actions:  # noqa: SLF001
+        if isinstance(action, argparse._SubParsersAction):  # noqa: SLF001
+            for sub in action.choices.values():
+                allow_negative_values(sub)
+
+
+def reject_nan_flags(args: argparse.Namespace) -> None:
+    """One place for "NaN in a flag": every parsed number (float flags, config fields, tuples of
+    them) must not be NaN; the error names the flag (one line, exit 2)."""
+    for dest, v in vars(args).items():
+        vals = v if isinstance(v, (tuple, list)) else (v,)
+        if any(isinstance(x, float) and np.isnan(x) for x in vals):
+            flag = "--" + (dest[4:] if dest.startswith("cfg_") else dest).replace("_", "-")
+            raise SplatplanError(f"{flag}: NaN is not a valid value")
+
+
 ROBOT_HELP = "robot link: 'sphere:R' or 'ellipsoid:A,B,C' (semi-axes, scene units)"
 
 
@@ -57,6 +89,58 @@ def parse_vec3(text: str, what: str) -> np.ndarray:
     if v.shape != (3,) or not np.all(np.isfinite(v)):
         raise SplatplanError(f"{what} {text!r}: expected three finite comma-separated numbers X,Y,Z")
     return v
+
+
+BASE_POSE_HELP = ("X,Y,Z[,QW,QX,QY,QZ]: where the robot's base stands in the scene (metres, wxyz; after `scene align` the "
+                  "world is z-up with the floor at z = 0): an arm's mount, or the floor frame a planar base (go2) drives in "
+                  "(its x, y, yaw are in that frame; its standing height is added); default the origin")
+
+
+def parse_base_pose(text: str | None, what: str = "--base-pose") -> np.ndarray | None:
+    """'X,Y,Z' or 'X,Y,Z,QW,QX,QY,QZ' -> (4, 4) world <- base (None for None).
+
+    Raises:
+        SplatplanError: not 3 or 7 finite numbers, or a zero quaternion.
+    """
+    if text is None:
+        return None
+    try:
+        v = np.asarray([float(x) for x in str(text).split(",")], dtype=np.float64)
+    except ValueError:
+        raise SplatplanError(f"{what} {text!r}: expected X,Y,Z or X,Y,Z,QW,QX,QY,QZ (numbers)") from None
+    if v.shape not in ((3,), (7,)):
+        raise SplatplanError(f"{what} {text!r}: expected 3 numbers X,Y,Z or 7 numbers X,Y,Z,QW,QX,QY,QZ, got {v.size}")
+    if not np.all(np.isfinite(v)):
+        raise SplatplanError(f"{what} {text!r}: values must be finite (no NaN or Inf)")
+    pose = np.eye(4)
+    pose[:3, 3] = v[:3]
+    if v.size == 7:
+        q = v[3:]
+        n = float(np.linalg.norm(q))
+        if n < 1e-9:
+            raise SplatplanError(f"{what} {text!r}: the quaternion QW,QX,QY,QZ is zero; use 1,0,0,0 for no rotation")
+        from ..scenes.splats import quat_to_rotmat
+
+        pose[:3, :3] = quat_to_rotmat(q / n)
+    return pose
+
+
+def robot_at(spec: str, base_pose: np.ndarray | None, robot=None):
+    """The robot named ``spec`` (or the given ``robot``, e.g. the Go2 of the tasks) with its base
+    placed by ``--base-pose`` (None: unchanged). A planar base keeps its own standing offset: the
+    pose places its floor frame, ``pose @ default base pose``."""
+    from ..robots import load_robot
+
+    robot = load_robot(spec) if robot is None else robot
+    if base_pose is None:
+        return robot
+    name = str(spec)
+    if robot.name == "go2" or robot.dof == 3 and name == "go2":
+        pose = base_pose @ robot.base_pose
+        out = load_robot("go2", base_pose=pose)
+        out.info.update({k: v for k, v in robot.info.items() if k not in out.info})
+        return out
+    return load_robot(spec, base_pose=base_pose)
 
 
 def load_npy(path: str, what: str) -> np.ndarray:
@@ -160,6 +244,24 @@ def _load(path: str, filter_floaters: bool = True):
     from ..scenes.load import load_scene
 
     return load_scene(path, filter_floaters=filter_floaters)
+
+
+def add_terrain_args(parser: argparse.ArgumentParser) -> None:
+    """The ground robots' terrain flags (``--terrain-floor-z``, ``--terrain-step-height``, ...)."""
+    from ..scenes.terrain import TerrainConfig
+
+    add_config_args(parser, TerrainConfig, prefix="terrain_", group="ground robots (go2): terrain (TerrainConfig; see scenes/terrain.py)")
+
+
+def ground_robot_scene(scene, args, n_sigma: float):
+    """The collision scene of a ground robot: ``scene`` without its terrain (the floor's splats up
+    to the step height above the aligned floor), built once; prints what was removed."""
+    from ..scenes.terrain import TerrainConfig, remove_terrain
+
+    cfg = config_from_args(args, TerrainConfig, prefix="terrain_")
+    out, rep = remove_terrain(scene, cfg, n_sigma=n_sigma)
+    print(f"note: {rep.summary()}", file=sys.stderr)
+    return out
 
 
 def progress(iterable=None, **kw):

@@ -20,8 +20,8 @@ import numpy as np
 from .._resources import require_bytes
 from ..errors import SplatplanError
 from ._common import (
-    POSITIVE_INT, ROBOT_HELP, _load, add_config_args, add_device_arg, atomic_path, config_from_args, load_npy, load_poses, parse_robot, progress,
-    signals_deferred,
+    BASE_POSE_HELP, POSITIVE_INT, ROBOT_HELP, _load, add_config_args, add_device_arg, atomic_path, config_from_args, load_npy, load_poses,
+    parse_base_pose, parse_robot, progress, robot_at, signals_deferred,
 )  # fmt: skip
 
 #: queries (link poses) per kernel call: small enough that an interrupt waits < ~1 s on a CPU
@@ -71,9 +71,8 @@ def _check_link(axes: np.ndarray, centers: np.ndarray, quats: np.ndarray | None,
 
 def _load_configs(args):
     """(robot, q (B, dof) float64) from --robot and --configs, validated (before the slow scene load)."""
-    from ..robots import load_robot
 
-    robot = load_robot(args.robot)
+    robot = robot_at(args.robot, parse_base_pose(args.base_pose))
     q = load_npy(args.configs, "configs file")
     if q.ndim == 1 and q.shape[0] == robot.dof:
         q = q[None]
@@ -142,6 +141,8 @@ def cmd_check(args) -> int:
     axes = parse_robot(args.robot) if link else None  # fail fast on a bad spec
     if (args.poses is None) == (args.configs is None):
         raise SplatplanError("give exactly one of --poses POSES.npy (link poses) or --configs Q.npy (joint configurations)")
+    if args.poses is not None and args.base_pose is not None:
+        raise SplatplanError("--base-pose places a robot given with --configs; --poses are already world poses")
     if args.poses is not None and not link:
         if ":" in args.robot:
             parse_robot(args.robot)  # a malformed link spec: say so
@@ -179,6 +180,7 @@ def register(sub, eval_sub) -> None:
     s.add_argument("scene", metavar="SCENE")
     s.add_argument("--robot", required=True, help=f"{ROBOT_HELP}, or a robot: panda, go2, PATH.urdf (then --configs)")
     s.add_argument("--poses", help="POSES.npy: (B,3) centres or (B,7) centre + wxyz quaternion, scene frame (single-link robots)")
+    s.add_argument("--base-pose", default=None, help=f"--configs robots: {BASE_POSE_HELP}")
     s.add_argument("--configs", help="Q.npy: (B, dof) joint configurations of --robot (rad or m; panda: 7 arm joints, go2: x, y, yaw)")
     s.add_argument("--out", help="OUT.npz with min_s2, n_colliding, in_collision, softmin, cost: (B,) per pose, or (B, E) per "
                    "ellipsoid plus collision (B,), link_in_collision (B, L), link_min_s2 (B, L), link_names (L,) for --configs")  # fmt: skip

@@ -7,7 +7,9 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import SplatplanError
-from ._common import SEED, _out_dir, add_config_args, add_device_arg, config_from_args, float_arg, write_json
+from ._common import (
+    BASE_POSE_HELP, SEED, _out_dir, add_config_args, add_device_arg, config_from_args, float_arg, parse_base_pose, robot_at, write_json,
+)  # fmt: skip
 
 
 def _floats(text: str, n: int, what: str, form: str) -> np.ndarray:
@@ -21,7 +23,7 @@ def _floats(text: str, n: int, what: str, form: str) -> np.ndarray:
 
 
 def cmd_mpc(args) -> int:
-    from ..tasks._common import load_task_scene
+    from ..tasks._common import base_terrain, load_task_scene
     from ..tasks.plot import plot_run
 
     out = _out_dir(args.out)
@@ -37,7 +39,7 @@ def cmd_mpc(args) -> int:
         if np.linalg.norm(gp[3:]) < 1e-8:
             raise SplatplanError(f"--goal-pose {args.goal_pose!r}: the quaternion QW,QX,QY,QZ is zero")
         cfg = config_from_args(args, ArmConfig, "arm_", seed=args.seed)
-        robot = load_robot("panda")
+        robot = robot_at("panda", parse_base_pose(args.base_pose))
         scene = args.scene or "tabletop"
         q0 = None if args.start is None else _floats(args.start, robot.dof, "--start", f"with {robot.dof} joint values")
         ts = load_task_scene(scene, n_sigma=cfg.n_sigma, device=args.device)  # once: the run and the figure share it
@@ -50,11 +52,11 @@ def cmd_mpc(args) -> int:
             raise SplatplanError("--robot go2 needs --goal X,Y (metres)")
         g = _floats(args.goal, 2, "--goal", "X,Y")
         cfg = config_from_args(args, BaseConfig, "base_", seed=args.seed)
-        robot = load_go2()
+        robot = robot_at("go2", parse_base_pose(args.base_pose), robot=load_go2())
         scene = args.scene or "apartment"
         default = np.asarray(START, np.float64) if scene == "apartment" else np.zeros(3)  # the origin lies in the apartment's x = 0 wall
         start = default if args.start is None else _floats(args.start, 3, "--start", "X,Y,YAW")
-        ts = load_task_scene(scene, n_sigma=cfg.n_sigma, device=args.device, ground_below=None if cfg.ground_z is None else cfg.ground_z + cfg.ground_band)
+        ts = load_task_scene(scene, n_sigma=cfg.n_sigma, device=args.device, terrain=base_terrain(cfg))
         route = None
         if args.route:
             route = plan_route(robot, ts.checker, start, g, time_budget_s=args.route_time, seed=args.seed)
@@ -103,6 +105,7 @@ def register(sub, eval_sub) -> None:
     s.add_argument("--goal-pose", default=None, help="panda: X,Y,Z,QW,QX,QY,QZ end-effector goal (metres, wxyz world <- panda_hand_tcp)")
     s.add_argument("--goal", default=None, help="go2: X,Y goal of the base (metres); e.g. the final node of an RRT path")
     s.add_argument("--start", default=None, help="start configuration: 7 joint values (panda, default home) or X,Y,YAW (go2; default -2.3,-0.6,0 in the living room of apartment, the base study's start, else 0,0,0)")
+    s.add_argument("--base-pose", default=None, help=BASE_POSE_HELP)
     s.add_argument("--no-collision", action="store_true", help="switch the collision cost off (the baseline); every output says so")
     s.add_argument("--route", action="store_true", help="go2: plan a global RRT route on SE(2) first and track it (default: goal only)")
     s.add_argument("--route-time", type=float_arg(gt=0), default=60.0, help="go2 --route: RRT time budget in seconds (default 60)")

@@ -14,7 +14,7 @@ vectors are comma lists of the robot's dofs and may start with a minus sign
 
 from __future__ import annotations
 
-import re
+import argparse
 import sys
 from dataclasses import replace
 from pathlib import Path
@@ -22,26 +22,13 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import SplatplanError
-from ._common import SEED, _load, add_config_args, add_device_arg, config_from_args, float_arg, write_json
+from ._common import (
+    BASE_POSE_HELP, SEED, _load, add_config_args, add_device_arg, add_terrain_args, allow_negative_values, config_from_args, float_arg,
+    ground_robot_scene, parse_base_pose, robot_at, write_json,
+)  # fmt: skip
 
-#: a command-line token starting with a minus and a digit ("-0.3,0,0.06", "-1e-3"): a value, not
-#: an option (argparse's own test accepts only a single plain negative number); a malformed list
-#: such as "-0.3,x" then reaches the value parser, which names the problem
-_NUMBER_LIST = re.compile(r"^-\.?\d\S*$")
-
-_UP = {"x": (0, 1.0), "y": (1, 1.0), "z": (2, 1.0), "-x": (0, -1.0), "-y": (1, -1.0), "-z": (2, -1.0)}
 
 ROBOT_HELP = "sphere:R | ellipsoid:A,B,C (point robots, dofs x,y,z) | panda (7 joint angles, rad) | go2 (planar base x,y,yaw) | PATH.urdf (default sphere:0.015)"
-
-
-def allow_negative_values(parser) -> None:
-    """Let values such as ``-0.3,0,0.06`` follow an option (``--start -0.3,0,0.06``).
-
-    argparse classifies every token starting with '-' as an option unless it looks like a single
-    negative number; this parser treats comma lists of numbers as values too (it has no option
-    that looks like a number, so nothing is shadowed).
-    """
-    parser._negative_number_matcher = _NUMBER_LIST  # noqa: SLF001 - the documented hook is missing
 
 
 def parse_config(text: str, robot, what: str) -> np.ndarray:
@@ -59,24 +46,19 @@ def parse_config(text: str, robot, what: str) -> np.ndarray:
 
 
 def _robot_for(args):
-    """The robot named by --robot; a planar base is posed on the plane given by --up / --height."""
+    """The robot named by --robot, its base placed by --base-pose; a planar base (go2) stands on the
+    floor frame given by --base-pose, raised by --height."""
     from ..robots import load_robot
 
-    robot = load_robot(args.robot)
-    if robot.name == "go2" and (args.up != "z" or args.height is not None):
-        axis, sign = _UP[args.up]
-        up = np.zeros(3)
-        up[axis] = sign
-        # world <- base: base z -> up, base x -> the next world axis (a right-handed frame)
-        x = np.zeros(3)
-        x[(axis + 1) % 3] = 1.0
-        y = np.cross(up, x)
-        pose = np.eye(4)
-        pose[:3, :3] = np.stack([x, y, up], axis=1)
-        stand = float(robot.info.get("standing_height_m", 0.0))
-        pose[:3, 3] = up * ((args.height or 0.0) * sign + stand)
-        robot = load_robot("go2", base_pose=pose)
-    return robot
+    if args.up is not None:
+        raise SplatplanError(
+            f"--up {args.up} was replaced by one frame vocabulary: align the scene once (splatplan scene align IN --up {args.up} --out OUT.ply, "
+            "z up, floor at z = 0) and plan in it; --base-pose X,Y,Z[,QW,QX,QY,QZ] places the robot"
+        )
+    pose = parse_base_pose(args.base_pose)
+    if args.height is not None and args.robot == "go2":
+        pose = (np.eye(4) if pose is None else pose) @ np.array([[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, float(args.height)], [0, 0, 0, 1.0]])
+    return robot_at(args.robot, pose) if pose is not None else load_robot(args.robot)
 
 
 def cmd_plan(args) -> int:
@@ -104,7 +86,7 @@ def cmd_plan(args) -> int:
         if robot.name == "go2":
             notes.append("go2 moves in its base plane already")
         elif robot.dof == 3 and robot.name.split(":")[0] in ("sphere", "ellipsoid"):
-            axis, _ = _UP[args.up]
+            axis = 2
             h = start[axis] if args.height is None else float(args.height)
             start[axis] = h
             if goal[axis] != h:
@@ -122,6 +104,8 @@ def cmd_plan(args) -> int:
     ref_cfg = config_from_args(args, RefineConfig, prefix="refine_", seed=args.seed)
     mcfg = config_from_args(args, MetricConfig).validate()
     scene = _load(args.scene)
+    if robot.name == "go2":  # a ground robot: the floor's splats are terrain (scenes/terrain.py)
+        scene = ground_robot_scene(scene, args, mcfg.n_sigma)
     checker = CollisionChecker(scene, device=args.device, config=mcfg)
     ompl = args.planner.strip().lower().startswith("ompl:")
     planner = make_planner("auto" if ompl else args.planner, checker, rrt_cfg, robot=robot)
@@ -179,10 +163,11 @@ def register(sub, eval_sub) -> None:
     s.add_argument("--goal", required=True, help="goal configuration, comma list of the robot's dofs")
     s.add_argument("--box", nargs=2, metavar=("LO", "HI"), help="sampling box corners, comma lists of the robot's dofs (default: "
                    "robust scene bounds padded by the robot size, joint limits for joints; lo == hi freezes a coordinate)")  # fmt: skip
-    s.add_argument("--up", choices=sorted(_UP), default="z", help="the scene's up axis (default z; real captures are often -y)")
-    s.add_argument("--planar", action="store_true", help="plan at a fixed height along --up: point robots keep that coordinate at "
-                   "--height (default the start's); go2 stands on the plane at --height")  # fmt: skip
-    s.add_argument("--height", type=float_arg(), default=None, help="plane coordinate along --up for --planar / go2 (scene units)")
+    s.add_argument("--base-pose", default=None, help=BASE_POSE_HELP)
+    s.add_argument("--up", default=None, help=argparse.SUPPRESS)  # removed: say how to align instead
+    s.add_argument("--planar", action="store_true", help="plan at a fixed height z: point robots keep z at "
+                   "--height (default the start's); go2 stands on the plane z = --height")  # fmt: skip
+    s.add_argument("--height", type=float_arg(), default=None, help="plane height z for --planar / go2 (scene units; world z up, see `scene align`)")
     s.add_argument("--planner", default="auto", metavar="NAME", help="auto (rrtconnect for robots with 4 or more dofs, else rrt) | rrt "
                    "(goal-biased batched RRT) | rrtconnect (batched bidirectional RRT-Connect) | ompl:NAME, an OMPL geometric planner on "
                    "the same checker (ompl:RRTConnect, ompl:RRTstar, ompl:BITstar, ompl:PRM, ...; needs the 'ompl' extra) (default auto)")  # fmt: skip
@@ -194,6 +179,7 @@ def register(sub, eval_sub) -> None:
     add_device_arg(s)
     s.add_argument("--out", required=True, help="PATH.json")
     add_config_args(s, MetricConfig, group="metric options (MetricConfig)")
+    add_terrain_args(s)
     add_config_args(s, RRTConfig, prefix="rrt_", skip=("seed",), group="RRT options (RRTConfig; lengths in scene units of robot motion)")
     add_config_args(s, RefineConfig, prefix="refine_", skip=("seed",), group="refinement options (RefineConfig, with --refine)")
     s.set_defaults(func=cmd_plan)

@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import SplatplanError
-from ._common import SEED, _load, atomic_dir, int_arg, move_into
+from ._common import SEED, _Unset, _load, add_config_args, allow_negative_values, atomic_dir, config_from_args, float_arg, int_arg, move_into, parse_vec3
 
 
 def cmd_info(args) -> int:
@@ -33,6 +34,10 @@ def cmd_info(args) -> int:
         "floaters_default_rule": int(rep.n_dropped),
         "absurd": absurd_splats(s),  # values a corrupt file or a wrong unit gives (scenes.sanity)
     }
+    from ..scenes.align import AlignConfig, default_up_hint, describe_frame
+
+    frame = describe_frame(s, AlignConfig(up_hint=args.up_hint or default_up_hint(args.scene)))
+    info.update(frame)
     if args.json:
         print(json.dumps(info))
         return 0
@@ -42,7 +47,88 @@ def cmd_info(args) -> int:
     print(f"  SH rest coefficients: {info['sh_rest_coeffs']}; floaters by the default rule (o < 0.1 and max std > 5x median): {info['floaters_default_rule']}")
     for line in info["absurd"]:
         print(f"  warning: absurd splats: {line}")
+    rl, rh = np.round(frame["robust_bounds_min"], 4).tolist(), np.round(frame["robust_bounds_max"], 4).tolist()
+    pl, ph = frame["robust_percentiles"]
+    print(f"  robust bounds ({pl:g}-{ph:g} percentile of the means): min {rl}  max {rh}")
+    sh = frame["shell"]
+    if sh["count"]:
+        print(f"  shell/outliers: {sh['count']:,} splats outside the robust box, at median radius {sh['radius_median']:.3g} (max {sh['radius_max']:.3g}) from its centre")
+    else:
+        print("  shell/outliers: none outside the robust box")
+    g = frame["up_guess"]
+    if g is None:
+        print(f"  up axis: no guess ({frame['up_note']})")
+    else:
+        print(f"  up axis guess: {g['up_axis']} (normal {g['up']}, confidence {g['confidence']:.2f}); floor at {g['floor_height']:.4g} along it "
+              f"(`splatplan scene align` moves it to z = 0)")  # fmt: skip
+    print(f"  scale: {frame['scale_note']}")
+    for w in frame["warnings"]:
+        print(f"  warning: {w}")
     return 0
+
+
+def cmd_align(args) -> int:
+    """`splatplan scene align IN --out OUT`: write the aligned scene and its transform sidecar."""
+    from ..scenes.align import AlignConfig, align_scene
+    from ..scenes.load import SCENE_EXTENSIONS, save_scene
+
+    if args.input is None:
+        raise SplatplanError("scene align needs an input: splatplan scene align IN --out OUT")
+    out = Path(args.out)
+    if out.is_dir():
+        raise SplatplanError(f"--out {args.out} is a directory; give a PATH.ply")
+    if out.suffix.lower() != ".ply":
+        raise SplatplanError(f"--out {args.out}: expected a .ply path (an INRIA ply)")
+    if not out.parent.exists():
+        raise SplatplanError(f"output folder {out.parent} does not exist")
+    if Path(args.input).resolve() == out.resolve():
+        raise SplatplanError("--out must differ from the input (the input is never overwritten)")
+    from ..scenes.align import default_up_hint
+
+    cfg = config_from_args(args, AlignConfig, prefix="align_")
+    if getattr(args, "cfg_align_up_hint", None) in (None, _Unset):
+        cfg = replace(cfg, up_hint=default_up_hint(args.input))
+    if args.up is not None:
+        cfg = replace(cfg, up=args.up)
+    if args.floor is not None:
+        cfg = replace(cfg, floor=args.floor)
+    if args.scale is not None:
+        cfg = replace(cfg, scale=args.scale)
+    if args.rotate_z is not None:
+        cfg = replace(cfg, rotate_z=args.rotate_z)
+    if args.translate is not None:
+        cfg = replace(cfg, translate=tuple(parse_vec3(args.translate, "--translate")))
+    if args.crop is not None:
+        lo, hi = (parse_vec3(c, "--crop") for c in args.crop)
+        cfg = replace(cfg, crop=tuple(lo) + tuple(hi))
+    if args.drop_floaters:
+        cfg = replace(cfg, drop_floaters=True)
+    cfg.validate()
+    scene = _load(args.input, filter_floaters=False)
+    aligned, res = align_scene(scene, cfg)
+    doc = {"input": str(args.input), "output": str(out), **res.to_json()}
+    side = sidecar_path(out)
+    with atomic_dir(out.parent) as tmp:  # both files appear together or not at all
+        save_scene(aligned, tmp / out.name)
+        (tmp / side.name).write_text(json.dumps(doc, indent=2) + "\n")
+        move_into(tmp / side.name, side)
+        move_into(tmp / out.name, out)
+    g = res.up
+    if g is not None:
+        print(f"up: {g.to_json()['up_axis']} (normal {np.round(g.up, 4).tolist()}, {g.method}, confidence {g.confidence:.2f}); floor at {g.floor_height:.4g} along it -> z = 0")
+    dropped = [f"--crop dropped {res.n_cropped:,}"] if res.n_cropped else []
+    dropped += [f"--drop-floaters dropped {res.n_floaters:,}"] if res.n_floaters else []
+    crop = f"; {' and '.join(dropped)} of {res.n_in:,} splats (the rest in order)" if dropped else "; every splat kept, in order"
+    print(f"transform (x_out = T [x_in; 1], scale {res.scale:g}):")
+    for row in res.transform:
+        print("  [" + ", ".join(f"{v: .6f}" for v in row) + "]")
+    print(f"wrote {out} ({res.n_out:,} splats{crop}) and {side}")
+    return 0
+
+
+def sidecar_path(out: Path) -> Path:
+    """The transform sidecar of an aligned scene: PATH.ply -> PATH.align.json."""
+    return Path(out).with_suffix(".align.json")
 
 
 def cmd_scene(args) -> int:
@@ -51,8 +137,12 @@ def cmd_scene(args) -> int:
 
     if args.name == "from-moveit":
         return _scene_from_moveit(args)
-    if args.source is not None or args.n_splats is not None:
-        raise SplatplanError("a SCENE.yaml and --n-splats go with 'splatplan scene from-moveit SCENE.yaml --out X.ply'")
+    if args.name == "align":
+        return cmd_align(args)
+    if args.n_splats is not None:
+        raise SplatplanError("--n-splats goes with 'splatplan scene from-moveit SCENE.yaml --out X.ply'")
+    if args.input is not None:
+        raise SplatplanError(f"scene {args.name}: unexpected argument {args.input!r} (only 'scene align IN' and 'scene from-moveit SCENE.yaml' take an input)")
     if args.name not in BUILTIN_SCENES:
         raise SplatplanError(f"unknown built-in scene {args.name!r}: available: {', '.join(BUILTIN_SCENES)}, or from-moveit SCENE.yaml")
     if not 1 <= args.level <= 5:
@@ -93,7 +183,7 @@ def _scene_from_moveit(args) -> int:
     from ..scenes.moveit import DEFAULT_N_SPLATS, load_moveit_scene, write_moveit
     from ..scenes.stonehenge import ground_truth_path
 
-    if args.source is None:
+    if args.input is None:
         raise SplatplanError("scene from-moveit needs the planning-scene YAML: splatplan scene from-moveit SCENE.yaml --out X.ply")
     n = DEFAULT_N_SPLATS if args.n_splats is None else int(args.n_splats)
     if n < 1000:
@@ -101,9 +191,9 @@ def _scene_from_moveit(args) -> int:
     if not 0 <= args.seed < 2**63:
         raise SplatplanError(f"--seed must be an integer >= 0, got {args.seed}")
     out = _check_out_ply(args.out)
-    load_moveit_scene(args.source)  # reject bad input before any work
+    load_moveit_scene(args.input)  # reject bad input before any work
     with atomic_dir(out.parent) as tmp:
-        ply, gt = write_moveit(args.source, tmp / out.name, n_splats=n, seed=args.seed)
+        ply, gt = write_moveit(args.input, tmp / out.name, n_splats=n, seed=args.seed)
         gt_dest = ground_truth_path(out)
         move_into(gt, gt_dest)
         move_into(ply, out)
@@ -115,11 +205,31 @@ def register(sub, eval_sub) -> None:
     s = sub.add_parser("info", help="summarise a splat file")
     s.add_argument("scene", metavar="SCENE", help="splat file (.ply INRIA/2DGS/compressed, .splat, .spz, gsplat .pt)")
     s.add_argument("--json", action="store_true", help="print one JSON object")
+    s.add_argument("--up-hint", default=None, choices=("+x", "-x", "+y", "-y", "+z", "-z"),
+                   help="capture convention that breaks ties between perpendicular bounding planes in the up guess "
+                   "(default +z for files splatplan wrote, with a .align.json/.gt.json beside them, else -y)")  # fmt: skip
     s.set_defaults(func=cmd_info)
-    s = sub.add_parser("scene", help="write a built-in scene, or splats of a MoveIt planning scene, with its ground truth")
-    s.add_argument("name", metavar="NAME", help="built-in scene name: stonehenge | tabletop | apartment; or from-moveit (then SCENE.yaml)")
-    s.add_argument("source", nargs="?", metavar="SCENE.yaml", help="with from-moveit: a MoveIt planning-scene YAML (box, cylinder, sphere primitives)")
-    s.add_argument("--out", required=True, help="PATH.ply (ground truth goes to PATH.gt.json)")
+    from ..scenes.align import AlignConfig
+
+    s = sub.add_parser("scene", help="write a built-in scene or splats of a MoveIt planning scene with its ground truth, or align a capture",
+                       description="`scene NAME --out PATH.ply` writes a built-in scene; `scene from-moveit SCENE.yaml --out PATH.ply` samples "
+                       "a MoveIt planning scene into splats (ground truth in PATH.gt.json); `scene align IN --out OUT.ply` puts a capture in the "
+                       "robot's world (z up, floor at z = 0; the transform goes to OUT.align.json and is printed).")  # fmt: skip
+    allow_negative_values(s)
+    s.add_argument("name", metavar="NAME", help="built-in scene name: stonehenge | tabletop | apartment; or 'from-moveit' or 'align'")
+    s.add_argument("input", metavar="IN", nargs="?", default=None, help="align: the input splat file; from-moveit: a MoveIt planning-scene "
+                   "YAML (box, cylinder, sphere primitives)")  # fmt: skip
+    s.add_argument("--out", required=True, help="PATH.ply (built-in / from-moveit: ground truth goes to PATH.gt.json; align: the transform to PATH.align.json)")
+    g = s.add_argument_group("align options")
+    g.add_argument("--up", default=None, help="align: the input's up axis: auto (fitted floor/table plane, default) | +x | -x | +y | -y | +z | -z")
+    g.add_argument("--floor", default=None, help="align: auto (fitted, default) | none | Z (floor height along the up axis, input units) -> z = 0")
+    g.add_argument("--scale", type=float_arg(gt=0), default=None, help="align: uniform scale after the rotation (default 1)")
+    g.add_argument("--rotate-z", type=float_arg(), default=None, help="align: rotation about the new z axis, degrees (default 0)")
+    g.add_argument("--translate", default=None, metavar="X,Y,Z", help="align: translation added last (output units)")
+    g.add_argument("--crop", nargs=2, default=None, metavar=("LO", "HI"), help="align: keep splats in the box LO=X,Y,Z .. HI=X,Y,Z (aligned frame); says how many were dropped")
+    g.add_argument("--drop-floaters", action="store_true", help="align: drop faint isolated splats (floaters in free space: opacity < 0.3, "
+                   "mean 8-NN distance > 3x the median); says how many")  # fmt: skip
+    add_config_args(s, AlignConfig, prefix="align_", skip=("up", "floor", "scale", "rotate_z", "translate", "crop", "drop_floaters"), group="align fit options (AlignConfig)")
     s.add_argument("--level", type=int_arg(ge=1, le=5), default=1, help="Gaussian-size level 1..5 (larger, fewer splats)")
     s.add_argument("--seed", type=SEED, default=0, help="layout and sampling seed, an integer >= 0 (default 0)")
     s.add_argument("--n-splats", type=int_arg(ge=1), default=None, help="from-moveit only: total splats (default 100000: ~7-8 mm spacing on a metre-scale workcell)")

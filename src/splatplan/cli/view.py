@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import SplatplanError
-from ._common import _load, add_config_args, config_from_args
+from ._common import BASE_POSE_HELP, _load, add_config_args, add_terrain_args, config_from_args, ground_robot_scene, parse_base_pose, robot_at
 
 
 def _read_plan(path: str) -> np.ndarray:
@@ -68,9 +68,14 @@ def cmd_view(args) -> int:
     if args.robot:
         from ..robots import load_robot
 
-        robot = load_robot(args.robot)
+        robot = robot_at(args.robot, parse_base_pose(args.base_pose))
+    elif args.base_pose is not None:
+        raise SplatplanError("--base-pose places the robot given with --robot")
     scene = _load(args.scene)
-    viewer = SplatViewer(scene, robot=robot, plan=plan, trajectory=traj, tree=tree, config=cfg)
+    collision_scene = None
+    if robot is not None and robot.name == "go2":  # a ground robot: the floor's splats are terrain, not obstacles
+        collision_scene = ground_robot_scene(scene, args, cfg.n_sigma)
+    viewer = SplatViewer(scene, robot=robot, plan=plan, trajectory=traj, tree=tree, config=cfg, collision_scene=collision_scene)
     viewer.start()
     print(f"splatplan viewer: {viewer.url}  ({len(scene):,} splats, robot {viewer.robot.name}; Ctrl-C to stop)", flush=True)
     try:
@@ -89,8 +94,10 @@ def register(sub, eval_sub) -> None:
     s = sub.add_parser("view", help="open a browser viewer of a scene, robot, plan, tree or MPC run")
     s.add_argument("scene", metavar="SCENE", help="splat file or a built-in scene file")
     s.add_argument("--robot", help="robot: panda | go2 | sphere:R | ellipsoid:A,B,C | path/to.urdf (default: a sphere sized to the scene)")
+    s.add_argument("--base-pose", default=None, help=BASE_POSE_HELP)
     s.add_argument("--plan", help="PATH.json written by 'splatplan plan'")
     s.add_argument("--mpc", help="output folder of 'splatplan mpc' (its result.json trajectory is animated)")
     s.add_argument("--tree", help="TREE.npz with 'nodes' (N, D) and 'parents' (N,)")
     add_config_args(s, ViewerConfig, group="viewer options")
+    add_terrain_args(s)
     s.set_defaults(func=cmd_view)

@@ -66,7 +66,7 @@ def pick_goals(n: int, seed: int = 0, min_clearance: float = 0.1) -> list[np.nda
 
 def run_base_study(out_dir, quick: bool = False, seed: int = 0, device: str | None = "cpu") -> dict:
     """Run the study, write ``base.json`` and ``base.md`` into ``out_dir``; returns the JSON dict."""
-    from ..tasks._common import load_task_scene
+    from ..tasks._common import base_terrain, load_task_scene
     from ..tasks.base import BaseConfig, load_go2, run_base
 
     t0 = time.perf_counter()
@@ -76,7 +76,7 @@ def run_base_study(out_dir, quick: bool = False, seed: int = 0, device: str | No
         cfg = replace(cfg, max_steps=130)
     goals = pick_goals(n, seed=seed)
     robot = load_go2()
-    ts = load_task_scene("apartment", n_sigma=cfg.n_sigma, device=device, ground_below=cfg.ground_z + cfg.ground_band)
+    ts = load_task_scene("apartment", n_sigma=cfg.n_sigma, device=device, terrain=base_terrain(cfg))
     trials = []
     for i, g in enumerate(goals):
         for name, (collision, memory, _) in CONFIGS.items():

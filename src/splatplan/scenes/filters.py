@@ -81,3 +81,35 @@ def filter_floaters(splats: Splats, opacity_below: float = 0.1, scale_factor: fl
     if n_dropped == 0:  # nothing to drop: share the arrays instead of copying them
         return replace(splats, info=dict(splats.info)), report
     return splats.subset(~drop), report
+
+
+def isolated_mask(
+    means: np.ndarray,  # (N, 3) scene units
+    opacities: np.ndarray,  # (N,) activated opacity
+    k: int = 8,
+    factor: float = 3.0,
+    opacity_below: float = 0.3,
+    candidates: np.ndarray | None = None,  # (N,) bool: the splats tested and counted as neighbours
+) -> np.ndarray:
+    """(N,) bool: faint splats floating alone in free space (a statistical outlier rule, as in
+    point-cloud cleaning): opacity below ``opacity_below`` **and** a mean distance to the ``k``
+    nearest other means above ``factor`` times the scene's median of that distance.
+
+    Real captures carry such floaters in the middle of rooms (opacity 0.01-0.3, stds 2-5x the
+    median, so the size rule of :func:`floater_mask` misses them) and a robot's body meets some of
+    them wherever it stands. Surfaces are dense (small k-NN distances) and opaque splats are never
+    dropped, so walls, furniture and thin objects stay. ``candidates`` restricts both the tested
+    splats and their neighbours (e.g. everything but the floor: a floater 20 cm above a dense floor
+    is still a floater); the others are never dropped.
+    """
+    from scipy.spatial import cKDTree
+
+    m = np.asarray(means, np.float64)
+    idx = np.arange(len(m)) if candidates is None else np.flatnonzero(candidates)
+    out = np.zeros(len(m), bool)
+    if len(idx) <= k:
+        return out
+    d, _ = cKDTree(m[idx]).query(m[idx], k=k + 1)
+    dk = d[:, 1:].mean(axis=1)
+    out[idx] = (np.asarray(opacities)[idx] < opacity_below) & (dk > factor * float(np.median(dk)))
+    return out

@@ -50,26 +50,41 @@ def load_filtered_scene(scene, n_splats: int | None = None, seed: int = 0):
     return splats, gt
 
 
-def load_task_scene(scene, n_sigma: float = 1.0, device: str | None = "cpu", n_splats: int | None = None, ground_below: float | None = None) -> TaskScene:
+def load_task_scene(scene, n_sigma: float = 1.0, device: str | None = "cpu", n_splats: int | None = None, ground_below: float | None = None, terrain=None) -> TaskScene:
     """A built-in name ("tabletop", "apartment", "stonehenge") or a splat file (its ``.gt.json``
     beside it is used for the exact clearance when present).
 
-    ``ground_below``: for walking robots the floor is terrain, not an obstacle: splats whose centre
-    lies below this height are removed from the collision scene and the analytic boxes labelled
-    "floor"/"ground" from the ground truth (a ground segmentation by height).
+    ``terrain``: a :class:`~splatplan.scenes.terrain.TerrainConfig` for ground robots: the floor's
+    splats (up to the robot's step height above the aligned floor) are terrain, not obstacles,
+    and leave the collision scene; so do the analytic boxes labelled "floor"/"ground".
+    ``ground_below`` is the same with ``TerrainConfig(floor_z=ground_below, step_height=0)``.
     """
     from ..metric import CollisionChecker
+    from ..scenes.terrain import TerrainConfig, remove_terrain
 
     if isinstance(scene, TaskScene):
         return scene
     name = str(scene)
     splats, gt = load_filtered_scene(name, n_splats=n_splats)
-    if ground_below is not None:
-        splats = splats.subset(splats.means[:, 2] >= ground_below)
+    if terrain is None and ground_below is not None:
+        terrain = TerrainConfig(floor_z=float(ground_below), step_height=0.0)
+    if terrain is not None:
+        splats, rep = remove_terrain(splats, terrain, n_sigma=n_sigma)
         if gt is not None:
             gt = gt.select(np.array([lab not in ("floor", "ground") for lab in gt.labels]))
-        name = f"{name} (ground below z = {ground_below:g} removed)"
+        name = f"{name} (terrain below z = {rep.floor_z + rep.step_height:.3g} removed)"
     return TaskScene(name, splats, CollisionChecker(splats, n_sigma=n_sigma, device=device), gt)
+
+
+def base_terrain(cfg):
+    """The :class:`~splatplan.scenes.terrain.TerrainConfig` of a ground robot's task config
+    (fields ``ground_z``: a height, "auto" = fitted, or None = no terrain; ``ground_band``: step height)."""
+    from ..scenes.terrain import TerrainConfig
+
+    if cfg.ground_z is None:
+        return None
+    floor = None if cfg.ground_z == "auto" else float(cfg.ground_z)
+    return TerrainConfig(floor_z=floor, step_height=float(cfg.ground_band))
 
 
 def check_start(robot, checker, q0: np.ndarray) -> None:
@@ -80,7 +95,8 @@ def check_start(robot, checker, q0: np.ndarray) -> None:
         names = [robot.link_names[int(robot.ellipsoid_link[e])] for e in np.flatnonzero(hit)]
         counts = np.asarray(res.n_colliding)[0][hit]
         parts = ", ".join(f"{n} ({int(c)} splats)" for n, c in zip(names, counts))
-        raise SplatplanError(f"the start configuration of {robot.name} is in collision (n_sigma = {checker.n_sigma:g}): {parts}; move the start or lower n_sigma")
+        raise SplatplanError(f"the start configuration of {robot.name} is in collision (n_sigma = {checker.n_sigma:g}): {parts}; "
+                             "change the start (--start), move the robot's base (--base-pose) or lower n_sigma")  # fmt: skip
 
 
 def densify(robot, states: np.ndarray, step_m: float = 0.01) -> np.ndarray:

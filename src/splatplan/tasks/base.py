@@ -76,7 +76,7 @@ import numpy as np
 
 from .._config import bounded, check_config
 from ..errors import SplatplanError
-from ._common import TaskResult, check_start, load_task_scene, trajectory_clearance
+from ._common import TaskResult, base_terrain, check_start, load_task_scene, trajectory_clearance
 from .memory import ObstacleMemory, _geodesic_field_reference, _line_of_sight_reference, geodesic_field, line_of_sight  # noqa: F401  (re-exported)
 
 __all__ = ["FOOT_CLEARANCE", "START", "BaseConfig", "ObstacleMemory", "geodesic_field", "line_of_sight", "load_go2", "plan_route", "run_base"]
@@ -177,10 +177,11 @@ class BaseConfig:
     collision_stride: int = bounded(1, ge=1)
     #: success: final distance to the goal below this (m)
     goal_tol: float = bounded(0.2, gt=0)
-    #: height of the floor (m): splats below floor + ground_band are terrain, not obstacles (None: keep all)
-    ground_z: float | None = 0.0
-    #: thickness of the removed ground band (m)
-    ground_band: float = bounded(0.03, ge=0)
+    #: height of the floor (m; 0 after `scene align`), auto = fitted from the scene, none = no terrain:
+    #: floor-like splats below ground_z + ground_band are terrain, not obstacles (scenes/terrain.py)
+    ground_z: float | str | None = 0.0
+    #: the base's step height above the floor (m): the terrain band (an obstacle lower than this is missed)
+    ground_band: float = bounded(0.05, ge=0)
     #: sensed-obstacle memory (off by default): a coarse occupancy grid, unknown = free, filled with
     #: the cells sensed within sensor_radius_m of the base every MPC step; the goal cost then uses
     #: the geodesic distance to the goal on it instead of the straight line (see ObstacleMemory)
@@ -493,7 +494,7 @@ def run_base(
     g = np.asarray(goal_xy, np.float64).reshape(-1)[:2]
     if not np.all(np.isfinite(g)):
         raise SplatplanError(f"goal {g.tolist()} is not finite")
-    ts = load_task_scene(scene, n_sigma=cfg.n_sigma, device=device, ground_below=None if cfg.ground_z is None else cfg.ground_z + cfg.ground_band)
+    ts = load_task_scene(scene, n_sigma=cfg.n_sigma, device=device, terrain=base_terrain(cfg))
     lo, hi = ts.splats.bounds()
     if np.any(g < lo[:2]) or np.any(g > hi[:2]):
         raise SplatplanError(f"goal {g.round(3).tolist()} lies outside the scene (x, y in {lo[:2].round(2).tolist()} .. {hi[:2].round(2).tolist()})")

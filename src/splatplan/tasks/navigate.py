@@ -19,8 +19,9 @@ image was taken from, and drives there.
 
 Floor: the Go2's feet touch z = 0 in ``load_robot("go2")``; here the robot is
 :func:`splatplan.tasks.base.load_go2` (feet lifted 4 cm, as in a trot's swing phase) and the metric
-and the exact clearance use the scene **without the floor** (floor splats: flat splats with their
-mean within 5 cm of z = 0 and their normal within 25 deg of vertical; the analytic floor box);
+and the exact clearance use the scene **without the floor** (the terrain of
+:mod:`splatplan.scenes.terrain`: floor-like splats with their mean within 5 cm of z = 0; the
+analytic floor box);
 renders use every splat.
 
 Units: metres, radians; world frame z up; yaw about +z, 0 = looking along +x.
@@ -177,13 +178,11 @@ class NavScene:
 
 
 def floor_mask(splats, height: float = 0.05) -> np.ndarray:
-    """(N,) bool: flat splats lying on the floor (mean |z| < height, normal within 25 deg of z)."""
-    from ..scenes.splats import quat_to_rotmat
+    """(N,) bool: the floor's splats, the terrain of :mod:`splatplan.scenes.terrain` (floor at
+    z = 0, step ``height``, normals within 25 deg of z) restricted to means above -``height``."""
+    from ..scenes.terrain import terrain_mask
 
-    rot = quat_to_rotmat(np.asarray(splats.quats, np.float64))  # (N, 3, 3) columns = splat axes
-    k = np.argmin(np.asarray(splats.scales), axis=1)
-    normal = rot[np.arange(len(k)), :, k]  # (N, 3) shortest axis
-    return (np.abs(np.asarray(splats.means)[:, 2]) < height) & (np.abs(normal[:, 2]) > np.cos(np.radians(25)))
+    return terrain_mask(splats, 0.0, height, n_sigma=0.0, max_tilt_deg=25.0) & (np.asarray(splats.means)[:, 2] > -height)
 
 
 def load_nav_scene(scene="apartment", cfg: NavigateConfig | None = None, device: str | None = "cpu", seed: int = 0) -> NavScene:

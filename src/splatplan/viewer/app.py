@@ -109,9 +109,11 @@ class SplatViewer:
         trajectory: optional executed MPC trajectory (T, dof) (animated with a time slider).
         tree: optional RRT tree (nodes (N, D), parents (N,)).
         config: :class:`ViewerConfig`.
+        collision_scene: the splats the collision checks see (default ``scene``); for a ground
+            robot, the scene without its terrain (:func:`splatplan.scenes.terrain.remove_terrain`).
     """
 
-    def __init__(self, scene, robot=None, plan=None, trajectory=None, tree=None, config: ViewerConfig | None = None) -> None:
+    def __init__(self, scene, robot=None, plan=None, trajectory=None, tree=None, config: ViewerConfig | None = None, collision_scene=None) -> None:
         from ..metric import CollisionChecker
 
         self.config = cfg = (config or ViewerConfig()).validate()
@@ -129,7 +131,7 @@ class SplatViewer:
             robot = load_robot(f"sphere:{0.015 * self.extent:.6g}")
         self.robot = robot
         self.kind = _robot_kind(robot)
-        self.checker = CollisionChecker(scene, n_sigma=cfg.n_sigma, device=cfg.device)
+        self.checker = CollisionChecker(scene if collision_scene is None else collision_scene, n_sigma=cfg.n_sigma, device=cfg.device)
         self.plan = None if plan is None else np.asarray(plan, dtype=np.float64)
         self.trajectory = None if trajectory is None else np.asarray(trajectory, dtype=np.float64)
         self.tree = tree

@@ -1,0 +1,494 @@
+"""Put a real capture into the robot's world: find the up axis and the floor, scale, crop.
+
+After :func:`align_scene` the scene's world frame is **z-up, floor at z = 0**, in metres when the
+capture is metric (``scale`` fixes one that is not). Every splat is kept, in order, except with
+``crop`` or ``drop_floaters`` (the result says how many each dropped). Rotations rotate the splats' wxyz quaternions
+and scaling scales their stds (:mod:`splatplan.scenes.transforms`).
+
+How ``up = "auto"`` works (all on the splat means, weighted by opacity):
+
+1. **Shell rejection.** Captures are often wrapped in a far "sky shell" of huge splats. Only the
+   means inside the robust box (the ``box_percentile`` .. 100 - ``box_percentile`` percentiles of
+   every axis, each splat weighted by opacity / largest std^2 so that a shell of many huge splats
+   hardly counts, padded by ``box_pad`` of its size) take part in the fit; the rest are reported
+   as the shell (and still kept in the output). A shell of many *small* opaque splats is not
+   recognised this way (the percentiles then include it; use ``crop``).
+2. **Plane candidates.** A one-point RANSAC: each hypothesis is a flat splat (smallest std below
+   0.3x the middle one) taken as a plane through its mean with its normal; the inliers are the
+   means within ``plane_tol`` (a fraction of the robust box's diagonal) whose own normal, when
+   flat, agrees within 25 degrees. The best plane is refined by a weighted least-squares fit on
+   its inliers, removed, and the search repeats (``n_planes`` planes).
+3. **Bounding planes.** A floor (or the table under an object) has the scene on one side: only
+   planes with at most ``max_below`` of the robust mass beyond them qualify; the up axis is
+   their normal, oriented towards the scene.
+4. **Choice.** Rooms have several bounding planes (floor, ceiling, walls). Each candidate scores
+   ``mass * (0.25 + max(0, n . up_hint))``: the plane's share of the splat mass, favouring the capture
+   convention's up axis (``up_hint``, default ``-y`` for INRIA/COLMAP-style y-down captures) as
+   a tie-break between perpendicular planes. The confidence reported is
+   ``one_sided * (1 - runner_up_score / best_score)`` (1 = one unambiguous bounding plane).
+
+The floor height is the opacity-weighted median height of the chosen plane's inliers after the
+rotation (so the floor's splats straddle z = 0). With an explicit ``up`` axis the floor is the
+densest bounding layer perpendicular to it (the same candidates, restricted to normals within
+10 degrees of the axis).
+
+What it can miss: a scene whose largest bounding plane is a wall and that disagrees with the
+hint (give ``up`` explicitly), an object scan with no supporting plane (``up = auto`` then raises
+:class:`~splatplan.errors.SplatplanError` and suggests ``--up``), a sloped floor (one plane).
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+
+from ..errors import SplatplanError
+from .splats import Splats, quat_to_rotmat
+from .transforms import apply_rigid, scale as scale_scene
+
+#: axis names accepted by ``up`` / ``up_hint`` -> unit vectors
+AXES = {
+    "+x": (1.0, 0.0, 0.0), "-x": (-1.0, 0.0, 0.0), "+y": (0.0, 1.0, 0.0), "-y": (0.0, -1.0, 0.0), "+z": (0.0, 0.0, 1.0), "-z": (0.0, 0.0, -1.0),
+    "x": (1.0, 0.0, 0.0), "y": (0.0, 1.0, 0.0), "z": (0.0, 0.0, 1.0),
+}  # fmt: skip
+
+
+@dataclass
+class AlignConfig:
+    """Options of :func:`align_scene` (the flags of ``splatplan scene align``)."""
+
+    #: the scene's up axis: auto (normal of the dominant bounding plane, see the module doc) or
+    #: +x, -x, +y, -y, +z, -z (INRIA/COLMAP captures are usually -y)
+    up: str = "auto"
+    #: floor height: auto (fitted, moved to z = 0), none (no vertical shift), or a number: the
+    #: floor's height along the up axis in the input's units (moved to z = 0)
+    floor: str = "auto"
+    #: uniform scale applied after the rotation (e.g. to make a normalised capture metric)
+    scale: float = 1.0
+    #: rotation about the new z axis (degrees), after the up rotation
+    rotate_z: float = 0.0
+    #: translation X,Y,Z (output units) added last
+    translate: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    #: keep only splats whose aligned mean lies in this box LO..HI (6 numbers: x0,y0,z0,x1,y1,z1;
+    #: none keeps every splat)
+    crop: tuple[float, ...] | None = None
+    #: drop faint isolated splats, floaters in free space (opacity < 0.3 and mean 8-NN distance above
+    #: 3x the scene's median, the floor's splats left out; scenes/filters.py isolated_mask); the count is reported
+    drop_floaters: bool = False
+    #: auto up: the capture convention that breaks ties between perpendicular bounding planes
+    up_hint: str = "-y"
+    #: robust box: per-axis percentile of the means that bounds the fit (and info's robust bounds)
+    box_percentile: float = 1.0
+    #: robust box: padding as a fraction of the box's size on each side
+    box_pad: float = 0.1
+    #: plane inlier distance, as a fraction of the robust box's diagonal
+    plane_tol: float = 0.005
+    #: number of planes extracted by the sequential RANSAC
+    n_planes: int = 6
+    #: a bounding plane has at most this fraction of the robust mass beyond it
+    max_below: float = 0.1
+    #: a plane needs at least this fraction of the robust splat mass
+    min_plane_mass: float = 0.02
+    #: means used by the fit (a seeded random subset of the robust box)
+    max_points: int = 30000
+    #: RANSAC hypotheses per plane
+    n_hypotheses: int = 800
+    #: random seed of the subset and the RANSAC
+    seed: int = 0
+
+    def validate(self) -> "AlignConfig":
+        """Raise :class:`SplatplanError` naming the first bad field."""
+        if self.up != "auto" and self.up not in AXES:
+            raise SplatplanError(f"up {self.up!r}: use auto or one of +x, -x, +y, -y, +z, -z")
+        if self.up_hint not in AXES:
+            raise SplatplanError(f"up_hint {self.up_hint!r}: use one of +x, -x, +y, -y, +z, -z")
+        if self.floor not in ("auto", "none"):
+            try:
+                z = float(self.floor)
+            except ValueError:
+                raise SplatplanError(f"floor {self.floor!r}: use auto, none or a number") from None
+            if not np.isfinite(z):
+                raise SplatplanError(f"floor {self.floor!r} must be finite")
+        if not (np.isfinite(self.scale) and self.scale > 0):
+            raise SplatplanError(f"scale must be a finite number > 0, got {self.scale}")
+        if not np.isfinite(self.rotate_z):
+            raise SplatplanError(f"rotate_z must be finite, got {self.rotate_z}")
+        t = np.asarray(self.translate, np.float64)
+        if t.shape != (3,) or not np.all(np.isfinite(t)):
+            raise SplatplanError(f"translate must be 3 finite numbers X,Y,Z, got {self.translate}")
+        if self.crop is not None:
+            c = np.asarray(self.crop, np.float64)
+            if c.shape != (6,) or not np.all(np.isfinite(c)) or np.any(c[3:] <= c[:3]):
+                raise SplatplanError(f"crop must be 6 finite numbers x0,y0,z0,x1,y1,z1 with LO < HI, got {self.crop}")
+        for name, lo, hi in (("box_percentile", 0.0, 25.0), ("box_pad", 0.0, 10.0), ("plane_tol", 1e-6, 0.5), ("max_below", 0.0, 0.5), ("min_plane_mass", 0.0, 1.0)):
+            v = getattr(self, name)
+            if not (np.isfinite(v) and lo <= v <= hi):
+                raise SplatplanError(f"{name} must lie in [{lo:g}, {hi:g}], got {v}")
+        for name in ("n_planes", "max_points", "n_hypotheses"):
+            if int(getattr(self, name)) < 1:
+                raise SplatplanError(f"{name} must be >= 1, got {getattr(self, name)}")
+        return self
+
+
+@dataclass
+class Plane:
+    """A fitted plane n . x = d (input frame), its share of the robust splat mass, and how one-sided the scene is."""
+
+    normal: np.ndarray  # (3,) unit, oriented towards the bulk of the scene
+    offset: float  # d, input units
+    mass: float  # opacity-weighted inlier share of the robust subset
+    one_sided: float  # share of the robust mass not beyond the plane (1 = everything on the normal's side)
+    n_inliers: int
+    inliers: np.ndarray = field(repr=False, default_factory=lambda: np.zeros(0, np.int64))  # indices into the fit subset
+
+
+@dataclass
+class UpGuess:
+    """Result of :func:`guess_up`: the up axis and the floor in the input frame."""
+
+    up: np.ndarray  # (3,) unit vector, input frame
+    floor_height: float  # floor height along ``up`` (input units)
+    confidence: float  # 0..1 (see the module docstring)
+    plane: Plane | None  # the chosen plane (None when the axis was given and no plane matched)
+    candidates: list[Plane]  # every bounding plane considered
+    method: str
+
+    def to_json(self) -> dict:
+        return {
+            "up": np.round(self.up, 6).tolist(),
+            "up_axis": nearest_axis(self.up),
+            "floor_height": round(float(self.floor_height), 6),
+            "confidence": round(float(self.confidence), 3),
+            "method": self.method,
+            "plane_mass": None if self.plane is None else round(self.plane.mass, 4),
+            "n_bounding_planes": len(self.candidates),
+        }
+
+
+@dataclass
+class AlignResult:
+    """What :func:`align_scene` did: ``x_out = scale * R x_in + t`` for the kept splats."""
+
+    transform: np.ndarray  # (4, 4) float64 similarity [[s R, t], [0, 1]], output <- input
+    scale: float
+    up: UpGuess | None
+    n_in: int
+    n_out: int
+    n_cropped: int
+    n_shell: int
+    config: AlignConfig
+    n_floaters: int = 0
+
+    def to_json(self) -> dict:
+        return {
+            "transform": np.round(self.transform, 9).tolist(),
+            "scale": float(self.scale),
+            "convention": "x_out = T @ [x_in, 1] (T = [[scale * R, t], [0, 1]]); quaternions q_out = q_R * q_in (wxyz); stds * scale",
+            "frame": "z-up, floor at z = 0, units = input units * scale",
+            "up": None if self.up is None else self.up.to_json(),
+            "n_in": self.n_in,
+            "n_out": self.n_out,
+            "n_cropped": self.n_cropped,
+            "n_floaters_dropped": self.n_floaters,
+            "n_shell_outside_robust_box": self.n_shell,
+            "options": {k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(self.config).items()},
+        }
+
+
+def nearest_axis(v: np.ndarray) -> str:
+    """'+x'..'-z': the signed coordinate axis nearest to ``v`` (3,)."""
+    i = int(np.argmax(np.abs(v)))
+    return ("+" if v[i] >= 0 else "-") + "xyz"[i]
+
+
+def robust_box(means: np.ndarray, percentile: float = 1.0, pad: float = 0.1, weights: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(lo (3,), hi (3,), inside (N,) bool): the per-axis weighted percentile box of ``means``
+    (N, 3), padded by ``pad`` of its size per side; ``inside`` marks the means in it (the rest: a
+    shell or far outliers). ``weights`` (N,) default 1; :func:`shell_weights` makes a shell of
+    many huge splats count little even when it holds a large share of the splats."""
+    m = np.asarray(means, np.float64)
+    w = np.ones(len(m)) if weights is None else np.asarray(weights, np.float64)
+    lo, hi = np.empty(3), np.empty(3)
+    for k in range(3):
+        o = np.argsort(m[:, k])
+        cw = np.cumsum(w[o])
+        cw /= cw[-1]
+        lo[k] = m[o[min(np.searchsorted(cw, percentile / 100.0), len(o) - 1)], k]
+        hi[k] = m[o[min(np.searchsorted(cw, 1.0 - percentile / 100.0), len(o) - 1)], k]
+    size = hi - lo
+    lo, hi = lo - pad * size, hi + pad * size
+    inside = np.all((m >= lo) & (m <= hi), axis=1)
+    return lo, hi, inside
+
+
+def shell_weights(splats: Splats) -> np.ndarray:
+    """(N,) weights of the robust box: opacity / max(largest std, median largest std)^2, so a sky
+    shell or a cloud of huge floaters (large stds) hardly moves the box's percentiles while the
+    scene's surfaces (small, opaque splats) define it."""
+    smax = splats.scales.max(axis=1).astype(np.float64)
+    ref = max(float(np.median(smax)), 1e-12)
+    return splats.opacities.astype(np.float64) / np.maximum(smax, ref) ** 2 + 1e-12
+
+
+def splat_normals(splats: Splats) -> tuple[np.ndarray, np.ndarray]:
+    """(normals (N, 3) world axis of each splat's smallest std, flat (N,) bool: smallest < 0.3x middle)."""
+    s = splats.scales.astype(np.float64)
+    r = quat_to_rotmat(splats.quats)
+    k = np.argmin(s, axis=1)
+    normals = r[np.arange(len(s)), :, k]
+    ss = np.sort(s, axis=1)
+    return normals, ss[:, 0] < 0.3 * ss[:, 1]
+
+
+def fit_planes(means, normals, flat, weights, tol: float, n_planes: int = 6, n_hypotheses: int = 800, seed: int = 0) -> list[Plane]:
+    """Sequential one-point RANSAC (see the module docstring, step 2).
+
+    Args:
+        means: (M, 3) input frame. normals: (M, 3) unit. flat: (M,) bool. weights: (M,) >= 0.
+        tol: inlier distance (input units).
+
+    Returns:
+        up to ``n_planes`` planes, in the order found; ``normal`` points to the side holding most
+        of the weight and ``one_sided`` is that side's share (inliers counted on both sides).
+    """
+    rng = np.random.default_rng(seed)
+    m = np.asarray(means, np.float64)
+    w = np.asarray(weights, np.float64)
+    total = max(float(w.sum()), 1e-12)
+    cos_agree = np.cos(np.radians(25.0))
+    alive = np.ones(len(m), bool)
+    out: list[Plane] = []
+    for _ in range(n_planes):
+        cand = np.flatnonzero(alive & flat)
+        if len(cand) < 10:
+            break
+        h = rng.choice(cand, min(n_hypotheses, len(cand)), replace=False)
+        n = normals[h]  # (H, 3)
+        d = np.einsum("hi,hi->h", n, m[h])  # (H,)
+        idx = np.flatnonzero(alive)
+        best_score, best = -1.0, None
+        for lo in range(0, len(h), 200):  # chunks of hypotheses: (A, 200) matrices
+            nn, dd = n[lo : lo + 200], d[lo : lo + 200]
+            inl = (np.abs(m[idx] @ nn.T - dd) < tol) & ((np.abs(normals[idx] @ nn.T) > cos_agree) | ~flat[idx, None])
+            score = w[idx] @ inl
+            b = int(np.argmax(score))
+            if score[b] > best_score:
+                best_score, best = float(score[b]), idx[inl[:, b]]
+        if best is None or len(best) < 3:
+            break
+        wi = w[best] + 1e-12
+        c = np.average(m[best], axis=0, weights=wi)
+        _, _, vt = np.linalg.svd((m[best] - c) * np.sqrt(wi)[:, None], full_matrices=False)
+        nrm = vt[2] / np.linalg.norm(vt[2])
+        off = float(nrm @ c)
+        side = m @ nrm - off  # (M,) all robust means
+        above = float(w[side > tol].sum()) / total
+        below = float(w[side < -tol].sum()) / total
+        if below > above:
+            nrm, off, above, below = -nrm, -off, below, above
+        out.append(Plane(nrm, off, best_score / total, 1.0 - below, len(best), best))
+        alive[best] = False
+    return out
+
+
+def _rotation_to_z(up: np.ndarray) -> np.ndarray:
+    """The smallest rotation (3, 3) taking the unit vector ``up`` to +z (about x for up = -z)."""
+    u = np.asarray(up, np.float64) / np.linalg.norm(up)
+    z = np.array([0.0, 0.0, 1.0])
+    c = float(u @ z)
+    if c < -1 + 1e-12:
+        return np.diag([1.0, -1.0, -1.0])
+    v = np.cross(u, z)
+    k = np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
+    return np.eye(3) + k + k @ k / (1.0 + c)
+
+
+def guess_up(splats: Splats, config: AlignConfig | None = None) -> UpGuess:
+    """The up axis and floor height of a scene in its own frame (see the module docstring).
+
+    Raises:
+        SplatplanError: ``up = auto`` and no plane bounds the scene (suggests ``--up``).
+    """
+    cfg = (config or AlignConfig()).validate()
+    if len(splats) < 10:
+        raise SplatplanError(f"cannot fit a floor to {len(splats)} splat(s); give --up and --floor")
+    lo, hi, inside = robust_box(splats.means, cfg.box_percentile, cfg.box_pad, shell_weights(splats))
+    idx = np.flatnonzero(inside)
+    rng = np.random.default_rng(cfg.seed)
+    if len(idx) > cfg.max_points:
+        idx = np.sort(rng.choice(idx, cfg.max_points, replace=False))
+    normals, flat = splat_normals(splats.subset(idx))
+    m = splats.means[idx].astype(np.float64)
+    w = splats.opacities[idx].astype(np.float64)
+    tol = cfg.plane_tol * float(np.linalg.norm(hi - lo))
+    planes = fit_planes(m, normals, flat, w, tol, cfg.n_planes, cfg.n_hypotheses, cfg.seed)
+    bounding = [p for p in planes if p.one_sided >= 1.0 - cfg.max_below and p.mass >= cfg.min_plane_mass]
+    if cfg.up == "auto":
+        hint = np.asarray(AXES[cfg.up_hint])
+        if not bounding:
+            raise SplatplanError(
+                "no plane to align to: no large plane bounds the scene (an object scan without a table or floor?); "
+                "give the up axis with --up (+y, -y, +z, ...) and the floor with --floor Z or --floor none"
+            )
+        scores = np.array([p.mass * (0.25 + max(0.0, float(p.normal @ hint))) for p in bounding])
+        order = np.argsort(-scores)
+        best = bounding[int(order[0])]
+        runner = float(scores[order[1]]) if len(order) > 1 else 0.0
+        conf = best.one_sided * (1.0 - runner / float(scores[order[0]]))
+        up, plane, method = best.normal, best, "ransac-bounding-plane"
+    else:
+        up = np.asarray(AXES[cfg.up], np.float64)
+        match = [p for p in bounding if float(p.normal @ up) > np.cos(np.radians(10.0))]
+        plane = max(match, key=lambda p: p.mass) if match else None
+        conf, method = 1.0, "given"
+    if plane is not None:
+        wi = w[plane.inliers]
+        floor = _weighted_median(m[plane.inliers] @ up, wi)
+    else:  # no plane: the robust bottom of the scene along up
+        floor = float(np.percentile(m @ up, cfg.box_percentile))
+    return UpGuess(np.asarray(up, np.float64), float(floor), float(conf), plane, bounding, method)
+
+
+def _weighted_median(x: np.ndarray, w: np.ndarray) -> float:
+    o = np.argsort(x)
+    cw = np.cumsum(w[o])
+    return float(x[o][np.searchsorted(cw, 0.5 * cw[-1])])
+
+
+def align_scene(splats: Splats, config: AlignConfig | None = None) -> tuple[Splats, AlignResult]:
+    """Rotate the scene's up axis to +z, move the floor to z = 0, scale, rotate about z, translate, crop.
+
+    ``x_out = s R x_in + t`` with R = Rz(rotate_z) R_up (R_up the smallest rotation taking up to
+    +z), s = ``scale``, t = Rz-rotated, scaled floor shift plus ``translate``. Splats keep their
+    order; ``crop`` drops those outside the box (counted in the result).
+
+    Raises:
+        SplatplanError: bad options, no plane to align to, or a transform that puts the whole
+            scene below the floor (z < 0).
+    """
+    cfg = (config or AlignConfig()).validate()
+    if len(splats) == 0:
+        raise SplatplanError("the scene has no splats")
+    guess = None
+    if cfg.up == "auto" or cfg.floor == "auto":
+        guess = guess_up(splats, cfg)
+        up = guess.up
+    else:
+        up = np.asarray(AXES[cfg.up], np.float64)
+    if cfg.floor == "auto":
+        floor = guess.floor_height
+    elif cfg.floor == "none":
+        floor = 0.0
+    else:
+        floor = float(cfg.floor)
+    a = np.radians(cfg.rotate_z)
+    rz = np.array([[np.cos(a), -np.sin(a), 0.0], [np.sin(a), np.cos(a), 0.0], [0.0, 0.0, 1.0]])
+    r = rz @ _rotation_to_z(up)
+    s = float(cfg.scale)
+    t = np.array([0.0, 0.0, -s * floor]) + np.asarray(cfg.translate, np.float64)
+    out = scale_scene(apply_rigid(splats, r, np.zeros(3)), s)
+    out = apply_rigid(out, np.eye(3), t)
+    _, _, inside = robust_box(out.means, cfg.box_percentile, cfg.box_pad, shell_weights(out))
+    z90 = float(np.percentile(out.means[inside, 2], 90.0))
+    if z90 < 0.0:
+        raise SplatplanError(
+            f"the transform puts the scene below the floor (90% of the splats under z = {z90:.3g}); check --up (its sign), --floor and --translate"
+        )
+    n_in = len(out)
+    n_floaters = 0
+    if cfg.drop_floaters:
+        from .filters import isolated_mask
+        from .terrain import terrain_mask
+
+        floor = terrain_mask(out, 0.0, 0.05 * s, n_sigma=0.0) if cfg.floor != "none" else np.zeros(len(out), bool)
+        iso = isolated_mask(out.means, out.opacities, candidates=~floor)
+        n_floaters = int(iso.sum())
+        out = out.subset(~iso)
+    n_cropped = 0
+    if cfg.crop is not None:
+        c = np.asarray(cfg.crop, np.float64)
+        keep = np.all((out.means >= c[:3]) & (out.means <= c[3:]), axis=1)
+        n_cropped = int((~keep).sum())
+        if not keep.any():
+            raise SplatplanError(f"crop {list(cfg.crop)} keeps no splat; the aligned scene spans {out.means.min(0).round(3).tolist()} .. {out.means.max(0).round(3).tolist()}")
+        out = out.subset(keep)
+    transform = np.eye(4)
+    transform[:3, :3] = s * r
+    transform[:3, 3] = t
+    res = AlignResult(transform, s, guess, n_in, len(out), n_cropped, int((~inside).sum()), cfg, n_floaters)
+    out.info["align"] = res.to_json()
+    return out, res
+
+
+def absurd_splats(splats: Splats, fraction: float = 0.25, percentile: float = 1.0) -> np.ndarray:
+    """(N,) bool: splats whose largest std exceeds ``fraction`` of the robust box's diagonal (e.g.
+    a 2 m std in a 0.5 m scene): sky-shell or broken splats that a collision query would see as
+    huge obstacles."""
+    lo, hi, _ = robust_box(splats.means, percentile, 0.0, shell_weights(splats))
+    return splats.scales.max(axis=1) > fraction * float(np.linalg.norm(hi - lo))
+
+
+def default_up_hint(path) -> str:
+    """The ``up_hint`` for a scene file: ``+z`` when splatplan wrote it z-up (an ``.align.json`` or
+    ``.gt.json`` sidecar beside it), else ``-y`` (the INRIA/COLMAP capture convention)."""
+    from pathlib import Path
+
+    p = Path(path)
+    return "+z" if p.with_suffix(".align.json").is_file() or p.with_suffix(".gt.json").is_file() else "-y"
+
+
+def describe_frame(splats: Splats, config: AlignConfig | None = None) -> dict:
+    """Frame facts for ``splatplan info``: robust bounds, up/floor guess, shell, scale note,
+    transparency and absurd splats (a JSON-ready dict; notes and warnings as sentences)."""
+    cfg = config or AlignConfig()
+    m = splats.means.astype(np.float64)
+    w = shell_weights(splats)
+    lo1, hi1, _ = robust_box(m, cfg.box_percentile, 0.0, w)
+    blo, bhi, inside = robust_box(m, cfg.box_percentile, cfg.box_pad, w)
+    centre = 0.5 * (lo1 + hi1)
+    out_r = np.linalg.norm(m[~inside] - centre, axis=1)
+    d: dict = {
+        "robust_bounds_min": lo1.round(6).tolist(),
+        "robust_bounds_max": hi1.round(6).tolist(),
+        "robust_percentiles": [cfg.box_percentile, 100.0 - cfg.box_percentile],
+        "shell": {
+            "count": int((~inside).sum()),
+            "radius_median": float(np.median(out_r)) if len(out_r) else None,
+            "radius_max": float(out_r.max()) if len(out_r) else None,
+            "rule": f"means outside the {cfg.box_percentile:g}-{100 - cfg.box_percentile:g} percentile box (weighted by opacity / std^2) padded by {cfg.box_pad:g} of its size",
+        },
+        "warnings": [],
+    }
+    try:
+        g = guess_up(splats, cfg)
+        d["up_guess"] = g.to_json()
+        height = float(np.percentile(m[inside] @ g.up, 100.0 - cfg.box_percentile) - g.floor_height)
+        d["height_above_floor"] = height
+    except SplatplanError as exc:
+        g, height = None, None
+        d["up_guess"] = None
+        d["up_note"] = str(exc)
+    ext = float(np.max(hi1 - lo1))
+    if g is not None and 1.8 <= height <= 4.5 and g.confidence > 0.3:
+        note = f"looks metric: {height:.2f} units from the floor to the top, a room's height in metres"
+    elif 0.5 <= ext <= 5.0 and g is None:
+        note = f"cannot tell: the robust extent is {ext:.3g} units (an object in metres and a normalised capture look alike); use --scale if you know a size"
+    elif ext < 0.5:
+        note = f"small: the robust extent is {ext:.3g} units (a metric object, or mm/cm units would be far larger)"
+    elif ext > 200:
+        note = f"large: the robust extent is {ext:.3g} units (millimetres or a city-scale capture?)"
+    else:
+        note = f"plausibly metric: robust extent {ext:.3g} units; check one known size (a door is ~2 m)"
+    d["scale_note"] = note
+    transparent = float(np.mean(splats.opacities < 0.1))
+    d["transparent_fraction"] = transparent
+    if np.median(splats.opacities) < 0.1:
+        d["warnings"].append(f"most splats are nearly transparent (median opacity {float(np.median(splats.opacities)):.3g}; {transparent:.0%} below 0.1): "
+                             "opacity may be stored as a logit or the file is mostly haze; collision checks may see little")  # fmt: skip
+    absurd = absurd_splats(splats, percentile=cfg.box_percentile)
+    d["absurd_splats"] = int(absurd.sum())
+    if absurd.any():
+        d["warnings"].append(f"{int(absurd.sum())} absurd splat(s): largest std up to {float(splats.scales.max()):.3g} units in a scene of robust extent {ext:.3g}; "
+                             "remove them (align --crop, or the floater filter) before planning")  # fmt: skip
+    return d

@@ -1,0 +1,93 @@
+"""Terrain for ground robots: the floor's splats are ground to stand on, not obstacles.
+
+A walking or driving robot touches the floor, and a real capture's floor is a layer of splats a
+few centimetres thick (stds of ~4 cm on phone captures), so at any n_sigma its feet or wheels sit
+"in collision". This module selects, once per scene, the splats that are **terrain** and the
+collision scene drops them (the metric and its kernels are untouched: a scene-level selection).
+
+A splat is terrain when its mean lies below ``floor_z + step_height`` **and** it is floor-like:
+either flat with a near-vertical normal (within 30 degrees of +z: a piece of the floor's surface)
+or wholly inside the step band (its n_sigma extent along z, ``mean_z + n_sigma * sqrt(Sigma_zz)``,
+below ``floor_z + step_height``).
+
+``floor_z`` is the aligned floor (z = 0 after ``splatplan scene align``), fitted from the scene
+(:func:`~splatplan.scenes.align.guess_up` with up = +z) when not given.
+
+What it can miss (by design): an obstacle lower than the step height (a threshold strip, a
+cable, a flat book) is terrain too, so the robot may walk over it; a sloped or stepped floor
+keeps its higher parts as obstacles (one floor height per scene); a floater lying flat on the
+floor is dropped with the floor.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import SplatplanError
+from .splats import Splats
+
+
+@dataclass
+class TerrainConfig:
+    """Which splats a ground robot treats as terrain (see the module docstring)."""
+
+    #: floor height (world z, scene units; 0 after `scene align`); none = fitted from the scene
+    floor_z: float | None = None
+    #: the robot's step height above the floor (scene units): floor-like splats with their mean
+    #: below floor_z + step_height are terrain (an obstacle lower than this is missed)
+    step_height: float = 0.05
+    #: a flat splat is floor-like when its normal lies within this angle of +z (degrees)
+    max_tilt_deg: float = 30.0
+
+    def validate(self) -> "TerrainConfig":
+        if self.floor_z is not None and not np.isfinite(self.floor_z):
+            raise SplatplanError(f"terrain floor_z must be finite, got {self.floor_z}")
+        if not (np.isfinite(self.step_height) and self.step_height >= 0):
+            raise SplatplanError(f"terrain step_height must be a finite number >= 0, got {self.step_height}")
+        if not (np.isfinite(self.max_tilt_deg) and 0 <= self.max_tilt_deg <= 90):
+            raise SplatplanError(f"terrain max_tilt_deg must lie in [0, 90], got {self.max_tilt_deg}")
+        return self
+
+
+def fitted_floor_z(splats: Splats) -> float:
+    """The floor height of a z-up scene: the bounding plane with a +z normal (else the robust bottom)."""
+    from .align import AlignConfig, guess_up
+
+    return float(guess_up(splats, AlignConfig(up="+z", floor="auto")).floor_height)
+
+
+def terrain_mask(splats: Splats, floor_z: float, step_height: float, n_sigma: float = 1.0, max_tilt_deg: float = 30.0) -> np.ndarray:
+    """(N,) bool: the terrain splats (module docstring). ``n_sigma`` is the checker's."""
+    from .align import splat_normals
+
+    z = splats.means[:, 2].astype(np.float64)
+    top_band = floor_z + step_height
+    sz = np.sqrt(np.maximum(splats.covariances()[:, 2, 2], 0.0))
+    normals, flat = splat_normals(splats)
+    floor_like = flat & (np.abs(normals[:, 2]) >= np.cos(np.radians(max_tilt_deg)))
+    return (z < top_band) & (floor_like | (z + n_sigma * sz < top_band))
+
+
+@dataclass
+class TerrainReport:
+    floor_z: float
+    step_height: float
+    fitted: bool
+    n_terrain: int
+
+    def summary(self) -> str:
+        how = "fitted" if self.fitted else "given"
+        return f"terrain: {self.n_terrain:,} floor splats below z = {self.floor_z + self.step_height:.3g} (floor {self.floor_z:.3g} {how} + step {self.step_height:g}) are ground, not obstacles"
+
+
+def remove_terrain(splats: Splats, config: TerrainConfig | None = None, n_sigma: float = 1.0) -> tuple[Splats, TerrainReport]:
+    """The scene without its terrain splats (order of the rest kept) and a report."""
+    cfg = (config or TerrainConfig()).validate()
+    fitted = cfg.floor_z is None
+    fz = fitted_floor_z(splats) if fitted else float(cfg.floor_z)
+    mask = terrain_mask(splats, fz, cfg.step_height, n_sigma, cfg.max_tilt_deg)
+    out = splats.subset(~mask)
+    out.info["terrain"] = {"floor_z": fz, "step_height": cfg.step_height, "n_terrain": int(mask.sum())}
+    return out, TerrainReport(fz, cfg.step_height, fitted, int(mask.sum()))

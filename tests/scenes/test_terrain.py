@@ -1,0 +1,55 @@
+"""Terrain for ground robots: the floor's splats stop counting as obstacles, up to the step height."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from splatplan.errors import SplatplanError
+from splatplan.scenes import Splats, rotmat_to_quat
+from splatplan.scenes.terrain import TerrainConfig, fitted_floor_z, remove_terrain, terrain_mask
+
+
+def floor_room(seed=0) -> tuple[Splats, dict]:
+    """A 4 x 4 m floor at z = 0.01 (flat splats, 4 cm stds, plus small round blobs), a 3 cm strip
+    (a low obstacle) and a 40 cm box; returns the splats and the index ranges of each part."""
+    rng = np.random.default_rng(seed)
+    n_floor, n_blob, n_strip, n_box = 8000, 1000, 200, 1500
+    fl = np.c_[rng.uniform(-2, 2, (n_floor, 2)), 0.01 + rng.normal(0, 0.003, n_floor)]
+    tilt = rotmat_to_quat(np.eye(3))
+    blobs = np.c_[rng.uniform(-2, 2, (n_blob, 2)), rng.uniform(0.0, 0.02, n_blob)]
+    strip = np.c_[rng.uniform(-2, 2, n_strip), rng.uniform(1.0, 1.05, n_strip), rng.uniform(0.0, 0.03, n_strip)]
+    box = np.c_[rng.uniform(-0.2, 0.2, (n_box, 2)) + [1.0, -1.0], rng.uniform(0.0, 0.4, n_box)]
+    means = np.concatenate([fl, blobs, strip, box])
+    scales = np.concatenate([np.tile([0.04, 0.04, 0.002], (n_floor, 1)), np.full((n_blob, 3), 0.01), np.full((n_strip, 3), 0.005), np.full((n_box, 3), 0.02)])
+    quats = np.tile(tilt, (len(means), 1))
+    parts = {"floor": slice(0, n_floor), "blobs": slice(n_floor, n_floor + n_blob), "strip": slice(n_floor + n_blob, n_floor + n_blob + n_strip),
+             "box": slice(n_floor + n_blob + n_strip, len(means))}  # fmt: skip
+    return Splats(means, quats, scales, np.full(len(means), 0.9), np.full((len(means), 3), 0.5)), parts
+
+
+def test_terrain_mask_keeps_obstacles_above_the_step():
+    s, parts = floor_room()
+    m = terrain_mask(s, floor_z=0.0, step_height=0.05, n_sigma=1.0)
+    assert m[parts["floor"]].all() and m[parts["blobs"]].all()
+    assert m[parts["strip"]].all()  # lower than the step: terrain (the documented miss)
+    box_z = s.means[parts["box"], 2]
+    np.testing.assert_array_equal(m[parts["box"]], box_z + 0.02 < 0.05)  # only the box's bottom 3 cm
+    assert not terrain_mask(s, 0.0, 0.0, n_sigma=1.0)[parts["blobs"]].any()
+
+
+def test_fitted_floor_and_ground_robot_start():
+    from splatplan.metric import CollisionChecker
+    from splatplan.robots import load_robot
+
+    s, parts = floor_room()
+    assert fitted_floor_z(s) == pytest.approx(0.01, abs=0.01)
+    go2 = load_robot("go2")
+    q = np.array([[-1.0, 0.0, 0.0], [1.0, -1.0, 0.0]])  # open floor; on the box
+    assert np.asarray(CollisionChecker(s, n_sigma=1.0).collides_robot(go2, q)).any(axis=-1)[0]  # feet in the floor's splats
+    ground, rep = remove_terrain(s, TerrainConfig(step_height=0.05), n_sigma=1.0)
+    assert rep.fitted and rep.n_terrain == len(s) - len(ground)
+    hit = np.asarray(CollisionChecker(ground, n_sigma=1.0).collides_robot(go2, q)).any(axis=-1)
+    assert not hit[0] and hit[1]
+    with pytest.raises(SplatplanError):
+        TerrainConfig(step_height=float("nan")).validate()
