@@ -38,10 +38,12 @@ def arm_problems(n: int, n_splats: int, n_sigma: float, seed: int = 0):
     from splatplan.planners import LinkGeometry
     from splatplan.robots import load_robot
     from splatplan.scenes.builtin.tabletop import build_tabletop
+    from splatplan.scenes.filters import filter_floaters
     from splatplan.tasks._ik import solve_ik
 
     robot = load_robot("panda")
     splats, gt = build_tabletop(seed, n_splats=n_splats)
+    splats, _ = filter_floaters(splats)  # as `splatplan plan` loads a scene (a floater sits in the start's links)
     checker = CollisionChecker(splats, n_sigma=n_sigma)
     geom = LinkGeometry(robot=robot)
     start = np.asarray(START_Q, dtype=np.float64)

@@ -186,3 +186,13 @@ def test_refinement_stops_at_the_deadline(panda_table):
     assert time.perf_counter() - t < limit + 2.0
     split = res2.info["time_split"]
     assert sum(split.values()) <= res2.time_s * (1 + 1e-6) + 1e-6
+
+
+def test_budgets_end_the_search():
+    ch = make_checker(make_scene(SEALED, spacing=0.008), n_sigma=1.0)
+    s, g = (-0.15, 0.0, 0.06), (0.2, 0.0, 0.06)
+    res = RRTConnect(ch, RRTConfig(max_iters=3, time_limit_s=None, **PLANE)).plan(s, g)
+    assert not res.success and res.n_iters == 3 and "iteration budget" in res.message
+    assert res.path.shape == (0, 3) and res.length == math.inf
+    res = RRTConnect(ch, RRTConfig(max_nodes=40, time_limit_s=None, **PLANE)).plan(s, g)
+    assert not res.success and "node budget" in res.message

@@ -168,6 +168,9 @@ def refine_path(
     p = np.asarray(path, dtype=np.float64)
     if p.ndim != 2 or len(p) < 2:
         raise SplatplanError(f"refine_path needs a path of shape (P >= 2, D), got {p.shape}")
+    if deadline is not None and time.perf_counter() > deadline:
+        return RefineResult(p.copy(), False, None, math.nan, math.nan, 0, "time limit reached before the refinement; kept the original path",
+                            {"time_limit_hit": True})  # fmt: skip
     geom = LinkGeometry.make(robot=robot, link_poses=link_poses, radius=radius)
     geom.bind(p[0])
     wq = geom.distance_scale()  # (D,) configuration -> metric
@@ -179,7 +182,11 @@ def refine_path(
     length0 = path_length(p, wq)
     # the input polyline's own cost, on the same kind of dense samples
     t_cost = int(np.clip(math.ceil(length0 / cost_sp) + 1, 16, 4096))
-    cost_before = float(_curve_costs(checker, geom, resample_polyline(p, t_cost)[0][None], cfg)[0])
+    try:
+        cost_before = float(_chunked_costs(checker, geom, resample_polyline(p, t_cost)[0][None], cfg, deadline)[0])
+    except _OutOfTime:
+        return RefineResult(p.copy(), False, None, math.nan, math.nan, 0, "time limit reached before the refinement; kept the original path",
+                            {"time_limit_hit": True})  # fmt: skip
     if length0 <= 0:
         return RefineResult(p.copy(), False, None, cost_before, cost_before, 0, "zero-length path")
     knot_spacing = float(cfg.knot_spacing) if cfg.knot_spacing is not None else a_min * 20.0 / 3.0

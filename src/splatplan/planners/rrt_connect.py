@@ -30,6 +30,10 @@ matrix per query over preallocated arrays (the trees stay small enough that this
 a KD-tree; the time it takes is reported in the time split). Everything random comes from one
 generator seeded by ``RRTConfig.seed``, so a run is deterministic for a seed.
 
+Budgets: ``time_limit_s`` (and the ``deadline`` of :meth:`RRTConnect.plan`), ``max_iters`` and
+``max_nodes`` are checked before each iteration (the two trees together may overshoot
+``max_nodes`` by one iteration's nodes).
+
 The result's ``info["time_split"]`` gives the seconds spent sampling (and steering), in nearest
 neighbours, in collision checks, in shortcutting and the rest (setup, bookkeeping).
 """
