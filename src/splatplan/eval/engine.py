@@ -41,12 +41,14 @@ of them) for the dask engine.
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import hashlib
 import json
 import math
 import os
 import pickle
+import signal
 import socket
 import sys
 import threading
@@ -393,17 +395,33 @@ def _dask_client(engine: EngineConfig):
         return client, None, {"kind": "dask", "workers": n, "scheduler": engine.scheduler}
     # the local cluster: loopback only, no dashboard, one thread per worker process; workers are
     # told to run Warp's CPU launches on one thread (no oversubscription of the cores)
-    cluster = LocalCluster(
-        host="127.0.0.1",
-        processes=True,
-        n_workers=int(engine.workers),
-        threads_per_worker=1,
-        dashboard_address=None,
-        silence_logs=50,  # CRITICAL only: keep the workers' chatter off the user's terminal
-        env={"SPLATPLAN_CPU_THREADS": "1", "SPLATPLAN_NO_TQDM": "1"},
-    )
+    with _workers_ignore_sigint():
+        cluster = LocalCluster(
+            host="127.0.0.1",
+            processes=True,
+            n_workers=int(engine.workers),
+            threads_per_worker=1,
+            dashboard_address=None,
+            silence_logs=50,  # CRITICAL only: keep the workers' chatter off the user's terminal
+            env={"SPLATPLAN_CPU_THREADS": "1", "SPLATPLAN_NO_TQDM": "1"},
+        )
     client = Client(cluster)
     return client, cluster, {"kind": "dask", "workers": int(engine.workers), "scheduler": cluster.scheduler_address}
+
+
+@contextlib.contextmanager
+def _workers_ignore_sigint():
+    """Spawn the local workers with SIGINT ignored (inherited through exec): Ctrl-C in the terminal
+    reaches the whole process group, and only this process should handle it (it then closes the
+    cluster) - not every worker with a traceback of its own. Main thread only; restored after."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    old = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, old)
 
 
 def _run_dask(todo: list[Task], fn, factory, engine: EngineConfig, record, bar, res: RunResult) -> None:
