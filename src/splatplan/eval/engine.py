@@ -17,9 +17,13 @@ Guarantees:
 * **Results stream to disk** as they finish: one JSON line per task in ``out_path`` (``key``,
   ``ok``, ``row`` or ``error``, ``seconds``, ``worker``), flushed per line. Large numpy arrays in a
   row (> :data:`ARRAY_INLINE_MAX` elements, e.g. a study's score per grid point) go to
-  ``<out_path>.arrays/*.npy`` and the line refers to them; ``RunResult.rows`` gives them back as arrays. **A rerun skips every
-  key already in the file** (resume); a torn last line (a crash mid-write) is dropped first. Failed
-  tasks are skipped too unless ``retry_failed``; the last record of a key wins when reading.
+  ``<out_path>.arrays/*.npy`` and the line refers to them; ``RunResult.rows`` gives them back as
+  arrays. **A rerun skips every key already in the file** (resume); a torn last line (a crash
+  mid-write) is dropped first. Failed tasks are skipped too unless ``retry_failed``; the last
+  record of a key wins when reading. Studies put a hash of their settings and of splatplan's
+  source (:func:`code_version`) into their keys, so stale results are never reused.
+* **Ctrl-C** is handled once, by the client (local workers are spawned with SIGINT ignored): the
+  cluster is closed, finished tasks stay in the file.
 * **A failing task is recorded** with its error (``ok: false``, ``error: "Type: message"``), never
   lost; a task whose worker died is rerun by Dask (its ``allowed-failures``, default 3, then
   recorded as failed with ``KilledWorker``).
@@ -29,7 +33,7 @@ Guarantees:
   then use one thread, see :func:`splatplan._warp.cpu_threads`) and Dask's defaults of one BLAS/OMP
   thread.
 
-Wiring a study::
+Wiring a study (see ``eval/conservatism.py``: ``make_context``, ``conservatism_task``)::
 
     tasks = [Task(f"{sig}/ns={ns:g}/seed={s}", {"n_sigma": ns, "seed": s}) for ...]
     res = run_tasks(tasks, solve_one, functools.partial(load_ctx, scene_path), engine, out / "x.results.jsonl")

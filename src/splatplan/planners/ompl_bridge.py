@@ -242,7 +242,7 @@ def plan_ompl(
         # evaluates it while solve() holds the GIL); Ctrl-C terminates it from our handler
         ptc = stop["ptc"] = ob.timedPlannerTerminationCondition(float(budget))
         try:
-            with _sigint_sets(stop, ptc):
+            with _SigintTerminates(stop, ptc):
                 out = what(ptc)
         finally:
             stop["ptc"] = None
@@ -305,7 +305,7 @@ def plan_ompl(
     )
 
 
-class _sigint_sets:
+class _SigintTerminates:
     """While OMPL runs (GIL held, C++ frames on the stack): SIGINT sets ``stop["flag"]`` and
     terminates ``ptc`` instead of raising inside a callback; the caller raises KeyboardInterrupt
     afterwards (main thread only). Python runs the handler at the main thread's next callback (for
