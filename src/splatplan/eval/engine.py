@@ -429,11 +429,11 @@ def _workers_ignore_sigint():
 
 
 def _run_dask(todo: list[Task], fn, factory, engine: EngineConfig, record, bar, res: RunResult) -> None:
+    t0 = time.perf_counter()
+    client, cluster, info = _dask_client(engine)  # names the extra when distributed is missing
     from distributed import as_completed
     from distributed.scheduler import KilledWorker
 
-    t0 = time.perf_counter()
-    client, cluster, info = _dask_client(engine)
     res.engine = info
     res.cluster_start_s = time.perf_counter() - t0
     try:
