@@ -162,4 +162,6 @@ def test_missing_distributed_extra_says_how_to_install(monkeypatch):
 
     monkeypatch.setitem(sys.modules, "distributed", None)  # import -> ImportError, as without the extra
     with pytest.raises(SplatplanError, match=r"pip install 'splatplan\[distributed\]'"):
+        engine_from_flags(workers=2)  # the CLI's check, before any work
+    with pytest.raises(SplatplanError, match=r"pip install 'splatplan\[distributed\]'"):
         run_tasks(tasks(1), toy, functools.partial(make_ctx, 1.0), {"kind": "dask", "workers": 2}, None, progress=False)

@@ -69,6 +69,9 @@ from ._common import progress as _progress
 __all__ = ["EngineConfig", "RunResult", "Task", "code_version", "engine_from_flags", "load_results", "run_tasks"]
 
 
+DISTRIBUTED_HINT = "--workers / --scheduler need the 'distributed' extra: pip install 'splatplan[distributed]'"
+
+
 @dataclass(frozen=True)
 class Task:
     """One job: a stable ``key`` (unique in its run; the resume key) and a small picklable ``spec``
@@ -98,6 +101,10 @@ class EngineConfig:
             return self
         if self.scheduler is None and self.workers is None:
             raise SplatplanError("a dask engine needs workers (a local cluster) or a scheduler address")
+        try:  # before any work or output
+            import distributed  # noqa: F401
+        except ImportError:
+            raise SplatplanError(DISTRIBUTED_HINT) from None
         if self.workers is not None and (isinstance(self.workers, bool) or not isinstance(self.workers, int) or self.workers < 1):
             raise SplatplanError(f"--workers must be an integer >= 1, got {self.workers!r}")
         if self.scheduler is not None:
@@ -384,7 +391,7 @@ def _dask_client(engine: EngineConfig):
     try:
         from distributed import Client, LocalCluster
     except ImportError:
-        raise SplatplanError("the dask engine needs the 'distributed' extra: pip install 'splatplan[distributed]'") from None
+        raise SplatplanError(DISTRIBUTED_HINT) from None
     if engine.scheduler is not None:
         host, port = _parse_address(engine.scheduler)
         try:  # a plain TCP probe first: Client's own timeout message is long and multi-line
