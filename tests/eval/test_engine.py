@@ -155,3 +155,13 @@ def test_existing_scheduler_by_address(tmp_path):
         res = run_tasks(tasks(3), toy, factory, engine_from_flags(scheduler=cl.scheduler_address), tmp_path / "e.jsonl", progress=False)
     assert res.engine == {"kind": "dask", "workers": 1, "scheduler": cl.scheduler_address}
     assert values(res) == values(run_tasks(tasks(3), toy, factory, progress=False))
+
+
+def test_missing_distributed_extra_says_how_to_install(monkeypatch):
+    import sys
+
+    monkeypatch.setitem(sys.modules, "distributed", None)  # import -> ImportError, as without the extra
+    with pytest.raises(SplatplanError, match=r"pip install 'splatplan\[distributed\]'"):
+        engine_from_flags(workers=2)  # the CLI's check, before any work
+    with pytest.raises(SplatplanError, match=r"pip install 'splatplan\[distributed\]'"):
+        run_tasks(tasks(1), toy, functools.partial(make_ctx, 1.0), {"kind": "dask", "workers": 2}, None, progress=False)

@@ -17,9 +17,13 @@ Guarantees:
 * **Results stream to disk** as they finish: one JSON line per task in ``out_path`` (``key``,
   ``ok``, ``row`` or ``error``, ``seconds``, ``worker``), flushed per line. Large numpy arrays in a
   row (> :data:`ARRAY_INLINE_MAX` elements, e.g. a study's score per grid point) go to
-  ``<out_path>.arrays/*.npy`` and the line refers to them; ``RunResult.rows`` gives them back as arrays. **A rerun skips every
-  key already in the file** (resume); a torn last line (a crash mid-write) is dropped first. Failed
-  tasks are skipped too unless ``retry_failed``; the last record of a key wins when reading.
+  ``<out_path>.arrays/*.npy`` and the line refers to them; ``RunResult.rows`` gives them back as
+  arrays. **A rerun skips every key already in the file** (resume); a torn last line (a crash
+  mid-write) is dropped first. Failed tasks are skipped too unless ``retry_failed``; the last
+  record of a key wins when reading. Studies put a hash of their settings and of splatplan's
+  source (:func:`code_version`) into their keys, so stale results are never reused.
+* **Ctrl-C** is handled once, by the client (local workers are spawned with SIGINT ignored): the
+  cluster is closed, finished tasks stay in the file.
 * **A failing task is recorded** with its error (``ok: false``, ``error: "Type: message"``), never
   lost; a task whose worker died is rerun by Dask (its ``allowed-failures``, default 3, then
   recorded as failed with ``KilledWorker``).
@@ -29,7 +33,7 @@ Guarantees:
   then use one thread, see :func:`splatplan._warp.cpu_threads`) and Dask's defaults of one BLAS/OMP
   thread.
 
-Wiring a study::
+Wiring a study (see ``eval/conservatism.py``: ``make_context``, ``conservatism_task``)::
 
     tasks = [Task(f"{sig}/ns={ns:g}/seed={s}", {"n_sigma": ns, "seed": s}) for ...]
     res = run_tasks(tasks, solve_one, functools.partial(load_ctx, scene_path), engine, out / "x.results.jsonl")
@@ -41,12 +45,14 @@ of them) for the dask engine.
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import hashlib
 import json
 import math
 import os
 import pickle
+import signal
 import socket
 import sys
 import threading
@@ -61,6 +67,9 @@ from ..errors import SplatplanError
 from ._common import progress as _progress
 
 __all__ = ["EngineConfig", "RunResult", "Task", "code_version", "engine_from_flags", "load_results", "run_tasks"]
+
+
+DISTRIBUTED_HINT = "--workers / --scheduler need the 'distributed' extra: pip install 'splatplan[distributed]'"
 
 
 @dataclass(frozen=True)
@@ -92,6 +101,10 @@ class EngineConfig:
             return self
         if self.scheduler is None and self.workers is None:
             raise SplatplanError("a dask engine needs workers (a local cluster) or a scheduler address")
+        try:  # before any work or output
+            import distributed  # noqa: F401
+        except ImportError:
+            raise SplatplanError(DISTRIBUTED_HINT) from None
         if self.workers is not None and (isinstance(self.workers, bool) or not isinstance(self.workers, int) or self.workers < 1):
             raise SplatplanError(f"--workers must be an integer >= 1, got {self.workers!r}")
         if self.scheduler is not None:
@@ -378,7 +391,7 @@ def _dask_client(engine: EngineConfig):
     try:
         from distributed import Client, LocalCluster
     except ImportError:
-        raise SplatplanError("the dask engine needs the 'distributed' extra: pip install 'splatplan[distributed]'") from None
+        raise SplatplanError(DISTRIBUTED_HINT) from None
     if engine.scheduler is not None:
         host, port = _parse_address(engine.scheduler)
         try:  # a plain TCP probe first: Client's own timeout message is long and multi-line
@@ -393,25 +406,41 @@ def _dask_client(engine: EngineConfig):
         return client, None, {"kind": "dask", "workers": n, "scheduler": engine.scheduler}
     # the local cluster: loopback only, no dashboard, one thread per worker process; workers are
     # told to run Warp's CPU launches on one thread (no oversubscription of the cores)
-    cluster = LocalCluster(
-        host="127.0.0.1",
-        processes=True,
-        n_workers=int(engine.workers),
-        threads_per_worker=1,
-        dashboard_address=None,
-        silence_logs=50,  # CRITICAL only: keep the workers' chatter off the user's terminal
-        env={"SPLATPLAN_CPU_THREADS": "1", "SPLATPLAN_NO_TQDM": "1"},
-    )
+    with _workers_ignore_sigint():
+        cluster = LocalCluster(
+            host="127.0.0.1",
+            processes=True,
+            n_workers=int(engine.workers),
+            threads_per_worker=1,
+            dashboard_address=None,
+            silence_logs=50,  # CRITICAL only: keep the workers' chatter off the user's terminal
+            env={"SPLATPLAN_CPU_THREADS": "1", "SPLATPLAN_NO_TQDM": "1"},
+        )
     client = Client(cluster)
     return client, cluster, {"kind": "dask", "workers": int(engine.workers), "scheduler": cluster.scheduler_address}
 
 
+@contextlib.contextmanager
+def _workers_ignore_sigint():
+    """Spawn the local workers with SIGINT ignored (inherited through exec): Ctrl-C in the terminal
+    reaches the whole process group, and only this process should handle it (it then closes the
+    cluster) - not every worker with a traceback of its own. Main thread only; restored after."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    old = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, old)
+
+
 def _run_dask(todo: list[Task], fn, factory, engine: EngineConfig, record, bar, res: RunResult) -> None:
+    t0 = time.perf_counter()
+    client, cluster, info = _dask_client(engine)  # names the extra when distributed is missing
     from distributed import as_completed
     from distributed.scheduler import KilledWorker
 
-    t0 = time.perf_counter()
-    client, cluster, info = _dask_client(engine)
     res.engine = info
     res.cluster_start_s = time.perf_counter() - t0
     try:

@@ -139,7 +139,8 @@ def plan_ompl(
 
     Returns:
         :class:`~splatplan.planners.rrt.PlanResult`: ``success`` = an exact solution, ``path`` (P, D)
-        the simplified path, ``path_rrt`` the planner's raw path, ``info``: ``planner``,
+        the simplified path, ``path_rrt`` the planner's raw path, ``n_nodes`` the vertices of the
+        planner's graph (no tree arrays: ``tree_nodes`` is empty), ``info``: ``planner``,
         ``ompl_status``, ``solve_s``, ``simplify_s``, ``n_queries``, ``edge_resolution``, ``settings``.
 
     Raises:
@@ -241,7 +242,7 @@ def plan_ompl(
         # evaluates it while solve() holds the GIL); Ctrl-C terminates it from our handler
         ptc = stop["ptc"] = ob.timedPlannerTerminationCondition(float(budget))
         try:
-            with _sigint_sets(stop, ptc):
+            with _SigintTerminates(stop, ptc):
                 out = what(ptc)
         finally:
             stop["ptc"] = None
@@ -255,6 +256,10 @@ def plan_ompl(
     if stop["flag"]:
         raise KeyboardInterrupt
     exact = bool(ss.haveExactSolutionPath())
+    data = ob.PlannerData(si)
+    ss.getPlannerData(data)  # the planner's graph: its size is the run's node count
+    n_nodes = int(data.numVertices())
+    del data
 
     def path_now() -> np.ndarray:
         p = ss.getSolutionPath()
@@ -290,7 +295,7 @@ def plan_ompl(
         path=path,
         length=path_length(path, wfull) if exact else math.inf,
         time_s=time.perf_counter() - t0,
-        n_nodes=0,
+        n_nodes=n_nodes,
         n_iters=0,
         tree_nodes=np.zeros((0, start.size)),
         tree_parents=np.zeros(0, dtype=np.int64),
@@ -300,7 +305,7 @@ def plan_ompl(
     )
 
 
-class _sigint_sets:
+class _SigintTerminates:
     """While OMPL runs (GIL held, C++ frames on the stack): SIGINT sets ``stop["flag"]`` and
     terminates ``ptc`` instead of raising inside a callback; the caller raises KeyboardInterrupt
     afterwards (main thread only). Python runs the handler at the main thread's next callback (for
