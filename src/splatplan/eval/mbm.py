@@ -89,7 +89,7 @@ class MBMConfig:
     n_splats: int = 100_000
     #: planning time limit per problem (s)
     time_limit: float = 10.0
-    #: robot URDF; none = <repo>/../shared/data/mbm/panda/panda.urdf
+    #: robot URDF (or a built-in name, e.g. panda); none = <repo>/../shared/data/mbm/panda/panda.urdf
     robot: str | None = None
     #: planning margin (m) added around every ellipsoid (Robot.inflated); none = derived per scene
     #: from the splat spacing (see margin_spacing_factor); 0 = plan with the robot's own model
@@ -133,7 +133,12 @@ class MBMConfig:
             raise SplatplanError(f"MBM problems folder {d} not found: pass --problems DIR (holding <family>_panda/sceneNNNN.yaml + requestNNNN.yaml)")
         return d
 
-    def robot_path(self) -> Path:
+    def robot_path(self) -> Path | str:
+        """The URDF path (or a built-in robot name such as "panda")."""
+        from ..robots import KNOWN
+
+        if self.robot in KNOWN:
+            return self.robot
         p = Path(self.robot) if self.robot else DEFAULT_MBM / "panda" / "panda.urdf"
         if not p.is_file():
             raise SplatplanError(f"robot URDF {p} not found: pass --robot URDF")
