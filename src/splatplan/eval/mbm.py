@@ -327,13 +327,18 @@ def solve_problem(task: MBMTask, ctx: MBMContext) -> dict:
         row.update(solved=False, time_s=None, n_nodes=None, path_length=None, path=None, min_exact_clearance_m=None, message="")
         if row["start_free"] and row["goal_free"]:
             res_p = _plan(checker, q0, q1, plan_robot, cfg.time_limit, cfg.seed + task.index, res)
-            row.update(solved=bool(res_p.success), time_s=float(res_p.time_s), n_nodes=int(res_p.n_nodes), message=str(res_p.message))
+            row.update(solved=bool(res_p.success), time_s=float(res_p.time_s), n_nodes=int(res_p.n_nodes), message=str(getattr(res_p, "message", "")))
             times = (res_p.info or {}).get("time_split") or (res_p.info or {}).get("times")
             if times is not None:
                 row["time_split"] = {k: float(v) for k, v in dict(times).items()}
             if res_p.success:
                 path = np.asarray(res_p.path, dtype=np.float64)
-                row.update(path_length=float(res_p.length), path=path.round(6).tolist())
+                length = getattr(res_p, "length", None)
+                if length is None:
+                    from ..planners.rrt import path_length
+
+                    length = path_length(path, plan_robot.motion_bound)
+                row.update(path_length=float(length), path=path.round(6).tolist())
                 row["min_exact_clearance_m"] = float(exact_clearance(scene, robot, dense_path(robot, path)).min())
         else:
             row["message"] = "endpoint in collision for the planning model against the splats"
