@@ -90,3 +90,37 @@ def test_summarise_counts():
     s = summarise([row, {**row, "goal_free": False, "solved": False}])
     assert s["valid_endpoints"] == 2 and s["free_endpoints"] == 3 and s["problems_both_free"] == 1
     assert s["solved"] == 1 and s["negative_clearance_paths"] == 1 and s["worst_exact_clearance_m"] == -0.001
+
+
+SCENE_YAML = """world:
+  collision_objects:
+    - id: table
+      primitives: [{type: box, dimensions: [1.0, 1.0, 0.04]}]
+      primitive_poses: [{position: [0.6, 0.0, -0.3], orientation: [0, 0, 0, 1]}]
+    - id: can
+      primitives: [{type: cylinder, dimensions: [0.12, 0.03]}]
+      primitive_poses: [{position: [0.6, 0.3, -0.22], orientation: [0, 0, 0, 1]}]
+"""
+START = "start_state: {joint_state: {name: [panda_joint1, panda_joint2, panda_joint3, panda_joint4, panda_joint5, panda_joint6, panda_joint7, panda_finger_joint1], position: [0, -0.785, 0, -2.356, 0, 1.571, 0.785, 0.04]}}\n"
+
+
+@pytest.mark.parametrize(
+    "goal, msg",
+    [
+        ("[0, -0.785, 0, 0.5, 0, 1.571, 0.785]", "panda_joint4 = 0.5, 0.5698 above its upper limit -0.0698"),
+        ("[0, -0.785, 0, -2.356, 0, 1.571, 0.785, 0.1]", "names joint(s) 'elbow_extra'"),
+    ],
+)
+def test_eval_mbm_bad_requests_exit_2(tmp_path, capsys, goal, msg):
+    """A request that does not fit the robot stops the benchmark with one line (exit 2)."""
+    fam = tmp_path / "problems" / "toy_panda"
+    fam.mkdir(parents=True)
+    (fam / "scene0001.yaml").write_text(SCENE_YAML)
+    vals = json.loads(goal)
+    names = [f"panda_joint{i}" for i in range(1, 8)] + (["elbow_extra"] if len(vals) == 8 else [])
+    cons = ", ".join(f"{{joint_name: {n}, position: {v}}}" for n, v in zip(names, vals))
+    (fam / "request0001.yaml").write_text(START + f"goal_constraints: [{{joint_constraints: [{cons}]}}]\n")
+    rc = main(["eval", "mbm", "--problems", str(tmp_path / "problems"), "--families", "toy", "--robot", "panda", "--n-splats", "5000",
+               "--out", str(tmp_path / "o")])  # fmt: skip
+    err = capsys.readouterr().err
+    assert rc == 2 and msg in err and err.count("\n") == 1, err

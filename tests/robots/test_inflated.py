@@ -7,6 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from splatplan.errors import SplatplanError
 from splatplan.robots import load_robot
 from splatplan.robots.robot import inflate_semi_axes
 
@@ -52,5 +53,5 @@ def test_robot_inflated_copy():
     c1, q1, _ = r.ellipsoids(q)
     c2, q2, _ = r2.ellipsoids(q)
     np.testing.assert_array_equal(c1, c2)
-    with pytest.raises(Exception):
+    with pytest.raises(SplatplanError, match="margin"):
         r.inflated(-1.0)

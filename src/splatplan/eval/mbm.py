@@ -46,7 +46,7 @@ import inspect
 import json
 import math
 import time
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -89,7 +89,7 @@ class MBMConfig:
     n_splats: int = 100_000
     #: planning time limit per problem (s)
     time_limit: float = 10.0
-    #: robot URDF; none = <repo>/../shared/data/mbm/panda/panda.urdf
+    #: robot URDF (or a built-in name, e.g. panda); none = <repo>/../shared/data/mbm/panda/panda.urdf
     robot: str | None = None
     #: planning margin (m) added around every ellipsoid (Robot.inflated); none = derived per scene
     #: from the splat spacing (see margin_spacing_factor); 0 = plan with the robot's own model
@@ -133,7 +133,12 @@ class MBMConfig:
             raise SplatplanError(f"MBM problems folder {d} not found: pass --problems DIR (holding <family>_panda/sceneNNNN.yaml + requestNNNN.yaml)")
         return d
 
-    def robot_path(self) -> Path:
+    def robot_path(self) -> Path | str:
+        """The URDF path (or a built-in robot name such as "panda")."""
+        from ..robots import KNOWN
+
+        if self.robot in KNOWN:
+            return self.robot
         p = Path(self.robot) if self.robot else DEFAULT_MBM / "panda" / "panda.urdf"
         if not p.is_file():
             raise SplatplanError(f"robot URDF {p} not found: pass --robot URDF")
@@ -322,13 +327,18 @@ def solve_problem(task: MBMTask, ctx: MBMContext) -> dict:
         row.update(solved=False, time_s=None, n_nodes=None, path_length=None, path=None, min_exact_clearance_m=None, message="")
         if row["start_free"] and row["goal_free"]:
             res_p = _plan(checker, q0, q1, plan_robot, cfg.time_limit, cfg.seed + task.index, res)
-            row.update(solved=bool(res_p.success), time_s=float(res_p.time_s), n_nodes=int(res_p.n_nodes), message=str(res_p.message))
+            row.update(solved=bool(res_p.success), time_s=float(res_p.time_s), n_nodes=int(res_p.n_nodes), message=str(getattr(res_p, "message", "")))
             times = (res_p.info or {}).get("time_split") or (res_p.info or {}).get("times")
             if times is not None:
                 row["time_split"] = {k: float(v) for k, v in dict(times).items()}
             if res_p.success:
                 path = np.asarray(res_p.path, dtype=np.float64)
-                row.update(path_length=float(res_p.length), path=path.round(6).tolist())
+                length = getattr(res_p, "length", None)
+                if length is None:
+                    from ..planners.rrt import path_length
+
+                    length = path_length(path, plan_robot.motion_bound)
+                row.update(path_length=float(length), path=path.round(6).tolist())
                 row["min_exact_clearance_m"] = float(exact_clearance(scene, robot, dense_path(robot, path)).min())
         else:
             row["message"] = "endpoint in collision for the planning model against the splats"

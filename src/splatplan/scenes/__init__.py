@@ -4,7 +4,8 @@ from . import transforms
 from .filters import FilterReport, filter_floaters
 from .load import SCENE_EXTENSIONS, load_scene, save_scene
 from .splats import SH_C0, Splats, quat_to_rotmat, rotmat_to_quat
-from .primitives import AnalyticScene, SurfaceSplatConfig, splats_from_boxes
+from .moveit import load_moveit_request, load_moveit_scene
+from .primitives import AnalyticScene, SurfaceSplatConfig, splats_from_boxes, splats_from_scene
 from .stonehenge import StonehengeLayout, build_stonehenge, ground_truth_path, plot_top_view, stonehenge_layout, write_stonehenge
 
 __all__ = [
@@ -15,6 +16,9 @@ __all__ = [
     "ground_truth_path",
     "plot_top_view",
     "splats_from_boxes",
+    "splats_from_scene",
+    "load_moveit_request",
+    "load_moveit_scene",
     "stonehenge_layout",
     "write_stonehenge",
     "SCENE_EXTENSIONS",
