@@ -254,6 +254,8 @@ _TEMP = re.compile(r"^\.(splatplan-|.+\.[A-Za-z0-9_]{8}\b)")
 def check_outcome(argv, rc, out, err, interrupted, secs, d: Path, hashes: dict) -> list[str]:
     """Problems with one run (empty = pass)."""
     problems = []
+    if interrupted:  # the budget's interrupt landing in a GC callback is printed and swallowed by Python itself
+        err = re.sub(r"Exception ignored in: [^\n]*\n(?:.*?\n)*?KeyboardInterrupt: ?\n", "", err)
     if "Traceback" in err:
         problems.append("traceback:\n" + err[-2000:])
     lines = [ln for ln in err.splitlines() if ln.strip()]
