@@ -112,6 +112,19 @@ def test_oom_and_hang_name_the_flag(files, capsys):
     assert rc == 2 and "--spacing" in err
     rc, _, err = run_main(["robot", "fit", "panda", "--out", str(files / "e.yaml"), "--per-link", "100000"], capsys)
     assert rc == 2 and "--per-link" in err
+    # found beyond the list: sizes that grow memory without bound
+    rc, _, err = run_main(PANDA + ["--out", str(files / "m"), "--arm-n-samples", "1000000000"], capsys)
+    assert rc == 2 and "n_samples" in err and not (files / "m").exists()
+    rc, _, err = run_main(["view", BANANA, "--field-res", "10000000", "--device", "cpu"], capsys)
+    assert rc == 2 and "--field-res" in err
+    rc, _, err = run_main(["view", BANANA, "--n-sigma", "1e30"], capsys)  # crashed the GUI slider (range 0..3)
+    assert rc == 2 and "--n-sigma" in err
+    # a goal 1e30 away: the edge checks of the path are guarded (was: numpy "array is too big")
+    from splatplan.errors import SplatplanError
+    from splatplan.planners.rrt import edge_samples
+
+    with pytest.raises(SplatplanError, match="collision checks along 1 edge"):
+        edge_samples(np.zeros((1, 3)), np.full((1, 3), 1e30), np.array([1e30]), 0.01)
 
 
 def test_library_gets_the_same_message():

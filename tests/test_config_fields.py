@@ -103,3 +103,30 @@ def test_cli_flag_and_library_give_the_same_message(capsys):
     assert err == "splatplan: error: argument --arm-dt: must be > 0, got 0.0 (ArmConfig.dt)"
     with pytest.raises(SplatplanError, match=r"^ArmConfig\.dt must be > 0, got 0\.0$"):
         ArmConfig(dt=0.0).validate()
+
+
+def test_every_plain_flag_is_read():
+    """Every non-config flag of every command is read as ``args.<dest>`` by the CLI modules."""
+    import argparse
+
+    from splatplan.cli import build_parser
+
+    cli_src = "\n".join(p.read_text() for p in (SRC / "cli").glob("*.py"))
+
+    def leaves(p, path=()):
+        subs = [a for a in p._actions if isinstance(a, argparse._SubParsersAction)]
+        if not subs:
+            yield path, p
+            return
+        for a in subs:
+            for name, sp in a.choices.items():
+                yield from leaves(sp, path + (name,))
+
+    unread = []
+    for path, p in leaves(build_parser()):
+        for a in p._actions:
+            if isinstance(a, (argparse._HelpAction, argparse._VersionAction)) or a.dest.startswith("cfg_"):
+                continue  # config flags: test_every_field_is_read
+            if not re.search(rf"args\.{a.dest}\b|getattr\(args, [\"']{a.dest}[\"']", cli_src):
+                unread.append(f"{' '.join(path)} {a.option_strings or a.dest}")
+    assert not unread, f"flags nobody reads: {unread}"

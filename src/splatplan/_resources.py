@@ -21,7 +21,11 @@ import os
 
 from .errors import SplatplanError
 
-__all__ = ["ResourceError", "memory_limit", "require_bytes", "require_work"]
+__all__ = ["ROLLOUT_BYTES", "ResourceError", "memory_limit", "require_bytes", "require_rollouts", "require_work"]
+
+#: bytes per (sample, step) of an MPPI batch: states, controls, FK of every ellipsoid, metric
+#: outputs and cost terms in float64 (an estimate with headroom; the default batches use ~1-10 MB)
+ROLLOUT_BYTES = 4096
 
 
 class ResourceError(SplatplanError):
@@ -71,3 +75,8 @@ def require_work(n_units: float, max_units: float, what: str, lower: str) -> Non
     ellipsoids x mesh vertices) exceeds ``max_units``: it would run for hours, not fail."""
     if not (math.isfinite(n_units) and n_units <= max_units):
         raise ResourceError(f"{what} is too large ({n_units:.3g} units of work, limit {max_units:.3g}); lower {lower}")
+
+
+def require_rollouts(n_samples: int, horizon: int, what: str) -> None:
+    """The resource guard of an MPPI batch (K samples x T steps), for configs' ``validate()``."""
+    require_bytes(float(n_samples) * float(horizon) * ROLLOUT_BYTES, f"{what}: {n_samples:,} samples x {horizon:,} steps of rollouts", "n_samples or horizon")

@@ -1,9 +1,16 @@
 """Command-line interface. Thin: parse, call the library, print, exit codes.
 
 Exit codes: 0 success, 1 no result within the budget (e.g. ``plan`` found no path), 2 bad input
-or impossible request (one-line message, no traceback), 130 interrupted (Ctrl-C), 141 stdout closed
-early (``| head``; quiet), 143 terminated (SIGTERM). Output files are written atomically, with the umask's permissions; an interrupted
-command leaves no partial output or temporary file behind. ``--device`` means the same in every
+or impossible request (one-line message, no traceback), 130 interrupted (Ctrl-C), 141 stdout
+closed early (``| head``; quiet), 143 terminated (SIGTERM). Output files are written atomically,
+with the umask's permissions; an interrupted command leaves no partial output or temporary file
+behind.
+
+Flags: config fields become flags (``_common.add_config_args``) and carry the fields' declared
+ranges (:mod:`splatplan._config`); plain flags take ``type=`` validators from ``_common``
+(``int_arg``, ``float_arg``, ``SEED``, ``POSITIVE_INT``, ``PORT``). Every usage error is one line
+(``_common.Parser``); ``main`` returns 2 for it. ``tests/test_cli_fuzz.py`` fuzzes every command and
+flag found in this parser, so a new command is covered as soon as it is registered here. ``--device`` means the same in every
 subcommand (``auto`` = CUDA when present, else CPU) and is checked before any work starts.
 
 One module per group of subcommands; each exposes ``register(sub, eval_sub)`` where ``sub`` is

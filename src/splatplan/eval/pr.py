@@ -379,7 +379,7 @@ def culled_collision_scores(
     clamped = np.ones(len(q), bool) if clamp is not None else np.zeros(len(q), bool)
     origin = q.min(0)
     tkey = np.floor((q - origin) / tile).astype(np.int64)  # (Q, 3) tile index
-    per_block = max(1, int(round(block / tile)))
+    per_block = max(1, int(min(round(block / tile), 2**40)))  # a block larger than the domain is one block (no int64 overflow)
     bkey = tkey // per_block
     order = np.lexsort((tkey[:, 2], tkey[:, 1], tkey[:, 0], bkey[:, 2], bkey[:, 1], bkey[:, 0]))
     tk, bk = tkey[order], bkey[order]

@@ -32,6 +32,7 @@ from typing import Callable
 import numpy as np
 
 from .._config import bounded, check_config
+from .._resources import require_rollouts
 from ..errors import SplatplanError
 from .bspline import UniformBSpline
 from .costs import CollisionCost, ControlEffortCost, Cost, Rollout, StateCost, TerminalCost, _geometry, reduce_time, total_cost
@@ -107,6 +108,7 @@ class MPPIConfig:
 
     def validate(self) -> "MPPIConfig":
         check_config(self)  # each field's declared range (splatplan._config); cross-field rules below
+        require_rollouts(self.n_samples, self.horizon, "MPPIConfig")
         if self.n_samples < 2:
             raise SplatplanError(f"MPPIConfig.n_samples must be >= 2, got {self.n_samples}")
         if self.horizon < 2:

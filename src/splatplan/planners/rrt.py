@@ -55,6 +55,7 @@ import numpy as np
 from scipy.spatial.distance import cdist
 
 from .._config import bounded, check_config
+from .._resources import require_bytes
 from ..errors import PlanningError, SplatplanError
 from .robot_links import EDGE_FRACTION, LinkGeometry, LinkPoses
 
@@ -270,7 +271,11 @@ def edge_samples(a: np.ndarray, b: np.ndarray, motion: np.ndarray, resolution: f
         points (P, D) = a_e + (k / n_e)(b_e - a_e) for k = 1..n_e, edge index (P,), n (E,) with
         ``n_e = max(1, ceil(motion_e / resolution))``.
     """
-    n = np.maximum(1, np.ceil(np.asarray(motion, dtype=np.float64) / resolution - 1e-9)).astype(np.int64)  # (E,)
+    n_float = np.maximum(1.0, np.ceil(np.asarray(motion, dtype=np.float64) / resolution - 1e-9))  # (E,)
+    # resource guard: a huge edge (a goal 1e30 away) or a tiny resolution would ask for more points than memory holds
+    require_bytes(float(n_float.sum()) * (a.shape[-1] + 2) * 8 * 4, f"{float(n_float.sum()):.3g} collision checks along {len(a)} edge(s)",
+                  "the edge length (or coarsen the edge resolution)")
+    n = n_float.astype(np.int64)
     idx = np.repeat(np.arange(len(a)), n)  # (P,)
     first = np.cumsum(n) - n  # (E,)
     k = np.arange(idx.size) - first[idx] + 1  # 1..n_e

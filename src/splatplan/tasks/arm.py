@@ -30,6 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._config import bounded, check_config
+from .._resources import require_rollouts
 from ..errors import SplatplanError
 from ._common import TaskResult, TaskScene, check_start, load_task_scene, moving_clearance, trajectory_clearance
 from ._ik import rotation_error, solve_ik
@@ -107,6 +108,7 @@ class ArmConfig:
     def validate(self) -> "ArmConfig":
         """Check every field's declared range (:mod:`splatplan._config`) and the cross-field rules; returns self."""
         check_config(self)
+        require_rollouts(self.n_samples, self.horizon, "ArmConfig")
         if self.n_knots > self.horizon:
             raise SplatplanError(f"ArmConfig.n_knots must be <= horizon (knots of a spline over the horizon's steps), got n_knots={self.n_knots}, horizon={self.horizon}")
         return self

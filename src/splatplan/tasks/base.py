@@ -75,6 +75,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._config import bounded, check_config
+from .._resources import require_rollouts
 from ..errors import SplatplanError
 from ._common import TaskResult, base_terrain, check_start, load_task_scene, trajectory_clearance
 from .memory import ObstacleMemory, _geodesic_field_reference, _line_of_sight_reference, geodesic_field, line_of_sight  # noqa: F401  (re-exported)
@@ -210,6 +211,7 @@ class BaseConfig:
     def validate(self) -> "BaseConfig":
         """Check every field's declared range (:mod:`splatplan._config`) and the cross-field rules; returns self."""
         check_config(self)
+        require_rollouts(self.n_samples, self.horizon, "BaseConfig")
         if self.n_knots > self.horizon:
             raise SplatplanError(f"BaseConfig.n_knots must be <= horizon (knots of a spline over the horizon's steps), got n_knots={self.n_knots}, horizon={self.horizon}")
         return self

@@ -35,6 +35,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .._config import bounded, check_config
+from .._resources import require_rollouts
 from ..errors import SplatplanError
 from ._common import TaskScene, load_filtered_scene
 
@@ -133,6 +134,7 @@ class NavigateConfig:
     def validate(self) -> "NavigateConfig":
         """Check every field's declared range (:mod:`splatplan._config`) and the cross-field rules; returns self."""
         check_config(self)
+        require_rollouts(self.n_samples, self.horizon, "NavigateConfig")
         if self.n_knots > self.horizon:
             raise SplatplanError(f"NavigateConfig.n_knots must be <= horizon (knots of a spline over the horizon's steps), got n_knots={self.n_knots}, horizon={self.horizon}")
         if not all(lo < hi for lo, hi in zip(self.box_lo, self.box_hi)):

@@ -54,6 +54,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .._config import bounded, check_config
+from .._resources import require_rollouts
 from ..errors import SplatplanError
 from ._common import TaskScene, check_start, load_task_scene, moving_clearance, trajectory_clearance
 
@@ -185,6 +186,7 @@ class ReachConfig:
     def validate(self) -> "ReachConfig":
         """Check every field's declared range (:mod:`splatplan._config`) and the cross-field rules; returns self."""
         check_config(self)
+        require_rollouts(self.n_samples, self.horizon, "ReachConfig")
         if self.n_knots > self.horizon:
             raise SplatplanError(f"ReachConfig.n_knots must be <= horizon (knots of a spline over the horizon's steps), got n_knots={self.n_knots}, horizon={self.horizon}")
         if self.refine_sigma_min > self.refine_sigma:
