@@ -134,10 +134,11 @@ def robot_at(spec: str, base_pose: np.ndarray | None, robot=None):
     if base_pose is None:
         return robot
     name = str(spec)
-    if robot.name == "go2" or robot.dof == 3 and name == "go2":
+    if robot.name == "go2" or name == "go2":
         pose = base_pose @ robot.base_pose
         out = load_robot("go2", base_pose=pose)
         out.info.update({k: v for k, v in robot.info.items() if k not in out.info})
+        out.info["standing_height_m"] = float(pose[2, 3])
         return out
     return load_robot(spec, base_pose=base_pose)
 

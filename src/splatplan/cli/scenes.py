@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import SplatplanError
-from ._common import _Unset, _load, add_config_args, allow_negative_values, atomic_dir, config_from_args, move_into, parse_vec3
+from ._common import _Unset, _load, add_config_args, atomic_dir, config_from_args, move_into, parse_vec3
 
 
 def cmd_info(args) -> int:
@@ -172,7 +172,6 @@ def register(sub, eval_sub) -> None:
     s = sub.add_parser("scene", help="write a built-in scene with its ground truth, or align a capture (scene align IN --out OUT)",
                        description="`scene NAME --out PATH.ply` writes a built-in scene; `scene align IN --out OUT.ply` puts a capture in the "
                        "robot's world (z up, floor at z = 0; the transform goes to OUT.align.json and is printed).")  # fmt: skip
-    allow_negative_values(s)
     s.add_argument("name", metavar="NAME", help="built-in scene name: stonehenge | tabletop | apartment, or 'align'")
     s.add_argument("input", metavar="IN", nargs="?", default=None, help="align: the input splat file")
     s.add_argument("--out", required=True, help="PATH.ply (built-in: ground truth goes to PATH.gt.json; align: the transform to PATH.align.json)")
