@@ -65,8 +65,8 @@ def cmd_info(args) -> int:
 
 def cmd_align(args) -> int:
     """`splatplan scene align IN --out OUT`: write the aligned scene and its transform sidecar."""
-    from ..scenes.align import AlignConfig, align_scene
-    from ..scenes.load import SCENE_EXTENSIONS, save_scene
+    from ..scenes.align import AlignConfig, align_scene, default_up_hint
+    from ..scenes.load import save_scene
 
     if args.input is None:
         raise SplatplanError("scene align needs an input: splatplan scene align IN --out OUT")
@@ -79,8 +79,6 @@ def cmd_align(args) -> int:
         raise SplatplanError(f"output folder {out.parent} does not exist")
     if Path(args.input).resolve() == out.resolve():
         raise SplatplanError("--out must differ from the input (the input is never overwritten)")
-    from ..scenes.align import default_up_hint
-
     cfg = config_from_args(args, AlignConfig, prefix="align_")
     if getattr(args, "cfg_align_up_hint", None) in (None, _Unset):
         cfg = replace(cfg, up_hint=default_up_hint(args.input))
@@ -135,6 +133,9 @@ def cmd_scene(args) -> int:
         return cmd_align(args)
     if args.input is not None:
         raise SplatplanError(f"scene {args.name}: unexpected argument {args.input!r} (only 'scene align IN' takes an input)")
+    given = [f for f in ("up", "floor", "scale", "rotate_z", "translate", "crop") if getattr(args, f) is not None] + (["drop_floaters"] if args.drop_floaters else [])
+    if given:
+        raise SplatplanError(f"--{given[0].replace('_', '-')} is an option of 'scene align IN --out OUT', not of a built-in scene")
     if args.name not in BUILTIN_SCENES:
         raise SplatplanError(f"unknown built-in scene {args.name!r}: available: {', '.join(BUILTIN_SCENES)}")
     if not 1 <= args.level <= 5:
