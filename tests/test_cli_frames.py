@@ -43,7 +43,7 @@ def test_cli_base_pose_and_bad_flags(tmp_path, capsys):
     capsys.readouterr()
     cases = [
         (["check", str(BANANA), "--robot", "go2", "--configs", str(tmp_path / "q.npy"), "--base-pose", "0,0,0,0,0,0,0"], "quaternion"),
-        (["check", str(BANANA), "--robot", "go2", "--configs", str(tmp_path / "q.npy"), "--n-sigma", "nan"], "--n-sigma"),
+        (["check", str(BANANA), "--robot", "go2", "--configs", str(tmp_path / "q.npy"), "--n-sigma", "nan"], "n_sigma"),
         (["plan", str(BANANA), "--robot", "go2", "--start", "0,0,0", "--goal", "0.1,0,0", "--out", str(tmp_path / "p.json"), "--up", "-y"], "scene align"),
         (["plan", str(BANANA), "--robot", "go2", "--start", "0,0,0", "--goal", "0.1,0,0", "--out", str(tmp_path / "p.json"), "--height", "nan"], "--height"),
         (["render", str(BANANA), "--eye", "-0.6,0.1,nan", "--look-at", "0,0,0", "--out", str(tmp_path / "r.png")], "--eye"),
