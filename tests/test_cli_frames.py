@@ -43,7 +43,7 @@ def test_cli_base_pose_and_bad_flags(tmp_path, capsys):
     capsys.readouterr()
     cases = [
         (["check", str(BANANA), "--robot", "go2", "--configs", str(tmp_path / "q.npy"), "--base-pose", "0,0,0,0,0,0,0"], "quaternion"),
-        (["check", str(BANANA), "--robot", "go2", "--configs", str(tmp_path / "q.npy"), "--n-sigma", "nan"], "--n-sigma"),
+        (["check", str(BANANA), "--robot", "go2", "--configs", str(tmp_path / "q.npy"), "--n-sigma", "nan"], "n_sigma"),
         (["plan", str(BANANA), "--robot", "go2", "--start", "0,0,0", "--goal", "0.1,0,0", "--out", str(tmp_path / "p.json"), "--up", "-y"], "scene align"),
         (["plan", str(BANANA), "--robot", "go2", "--start", "0,0,0", "--goal", "0.1,0,0", "--out", str(tmp_path / "p.json"), "--height", "nan"], "--height"),
         (["render", str(BANANA), "--eye", "-0.6,0.1,nan", "--look-at", "0,0,0", "--out", str(tmp_path / "r.png")], "--eye"),
@@ -58,3 +58,21 @@ def test_leading_minus_is_a_value(tmp_path):
     out = tmp_path / "v.png"
     assert main(["render", str(BANANA), "--eye", "-0.6,0.3,0.2", "--look-at", "0.1,0.05,-0.1", "--width", "32", "--height", "24", "--out", str(out), "--device", "cpu"]) == 0
     assert out.is_file()
+
+
+def test_plan_panda_goal_pose_by_ik(tmp_path, capsys):
+    import json
+
+    from splatplan.robots import load_robot
+
+    out = tmp_path / "p.json"
+    argv = ["plan", str(BANANA), "--robot", "panda", "--base-pose", "1.5,1.5,0", "--start", ",".join(map(str, load_robot("panda").q_default)),
+            "--goal-pose", "2.0,1.7,0.3,0,1,0,0", "--time-limit", "5", "--out", str(out), "--device", "cpu"]  # fmt: skip
+    assert main(argv) == 0, capsys.readouterr().err
+    assert "IK goal configuration" in capsys.readouterr().err
+    q = np.asarray(json.loads(out.read_text())["path"])[-1]
+    robot = robot_at("panda", parse_base_pose("1.5,1.5,0"))
+    t = robot.link_poses(q)[list(robot.link_names).index("panda_hand_tcp")]
+    np.testing.assert_allclose(t[:3, 3], [2.0, 1.7, 0.3], atol=0.01)
+    bad = ["plan", str(BANANA), "--robot", "panda", "--start", "0,0,0,-1,0,1,0", "--goal-pose", "9,9,9,1,0,0,0", "--out", str(out)]
+    assert main(bad) == 2 and "unreachable" in capsys.readouterr().err

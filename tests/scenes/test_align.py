@@ -175,3 +175,22 @@ def test_real_truck_ground_at_zero():
     out, res = align_scene(load_scene(TRUCK, filter_floaters=False))
     assert res.up.to_json()["up_axis"] == "-y"
     assert abs(_floor_mode(out)) <= 0.02
+
+
+def test_drop_floaters_removes_faint_isolated_splats_only():
+    from splatplan.scenes.filters import isolated_mask
+
+    s = room_y_down(shell=False)
+    rng = np.random.default_rng(3)
+    n = 60
+    fl = np.c_[rng.uniform(-1, 1, n), rng.uniform(-1.5, -0.3, n) + 0.4, rng.uniform(-1, 1, n)]  # free space, y-down room
+    op = np.r_[np.full(n // 2, 0.05), np.full(n // 2, 0.9)]  # half faint, half opaque
+    both = Splats(np.r_[s.means, fl], np.r_[s.quats, np.tile([1.0, 0, 0, 0], (n, 1))], np.r_[s.scales, np.full((n, 3), 0.05)],
+                  np.r_[s.opacities, op], np.r_[s.colors, np.zeros((n, 3))])  # fmt: skip
+    iso = isolated_mask(both.means, both.opacities)
+    assert iso[len(s) : len(s) + n // 2].mean() > 0.8 and not iso[len(s) + n // 2 :].any()
+    assert iso[: len(s)].mean() < 0.01
+    assert not isolated_mask(both.means, both.opacities, candidates=np.arange(len(both)) < len(s)).any()
+    out, res = align_scene(both, AlignConfig(drop_floaters=True))
+    assert res.n_floaters == len(both) - len(out) >= 0.8 * n // 2  # (align leaves the floor's splats out of the test)
+    assert res.to_json()["n_floaters_dropped"] == res.n_floaters

@@ -51,13 +51,15 @@ def allow_negative_values(parser: argparse.ArgumentParser) -> None:
 
 
 def reject_nan_flags(args: argparse.Namespace) -> None:
-    """One place for "NaN in a flag": every parsed number (float flags, config fields, tuples of
-    them) must not be NaN; the error names the flag (one line, exit 2)."""
+    """One place for "NaN in a flag" of the commands' own float flags (``--height``, ``--scale``,
+    ``--route-time``, ...): none may be NaN; the error names the flag (one line, exit 2). Config
+    fields (``cfg_*``) are left to their config's ``validate``, which names the field and its range."""
     for dest, v in vars(args).items():
+        if dest.startswith("cfg_"):
+            continue
         vals = v if isinstance(v, (tuple, list)) else (v,)
         if any(isinstance(x, float) and np.isnan(x) for x in vals):
-            flag = "--" + (dest[4:] if dest.startswith("cfg_") else dest).replace("_", "-")
-            raise SplatplanError(f"{flag}: NaN is not a valid value")
+            raise SplatplanError(f"--{dest.replace('_', '-')}: NaN is not a valid value")
 
 
 ROBOT_HELP = "robot link: 'sphere:R' or 'ellipsoid:A,B,C' (semi-axes, scene units)"
@@ -135,10 +137,11 @@ def robot_at(spec: str, base_pose: np.ndarray | None, robot=None):
     if base_pose is None:
         return robot
     name = str(spec)
-    if robot.name == "go2" or robot.dof == 3 and name == "go2":
+    if robot.name == "go2" or name == "go2":
         pose = base_pose @ robot.base_pose
         out = load_robot("go2", base_pose=pose)
         out.info.update({k: v for k, v in robot.info.items() if k not in out.info})
+        out.info["standing_height_m"] = float(pose[2, 3])
         return out
     return load_robot(spec, base_pose=base_pose)
 

@@ -31,6 +31,24 @@ from ._common import (
 ROBOT_HELP = "sphere:R | ellipsoid:A,B,C (point robots, dofs x,y,z) | panda (7 joint angles, rad) | go2 (planar base x,y,yaw) | PATH.urdf (default sphere:0.015)"
 
 
+def parse_goal_pose(text: str, robot, link: str) -> np.ndarray:
+    """'X,Y,Z,QW,QX,QY,QZ' -> (7,) with a unit quaternion (one-line errors)."""
+    if robot.name == "go2" or robot.name.split(":")[0] in ("sphere", "ellipsoid"):
+        raise SplatplanError(f"--goal-pose is for arms; {robot.name} takes --goal with its {robot.dof} dofs")
+    if link not in robot.link_names:
+        raise SplatplanError(f"--ee-link {link!r} is not a link of {robot.name} ({', '.join(robot.link_names[-4:])}, ...)")
+    try:
+        v = np.asarray([float(x) for x in str(text).split(",")], dtype=np.float64)
+    except ValueError:
+        raise SplatplanError(f"--goal-pose {text!r}: expected 7 numbers X,Y,Z,QW,QX,QY,QZ") from None
+    if v.shape != (7,) or not np.all(np.isfinite(v)):
+        raise SplatplanError(f"--goal-pose {text!r}: expected 7 finite numbers X,Y,Z,QW,QX,QY,QZ")
+    if np.linalg.norm(v[3:]) < 1e-9:
+        raise SplatplanError(f"--goal-pose {text!r}: the quaternion QW,QX,QY,QZ is zero")
+    v[3:] /= np.linalg.norm(v[3:])
+    return v
+
+
 def parse_config(text: str, robot, what: str) -> np.ndarray:
     """'a,b,c' -> (dof,) float64 configuration of ``robot`` (a one-line error otherwise)."""
     names = ",".join(robot.joint_names)
@@ -76,7 +94,10 @@ def cmd_plan(args) -> int:
         _ompl()  # the missing extra is named before any work
     robot = _robot_for(args)
     start = parse_config(args.start, robot, "--start")
-    goal = parse_config(args.goal, robot, "--goal")
+    if (args.goal is None) == (args.goal_pose is None):
+        raise SplatplanError("give exactly one of --goal (a configuration) or --goal-pose X,Y,Z,QW,QX,QY,QZ (an arm's end-effector pose)")
+    goal_pose = None if args.goal_pose is None else parse_goal_pose(args.goal_pose, robot, args.ee_link)
+    goal = start.copy() if goal_pose is not None else parse_config(args.goal, robot, "--goal")
     rrt_cfg = config_from_args(args, RRTConfig, prefix="rrt_", time_limit_s=args.time_limit, seed=args.seed)
     if args.box is not None:
         lo, hi = (parse_config(b, robot, "--box") for b in args.box)
@@ -107,6 +128,11 @@ def cmd_plan(args) -> int:
     if robot.name == "go2":  # a ground robot: the floor's splats are terrain (scenes/terrain.py)
         scene = ground_robot_scene(scene, args, mcfg.n_sigma)
     checker = CollisionChecker(scene, device=args.device, config=mcfg)
+    if goal_pose is not None:  # inverse kinematics: the collision-free solution nearest to the start
+        from ..tasks._ik import collision_free_ik
+
+        goal = collision_free_ik(robot, checker, goal_pose[:3], goal_pose[3:], link=args.ee_link, near=start, seed=args.seed)
+        notes.append(f"--goal-pose: IK goal configuration {np.round(goal, 4).tolist()}")
     ompl = args.planner.strip().lower().startswith("ompl:")
     planner = make_planner("auto" if ompl else args.planner, checker, rrt_cfg, robot=robot)
     settings = planner.settings(start, goal)  # an OMPL planner samples the same box at the same edge resolution
@@ -160,7 +186,10 @@ def register(sub, eval_sub) -> None:
     s.add_argument("scene", metavar="SCENE")
     s.add_argument("--robot", default="sphere:0.015", help=ROBOT_HELP)
     s.add_argument("--start", required=True, help="start configuration, comma list of the robot's dofs (X,Y,Z for point robots; a leading minus is fine)")
-    s.add_argument("--goal", required=True, help="goal configuration, comma list of the robot's dofs")
+    s.add_argument("--goal", default=None, help="goal configuration, comma list of the robot's dofs")
+    s.add_argument("--goal-pose", default=None, help="arms: X,Y,Z,QW,QX,QY,QZ goal pose of --ee-link (metres, wxyz, world): the goal is the "
+                   "collision-free inverse-kinematics solution nearest to the start")  # fmt: skip
+    s.add_argument("--ee-link", default="panda_hand_tcp", help="the link --goal-pose places (default panda_hand_tcp)")
     s.add_argument("--box", nargs=2, metavar=("LO", "HI"), help="sampling box corners, comma lists of the robot's dofs (default: "
                    "robust scene bounds padded by the robot size, joint limits for joints; lo == hi freezes a coordinate)")  # fmt: skip
     s.add_argument("--base-pose", default=None, help=BASE_POSE_HELP)

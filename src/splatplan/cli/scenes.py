@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import SplatplanError
-from ._common import SEED, _Unset, _load, add_config_args, allow_negative_values, atomic_dir, config_from_args, float_arg, int_arg, move_into, parse_vec3
+from ._common import SEED, _Unset, _load, add_config_args, atomic_dir, config_from_args, float_arg, int_arg, move_into, parse_vec3
 
 
 def cmd_info(args) -> int:
@@ -69,8 +69,8 @@ def cmd_info(args) -> int:
 
 def cmd_align(args) -> int:
     """`splatplan scene align IN --out OUT`: write the aligned scene and its transform sidecar."""
-    from ..scenes.align import AlignConfig, align_scene
-    from ..scenes.load import SCENE_EXTENSIONS, save_scene
+    from ..scenes.align import AlignConfig, align_scene, default_up_hint
+    from ..scenes.load import save_scene
 
     if args.input is None:
         raise SplatplanError("scene align needs an input: splatplan scene align IN --out OUT")
@@ -83,8 +83,6 @@ def cmd_align(args) -> int:
         raise SplatplanError(f"output folder {out.parent} does not exist")
     if Path(args.input).resolve() == out.resolve():
         raise SplatplanError("--out must differ from the input (the input is never overwritten)")
-    from ..scenes.align import default_up_hint
-
     cfg = config_from_args(args, AlignConfig, prefix="align_")
     if getattr(args, "cfg_align_up_hint", None) in (None, _Unset):
         cfg = replace(cfg, up_hint=default_up_hint(args.input))
@@ -143,6 +141,9 @@ def cmd_scene(args) -> int:
         raise SplatplanError("--n-splats goes with 'splatplan scene from-moveit SCENE.yaml --out X.ply'")
     if args.input is not None:
         raise SplatplanError(f"scene {args.name}: unexpected argument {args.input!r} (only 'scene align IN' and 'scene from-moveit SCENE.yaml' take an input)")
+    given = [f for f in ("up", "floor", "scale", "rotate_z", "translate", "crop") if getattr(args, f) is not None] + (["drop_floaters"] if args.drop_floaters else [])
+    if given:
+        raise SplatplanError(f"--{given[0].replace('_', '-')} is an option of 'scene align IN --out OUT', not of a built-in scene")
     if args.name not in BUILTIN_SCENES:
         raise SplatplanError(f"unknown built-in scene {args.name!r}: available: {', '.join(BUILTIN_SCENES)}, or from-moveit SCENE.yaml")
     if not 1 <= args.level <= 5:
@@ -215,7 +216,6 @@ def register(sub, eval_sub) -> None:
                        description="`scene NAME --out PATH.ply` writes a built-in scene; `scene from-moveit SCENE.yaml --out PATH.ply` samples "
                        "a MoveIt planning scene into splats (ground truth in PATH.gt.json); `scene align IN --out OUT.ply` puts a capture in the "
                        "robot's world (z up, floor at z = 0; the transform goes to OUT.align.json and is printed).")  # fmt: skip
-    allow_negative_values(s)
     s.add_argument("name", metavar="NAME", help="built-in scene name: stonehenge | tabletop | apartment; or 'from-moveit' or 'align'")
     s.add_argument("input", metavar="IN", nargs="?", default=None, help="align: the input splat file; from-moveit: a MoveIt planning-scene "
                    "YAML (box, cylinder, sphere primitives)")  # fmt: skip

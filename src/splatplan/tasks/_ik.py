@@ -88,3 +88,41 @@ def solve_ik(
     rot_err = np.linalg.norm(res[:, 3:], axis=1) if r_goal is not None else np.zeros(len(q))
     order = np.argsort(pos_err + rot_weight * rot_err)
     return q[order], pos_err[order], rot_err[order]
+
+
+def collision_free_ik(
+    robot,
+    checker,
+    position,  # (3,) world
+    quat,  # (4,) wxyz world <- link
+    *,
+    link: str,
+    near: np.ndarray | None = None,  # (dof,) prefer the solution closest to this (e.g. the start)
+    pos_tol: float = 0.005,
+    rot_tol: float = np.radians(2.0),
+    n_seeds: int = 64,
+    seed: int = 0,
+) -> np.ndarray:
+    """A configuration (dof,) placing ``link`` at the pose, within the tolerances and free of
+    collision under ``checker`` (its n_sigma); the free solution nearest to ``near`` in joint space.
+
+    Raises:
+        SplatplanError: no IK solution reaches the pose, or every one collides (the message says which).
+    """
+    from ..errors import SplatplanError
+
+    q, pe, re = solve_ik(robot, position, quat, link=link, n_seeds=n_seeds, seed=seed, q_init=near)
+    ok = (pe < pos_tol) & (re < rot_tol)
+    if not ok.any():
+        raise SplatplanError(
+            f"goal pose unreachable for {robot.name}: the best IK solution misses it by {pe[0] * 100:.2f} cm / {np.degrees(re[0]):.1f} deg; "
+            "move the goal or the robot's base (--base-pose)"
+        )
+    q = q[ok]
+    free = ~np.asarray(checker.collides_robot(robot, q)).any(axis=-1)
+    if not free.any():
+        raise SplatplanError(f"goal pose: all {len(q)} IK solutions of {robot.name} are in collision (n_sigma = {checker.n_sigma:g}); move the goal or the base, or lower n_sigma")
+    q = q[free]
+    if near is not None:
+        q = q[np.argsort(np.linalg.norm(q - np.asarray(near, np.float64), axis=1))]
+    return q[0]
