@@ -46,7 +46,8 @@ def test_point_robot_through_the_gap(wall_checker, name):
     np.testing.assert_array_equal(p[-1], GOAL)
     assert np.all(p[:, 2] == 0.06)  # the frozen coordinate stays at the plane
     assert np.all(p[:, :2] >= -0.3 - 1e-12) and np.all(p[:, :2] <= 0.3 + 1e-12)
-    assert p[:, 1].max() > 0.12  # around the wall's end, never through it
+    # around one of the wall's ends (y 0.12, or y -0.25 where a 5 cm gap to the box's side is left), never through it
+    assert p[:, 1].max() > 0.12 or p[:, 1].min() < -0.25
     assert dense_free(wall_checker, p, (R, R, R), R / 20)
     assert res.info["planner"] == f"ompl:{name}" and res.info["n_motion_checks"] > 0 and res.n_nodes >= 2
     assert res.length == pytest.approx(np.linalg.norm(np.diff(p, axis=0), axis=1).sum())
