@@ -43,6 +43,7 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
+from .._config import bounded, check_config
 from ..errors import SplatplanError
 from .splats import Splats, quat_to_rotmat
 from .transforms import apply_rigid, scale as scale_scene
@@ -60,12 +61,12 @@ class AlignConfig:
 
     #: the scene's up axis: auto (normal of the dominant bounding plane, see the module doc) or
     #: +x, -x, +y, -y, +z, -z (INRIA/COLMAP captures are usually -y)
-    up: str = "auto"
+    up: str = bounded("auto", choices=("auto", "+x", "-x", "+y", "-y", "+z", "-z", "x", "y", "z"))
     #: floor height: auto (fitted, moved to z = 0), none (no vertical shift), or a number: the
     #: floor's height along the up axis in the input's units (moved to z = 0)
     floor: str = "auto"
     #: uniform scale applied after the rotation (e.g. to make a normalised capture metric)
-    scale: float = 1.0
+    scale: float = bounded(1.0, gt=0)
     #: rotation about the new z axis (degrees), after the up rotation
     rotate_z: float = 0.0
     #: translation X,Y,Z (output units) added last
@@ -77,28 +78,29 @@ class AlignConfig:
     #: 3x the scene's median, the floor's splats left out; scenes/filters.py isolated_mask); the count is reported
     drop_floaters: bool = False
     #: auto up: the capture convention that breaks ties between perpendicular bounding planes
-    up_hint: str = "-y"
+    up_hint: str = bounded("-y", choices=("+x", "-x", "+y", "-y", "+z", "-z", "x", "y", "z"))
     #: robust box: per-axis percentile of the means that bounds the fit (and info's robust bounds)
-    box_percentile: float = 1.0
+    box_percentile: float = bounded(1.0, ge=0, le=25)
     #: robust box: padding as a fraction of the box's size on each side
-    box_pad: float = 0.1
+    box_pad: float = bounded(0.1, ge=0, le=10)
     #: plane inlier distance, as a fraction of the robust box's diagonal
-    plane_tol: float = 0.005
+    plane_tol: float = bounded(0.005, ge=1e-6, le=0.5)
     #: number of planes extracted by the sequential RANSAC
-    n_planes: int = 6
+    n_planes: int = bounded(6, ge=1, le=64)
     #: a bounding plane has at most this fraction of the robust mass beyond it
-    max_below: float = 0.1
+    max_below: float = bounded(0.1, ge=0, le=0.5)
     #: a plane needs at least this fraction of the robust splat mass
-    min_plane_mass: float = 0.02
+    min_plane_mass: float = bounded(0.02, ge=0, le=1)
     #: means used by the fit (a seeded random subset of the robust box)
-    max_points: int = 30000
+    max_points: int = bounded(30000, ge=1, le=10_000_000)
     #: RANSAC hypotheses per plane
-    n_hypotheses: int = 800
+    n_hypotheses: int = bounded(800, ge=1, le=1_000_000)
     #: random seed of the subset and the RANSAC
-    seed: int = 0
+    seed: int = bounded(0, ge=0, le=2**32 - 1)
 
     def validate(self) -> "AlignConfig":
         """Raise :class:`SplatplanError` naming the first bad field."""
+        check_config(self)  # declared ranges, choices and finiteness
         if self.up != "auto" and self.up not in AXES:
             raise SplatplanError(f"up {self.up!r}: use auto or one of +x, -x, +y, -y, +z, -z")
         if self.up_hint not in AXES:

@@ -25,6 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._config import bounded, check_config
 from ..errors import SplatplanError
 from .splats import Splats
 
@@ -37,11 +38,12 @@ class TerrainConfig:
     floor_z: float | None = None
     #: the robot's step height above the floor (scene units): floor-like splats with their mean
     #: below floor_z + step_height are terrain (an obstacle lower than this is missed)
-    step_height: float = 0.05
+    step_height: float = bounded(0.05, ge=0)
     #: a flat splat is floor-like when its normal lies within this angle of +z (degrees)
-    max_tilt_deg: float = 30.0
+    max_tilt_deg: float = bounded(30.0, ge=0, le=90)
 
     def validate(self) -> "TerrainConfig":
+        check_config(self)  # declared ranges and finiteness
         if self.floor_z is not None and not np.isfinite(self.floor_z):
             raise SplatplanError(f"terrain floor_z must be finite, got {self.floor_z}")
         if not (np.isfinite(self.step_height) and self.step_height >= 0):

@@ -77,8 +77,8 @@ def load_task_scene(scene, n_sigma: float = 1.0, device: str | None = "cpu", n_s
 
 
 def base_terrain(cfg):
-    """The :class:`~splatplan.scenes.terrain.TerrainConfig` of a ground robot's task config
-    (fields ``ground_z``: a height, "auto" = fitted, or None = no terrain; ``ground_band``: step height)."""
+    """The :class:`~splatplan.scenes.terrain.TerrainConfig` of a ground robot's task config, a
+    ``BaseConfig`` or ``NavigateConfig`` (fields ``ground_z``: a height, "auto" = fitted, or None = no terrain; ``ground_band``: step height)."""
     from ..scenes.terrain import TerrainConfig
 
     if cfg.ground_z is None:
