@@ -149,7 +149,7 @@ def register(sub, eval_sub) -> None:
     pi.add_argument("--json", action="store_true", help="print one JSON object")
     pi.add_argument("--meshes-from", default=None, metavar="URDF", help="measure the model against this URDF's collision meshes (same link names)")
     pi.add_argument("--no-measure", action="store_true", help="skip measuring the model against the meshes")
-    pi.add_argument("--samples", type=int, default=20000, help="Monte Carlo samples per link for the model measurement")
+    pi.add_argument("--samples", type=int, default=5000, help="Monte Carlo samples per link for the model measurement (standard error ~ 1/sqrt(samples))")
     _robot_args(pi)
     pi.set_defaults(func=cmd_info)
     pf = rs.add_parser("fit", help="fit enclosing ellipsoids to a URDF's link meshes -> YAML (+ PNG)")

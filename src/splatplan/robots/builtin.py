@@ -18,9 +18,9 @@ Built-ins:
 A path to a ``.urdf`` loads that robot: every movable non-mimic joint is a dof (or ``active=``),
 the base is fixed (or ``base="planar"`` / ``"translation"``), ellipsoids come from ``ellipsoids=``
 (YAML), else a sidecar ``<urdf stem>.ellipsoids.yaml``, else they are fitted at load time
-(``fit_method``, default ``"cover"``; ``per_link`` > 1 selects ``"split"``) and the fit is cached
-(:mod:`splatplan.robots.fit_cache`: keyed by the mesh files' content, the method and its
-parameters; the second load reads the cache).
+(``fit_method``: ``"split"``, default, milliseconds; or ``"cover"``, seconds per link, whose fit is
+cached by :mod:`splatplan.robots.fit_cache`: keyed by the mesh files' content, the method, its
+version and parameters, so the second load reads the cache).
 """
 
 from __future__ import annotations
@@ -83,7 +83,7 @@ def load_robot(
     srdf: str | Path | None = None,
     model: str | None = None,
     finger_opening: float | None = None,
-    fit_method: str = "cover",
+    fit_method: str = "split",
 ) -> Robot:
     """A :class:`Robot` from a built-in name or a URDF path (see the module docstring).
 
@@ -99,7 +99,8 @@ def load_robot(
         srdf: SRDF with disabled collision pairs / group states (default: ``<urdf stem>.srdf`` beside it).
         model: built-in Panda only: "coarse" or "cover" (default ``DEFAULT_MODEL``).
         finger_opening: built-in Panda only: each finger's distance from the centre line (m, [0, 0.04]).
-        fit_method: "cover" (tight union, cached) or "split" when a URDF is fitted at load time.
+        fit_method: "split" (enclosing ellipsoids, ``per_link`` each) or "cover" (the union of
+            :mod:`splatplan.robots.fit_cover`, cached) when a URDF is fitted at load time.
     """
     if isinstance(spec, Robot):
         return spec

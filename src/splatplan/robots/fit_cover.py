@@ -53,7 +53,7 @@ class FitConfig:
     #: Largest distance the model may reach beyond the link's solid (the candidates' limit).
     reach: float = 0.015
     #: Most ellipsoids per link (the greedy cover stops there; the repair then grows them).
-    max_per_link: int = 6
+    max_per_link: int = 14
     #: Cost of one more ellipsoid, as a fraction of the link's volume (trades count for tightness).
     ellipsoid_cost: float = 0.1
     #: Occupancy-grid pitch for the outside distance (0: extent / 80, clipped to [0.5, 3] mm).
@@ -62,6 +62,10 @@ class FitConfig:
     n_points: int = 3000
     #: Longest-edge bisections per simplex before the repair grows an ellipsoid.
     max_depth: int = 14
+    #: Farthest-point seeds of the nearest-neighbour clusters (4 scales each).
+    n_seeds: int = 16
+    #: Cuts along each principal axis for the slab clusters (every pair of cuts is a slab).
+    n_cuts: int = 7
     #: Seed of every random choice (the fit is deterministic).
     seed: int = 0
 
@@ -72,8 +76,8 @@ class FitConfig:
             raise SplatplanError(f"fit max_per_link must be >= 1, got {self.max_per_link}")
         if not (self.ellipsoid_cost >= 0):
             raise SplatplanError(f"fit ellipsoid_cost must be >= 0, got {self.ellipsoid_cost}")
-        if self.pitch < 0 or self.n_points < 100 or self.max_depth < 0:
-            raise SplatplanError("fit pitch must be >= 0, n_points >= 100, max_depth >= 0")
+        if self.pitch < 0 or self.n_points < 100 or self.max_depth < 0 or self.n_seeds < 1 or self.n_cuts < 2:
+            raise SplatplanError("fit pitch must be >= 0, n_points >= 100, max_depth >= 0, n_seeds >= 1, n_cuts >= 2")
         return self
 
 
@@ -249,14 +253,14 @@ def _shrink_inside(e: tuple, dist: OutsideDistance, limit: float, dirs: np.ndarr
     return None
 
 
-def candidates(targets: np.ndarray, dist: OutsideDistance, limit: float, rng: np.random.Generator) -> list:
+def candidates(targets: np.ndarray, dist: OutsideDistance, limit: float, rng: np.random.Generator, n_seeds: int = 16, n_cuts: int = 7) -> list:
     from scipy.spatial import cKDTree
 
     dirs = sphere_points(400)
     out = []
     n = len(targets)
     tree = cKDTree(targets)
-    for seed in _fps(targets, 16, rng):
+    for seed in _fps(targets, n_seeds, rng):
         for frac in (0.05, 0.12, 0.25, 0.45):
             k = max(8, int(frac * n))
             _, nb = tree.query(targets[seed], k=k)
@@ -265,7 +269,7 @@ def candidates(targets: np.ndarray, dist: OutsideDistance, limit: float, rng: np
     axes = np.linalg.svd(targets - ctr, full_matrices=False)[2]
     for ax in axes:
         t = (targets - ctr) @ ax
-        cuts = np.quantile(t, np.linspace(0.0, 1.0, 7))
+        cuts = np.quantile(t, np.linspace(0.0, 1.0, n_cuts))
         for i in range(len(cuts)):
             for j in range(i + 1, len(cuts)):
                 sel = (t >= cuts[i]) & (t <= cuts[j])
@@ -402,7 +406,7 @@ def fit_link_cover(polys: list, cfg: FitConfig) -> tuple[list, dict]:
     limit = cfg.reach - 2.0 * pitch
     import time
     t0 = time.time()
-    cands = candidates(targets, dist, limit, rng)
+    cands = candidates(targets, dist, limit, rng, cfg.n_seeds, cfg.n_cuts)
     t1 = time.time()
     band = (~dist.occ) & (dist.dist.reshape(-1) <= cfg.reach)
     chosen = greedy_cover(cands, targets, dist.centres[band], pitch**3, volume, cfg)
