@@ -95,8 +95,9 @@ def mvee(points: np.ndarray, tol: float = 1e-3, max_iter: int = 20000) -> tuple[
     if len(p) == 0 or not np.all(np.isfinite(p)):
         raise SplatplanError("cannot fit an ellipsoid to an empty or non-finite point set")
     mean = p.mean(axis=0)
-    lam, vec = np.linalg.eigh((p - mean).T @ (p - mean))  # (3,), (3, 3) principal directions, ascending
-    sv, vt = np.sqrt(np.maximum(lam[::-1], 0.0)), vec[:, ::-1].T  # singular values of p - mean, descending
+    a = p - mean
+    a = np.linalg.qr(a, mode="r") if len(a) >= 3 else np.vstack([a, np.zeros((3 - len(a), 3))])  # (3, 3), same singular values
+    _, sv, vt = np.linalg.svd(a, full_matrices=False)  # vt (3, 3); no (N, N) factor for large N
     extent = max(float(np.ptp(p, axis=0).max()), 1e-6)
     pad = max(1e-3 * extent, 1e-6)
     extra = []
