@@ -211,3 +211,13 @@ def test_cli_info_spherized_panda_against_the_reference_meshes(capsys):
     assert len(links) >= 8
     assert max(v["coverage_surface"] for v in links.values()) < 0.9  # spheres miss parts of every link
     assert main(["robot", "info", str(MBM / "panda_spherized.urdf"), "--meshes-from", str(MBM / "nope.urdf")]) == 2
+
+
+def test_cli_fit_cover_flags_are_validated(tmp_path, capsys):
+    from splatplan.cli import main
+
+    urdf = write_tree(tmp_path)
+    assert main(["robot", "fit", str(urdf), "--out", str(tmp_path / "f.yaml"), "--fit-max-per-link", "0"]) == 2
+    assert "max_per_link" in capsys.readouterr().err
+    with pytest.raises(SplatplanError, match="reach"):
+        fc.FitConfig(reach=0.0).validate()
