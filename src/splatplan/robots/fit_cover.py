@@ -9,10 +9,12 @@ volume). Here the union does the work:
 2. **Outside distance.** An occupancy grid (pitch ``FitConfig.pitch``) and its Euclidean distance
    transform give, for any point, its distance to the solid (0 inside), to about one pitch.
 3. **Candidates.** Minimum-volume enclosing ellipsoids (:func:`~splatplan.robots.fit.mvee`) of
-   local clusters of target points: k-nearest neighbours of farthest-point seeds at several
-   scales, and slabs between pairs of cuts along each principal axis. A candidate whose surface
-   reaches beyond ``FitConfig.reach`` (minus a two-pitch safety band) is trimmed (the cluster
-   points farthest towards its worst surface point are dropped and it is refitted) or discarded.
+   local clusters of target points (k-nearest neighbours of farthest-point seeds at four scales,
+   and slabs between pairs of cuts along each principal axis), plus variants stretched along one
+   axis or flattened across two (the other axes shrink to the cluster). Each is then shrunk, axis
+   by axis in proportion to its overshoot, until its surface stays within ``FitConfig.reach``
+   minus a two-pitch safety band of the solid; the 3 variants per cluster covering the most
+   target points are kept.
 4. **Greedy cover.** Candidates are chosen by (target points newly covered) / (volume newly added
    outside the solid + a fixed cost per ellipsoid) until every target point is covered or
    ``FitConfig.max_per_link`` is reached; up to three times, small candidates seeded at the target
