@@ -21,3 +21,18 @@ def test_robots_fk_script(tmp_path, capsys):
     assert {r["method"] for r in res["rows"]} == {"numpy_reference", "warp_kernel"}
     assert all(r["configs_per_s"] > 0 for r in res["rows"])
     assert "| warp_kernel | cpu | 5,000 |" in capsys.readouterr().out
+
+
+def test_robots_models_script(tmp_path, capsys):
+    sys.path.insert(0, str(BENCH))
+    try:
+        import robots_models
+    finally:
+        sys.path.remove(str(BENCH))
+    out = tmp_path / "models.json"
+    assert robots_models.main(["--models", "coarse", "--batch", "64", "--repeats", "1", "--samples", "500", "--n-splats", "3000", "--out", str(out)]) == 0
+    res = json.loads(out.read_text())
+    (row,) = res["rows"]
+    assert row["model"] == "coarse" and row["n_ellipsoids"] == 11 and row["collides_robot_configs_per_s"] > 0
+    assert row["min_coverage_surface"] == 1.0 and row["max_reach_m"] > 0
+    assert "| coarse | 11 |" in capsys.readouterr().out

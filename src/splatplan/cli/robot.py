@@ -1,9 +1,14 @@
 """`splatplan robot info|fit`: inspect a robot, fit collision ellipsoids to a URDF's link meshes.
 
-* ``splatplan robot info NAME|URDF [--json]``: links, ellipsoids, joint limits, motion bounds,
-  volume ratios (ellipsoid volume / collision geometry volume, per link).
-* ``splatplan robot fit URDF|NAME --out ELLIPSOIDS.yaml [--per-link K] [--from-visual]``: fits
-  enclosing ellipsoids (every mesh vertex and box corner inside, see ``robots.fit``), writes the
+* ``splatplan robot info NAME|URDF [--json] [--model coarse|cover] [--finger-opening M]
+  [--meshes-from REF.urdf] [--no-measure]``: links, ellipsoids, joint limits, motion bounds, and
+  per link the model's fit measured against the collision meshes (``robots.fit_measure``: count,
+  coverage of surface / interior samples, union volume ratio with its Monte Carlo standard error,
+  farthest reach beyond the mesh). ``--meshes-from`` measures against another URDF's meshes
+  (e.g. VAMP's ``panda_spherized.urdf`` against ``panda.urdf``).
+* ``splatplan robot fit URDF|NAME --out ELLIPSOIDS.yaml [--method cover|split] [--per-link K]
+  [--from-visual]``: fits the tight union (``cover``, default, ``robots.fit_cover``) or enclosing
+  ellipsoids (``split``: every mesh vertex and box corner inside, see ``robots.fit``), writes the
   YAML (load it with ``load_robot(URDF, ellipsoids=YAML)`` or name it ``<urdf stem>.ellipsoids.yaml``
   beside the URDF) and a PNG of the ellipsoids over the geometry next to it (``--no-png`` skips it).
 
@@ -21,7 +26,7 @@ import numpy as np
 
 from ..errors import SplatplanError
 from ..robots.fit import MAX_PER_LINK
-from ._common import int_arg
+from ._common import float_arg, int_arg
 
 #: ``--per-link``: ellipsoids (slabs) per link, 1..MAX_PER_LINK
 PER_LINK = int_arg(ge=1, le=MAX_PER_LINK)
@@ -31,6 +36,8 @@ def _robot_args(p) -> None:
     p.add_argument("--ellipsoids", default=None, help="YAML with the collision ellipsoids (default: built-in / sidecar / fitted)")
     p.add_argument("--per-link", type=PER_LINK, default=1, help="ellipsoids per link when fitting (k >= 1; slabs along the principal axis)")
     p.add_argument("--from-visual", action="store_true", help="fit links without collision geometry to their visual meshes")
+    p.add_argument("--model", default=None, help="built-in panda only: collision model, coarse or cover")
+    p.add_argument("--finger-opening", type=float_arg(ge=0, le=0.04), default=None, help="built-in panda only: each finger's distance from the centre line (m, 0..0.04)")
 
 
 def _note_skipped(skipped: list[str]) -> None:
@@ -44,9 +51,19 @@ def cmd_info(args) -> int:
 
     if args.per_link < 1:
         raise SplatplanError(f"--per-link must be >= 1, got {args.per_link}")
-    robot = load_robot(args.robot, ellipsoids=args.ellipsoids, per_link=args.per_link, from_visual=args.from_visual) if (
-        args.ellipsoids or args.per_link != 1 or args.from_visual) else load_robot(args.robot)  # fmt: skip
+    extra = {k: v for k, v in (("model", args.model), ("finger_opening", args.finger_opening)) if v is not None}
+    robot = load_robot(args.robot, ellipsoids=args.ellipsoids, per_link=args.per_link, from_visual=args.from_visual, **extra) if (
+        args.ellipsoids or args.per_link != 1 or args.from_visual) else load_robot(args.robot, **extra)  # fmt: skip
     d = robot.describe()
+    measure = None
+    if args.meshes_from and not Path(args.meshes_from).is_file():
+        raise SplatplanError(f"--meshes-from {args.meshes_from}: no such URDF")
+    if not args.no_measure and (args.meshes_from or robot.info.get("urdf")):
+        from ..robots.fit_measure import measure_robot
+
+        measure = measure_robot(robot, args.meshes_from or None, n_samples=args.samples)
+        d["model_fit"] = {"reference": str(args.meshes_from or robot.info.get("urdf")), "samples": args.samples,
+                          "links": {k: (v.to_dict() if v is not None else None) for k, v in measure.items()}}  # fmt: skip
     if args.json:
         print(json.dumps(d))
         return 0
@@ -68,6 +85,15 @@ def cmd_info(args) -> int:
         rtxt = f"ratio {ratio:.2f}" if isinstance(ratio, (int, float)) else "ratio n/a"
         ax = "; ".join(",".join(f"{v:.3f}" for v in a) for a in axes)
         print(f"    {link:<22} {len(axes)}x  {rtxt:<11} ({rep.get('source', '?')}: {'+'.join(rep.get('geometry', []))})  [{ax}]")
+    if measure is not None:
+        print(f"  model fit against {d['model_fit']['reference']} (Monte Carlo, {args.samples} samples per link; "
+              "coverage = fraction of mesh surface / interior samples inside the model; reach = farthest model point outside the mesh):")  # fmt: skip
+        print(f"    {'link':<22} {'n':>3}  {'cov surf':>8}  {'cov int':>8}  {'volume ratio':>14}  {'reach m':>8}")
+        for link, m in measure.items():
+            if m is None:
+                print(f"    {link:<22}   (no mesh or box in the reference)")
+                continue
+            print(f"    {link:<22} {m.n:>3}  {m.coverage_surface:8.4f}  {m.coverage_interior:8.4f}  {m.volume_ratio:7.3f} +- {m.volume_ratio_se:.3f}  {m.reach_m:8.4f}")
     if d["links_without_geometry"]:
         print(f"  links without collision geometry (no ellipsoid): {', '.join(d['links_without_geometry'])}")
     return 0
@@ -97,10 +123,15 @@ def cmd_fit(args) -> int:
         if not urdf.is_file():
             raise SplatplanError(f"URDF {src} does not exist (or use a built-in: panda, go2)")
     model = read_urdf(urdf)
-    ells = fit_model(model, per_link=args.per_link, from_visual=args.from_visual)
+    from ..robots.fit_cover import FitConfig
+    from ._common import config_from_args
+
+    method = "split" if args.per_link > 1 else args.method
+    cfg = config_from_args(args, FitConfig, prefix="fit_").validate() if method == "cover" else None
+    ells = fit_model(model, per_link=args.per_link, from_visual=args.from_visual, method=method, config=cfg)
     _note_skipped(ells.skipped)
     save_yaml(ells, out, robot=model.name, urdf=str(src),
-              note=f"generated by: splatplan robot fit {src} --out {out.name} --per-link {args.per_link}"
+              note=f"generated by: splatplan robot fit {src} --out {out.name} --method {method} --per-link {args.per_link}"
                    + (" --from-visual" if args.from_visual else "") + " (link frame, metres, wxyz)")  # fmt: skip
     print(f"wrote {out}: {ells.n} ellipsoids on {len(ells.report)} links")
     for link, rep in ells.report.items():
@@ -125,12 +156,21 @@ def register(sub, eval_sub) -> None:
     pi = rs.add_parser("info", help="links, ellipsoids, joint limits, volume ratios of a robot")
     pi.add_argument("robot", metavar="NAME|URDF", help="panda, go2, sphere:R, ellipsoid:A,B,C or a .urdf path")
     pi.add_argument("--json", action="store_true", help="print one JSON object")
+    pi.add_argument("--meshes-from", default=None, metavar="URDF", help="measure the model against this URDF's collision meshes (same link names)")
+    pi.add_argument("--no-measure", action="store_true", help="skip measuring the model against the meshes")
+    pi.add_argument("--samples", type=int, default=5000, help="Monte Carlo samples per link for the model measurement (standard error ~ 1/sqrt(samples))")
     _robot_args(pi)
     pi.set_defaults(func=cmd_info)
     pf = rs.add_parser("fit", help="fit enclosing ellipsoids to a URDF's link meshes -> YAML (+ PNG)")
     pf.add_argument("urdf", metavar="URDF", help="a .urdf path (or a built-in: panda, go2)")
     pf.add_argument("--out", required=True, help="output ELLIPSOIDS.yaml (a PNG of the fit is written next to it)")
-    pf.add_argument("--per-link", type=PER_LINK, default=1, help="ellipsoids per link (k >= 1; slabs along the principal axis)")
+    pf.add_argument("--method", choices=("split", "cover"), default="split", help="split (default): enclosing ellipsoids, K per link; cover: a "
+                    "tight union containing the meshes (slow: minutes per link; work in progress, see README)")  # fmt: skip
+    pf.add_argument("--per-link", type=PER_LINK, default=1, help="split: ellipsoids per link (k >= 1; slabs along the principal axis)")
     pf.add_argument("--from-visual", action="store_true", help="fit links without collision geometry to their visual meshes")
     pf.add_argument("--no-png", action="store_true", help="skip the PNG")
+    from ..robots.fit_cover import FitConfig
+    from ._common import add_config_args
+
+    add_config_args(pf, FitConfig, prefix="fit_", group="cover fitter (--method cover)")
     pf.set_defaults(func=cmd_fit)

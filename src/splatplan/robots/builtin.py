@@ -3,9 +3,13 @@
 Built-ins:
 
 * ``panda``: Franka Panda arm, 7 dofs (panda_joint1..7), base at the world origin. The fingers
-  are fixed at the SRDF "default" state (0.001 m opening); override with
-  ``fixed={"panda_finger_joint1": 0.04}``. Ellipsoids: ``data/panda.yaml`` (fitted to the
-  collision meshes and finger boxes by ``splatplan robot fit``).
+  are fixed joints: ``finger_opening`` (m, each finger's distance from the hand's centre line,
+  the value of ``panda_finger_joint1``, in [0, 0.04]; default the SRDF "default" state, 0.001 m)
+  sets them (``fixed={"panda_finger_joint1": x}`` does the same); the finger ellipsoids move with
+  the fingers. Collision models (``model=``): ``"coarse"`` (``data/panda.yaml``: one enclosing
+  ellipsoid per link, ``splatplan robot fit panda --method split``) and ``"cover"``
+  (``data/panda_cover.yaml``: the union fitted by ``splatplan robot fit panda``, see
+  :mod:`splatplan.robots.fit_cover`). ``DEFAULT_MODEL`` says which one plain ``"panda"`` loads.
 * ``go2``: Unitree Go2 as a planar base, dofs (x [m], y [m], yaw [rad]); the 12 leg joints are
   fixed at the SRDF "standing" state; the body is raised so that the lowest point of any
   ellipsoid (the feet's) is at z = 0. Ellipsoids: ``data/go2.yaml``.
@@ -13,7 +17,10 @@ Built-ins:
 
 A path to a ``.urdf`` loads that robot: every movable non-mimic joint is a dof (or ``active=``),
 the base is fixed (or ``base="planar"`` / ``"translation"``), ellipsoids come from ``ellipsoids=``
-(YAML), else a sidecar ``<urdf stem>.ellipsoids.yaml``, else they are fitted at load time.
+(YAML), else a sidecar ``<urdf stem>.ellipsoids.yaml``, else they are fitted at load time
+(``fit_method``: ``"split"``, default, milliseconds; or ``"cover"``, seconds per link, whose fit is
+cached by :mod:`splatplan.robots.fit_cache`: keyed by the mesh files' content, the method, its
+version and parameters, so the second load reads the cache).
 """
 
 from __future__ import annotations
@@ -25,13 +32,19 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import SplatplanError
-from .fit import EllipsoidSet, fit_model, load_yaml
+from .fit import METHODS, EllipsoidSet, fit_model, load_yaml
 from .kinematics import FIXED, PLANAR, TRANSLATION, Kinematics, bake_fixed
 from .robot import Robot
 from .urdf import UrdfModel, read_srdf, read_urdf, share_dir
 
 DATA = Path(__file__).parent / "data"
 KNOWN = ("panda", "go2", "sphere:R", "ellipsoid:A,B,C")
+#: Collision models of the built-in Panda: name -> YAML in ``data/``.
+PANDA_MODELS = {"coarse": "panda.yaml", "cover": "panda_cover.yaml"}
+#: The model plain ``load_robot("panda")`` uses.
+DEFAULT_MODEL = "coarse"
+#: Range of the built-in Panda's finger opening (m per finger, panda_finger_joint1).
+FINGER_RANGE = (0.0, 0.04)
 #: Default base speeds for planar / translation bases (m/s, rad/s); documented, not from a datasheet.
 BASE_SPEED = {"x": 1.0, "y": 1.0, "z": 1.0, "yaw": 2.0}
 
@@ -68,6 +81,9 @@ def load_robot(
     per_link: int = 1,
     from_visual: bool = False,
     srdf: str | Path | None = None,
+    model: str | None = None,
+    finger_opening: float | None = None,
+    fit_method: str = "split",
 ) -> Robot:
     """A :class:`Robot` from a built-in name or a URDF path (see the module docstring).
 
@@ -81,6 +97,10 @@ def load_robot(
         per_link: ellipsoids per link when fitting at load time.
         from_visual: fit links without collision geometry to their visual meshes.
         srdf: SRDF with disabled collision pairs / group states (default: ``<urdf stem>.srdf`` beside it).
+        model: built-in Panda only: "coarse" or "cover" (default ``DEFAULT_MODEL``).
+        finger_opening: built-in Panda only: each finger's distance from the centre line (m, [0, 0.04]).
+        fit_method: "split" (enclosing ellipsoids, ``per_link`` each) or "cover" (the union of
+            :mod:`splatplan.robots.fit_cover`, cached) when a URDF is fitted at load time.
     """
     if isinstance(spec, Robot):
         return spec
@@ -88,15 +108,32 @@ def load_robot(
     kind, sep, rest = text.partition(":")
     if sep and kind in ("sphere", "ellipsoid"):
         return _point_robot(text, kind, rest, base_pose)
+    if fit_method not in METHODS:
+        raise SplatplanError(f"unknown fit method {fit_method!r}: use one of {', '.join(METHODS)}")
+    if (model is not None or finger_opening is not None) and text != "panda":
+        raise SplatplanError(f"robot {text!r}: model= and finger_opening= apply to the built-in 'panda' only")
     if text in ("panda", "go2"):
-        return _cached_builtin(text) if not (active or fixed or base or base_pose is not None or ellipsoids or srdf) else _builtin(text, active, fixed, base, base_pose, ellipsoids)
+        if text == "panda":
+            model = model or DEFAULT_MODEL
+            if model not in PANDA_MODELS:
+                raise SplatplanError(f"unknown Panda model {model!r}: use one of {', '.join(PANDA_MODELS)}")
+            if finger_opening is not None:
+                fo = float(finger_opening)
+                if not (FINGER_RANGE[0] <= fo <= FINGER_RANGE[1]):
+                    raise SplatplanError(f"finger_opening {finger_opening} m is outside [{FINGER_RANGE[0]}, {FINGER_RANGE[1]}] (each finger's distance from the centre line)")
+                fixed = {**(fixed or {}), "panda_finger_joint1": fo}
+            ellipsoids = ellipsoids or DATA / PANDA_MODELS[model]
+        if not (active or fixed or base or base_pose is not None or srdf) and (ellipsoids is None or text == "panda" and Path(ellipsoids) == DATA / PANDA_MODELS[model]):
+            return _cached_builtin(text, str(ellipsoids) if ellipsoids else None)
+        return _builtin(text, active, fixed, base, base_pose, ellipsoids)
     p = Path(text).expanduser()
     if p.suffix.lower() in (".urdf", ".xml") or p.is_file():
         if not p.is_file():
             raise SplatplanError(f"URDF {p} does not exist")
         srdf_path = Path(srdf) if srdf else (p.with_suffix(".srdf") if p.with_suffix(".srdf").is_file() else None)
         ell = ellipsoids or (p.with_name(p.stem + ".ellipsoids.yaml") if p.with_name(p.stem + ".ellipsoids.yaml").is_file() else None)
-        return build_robot(read_urdf(p), srdf_path, active, fixed, base or "fixed", base_pose, ell, per_link, from_visual)
+        return build_robot(read_urdf(p), srdf_path, active, fixed, base or "fixed", base_pose, ell, per_link, from_visual,
+                           fit_method="split" if per_link > 1 else fit_method)  # fmt: skip
     raise SplatplanError(f"unknown robot {text!r}: {_known_msg()}")
 
 
@@ -132,8 +169,8 @@ def _check_pose(t) -> np.ndarray:
 
 
 @lru_cache(maxsize=4)
-def _cached_builtin(name: str) -> Robot:
-    return _builtin(name, None, None, None, None, None)
+def _cached_builtin(name: str, ellipsoids: str | None) -> Robot:
+    return _builtin(name, None, None, None, None, ellipsoids)
 
 
 def _builtin(name, active, fixed, base, base_pose, ellipsoids) -> Robot:
@@ -167,6 +204,7 @@ def build_robot(
     from_visual: bool,
     state: str | None = None,
     name: str | None = None,
+    fit_method: str = "split",
 ) -> Robot:
     """Assemble a Robot from a parsed URDF: choose dofs, bake the others, attach ellipsoids."""
     sr = read_srdf(srdf) if srdf is not None and Path(srdf).is_file() else None
@@ -227,6 +265,10 @@ def build_robot(
         qdef = np.concatenate([np.zeros(3), qdef])
     if ellipsoids is not None:
         ells = load_yaml(ellipsoids, kin.link_names)
+    elif fit_method == "cover":
+        from .fit_cache import cached_fit
+
+        ells, cache_file = cached_fit(model, "cover", per_link, from_visual)
     else:
         ells = fit_model(model, per_link=per_link, from_visual=from_visual)
     return Robot(

@@ -17,6 +17,13 @@ Per link:
   Mahalanobis radius over its points (times 1 + 1e-9), so each point it must contain lies inside
   exactly, whatever the tolerance. ``tests/robots`` re-checks the shipped YAML files.
 
+Two methods (``fit_model(method=...)``):
+
+* ``"cover"`` (default): per link, a union of ellipsoids that provably contains the link's meshes
+  and boxes and is kept close to them (:mod:`splatplan.robots.fit_cover`); its fit quality is
+  measured by :mod:`splatplan.robots.fit_measure`.
+* ``"split"``: the enclosing ellipsoids described below (k per link; k = 1 is the coarse model).
+
 The volume ratio of a link is (volume of the union of its ellipsoids; Monte Carlo when there are
 several) / (sum of its collision elements' volumes; a mesh that is not watertight counts with its
 convex hull): 1 is a perfect fit; overlaps between collision elements make it slightly optimistic.
@@ -94,11 +101,9 @@ def mvee(points: np.ndarray, tol: float = 1e-3, max_iter: int = 20000) -> tuple[
     if len(p) == 0 or not np.all(np.isfinite(p)):
         raise SplatplanError("cannot fit an ellipsoid to an empty or non-finite point set")
     mean = p.mean(axis=0)
-    if len(p) > 1:
-        _, sv, vt = np.linalg.svd(p - mean, full_matrices=True)  # vt (3, 3)
-    else:
-        sv, vt = np.zeros(0), np.eye(3)
-    sv = np.concatenate([sv, np.zeros(3 - len(sv))])
+    a = p - mean
+    a = np.linalg.qr(a, mode="r") if len(a) >= 3 else np.vstack([a, np.zeros((3 - len(a), 3))])  # (3, 3), same singular values
+    _, sv, vt = np.linalg.svd(a, full_matrices=False)  # vt (3, 3); no (N, N) factor for large N
     extent = max(float(np.ptp(p, axis=0).max()), 1e-6)
     pad = max(1e-3 * extent, 1e-6)
     extra = []
@@ -258,8 +263,12 @@ def split_fit(verts: np.ndarray, edges: np.ndarray, k: int) -> list[tuple[np.nda
     return out
 
 
-def fit_link(link: str, geoms: list[Geom], k: int = 1) -> tuple[list, float]:
-    """Ellipsoids [(c, R, s), ...] in the link frame for one link's geometry + its geometry volume."""
+def fit_link(link: str, geoms: list[Geom], k: int = 1, method: str = "split", config=None) -> tuple[list, float]:
+    """Ellipsoids [(c, R, s), ...] in the link frame for one link's geometry + its geometry volume.
+
+    Spheres, cylinders and capsules always get their analytic enclosing ellipsoid; meshes and boxes
+    get ``k`` split ellipsoids (``method="split"``) or the tight cover (``method="cover"``,
+    :func:`~splatplan.robots.fit_cover.fit_link_cover` with ``config``)."""
     import trimesh
 
     ells, vol, polys = [], 0.0, []
@@ -273,7 +282,11 @@ def fit_link(link: str, geoms: list[Geom], k: int = 1) -> tuple[list, float]:
             m = _polytope(g, link)
             vol += _mesh_volume(m) if g.kind == "mesh" else float(np.prod(g.size))
             polys.append(m)
-    if polys:
+    if polys and method == "cover":
+        from .fit_cover import FitConfig, fit_link_cover
+
+        ells += fit_link_cover(polys, config or FitConfig())[0]
+    elif polys:
         merged = trimesh.util.concatenate(polys) if len(polys) > 1 else polys[0]
         ells += split_fit(np.asarray(merged.vertices, dtype=np.float64), np.asarray(merged.edges_unique), k)
     return ells, vol
@@ -285,15 +298,31 @@ def link_points(geoms: list[Geom], link: str) -> np.ndarray:
     return np.concatenate(pts) if pts else np.zeros((0, 3))
 
 
-def fit_model(model: UrdfModel, per_link: int | dict[str, int] = 1, from_visual: bool = False, links: list[str] | None = None) -> EllipsoidSet:
+#: Fitting methods of :func:`fit_model`.
+METHODS = ("cover", "split")
+
+
+def fit_model(
+    model: UrdfModel,
+    per_link: int | dict[str, int] = 1,
+    from_visual: bool = False,
+    links: list[str] | None = None,
+    method: str = "split",
+    config=None,
+) -> EllipsoidSet:
     """Fit ellipsoids to every link of a URDF model (links in the model's order).
 
     Args:
-        per_link: k ellipsoids for each link's polytopes (int, or {link: k} with default 1).
+        per_link: k ellipsoids for each link's polytopes (int, or {link: k} with default 1);
+            ``method="split"`` only.
+        method: "split" (k enclosing ellipsoids per link) or "cover" (the tight union, see
+            :mod:`splatplan.robots.fit_cover`; ``config`` is its :class:`FitConfig`).
         from_visual: fit links that have no collision geometry to their visual geometry.
         links: restrict to these links (default: all).
     Links with no usable geometry are listed in ``skipped``.
     """
+    if method not in METHODS:
+        raise SplatplanError(f"unknown fit method {method!r}: use one of {', '.join(METHODS)}")
     for k in [per_link] if isinstance(per_link, int) else list(per_link.values()):
         if int(k) < 1:
             raise SplatplanError(f"--per-link must be >= 1, got {k}")
@@ -309,7 +338,7 @@ def fit_model(model: UrdfModel, per_link: int | dict[str, int] = 1, from_visual:
             skipped.append(link)
             continue
         k = per_link if isinstance(per_link, int) else int(per_link.get(link, 1))
-        ells, gvol = fit_link(link, geoms, k)
+        ells, gvol = fit_link(link, geoms, k, method, config)
         evol = union_volume(ells)
         for c, r, s in ells:
             names.append(link)
@@ -318,6 +347,7 @@ def fit_model(model: UrdfModel, per_link: int | dict[str, int] = 1, from_visual:
             ss.append(s)
         report[link] = {
             "source": source,
+            "method": method,
             "geometry": sorted({g.kind for g in geoms}),
             "n": len(ells),
             "geometry_volume": gvol,
