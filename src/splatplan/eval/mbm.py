@@ -280,6 +280,21 @@ def list_tasks(config: MBMConfig) -> list[MBMTask]:
     return tasks
 
 
+def check_inputs(tasks: list[MBMTask], robot) -> None:
+    """Parse every problem's scene and request (no sampling) so that bad input stops the run with
+    one line before any work: YAML that does not parse, an unknown primitive or a mesh, a scene
+    with no objects, joints the robot does not have, a goal outside the joint limits."""
+    from ..scenes.moveit import load_moveit_request, load_moveit_scene
+
+    seen = set()
+    for t in tasks:
+        if t.scene in seen:
+            continue
+        seen.add(t.scene)
+        load_moveit_scene(t.scene)
+        load_moveit_request(t.request, robot)
+
+
 def make_context(config: MBMConfig) -> MBMContext:
     """Load the robot once per process (the job engine calls this once per worker)."""
     from ..robots import load_robot
@@ -482,9 +497,15 @@ def _pct(v: np.ndarray, q: float) -> float | None:
     return float(np.percentile(v, q)) if len(v) else None
 
 
+def _rho(r: dict) -> float:
+    """A row's measured rho (nan when not measured: the results file stores NaN as null)."""
+    v = r.get("rho_measured_m")
+    return float("nan") if v is None else float(v)
+
+
 def _any_rho(rows: list[dict]) -> bool:
     """Whether rho was measured for any of the rows."""
-    return any(np.isfinite(r["rho_measured_m"]) for r in rows)
+    return any(np.isfinite(_rho(r)) for r in rows)
 
 
 def summarise(rows: list[dict]) -> dict:
@@ -510,7 +531,7 @@ def summarise(rows: list[dict]) -> dict:
         "worst_exact_clearance_m": float(clear.min()) if len(clear) else None,
         "negative_clearance_paths": int(np.sum(clear < 0)),
         "margin_m_median": _pct(np.array([r["margin_m"] for r in rows]), 50),
-        "rho_measured_m_max": float(np.nanmax([r["rho_measured_m"] for r in rows])) if rows and _any_rho(rows) else None,
+        "rho_measured_m_max": float(np.nanmax([_rho(r) for r in rows])) if rows and _any_rho(rows) else None,
         "bound_holds": int(sum(bool(r["bound_holds"]) for r in rows)),
     }
 
@@ -530,6 +551,8 @@ def run_mbm(config: MBMConfig | None = None, out_dir=None, *, engine=None, progr
     cfg = (config or MBMConfig()).validate()
     t0 = time.perf_counter()
     problems = list_tasks(cfg)
+    robot = make_context(cfg).robot  # the fit is cached: cheap
+    check_inputs(problems, robot)  # bad input: one line before any work (not a failed task per problem)
     sig = settings_hash(cfg)
     tasks = [Task(task_key(t, cfg, sig), asdict(t)) for t in problems]
     out_path = Path(out_dir) / "mbm.results.jsonl" if out_dir is not None else None
@@ -545,7 +568,6 @@ def run_mbm(config: MBMConfig | None = None, out_dir=None, *, engine=None, progr
         rp = [r for r in rows if r.get("planner", "auto") == p]
         by_planner[p] = {fam: summarise([r for r in rp if r["family"] == fam]) for fam in cfg.families}
         by_planner[p]["overall"] = summarise(rp)
-    robot = make_context(cfg).robot  # the fit is cached: cheap
     setup = {
         "robot": str(cfg.robot_path()), "robot_name": robot.name, "n_ellipsoids": robot.n_ellipsoids,
         "problems": str(cfg.problems_dir()), "device": "cpu",
