@@ -235,6 +235,7 @@ class _Prepared:
     spacing_nn: float  # median NN distance of the means (m; nan with a fixed margin)
     resolution: float  # edge resolution r (m)
     rho: float  # measured covering radius (m; nan when not checked)
+    endpoints: dict = field(default_factory=dict)  # request path -> (q0, q1, exact clearance (2,), hit (2,), hit_own (2,))
 
 
 @dataclass
@@ -438,16 +439,19 @@ def solve_problem(task: MBMTask, ctx: MBMContext) -> dict:
     t0 = time.perf_counter()
     ours = not task.planner.startswith("ompl:")
     row: dict = {"family": task.family, "index": task.index, "planner": task.planner, "seeded": ours}
-    q0, q1 = load_moveit_request(task.request, robot)
     prep = ctx.prepared(task.scene)
     scene, checker, margin, res, rho = prep.scene, prep.checker, prep.margin, prep.resolution, prep.rho
     plan_robot = robot.inflated(margin) if margin > 0 else robot
     row.update(margin_m=margin, spacing_nn_m=prep.spacing_nn, rho_measured_m=rho, edge_resolution_m=res,
                bound_holds=bool(margin >= rho + 0.5 * res - 1e-12) if cfg.check_margin else None)  # fmt: skip
-    clear = exact_clearance(scene, robot, np.stack([q0, q1]))
+    if task.request not in prep.endpoints:  # the same for every planner of the problem
+        q0, q1 = load_moveit_request(task.request, robot)
+        ends = np.stack([q0, q1])
+        hit = np.asarray(robot_collides(checker, plan_robot, ends)).any(axis=-1)
+        hit_own = np.asarray(robot_collides(checker, robot, ends)).any(axis=-1) if plan_robot is not robot else hit
+        prep.endpoints[task.request] = (q0, q1, exact_clearance(scene, robot, ends), hit, hit_own)
+    q0, q1, clear, hit, hit_own = prep.endpoints[task.request]
     row.update(start_valid=bool(clear[0] > 0), goal_valid=bool(clear[1] > 0), start_clearance_m=float(clear[0]), goal_clearance_m=float(clear[1]))
-    hit = np.asarray(robot_collides(checker, plan_robot, np.stack([q0, q1]))).any(axis=-1)
-    hit_own = np.asarray(robot_collides(checker, robot, np.stack([q0, q1]))).any(axis=-1) if plan_robot is not robot else hit
     row.update(start_free=bool(not hit[0]), goal_free=bool(not hit[1]), start_free_unmargined=bool(not hit_own[0]), goal_free_unmargined=bool(not hit_own[1]))
     row.update(solved=False, time_s=None, n_nodes=None, path_length=None, path=None, min_exact_clearance_m=None, message="")
     if row["start_free"] and row["goal_free"]:
