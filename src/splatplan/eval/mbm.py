@@ -68,6 +68,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .._config import bounded, check_config
 from ..errors import SplatplanError
 
 #: the repository root (src/splatplan/eval/mbm.py -> 3 levels up); shared data lives beside it
@@ -99,26 +100,26 @@ class MBMConfig:
     #: families to run (folder names without the "_panda" suffix)
     families: tuple[str, ...] = ("table_pick", "box", "bookshelf_small")
     #: problems per family (the first N by index); none = all
-    n_per_family: int | None = None
+    n_per_family: int | None = bounded(None, ge=1)
     #: metric conservatism of the planner's collision checks (0 = splat means; see the margin)
-    n_sigma: float = 0.0
+    n_sigma: float = bounded(0.0, ge=0)
     #: splats per scene (the built-in real-capture look)
-    n_splats: int = 100_000
+    n_splats: int = bounded(100_000, ge=1000)
     #: planning time limit per problem (s)
-    time_limit: float = 10.0
+    time_limit: float = bounded(10.0, gt=0)
     #: robot URDF (or a built-in name, e.g. panda); none = <repo>/../shared/data/mbm/panda/panda.urdf
     robot: str | None = None
     #: planning margin (m) added around every ellipsoid (Robot.inflated); none = derived per scene
     #: from the splat spacing (see margin_spacing_factor); 0 = plan with the robot's own model
-    margin_m: float | None = None
+    margin_m: float | None = bounded(None, ge=0)
     #: derived margin = this x the median nearest-neighbour distance of the splat means + r/2
     #: (the sampler's covering radius measured 2.3-2.6x that distance: 3 keeps the bound with room)
-    margin_spacing_factor: float = 3.0
+    margin_spacing_factor: float = bounded(3.0, ge=0)
     #: measure the true covering radius rho from the ground truth (diagnostic: did m >= rho + r/2
     #: hold? a few seconds per scene)
     check_margin: bool = True
     #: scene sampling and planner seed (an integer >= 0)
-    seed: int = 0
+    seed: int = bounded(0, ge=0)
     #: planners to compare, each on the same checker, time limit and margin: auto / rrt / rrtconnect
     #: (ours, seeded) or ompl:NAME (an OMPL geometric planner, e.g. ompl:RRTConnect, ompl:BITstar,
     #: ompl:PRM; the 'ompl' extra; not seedable)
@@ -130,22 +131,9 @@ class MBMConfig:
         return cls(n_per_family=1, n_splats=30_000, time_limit=5.0)
 
     def validate(self) -> "MBMConfig":
+        check_config(self)  # every field's range and finiteness (named Class.field)
         if not self.families:
             raise SplatplanError("MBMConfig.families: give at least one family")
-        if self.n_per_family is not None and self.n_per_family < 1:
-            raise SplatplanError(f"MBMConfig.n_per_family must be >= 1, got {self.n_per_family}")
-        if not (self.n_sigma >= 0 and math.isfinite(self.n_sigma)):
-            raise SplatplanError(f"MBMConfig.n_sigma must be finite and >= 0, got {self.n_sigma}")
-        if self.n_splats < 1000:
-            raise SplatplanError(f"MBMConfig.n_splats must be >= 1000, got {self.n_splats}")
-        if not (self.time_limit > 0 and math.isfinite(self.time_limit)):
-            raise SplatplanError(f"MBMConfig.time_limit must be finite and > 0, got {self.time_limit}")
-        if self.margin_m is not None and not (self.margin_m >= 0 and math.isfinite(self.margin_m)):
-            raise SplatplanError(f"MBMConfig.margin_m must be finite and >= 0, got {self.margin_m}")
-        if not self.margin_spacing_factor >= 0:
-            raise SplatplanError(f"MBMConfig.margin_spacing_factor must be >= 0, got {self.margin_spacing_factor}")
-        if self.seed < 0:
-            raise SplatplanError(f"MBMConfig.seed must be >= 0, got {self.seed}")
         check_planners(self.planners)
         return self
 
