@@ -71,7 +71,7 @@ def register(sub, eval_sub) -> None:
     from ..eval.mbm import MBMConfig
 
     s = eval_sub.add_parser("mbm", help="MotionBenchMaker arm problems planned on splats of their scenes (writes mbm.json, mbm.md)",
-                            description="MotionBenchMaker (MBM) Panda problems: MoveIt scenes sampled into splats, planned with the default planner, paths checked against the exact primitives.")  # fmt: skip
+                            description="MotionBenchMaker (MBM) Panda problems: MoveIt scenes sampled into splats, planned with each of --planners (default: ours; ompl:NAME for OMPL's), paths checked against the exact primitives; serial, or on Dask with --workers / --scheduler (results stream to OUT/mbm.results.jsonl; a rerun resumes).")  # fmt: skip
     s.add_argument("--out", required=True, help="output folder (created)")
     s.add_argument("--quick", action="store_true", help="start from the CI settings (1 problem per family, 30k splats, 5 s); flags still override them")
     add_engine_args(s)
