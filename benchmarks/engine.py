@@ -194,6 +194,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--mbm-only", action="store_true", help="run only the MBM job set (with --mbm)")
     ap.add_argument("--out", default=str(Path(__file__).resolve().parent / "results" / "engine.json"))
     args = ap.parse_args(argv)
+    if args.mbm_only and args.mbm is None:
+        ap.error("--mbm-only needs --mbm N")
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     work = out.parent / f".{out.stem}_runs_{os.getpid()}"
@@ -211,8 +213,6 @@ def main(argv: list[str] | None = None) -> int:
     if args.quick:
         sets = {"stonehenge": replace(sets["stonehenge"], n_sigma=[1.0], pairs=2, max_iters=50, n_splats=20_000)}
     if args.mbm_only:
-        if args.mbm is None:
-            ap.error("--mbm-only needs --mbm N")
         sets = {}
     rows = []
     try:
