@@ -1,12 +1,17 @@
 """Job engine benchmark: the same plan jobs serial and on a local Dask cluster of 2 workers.
 
-Job set (until ``eval mbm`` is merged; then rerun on the MotionBenchMaker families): plan jobs of
-``splatplan sweep`` on built-in scenes, run to a fixed RRT iteration budget (``max_iters``) so that
-every job does the same work wherever it runs:
+Job sets: plan jobs of ``splatplan sweep`` on built-in scenes, run to a fixed RRT iteration budget
+(``max_iters``) so that every job does the same work wherever it runs:
 
 * ``stonehenge``: sphere r = 0.015, built-in Stonehenge (``--splats`` splats), n_sigma 0 and 1,
   random free start/goal pairs;
-* ``tabletop``: the Panda on the built-in tabletop, n_sigma 1, random free joint-space pairs.
+* ``tabletop``: the Panda on the built-in tabletop, n_sigma 1, random free joint-space pairs;
+* ``mbm`` (``--mbm N``): the ``eval mbm`` tasks (:func:`splatplan.eval.mbm.mbm_task`, our planner)
+  on the first N problems of each shared MotionBenchMaker family (``--mbm-splats`` splats per
+  scene, ``--mbm-time-limit``); each worker builds its robot once and its scenes once per problem.
+  These jobs end at a solution or the time limit, so a search the limit cuts short may differ
+  between the runs (``same_rows`` then says NO and ``differing`` names the tasks).
+  ``--mbm-only`` skips the built-in sets.
 
 Measured:
 
@@ -25,7 +30,7 @@ a context build b per worker,
 ``n t`` saturates at ``t / o`` workers. The script prints T(W) for W = 2, 8, 32, 128 from the
 measured t, o and b.
 
-    python benchmarks/engine.py [--quick] [--workers 2] [--pairs N] [--max-iters N] [--out benchmarks/results/engine.json]
+    python benchmarks/engine.py [--quick] [--workers 2] [--pairs N] [--max-iters N] [--mbm N [--mbm-only]] [--out benchmarks/results/engine.json]
 
 Timings on this shared 2-core machine are under heavy contention (the JSON records the load
 average); the lead reruns on a quiet machine.
@@ -99,6 +104,49 @@ def run_set(name: str, spec, base: Path, out: Path, workers: int) -> dict:
     }
 
 
+def run_mbm_set(n_per_family: int, n_splats: int, time_limit: float, out: Path, workers: int, margin_m: float | None = None) -> dict:
+    """The MBM job set: serial, then on ``workers`` local workers (same tasks, same seeds)."""
+    from dataclasses import asdict
+
+    from splatplan.eval.engine import Task, run_tasks
+    from splatplan.eval.mbm import MBMConfig, comparable, list_tasks, make_context, mbm_task, settings_hash, task_key
+
+    cfg = MBMConfig(n_per_family=n_per_family, n_splats=n_splats, time_limit=time_limit, margin_m=margin_m).validate()
+    sig = settings_hash(cfg)
+    tasks = [Task(task_key(t, cfg, sig), asdict(t)) for t in list_tasks(cfg)]
+    factory = functools.partial(make_context, cfg)
+    ser = run_tasks(tasks, mbm_task, factory, None, out / "mbm_serial.jsonl", progress=False)
+    dk = run_tasks(tasks, mbm_task, factory, {"kind": "dask", "workers": workers}, out / "mbm_dask.jsonl", progress=False)
+    task_s = [r["seconds"] for r in ser.records.values()]
+    first = {}
+    for r in dk.records.values():  # the first task of each worker includes the robot load
+        first.setdefault(r["worker"], []).append(r["seconds"])
+    differing = [k for k in ser.rows if comparable(ser.rows[k]) != comparable(dk.rows.get(k, {}))]
+    return {
+        "job_set": f"mbm ({n_per_family}/family, {n_splats:,} splats, margin {'derived' if margin_m is None else format(margin_m, 'g') + ' m'})",
+        "n_tasks": len(tasks),
+        "serial_s": ser.run_s,
+        "dask_s": dk.run_s,
+        "cluster_start_s": dk.cluster_start_s,
+        "dask_wall_incl_start_and_shutdown_s": dk.wall_s,
+        "speedup": ser.run_s / dk.run_s,
+        "speedup_incl_start": ser.run_s / dk.wall_s,
+        "task_s_median": statistics.median(task_s),
+        "task_s_sum": float(sum(task_s)),
+        "first_task_s_per_worker": {k: max(v) for k, v in first.items()},
+        "dask_task_s_sum": float(sum(r["seconds"] or 0.0 for r in dk.records.values())),
+        # worker-seconds not spent inside a task, per task: scheduling, transfer, idle tail
+        "overhead_per_task_derived_s": (workers * dk.run_s - sum(r["seconds"] or 0.0 for r in dk.records.values())) / max(1, len(tasks)),
+        "same_rows": not differing and not ser.errors and not dk.errors,
+        "differing": differing,
+        "errors": {**ser.errors, **dk.errors},
+        "n_both_free": int(sum(bool(r.get("start_free") and r.get("goal_free")) for r in ser.rows.values())),
+        "n_solved": int(sum(bool(r.get("solved")) for r in ser.rows.values())),
+        "hit_time_limit": int(sum(r.get("time_s") is not None and r["time_s"] >= 0.95 * time_limit for r in ser.rows.values())),
+        "engine": dk.engine,
+    }
+
+
 def overhead(workers: int, n: int) -> dict:
     from distributed import Client, LocalCluster
 
@@ -139,8 +187,15 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--overhead-tasks", type=int, default=400)
     ap.add_argument("--pairs", type=int, default=None, help="start/goal pairs per job set (default 24 Stonehenge, 12 tabletop)")
     ap.add_argument("--max-iters", type=int, default=None, help="RRT iterations per plan (default 300 Stonehenge, 150 tabletop)")
+    ap.add_argument("--mbm", type=int, default=None, metavar="N", help="add the MBM job set: the first N problems of each shared MBM family")
+    ap.add_argument("--mbm-splats", type=int, default=100_000, help="splats per MBM scene")
+    ap.add_argument("--mbm-time-limit", type=float, default=10.0, help="planning time limit per MBM problem (s)")
+    ap.add_argument("--mbm-margin", type=float, default=None, help="MBM planning margin (m); default derived from the splat spacing (few goals free with the coarse model: little planning)")
+    ap.add_argument("--mbm-only", action="store_true", help="run only the MBM job set (with --mbm)")
     ap.add_argument("--out", default=str(Path(__file__).resolve().parent / "results" / "engine.json"))
     args = ap.parse_args(argv)
+    if args.mbm_only and args.mbm is None:
+        ap.error("--mbm-only needs --mbm N")
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     work = out.parent / f".{out.stem}_runs_{os.getpid()}"
@@ -157,8 +212,13 @@ def main(argv: list[str] | None = None) -> int:
             sets[k] = replace(spec, max_iters=args.max_iters)
     if args.quick:
         sets = {"stonehenge": replace(sets["stonehenge"], n_sigma=[1.0], pairs=2, max_iters=50, n_splats=20_000)}
+    if args.mbm_only:
+        sets = {}
     rows = []
     try:
+        if args.mbm is not None:
+            rows.append(run_mbm_set(args.mbm, args.mbm_splats, args.mbm_time_limit, work, args.workers, args.mbm_margin))
+            print(f"mbm: {rows[-1]['serial_s']:.1f} s serial, {rows[-1]['dask_s']:.1f} s on {args.workers} workers", file=sys.stderr)
         for name, spec in sets.items():
             rows.append(run_set(name, spec.validate(), Path("."), work, args.workers))
             print(f"{name}: {rows[-1]['serial_s']:.1f} s serial, {rows[-1]['dask_s']:.1f} s on {args.workers} workers", file=sys.stderr)
@@ -177,7 +237,7 @@ def main(argv: list[str] | None = None) -> int:
         "load_avg_1min_start": load0,
         "load_avg_1min_end": os.getloadavg()[0],
         "model": "T(W) = T_start + b + max(n t / W, n o) + t; t = mean task s (serial), o = per-task overhead, b = context build per worker",
-        "note": "shared 2-core machine under contention: indicative only; rerun on a quiet machine (and on the MBM families once eval mbm is merged)",
+        "note": "shared 2-core machine under contention: indicative only; rerun on a quiet machine",
         "quick": bool(args.quick),
     }
     out.write_text(json.dumps(res, indent=2) + "\n")
@@ -191,6 +251,11 @@ def main(argv: list[str] | None = None) -> int:
             f"| {r['job_set']} | {r['n_tasks']} | {r['serial_s']:.1f} | {r['dask_s']:.1f} | {r['speedup']:.2f}x | {r['cluster_start_s']:.1f} | "
             f"{r['task_s_median']:.2f} | {'yes' if r['same_rows'] else 'NO'} | {m['8']:.1f} | {m['32']:.1f} |"
         )
+    for r in rows:
+        if "differing" in r:
+            lines.append(f"\n{r['job_set']}: {r['n_solved']}/{r['n_both_free']} solved serially (of the problems with both endpoints free; {r['n_tasks']} tasks), {r['hit_time_limit']} at the time limit; "
+                         f"worker time outside tasks per task {r['overhead_per_task_derived_s']:.2f} s (scheduling, transfer, idle tail); "
+                         f"rows differing: {', '.join(r['differing']) or 'none'}; errors: {len(r['errors'])}")  # fmt: skip
     lines.append("")
     lines.append(f"per-task overhead (no-op tasks, {args.workers} workers): {1e3 * ov['per_task_s']:.2f} ms; 1 MB result: {1e3 * ov['per_task_1mb_s']:.2f} ms "
                  f"({1e3 * ov['per_mb_s']:.2f} ms/MB); load average {load0:.1f} -> {res['load_avg_1min_end']:.1f} on {res['cores']} cores")  # fmt: skip

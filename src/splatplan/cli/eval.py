@@ -11,7 +11,8 @@ import importlib
 
 from ._common import _out_dir, add_config_args, add_device_arg, add_engine_args, config_from_args, engine_from_args
 
-#: studies whose tasks run on the job engine (--workers N / --scheduler ADDR)
+#: studies whose tasks run on the job engine (--workers N / --scheduler ADDR); `eval mbm` (registered
+#: on its own, see :func:`register`) runs on it too
 ENGINE_STUDIES = ("pr", "conservatism")
 
 #: study -> (help, module under splatplan.eval, config class, run function, output files)
@@ -55,14 +56,14 @@ def cmd_eval(args) -> int:
 def cmd_mbm(args) -> int:
     """``splatplan eval mbm``: the MotionBenchMaker benchmark on splats (see splatplan.eval.mbm)."""
     from ..eval.mbm import MBMConfig, report, run_mbm
-    from ._common import progress
 
+    engine = engine_from_args(args)
     base = MBMConfig.quick() if args.quick else MBMConfig()
     cfg = config_from_args(args, MBMConfig, base=base).validate()
     out = _out_dir(args.out)
-    res = run_mbm(cfg, out, progress=lambda it, **kw: progress(it, **kw))
+    res = run_mbm(cfg, out, engine=engine)
     print(report(res).rstrip())
-    print(f"\nwrote {out / 'mbm.json'}, {out / 'mbm.md'}")
+    print(f"\nwrote {out / 'mbm.json'}, {out / 'mbm.md'}, {out / 'mbm.results.jsonl'}")
     return 0
 
 
@@ -70,9 +71,10 @@ def register(sub, eval_sub) -> None:
     from ..eval.mbm import MBMConfig
 
     s = eval_sub.add_parser("mbm", help="MotionBenchMaker arm problems planned on splats of their scenes (writes mbm.json, mbm.md)",
-                            description="MotionBenchMaker (MBM) Panda problems: MoveIt scenes sampled into splats, planned with the default planner, paths checked against the exact primitives.")  # fmt: skip
+                            description="MotionBenchMaker (MBM) Panda problems: MoveIt scenes sampled into splats, planned with each of --planners (default: ours; ompl:NAME for OMPL's), paths checked against the exact primitives; serial, or on Dask with --workers / --scheduler (results stream to OUT/mbm.results.jsonl; a rerun resumes).")  # fmt: skip
     s.add_argument("--out", required=True, help="output folder (created)")
     s.add_argument("--quick", action="store_true", help="start from the CI settings (1 problem per family, 30k splats, 5 s); flags still override them")
+    add_engine_args(s)
     add_config_args(s, MBMConfig, group="benchmark options (MBMConfig)")
     s.set_defaults(func=cmd_mbm)
     for name, (help_, *_rest) in STUDIES.items():

@@ -34,23 +34,41 @@ would: ``margin_spacing_factor`` x the median nearest-neighbour distance of the 
 benchmark measures the true rho from the ground truth (``rho_measured_m``, max over dense surface
 samples of the distance to the nearest mean) and reports whether ``m >= rho + r / 2`` held.
 
-Per-problem work is the pure function :func:`solve_problem` ``(task, context) -> row`` with a
-per-process :class:`MBMContext` (robot loaded once), so any engine can map it over the tasks (the
-serial loop is the default; a distributed engine can ship the tasks and build one context per
-worker with :func:`make_context`).
+**Planners.** ``MBMConfig.planners`` lists the planners compared: ``auto`` (ours: RRT-Connect for
+the arm), ``rrt``, ``rrtconnect``, or ``ompl:NAME`` (any OMPL geometric planner through
+:mod:`splatplan.planners.ompl_bridge`, the ``ompl`` extra). All run on the same checker, time limit,
+margin and edge resolution; each (problem, planner) is one row with a ``planner`` field. Ours are
+seeded per task (``seed + index``); OMPL's sampler is not seedable from the bridge, so OMPL rows are
+not reproducible run to run (``row["seeded"]`` says which rows are).
+
+**The job engine.** Each (problem, planner) is one :class:`~splatplan.eval.engine.Task` whose key
+holds a hash of the settings that change a row (not ``families``, ``n_per_family`` or
+``planners``: growing a run reuses what is done) and :func:`~splatplan.eval.engine.code_version`.
+:func:`run_mbm` maps the pure, module-level :func:`mbm_task` / :func:`solve_problem` over them with
+:func:`~splatplan.eval.engine.run_tasks`: serial, or on Dask (``--workers N`` / ``--scheduler
+ADDR``). Per worker process, :func:`make_context` loads the robot once and :class:`MBMContext`
+caches the last few prepared scenes (splats, exact scene, margin, checker) by problem, so the
+planners of one problem share one sampled scene. Results stream to ``OUT/mbm.results.jsonl``; a
+rerun resumes; a failed task is recorded (``failures`` in ``mbm.json``). For the same seed a
+distributed run gives the same rows as a serial one, except the timing fields
+(:data:`TIMING_FIELDS`) and OMPL's rows (see :func:`comparable`).
 """
 
 from __future__ import annotations
 
+import functools
+import hashlib
 import inspect
 import json
 import math
 import time
+from collections import OrderedDict
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from .._config import bounded, check_config
 from ..errors import SplatplanError
 
 #: the repository root (src/splatplan/eval/mbm.py -> 3 levels up); shared data lives beside it
@@ -82,26 +100,30 @@ class MBMConfig:
     #: families to run (folder names without the "_panda" suffix)
     families: tuple[str, ...] = ("table_pick", "box", "bookshelf_small")
     #: problems per family (the first N by index); none = all
-    n_per_family: int | None = None
+    n_per_family: int | None = bounded(None, ge=1)
     #: metric conservatism of the planner's collision checks (0 = splat means; see the margin)
-    n_sigma: float = 0.0
+    n_sigma: float = bounded(0.0, ge=0)
     #: splats per scene (the built-in real-capture look)
-    n_splats: int = 100_000
+    n_splats: int = bounded(100_000, ge=1000)
     #: planning time limit per problem (s)
-    time_limit: float = 10.0
+    time_limit: float = bounded(10.0, gt=0)
     #: robot URDF (or a built-in name, e.g. panda); none = <repo>/../shared/data/mbm/panda/panda.urdf
     robot: str | None = None
     #: planning margin (m) added around every ellipsoid (Robot.inflated); none = derived per scene
     #: from the splat spacing (see margin_spacing_factor); 0 = plan with the robot's own model
-    margin_m: float | None = None
+    margin_m: float | None = bounded(None, ge=0)
     #: derived margin = this x the median nearest-neighbour distance of the splat means + r/2
     #: (the sampler's covering radius measured 2.3-2.6x that distance: 3 keeps the bound with room)
-    margin_spacing_factor: float = 3.0
+    margin_spacing_factor: float = bounded(3.0, ge=0)
     #: measure the true covering radius rho from the ground truth (diagnostic: did m >= rho + r/2
     #: hold? a few seconds per scene)
     check_margin: bool = True
     #: scene sampling and planner seed (an integer >= 0)
-    seed: int = 0
+    seed: int = bounded(0, ge=0)
+    #: planners to compare, each on the same checker, time limit and margin: auto / rrt / rrtconnect
+    #: (ours, seeded) or ompl:NAME (an OMPL geometric planner, e.g. ompl:RRTConnect, ompl:BITstar,
+    #: ompl:PRM; the 'ompl' extra; not seedable)
+    planners: tuple[str, ...] = ("auto",)
 
     @classmethod
     def quick(cls) -> "MBMConfig":
@@ -109,22 +131,10 @@ class MBMConfig:
         return cls(n_per_family=1, n_splats=30_000, time_limit=5.0)
 
     def validate(self) -> "MBMConfig":
+        check_config(self)  # every field's range and finiteness (named Class.field)
         if not self.families:
             raise SplatplanError("MBMConfig.families: give at least one family")
-        if self.n_per_family is not None and self.n_per_family < 1:
-            raise SplatplanError(f"MBMConfig.n_per_family must be >= 1, got {self.n_per_family}")
-        if not (self.n_sigma >= 0 and math.isfinite(self.n_sigma)):
-            raise SplatplanError(f"MBMConfig.n_sigma must be finite and >= 0, got {self.n_sigma}")
-        if self.n_splats < 1000:
-            raise SplatplanError(f"MBMConfig.n_splats must be >= 1000, got {self.n_splats}")
-        if not (self.time_limit > 0 and math.isfinite(self.time_limit)):
-            raise SplatplanError(f"MBMConfig.time_limit must be finite and > 0, got {self.time_limit}")
-        if self.margin_m is not None and not (self.margin_m >= 0 and math.isfinite(self.margin_m)):
-            raise SplatplanError(f"MBMConfig.margin_m must be finite and >= 0, got {self.margin_m}")
-        if not self.margin_spacing_factor >= 0:
-            raise SplatplanError(f"MBMConfig.margin_spacing_factor must be >= 0, got {self.margin_spacing_factor}")
-        if self.seed < 0:
-            raise SplatplanError(f"MBMConfig.seed must be >= 0, got {self.seed}")
+        check_planners(self.planners)
         return self
 
     def problems_dir(self) -> Path:
@@ -145,22 +155,75 @@ class MBMConfig:
         return p
 
 
+def check_planners(names) -> tuple[str, ...]:
+    """Validate planner names (ours, or ``ompl:NAME`` with the extra installed and NAME one of
+    OMPL's geometric planners); a one-line :class:`SplatplanError` otherwise."""
+    from ..planners import PLANNERS
+
+    names = tuple(names)
+    if not names:
+        raise SplatplanError("MBMConfig.planners: give at least one planner (e.g. auto,ompl:RRTConnect)")
+    if len(set(names)) != len(names):
+        raise SplatplanError(f"MBMConfig.planners: a planner is listed twice in {','.join(names)}")
+    for n in names:
+        if n in PLANNERS:
+            continue
+        if not n.startswith("ompl:"):
+            raise SplatplanError(f"MBMConfig.planners: unknown planner {n!r}: use {', '.join(PLANNERS)} or ompl:NAME (e.g. ompl:RRTConnect)")
+        from ..planners.ompl_bridge import available_planners  # the install hint when the extra is missing
+
+        have = available_planners()
+        if n[5:] not in have:
+            raise SplatplanError(f"MBMConfig.planners: unknown OMPL planner {n[5:]!r}: available: {', '.join(have)}")
+    return names
+
+
 @dataclass(frozen=True)
 class MBMTask:
-    """One problem: what a worker needs to solve it (plain data, picklable)."""
+    """One (problem, planner): what a worker needs to solve it (plain data, picklable)."""
 
     family: str
     index: int
     scene: str  # path of sceneNNNN.yaml
     request: str  # path of requestNNNN.yaml
+    planner: str = "auto"  # a name of MBMConfig.planners
 
 
 @dataclass
 class MBMContext:
-    """Per-process state shared by the problems: the config and the robot (loaded once)."""
+    """Per-process state shared by the tasks: the config, the robot (loaded once) and the last
+    ``max_scenes`` prepared scenes (by scene file), so the planners of one problem share them."""
 
     config: MBMConfig
     robot: object  # splatplan.robots.Robot
+    scenes: OrderedDict = field(default_factory=OrderedDict)  # scene path -> _Prepared (LRU)
+    max_scenes: int = 2
+
+    def prepared(self, scene_path: str) -> "_Prepared":
+        """The prepared scene of ``scene_path`` (built on first use; deterministic in the config)."""
+        p = self.scenes.get(scene_path)
+        if p is None:
+            p = _prepare(scene_path, self.config, self.robot)
+            self.scenes[scene_path] = p
+            while len(self.scenes) > self.max_scenes:
+                _, old = self.scenes.popitem(last=False)
+                old.checker.close()
+        self.scenes.move_to_end(scene_path)
+        return p
+
+
+@dataclass
+class _Prepared:
+    """One problem's scene as every planner sees it (all derived from the config's seed)."""
+
+    splats: object  # splatplan.scenes.Splats, floaters filtered (metres, z-up)
+    scene: object  # splatplan.scenes.primitives.AnalyticScene: the exact primitives
+    checker: object  # CollisionChecker on the splats at config.n_sigma (cpu)
+    margin: float  # planning margin (m)
+    spacing_nn: float  # median NN distance of the means (m; nan with a fixed margin)
+    resolution: float  # edge resolution r (m)
+    rho: float  # measured covering radius (m; nan when not checked)
+    endpoints: dict = field(default_factory=dict)  # request path -> (q0, q1, exact clearance (2,), hit (2,), hit_own (2,))
 
 
 @dataclass
@@ -168,18 +231,22 @@ class MBMResult:
     """Rows, per-family and overall summaries, and what was run."""
 
     config: MBMConfig
-    rows: list[dict]
-    summary: dict[str, dict]
+    rows: list[dict]  # one per (problem, planner) that finished, problem-major
+    summary: dict[str, dict]  # family / "overall" -> summary, of the first planner (ours by default)
     setup: dict = field(default_factory=dict)
     time_s: float = 0.0
+    summary_by_planner: dict[str, dict] = field(default_factory=dict)  # planner -> family -> summary
+    failures: list[dict] = field(default_factory=list)  # tasks recorded as failed, with their error
 
     def to_json(self) -> dict:
-        return {"study": "mbm", "config": asdict(self.config), "setup": self.setup, "summary": self.summary, "rows": self.rows,
+        return {"study": "mbm", "config": asdict(self.config), "engine": self.setup.get("engine", {"kind": "serial"}), "setup": self.setup,
+                "summary": self.summary, "summary_by_planner": self.summary_by_planner, "rows": self.rows, "failures": self.failures,
                 "published": PUBLISHED, "time_s": self.time_s}  # fmt: skip
 
 
 def list_tasks(config: MBMConfig) -> list[MBMTask]:
-    """The problems of the configured families, sorted by index (the first ``n_per_family``)."""
+    """The problems of the configured families, sorted by index (the first ``n_per_family``), each
+    once per planner of ``config.planners`` (problem-major: a problem's planners are adjacent)."""
     root = config.problems_dir()
     tasks = []
     for fam in config.families:
@@ -195,18 +262,53 @@ def list_tasks(config: MBMConfig) -> list[MBMTask]:
             idx = int(s.stem.removeprefix("scene"))
             req = d / f"request{s.stem.removeprefix('scene')}.yaml"
             if req.is_file():
-                fam_tasks.append(MBMTask(fam, idx, str(s), str(req)))
+                fam_tasks += [MBMTask(fam, idx, str(s), str(req), p) for p in config.planners]
         if not fam_tasks:
             raise SplatplanError(f"MBM family {fam!r}: no sceneNNNN.yaml / requestNNNN.yaml pairs in {d}")
-        tasks += fam_tasks[: config.n_per_family]
+        tasks += fam_tasks[: None if config.n_per_family is None else config.n_per_family * len(config.planners)]
     return tasks
 
 
+def check_inputs(tasks: list[MBMTask], robot) -> None:
+    """Parse every problem's scene and request (no sampling) so that bad input stops the run with
+    one line before any work: YAML that does not parse, an unknown primitive or a mesh, a scene
+    with no objects, joints the robot does not have, a goal outside the joint limits."""
+    from ..scenes.moveit import load_moveit_request, load_moveit_scene
+
+    seen = set()
+    for t in tasks:
+        if t.scene in seen:
+            continue
+        seen.add(t.scene)
+        load_moveit_scene(t.scene)
+        load_moveit_request(t.request, robot)
+
+
 def make_context(config: MBMConfig) -> MBMContext:
-    """Load the robot once per process."""
+    """Load the robot once per process (the job engine calls this once per worker)."""
     from ..robots import load_robot
 
     return MBMContext(config, load_robot(config.robot_path()))
+
+
+#: settings that do not change a row (left out of the task keys: growing a run reuses its rows)
+_KEY_FREE = ("families", "n_per_family", "planners")
+
+
+def settings_hash(config: MBMConfig) -> str:
+    """Hash of the settings that change a row, and of splatplan's source (the task keys' prefix)."""
+    from .engine import code_version
+
+    d = {k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(config).items() if k not in _KEY_FREE}
+    d["problems"] = str(config.problems_dir().resolve())
+    d["robot"] = str(config.robot_path())
+    d["code"] = code_version()
+    return hashlib.sha1(json.dumps(d, sort_keys=True).encode()).hexdigest()[:10]
+
+
+def task_key(task: MBMTask, config: MBMConfig, sig: str) -> str:
+    """The stable resume key of one (problem, planner)."""
+    return f"{sig}/{task.family}/{task.index:04d}/{task.planner}/ns={config.n_sigma:g}"
 
 
 # ---------------------------------------------------------------------------------------------
@@ -278,7 +380,7 @@ def derived_margin(robot, means: np.ndarray, factor: float, fraction: float = 0.
 # ---------------------------------------------------------------------------------------------
 
 
-def _plan(checker, start, goal, robot, time_limit: float, seed: int, edge_resolution: float):
+def _plan(checker, start, goal, robot, time_limit: float, seed: int, edge_resolution: float, planner: str = "auto"):
     """Call the public planner with the time limit (whatever its keyword for it) and the edge
     resolution the margin was derived with (that of the un-inflated robot: the inflated one's
     default would be coarser and need a larger margin)."""
@@ -288,6 +390,8 @@ def _plan(checker, start, goal, robot, time_limit: float, seed: int, edge_resolu
     kw = {"robot": robot, "seed": seed}
     if "refine" in params:
         kw["refine"] = False
+    if planner != "auto" or "planner" in params:
+        kw["planner"] = planner
     cfg = RRTConfig(time_limit_s=time_limit, edge_resolution=edge_resolution)
     if "time_limit" in params:
         kw["time_limit"] = time_limit
@@ -295,18 +399,13 @@ def _plan(checker, start, goal, robot, time_limit: float, seed: int, edge_resolu
     return plan(checker, start, goal, **kw)
 
 
-def solve_problem(task: MBMTask, ctx: MBMContext) -> dict:
-    """Solve one MBM problem (pure: everything it needs is in ``task`` and ``ctx``); returns its row."""
+def _prepare(scene_path: str, cfg: MBMConfig, robot) -> _Prepared:
+    """Sample the scene into splats, derive the margin, measure rho, build the checker."""
     from ..metric import CollisionChecker
-    from ..planners.robot_links import robot_collides
     from ..scenes.filters import filter_floaters
-    from ..scenes.moveit import build_moveit, load_moveit_request
+    from ..scenes.moveit import build_moveit
 
-    cfg, robot = ctx.config, ctx.robot
-    t0 = time.perf_counter()
-    row: dict = {"family": task.family, "index": task.index}
-    q0, q1 = load_moveit_request(task.request, robot)
-    splats, scene = build_moveit(task.scene, n_splats=cfg.n_splats, seed=cfg.seed)
+    splats, scene = build_moveit(scene_path, n_splats=cfg.n_splats, seed=cfg.seed)
     base_spacing = float(splats.info["base_spacing"])
     splats, _ = filter_floaters(splats)
     if cfg.margin_m is None:
@@ -314,38 +413,71 @@ def solve_problem(task: MBMTask, ctx: MBMContext) -> dict:
     else:
         margin, h_nn, res = float(cfg.margin_m), float("nan"), 0.25 * robot.min_semi_axis
     rho = covering_radius(scene, splats.means, base_spacing, seed=cfg.seed) if cfg.check_margin else float("nan")
-    plan_robot = robot.inflated(margin) if margin > 0 else robot
-    row.update(margin_m=margin, spacing_nn_m=h_nn, rho_measured_m=rho, edge_resolution_m=res,
-               bound_holds=bool(margin >= rho + 0.5 * res - 1e-12) if cfg.check_margin else None)  # fmt: skip
-    clear = exact_clearance(scene, robot, np.stack([q0, q1]))
-    row.update(start_valid=bool(clear[0] > 0), goal_valid=bool(clear[1] > 0), start_clearance_m=float(clear[0]), goal_clearance_m=float(clear[1]))
     checker = CollisionChecker(splats, n_sigma=cfg.n_sigma, device="cpu")
-    try:
-        hit = np.asarray(robot_collides(checker, plan_robot, np.stack([q0, q1]))).any(axis=-1)
-        hit_own = np.asarray(robot_collides(checker, robot, np.stack([q0, q1]))).any(axis=-1) if plan_robot is not robot else hit
-        row.update(start_free=bool(not hit[0]), goal_free=bool(not hit[1]), start_free_unmargined=bool(not hit_own[0]), goal_free_unmargined=bool(not hit_own[1]))
-        row.update(solved=False, time_s=None, n_nodes=None, path_length=None, path=None, min_exact_clearance_m=None, message="")
-        if row["start_free"] and row["goal_free"]:
-            res_p = _plan(checker, q0, q1, plan_robot, cfg.time_limit, cfg.seed + task.index, res)
-            row.update(solved=bool(res_p.success), time_s=float(res_p.time_s), n_nodes=int(res_p.n_nodes), message=str(getattr(res_p, "message", "")))
-            times = (res_p.info or {}).get("time_split") or (res_p.info or {}).get("times")
-            if times is not None:
-                row["time_split"] = {k: float(v) for k, v in dict(times).items()}
-            if res_p.success:
-                path = np.asarray(res_p.path, dtype=np.float64)
-                length = getattr(res_p, "length", None)
-                if length is None:
-                    from ..planners.rrt import path_length
+    return _Prepared(splats, scene, checker, margin, h_nn, res, rho)
 
-                    length = path_length(path, plan_robot.motion_bound)
-                row.update(path_length=float(length), path=path.round(6).tolist())
-                row["min_exact_clearance_m"] = float(exact_clearance(scene, robot, dense_path(robot, path)).min())
-        else:
-            row["message"] = "endpoint in collision for the planning model against the splats"
-    finally:
-        checker.close()
+
+def solve_problem(task: MBMTask, ctx: MBMContext) -> dict:
+    """Solve one MBM problem with ``task.planner`` (pure: the row depends only on ``task`` and the
+    config, whatever the context has cached); returns its row."""
+    from ..planners.robot_links import robot_collides
+    from ..scenes.moveit import load_moveit_request
+
+    cfg, robot = ctx.config, ctx.robot
+    t0 = time.perf_counter()
+    ours = not task.planner.startswith("ompl:")
+    row: dict = {"family": task.family, "index": task.index, "planner": task.planner, "seeded": ours}
+    prep = ctx.prepared(task.scene)
+    scene, checker, margin, res, rho = prep.scene, prep.checker, prep.margin, prep.resolution, prep.rho
+    plan_robot = robot.inflated(margin) if margin > 0 else robot
+    row.update(margin_m=margin, spacing_nn_m=prep.spacing_nn, rho_measured_m=rho, edge_resolution_m=res,
+               bound_holds=bool(margin >= rho + 0.5 * res - 1e-12) if cfg.check_margin else None)  # fmt: skip
+    if task.request not in prep.endpoints:  # the same for every planner of the problem
+        q0, q1 = load_moveit_request(task.request, robot)
+        ends = np.stack([q0, q1])
+        hit = np.asarray(robot_collides(checker, plan_robot, ends)).any(axis=-1)
+        hit_own = np.asarray(robot_collides(checker, robot, ends)).any(axis=-1) if plan_robot is not robot else hit
+        prep.endpoints[task.request] = (q0, q1, exact_clearance(scene, robot, ends), hit, hit_own)
+    q0, q1, clear, hit, hit_own = prep.endpoints[task.request]
+    row.update(start_valid=bool(clear[0] > 0), goal_valid=bool(clear[1] > 0), start_clearance_m=float(clear[0]), goal_clearance_m=float(clear[1]))
+    row.update(start_free=bool(not hit[0]), goal_free=bool(not hit[1]), start_free_unmargined=bool(not hit_own[0]), goal_free_unmargined=bool(not hit_own[1]))
+    row.update(solved=False, time_s=None, n_nodes=None, path_length=None, path=None, min_exact_clearance_m=None, message="")
+    if row["start_free"] and row["goal_free"]:
+        res_p = _plan(checker, q0, q1, plan_robot, cfg.time_limit, cfg.seed + task.index, res, task.planner)
+        row.update(solved=bool(res_p.success), time_s=float(res_p.time_s), n_nodes=int(res_p.n_nodes), message=str(getattr(res_p, "message", "")))
+        times = (res_p.info or {}).get("time_split") or (res_p.info or {}).get("times")
+        if times is not None:
+            row["time_split"] = {k: float(v) for k, v in dict(times).items()}
+        if res_p.success:
+            path = np.asarray(res_p.path, dtype=np.float64)
+            length = getattr(res_p, "length", None)
+            if length is None:
+                from ..planners.rrt import path_length
+
+                length = path_length(path, plan_robot.motion_bound)
+            row.update(path_length=float(length), path=path.round(6).tolist())
+            row["min_exact_clearance_m"] = float(exact_clearance(scene, robot, dense_path(robot, path)).min())
+    else:
+        row["message"] = "endpoint in collision for the planning model against the splats"
     row["wall_s"] = time.perf_counter() - t0
     return row
+
+
+def mbm_task(spec: dict, ctx: MBMContext) -> dict:
+    """The job engine's task function: ``spec`` = the fields of an :class:`MBMTask`."""
+    return solve_problem(MBMTask(**spec), ctx)
+
+
+#: row fields that are wall-clock measurements (differ run to run; left out of :func:`comparable`)
+TIMING_FIELDS = ("time_s", "wall_s", "time_split", "message")
+
+
+def comparable(row: dict) -> dict | None:
+    """The part of a row that a rerun with the same seed reproduces exactly, wherever it runs:
+    everything but :data:`TIMING_FIELDS`; None for rows of unseeded planners (OMPL)."""
+    if not row.get("seeded", True):
+        return None
+    return {k: v for k, v in row.items() if k not in TIMING_FIELDS}
 
 
 # ---------------------------------------------------------------------------------------------
@@ -353,19 +485,19 @@ def solve_problem(task: MBMTask, ctx: MBMContext) -> dict:
 # ---------------------------------------------------------------------------------------------
 
 
-def serial_engine(fn, tasks, ctx, progress=None):
-    """The default engine: one process, in order (``progress`` wraps the iterable, e.g. tqdm)."""
-    it = tasks if progress is None else progress(tasks, total=len(tasks), desc="mbm")
-    return [fn(t, ctx) for t in it]
-
-
 def _pct(v: np.ndarray, q: float) -> float | None:
     return float(np.percentile(v, q)) if len(v) else None
 
 
+def _rho(r: dict) -> float:
+    """A row's measured rho (nan when not measured: the results file stores NaN as null)."""
+    v = r.get("rho_measured_m")
+    return float("nan") if v is None else float(v)
+
+
 def _any_rho(rows: list[dict]) -> bool:
     """Whether rho was measured for any of the rows."""
-    return any(np.isfinite(r["rho_measured_m"]) for r in rows)
+    return any(np.isfinite(_rho(r)) for r in rows)
 
 
 def summarise(rows: list[dict]) -> dict:
@@ -391,38 +523,58 @@ def summarise(rows: list[dict]) -> dict:
         "worst_exact_clearance_m": float(clear.min()) if len(clear) else None,
         "negative_clearance_paths": int(np.sum(clear < 0)),
         "margin_m_median": _pct(np.array([r["margin_m"] for r in rows]), 50),
-        "rho_measured_m_max": float(np.nanmax([r["rho_measured_m"] for r in rows])) if rows and _any_rho(rows) else None,
+        "rho_measured_m_max": float(np.nanmax([_rho(r) for r in rows])) if rows and _any_rho(rows) else None,
         "bound_holds": int(sum(bool(r["bound_holds"]) for r in rows)),
     }
 
 
-def run_mbm(config: MBMConfig | None = None, out_dir=None, *, engine=None, progress=None) -> MBMResult:
-    """Run the benchmark; write ``mbm.json`` and ``mbm.md`` into ``out_dir`` when given.
+def run_mbm(config: MBMConfig | None = None, out_dir=None, *, engine=None, progress: bool = True) -> MBMResult:
+    """Run the benchmark; write ``mbm.results.jsonl`` (streamed), ``mbm.json`` and ``mbm.md`` into
+    ``out_dir`` when given (a rerun into the same folder resumes).
 
     Args:
         config: :class:`MBMConfig` (validated here).
-        out_dir: output folder (must exist) or None.
-        engine: ``engine(solve_problem, tasks, context) -> rows`` (default :func:`serial_engine`).
-        progress: optional iterable wrapper for the serial engine (e.g. a tqdm factory).
+        out_dir: output folder (must exist) or None (results kept in memory only).
+        engine: :class:`~splatplan.eval.engine.EngineConfig` or its dict (default serial).
+        progress: show the engine's progress bar (on a terminal).
     """
+    from .engine import Task, run_tasks
+
     cfg = (config or MBMConfig()).validate()
     t0 = time.perf_counter()
-    tasks = list_tasks(cfg)
-    ctx = make_context(cfg)
-    rows = engine(solve_problem, tasks, ctx) if engine is not None else serial_engine(solve_problem, tasks, ctx, progress)
-    summary = {fam: summarise([r for r in rows if r["family"] == fam]) for fam in cfg.families}
-    summary["overall"] = summarise(rows)
-    robot = ctx.robot
+    problems = list_tasks(cfg)
+    robot = make_context(cfg).robot  # the fit is cached: cheap
+    check_inputs(problems, robot)  # bad input: one line before any work (not a failed task per problem)
+    sig = settings_hash(cfg)
+    tasks = [Task(task_key(t, cfg, sig), asdict(t)) for t in problems]
+    out_path = Path(out_dir) / "mbm.results.jsonl" if out_dir is not None else None
+    ran = run_tasks(tasks, mbm_task, functools.partial(make_context, cfg), engine, out_path, progress=progress, desc="mbm")
+    rows, failures = [], []
+    for t, task in zip(problems, tasks):
+        if task.key in ran.rows:
+            rows.append(ran.rows[task.key])
+        else:
+            failures.append({"family": t.family, "index": t.index, "planner": t.planner, "key": task.key, "error": ran.errors.get(task.key, "not run")})
+    by_planner = {}
+    for p in cfg.planners:
+        rp = [r for r in rows if r.get("planner", "auto") == p]
+        by_planner[p] = {fam: summarise([r for r in rp if r["family"] == fam]) for fam in cfg.families}
+        by_planner[p]["overall"] = summarise(rp)
     setup = {
         "robot": str(cfg.robot_path()), "robot_name": robot.name, "n_ellipsoids": robot.n_ellipsoids,
         "problems": str(cfg.problems_dir()), "device": "cpu",
-        "planner": "splatplan.planners.plan (the default planner for this robot), no refinement",
+        "planner": "splatplan.planners.plan (planner=each of config.planners), no refinement",
+        "planners": list(cfg.planners),
+        "seeding": "ours: seed + problem index per task; OMPL: not seedable (rows not reproducible)",
         "valid": "exact clearance > 0 of the robot's own ellipsoids against the exact primitives (self-collision not checked)",
         "free": "the planning model (robot inflated by margin_m) has no collision against the splats at n_sigma",
         "min_exact_clearance": "path resampled at a quarter of the smallest semi-axis of motion (Robot.motion_bound), own ellipsoids vs exact primitives",
         "timing_note": "wall-clock on this machine (shared CPU cores; contended timings)",
+        "engine": ran.engine,
+        "tasks": {"total": len(tasks), "run": ran.n_run, "resumed": ran.n_skipped, "failed": len(failures)},
+        "settings_hash": sig,
     }  # fmt: skip
-    result = MBMResult(cfg, rows, summary, setup, time.perf_counter() - t0)
+    result = MBMResult(cfg, rows, by_planner[cfg.planners[0]], setup, time.perf_counter() - t0, by_planner, failures)
     if out_dir is not None:
         from ._common import write_atomic
 
@@ -430,6 +582,12 @@ def run_mbm(config: MBMConfig | None = None, out_dir=None, *, engine=None, progr
         write_atomic(out / "mbm.json", json.dumps(result.to_json(), indent=1) + "\n")
         write_atomic(out / "mbm.md", report(result))
     return result
+
+
+def _engine_text(e: dict | None) -> str:
+    if not e or e.get("kind") != "dask":
+        return "serial"
+    return f"dask ({e.get('workers')} workers at {e.get('scheduler')})"
 
 
 def _frac_pct(v) -> str:
@@ -446,7 +604,8 @@ def report(result: MBMResult) -> str:
     lines = [
         f"MBM on splats: {cfg.n_splats:,} splats per scene, n_sigma {cfg.n_sigma:g}, "
         f"margin {'derived (' + format(cfg.margin_spacing_factor, 'g') + ' x NN spacing + r/2)' if cfg.margin_m is None else format(cfg.margin_m, 'g') + ' m'}, "
-        f"time limit {cfg.time_limit:g} s, robot {Path(result.setup.get('robot', '?')).name} ({result.setup.get('n_ellipsoids')} ellipsoids)",
+        f"time limit {cfg.time_limit:g} s, robot {Path(result.setup.get('robot', '?')).name} ({result.setup.get('n_ellipsoids')} ellipsoids), "
+        f"planner {cfg.planners[0]} (table below: every planner), engine {_engine_text(result.setup.get('engine'))}",
         "",
         "| family | problems | valid endpoints | free endpoints (own model) | both free | solved / free | median time (s) | p95 time (s) | worst exact clearance (mm) | paths < 0 | margin (mm) | rho max (mm) |",
         "|---|---|---|---|---|---|---|---|---|---|---|---|",
@@ -462,6 +621,20 @@ def report(result: MBMResult) -> str:
             f"{_fmt(s['median_time_s'], '.3g')} | {_fmt(s['p95_time_s'], '.3g')} | {_fmt(s['worst_exact_clearance_m'], '+.2f', 1e3)} | "
             f"{s['negative_clearance_paths']} | {_fmt(s['margin_m_median'], '.1f', 1e3)} | {_fmt(s['rho_measured_m_max'], '.1f', 1e3)} |"
         )
+    if result.summary_by_planner:
+        lines += ["", "Planners (same splats, checker, margin, edge resolution and time limit; ours seeded, OMPL's not):", "",
+                  "| planner | family | solved / free | median time (s) | p95 time (s) | worst exact clearance (mm) | paths < 0 |",
+                  "|---|---|---|---|---|---|---|"]  # fmt: skip
+        for p, per in result.summary_by_planner.items():
+            for fam, s in per.items():
+                if not s["n_problems"]:
+                    continue
+                lines.append(f"| {p} | {fam} | {s['solved']}/{s['problems_both_free']}{_frac_pct(s['solved_of_free_frac'])} | "
+                             f"{_fmt(s['median_time_s'], '.3g')} | {_fmt(s['p95_time_s'], '.3g')} | "
+                             f"{_fmt(s['worst_exact_clearance_m'], '+.2f', 1e3)} | {s['negative_clearance_paths']} |")  # fmt: skip
+    if result.failures:
+        lines += ["", f"{len(result.failures)} task(s) failed (see failures in mbm.json): "
+                  + "; ".join(f"{f['family']}/{f['index']} {f['planner']}: {f['error'][:120]}" for f in result.failures[:5])]  # fmt: skip
     lines += ["", "Published (same benchmark, 7 families x 100 problems; see ../shared/data/mbm/README.md):", "",
               "| planner | solved | median time | p95 time | robot model | scene | hardware |", "|---|---|---|---|---|---|---|"]  # fmt: skip
     for name, p in PUBLISHED.items():
