@@ -441,10 +441,12 @@ def solve_problem(task: MBMTask, ctx: MBMContext) -> dict:
     q0, q1, clear, hit, hit_own = prep.endpoints[task.request]
     row.update(start_valid=bool(clear[0] > 0), goal_valid=bool(clear[1] > 0), start_clearance_m=float(clear[0]), goal_clearance_m=float(clear[1]))
     row.update(start_free=bool(not hit[0]), goal_free=bool(not hit[1]), start_free_unmargined=bool(not hit_own[0]), goal_free_unmargined=bool(not hit_own[1]))
-    row.update(solved=False, time_s=None, n_nodes=None, path_length=None, path=None, min_exact_clearance_m=None, message="")
+    row.update(solved=False, time_s=None, n_nodes=None, path_length=None, path=None, min_exact_clearance_m=None, message="", timed_out=False)
     if row["start_free"] and row["goal_free"]:
         res_p = _plan(checker, q0, q1, plan_robot, cfg.time_limit, cfg.seed + task.index, res, task.planner)
         row.update(solved=bool(res_p.success), time_s=float(res_p.time_s), n_nodes=int(res_p.n_nodes), message=str(getattr(res_p, "message", "")))
+        # the search ran out of its wall-clock budget: how far it got (n_nodes) depends on the machine
+        row["timed_out"] = bool(not res_p.success and res_p.time_s >= 0.99 * cfg.time_limit)
         times = (res_p.info or {}).get("time_split") or (res_p.info or {}).get("times")
         if times is not None:
             row["time_split"] = {k: float(v) for k, v in dict(times).items()}
@@ -474,10 +476,13 @@ TIMING_FIELDS = ("time_s", "wall_s", "time_split", "message")
 
 def comparable(row: dict) -> dict | None:
     """The part of a row that a rerun with the same seed reproduces exactly, wherever it runs:
-    everything but :data:`TIMING_FIELDS`; None for rows of unseeded planners (OMPL)."""
+    everything but :data:`TIMING_FIELDS`; None for rows of unseeded planners (OMPL). A search that
+    ran out of its wall-clock budget (``timed_out``) reproduces its outcome but not its node count,
+    which depends on the machine's speed, so ``n_nodes`` is left out there too."""
     if not row.get("seeded", True):
         return None
-    return {k: v for k, v in row.items() if k not in TIMING_FIELDS}
+    drop = TIMING_FIELDS + (("n_nodes",) if row.get("timed_out") else ())
+    return {k: v for k, v in row.items() if k not in drop}
 
 
 # ---------------------------------------------------------------------------------------------
