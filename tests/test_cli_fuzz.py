@@ -73,6 +73,7 @@ BASE: dict[tuple[str, ...], tuple[list[str], list[str]]] = {
     ("eval", "navigate"): ([], ["--out", "{d}/o", "--quick"]),
     ("eval", "arm"): ([], ["--out", "{d}/o", "--quick"]),
     ("eval", "base"): ([], ["--out", "{d}/o", "--quick"]),
+    ("eval", "mbm"): ([], ["--out", "{d}/o", "--quick"]),  # exit 2 when the shared MBM data is absent
 }
 BASE_GO2 = ([], ["--robot", "go2", "--goal", "1,0", "--out", "{d}/m", "--base-max-steps", "2"])
 #: parsed but never run here: starts worker subprocesses (an interrupt would orphan them)

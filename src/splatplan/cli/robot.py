@@ -36,7 +36,7 @@ def _robot_args(p) -> None:
     p.add_argument("--ellipsoids", default=None, help="YAML with the collision ellipsoids (default: built-in / sidecar / fitted)")
     p.add_argument("--per-link", type=PER_LINK, default=1, help="ellipsoids per link when fitting (k >= 1; slabs along the principal axis)")
     p.add_argument("--from-visual", action="store_true", help="fit links without collision geometry to their visual meshes")
-    p.add_argument("--model", default=None, help="built-in panda only: collision model, coarse or cover")
+    p.add_argument("--model", default=None, choices=("coarse", "cover"), help="built-in panda only: collision model, coarse or cover")
     p.add_argument("--finger-opening", type=float_arg(ge=0, le=0.04), default=None, help="built-in panda only: each finger's distance from the centre line (m, 0..0.04)")
 
 
@@ -158,7 +158,7 @@ def register(sub, eval_sub) -> None:
     pi.add_argument("--json", action="store_true", help="print one JSON object")
     pi.add_argument("--meshes-from", default=None, metavar="URDF", help="measure the model against this URDF's collision meshes (same link names)")
     pi.add_argument("--no-measure", action="store_true", help="skip measuring the model against the meshes")
-    pi.add_argument("--samples", type=int, default=5000, help="Monte Carlo samples per link for the model measurement (standard error ~ 1/sqrt(samples))")
+    pi.add_argument("--samples", type=int_arg(ge=100, le=2_000_000), default=5000, help="Monte Carlo samples per link for the model measurement (standard error ~ 1/sqrt(samples))")
     _robot_args(pi)
     pi.set_defaults(func=cmd_info)
     pf = rs.add_parser("fit", help="fit enclosing ellipsoids to a URDF's link meshes -> YAML (+ PNG)")

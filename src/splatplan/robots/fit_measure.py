@@ -20,6 +20,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from ..errors import SplatplanError
 from .fit import mahalanobis
 from .fit_cover import inside_any, sample_solids, solids_of, sphere_points, surface_of
 
@@ -59,6 +60,8 @@ def _signed_distance(solids: list, pts: np.ndarray) -> np.ndarray:
 
 def measure_link(ells: list, polys: list, n_samples: int = 20000, n_surface: int = 2000, seed: int = 0) -> LinkMeasure:
     """Measure a link model [(c, R, s), ...] (link frame) against its mesh/box elements (trimesh, link frame)."""
+    if int(n_samples) < 1 or int(n_surface) < 1:
+        raise SplatplanError(f"model measurement needs at least one sample, got n_samples={n_samples}, n_surface={n_surface}")
     rng = np.random.default_rng(seed)
     solids = solids_of(polys)
     surf, interior = sample_solids(solids, n_samples, rng)
@@ -86,7 +89,6 @@ def measure_robot(robot, reference=None, n_samples: int = 20000, n_surface: int 
     capsules are fitted analytically). Spheres are ellipsoids with equal semi-axes, so a sphere
     model (e.g. VAMP's spherized Panda loaded from its URDF) is measured the same way.
     """
-    from ..errors import SplatplanError
     from .fit import _polytope
     from .urdf import UrdfModel, read_urdf
 
