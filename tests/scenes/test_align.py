@@ -14,7 +14,7 @@ import pytest
 
 from splatplan.errors import SplatplanError
 from splatplan.scenes import Splats, load_scene, rotmat_to_quat
-from splatplan.scenes.align import AlignConfig, absurd_splats, align_scene, describe_frame, guess_up
+from splatplan.scenes.align import AlignConfig, align_scene, describe_frame, guess_up, oversized_splats
 from splatplan.scenes.transforms import Y_DOWN_TO_Z_UP
 
 REPO = Path(__file__).resolve().parents[2]
@@ -117,7 +117,7 @@ def test_describe_frame_reports_shell_transparency_and_absurd_splats():
     d = describe_frame(s)
     assert d["up_guess"]["up_axis"] == "-y"
     assert d["shell"]["count"] >= 2000 and d["shell"]["radius_median"] > 30
-    assert d["absurd_splats"] >= 2000 and absurd_splats(s)[-2000:].all()
+    assert d["absurd_splats"] >= 2000 and oversized_splats(s)[-2000:].all()
     assert "looks metric" in d["scale_note"]
     s.opacities[:] = 0.04
     assert any("nearly transparent" in w for w in describe_frame(s)["warnings"])

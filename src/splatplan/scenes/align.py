@@ -423,10 +423,11 @@ def align_scene(splats: Splats, config: AlignConfig | None = None) -> tuple[Spla
     return out, res
 
 
-def absurd_splats(splats: Splats, fraction: float = 0.25, percentile: float = 1.0) -> np.ndarray:
+def oversized_splats(splats: Splats, fraction: float = 0.25, percentile: float = 1.0) -> np.ndarray:
     """(N,) bool: splats whose largest std exceeds ``fraction`` of the robust box's diagonal (e.g.
     a 2 m std in a 0.5 m scene): sky-shell or broken splats that a collision query would see as
-    huge obstacles."""
+    huge obstacles. Scene-relative sizes only; values no sane file has (non-finite-looking
+    coordinates, zero-volume 3D splats) are :func:`splatplan.scenes.sanity.absurd_splats`."""
     lo, hi, _ = robust_box(splats.means, percentile, 0.0, shell_weights(splats))
     return splats.scales.max(axis=1) > fraction * float(np.linalg.norm(hi - lo))
 
@@ -488,7 +489,7 @@ def describe_frame(splats: Splats, config: AlignConfig | None = None) -> dict:
     if np.median(splats.opacities) < 0.1:
         d["warnings"].append(f"most splats are nearly transparent (median opacity {float(np.median(splats.opacities)):.3g}; {transparent:.0%} below 0.1): "
                              "opacity may be stored as a logit or the file is mostly haze; collision checks may see little")  # fmt: skip
-    absurd = absurd_splats(splats, percentile=cfg.box_percentile)
+    absurd = oversized_splats(splats, percentile=cfg.box_percentile)
     d["absurd_splats"] = int(absurd.sum())
     if absurd.any():
         d["warnings"].append(f"{int(absurd.sum())} absurd splat(s): largest std up to {float(splats.scales.max()):.3g} units in a scene of robust extent {ext:.3g}; "
