@@ -1,4 +1,5 @@
-"""Atomic output files, shared by the library (robot YAMLs) and the CLI.
+"""Atomic output files and YAML input, shared by the library (robot YAMLs, MoveIt scenes, sweep
+specs) and the CLI.
 
 Frames and units do not apply; this is plumbing. Scene files use
 :func:`splatplan.scenes.io_ply.atomic_write`, which keeps an existing file's mode.
@@ -54,3 +55,25 @@ def atomic_path(path: str | Path):
     finally:
         if os.path.exists(tmp):
             os.unlink(tmp)
+
+
+def read_yaml(path: str | Path, what: str, error: type[SplatplanError] = SplatplanError):
+    """Parse a YAML file; a missing file, a folder, a syntax error or binary data is one ``error``
+    line naming ``what`` (e.g. "MoveIt YAML") and the path (with the line and column of a syntax
+    error). Needs PyYAML (a core dependency)."""
+    import yaml
+
+    path = Path(path)
+    if path.is_dir():
+        raise error(f"{what} {path} is a directory; expected a YAML file")
+    if not path.is_file():
+        raise error(f"{what} {path} does not exist")
+    try:
+        return yaml.safe_load(path.read_text())
+    except yaml.YAMLError as exc:
+        where = getattr(exc, "problem_mark", None)
+        at = f" at line {where.line + 1}, column {where.column + 1}" if where is not None else ""
+        problem = getattr(exc, "problem", None) or exc.__class__.__name__
+        raise error(f"{what} {path}: not valid YAML{at} ({problem})") from None
+    except UnicodeDecodeError:
+        raise error(f"{what} {path}: not a text (YAML) file") from None

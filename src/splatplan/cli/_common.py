@@ -390,46 +390,36 @@ class Parser(argparse.ArgumentParser):
         raise UsageError(2)
 
 
-def int_arg(*, ge: int | None = None, le: int | None = None):
-    """argparse ``type=`` for an integer flag with a range: ``type=int_arg(ge=0)``."""
-    from .._config import Bounds
+def _ranged_type(convert, noun: str, bounds, name: str):
+    """An argparse ``type=`` callable: ``convert(text)``, then the range check of ``bounds``."""
 
-    b = Bounds(ge=ge, le=le)
-
-    def parse(text: str) -> int:
+    def parse(text: str):
         try:
-            v = int(text)
+            v = convert(text)
         except ValueError:
-            rng = b.describe()
-            raise argparse.ArgumentTypeError(f"expected an integer{' ' + rng if rng else ''}, got {text!r}") from None
-        msg = b.problem(v)
+            rng = bounds.describe()
+            raise argparse.ArgumentTypeError(f"expected {noun}{' ' + rng if rng else ''}, got {text!r}") from None
+        msg = bounds.problem(v)
         if msg:
             raise argparse.ArgumentTypeError(msg)
         return v
 
-    parse.__name__ = "int"
+    parse.__name__ = name  # argparse names the type in its own messages
     return parse
+
+
+def int_arg(*, ge: int | None = None, le: int | None = None):
+    """argparse ``type=`` for an integer flag with a range: ``type=int_arg(ge=0)``."""
+    from .._config import Bounds
+
+    return _ranged_type(int, "an integer", Bounds(ge=ge, le=le), "int")
 
 
 def float_arg(*, ge: float | None = None, gt: float | None = None, le: float | None = None, lt: float | None = None, allow_inf: bool = False):
     """argparse ``type=`` for a float flag: finite (unless ``allow_inf``) and within the range."""
     from .._config import Bounds
 
-    b = Bounds(ge=ge, gt=gt, le=le, lt=lt, allow_inf=allow_inf)
-
-    def parse(text: str) -> float:
-        try:
-            v = float(text)
-        except ValueError:
-            rng = b.describe()
-            raise argparse.ArgumentTypeError(f"expected a number{' ' + rng if rng else ''}, got {text!r}") from None
-        msg = b.problem(v)
-        if msg:
-            raise argparse.ArgumentTypeError(msg)
-        return v
-
-    parse.__name__ = "float"
-    return parse
+    return _ranged_type(float, "a number", Bounds(ge=ge, gt=gt, le=le, lt=lt, allow_inf=allow_inf), "float")
 
 
 #: ``--seed``: a non-negative integer that every seeded generator accepts (numpy legacy seeds stop at 2**32 - 1)

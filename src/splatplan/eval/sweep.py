@@ -126,19 +126,9 @@ def load_spec(path: str | Path) -> tuple[SweepSpec, Path]:
     Raises:
         SplatplanError: unreadable YAML, not a mapping, an unknown key, a bad value.
     """
-    try:
-        import yaml
-    except ImportError:
-        raise SplatplanError("sweep specs need PyYAML: pip install 'splatplan[distributed]'") from None
-    p = Path(path)
-    if not p.is_file():
-        raise SplatplanError(f"sweep spec {path} not found")
-    try:
-        doc = yaml.safe_load(p.read_text())
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f" (line {mark.line + 1})" if mark is not None else ""
-        raise SplatplanError(f"sweep spec {path}: not valid YAML{where}: {getattr(exc, 'problem', None) or exc}") from None
+    from .._files import read_yaml
+
+    doc = read_yaml(path, "sweep spec")
     if not isinstance(doc, dict):
         raise SplatplanError(f"sweep spec {path}: expected a mapping of keys (scenes, job, robot, ...), got {type(doc).__name__}")
     known = {f.name for f in dataclasses.fields(SweepSpec)}
@@ -149,7 +139,7 @@ def load_spec(path: str | Path) -> tuple[SweepSpec, Path]:
     for name, kind in (("scenes", str), ("planners", str), ("n_sigma", float), ("seeds", int)):
         if name in kw:
             kw[name] = _as_list(kw[name], kind)
-    return SweepSpec(**kw).validate(), p.parent
+    return SweepSpec(**kw).validate(), Path(path).parent
 
 
 def expand_scenes(spec: SweepSpec, base: Path) -> list[str]:

@@ -53,23 +53,11 @@ LIMIT_TOL = 1e-6
 
 
 def read_yaml(path: str | Path) -> dict:
-    """Parse a YAML file into a dict; a missing file or a syntax error is a one-line SceneFormatError."""
-    import yaml
+    """Parse a MoveIt YAML file into a dict; a missing file or a syntax error is a one-line SceneFormatError."""
+    from .._files import read_yaml as _read
 
     path = Path(path)
-    if path.is_dir():
-        raise SceneFormatError(f"{path} is a directory; expected a MoveIt YAML file")
-    if not path.is_file():
-        raise SceneFormatError(f"MoveIt YAML {path} does not exist")
-    try:
-        d = yaml.safe_load(path.read_text())
-    except yaml.YAMLError as exc:
-        where = getattr(exc, "problem_mark", None)
-        at = f" at line {where.line + 1}, column {where.column + 1}" if where is not None else ""
-        what = getattr(exc, "problem", None) or exc.__class__.__name__
-        raise SceneFormatError(f"{path}: not valid YAML{at} ({what})") from None
-    except UnicodeDecodeError:
-        raise SceneFormatError(f"{path}: not a text (YAML) file") from None
+    d = _read(path, "MoveIt YAML", SceneFormatError)
     if not isinstance(d, dict):
         raise SceneFormatError(f"{path}: expected a YAML mapping at the top level, got {type(d).__name__}")
     return d
