@@ -39,6 +39,8 @@ from pathlib import Path
 
 import numpy as np
 
+#: the planning robot: the studies' sphere (splatplan.robots.DEFAULT_POINT_ROBOT) and its radius
+ROBOT = "sphere:0.015"
 RADIUS = 0.015
 REAL = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "real"
 #: real captures planned on (file, short name)
@@ -73,10 +75,10 @@ def bench_rrt(scene, gt, n_goals: int, seed: int = 0) -> dict:
     goals = border_goals(checker, n_goals, PLANE_Z, rng)
     start = np.array([0.0, 0.0, PLANE_Z])
     cfg = RRTConfig(box_lo=(-0.5, -0.5, PLANE_Z), box_hi=(0.5, 0.5, PLANE_Z), time_limit_s=10.0)
-    plan(checker, start, goals[0], radius=RADIUS, refine=False, seed=seed, rrt_config=cfg)  # warm-up
+    plan(checker, start, goals[0], robot=ROBOT, refine=False, seed=seed, rrt_config=cfg)  # warm-up
     times, ok, n_col, clear, lengths = [], 0, [], [], []
     for i, g in enumerate(goals):
-        res = plan(checker, start, g, radius=RADIUS, refine=False, seed=seed + i, rrt_config=cfg)
+        res = plan(checker, start, g, robot=ROBOT, refine=False, seed=seed + i, rrt_config=cfg)
         times.append(res.time_s)
         if not res.success:
             continue
@@ -356,10 +358,10 @@ def bench_real(n_pairs: int, seed: int = 0, names: tuple[str, ...] | None = None
         checker = CollisionChecker(scene, n_sigma=1.0)
         rng = np.random.default_rng(seed)
         pairs = far_free_pairs(checker, RADIUS, n_pairs, rng)
-        plan(checker, pairs[0][0], pairs[0][1], radius=RADIUS, refine=False, rrt_config=RRTConfig(time_limit_s=1.0))  # warm-up
+        plan(checker, pairs[0][0], pairs[0][1], robot=ROBOT, refine=False, rrt_config=RRTConfig(time_limit_s=1.0))  # warm-up
         for k, (s, g) in enumerate(pairs):
             load = _load()
-            res = plan(checker, s, g, radius=RADIUS, refine=False, seed=seed + k, rrt_config=RRTConfig())
+            res = plan(checker, s, g, robot=ROBOT, refine=False, seed=seed + k, rrt_config=RRTConfig())
             st = res.info["settings"]
             rows.append({
                 "scene": name, "file": fname, "n_splats": len(scene), "robot": f"sphere r = {RADIUS}",

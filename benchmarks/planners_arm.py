@@ -35,7 +35,7 @@ def arm_problems(n: int, n_splats: int, n_sigma: float, seed: int = 0):
     """(checker, ground truth, [(start (7,), goal (7,)), ...]) on the built-in tabletop."""
     from splatplan.eval.arm import START_Q, pick_targets
     from splatplan.metric import CollisionChecker
-    from splatplan.planners import LinkGeometry
+    from splatplan.planners import robot_collides
     from splatplan.robots import load_robot
     from splatplan.scenes.builtin.tabletop import build_tabletop
     from splatplan.scenes.filters import filter_floaters
@@ -45,9 +45,8 @@ def arm_problems(n: int, n_splats: int, n_sigma: float, seed: int = 0):
     splats, gt = build_tabletop(seed, n_splats=n_splats)
     splats, _ = filter_floaters(splats)  # as `splatplan plan` loads a scene (a floater sits in the start's links)
     checker = CollisionChecker(splats, n_sigma=n_sigma)
-    geom = LinkGeometry(robot=robot)
     start = np.asarray(START_Q, dtype=np.float64)
-    if geom.collides(checker, start[None])[0]:
+    if robot_collides(checker, robot, start[None])[0].any():
         raise SystemExit(f"the arm study's start collides with the splats at n_sigma {n_sigma:g} ({n_splats:,} splats): lower --n-sigma")
     out = []
     rng = np.random.default_rng(seed)
@@ -55,7 +54,7 @@ def arm_problems(n: int, n_splats: int, n_sigma: float, seed: int = 0):
         q, pe, re = solve_ik(robot, p, quat, link="panda_hand_tcp", n_seeds=24, n_iters=60, seed=int(rng.integers(1 << 30)))
         ok = (pe < 3e-3) & (re < np.deg2rad(2.0))
         q = q[ok]
-        q = q[~geom.collides(checker, q)] if len(q) else q
+        q = q[~robot_collides(checker, robot, q).any(axis=-1)] if len(q) else q
         if not len(q):
             continue
         c, qq, a = robot.ellipsoids(q)
@@ -69,13 +68,10 @@ def arm_problems(n: int, n_splats: int, n_sigma: float, seed: int = 0):
 def exact_clearance(robot, gt, path: np.ndarray) -> float:
     """Smallest exact clearance (m) of the robot's ellipsoids along a path resampled at a quarter
     of the smallest semi-axis of motion (motion bound)."""
-    from splatplan.planners import LinkGeometry
-
-    geom = LinkGeometry(robot=robot)
     res = 0.25 * robot.min_semi_axis
     qs = [path[:1]]
     for a, b in zip(path[:-1], path[1:]):
-        n = max(1, math.ceil(float(geom.motion(b - a)) / res))
+        n = max(1, math.ceil(float(np.abs(b - a) @ robot.motion_bound) / res))  # motion bound of the arm's joints
         qs.append(a + (np.arange(1, n + 1) / n)[:, None] * (b - a))
     q = np.concatenate(qs)
     c, qq, ax = robot.ellipsoids(q)

@@ -1,7 +1,8 @@
 """`splatplan demo`: the main job on the built-in Stonehenge scene.
 
 1. Build the scene (~200k splats, z up, normalised units, x, y in [-0.5, 0.5]), drop floaters.
-2. Collision field: the CollisionSplatting metric for a sphere robot (r = 0.015) on the plane
+2. Collision field: the CollisionSplatting metric for the sphere robot
+   :data:`~splatplan.robots.DEFAULT_POINT_ROBOT` (r = 0.015) on the plane
    z = 0.06, at n_sigma 0, 1, 2 -> ``collision_field.png``.
 3. Planning: batched RRT + zeroth-order refinement from the scene centre to a border goal at
    n_sigma 0, 1, 2 -> ``plans.png`` and a printed table (length, clearance, time).
@@ -14,12 +15,11 @@ from pathlib import Path
 
 import numpy as np
 
-RADIUS = 0.015
 N_SIGMAS = (0.0, 1.0, 2.0)
 
 
-def collision_field(checker, z: float, lo: np.ndarray, hi: np.ndarray, res: int = 240, radius: float = RADIUS):
-    """min_s2 of a sphere on a (res x res) grid of the plane at height z.
+def collision_field(checker, z: float, lo: np.ndarray, hi: np.ndarray, radius: float, res: int = 240):
+    """min_s2 of a sphere of ``radius`` (scene units) on a (res x res) grid of the plane at height z.
 
     Returns:
         (xs (res,), ys (res,), min_s2 (res, res) indexed [iy, ix]).
@@ -31,7 +31,7 @@ def collision_field(checker, z: float, lo: np.ndarray, hi: np.ndarray, res: int 
     return xs, ys, checker.query(pts, None, radius).min_s2
 
 
-def _plot_field(path: Path, fields, gt, z: float, lo, hi, n_kept_floaters: int = 0, floater_opacity: tuple[float, float] = (0.1, 0.3)) -> None:
+def _plot_field(path: Path, fields, gt, z: float, lo, hi, radius: float, n_kept_floaters: int = 0, floater_opacity: tuple[float, float] = (0.1, 0.3)) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -67,7 +67,7 @@ def _plot_field(path: Path, fields, gt, z: float, lo, hi, n_kept_floaters: int =
         else ""
     )
     fig.suptitle(
-        f"Where a sphere of radius r = {RADIUS} collides in the plane z = {z} (top view, scene units, z up; dark = close to a splat)."
+        f"Where a sphere of radius r = {radius:g} collides in the plane z = {z} (top view, scene units, z up; dark = close to a splat)."
         + floaters,
         fontsize=9,
     )
@@ -76,7 +76,7 @@ def _plot_field(path: Path, fields, gt, z: float, lo, hi, n_kept_floaters: int =
     plt.close(fig)
 
 
-def _plot_plans(path: Path, plans, gt, z: float, start, goal) -> None:
+def _plot_plans(path: Path, plans, gt, z: float, start, goal, radius: float) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -89,7 +89,7 @@ def _plot_plans(path: Path, plans, gt, z: float, start, goal) -> None:
     from .eval._plots import top_view_handles
 
     fig, ax = plt.subplots(figsize=(7.0, 8.4), constrained_layout=True)
-    plot_top_view(ax, gt, z, inflate=RADIUS)
+    plot_top_view(ax, gt, z, inflate=radius)
     colors = {0.0: "tab:blue", 1.0: "tab:orange", 2.0: "tab:green"}
     for ns, res in plans.items():
         if res is None or not res.success:
@@ -105,28 +105,28 @@ def _plot_plans(path: Path, plans, gt, z: float, start, goal) -> None:
     handles, _ = ax.get_legend_handles_labels()
     handles += [Line2D([], [], color="0.3", ls=":", lw=1.0, label="RRT path before refinement\n(dotted, same colour)")]
     ax.legend(handles=handles, loc="lower right", fontsize=7)
-    fig.legend(handles=top_view_handles(gt, z, inflate=RADIUS), loc="outside lower center", ncol=2, fontsize=7, frameon=False)
-    ax.set_title(f"Plans at three conservatism levels n_sigma, sphere r = {RADIUS}, plane z = {z} (top view)", fontsize=9)
+    fig.legend(handles=top_view_handles(gt, z, inflate=radius), loc="outside lower center", ncol=2, fontsize=7, frameon=False)
+    ax.set_title(f"Plans at three conservatism levels n_sigma, sphere r = {radius:g}, plane z = {z} (top view)", fontsize=9)
     fig.savefig(path, dpi=110)
     plt.close(fig)
 
 
-def _free_border_goal(checkers, start: np.ndarray, radius: float = 0.47, first_angle: float = 0.6) -> np.ndarray:
+def _free_border_goal(checkers, start: np.ndarray, robot_radius: float, radius: float = 0.47, first_angle: float = 0.6) -> np.ndarray:
     """A goal on the circle of ``radius`` (scanning counter-clockwise from ``first_angle``) that is
-    collision-free for every checker, the one whose straight line from ``start`` is the most
+    collision-free for every checker (a sphere robot of ``robot_radius``), the one whose straight line from ``start`` is the most
     obstructed (so the planner has to find a way through or around the ring)."""
     ang = first_angle + np.linspace(0.0, 2 * np.pi, 360, endpoint=False)
     cand = np.stack([radius * np.cos(ang), radius * np.sin(ang), np.full_like(ang, start[2])], axis=1)  # (360, 3)
     free = np.ones(len(cand), dtype=bool)
     for c in checkers:
-        free &= ~c.collides(cand, None, RADIUS)
+        free &= ~c.collides(cand, None, robot_radius)
     if not free.any():
         from .errors import PlanningError
 
         raise PlanningError("no collision-free goal on the scene border for every n_sigma of the demo")
     t = np.linspace(0.0, 1.0, 200)[None, :, None]
     lines = start + t * (cand[:, None, :] - start)  # (360, 200, 3) straight segments
-    blocked = checkers[0].collides(lines, None, RADIUS).sum(axis=1)  # (360,) samples in collision
+    blocked = checkers[0].collides(lines, None, robot_radius).sum(axis=1)  # (360,) samples in collision
     return cand[int(np.argmax(np.where(free, blocked, -1)))]  # the most obstructed free goal
 
 
@@ -135,10 +135,13 @@ def run_demo(out_dir: Path, device: str = "auto", seed: int = 0) -> dict:
     from .metric import CollisionChecker
     from .planners import RRTConfig, plan
     from .planners.metrics import clearance, d_min, smoothness
+    from .robots import DEFAULT_POINT_ROBOT, load_robot
     from .scenes.filters import filter_floaters
     from .scenes.stonehenge import PLANE_Z, build_stonehenge
 
     t0 = time.perf_counter()
+    robot = load_robot(DEFAULT_POINT_ROBOT)
+    r_robot = robot.min_semi_axis  # the sphere's radius (scene units)
     raw, gt = build_stonehenge(level=1, seed=seed)
     scene, rep = filter_floaters(raw)
     lo, hi = scene.bounds()
@@ -149,7 +152,7 @@ def run_demo(out_dir: Path, device: str = "auto", seed: int = 0) -> dict:
     fields = {}
     for ns in N_SIGMAS:
         t = time.perf_counter()
-        fields[ns] = collision_field(base.with_config(n_sigma=ns), PLANE_Z, lo, hi)
+        fields[ns] = collision_field(base.with_config(n_sigma=ns), PLANE_Z, lo, hi, r_robot)
         dt = time.perf_counter() - t
         frac = float((fields[ns][2] < 1.0).mean())
         print(f"  field n_sigma={ns:g}: {fields[ns][2].size:,} poses in {dt:.2f} s, {100 * frac:.1f}% of the plane in collision")
@@ -157,28 +160,28 @@ def run_demo(out_dir: Path, device: str = "auto", seed: int = 0) -> dict:
     xs, ys, _ = fields[N_SIGMAS[0]]
     gx, gy = np.meshgrid(xs, ys)
     sdf = gt.sdf(np.stack([gx.ravel(), gy.ravel(), np.full(gx.size, PLANE_Z)], 1))
-    print(f"  exact geometry: {100 * float((sdf < RADIUS).mean()):.1f}% of the plane in collision (sdf < r)")
+    print(f"  exact geometry: {100 * float((sdf < r_robot).mean()):.1f}% of the plane in collision (sdf < r)")
     out_dir = Path(out_dir)
     n_kept = int(raw.info.get("n_floaters", 0)) - int(rep.n_dropped)  # semi-transparent floaters the default filter keeps
     # the generator appends its floaters last and the filter keeps order
     o_kept = scene.opacities[len(scene) - n_kept :] if n_kept > 0 else np.zeros(1)
-    _plot_field(out_dir / "collision_field.png", fields, gt, PLANE_Z, lo, hi, n_kept_floaters=n_kept, floater_opacity=(float(o_kept.min()), float(o_kept.max())))
+    _plot_field(out_dir / "collision_field.png", fields, gt, PLANE_Z, lo, hi, r_robot, n_kept_floaters=n_kept, floater_opacity=(float(o_kept.min()), float(o_kept.max())))
 
     # planning from the centre to a border goal on the plane, free at every n_sigma shown
     start = np.array([0.0, 0.0, PLANE_Z])
-    goal = _free_border_goal([base.with_config(n_sigma=ns) for ns in N_SIGMAS], start)
+    goal = _free_border_goal([base.with_config(n_sigma=ns) for ns in N_SIGMAS], start, r_robot)
     rrt = RRTConfig(box_lo=(-0.5, -0.5, PLANE_Z), box_hi=(0.5, 0.5, PLANE_Z), time_budget_s=20.0)
     plans, rows = {}, []
     for ns in N_SIGMAS:
-        res = plan(base.with_config(n_sigma=ns), start, goal, radius=RADIUS, refine=True, seed=seed, rrt_config=rrt)
+        res = plan(base.with_config(n_sigma=ns), start, goal, robot=robot, refine=True, seed=seed, rrt_config=rrt)
         plans[ns] = res
         if res.success:
             rows.append((ns, res.info.get("length_rrt", float("nan")), res.length, d_min(res.path, scene.means),
-                         clearance(res.path, gt.sdf, RADIUS), smoothness(res.path), res.time_s, res.n_nodes))  # fmt: skip
+                         clearance(res.path, gt.sdf, r_robot), smoothness(res.path), res.time_s, res.n_nodes))  # fmt: skip
         else:
             rows.append((ns, float("nan"), float("nan"), float("nan"), float("nan"), float("nan"), res.time_s, res.n_nodes))
-    _plot_plans(out_dir / "plans.png", plans, gt, PLANE_Z, start, goal)
-    print(f"\nplans from {start.round(3).tolist()} to {goal.round(3).tolist()} (sphere r = {RADIUS}):")
+    _plot_plans(out_dir / "plans.png", plans, gt, PLANE_Z, start, goal, r_robot)
+    print(f"\nplans from {start.round(3).tolist()} to {goal.round(3).tolist()} (sphere r = {r_robot:g}):")
     print("| n_sigma | length RRT | length refined | d_min to splat means | clearance to exact geometry | smoothness | time (s) | nodes |")
     print("|---|---|---|---|---|---|---|---|")
     for r in rows:

@@ -92,11 +92,11 @@ def test_warp_inputs_match_numpy(scene, device):
     np.testing.assert_array_equal(hit.numpy(), ch.collides(c, None, 0.02))
     # rotation matrices instead of quaternions, on both paths
     r = quat_to_rotmat(q.reshape(-1, 4)).reshape(q.shape[:-1] + (3, 3))
-    by_rot = ch.query(wp.array(c.astype(f32), device=device), rots=wp.array(r.astype(f32), dtype=wp.mat33, device=device), semi_axes=a)
+    by_rot = ch.query(wp.array(c.astype(f32), device=device), None, rots=wp.array(r.astype(f32), dtype=wp.mat33, device=device), semi_axes=a)
     np.testing.assert_allclose(by_rot.min_s2.numpy(), want.min_s2, rtol=1e-4, atol=1e-5)
-    np.testing.assert_allclose(ch.query(c, rots=r, semi_axes=a).min_s2, want.min_s2, rtol=1e-4, atol=1e-5)
+    np.testing.assert_allclose(ch.query(c, None, rots=r, semi_axes=a).min_s2, want.min_s2, rtol=1e-4, atol=1e-5)
     with pytest.raises(SplatplanError, match="dtype"):
-        ch.query(wp.array(c.reshape(-1, 3), dtype=wp.vec3d, device=device))
+        ch.query(wp.array(c.reshape(-1, 3), dtype=wp.vec3d, device=device), None, 0.02)
     with pytest.raises(SplatplanError, match="tile"):
         ch.query(wp.array(c.astype(f32), device=device), None, wp.array(np.ones((4, 3), f32) * 0.02, device=device))
 

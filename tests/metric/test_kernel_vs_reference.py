@@ -123,16 +123,16 @@ def test_bad_queries_are_clear_errors():
     rng = np.random.default_rng(0)
     ch = CollisionChecker(random_scene(rng, 50))
     with pytest.raises(SplatplanError, match="NaN"):
-        ch.query(np.array([[0.0, np.nan, 0.0]]))
+        ch.query(np.array([[0.0, np.nan, 0.0]]), None, (0.015, 0.015, 0.015))
     with pytest.raises(SplatplanError, match="shape"):
-        ch.query(np.zeros((3, 2)))
+        ch.query(np.zeros((3, 2)), None, (0.015, 0.015, 0.015))
     with pytest.raises(SplatplanError, match="semi_axes"):
-        ch.query(np.zeros((3, 3)), semi_axes=(0.1, -0.1, 0.1))
+        ch.query(np.zeros((3, 3)), None, (0.1, -0.1, 0.1))
     with pytest.raises(SplatplanError, match="zero quaternion"):
-        ch.query(np.zeros((1, 3)), quats=np.zeros((1, 4)))
+        ch.query(np.zeros((1, 3)), np.zeros((1, 4)), (0.015, 0.015, 0.015))
     with pytest.raises(SplatplanError, match="n_sigma"):
         CollisionChecker(random_scene(rng, 5), n_sigma=-1.0)
-    assert ch.query(np.zeros((0, 3))).min_s2.shape == (0,)
+    assert ch.query(np.zeros((0, 3)), None, (0.015, 0.015, 0.015)).min_s2.shape == (0,)
 
 
 @pytest.mark.parametrize("t, gamma", [(4.0, 4.0), (12.0, 4.0), (10.0, 4.0), (30.0, 2.5)])

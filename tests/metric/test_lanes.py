@@ -47,10 +47,10 @@ def test_lanes_match_one_thread_and_the_reference(device, lanes, reduce):
     # an invalid query (device input, not validated on the host) reads in collision with NaN distances
     c = centers.copy()
     c[7] = np.nan
-    bad = many_ck.query(wp.array(c.astype(np.float32), dtype=wp.vec3, device=many_ck.device), semi_axes=(0.02, 0.02, 0.02))
+    bad = many_ck.query(wp.array(c.astype(np.float32), dtype=wp.vec3, device=many_ck.device), None, (0.02, 0.02, 0.02))
     got = {f: np.asarray(v.numpy()) for f, v in bad.as_dict().items()}
     assert np.isnan(got["min_s2"][7]) and got["n_colliding"][7] == -1 and got["in_collision"][7]
-    ref = CollisionChecker(scene, config=cfg, device=device, tiers=TierConfig(lanes=1)).query(np.delete(c, 7, 0), semi_axes=(0.02, 0.02, 0.02))
+    ref = CollisionChecker(scene, config=cfg, device=device, tiers=TierConfig(lanes=1)).query(np.delete(c, 7, 0), None, (0.02, 0.02, 0.02))
     _same(_take_dict(got, np.arange(b) != 7), ref)
 
 

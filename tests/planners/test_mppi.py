@@ -31,7 +31,7 @@ def test_holonomic_point_reaches_goal_around_obstacle(checker):
     mppi = MPPI(HolonomicPoint(), checker, _cfg(), task_cost=lambda s: np.linalg.norm(s - GOAL, axis=-1))
     xs, us, infos = mppi.run(START, 80, stop=lambda x: np.linalg.norm(x - GOAL) < 0.01)
     assert np.linalg.norm(xs[-1] - GOAL) < 0.01
-    assert not checker.collides(xs).any()
+    assert not checker.collides(xs, None, (0.015, 0.015, 0.015)).any()  # HolonomicPoint()'s sphere
     # it went around the pillar, not through it
     assert np.abs(xs[:, 1]).max() > 0.05
     assert np.all(np.abs(us) <= 0.2 + 1e-12)  # bounds hold through the B-spline convex hull
@@ -48,7 +48,7 @@ def test_without_collision_cost_it_goes_straight_through(checker):
     cfg = _cfg(w_collision=0.0, w_hit=0.0)
     mppi = MPPI(HolonomicPoint(), checker, cfg, task_cost=lambda s: np.linalg.norm(s - GOAL, axis=-1))
     xs, _, infos = mppi.run(START, 40, stop=lambda x: np.linalg.norm(x - GOAL) < 0.01)
-    assert checker.collides(xs).any()  # the ablation: collisions without the collision cost
+    assert checker.collides(xs, None, (0.015, 0.015, 0.015)).any()  # the ablation: collisions without the collision cost
     assert any(i.nominal_collides for i in infos)
 
 

@@ -14,10 +14,12 @@ pytest.importorskip("ompl")
 from splatplan.errors import SplatplanError
 from splatplan.planners import RRTConfig, plan
 from splatplan.planners.ompl_bridge import available_planners, plan_ompl
+from splatplan.robots import load_robot
 
 from .scenes import make_checker, make_scene, wall_scene
 
 R = 0.015
+SPHERE = load_robot(f"sphere:{R}")
 START, GOAL = (-0.15, 0.0, 0.06), (0.15, 0.0, 0.06)
 PLANE = RRTConfig(box_lo=(-0.3, -0.3, 0.06), box_hi=(0.3, 0.3, 0.06))
 
@@ -39,7 +41,7 @@ def dense_free(checker, path: np.ndarray, axes, step: float) -> bool:
 
 @pytest.mark.parametrize("name", ["RRTConnect", "RRTstar", "BITstar", "PRM", "KPIECE1"])
 def test_point_robot_through_the_gap(wall_checker, name):
-    res = plan_ompl(wall_checker, START, GOAL, name=name, time_limit_s=0.6, radius=R, rrt_config=PLANE)
+    res = plan_ompl(wall_checker, START, GOAL, name=name, time_limit_s=0.6, robot=SPHERE, rrt_config=PLANE)
     assert res.success, res.message
     p = res.path
     np.testing.assert_array_equal(p[0], START)
@@ -58,7 +60,7 @@ def test_time_limit_holds_when_there_is_no_path():
     # the goal sits inside a closed box: no planner can reach it
     box = make_scene([((0.1, -0.08, 0.0), (0.26, 0.08, 0.14))], spacing=0.01)
     ch = make_checker(box, n_sigma=1.0)
-    res = plan_ompl(ch, (-0.15, 0.0, 0.06), (0.18, 0.0, 0.06), name="RRTConnect", time_limit_s=0.5, radius=R, rrt_config=PLANE)
+    res = plan_ompl(ch, (-0.15, 0.0, 0.06), (0.18, 0.0, 0.06), name="RRTConnect", time_limit_s=0.5, robot=SPHERE, rrt_config=PLANE)
     assert not res.success and res.path.shape == (0, 3) and res.length == np.inf
     assert res.info["time_limit_hit"] and "no exact solution within 0.5 s" in res.message
     assert res.info["solve_s"] < 0.5 + 5.0  # generous: a contended machine; the point is that it returns
@@ -67,7 +69,6 @@ def test_time_limit_holds_when_there_is_no_path():
 def test_panda_on_the_tabletop():
     from splatplan.planners.robot_links import LinkGeometry
     from splatplan.planners.rrt import edge_samples
-    from splatplan.robots import load_robot
     from splatplan.tasks._common import load_task_scene
 
     ch = load_task_scene("tabletop", n_sigma=1.0, n_splats=20_000).checker  # floaters filtered
@@ -82,7 +83,7 @@ def test_panda_on_the_tabletop():
     lim = robot.joint_limits
     assert np.all(p >= lim[:, 0] - 1e-9) and np.all(p <= lim[:, 1] + 1e-9)
     # independent dense re-check: 4x finer than the bridge's edge resolution, every ellipsoid
-    geom = LinkGeometry(robot=robot)
+    geom = LinkGeometry(robot)
     pts, _, _ = edge_samples(p[:-1], p[1:], geom.motion(np.diff(p, axis=0)), res.info["edge_resolution"] / 4)
     c, quat, ax = robot.ellipsoids(pts)
     assert not ch.collides(c, quat, ax).any()
@@ -90,22 +91,22 @@ def test_panda_on_the_tabletop():
 
 def test_unknown_planner_lists_the_available_ones(wall_checker):
     with pytest.raises(SplatplanError, match="available: .*BITstar.*RRTConnect"):
-        plan_ompl(wall_checker, START, GOAL, name="RRTsharp", radius=R, rrt_config=PLANE)
+        plan_ompl(wall_checker, START, GOAL, name="RRTsharp", robot=SPHERE, rrt_config=PLANE)
     assert {"RRTConnect", "RRTstar", "BITstar", "PRM", "PRMstar", "KPIECE1"} <= set(available_planners())
 
 
 def test_plan_dispatch(wall_checker):
-    res = plan(wall_checker, START, GOAL, radius=R, rrt_config=PLANE, planner="ompl:RRTConnect")
+    res = plan(wall_checker, START, GOAL, robot=SPHERE, rrt_config=PLANE, planner="ompl:RRTConnect")
     assert res.success and res.info["planner"] == "ompl:RRTConnect"
     with pytest.raises(SplatplanError, match="unknown planner"):
-        plan(wall_checker, START, GOAL, radius=R, rrt_config=PLANE, planner="rrtx")
+        plan(wall_checker, START, GOAL, robot=SPHERE, rrt_config=PLANE, planner="rrtx")
 
 
 def test_missing_extra_says_how_to_install(monkeypatch, tmp_path, capsys):
     for mod in ("ompl", "ompl.base", "ompl.geometric", "ompl.util"):
         monkeypatch.setitem(sys.modules, mod, None)  # import -> ImportError, as without the extra
     with pytest.raises(SplatplanError, match=r"pip install 'splatplan\[ompl\]'"):
-        plan_ompl(None, START, GOAL)
+        plan_ompl(None, START, GOAL, robot=SPHERE)
     from splatplan.cli import main
 
     rc = main(["plan", "stonehenge.ply", "--start", "0,0,0.06", "--goal", "0.1,0,0.06", "--planner", "ompl:RRTConnect", "--out", str(tmp_path / "p.json")])
@@ -150,7 +151,7 @@ def test_ctrl_c_stops_the_search():
     timer.start()
     try:
         with pytest.raises(KeyboardInterrupt):
-            plan_ompl(ch, (-0.15, 0.0, 0.06), (0.18, 0.0, 0.06), name="RRTConnect", time_limit_s=60.0, radius=R, rrt_config=PLANE)
+            plan_ompl(ch, (-0.15, 0.0, 0.06), (0.18, 0.0, 0.06), name="RRTConnect", time_limit_s=60.0, robot=SPHERE, rrt_config=PLANE)
     finally:
         timer.cancel()
     assert time.perf_counter() - t0 < 30.0

@@ -6,8 +6,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from splatplan.errors import PlanningError
-from splatplan.planners import RRT, LinkGeometry, RRTConfig, edge_samples, plan
+from splatplan.errors import PlanningError, SplatplanError
+from splatplan.planners import RRT, RRTConfig, edge_samples, plan
+from splatplan.planners.robot_links import LinkGeometry
+from splatplan.robots import load_robot
 from splatplan.scenes.splats import Splats, quat_to_rotmat
 
 from .scenes import make_checker, make_scene
@@ -32,7 +34,7 @@ def _surface_points(robot, q: np.ndarray, n_dirs: int = 32) -> np.ndarray:
 def test_edge_resolution_guarantee(name):
     """Between consecutive check configurations no ellipsoid point moves more than the resolution."""
     robot = robots.load_robot(name)
-    geom = LinkGeometry(robot=robot)
+    geom = LinkGeometry(robot)
     rng = np.random.default_rng(0)
     lim = robot.joint_limits
     lo = np.where(np.isfinite(lim[:, 0]), lim[:, 0], -1.0)
@@ -65,7 +67,7 @@ def test_panda_joint_space_path_is_free(panda_checker):
     robot = robots.load_robot("panda")
     q1, q2 = robot.q_default.copy(), robot.q_default.copy()
     q1[0], q2[0] = 1.4, -1.4
-    geom = LinkGeometry(robot=robot)
+    geom = LinkGeometry(robot)
     assert geom.collides(panda_checker, (q1 + q2)[None] / 2).all()  # the straight joint path hits the wall
     rrt = RRT(panda_checker, RRTConfig(seed=0, time_limit_s=40.0), robot=robot)
     res = rrt.plan(q1, q2)
@@ -95,7 +97,7 @@ def test_planar_base_robot_samples_x_y_yaw():
     assert st.box_lo[0] < -1.4 and st.box_hi[0] > 1.4  # x, y from the scene bounds
     res = rrt.plan((-0.9, 0.0, 0.0), (0.9, 0.0, 0.0))
     assert res.success, res.message
-    assert not LinkGeometry(robot=robot).collides(ch, res.path).any()
+    assert not LinkGeometry(robot).collides(ch, res.path).any()
 
 
 def _scaled(s: Splats, k: float) -> Splats:
@@ -108,7 +110,7 @@ def test_scene_scaled_defaults_scale_with_the_scene():
     out = {}
     for k in (1.0, 7.0):
         ch = make_checker(_scaled(base, k), n_sigma=1.0)
-        st = RRT(ch, RRTConfig(), radius=0.015 * k).settings(start * k, goal * k)
+        st = RRT(ch, RRTConfig(), robot=load_robot(f"sphere:{0.015 * k!r}")).settings(start * k, goal * k)
         assert set(st.derived) >= {"stride", "edge_resolution", "goal_tolerance", "box"}
         out[k] = st
     a, b = out[1.0], out[7.0]
@@ -126,26 +128,32 @@ def test_robust_box_ignores_outliers_and_goal_outside_is_an_error():
     far = Splats(np.array([[40.0, 0, 0], [0, -60.0, 5.0]]), np.tile([1.0, 0, 0, 0], (2, 1)), np.full((2, 3), 0.01), np.full(2, 0.9), np.full((2, 3), 0.5))
     scene = Splats(*(np.concatenate([getattr(s, f), getattr(far, f)]) for f in ("means", "quats", "scales", "opacities", "colors")))
     ch = make_checker(scene, n_sigma=1.0)
-    st = RRT(ch, RRTConfig()).settings((-0.3, 0.0, 0.15), (0.3, 0.1, 0.15))
+    st = RRT(ch, RRTConfig(), robot="sphere:0.015").settings((-0.3, 0.0, 0.15), (0.3, 0.1, 0.15))
     assert np.all(st.box_hi < 0.6) and np.all(st.box_lo > -0.6)  # the two outliers do not stretch it
     with pytest.raises(PlanningError, match="outside the scene bounds"):
-        RRT(ch, RRTConfig()).plan((-0.3, 0.0, 0.15), (0.3, 0.1, 90.0))
+        RRT(ch, RRTConfig(), robot="sphere:0.015").plan((-0.3, 0.0, 0.15), (0.3, 0.1, 90.0))
 
 
 def test_time_limit_and_message():
     # the goal is sealed inside a closed box: no path exists
     scene = make_scene([((-0.5, -0.5, 0.0), (0.5, 0.5, 0.3)), ((0.1, -0.1, 0.05), (0.3, 0.1, 0.25))], spacing=0.01)
     ch = make_checker(scene, n_sigma=1.0)
-    res = RRT(ch, RRTConfig(time_limit_s=0.3, seed=0)).plan((-0.3, 0.0, 0.15), (0.2, 0.0, 0.15))
+    res = RRT(ch, RRTConfig(time_limit_s=0.3, seed=0), robot="sphere:0.015").plan((-0.3, 0.0, 0.15), (0.2, 0.0, 0.15))
     assert not res.success and res.info.get("time_limit_hit")
     assert res.message.startswith("no path found within 0.3 s (") and res.message.endswith(" nodes)")
 
 
-def test_plan_with_robot_name_and_radius_shortcut_agree():
+def test_plan_takes_only_a_robot_a_name_and_a_robot_agree():
     scene = make_scene([((-0.01, -0.25, 0.0), (0.01, 0.12, 0.12))])
     ch = make_checker(scene, n_sigma=1.0)
     cfg = RRTConfig(box_lo=(-0.25, -0.3, 0.06), box_hi=(0.25, 0.3, 0.06), seed=3)
-    a = plan(ch, (-0.15, 0.0, 0.06), (0.15, 0.0, 0.06), radius=0.015, refine=False, rrt_config=cfg)
+    a = plan(ch, (-0.15, 0.0, 0.06), (0.15, 0.0, 0.06), robot=load_robot("sphere:0.015"), refine=False, rrt_config=cfg)
     b = plan(ch, (-0.15, 0.0, 0.06), (0.15, 0.0, 0.06), robot="sphere:0.015", refine=False, rrt_config=cfg)
     assert a.success and b.success
     np.testing.assert_allclose(a.path, b.path)
+    with pytest.raises(SplatplanError, match="give the robot"):
+        plan(ch, (-0.15, 0.0, 0.06), (0.15, 0.0, 0.06), robot=None, rrt_config=cfg)
+    with pytest.raises(TypeError):  # no radius path, no default robot
+        plan(ch, (-0.15, 0.0, 0.06), (0.15, 0.0, 0.06), radius=0.015)  # type: ignore[call-arg]
+    with pytest.raises(TypeError):
+        RRT(ch, cfg)  # type: ignore[call-arg]

@@ -7,11 +7,15 @@ import pytest
 
 from splatplan.errors import PlanningError
 from splatplan.metric import CollisionChecker
-from splatplan.planners import RRT, EdgeChecker, PlanarBase, RRTConfig, edge_points, path_length, plan, shortcut_path
+from splatplan.planners import RRT, EdgeChecker, RRTConfig, edge_points, path_length, plan, shortcut_path
+from splatplan.robots import Robot, load_robot
+from splatplan.robots.fit import EllipsoidSet
+from splatplan.robots.kinematics import PLANAR, Kinematics
 
 from .scenes import make_checker, make_scene, wall_scene
 
 R = 0.015
+SPHERE = load_robot(f"sphere:{R}")
 START = (-0.15, 0.0, 0.06)
 GOAL = (0.15, 0.0, 0.06)
 PLANE = dict(box_lo=(-0.25, -0.3, 0.06), box_hi=(0.25, 0.3, 0.06))
@@ -23,7 +27,7 @@ def checker():
 
 
 def _dense_free(checker, path, res=R / 2):
-    return EdgeChecker(checker, RRT(checker).link_poses, res).path_free(path)
+    return EdgeChecker(checker, RRT(checker, robot=SPHERE).geometry, res).path_free(path)
 
 
 def test_edge_points_spacing():
@@ -37,7 +41,7 @@ def test_edge_points_spacing():
 
 @pytest.mark.parametrize("shortcut", [False, True])
 def test_finds_path_around_wall(checker, shortcut):
-    res = RRT(checker, RRTConfig(shortcut=shortcut, seed=1, **PLANE)).plan(START, GOAL)
+    res = RRT(checker, RRTConfig(shortcut=shortcut, seed=1, **PLANE), robot=SPHERE).plan(START, GOAL)
     assert res.success, res.message
     np.testing.assert_allclose(res.path[0], START)
     np.testing.assert_allclose(res.path[-1], GOAL)
@@ -54,7 +58,7 @@ def test_finds_path_around_wall(checker, shortcut):
 
 
 def test_tree_is_consistent(checker):
-    res = RRT(checker, RRTConfig(seed=2, **PLANE)).plan(START, GOAL)
+    res = RRT(checker, RRTConfig(seed=2, **PLANE), robot=SPHERE).plan(START, GOAL)
     par = res.tree_parents
     assert par[0] == -1 and np.all(par[1:] >= 0) and np.all(par[1:] < np.arange(1, len(par)))
     step = np.linalg.norm(res.tree_nodes[1:] - res.tree_nodes[par[1:]], axis=1)
@@ -65,20 +69,20 @@ def test_tree_is_consistent(checker):
 def test_start_or_goal_in_collision_raises(checker):
     inside = (0.0, 0.0, 0.06)  # in the wall
     with pytest.raises(PlanningError, match="start .* in collision: min_s2"):
-        RRT(checker, RRTConfig(**PLANE)).plan(inside, GOAL)
+        RRT(checker, RRTConfig(**PLANE), robot=SPHERE).plan(inside, GOAL)
     with pytest.raises(PlanningError, match="goal .* in collision"):
-        RRT(checker, RRTConfig(**PLANE)).plan(START, inside)
+        RRT(checker, RRTConfig(**PLANE), robot=SPHERE).plan(START, inside)
     with pytest.raises(PlanningError, match="outside the sampling box"):
-        RRT(checker, RRTConfig(**PLANE)).plan((-0.15, 0.0, 0.07), GOAL)
+        RRT(checker, RRTConfig(**PLANE), robot=SPHERE).plan((-0.15, 0.0, 0.07), GOAL)
 
 
 def test_exploration_mode_edges_collision_free(checker):
     cfg = RRTConfig(max_nodes=400, seed=3, **PLANE)
-    res = RRT(checker, cfg).plan(START, None)
+    res = RRT(checker, cfg, robot=SPHERE).plan(START, None)
     assert res.success and len(res.path) == 0
     assert 300 <= res.n_nodes <= 400
     nodes, par = res.tree_nodes, res.tree_parents
-    ec = EdgeChecker(checker, RRT(checker).link_poses, R / 2)
+    ec = EdgeChecker(checker, RRT(checker, robot=SPHERE).geometry, R / 2)
     assert ec.edges_free(nodes[par[1:]], nodes[1:]).all()
     np.testing.assert_allclose(nodes[:, 2], 0.06)
     # the tree explores both sides of the wall
@@ -86,31 +90,41 @@ def test_exploration_mode_edges_collision_free(checker):
 
 
 def test_budget_exhausted_reports_failure(checker):
-    res = RRT(checker, RRTConfig(max_iters=2, seed=0, **PLANE)).plan(START, GOAL)
+    res = RRT(checker, RRTConfig(max_iters=2, seed=0, **PLANE), robot=SPHERE).plan(START, GOAL)
     assert not res.success and "iteration budget" in res.message and res.length == np.inf
 
 
 def test_shortcut_never_collides_and_never_longer(checker):
-    res = RRT(checker, RRTConfig(shortcut=False, seed=4, **PLANE)).plan(START, GOAL)
-    ec = EdgeChecker(checker, RRT(checker).link_poses, R / 2)
+    res = RRT(checker, RRTConfig(shortcut=False, seed=4, **PLANE), robot=SPHERE).plan(START, GOAL)
+    ec = EdgeChecker(checker, RRT(checker, robot=SPHERE).geometry, R / 2)
     sc = shortcut_path(ec, res.path)
     assert path_length(sc) <= path_length(res.path) + 1e-12
     assert ec.path_free(sc)
 
 
+def _planar_body(height: float, semi_axes) -> Robot:
+    """A planar base (x, y, yaw) whose one link carries one ellipsoid at ``height``."""
+    origin = np.eye(4)[None].copy()
+    origin[0, 2, 3] = height
+    kin = Kinematics(["body"], ["base"], np.array([-1]), np.array([PLANAR]), np.array([[0.0, 0.0, 1.0]]), origin, np.array([0]), np.ones(1), np.zeros(1))
+    ells = EllipsoidSet(["body"], np.zeros((1, 3)), np.eye(3)[None], np.array([semi_axes], dtype=np.float64), {})
+    lim = np.array([[-np.inf, np.inf], [-np.inf, np.inf], [-np.pi, np.pi]])
+    return Robot("body", kin, ["x", "y", "yaw"], lim, np.array([1.0, 1.0, 2.0]), np.zeros(3), ells, continuous=np.array([False, False, True]))
+
+
 def test_planar_base_rrt_over_x_y_yaw():
     # an ellipsoidal quadruped body over configurations (x, y, yaw) at a fixed height
     ch = make_checker(wall_scene(), n_sigma=0.5)
-    dyn = PlanarBase(height=0.06)
+    body = _planar_body(0.06, (0.03, 0.015, 0.012))
     cfg = RRTConfig(box_lo=(-0.25, -0.3, -np.pi), box_hi=(0.25, 0.3, np.pi), seed=0, edge_resolution=0.006)
-    res = RRT(ch, cfg, link_poses=dyn.link_poses).plan((-0.15, 0.0, 0.0), (0.15, 0.0, 0.0))
+    res = RRT(ch, cfg, robot=body).plan((-0.15, 0.0, 0.0), (0.15, 0.0, 0.0))
     assert res.success
-    c, q, a = dyn.link_poses(res.path)
+    c, q, a = body.ellipsoids(res.path)
     assert not ch.collides(c, q, a).any()
 
 
 def test_plan_convenience_refines(checker):
-    res = plan(checker, START, GOAL, rrt_config=RRTConfig(**PLANE), seed=0)
+    res = plan(checker, START, GOAL, robot=SPHERE, rrt_config=RRTConfig(**PLANE), seed=0)
     assert res.success and res.refined
     assert res.length <= res.info["length_rrt"] + 1e-9
     assert _dense_free(checker, res.path)
@@ -122,6 +136,6 @@ def test_backend_independent():
     ref = CollisionChecker(s, n_sigma=1.0, backend="reference")
     other = make_checker(s, n_sigma=1.0)
     cfg = RRTConfig(max_nodes=150, seed=5, **PLANE)
-    a = RRT(ref, cfg).plan(START, None)
-    b = RRT(other, cfg).plan(START, None)
+    a = RRT(ref, cfg, robot=SPHERE).plan(START, None)
+    b = RRT(other, cfg, robot=SPHERE).plan(START, None)
     np.testing.assert_allclose(a.tree_nodes, b.tree_nodes)

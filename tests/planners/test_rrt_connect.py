@@ -14,7 +14,6 @@ from splatplan.errors import PlanningError, SplatplanError
 from splatplan.planners import (
     RRT,
     EdgeChecker,
-    LinkGeometry,
     RefineConfig,
     RRTConfig,
     RRTConnect,
@@ -26,9 +25,12 @@ from splatplan.planners import (
     shortcut_path,
 )
 
+from splatplan.planners.robot_links import LinkGeometry
+
 from .scenes import make_checker, make_scene, wall_scene
 
 robots = pytest.importorskip("splatplan.robots")
+SPHERE = robots.load_robot("sphere:0.015")
 
 START = (-0.15, 0.0, 0.06)
 GOAL = (0.15, 0.0, 0.06)
@@ -54,7 +56,7 @@ def _dense_check(checker, robot, path: np.ndarray, res: float) -> bool:
     """Independent of the planner's EdgeChecker: every edge sampled so that no ellipsoid point
     moves more than ``res`` between samples (motion bound of the robot), vertices included, checked
     with ``robot.ellipsoids`` + ``checker.collides`` (host FK, not ``collides_robot``)."""
-    geom = LinkGeometry(robot=robot)
+    geom = LinkGeometry(robot)
     qs = [path[:1]]
     for a, b in zip(path[:-1], path[1:]):
         n = max(1, math.ceil(float(geom.motion(b - a)) / res))
@@ -84,7 +86,7 @@ def test_panda_tabletop_path_is_free(panda_table):
     robot = robots.load_robot("panda")
     q1, q2 = robot.q_default.copy(), robot.q_default.copy()
     q1[0], q2[0] = 1.4, -1.4
-    geom = LinkGeometry(robot=robot)
+    geom = LinkGeometry(robot)
     line = q1 + np.linspace(0, 1, 9)[:, None] * (q2 - q1)
     assert geom.collides(panda_table, line).any()  # the straight joint path hits the box
     res = plan(panda_table, q1, q2, robot=robot, refine=False, rrt_config=RRTConfig(time_limit_s=60.0))
@@ -102,8 +104,8 @@ def test_panda_tabletop_path_is_free(panda_table):
 
 def test_deterministic_for_a_seed(wall):
     cfg = RRTConfig(seed=3, **PLANE)
-    a = RRTConnect(wall, cfg).plan(START, GOAL)
-    b = RRTConnect(wall, cfg).plan(START, GOAL)
+    a = RRTConnect(wall, cfg, robot=SPHERE).plan(START, GOAL)
+    b = RRTConnect(wall, cfg, robot=SPHERE).plan(START, GOAL)
     assert a.success and b.success
     np.testing.assert_array_equal(a.path, b.path)
     np.testing.assert_array_equal(a.tree_nodes, b.tree_nodes)
@@ -113,7 +115,7 @@ def test_deterministic_for_a_seed(wall):
 def test_free_prefix_matches_per_sample_reference(wall):
     robot = robots.load_robot("panda")
     ch = make_checker(make_scene([((0.3, -0.3, 0.0), (0.4, 0.3, 0.8))], spacing=0.03), n_sigma=1.0)
-    geom = LinkGeometry(robot=robot)
+    geom = LinkGeometry(robot)
     rng = np.random.default_rng(0)
     lim = robot.joint_limits
     a = lim[:, 0] + rng.random((12, 7)) * (lim[:, 1] - lim[:, 0])
@@ -131,8 +133,8 @@ def test_free_prefix_matches_per_sample_reference(wall):
 
 
 def test_doubling_shortcut_keeps_vertices_and_never_lengthens(wall):
-    res = RRTConnect(wall, RRTConfig(seed=1, shortcut=False, **PLANE)).plan(START, GOAL)
-    edges = EdgeChecker(wall, RRT(wall).geometry, res.info["edge_resolution"], inflate=True)
+    res = RRTConnect(wall, RRTConfig(seed=1, shortcut=False, **PLANE), robot=SPHERE).plan(START, GOAL)
+    edges = EdgeChecker(wall, RRT(wall, robot=SPHERE).geometry, res.info["edge_resolution"], inflate=True)
     short = shortcut_path(edges, res.path, candidates="doubling")
     assert path_length(short) <= path_length(res.path) + 1e-12
     np.testing.assert_allclose(short[[0, -1]], res.path[[0, -1]])
@@ -147,11 +149,11 @@ def test_make_planner_auto_and_bad_name(wall):
     p = make_planner("auto", wall, robot="sphere:0.015")
     assert type(p) is RRT and p.name == "rrt"
     assert type(make_planner("auto", wall, robot="go2")) is RRT
-    assert isinstance(make_planner("RRT-Connect", wall), RRTConnect)
+    assert isinstance(make_planner("RRT-Connect", wall, robot=SPHERE), RRTConnect)
     with pytest.raises(SplatplanError, match="unknown planner 'prm'.*auto, rrt, rrtconnect"):
-        make_planner("prm", wall)
+        make_planner("prm", wall, robot=SPHERE)
     with pytest.raises(PlanningError, match="needs a goal"):
-        RRTConnect(wall).plan(START, None)
+        RRTConnect(wall, robot=SPHERE).plan(START, None)
 
 
 def test_time_limit_covers_the_whole_call_and_split_sums():
@@ -159,7 +161,7 @@ def test_time_limit_covers_the_whole_call_and_split_sums():
     limit = 0.3
     for name in ("rrt", "rrtconnect"):
         t = time.perf_counter()
-        res = plan(ch, (-0.15, 0.0, 0.06), (0.2, 0.0, 0.06), planner=name, rrt_config=RRTConfig(time_limit_s=limit, **PLANE))
+        res = plan(ch, (-0.15, 0.0, 0.06), (0.2, 0.0, 0.06), robot=SPHERE, planner=name, rrt_config=RRTConfig(time_limit_s=limit, **PLANE))
         wall_s = time.perf_counter() - t
         assert not res.success and res.info.get("time_limit_hit")
         assert wall_s < limit + 2.0  # generous slack: never assert tight timings
@@ -191,8 +193,8 @@ def test_refinement_stops_at_the_deadline(panda_table):
 def test_budgets_end_the_search():
     ch = make_checker(make_scene(SEALED, spacing=0.008), n_sigma=1.0)
     s, g = (-0.15, 0.0, 0.06), (0.2, 0.0, 0.06)
-    res = RRTConnect(ch, RRTConfig(max_iters=3, time_limit_s=None, **PLANE)).plan(s, g)
+    res = RRTConnect(ch, RRTConfig(max_iters=3, time_limit_s=None, **PLANE), robot=SPHERE).plan(s, g)
     assert not res.success and res.n_iters == 3 and "iteration budget" in res.message
     assert res.path.shape == (0, 3) and res.length == math.inf
-    res = RRTConnect(ch, RRTConfig(max_nodes=40, time_limit_s=None, **PLANE)).plan(s, g)
+    res = RRTConnect(ch, RRTConfig(max_nodes=40, time_limit_s=None, **PLANE), robot=SPHERE).plan(s, g)
     assert not res.success and "node budget" in res.message

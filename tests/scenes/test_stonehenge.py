@@ -8,12 +8,12 @@ import numpy as np
 import pytest
 
 from splatplan.errors import SplatplanError
+from splatplan.robots import point_radius
 from splatplan.scenes.primitives import AnalyticScene, SurfaceSplatConfig, _sample_faces, box_sdf, make_box, splats_from_boxes
 from splatplan.scenes.splats import quat_to_rotmat, rotmat_to_quat
 from splatplan.scenes.stonehenge import (
     PLANE_Z,
     RING_GATES,
-    ROBOT_RADIUS,
     box_cross_section,
     build_stonehenge,
     default_n_splats,
@@ -162,14 +162,14 @@ def test_layout_bounds_ground_and_plane(layout):
             assert box_cross_section(box, PLANE_Z) is not None
             assert box[2] + box[5] >= 0.1 if lab != "leaning" else True
     stones = np.arange(1, len(scene))
-    assert scene.sdf(np.array([0.0, 0.0, PLANE_Z]), box_ids=stones)[0] > 3 * ROBOT_RADIUS
+    assert scene.sdf(np.array([0.0, 0.0, PLANE_Z]), box_ids=stones)[0] > 3 * point_radius()
 
 
 def test_gate_widths(layout):
     w = layout.gate_widths
     assert len(w) == len(RING_GATES)
     np.testing.assert_allclose(w, [g for g, _ in RING_GATES], atol=0.003)  # seed jitter only
-    assert np.sum(w < 2 * ROBOT_RADIUS) >= 3  # too narrow for the robot
+    assert np.sum(w < 2 * point_radius()) >= 3  # too narrow for the robot
     assert np.sum((w > 0.03) & (w < 0.05)) >= 3  # tight
     assert np.sum(w > 0.06) >= 4  # clearly wide
     assert (~layout.gate_has_lintel).sum() >= 2  # gaps in the ring
@@ -324,7 +324,7 @@ def test_plot_top_view_smoke(layout):
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots()
-    plot_top_view(ax, layout.scene, PLANE_Z, inflate=ROBOT_RADIUS)
+    plot_top_view(ax, layout.scene, PLANE_Z, inflate=point_radius())
     n_sections = sum(box_cross_section(b, PLANE_Z) is not None for b in layout.scene.boxes)
     assert len(ax.patches) >= n_sections
     plt.close(fig)

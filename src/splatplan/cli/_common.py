@@ -62,27 +62,6 @@ def reject_nan_flags(args: argparse.Namespace) -> None:
             raise SplatplanError(f"--{dest.replace('_', '-')}: NaN is not a valid value")
 
 
-ROBOT_HELP = "robot link: 'sphere:R' or 'ellipsoid:A,B,C' (semi-axes, scene units)"
-
-
-def parse_robot(spec: str) -> np.ndarray:
-    """'sphere:R' or 'ellipsoid:A,B,C' -> semi-axes (3,) float64."""
-    kind, _, rest = spec.partition(":")
-    try:
-        vals = [float(v) for v in rest.split(",")] if rest else []
-    except ValueError:
-        raise SplatplanError(f"--robot {spec!r}: numbers expected after ':' ({ROBOT_HELP})") from None
-    if kind == "sphere" and len(vals) == 1:
-        axes = np.full(3, vals[0])
-    elif kind == "ellipsoid" and len(vals) == 3:
-        axes = np.asarray(vals)
-    else:
-        raise SplatplanError(f"--robot {spec!r} not understood: {ROBOT_HELP}")
-    if not np.all(np.isfinite(axes)) or np.any(axes <= 0):
-        raise SplatplanError(f"--robot {spec!r}: sizes must be finite and > 0")
-    return axes
-
-
 def parse_vec3(text: str, what: str) -> np.ndarray:
     try:
         v = np.asarray([float(x) for x in text.split(",")], dtype=np.float64)

@@ -19,9 +19,10 @@ import numpy as np
 
 from .._resources import require_bytes
 from ..errors import SplatplanError
+from ..robots.builtin import ROBOT_NAME_HELP, parse_robot_name
 from ._common import (
-    BASE_POSE_HELP, POSITIVE_INT, ROBOT_HELP, _load, add_config_args, add_device_arg, atomic_path, config_from_args, load_npy, load_poses,
-    parse_base_pose, parse_robot, progress, robot_at, signals_deferred,
+    BASE_POSE_HELP, POSITIVE_INT, _load, add_config_args, add_device_arg, atomic_path, config_from_args, load_npy, load_poses,
+    parse_base_pose, progress, robot_at, signals_deferred,
 )  # fmt: skip
 
 #: queries (link poses) per kernel call: small enough that an interrupt waits < ~1 s on a CPU
@@ -30,10 +31,6 @@ DEFAULT_CHUNK = 65_536
 CHUNK_BYTES_PER_POSE = 256
 
 _OUTPUTS = ("min_s2", "n_colliding", "in_collision", "softmin", "cost")
-
-
-def _is_link_spec(spec: str) -> bool:
-    return spec.partition(":")[0] in ("sphere", "ellipsoid")
 
 
 def _chunked_query(checker, n: int, chunk: int, query, desc: str) -> dict[str, np.ndarray]:
@@ -137,16 +134,15 @@ def _check_robot(robot, q: np.ndarray, checker, scene, chunk: int) -> dict[str, 
 def cmd_check(args) -> int:
     from ..metric import CollisionChecker, MetricConfig
 
-    link = _is_link_spec(args.robot)
-    axes = parse_robot(args.robot) if link else None  # fail fast on a bad spec
+    name = parse_robot_name(args.robot)  # fails fast on a malformed sphere:R / ellipsoid:A,B,C
+    link = name.is_point
+    axes = np.asarray(name.semi_axes, dtype=np.float64) if link else None  # (3,)
     if (args.poses is None) == (args.configs is None):
         raise SplatplanError("give exactly one of --poses POSES.npy (link poses) or --configs Q.npy (joint configurations)")
     if args.poses is not None and args.base_pose is not None:
         raise SplatplanError("--base-pose places a robot given with --configs; --poses are already world poses")
     if args.poses is not None and not link:
-        if ":" in args.robot:
-            parse_robot(args.robot)  # a malformed link spec: say so
-        raise SplatplanError(f"--robot {args.robot!r} is a robot: give --configs Q.npy (B, dof) instead of --poses (which is for a single link, {ROBOT_HELP})")
+        raise SplatplanError(f"--robot {args.robot!r} is a robot: give --configs Q.npy (B, dof) instead of --poses (which is for a single link: sphere:R or ellipsoid:A,B,C)")
     # one chunk's link poses and outputs (centres, quaternions, semi-axes, five result arrays)
     require_bytes(float(args.chunk) * CHUNK_BYTES_PER_POSE, f"one --chunk of {args.chunk:,} link poses", "--chunk")
     if args.out and not str(args.out).endswith(".npz"):
@@ -178,7 +174,7 @@ def register(sub, eval_sub) -> None:
         "or robot configurations (--robot panda|go2|URDF --configs).",
     )
     s.add_argument("scene", metavar="SCENE")
-    s.add_argument("--robot", required=True, help=f"{ROBOT_HELP}, or a robot: panda, go2, PATH.urdf (then --configs)")
+    s.add_argument("--robot", required=True, help=f"{ROBOT_NAME_HELP}; a point robot (sphere, ellipsoid) takes --poses or --configs, the others --configs")
     s.add_argument("--poses", help="POSES.npy: (B,3) centres or (B,7) centre + wxyz quaternion, scene frame (single-link robots)")
     s.add_argument("--base-pose", default=None, help=f"--configs robots: {BASE_POSE_HELP}")
     s.add_argument("--configs", help="Q.npy: (B, dof) joint configurations of --robot (rad or m; panda: 7 arm joints, go2: x, y, yaw)")

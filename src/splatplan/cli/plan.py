@@ -22,13 +22,11 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import SplatplanError
+from ..robots.builtin import DEFAULT_POINT_ROBOT, ROBOT_NAME_HELP
 from ._common import (
     BASE_POSE_HELP, SEED, _load, add_config_args, add_device_arg, add_terrain_args, allow_negative_values, config_from_args, float_arg,
     ground_robot_scene, parse_base_pose, robot_at, write_json,
 )  # fmt: skip
-
-
-ROBOT_HELP = "sphere:R | ellipsoid:A,B,C (point robots, dofs x,y,z) | panda (7 joint angles, rad) | go2 (planar base x,y,yaw) | PATH.urdf (default sphere:0.015)"
 
 
 def parse_goal_pose(text: str, robot, link: str) -> np.ndarray:
@@ -184,7 +182,7 @@ def register(sub, eval_sub) -> None:
     )
     allow_negative_values(s)
     s.add_argument("scene", metavar="SCENE")
-    s.add_argument("--robot", default="sphere:0.015", help=ROBOT_HELP)
+    s.add_argument("--robot", default=DEFAULT_POINT_ROBOT, help=f"{ROBOT_NAME_HELP} (default {DEFAULT_POINT_ROBOT})")
     s.add_argument("--start", required=True, help="start configuration, comma list of the robot's dofs (X,Y,Z for point robots; a leading minus is fine)")
     s.add_argument("--goal", default=None, help="goal configuration, comma list of the robot's dofs")
     s.add_argument("--goal-pose", default=None, help="arms: X,Y,Z,QW,QX,QY,QZ goal pose of --ee-link (metres, wxyz, world): the goal is the "

@@ -25,6 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import SplatplanError
+from ..robots.builtin import ROBOT_NAME_HELP
 from ..robots.fit import MAX_PER_LINK
 from ._common import float_arg, int_arg
 
@@ -154,7 +155,7 @@ def register(sub, eval_sub) -> None:
     p = sub.add_parser("robot", help="robots: info (links, ellipsoids, limits), fit (ellipsoids to link meshes)")
     rs = p.add_subparsers(dest="robot_cmd", required=True, metavar="ACTION")
     pi = rs.add_parser("info", help="links, ellipsoids, joint limits, volume ratios of a robot")
-    pi.add_argument("robot", metavar="NAME|URDF", help="panda, go2, sphere:R, ellipsoid:A,B,C or a .urdf path")
+    pi.add_argument("robot", metavar="NAME|URDF", help=ROBOT_NAME_HELP)
     pi.add_argument("--json", action="store_true", help="print one JSON object")
     pi.add_argument("--meshes-from", default=None, metavar="URDF", help="measure the model against this URDF's collision meshes (same link names)")
     pi.add_argument("--no-measure", action="store_true", help="skip measuring the model against the meshes")

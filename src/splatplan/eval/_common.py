@@ -1,7 +1,7 @@
 """Shared helpers of the studies (E1 precision-recall and E2 throughput first of all).
 
 Units and frames: normalised scene units of the built-in Stonehenge (z up, ground top at z = 0,
-x, y in [-0.5, 0.5]); robot = a sphere of radius :data:`ROBOT_RADIUS` (scene units).
+x, y in [-0.5, 0.5]); robot = the sphere :data:`~splatplan.robots.DEFAULT_POINT_ROBOT` (r = 0.015 scene units).
 """
 
 from __future__ import annotations
@@ -15,9 +15,6 @@ import numpy as np
 from ..errors import SplatplanError
 from ..scenes.filters import FilterReport, filter_floaters
 from ..scenes.splats import Splats
-
-#: The paper's robot: a sphere of this radius (scene units).
-ROBOT_RADIUS = 0.015
 
 #: Display names, in the order rows are printed.
 DISPLAY = {

@@ -29,6 +29,7 @@ from .._config import bounded, check_config
 from ..errors import PlanningError, SplatplanError
 from ..planners import RRTConfig, plan
 from ..planners.metrics import clearance, d_min, smoothness
+from ..robots import load_robot, point_radius
 from ._common import load_stonehenge_filtered, mean_std, progress
 
 #: The paper's Table II: n_sigma -> (mean, std) per column.
@@ -46,8 +47,7 @@ PAPER_TABLE_II: dict[float, dict[str, tuple[float, float]]] = {
 
 N_SIGMAS = (0.0, 0.25, 0.5, 0.75, 1.0, 1.25, 1.5, 1.75, 2.0)
 COLUMNS = ("length_rrt", "length_refined", "dmin_rrt", "dmin_refined", "smoothness_rrt", "smoothness_refined")
-#: robot sphere radius and planning plane of the study (scene units)
-RADIUS = 0.015
+#: planning plane of the study (scene units); the robot is the sphere DEFAULT_POINT_ROBOT (r = 0.015)
 PLANE_Z = 0.06
 #: goals lie on the square |x| = BORDER or |y| = BORDER
 BORDER = 0.47
@@ -76,7 +76,7 @@ class ConservatismConfig:
     #: for a sphere robot, r/4 (inner samples checked with the sphere grown by half the spacing).
     edge_resolution: float | None = bounded(None, gt=0)
     #: Robot sphere radius (scene units).
-    radius: float = bounded(RADIUS, gt=0)
+    radius: float = bounded(point_radius(), gt=0)
     #: Height of the planning plane (scene units, z up).
     plane_z: float = PLANE_Z
     #: Built-in Stonehenge level (1..5).
@@ -113,7 +113,7 @@ def load_scene(level: int, seed: int):
     return splats, scene
 
 
-def border_goals(n: int, rng: np.random.Generator, checkers, z: float = PLANE_Z, radius: float = RADIUS, max_tries: int = 10000) -> np.ndarray:
+def border_goals(n: int, rng: np.random.Generator, checkers, radius: float, z: float = PLANE_Z, max_tries: int = 10000) -> np.ndarray:
     """``n`` random goals on the square border |x| = BORDER or |y| = BORDER at height z, each
     collision-free for every checker in ``checkers`` (sphere of ``radius``). Returns (n, 3)."""
     goals = []
@@ -130,7 +130,7 @@ def border_goals(n: int, rng: np.random.Generator, checkers, z: float = PLANE_Z,
     raise PlanningError(f"could not find {n} collision-free border goals in {max_tries} tries")
 
 
-def free_start(center, checkers, radius: float = RADIUS, max_offset: float = 0.1) -> np.ndarray:
+def free_start(center, checkers, radius: float, max_offset: float = 0.1) -> np.ndarray:
     """``center`` (3,) if it is collision-free for every checker, else the nearest free point on
     rings of growing radius around it in its horizontal plane (a large floater can make the exact
     centre unusable). Raises PlanningError when nothing within ``max_offset`` is free."""
@@ -151,7 +151,7 @@ def free_start(center, checkers, radius: float = RADIUS, max_offset: float = 0.1
 def _plan_one(checker, start, goal, means_tree, sdf, seed: int, rrt_cfg: RRTConfig, radius: float):
     """One trial: (metric dict, empty on failure; the PlanResult or None on a PlanningError)."""
     try:
-        res = plan(checker, start, goal, radius=radius, refine=True, seed=seed, rrt_config=rrt_cfg)
+        res = plan(checker, start, goal, robot=load_robot(f"sphere:{radius!r}"), refine=True, seed=seed, rrt_config=rrt_cfg)
     except PlanningError:
         return {}, None
     if not res.success:

@@ -31,7 +31,8 @@ from scipy.spatial import cKDTree
 from .._config import bounded, check_config
 from ..errors import PlanningError, SplatplanError
 from ._common import mean_std, progress
-from .conservatism import PLANE_Z, RADIUS, border_goals, free_start, load_scene, plan_trials
+from ..robots import point_radius
+from .conservatism import PLANE_Z, border_goals, free_start, load_scene, plan_trials
 
 #: The paper's Table III: scene -> (path length mean, std), (closest distance mean, std).
 PAPER_TABLE_III = {
@@ -93,18 +94,19 @@ def choose_straight_path(
     min_length: float = 0.4,
     min_clearance: float = 0.005,
     z: float = PLANE_Z,
+    radius: float = point_radius(),
 ) -> np.ndarray:
-    """A straight segment (2, 3) at height z, at least ``min_length`` long, collision-free for the
-    exact geometry (clearance >= ``min_clearance``) and for every checker, running as close to the
+    """A straight segment (2, 3) at height z, at least ``min_length`` long, collision-free for a
+    sphere of ``radius`` against the exact geometry (clearance >= ``min_clearance``) and every checker, running as close to the
     stones as allowed (smallest mean clearance, clearances above 0.05 counted as 0.05)."""
-    axes = (RADIUS, RADIUS, RADIUS)
+    axes = (radius, radius, radius)
     p0 = np.concatenate([rng.uniform(-0.47, 0.47, (n_candidates, 2)), np.full((n_candidates, 1), z)], axis=1)
     p1 = np.concatenate([rng.uniform(-0.47, 0.47, (n_candidates, 2)), np.full((n_candidates, 1), z)], axis=1)
     keep = np.linalg.norm(p1 - p0, axis=1) >= min_length
     p0, p1 = p0[keep], p1[keep]
     s = np.linspace(0.0, 1.0, 120)
     pts = p0[:, None] + s[None, :, None] * (p1 - p0)[:, None]  # (C, S, 3)
-    clr = (scene.sdf(pts.reshape(-1, 3)) - RADIUS).reshape(len(p0), -1)  # (C, S)
+    clr = (scene.sdf(pts.reshape(-1, 3)) - radius).reshape(len(p0), -1)  # (C, S)
     ok = clr.min(axis=1) >= min_clearance
     score = np.where(ok, np.minimum(clr, 0.05).mean(axis=1), np.inf)
     for i in np.argsort(score):
@@ -172,21 +174,22 @@ def run_linearization(out_dir: Path, quick: bool = False, seed: int | None = Non
         scenes[lv] = (splats, scene, CollisionChecker(splats, n_sigma=cfg.n_sigma, device=device))
     analytic = scenes[cfg.levels[0]][1]  # the geometry is the same at every level (same layout seed)
     checkers = [scenes[lv][2] for lv in cfg.plan_levels]
-    line = choose_straight_path(analytic, [scenes[cfg.levels[0]][2]], rng, n_candidates=cfg.n_candidates)  # free in the first level (and the exact geometry)
-    goals = border_goals(cfg.n_goals, rng, checkers)
-    start = free_start(np.array([0.0, 0.0, PLANE_Z]), checkers)
+    radius = point_radius()  # the robot: the studies' sphere DEFAULT_POINT_ROBOT, as in E3 (whose planner runs here)
+    line = choose_straight_path(analytic, [scenes[cfg.levels[0]][2]], rng, n_candidates=cfg.n_candidates, radius=radius)  # free in the first level (and the exact geometry)
+    goals = border_goals(cfg.n_goals, rng, checkers, radius)
+    start = free_start(np.array([0.0, 0.0, PLANE_Z]), checkers, radius)
 
     t = np.linspace(0.0, 1.0, 600)
     pts = line[0] + t[:, None] * (line[1] - line[0])  # (S, 3)
     arc = t * float(np.linalg.norm(line[1] - line[0]))
-    clr_true = analytic.sdf(pts) - RADIUS
+    clr_true = analytic.sdf(pts) - radius
     fig, axs = plt.subplots(2, 1, figsize=(8, 7.0), sharex=True)
     rows, along = [], {}
     cap = cfg.plot_s2_cap
     for lv in progress(cfg.levels, desc="levels"):
         splats, scene, ch = scenes[lv]
         plot_ch = ch.with_config(s2_cap=cap)  # exact min_s2 up to a larger distance
-        q = plot_ch.query(pts, None, (RADIUS, RADIUS, RADIUS))
+        q = plot_ch.query(pts, None, (radius, radius, radius))
         min_s2 = np.minimum(q.min_s2.astype(np.float64), cap)
         soft = np.minimum(q.softmin.astype(np.float64), cap)
         along[lv] = {"min_s2_min": float(min_s2.min()), "softmin_min": float(soft.min()), "min_s2_mean": float(min_s2.mean())}
@@ -220,7 +223,7 @@ def run_linearization(out_dir: Path, quick: bool = False, seed: int | None = Non
     axs[1].set_xlabel("distance along the straight path (scene units)")
     axs[0].legend(fontsize=7)
     axs[1].legend(loc="upper left", fontsize=7)
-    axs[0].set_title(f"Metric along a straight collision-free path (n_sigma = {cfg.n_sigma:g}, sphere r = {RADIUS}); "
+    axs[0].set_title(f"Metric along a straight collision-free path (n_sigma = {cfg.n_sigma:g}, sphere r = {radius:g}); "
                      "M1..M5: larger and fewer splats", fontsize=9)  # fmt: skip
     fig.tight_layout()
     fig.savefig(out_dir / "fig5_metric_along_path.png", dpi=120)
@@ -232,7 +235,7 @@ def run_linearization(out_dir: Path, quick: bool = False, seed: int | None = Non
             "n_sigma": cfg.n_sigma,
             "levels": list(cfg.levels),
             "n_goals": cfg.n_goals,
-            "robot_radius": RADIUS,
+            "robot_radius": radius,
             "plane_z": PLANE_Z,
             "straight_path": line.tolist(),
             "straight_path_min_true_clearance": float(clr_true.min()),

@@ -92,7 +92,8 @@ import numpy as np
 from .._config import bounded, check_config
 from .._resources import require_bytes
 from ..errors import SplatplanError
-from ._common import DISPLAY, ROBOT_RADIUS, load_scene_with_gt, n_cores, progress, set_torch_threads
+from ..robots import point_radius
+from ._common import DISPLAY, load_scene_with_gt, n_cores, progress, set_torch_threads
 
 __all__ = ["PRConfig", "VARIANTS", "precision_recall_curve", "average_precision", "best_f1", "pr_summary", "report", "run_pr"]
 
@@ -136,7 +137,7 @@ class PRConfig:
     #: Lattice spacing of the query grid (scene units); the grid holds the cell centres.
     spacing: float = bounded(0.01, gt=0)
     #: Robot sphere radius (scene units).
-    radius: float = bounded(ROBOT_RADIUS, gt=0)
+    radius: float = bounded(point_radius(), gt=0)
     #: Padding of the domain (bounding box of the splat means) on every side, in units of radius.
     pad: float = bounded(1.0, ge=0)
     #: n_sigma values of CollisionSplatting; the headline ``collisionsplatting`` entry uses 1.0.

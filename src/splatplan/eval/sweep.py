@@ -224,15 +224,14 @@ def _sample_box(ctx: SweepContext, scene: str) -> tuple[np.ndarray, np.ndarray]:
 
 def _free_configs(ctx: SweepContext, scene: str, n_sigma: float, rng: np.random.Generator, n: int, max_rounds: int = 40) -> np.ndarray:
     """(n, D) random collision-free configurations (at ``n_sigma``)."""
-    from ..planners.robot_links import LinkGeometry
+    from ..planners import robot_collides
 
     lo, hi = _sample_box(ctx, scene)
-    geom = LinkGeometry(robot=ctx.robot)
     ch = ctx.checker(scene, n_sigma)
     got = []
     for _ in range(max_rounds):
         q = lo + rng.random((256, lo.size)) * (hi - lo)
-        got.extend(q[~geom.collides(ch, q)])
+        got.extend(q[~robot_collides(ch, ctx.robot, q).any(axis=-1)])
         if len(got) >= n:
             return np.asarray(got[:n])
     raise PlanningError(f"sweep: fewer than {n} collision-free configurations of {ctx.robot.name} in {max_rounds * 256} samples in {scene}")
@@ -243,14 +242,13 @@ def sweep_task(spec: dict, ctx: SweepContext) -> dict:
     scene, ns, seed = spec["scene"], float(spec["n_sigma"]), int(spec["seed"])
     ch = ctx.checker(scene, ns)
     if spec["job"] == "check":
-        from ..planners.robot_links import LinkGeometry
+        from ..planners import robot_collides
 
         lo, hi = _sample_box(ctx, scene)
         q = lo + np.random.default_rng([seed, zlib.crc32(scene.encode())]).random((int(spec["n_configs"]), lo.size)) * (hi - lo)
-        geom = LinkGeometry(robot=ctx.robot)
-        geom.collides(ch, q[:8])  # warm-up (kernel load) outside the timing
+        robot_collides(ch, ctx.robot, q[:8])  # warm-up (kernel load) outside the timing
         t0 = time.perf_counter()
-        hit = geom.collides(ch, q)
+        hit = robot_collides(ch, ctx.robot, q).any(axis=-1)  # (n,) any ellipsoid in collision
         dt = time.perf_counter() - t0
         return {"n_configs": len(q), "colliding_fraction": float(hit.mean()), "configs_per_s": len(q) / max(dt, 1e-12), "seconds": dt}
     from ..planners import RRTConfig, plan

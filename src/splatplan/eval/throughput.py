@@ -50,7 +50,8 @@ import numpy as np
 
 from .._config import bounded, check_config
 from ..errors import SplatplanError
-from ._common import DISPLAY, ROBOT_RADIUS, make_queries, n_cores
+from ..robots import point_radius
+from ._common import DISPLAY, make_queries, n_cores
 
 __all__ = ["ThroughputConfig", "PAPER_TABLE_I", "run_throughput"]
 
@@ -100,7 +101,7 @@ class ThroughputConfig:
     #: Built-in Stonehenge splat count before filtering (None: the level's default, ~200k at level 1).
     n_splats: int | None = bounded(None, ge=1)
     #: Robot sphere radius (scene units).
-    radius: float = bounded(ROBOT_RADIUS, gt=0)
+    radius: float = bounded(point_radius(), gt=0)
     #: CollisionSplatting's n_sigma.
     n_sigma: float = bounded(1.0, ge=0)
     #: Seed of the query generator.

@@ -1,7 +1,7 @@
 """CollisionChecker: the public entry point of the metric stage.
 
     checker = CollisionChecker(scene, n_sigma=1.0, device="cpu")
-    res = checker.query(centers, quats=None, semi_axes=(0.015, 0.015, 0.015))
+    res = checker.query(centers, None, (0.015, 0.015, 0.015))   # a sphere of radius 0.015, any batch shape
     res.min_s2, res.n_colliding, res.in_collision, res.softmin, res.cost
     hits = checker.collides_robot(robot, q)          # q (..., dof) -> (..., E) bool, FK on the device
 
@@ -130,13 +130,16 @@ class CollisionChecker:
         return MetricWorkspace(self.device).reserve(capacity)
 
     # ------------------------------------------------------------------ queries
-    def query(self, centers, quats=None, semi_axes=(0.015, 0.015, 0.015), *, rots=None, out=None, validate=False) -> QueryResult:
+    def query(self, centers, quats, semi_axes, *, rots=None, out=None, validate=False) -> QueryResult:
         """All five outputs for a batch of link poses (see :class:`QueryResult`).
 
         Args:
             centers: (..., 3) link centres, world frame: numpy, torch or wp (vec3 or float32).
-            quats: (..., 4) wxyz world <- link, or None (axis-aligned); broadcast over the batch.
-            semi_axes: (3,), a scalar, or (..., 3) broadcast over the batch.
+            quats: (..., 4) wxyz world <- link, or None (axis-aligned, or ``rots`` given); broadcast
+                over the batch.
+            semi_axes: the link's semi-axes (scene units): (3,), a scalar (a sphere's radius), or
+                (..., 3) broadcast over the batch. No default: a robot's size is the caller's
+                (``query_robot`` takes a Robot).
             rots: (..., 3, 3) world <- link rotation matrices instead of ``quats``.
             out: a :meth:`workspace` whose buffers receive the results (returned as views of them).
             validate: device inputs only: raise on non-finite input (one device sync). Without
@@ -157,7 +160,7 @@ class CollisionChecker:
         del keep
         return QueryResult(**{k: convert_out(getattr(ws, k), b, shape, kind, False) for k in _FIELDS})
 
-    def collides(self, centers, quats=None, semi_axes=(0.015, 0.015, 0.015), *, rots=None, out=None, validate=False):
+    def collides(self, centers, quats, semi_axes, *, rots=None, out=None, validate=False):
         """Boolean collision state only (n_colliding > k_collide); stops at the (k+1)-th hit.
 
         Much cheaper than :meth:`query` for RRT edge checks. Shape: the batch shape; type: the

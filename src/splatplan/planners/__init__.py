@@ -4,8 +4,8 @@ Everything here talks to the scene only through a :class:`~splatplan.metric.Coll
 (``query`` for costs, ``collides`` for edge checks), so it runs on any checker backend/device.
 
     from splatplan.planners import plan
-    res = plan(checker, start=(0, 0, 0.06), goal=(0.45, 0.1, 0.06))            # sphere r = 0.015
-    res = plan(checker, start=q0, goal=q1, robot=load_robot("panda"))           # joint space
+    res = plan(checker, (0, 0, 0.06), (0.45, 0.1, 0.06), robot=load_robot("sphere:0.015"))   # a point robot
+    res = plan(checker, q0, q1, robot=load_robot("panda"))                                   # joint space
     res.success, res.path, res.length, res.info["settings"]
 """
 
@@ -23,7 +23,7 @@ from .dynamics import Dynamics, HolonomicPoint, JointIntegrator, PlanarBase, sph
 from .metrics import clearance, d_min, densify_path, smoothness
 from .mppi import MPPI, MPPIConfig, MPPIInfo
 from .refine import RefineConfig, RefineResult, refine_path
-from .robot_links import LinkGeometry, as_robot, robot_collides, robot_query
+from .robot_links import as_robot, robot_collides, robot_query
 from .rrt_connect import RRTConnect
 from .rrt import RRT, EdgeChecker, PlanResult, RRTConfig, RRTSettings, edge_points, edge_samples, path_length, robust_scene_box, shortcut_path
 
@@ -36,7 +36,6 @@ __all__ = [
     "GoalPoseCost",
     "ImageCost",
     "JointLimitCost",
-    "LinkGeometry",
     "Rollout",
     "RRTSettings",
     "StateCost",
@@ -87,9 +86,10 @@ __all__ = [
 PLANNERS = ("auto", "rrt", "rrtconnect")
 
 
-def make_planner(name: str, checker, config: RRTConfig | None = None, robot=None, radius: float = 0.015):
-    """The planner called ``name`` (see :data:`PLANNERS`) for ``robot`` on ``checker``: an object
-    with ``plan(start, goal, deadline=None) -> PlanResult`` and ``settings(start, goal)``.
+def make_planner(name: str, checker, config: RRTConfig | None = None, *, robot):
+    """The planner called ``name`` (see :data:`PLANNERS`) for ``robot`` (a Robot or a name for
+    :func:`~splatplan.robots.load_robot`) on ``checker``: an object with
+    ``plan(start, goal, deadline=None) -> PlanResult`` and ``settings(start, goal)``.
 
     Raises:
         SplatplanError: an unknown name (the message lists the known ones).
@@ -97,23 +97,23 @@ def make_planner(name: str, checker, config: RRTConfig | None = None, robot=None
     key = str(name).strip().lower().replace("-", "").replace("_", "")
     if key not in PLANNERS:
         raise SplatplanError(f"unknown planner {name!r}: choose one of {', '.join(PLANNERS)}")
-    geom_robot = as_robot(robot, radius)
+    robot = as_robot(robot)
     if key == "auto":
-        key = "rrtconnect" if int(geom_robot.dof) >= 4 else "rrt"
+        key = "rrtconnect" if int(robot.dof) >= 4 else "rrt"
     cls = RRTConnect if key == "rrtconnect" else RRT
-    return cls(checker, config, robot=geom_robot)
+    return cls(checker, config, robot=robot)
 
 
 def plan(
     checker,
     start,
     goal,
-    radius: float = 0.015,
+    *,
+    robot,
     refine: bool = True,
     seed: int = 0,
     rrt_config: RRTConfig | None = None,
     refine_config: RefineConfig | None = None,
-    robot=None,
     planner: str = "auto",
 ) -> PlanResult:
     """Plan a collision-free path for a robot: RRT or RRT-Connect (+ shortcut) (+ refinement).
@@ -126,13 +126,14 @@ def plan(
         start: (D,) start configuration (a point robot: its centre, scene units, world frame;
             an arm: joint angles; a planar base: x, y, yaw).
         goal: (D,) goal configuration.
-        radius: shortcut for ``robot="sphere:<radius>"`` (scene units) when ``robot`` is None.
+        robot: (required) a :class:`~splatplan.robots.Robot` or a name for
+            :func:`~splatplan.robots.load_robot`; a point robot is ``load_robot("sphere:R")``
+            (:data:`~splatplan.robots.DEFAULT_POINT_ROBOT` is the studies' sphere).
         refine: run :func:`refine_path` on the found path (kept only if collision-free).
         seed: seeds the RRT sampler and the refinement noise (overrides the configs' seeds).
         rrt_config: :class:`RRTConfig` (default: RRTConfig(): scene-scaled lengths, 10 s).
             Give ``box_lo``/``box_hi`` with equal z (or ``frozen=(2,)``) to plan in a plane.
         refine_config: :class:`RefineConfig` (default: RefineConfig()).
-        robot: a :class:`~splatplan.robots.Robot` or a name for :func:`~splatplan.robots.load_robot`.
         planner: one of :data:`PLANNERS`: "auto" (RRT-Connect for robots with 4 or more dofs,
             the goal-biased RRT for point robots and planar bases), "rrt" or "rrtconnect"; or
             "ompl:NAME", an OMPL geometric planner on the same checker, box, edge resolution and
@@ -149,16 +150,16 @@ def plan(
 
     Raises:
         PlanningError: start or goal in collision, outside the scene bounds or the sampling box.
-        SplatplanError: an unknown planner name.
+        SplatplanError: an unknown planner name, or no robot.
     """
     if planner.startswith("ompl:"):
         from .ompl_bridge import plan_ompl
 
-        return plan_ompl(checker, start, goal, robot=robot, name=planner, time_limit_s=None, radius=radius, rrt_config=rrt_config)
+        return plan_ompl(checker, start, goal, robot=robot, name=planner, time_limit_s=None, rrt_config=rrt_config)
     t0 = time.perf_counter()
     cfg = replace(rrt_config or RRTConfig(), seed=seed)
     deadline = None if cfg.time_limit_s is None else t0 + cfg.time_limit_s
-    rrt = make_planner(planner, checker, cfg, robot=robot, radius=radius)
+    rrt = make_planner(planner, checker, cfg, robot=robot)
     res = rrt.plan(start, goal, deadline=deadline)
     res.info["length_rrt"] = res.length
     res.info["path_shortcut"] = res.path.copy()

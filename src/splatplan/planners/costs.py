@@ -65,19 +65,37 @@ def reduce_time(c, k: int, what: str) -> np.ndarray:
     raise SplatplanError(f"{what} must return (K,) or (K, T) costs for K = {k}, got shape {c.shape}")
 
 
-def _geometry(source) -> LinkGeometry:
-    """A LinkGeometry from a Robot, a dynamics model (its ``robot`` or ``link_poses``) or a geometry."""
-    if isinstance(source, LinkGeometry):
+class _DynamicsLinks:
+    """The link ellipsoids of a dynamics model built without a Robot (``HolonomicPoint()``,
+    ``PlanarBase(height=...)``): queries only, no configuration metric. Goes once every dynamics
+    model carries a Robot."""
+
+    robot = None
+    weights = None
+    dof = None
+
+    def __init__(self, dynamics) -> None:
+        self.dynamics = dynamics
+        self.n_queries = 0
+
+    def query(self, checker, q: np.ndarray):
+        res = checker.query(*self.dynamics.link_poses(np.asarray(q, dtype=np.float64)))
+        self.n_queries += int(np.size(res.min_s2))
+        return res
+
+
+def _geometry(source) -> "LinkGeometry | _DynamicsLinks":
+    """The link geometry of a Robot or of a dynamics model (its ``robot``; its own ``link_poses``
+    when it has no Robot), or a geometry given as is."""
+    if isinstance(source, (LinkGeometry, _DynamicsLinks)):
         return source
     robot = getattr(source, "robot", None)
     if robot is not None:
-        return LinkGeometry(robot=robot)
+        return LinkGeometry(robot)
     if hasattr(source, "ellipsoids") and hasattr(source, "dof"):  # a Robot
-        return LinkGeometry(robot=source)
+        return LinkGeometry(source)
     if hasattr(source, "link_poses"):
-        return LinkGeometry(link_poses=source.link_poses)
-    if callable(source):
-        return LinkGeometry(link_poses=source)
+        return _DynamicsLinks(source)
     raise SplatplanError(f"cannot get robot geometry from {type(source).__name__}: give a Robot or a dynamics model")
 
 
@@ -163,7 +181,7 @@ class CollisionCost(Cost):
             if time_stride != "auto":
                 raise SplatplanError(f"CollisionCost.time_stride must be an integer >= 1 or 'auto', got {time_stride!r}")
             if self.geometry.weights is None:
-                raise SplatplanError("CollisionCost(time_stride='auto') needs a Robot (its motion_bound), not a bare link_poses callable")
+                raise SplatplanError("CollisionCost(time_stride='auto') needs a Robot (its motion_bound): build the dynamics model from one")
             self.speed_bound = _speed_bound(robot, self.geometry) if speed_bound is None else np.asarray(speed_bound, dtype=np.float64).reshape(-1)
             if self.speed_bound.shape != (self.geometry.dof,) or not np.all(np.isfinite(self.speed_bound)) or np.any(self.speed_bound < 0):
                 raise SplatplanError(f"CollisionCost: speed_bound must be {self.geometry.dof} finite values >= 0, got {self.speed_bound}")

@@ -3,7 +3,7 @@
 Optional: needs the ``ompl`` extra (``pip install 'splatplan[ompl]'``, OMPL 2.0.x wheels).
 
     from splatplan.planners.ompl_bridge import plan_ompl
-    res = plan_ompl(checker, q_start, q_goal, robot="panda", name="BITstar", time_limit_s=5.0)
+    res = plan_ompl(checker, q_start, q_goal, robot=load_robot("panda"), name="BITstar", time_limit_s=5.0)
     res.success, res.path, res.length, res.info["ompl_status"]
 
 **Same problem as our RRT.** The state space is the RRT's sampling box (:meth:`RRT.settings`: joint
@@ -110,10 +110,10 @@ def plan_ompl(
     checker,
     start,
     goal,
-    robot=None,
+    *,
+    robot,
     name: str = "RRTConnect",
     time_limit_s: float | None = 10.0,
-    radius: float = 0.015,
     rrt_config: RRTConfig | None = None,
     simplify: bool = True,
     simplify_time_s: float | None = None,
@@ -124,12 +124,11 @@ def plan_ompl(
     Args:
         checker: a :class:`~splatplan.metric.CollisionChecker` (its ``n_sigma`` sets the conservatism).
         start, goal: (D,) configurations (a point robot's centre in scene units, an arm's joints, ...).
-        robot: a :class:`~splatplan.robots.Robot` or a name (default: the sphere of ``radius``).
+        robot: (required) a :class:`~splatplan.robots.Robot` or a name ("panda", "sphere:0.015", ...).
         name: OMPL geometric planner class, e.g. "RRTConnect", "RRTstar", "BITstar", "PRM",
             "PRMstar", "KPIECE1" (:func:`available_planners`; an "ompl:" prefix is accepted).
         time_limit_s: wall-clock budget of ``solve`` in seconds (None: the config's, default 10 s).
             Anytime planners (RRTstar, BITstar, PRM, ...) use all of it and return their best path.
-        radius: sphere radius when ``robot`` is None (scene units).
         rrt_config: box, edge resolution, frozen coordinates: the same fields our RRT reads
             (:class:`RRTConfig`; its search knobs are not used).
         simplify: shorten the path with OMPL's ``PathSimplifier`` (``SimpleSetup.simplifySolution``).
@@ -160,100 +159,24 @@ def plan_ompl(
     limit = cfg.time_limit_s
     if limit is None or not (limit > 0 and math.isfinite(limit)):
         raise SplatplanError(f"OMPL planners need a finite time limit > 0, got {limit}")
-    rrt = RRT(checker, cfg, radius=radius, robot=robot)  # only for the settings and the geometry
+    rrt = RRT(checker, cfg, robot=robot)  # only for the settings and the geometry
     st = rrt.settings(start, goal)
     start = np.asarray(start, dtype=np.float64).reshape(-1)
     goal = np.asarray(goal, dtype=np.float64).reshape(-1)
     geom = rrt.geometry
-    edges = EdgeChecker(checker, geom, st.edge_resolution, inflate=rrt.inflate_edges)
     q0 = geom.n_queries
     check_endpoint(checker, geom, start, "start")
     check_endpoint(checker, geom, goal, "goal")
     free = np.nonzero(st.box_hi > st.box_lo)[0]  # coordinates OMPL plans in
     if free.size == 0:
         raise PlanningError("every coordinate is frozen (box lo == hi): nothing to plan")
-    w = geom.distance_scale()[free]
-    w = np.where(w > 0, w, 1.0)  # (k,) configuration -> metric (a zero motion bound: plain units)
-    k = int(free.size)
-
-    def to_q(s) -> np.ndarray:  # an OMPL state -> (D,) configuration
-        q = start.copy()
-        q[free] = np.fromiter((s[i] for i in range(k)), dtype=np.float64, count=k) / w
-        return q
-
-    errors: list[BaseException] = []
-    stop = {"flag": False, "ptc": None}
-
-    def fail(exc: BaseException) -> None:  # record, and end the search at once
-        errors.append(exc)
-        if stop["ptc"] is not None:
-            stop["ptc"].terminate()
-
-    lock = threading.Lock()  # PRM's roadmap thread calls back too; the checker is not re-entrant
-    n_motions = [0]
-
-    def valid(s) -> bool:
-        if errors:
-            return False
-        try:
-            with lock:  # acquire() releases the GIL while it waits
-                return not bool(edges.configs_collide(to_q(s)[None])[0])
-        except BaseException as exc:  # never let an exception cross OMPL's C++ frames
-            fail(exc)
-            return False
-
-    class _EdgeValidator(ob.MotionValidator):
-        """One batched kernel call per edge (EdgeChecker.edges_free at the RRT's resolution)."""
-
-        def checkMotion(self, s1, s2) -> bool:  # noqa: N802 - OMPL's name
-            if errors:
-                return False
-            try:
-                with lock:
-                    n_motions[0] += 1
-                    return bool(edges.edges_free(to_q(s1)[None], to_q(s2)[None])[0])
-            except BaseException as exc:
-                fail(exc)
-                return False
-
-    space = ob.RealVectorStateSpace(k)
-    bounds = ob.RealVectorBounds(k)
-    for i, j in enumerate(free):
-        bounds.setLow(i, float(st.box_lo[j] * w[i]))
-        bounds.setHigh(i, float(st.box_hi[j] * w[i]))
-    space.setBounds(bounds)
-    ss = og.SimpleSetup(space)
-    ss.setStateValidityChecker(valid)
-    si = ss.getSpaceInformation()
-    validator = _EdgeValidator(si)
-    si.setMotionValidator(validator)
-    s_start, s_goal = si.allocState(), si.allocState()
-    for i, j in enumerate(free):
-        s_start[i] = float(start[j] * w[i])
-        s_goal[i] = float(goal[j] * w[i])
-    ss.setStartAndGoalStates(s_start, s_goal)  # before anything can call setup() (the 2.0.1 crash)
-    planner = getattr(og, planner_name)(si)
-    if planner_range is not None and hasattr(planner, "setRange"):
-        planner.setRange(float(planner_range))
-    ss.setPlanner(planner)
-
-    def run(budget: float, what):
-        # a C++ deadline: a Python termination callable deadlocks PRM (its roadmap thread
-        # evaluates it while solve() holds the GIL); Ctrl-C terminates it from our handler
-        ptc = stop["ptc"] = ob.timedPlannerTerminationCondition(float(budget))
-        try:
-            with _SigintTerminates(stop, ptc):
-                out = what(ptc)
-        finally:
-            stop["ptc"] = None
-        if errors:
-            raise errors[0]
-        return out
+    problem = _Problem(EdgeChecker(checker, geom, st.edge_resolution, inflate=rrt.inflate_edges), start, free)
+    ss, si, planner, validator = _simple_setup(ob, og, problem, st, goal, planner_name, planner_range)
 
     t_solve = time.perf_counter()
-    status = run(limit, ss.solve)
+    status = problem.run(ob, limit, ss.solve)
     solve_s = time.perf_counter() - t_solve
-    if stop["flag"]:
+    if problem.stop["flag"]:
         raise KeyboardInterrupt
     exact = bool(ss.haveExactSolutionPath())
     data = ob.PlannerData(si)
@@ -263,21 +186,20 @@ def plan_ompl(
 
     def path_now() -> np.ndarray:
         p = ss.getSolutionPath()
-        return np.stack([to_q(p.getState(i)) for i in range(p.getStateCount())])
+        return np.stack([problem.to_q(p.getState(i)) for i in range(p.getStateCount())])
 
     raw = path_now() if exact else None
     simplify_s = 0.0
     if exact and simplify:
         budget = min(1.0, limit / 4) if simplify_time_s is None else float(simplify_time_s)
         t1 = time.perf_counter()
-        run(budget, ss.simplifySolution)
+        problem.run(ob, budget, ss.simplifySolution)
         simplify_s = time.perf_counter() - t1
-        if stop["flag"]:
+        if problem.stop["flag"]:
             raise KeyboardInterrupt
     path = path_now() if exact else np.zeros((0, start.size))
     if exact:  # OMPL's states are float64 copies of z = q * w: pin the endpoints to the inputs exactly
         path[0], path[-1] = start, goal
-    wfull = geom.distance_scale()
     info = {
         "planner": f"ompl:{planner_name}",
         "ompl_status": str(status),
@@ -286,14 +208,14 @@ def plan_ompl(
         "edge_resolution": st.edge_resolution,
         "settings": st.as_dict(),
         "n_queries": geom.n_queries - q0,
-        "n_motion_checks": n_motions[0],
+        "n_motion_checks": problem.n_motions,
         "time_limit_hit": bool(not exact and solve_s >= limit),
     }
-    del ss, planner  # OMPL objects before the Python validator they call
+    del ss, planner, validator  # OMPL objects before the Python validator they call
     return PlanResult(
         success=exact,
         path=path,
-        length=path_length(path, wfull) if exact else math.inf,
+        length=path_length(path, geom.distance_scale()) if exact else math.inf,
         time_s=time.perf_counter() - t0,
         n_nodes=n_nodes,
         n_iters=0,
@@ -303,6 +225,106 @@ def plan_ompl(
         path_rrt=raw,
         info=info,
     )
+
+
+class _Problem:
+    """The RRT's problem as OMPL sees it: the free coordinates ``free`` (k,) of the configuration,
+    each scaled by the robot's motion bound (``z = w * q``), and the checker callbacks, which
+    never let an exception cross OMPL's C++ frames (the first one is re-raised after the run)."""
+
+    def __init__(self, edges: EdgeChecker, start: np.ndarray, free: np.ndarray) -> None:
+        self.edges = edges
+        self.start = start  # (D,) the values of the frozen coordinates
+        self.free = free
+        w = edges.geometry.distance_scale()[free]
+        self.w = np.where(w > 0, w, 1.0)  # (k,) configuration -> metric (a zero motion bound: plain units)
+        self.k = int(free.size)
+        self.errors: list[BaseException] = []
+        self.stop = {"flag": False, "ptc": None}
+        self.lock = threading.Lock()  # PRM's roadmap thread calls back too; the checker is not re-entrant
+        self.n_motions = 0
+
+    def to_q(self, s) -> np.ndarray:
+        """An OMPL state -> (D,) configuration."""
+        q = self.start.copy()
+        q[self.free] = np.fromiter((s[i] for i in range(self.k)), dtype=np.float64, count=self.k) / self.w
+        return q
+
+    def fail(self, exc: BaseException) -> None:
+        """Record ``exc`` and end the search at once."""
+        self.errors.append(exc)
+        if self.stop["ptc"] is not None:
+            self.stop["ptc"].terminate()
+
+    def valid(self, s) -> bool:
+        """OMPL's state validity checker: no robot ellipsoid in collision."""
+        if self.errors:
+            return False
+        try:
+            with self.lock:  # acquire() releases the GIL while it waits
+                return not bool(self.edges.configs_collide(self.to_q(s)[None])[0])
+        except BaseException as exc:  # never let an exception cross OMPL's C++ frames
+            self.fail(exc)
+            return False
+
+    def motion_free(self, s1, s2) -> bool:
+        """OMPL's motion validator: one batched kernel call per edge (EdgeChecker.edges_free)."""
+        if self.errors:
+            return False
+        try:
+            with self.lock:
+                self.n_motions += 1
+                return bool(self.edges.edges_free(self.to_q(s1)[None], self.to_q(s2)[None])[0])
+        except BaseException as exc:
+            self.fail(exc)
+            return False
+
+    def run(self, ob, budget: float, what):
+        """``what(ptc)`` under OMPL's C++ deadline ``budget`` s (a Python termination callable
+        deadlocks PRM: its roadmap thread evaluates it while solve() holds the GIL); Ctrl-C
+        terminates it from our handler. Re-raises the first callback error."""
+        ptc = self.stop["ptc"] = ob.timedPlannerTerminationCondition(float(budget))
+        try:
+            with _SigintTerminates(self.stop, ptc):
+                out = what(ptc)
+        finally:
+            self.stop["ptc"] = None
+        if self.errors:
+            raise self.errors[0]
+        return out
+
+
+def _simple_setup(ob, og, problem: _Problem, st, goal: np.ndarray, planner_name: str, planner_range: float | None):
+    """OMPL's SimpleSetup over the box of ``st`` (RRTSettings) in the scaled free coordinates, with
+    ``problem``'s callbacks, start and goal set (before anything can call setup(): the 2.0.1
+    crash) and the planner chosen. Returns (ss, si, planner, validator); keep them alive together."""
+
+    class _EdgeValidator(ob.MotionValidator):
+        def checkMotion(self, s1, s2) -> bool:  # noqa: N802 - OMPL's name
+            return problem.motion_free(s1, s2)
+
+    free, w, k = problem.free, problem.w, problem.k
+    space = ob.RealVectorStateSpace(k)
+    bounds = ob.RealVectorBounds(k)
+    for i, j in enumerate(free):
+        bounds.setLow(i, float(st.box_lo[j] * w[i]))
+        bounds.setHigh(i, float(st.box_hi[j] * w[i]))
+    space.setBounds(bounds)
+    ss = og.SimpleSetup(space)
+    ss.setStateValidityChecker(problem.valid)
+    si = ss.getSpaceInformation()
+    validator = _EdgeValidator(si)
+    si.setMotionValidator(validator)
+    s_start, s_goal = si.allocState(), si.allocState()
+    for i, j in enumerate(free):
+        s_start[i] = float(problem.start[j] * w[i])
+        s_goal[i] = float(goal[j] * w[i])
+    ss.setStartAndGoalStates(s_start, s_goal)
+    planner = getattr(og, planner_name)(si)
+    if planner_range is not None and hasattr(planner, "setRange"):
+        planner.setRange(float(planner_range))
+    ss.setPlanner(planner)
+    return ss, si, planner, validator
 
 
 class _SigintTerminates:

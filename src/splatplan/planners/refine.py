@@ -28,7 +28,7 @@ import numpy as np
 from .._config import bounded, check_config
 from ..errors import SplatplanError
 from .bspline import bspline_basis, fit_bspline, resample_polyline
-from .robot_links import LinkGeometry, LinkPoses
+from .robot_links import LinkGeometry, as_robot
 from .rrt import EdgeChecker, path_length
 
 
@@ -140,10 +140,9 @@ def _curve_costs(checker, geom: LinkGeometry, curves: np.ndarray, cfg: RefineCon
 def refine_path(
     checker,
     path: np.ndarray,
-    radius: float = 0.015,
     config: RefineConfig | None = None,
-    link_poses: LinkPoses | None = None,
-    robot=None,
+    *,
+    robot,
     deadline: float | None = None,
 ) -> RefineResult:
     """Refine a collision-free polyline into a shorter, smoother, collision-free B-spline curve.
@@ -151,13 +150,10 @@ def refine_path(
     Args:
         checker: a :class:`~splatplan.metric.CollisionChecker`.
         path: (P, D) polyline from start to goal (e.g. an RRT path), assumed collision-free.
-        radius: shortcut for ``robot="sphere:<radius>"`` when neither ``robot`` nor ``link_poses``
-            is given.
         config: :class:`RefineConfig`.
         deadline: a ``time.perf_counter()`` value: past it the refinement stops (checked between
             chunks of cost queries and before each acceptance check) and returns the input path.
-        link_poses: (legacy) configurations (..., D) -> link ellipsoids; prefer ``robot``.
-        robot: a :class:`~splatplan.robots.Robot` or name; the path is in its configuration space
+        robot: (required) a :class:`~splatplan.robots.Robot` or name; the path is in its configuration space
             and lengths / spacings are in the RRT's metric (|motion_bound * dq|, scene units).
 
     Returns:
@@ -171,7 +167,7 @@ def refine_path(
     if deadline is not None and time.perf_counter() > deadline:
         return RefineResult(p.copy(), False, None, math.nan, math.nan, 0, "time limit reached before the refinement; kept the original path",
                             {"time_limit_hit": True})  # fmt: skip
-    geom = LinkGeometry.make(robot=robot, link_poses=link_poses, radius=radius)
+    geom = LinkGeometry(as_robot(robot))
     geom.bind(p[0])
     wq = geom.distance_scale()  # (D,) configuration -> metric
     a_min = geom.min_semi_axis

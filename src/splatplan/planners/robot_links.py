@@ -1,9 +1,8 @@
 """The planners' view of a robot: collision checks of configurations, and a configuration metric.
 
-Every planner talks to a robot through :class:`LinkGeometry`, built either from a
-:class:`splatplan.robots.Robot` (the normal case) or, for backward compatibility, from a bare
-``link_poses`` callable ``q (..., D) -> (centers (..., L, 3), quats (..., L, 4) wxyz | None,
-semi_axes (L, 3))``.
+Planners and costs take a :class:`splatplan.robots.Robot` (or a name for
+:func:`~splatplan.robots.load_robot`, e.g. ``"sphere:0.015"``); :class:`LinkGeometry` is their
+private adapter over it (built only from a Robot), not a second robot type.
 
 The two functions :func:`robot_collides` and :func:`robot_query` are the **only** places where a
 planner asks the checker about a robot: they use the checker's device-resident
@@ -23,33 +22,32 @@ Configuration metric (what "stride", "edge resolution" and "goal tolerance" are 
 
 from __future__ import annotations
 
-import math
-from typing import Callable
-
 import numpy as np
 
 from ..errors import SplatplanError
-
-LinkPoses = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray | None, np.ndarray]]
 
 #: default fraction of the robot's smallest semi-axis that bounds how far any ellipsoid point moves
 #: between two consecutive collision checks along an edge
 EDGE_FRACTION = 0.25
 
 
-def as_robot(robot=None, radius: float | None = None):
-    """A :class:`~splatplan.robots.Robot` from a Robot, a name ("panda", "sphere:0.015", a URDF
-    path) or, when ``robot`` is None, the sphere of ``radius`` (default 0.015)."""
-    if robot is not None and not isinstance(robot, str):
-        return robot
-    from ..robots import load_robot
+def as_robot(robot):
+    """A :class:`~splatplan.robots.Robot` from a Robot (returned as is) or a name for
+    :func:`~splatplan.robots.load_robot` ("panda", "go2", "sphere:0.015", a URDF path).
 
+    Raises:
+        SplatplanError: ``robot`` is None (a point robot is ``"sphere:R"``, e.g.
+            :data:`~splatplan.robots.DEFAULT_POINT_ROBOT`) or an unknown name.
+    """
     if robot is None:
-        r = 0.015 if radius is None else float(radius)
-        if not (math.isfinite(r) and r > 0):
-            raise SplatplanError(f"the robot radius must be finite and > 0, got {radius}")
-        return load_robot(f"sphere:{r!r}")
-    return load_robot(robot)
+        from ..robots import DEFAULT_POINT_ROBOT
+
+        raise SplatplanError(f"give the robot: a Robot or a name such as 'panda', 'go2' or '{DEFAULT_POINT_ROBOT}' (a sphere of that radius)")
+    if isinstance(robot, str):
+        from ..robots import load_robot
+
+        return load_robot(robot)
+    return robot
 
 
 def robot_collides(checker, robot, q: np.ndarray) -> np.ndarray:
@@ -84,13 +82,13 @@ def _is_translation(robot, rng: np.random.Generator) -> bool:
 
 
 class LinkGeometry:
-    """Collision geometry + configuration metric of a robot, as the planners need it.
+    """Collision geometry + configuration metric of a Robot, as the planners need it (internal).
 
     Attributes:
-        robot: the :class:`~splatplan.robots.Robot` (None for a bare ``link_poses`` callable).
-        dof: configuration dimension D (None for a bare callable: taken from the start).
+        robot: the :class:`~splatplan.robots.Robot`.
+        dof: configuration dimension D.
         weights: (D,) per-coordinate weights of the configuration distance (motion_bound; ones for
-            translating robots and bare callables).
+            translating robots).
         translation: the configuration is the robot's position (|dq| is the exact displacement).
         sphere: a single translating sphere (edges may use the inflation test, see the RRT).
         min_semi_axis: smallest ellipsoid semi-axis (scene units).
@@ -98,61 +96,39 @@ class LinkGeometry:
         n_queries: ellipsoid checks issued so far (statistics).
     """
 
-    def __init__(self, robot=None, link_poses: LinkPoses | None = None) -> None:
-        if (robot is None) == (link_poses is None):
-            raise SplatplanError("LinkGeometry needs exactly one of robot or link_poses")
+    def __init__(self, robot) -> None:
+        if not (hasattr(robot, "ellipsoids") and hasattr(robot, "dof")):
+            raise SplatplanError(f"LinkGeometry needs a Robot, got {type(robot).__name__}")
         self.robot = robot
-        self._link_poses = link_poses
         self.n_queries = 0
-        if robot is not None:
-            rng = np.random.default_rng(0)
-            self.dof = int(robot.dof)
-            self.translation = _is_translation(robot, rng)
-            ax = np.asarray(robot.semi_axes, dtype=np.float64)
-            self.weights = np.ones(self.dof) if self.translation else np.asarray(robot.motion_bound, dtype=np.float64).reshape(self.dof)
-            if not np.all(np.isfinite(self.weights)) or np.any(self.weights < 0):
-                raise SplatplanError(f"robot {robot.name}: motion_bound must be finite and >= 0, got {self.weights}")
-            self.min_semi_axis = float(robot.min_semi_axis)
-            self.max_semi_axis = float(ax.max())
-            self.sphere = self.translation and ax.shape[0] == 1 and bool(np.allclose(ax, ax[0, 0]))
-            if self.translation:  # fast path: centres = q + offset, fixed orientations (no FK on the host)
-                q0 = np.asarray(robot.q_default, dtype=np.float64)
-                c0, quat0, _ = robot.ellipsoids(q0[None])
-                self._offset = np.asarray(c0[0], dtype=np.float64) - q0  # (E, 3)
-                self._quat = np.asarray(quat0[0], dtype=np.float64)  # (E, 4) wxyz
-                self._axes = ax
-        else:
-            self.dof = None
-            self.translation = False
-            self.weights = None
-            self.min_semi_axis = self.max_semi_axis = float("nan")
-            self.sphere = False
-
-    @classmethod
-    def make(cls, robot=None, link_poses: LinkPoses | None = None, radius: float | None = None) -> "LinkGeometry":
-        """From a Robot / robot name, a bare ``link_poses`` callable, or a sphere ``radius``."""
-        if link_poses is not None and robot is None:
-            return cls(link_poses=link_poses)
-        return cls(robot=as_robot(robot, radius))
+        rng = np.random.default_rng(0)
+        self.dof = int(robot.dof)
+        self.translation = _is_translation(robot, rng)
+        ax = np.asarray(robot.semi_axes, dtype=np.float64)
+        self.weights = np.ones(self.dof) if self.translation else np.asarray(robot.motion_bound, dtype=np.float64).reshape(self.dof)
+        if not np.all(np.isfinite(self.weights)) or np.any(self.weights < 0):
+            raise SplatplanError(f"robot {robot.name}: motion_bound must be finite and >= 0, got {self.weights}")
+        self.min_semi_axis = float(robot.min_semi_axis)
+        self.max_semi_axis = float(ax.max())
+        self.sphere = self.translation and ax.shape[0] == 1 and bool(np.allclose(ax, ax[0, 0]))
+        if self.translation:  # fast path: centres = q + offset, fixed orientations (no FK on the host)
+            q0 = np.asarray(robot.q_default, dtype=np.float64)
+            c0, quat0, _ = robot.ellipsoids(q0[None])
+            self._offset = np.asarray(c0[0], dtype=np.float64) - q0  # (E, 3)
+            self._quat = np.asarray(quat0[0], dtype=np.float64)  # (E, 4) wxyz
+            self._axes = ax
 
     # ------------------------------------------------------------------ metric
     def bind(self, q: np.ndarray) -> None:
-        """Fix D, weights and sizes of a bare ``link_poses`` geometry from a sample configuration (D,)."""
-        if self.robot is not None:
-            if q.shape != (self.dof,):
-                raise SplatplanError(f"robot {self.robot.name} has {self.dof} degrees of freedom, got a configuration of {q.size}: {np.array2string(q, precision=4)}")
-            return
-        self.dof = int(q.size)
-        self.weights = np.ones(self.dof)
-        _, _, axes = self._link_poses(q[None])
-        axes = np.asarray(axes, dtype=np.float64)
-        self.min_semi_axis, self.max_semi_axis = float(axes.min()), float(axes.max())
+        """Check that a configuration (D,) has the robot's D entries."""
+        if q.shape != (self.dof,):
+            raise SplatplanError(f"robot {self.robot.name} has {self.dof} degrees of freedom, got a configuration of {q.size}: {np.array2string(q, precision=4)}")
 
     def motion(self, dq: np.ndarray) -> np.ndarray:
         """(..., D) configuration differences -> (...,) bound on the displacement of any ellipsoid
-        point along the straight segment (scene units; configuration units for a bare callable)."""
+        point along the straight segment (scene units)."""
         dq = np.asarray(dq, dtype=np.float64)
-        if self.translation or self.robot is None:
+        if self.translation:
             return np.linalg.norm(dq, axis=-1)
         return np.abs(dq) @ self.weights
 
@@ -162,24 +138,19 @@ class LinkGeometry:
 
     # ------------------------------------------------------------------ collisions
     def ellipsoids(self, q: np.ndarray):
-        """(..., D) -> centers (..., L, 3), quats (..., L, 4) | None, semi_axes (L, 3)."""
-        if self.robot is not None:
-            if self.translation:
-                q = np.asarray(q, dtype=np.float64)
-                c = q[..., None, :] + self._offset  # (..., E, 3)
-                return c, np.broadcast_to(self._quat, c.shape[:-1] + (4,)), self._axes
-            return self.robot.ellipsoids(q)
-        return self._link_poses(q)
+        """(..., D) -> centers (..., L, 3), quats (..., L, 4), semi_axes (L, 3)."""
+        if self.translation:
+            q = np.asarray(q, dtype=np.float64)
+            c = q[..., None, :] + self._offset  # (..., E, 3)
+            return c, np.broadcast_to(self._quat, c.shape[:-1] + (4,)), self._axes
+        return self.robot.ellipsoids(q)
 
     def collides(self, checker, q: np.ndarray, margin: float | np.ndarray = 0.0) -> np.ndarray:
         """(..., D) -> (...,) bool: any ellipsoid in collision. ``margin`` (scalar or (...,)) grows
         every semi-axis (used by the sphere edge test)."""
         q = np.asarray(q, dtype=np.float64)
         if np.all(np.asarray(margin) == 0):
-            if self.robot is not None:
-                hit = robot_collides(checker, self.robot, q)  # (..., E)
-            else:
-                hit = checker.collides(*self._link_poses(q))
+            hit = robot_collides(checker, self.robot, q)  # (..., E)
         else:
             c, quat, ax = self.ellipsoids(q)  # (..., L, 3)
             m = np.asarray(margin, dtype=np.float64)
@@ -191,11 +162,7 @@ class LinkGeometry:
 
     def query(self, checker, q: np.ndarray):
         """(..., D) -> QueryResult with fields (..., L)."""
-        q = np.asarray(q, dtype=np.float64)
-        if self.robot is not None:
-            res = robot_query(checker, self.robot, q)
-        else:
-            res = checker.query(*self._link_poses(q))
+        res = robot_query(checker, self.robot, np.asarray(q, dtype=np.float64))
         self.n_queries += int(np.size(res.min_s2))
         return res
 
@@ -206,7 +173,7 @@ class LinkGeometry:
             return None
         j = int(np.argmin(res.min_s2[0]))
         link = ""
-        if self.robot is not None and len(self.robot.link_names) and res.min_s2.shape[-1] > 1:
+        if len(self.robot.link_names) and res.min_s2.shape[-1] > 1:
             li = int(np.asarray(self.robot.ellipsoid_link)[j])
             link = f" (link {self.robot.link_names[li]}, ellipsoid {j})"
         colliding = np.nonzero(np.asarray(res.in_collision[0]))[0]

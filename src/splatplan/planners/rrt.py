@@ -16,8 +16,7 @@ robot ellipsoid. Collision-free edges become new nodes.
 (sampled within the joint limits), (x, y, yaw) for a planar base (x, y within the scene's robust
 bounds, yaw in [-pi, pi]), R^3 for a sphere or ellipsoid point robot. Distances (stride, goal
 tolerance, connect radius) are the weighted Euclidean norm ``|motion_bound * dq|_2`` in scene units
-(plain Euclidean distance for a point robot; see :mod:`splatplan.planners.robot_links`). A bare
-``link_poses`` callable (the pre-Robot API) still works, with plain Euclidean configuration units.
+(plain Euclidean distance for a point robot; see :mod:`splatplan.planners.robot_links`).
 
 **Edge resolution (the guarantee).** An edge a -> b is checked at the configurations
 ``q_k = a + (k / n)(b - a)``, k = 1..n (q_0 = a is already a checked tree node), with
@@ -57,7 +56,7 @@ from scipy.spatial.distance import cdist
 from .._config import bounded, check_config
 from .._resources import require_bytes
 from ..errors import PlanningError, SplatplanError
-from .robot_links import EDGE_FRACTION, LinkGeometry, LinkPoses
+from .robot_links import EDGE_FRACTION, LinkGeometry, as_robot
 
 #: percentile of the splat means that bounds the default sampling box on each side (robust to outliers)
 BOX_PERCENTILE = 0.5
@@ -288,17 +287,15 @@ class EdgeChecker:
 
     Args:
         checker: a :class:`~splatplan.metric.CollisionChecker`.
-        geometry: a :class:`LinkGeometry` (or, as before the Robot type, a ``link_poses``
-            callable; its edges are then spaced in Euclidean configuration units).
-        resolution: largest displacement of any ellipsoid point between consecutive checks
-            (configuration units for a bare callable).
+        geometry: the robot's :class:`~splatplan.planners.robot_links.LinkGeometry`.
+        resolution: largest displacement of any ellipsoid point between consecutive checks.
         inflate: check inner samples with the semi-axes grown by half the sample spacing (valid
             for translating spheres only; see the module docstring).
     """
 
-    def __init__(self, checker, geometry: LinkGeometry | LinkPoses, resolution: float, inflate: bool = False) -> None:
+    def __init__(self, checker, geometry: LinkGeometry, resolution: float, inflate: bool = False) -> None:
         self.checker = checker
-        self.geometry = geometry if isinstance(geometry, LinkGeometry) else LinkGeometry(link_poses=geometry)
+        self.geometry = geometry
         self.resolution = float(resolution)
         self.inflate = bool(inflate)
         #: wall-clock seconds spent in collision checks (statistics)
@@ -359,10 +356,9 @@ class EdgeChecker:
         return bool(self.edges_free(p[:-1], p[1:]).all()) and not bool(self.configs_collide(p[:1]).any())
 
 
-def check_endpoint(checker, geometry: LinkGeometry | LinkPoses, x: np.ndarray, what: str) -> None:
+def check_endpoint(checker, geometry: LinkGeometry, x: np.ndarray, what: str) -> None:
     """Raise :class:`PlanningError` when configuration ``x`` (D,) is in collision."""
-    geom = geometry if isinstance(geometry, LinkGeometry) else LinkGeometry(link_poses=geometry)
-    why = geom.describe_collision(checker, x)
+    why = geometry.describe_collision(checker, x)
     if why is not None:
         raise PlanningError(
             f"the {what} {np.array2string(np.asarray(x), precision=4)} is in collision: {why}; "
@@ -425,61 +421,44 @@ class RRT:
     Args:
         checker: a :class:`~splatplan.metric.CollisionChecker` (any backend).
         config: :class:`RRTConfig`.
-        link_poses: (legacy) configurations (..., D) -> (centers (..., L, 3), quats or None,
-            semi_axes (L, 3)); prefer ``robot``.
-        radius: shortcut for ``robot="sphere:<radius>"`` (scene units) when neither ``robot`` nor
-            ``link_poses`` is given.
-        robot: a :class:`~splatplan.robots.Robot` or a name for :func:`~splatplan.robots.load_robot`
-            ("panda", "go2", "sphere:0.015", "ellipsoid:A,B,C", a URDF path).
+        robot: (required) a :class:`~splatplan.robots.Robot` or a name for
+            :func:`~splatplan.robots.load_robot` ("panda", "go2", "sphere:0.015", "ellipsoid:A,B,C",
+            a URDF path).
     """
 
     #: the planner's name in :data:`~splatplan.planners.PLANNERS`
     name = "rrt"
 
-    def __init__(self, checker, config: RRTConfig | None = None, link_poses: LinkPoses | None = None, radius: float = 0.015, robot=None) -> None:
+    def __init__(self, checker, config: RRTConfig | None = None, *, robot) -> None:
         self.checker = checker
         self.config = (config or RRTConfig()).validate()
-        self.geometry = LinkGeometry.make(robot=robot, link_poses=link_poses, radius=radius)
+        self.geometry = LinkGeometry(as_robot(robot))
         #: a translating sphere: edges are checked between their samples too
         self.inflate_edges = self.geometry.sphere
 
     @property
     def robot(self):
-        """The :class:`~splatplan.robots.Robot` (None for a legacy ``link_poses`` callable)."""
+        """The :class:`~splatplan.robots.Robot`."""
         return self.geometry.robot
-
-    @property
-    def link_poses(self) -> LinkPoses:
-        """configurations (..., D) -> (centers (..., L, 3), quats (..., L, 4) | None, semi_axes (L, 3))."""
-        return self.geometry.ellipsoids
 
     # ------------------------------------------------------------------ setup
     def _derived_box(self, start: np.ndarray, goal: np.ndarray | None, notes: list[str]) -> tuple[np.ndarray, np.ndarray]:
         """Sampling box from joint limits and the scene's robust bounds (see the module docstring)."""
         geom, d = self.geometry, start.size
-        if geom.robot is None:
-            if d != 3:
-                raise PlanningError(f"give RRTConfig.box_lo / box_hi for a {d}-D configuration space")
-            lim = np.full((3, 2), np.inf) * np.array([-1.0, 1.0])
-            trans_dirs = np.eye(3)
-            ref = np.zeros(3)
-            pad = geom.max_semi_axis
-            c_ref = np.zeros(3)
-        else:
-            robot = geom.robot
-            lim = np.asarray(robot.joint_limits, dtype=np.float64).reshape(d, 2)
-            ref = np.asarray(robot.q_default, dtype=np.float64).reshape(d).copy()
-            pad = geom.max_semi_axis
-            c_ref = np.asarray(robot.ellipsoids(ref[None])[0], dtype=np.float64)[0].mean(axis=0)  # (3,) robot centre
-            trans_dirs = np.full((d, 3), np.nan)
-            for j in np.nonzero(~np.isfinite(lim).all(axis=1))[0]:
-                q1 = ref.copy()
-                q1[j] += 1.0
-                c1, quat1, _ = robot.ellipsoids(np.stack([ref, q1]))
-                u = np.asarray(c1[1] - c1[0], dtype=np.float64)  # (E, 3)
-                rot_same = quat1 is None or np.allclose(np.abs(np.sum(quat1[0] * quat1[1], axis=-1)), 1.0, atol=1e-9)
-                if rot_same and np.allclose(u, u[:1], atol=1e-9) and abs(np.linalg.norm(u[0]) - 1.0) < 1e-6:
-                    trans_dirs[j] = u[0]
+        robot = geom.robot
+        lim = np.asarray(robot.joint_limits, dtype=np.float64).reshape(d, 2)
+        ref = np.asarray(robot.q_default, dtype=np.float64).reshape(d).copy()
+        pad = geom.max_semi_axis
+        c_ref = np.asarray(robot.ellipsoids(ref[None])[0], dtype=np.float64)[0].mean(axis=0)  # (3,) robot centre
+        trans_dirs = np.full((d, 3), np.nan)
+        for j in np.nonzero(~np.isfinite(lim).all(axis=1))[0]:
+            q1 = ref.copy()
+            q1[j] += 1.0
+            c1, quat1, _ = robot.ellipsoids(np.stack([ref, q1]))
+            u = np.asarray(c1[1] - c1[0], dtype=np.float64)  # (E, 3)
+            rot_same = quat1 is None or np.allclose(np.abs(np.sum(quat1[0] * quat1[1], axis=-1)), 1.0, atol=1e-9)
+            if rot_same and np.allclose(u, u[:1], atol=1e-9) and abs(np.linalg.norm(u[0]) - 1.0) < 1e-6:
+                trans_dirs[j] = u[0]
         lo, hi = lim[:, 0].copy(), lim[:, 1].copy()
         need_scene = [j for j in range(d) if not (np.isfinite(lo[j]) and np.isfinite(hi[j]))]
         if need_scene:
@@ -568,13 +547,12 @@ class RRT:
         else:
             stride = float(cfg.stride)
         if cfg.edge_resolution is None:
-            frac = cfg.edge_fraction if geom.robot is not None else (cfg.edge_fraction if self.inflate_edges else 2 * cfg.edge_fraction)
-            res = frac * geom.min_semi_axis
+            res = cfg.edge_fraction * geom.min_semi_axis
             derived.append("edge_resolution")
         else:
             res = float(cfg.edge_resolution)
         if cfg.goal_tolerance is None:
-            tol = 0.5 * geom.min_semi_axis if geom.robot is not None else 0.0
+            tol = 0.5 * geom.min_semi_axis
             derived.append("goal_tolerance")
         else:
             tol = float(cfg.goal_tolerance)

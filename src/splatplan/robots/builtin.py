@@ -25,7 +25,9 @@ version and parameters, so the second load reads the cache).
 
 from __future__ import annotations
 
+import copy
 import math
+from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
 
@@ -39,6 +41,14 @@ from .urdf import UrdfModel, read_srdf, read_urdf, share_dir
 
 DATA = Path(__file__).parent / "data"
 KNOWN = ("panda", "go2", "sphere:R", "ellipsoid:A,B,C")
+#: What a robot name may be: the one help text of :func:`load_robot` and of every ``--robot`` flag.
+ROBOT_NAME_HELP = (
+    "panda (7 joint angles, rad) | go2 (planar base: x, y, yaw) | sphere:R | ellipsoid:A,B,C "
+    "(a point robot: one axis-aligned link with these semi-axes, scene units; dofs x, y, z) | PATH.urdf"
+)
+#: The point robot of the studies, the demo and ``splatplan plan``: a sphere of radius 0.015 scene
+#: units (Stonehenge's gates are sized for it). Give it to a planner as ``load_robot(DEFAULT_POINT_ROBOT)``.
+DEFAULT_POINT_ROBOT = "sphere:0.015"
 #: Collision models of the built-in Panda: name -> YAML in ``data/``.
 PANDA_MODELS = {"coarse": "panda.yaml", "cover": "panda_cover.yaml"}
 #: The model plain ``load_robot("panda")`` uses.
@@ -51,6 +61,49 @@ BASE_SPEED = {"x": 1.0, "y": 1.0, "z": 1.0, "yaw": 2.0}
 
 def _known_msg() -> str:
     return f"use one of {', '.join(KNOWN)} or a path to a .urdf file"
+
+
+@dataclass(frozen=True)
+class RobotName:
+    """A parsed robot name (see :func:`parse_robot_name`)."""
+
+    #: "panda", "go2", "sphere", "ellipsoid" (point robots) or "path" (a URDF file, checked on load)
+    kind: str
+    #: the name as given, stripped
+    text: str
+    #: point robots: the link's semi-axes (a, b, c) along x, y, z (scene units); None otherwise
+    semi_axes: tuple[float, float, float] | None = None
+
+    @property
+    def is_point(self) -> bool:
+        """A sphere or ellipsoid point robot (one link, dofs x, y, z)."""
+        return self.semi_axes is not None
+
+
+def parse_robot_name(spec: "str | Path") -> RobotName:
+    """The one parser of robot names (:data:`ROBOT_NAME_HELP`): "panda", "go2", "sphere:R",
+    "ellipsoid:A,B,C" or a path. Point-robot sizes are checked here (finite, > 0); whether a path
+    is a URDF file is left to :func:`load_robot`.
+
+    Raises:
+        SplatplanError: a malformed "sphere:..." / "ellipsoid:..." (one line naming the form).
+    """
+    text = str(spec).strip()
+    kind, sep, rest = text.partition(":")
+    if text in ("panda", "go2"):
+        return RobotName(text, text)
+    if not (sep and kind in ("sphere", "ellipsoid")):
+        return RobotName("path", text)
+    try:
+        vals = [float(v) for v in rest.split(",")] if rest else []
+    except ValueError:
+        raise SplatplanError(f"robot {text!r}: numbers expected after ':' ('sphere:R' or 'ellipsoid:A,B,C', scene units)") from None
+    if not ((kind == "sphere" and len(vals) == 1) or (kind == "ellipsoid" and len(vals) == 3)):
+        raise SplatplanError(f"robot {text!r} not understood: 'sphere:R' or 'ellipsoid:A,B,C' (semi-axes, scene units)")
+    axes = tuple(vals * 3 if kind == "sphere" else vals)
+    if not all(math.isfinite(v) and v > 0 for v in axes):
+        raise SplatplanError(f"robot {text!r}: sizes must be finite and > 0")
+    return RobotName(kind, text, axes)
 
 
 def robot_data_dir(sub: str) -> Path:
@@ -70,6 +123,19 @@ def builtin_urdf(name: str) -> tuple[Path, Path | None]:
     raise SplatplanError(f"unknown built-in robot {name!r}: {_known_msg()}")
 
 
+def point_radius(name: str = DEFAULT_POINT_ROBOT) -> float:
+    """The radius (scene units) of a sphere robot's name: ``"sphere:R"`` -> R (default: the studies'
+    sphere :data:`DEFAULT_POINT_ROBOT`), for a study's ``radius`` knob or a plot label.
+
+    Raises:
+        SplatplanError: ``name`` is not a sphere.
+    """
+    parsed = parse_robot_name(name)
+    if parsed.kind != "sphere":
+        raise SplatplanError(f"robot {parsed.text!r} is not a sphere 'sphere:R'")
+    return parsed.semi_axes[0]
+
+
 def load_robot(
     spec: "str | Path | Robot",
     *,
@@ -87,8 +153,12 @@ def load_robot(
 ) -> Robot:
     """A :class:`Robot` from a built-in name or a URDF path (see the module docstring).
 
+    Every call returns a new Robot (its own thread pool and device caches; changing it changes no
+    other caller's robot); only the parsed built-in models are cached.
+
     Args:
-        spec: "panda", "go2", "sphere:R", "ellipsoid:A,B,C", a .urdf path, or a Robot (returned as is).
+        spec: a name (:data:`ROBOT_NAME_HELP`, parsed by :func:`parse_robot_name`), or a Robot
+            (returned as is).
         active: joints that are dofs (URDF order kept); others are fixed at ``fixed`` / SRDF / 0.
         fixed: joint values for joints that are not dofs.
         base: "fixed" (default for URDFs), "planar" (x, y, yaw) or "translation" (x, y, z).
@@ -104,10 +174,10 @@ def load_robot(
     """
     if isinstance(spec, Robot):
         return spec
-    text = str(spec).strip()
-    kind, sep, rest = text.partition(":")
-    if sep and kind in ("sphere", "ellipsoid"):
-        return _point_robot(text, kind, rest, base_pose)
+    parsed = parse_robot_name(spec)
+    text = parsed.text
+    if parsed.is_point:
+        return _point_robot(parsed, base_pose)
     if fit_method not in METHODS:
         raise SplatplanError(f"unknown fit method {fit_method!r}: use one of {', '.join(METHODS)}")
     if (model is not None or finger_opening is not None) and text != "panda":
@@ -124,7 +194,7 @@ def load_robot(
                 fixed = {**(fixed or {}), "panda_finger_joint1": fo}
             ellipsoids = ellipsoids or DATA / PANDA_MODELS[model]
         if not (active or fixed or base or base_pose is not None or srdf) and (ellipsoids is None or text == "panda" and Path(ellipsoids) == DATA / PANDA_MODELS[model]):
-            return _cached_builtin(text, str(ellipsoids) if ellipsoids else None)
+            return copy.deepcopy(_cached_builtin(text, str(ellipsoids) if ellipsoids else None))  # fresh: never the cached one
         return _builtin(text, active, fixed, base, base_pose, ellipsoids)
     p = Path(text).expanduser()
     if p.suffix.lower() in (".urdf", ".xml") or p.is_file():
@@ -137,19 +207,9 @@ def load_robot(
     raise SplatplanError(f"unknown robot {text!r}: {_known_msg()}")
 
 
-def _point_robot(text: str, kind: str, rest: str, base_pose) -> Robot:
-    try:
-        vals = [float(v) for v in rest.split(",")] if rest else []
-    except ValueError:
-        raise SplatplanError(f"robot {text!r}: numbers expected after ':' ('sphere:R' or 'ellipsoid:A,B,C', metres)") from None
-    if kind == "sphere" and len(vals) == 1:
-        axes = np.full(3, vals[0])
-    elif kind == "ellipsoid" and len(vals) == 3:
-        axes = np.asarray(vals)
-    else:
-        raise SplatplanError(f"robot {text!r} not understood: 'sphere:R' or 'ellipsoid:A,B,C' (semi-axes, metres)")
-    if not np.all(np.isfinite(axes)) or np.any(axes <= 0):
-        raise SplatplanError(f"robot {text!r}: sizes must be finite and > 0")
+def _point_robot(name: RobotName, base_pose) -> Robot:
+    text, kind = name.text, name.kind
+    axes = np.asarray(name.semi_axes, dtype=np.float64)  # (3,)
     origin = np.eye(4)[None].copy()
     if base_pose is not None:
         origin[0] = _check_pose(base_pose)
@@ -170,6 +230,8 @@ def _check_pose(t) -> np.ndarray:
 
 @lru_cache(maxsize=4)
 def _cached_builtin(name: str, ellipsoids: str | None) -> Robot:
+    """The parsed built-in (URDF, SRDF, ellipsoids, FK tables): private, never handed out (only
+    deep copies of it are, see :func:`load_robot`), so it stays as built."""
     return _builtin(name, None, None, None, None, ellipsoids)
 
 

@@ -555,8 +555,6 @@ class SplatViewer:
             t0 = time.perf_counter()
             try:
                 res = plan(self.checker.with_config(n_sigma=n_sigma), start, goal, robot=self.robot)
-            except TypeError:  # planners without robot= support
-                res = plan(self.checker.with_config(n_sigma=n_sigma), start, goal, radius=float(np.min(self.robot.semi_axes)))
             except SplatplanError as exc:
                 self._plan_md.content = f"cannot plan: {exc}"
                 self._log("plan", success=False, message=str(exc))

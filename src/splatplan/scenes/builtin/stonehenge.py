@@ -41,13 +41,13 @@ from pathlib import Path
 import numpy as np
 
 from ...errors import SplatplanError
+from ...robots.builtin import point_radius
 from .primitives import AnalyticScene, SurfaceSplatConfig, _copy_splats, _yaw_quat, box_corners, make_box, splats_from_boxes
 from ..splats import SH_C0, Splats, quat_multiply
 
 __all__ = [
     "PLANE_Z",
     "RING_GATES",
-    "ROBOT_RADIUS",
     "StonehengeLayout",
     "build_stonehenge",
     "default_n_splats",
@@ -59,8 +59,6 @@ __all__ = [
     "write_stonehenge",
 ]
 
-#: The planning robot of the paper: a sphere of this radius (scene units).
-ROBOT_RADIUS = 0.015
 #: Height of the horizontal plane used for planar planning (cuts every upright).
 PLANE_Z = 0.06
 #: Depth every stone is sunk into the ground / a lintel into its uprights (buries contact faces).
@@ -155,7 +153,8 @@ class StonehengeLayout:
         trilithon_gap_widths: float64 (T-1,) minimum distances between adjacent trilithons of the
             horseshoe (the slit inside a trilithon is ~0.01: impassable).
         ring_radius: radius of the sarsen centres.
-        robot_radius: the planning sphere's radius (0.015).
+        robot_radius: the planning sphere's radius (0.015: the sphere
+            :data:`~splatplan.robots.DEFAULT_POINT_ROBOT` the gates are sized for).
         plane_z: height of the planar-planning plane (0.06).
     """
 
@@ -165,7 +164,7 @@ class StonehengeLayout:
     gate_has_lintel: np.ndarray
     trilithon_gap_widths: np.ndarray
     ring_radius: float
-    robot_radius: float = ROBOT_RADIUS
+    robot_radius: float = point_radius()
     plane_z: float = PLANE_Z
 
 
@@ -313,7 +312,7 @@ def _build_layout(seed: int) -> StonehengeLayout:
             "name": "stonehenge",
             "seed": int(seed),
             "units": "normalised scene units, z up, ground top at z = 0",
-            "robot_radius": ROBOT_RADIUS,
+            "robot_radius": point_radius(),
             "plane_z": PLANE_Z,
             "gate_widths": gate_w.tolist(),
         },
