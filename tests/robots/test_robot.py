@@ -175,3 +175,54 @@ def test_pickle_round_trip(panda):
     r2 = pickle.loads(pickle.dumps(panda))
     q = panda.q_default
     np.testing.assert_allclose(r2.fk(q[None])[0], panda.fk(q[None])[0])
+
+
+def test_parse_robot_name_is_the_one_parser():
+    from splatplan.robots import DEFAULT_POINT_ROBOT, ROBOT_NAME_HELP, parse_robot_name, point_radius
+
+    assert parse_robot_name(" sphere:0.02 ") == parse_robot_name("sphere:0.02")
+    s = parse_robot_name("sphere:0.02")
+    assert s.kind == "sphere" and s.semi_axes == (0.02, 0.02, 0.02) and s.is_point
+    e = parse_robot_name("ellipsoid:0.01,0.02,0.03")
+    assert e.kind == "ellipsoid" and e.semi_axes == (0.01, 0.02, 0.03)
+    assert parse_robot_name("panda").kind == "panda" and not parse_robot_name("panda").is_point
+    assert parse_robot_name("arm.urdf").kind == "path"
+    for spec, msg in [("sphere:x", "numbers"), ("sphere:-1", "> 0"), ("ellipsoid:1,2", "not understood"), ("ellipsoid:1,inf,1", "finite")]:
+        with pytest.raises(SplatplanError, match=msg):
+            parse_robot_name(spec)
+    # the robot load_robot builds is the parsed one
+    r = load_robot("ellipsoid:0.01,0.02,0.03")
+    np.testing.assert_array_equal(r.semi_axes, [[0.01, 0.02, 0.03]])
+    assert r.name == "ellipsoid:0.01,0.02,0.03" and r.joint_names == ["x", "y", "z"]
+    assert point_radius() == 0.015 and load_robot(DEFAULT_POINT_ROBOT).min_semi_axis == point_radius()
+    with pytest.raises(SplatplanError, match="not a sphere"):
+        point_radius("ellipsoid:1,2,3")
+    for word in ("panda", "go2", "sphere:R", "ellipsoid:A,B,C", "urdf"):
+        assert word in ROBOT_NAME_HELP
+
+
+def test_cli_uses_the_one_help_text():
+    from splatplan.cli import build_parser
+    from splatplan.robots import ROBOT_NAME_HELP
+
+    for cmd in ("plan", "check", "view"):
+        sub = next(a for a in build_parser()._actions if a.dest == "cmd").choices[cmd]
+        robot = next(a for a in sub._actions if a.dest == "robot")
+        assert ROBOT_NAME_HELP in robot.help, cmd
+
+
+@pytest.mark.parametrize("name", ["panda", "go2", "sphere:0.02"])
+def test_load_robot_returns_a_fresh_robot(name):
+    a, b = load_robot(name), load_robot(name)
+    assert a is not b
+    # nothing mutable is shared: not the arrays, the kinematics, the lock or the thread pool
+    for attr in ("semi_axes", "motion_bound", "joint_limits", "q_default", "ellipsoid_local", "kin", "info", "_lock", "_wp_cache"):
+        assert getattr(a, attr) is not getattr(b, attr), attr
+    a.semi_axes[0] *= 2.0
+    a.q_default[0] += 0.1
+    c = load_robot(name)
+    np.testing.assert_array_equal(c.semi_axes, b.semi_axes)
+    np.testing.assert_array_equal(c.q_default, b.q_default)
+    a.fk(a.q_default[None])  # a's pool and caches are a's
+    a.close()
+    np.testing.assert_allclose(b.fk(b.q_default[None])[0], c.fk(c.q_default[None])[0])
