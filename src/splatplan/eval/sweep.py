@@ -40,6 +40,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import PlanningError, SplatplanError
+from ..robots.builtin import DEFAULT_POINT_ROBOT
 
 __all__ = ["SweepSpec", "load_spec", "report", "run_sweep"]
 
@@ -53,7 +54,7 @@ class SweepSpec:
     #: plan (start -> goal per pair) or check (random configurations, collision fraction and rate)
     job: str = "plan"
     #: robot name as for --robot (sphere:R, ellipsoid:A,B,C, panda, go2, a URDF path)
-    robot: str = "sphere:0.015"
+    robot: str = DEFAULT_POINT_ROBOT
     #: n_sigma values (a number or a list)
     n_sigma: list[float] = field(default_factory=lambda: [1.0])
     #: seeds of the planner (plan) or of the configuration sampler (check)

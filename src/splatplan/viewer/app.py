@@ -126,9 +126,9 @@ class SplatViewer:
         self.hi = np.quantile(scene.means, 0.995, axis=0).astype(np.float64)
         self.extent = float(np.max(self.hi - self.lo))
         if robot is None:
-            from ..robots import load_robot
+            from ..robots import load_robot, point_radius
 
-            robot = load_robot(f"sphere:{0.015 * self.extent:.6g}")
+            robot = load_robot(f"sphere:{point_radius() * self.extent:.6g}")  # the default sphere, scaled by the scene's extent
         self.robot = robot
         self.kind = _robot_kind(robot)
         self.checker = CollisionChecker(scene if collision_scene is None else collision_scene, n_sigma=cfg.n_sigma, device=cfg.device)
