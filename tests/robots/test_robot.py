@@ -194,6 +194,8 @@ def test_parse_robot_name_is_the_one_parser():
     r = load_robot("ellipsoid:0.01,0.02,0.03")
     np.testing.assert_array_equal(r.semi_axes, [[0.01, 0.02, 0.03]])
     assert r.name == "ellipsoid:0.01,0.02,0.03" and r.joint_names == ["x", "y", "z"]
+    assert r.is_point and load_robot("sphere:0.02", base_pose=np.eye(4)).is_point
+    assert not load_robot("go2").is_point and not load_robot("panda").is_point  # 3 dofs, but a planar base
     assert point_radius() == 0.015 and load_robot(DEFAULT_POINT_ROBOT).min_semi_axis == point_radius()
     with pytest.raises(SplatplanError, match="not a sphere"):
         point_radius("ellipsoid:1,2,3")

@@ -31,7 +31,7 @@ from ._common import (
 
 def parse_goal_pose(text: str, robot, link: str) -> np.ndarray:
     """'X,Y,Z,QW,QX,QY,QZ' -> (7,) with a unit quaternion (one-line errors)."""
-    if robot.name == "go2" or robot.name.split(":")[0] in ("sphere", "ellipsoid"):
+    if robot.name == "go2" or robot.is_point:
         raise SplatplanError(f"--goal-pose is for arms; {robot.name} takes --goal with its {robot.dof} dofs")
     if link not in robot.link_names:
         raise SplatplanError(f"--ee-link {link!r} is not a link of {robot.name} ({', '.join(robot.link_names[-4:])}, ...)")
@@ -104,7 +104,7 @@ def cmd_plan(args) -> int:
     if args.planar:
         if robot.name == "go2":
             notes.append("go2 moves in its base plane already")
-        elif robot.dof == 3 and robot.name.split(":")[0] in ("sphere", "ellipsoid"):
+        elif robot.is_point:
             axis = 2
             h = start[axis] if args.height is None else float(args.height)
             start[axis] = h

@@ -218,7 +218,7 @@ def _sample_box(ctx: SweepContext, scene: str) -> tuple[np.ndarray, np.ndarray]:
     lim = np.asarray(robot.joint_limits, dtype=np.float64).reshape(robot.dof, 2)
     if np.all(np.isfinite(lim)):
         return lim[:, 0], lim[:, 1]
-    if robot.dof == 3 and robot.name.split(":")[0] in ("sphere", "ellipsoid"):
+    if robot.is_point:
         return robust_scene_box(ctx.splats(scene))
     raise SplatplanError(f"sweep: random configurations need joint limits or a point robot; {robot.name} has unlimited joints: give 'pairs' explicitly")
 

@@ -110,6 +110,12 @@ class Robot:
     def min_semi_axis(self) -> float:
         return float(self.semi_axes.min())
 
+    @property
+    def is_point(self) -> bool:
+        """A point robot: one rigid link whose configuration is its position (x, y, z), e.g.
+        ``load_robot("sphere:R")`` / ``"ellipsoid:A,B,C"`` (decided by the kinematics, not the name)."""
+        return self.dof == 3 and self.kin.n_links == 1 and int(self.kin.jtype[0]) == TRANSLATION
+
     def __repr__(self) -> str:
         return f"Robot({self.name!r}, dof={self.dof}, links={len(self.link_names)}, ellipsoids={self.n_ellipsoids})"
 

@@ -79,9 +79,9 @@ def _robot_kind(robot) -> str:
     kind = getattr(robot, "kind", None)
     if kind in ("point", "planar", "joints"):
         return kind
-    name = str(getattr(robot, "name", "")).lower()
-    if name.startswith(("sphere", "ellipsoid")):
+    if getattr(robot, "is_point", False):
         return "point"
+    name = str(getattr(robot, "name", "")).lower()
     if "go2" in name or "planar" in name:
         return "planar"
     return "joints"
