@@ -8,9 +8,7 @@ import pytest
 from splatplan.errors import PlanningError
 from splatplan.metric import CollisionChecker
 from splatplan.planners import RRT, EdgeChecker, RRTConfig, edge_points, path_length, plan, shortcut_path
-from splatplan.robots import Robot, load_robot
-from splatplan.robots.fit import EllipsoidSet
-from splatplan.robots.kinematics import PLANAR, Kinematics
+from splatplan.robots import load_robot
 
 from .scenes import make_checker, make_scene, wall_scene
 
@@ -102,20 +100,12 @@ def test_shortcut_never_collides_and_never_longer(checker):
     assert ec.path_free(sc)
 
 
-def _planar_body(height: float, semi_axes) -> Robot:
-    """A planar base (x, y, yaw) whose one link carries one ellipsoid at ``height``."""
-    origin = np.eye(4)[None].copy()
-    origin[0, 2, 3] = height
-    kin = Kinematics(["body"], ["base"], np.array([-1]), np.array([PLANAR]), np.array([[0.0, 0.0, 1.0]]), origin, np.array([0]), np.ones(1), np.zeros(1))
-    ells = EllipsoidSet(["body"], np.zeros((1, 3)), np.eye(3)[None], np.array([semi_axes], dtype=np.float64), {})
-    lim = np.array([[-np.inf, np.inf], [-np.inf, np.inf], [-np.pi, np.pi]])
-    return Robot("body", kin, ["x", "y", "yaw"], lim, np.array([1.0, 1.0, 2.0]), np.zeros(3), ells, continuous=np.array([False, False, True]))
-
-
 def test_planar_base_rrt_over_x_y_yaw():
     # an ellipsoidal quadruped body over configurations (x, y, yaw) at a fixed height
     ch = make_checker(wall_scene(), n_sigma=0.5)
-    body = _planar_body(0.06, (0.03, 0.015, 0.012))
+    lift = np.eye(4)
+    lift[2, 3] = 0.06
+    body = load_robot("ellipsoid:0.03,0.015,0.012", base="planar", base_pose=lift)  # PlanarBase(height=0.06)'s body
     cfg = RRTConfig(box_lo=(-0.25, -0.3, -np.pi), box_hi=(0.25, 0.3, np.pi), seed=0, edge_resolution=0.006)
     res = RRT(ch, cfg, robot=body).plan((-0.15, 0.0, 0.0), (0.15, 0.0, 0.0))
     assert res.success

@@ -228,3 +228,25 @@ def test_load_robot_returns_a_fresh_robot(name):
     a.fk(a.q_default[None])  # a's pool and caches are a's
     a.close()
     np.testing.assert_allclose(b.fk(b.q_default[None])[0], c.fk(c.q_default[None])[0])
+
+
+def test_point_robot_as_a_planar_base_matches_the_planar_dynamics_body():
+    """The same body through two representations: ``load_robot("ellipsoid:A,B,C", base="planar")``
+    and PlanarBase's own geometry (height, one ellipsoid at the origin) give the same ellipsoids."""
+    from splatplan.planners import PlanarBase
+
+    lift = np.eye(4)
+    lift[2, 3] = 0.06
+    body = load_robot("ellipsoid:0.03,0.015,0.012", base="planar", base_pose=lift)
+    assert body.joint_names == ["x", "y", "yaw"] and not body.is_point and list(body.continuous) == [False, False, True]
+    q = np.random.default_rng(0).uniform([-1, -1, -np.pi], [1, 1, np.pi], (50, 3))
+    c, quat, ax = body.ellipsoids(q)
+    c2, quat2, ax2 = PlanarBase(height=0.06).link_poses(q)
+    np.testing.assert_allclose(c, c2, atol=1e-12)
+    np.testing.assert_allclose(np.abs(np.sum(quat * quat2, axis=-1)), 1.0, atol=1e-12)  # same rotation (q or -q)
+    np.testing.assert_allclose(ax, ax2)
+    np.testing.assert_allclose(body.fk(q)[0], c, atol=1e-5)  # the Warp kernel agrees
+    with pytest.raises(SplatplanError, match="base 'fixed'"):
+        load_robot("sphere:0.1", base="fixed")
+    with pytest.raises(SplatplanError, match="per_link, model apply to URDF robots"):
+        load_robot("sphere:0.1", per_link=2, model="cover")

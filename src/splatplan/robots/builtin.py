@@ -13,7 +13,9 @@ Built-ins:
 * ``go2``: Unitree Go2 as a planar base, dofs (x [m], y [m], yaw [rad]); the 12 leg joints are
   fixed at the SRDF "standing" state; the body is raised so that the lowest point of any
   ellipsoid (the feet's) is at z = 0. Ellipsoids: ``data/go2.yaml``.
-* ``sphere:R`` / ``ellipsoid:A,B,C``: one link ("body"), dofs (x, y, z) translation, axis-aligned.
+* ``sphere:R`` / ``ellipsoid:A,B,C``: one link ("body"), dofs (x, y, z) translation, axis-aligned;
+  with ``base="planar"`` the same body as a planar base, dofs (x, y, yaw), at the height of
+  ``base_pose`` (e.g. a ground robot's body for MPPI over SE(2)).
 
 A path to a ``.urdf`` loads that robot: every movable non-mimic joint is a dof (or ``active=``),
 the base is fixed (or ``base="planar"`` / ``"translation"``), ellipsoids come from ``ellipsoids=``
@@ -177,7 +179,11 @@ def load_robot(
     parsed = parse_robot_name(spec)
     text = parsed.text
     if parsed.is_point:
-        return _point_robot(parsed, base_pose)
+        urdf_only = [k for k, v in (("active", active), ("fixed", fixed), ("ellipsoids", ellipsoids), ("per_link", per_link != 1), ("from_visual", from_visual),
+                                    ("srdf", srdf), ("model", model), ("finger_opening", finger_opening), ("fit_method", fit_method != "split")) if v]  # fmt: skip
+        if urdf_only:
+            raise SplatplanError(f"robot {text!r}: {', '.join(urdf_only)} apply to URDF robots, not to a point robot (give base= and base_pose= only)")
+        return _point_robot(parsed, base, base_pose)
     if fit_method not in METHODS:
         raise SplatplanError(f"unknown fit method {fit_method!r}: use one of {', '.join(METHODS)}")
     if (model is not None or finger_opening is not None) and text != "panda":
@@ -207,18 +213,26 @@ def load_robot(
     raise SplatplanError(f"unknown robot {text!r}: {_known_msg()}")
 
 
-def _point_robot(name: RobotName, base_pose) -> Robot:
+def _point_robot(name: RobotName, base: str | None, base_pose) -> Robot:
+    """One axis-aligned ellipsoid on one link: a translation base (x, y, z; default) or a planar
+    base (x, y, yaw) in the frame of ``base_pose`` (world <- base, default identity)."""
     text, kind = name.text, name.kind
+    base = base or "translation"
+    if base not in ("translation", "planar"):
+        raise SplatplanError(f"robot {text!r}: base {base!r}: a point robot's base is 'translation' (x, y, z) or 'planar' (x, y, yaw)")
     axes = np.asarray(name.semi_axes, dtype=np.float64)  # (3,)
     origin = np.eye(4)[None].copy()
     if base_pose is not None:
         origin[0] = _check_pose(base_pose)
-    kin = Kinematics(["body"], ["xyz"], np.array([-1]), np.array([TRANSLATION]), np.array([[1.0, 0, 0]]), origin, np.array([0]), np.ones(1), np.zeros(1))
+    jtype, names = (TRANSLATION, ["x", "y", "z"]) if base == "translation" else (PLANAR, ["x", "y", "yaw"])
+    kin = Kinematics(["body"], ["xyz" if base == "translation" else "planar"], np.array([-1]), np.array([jtype]), np.array([[1.0, 0, 0]]), origin,
+                     np.array([0]), np.ones(1), np.zeros(1))  # fmt: skip
     v = float(4.0 / 3.0 * math.pi * np.prod(axes))
     ells = EllipsoidSet(["body"], np.zeros((1, 3)), np.eye(3)[None], axes[None].astype(np.float64),
                         {"body": {"source": "analytic", "geometry": [kind], "n": 1, "geometry_volume": v, "ellipsoid_volume": v, "volume_ratio": 1.0}})
-    lim = np.array([[-np.inf, np.inf]] * 3)
-    return Robot(text, kin, ["x", "y", "z"], lim, np.array([BASE_SPEED[k] for k in "xyz"]), np.zeros(3), ells)
+    lim = np.array([[-np.inf, np.inf]] * 2 + [[-np.inf, np.inf] if base == "translation" else [-math.pi, math.pi]])
+    cont = np.array([False, False, base == "planar"])
+    return Robot(text, kin, names, lim, np.array([BASE_SPEED[k] for k in names]), np.zeros(3), ells, continuous=cont)
 
 
 def _check_pose(t) -> np.ndarray:
