@@ -24,7 +24,6 @@ from splatplan.planners import (
     refine_path,
     shortcut_path,
 )
-
 from splatplan.planners.robot_links import LinkGeometry
 
 from .scenes import make_checker, make_scene, wall_scene

@@ -178,7 +178,12 @@ def test_pickle_round_trip(panda):
 
 
 def test_parse_robot_name_is_the_one_parser():
-    from splatplan.robots import DEFAULT_POINT_ROBOT, ROBOT_NAME_HELP, parse_robot_name, point_radius
+    from splatplan.robots import (
+        DEFAULT_POINT_ROBOT,
+        ROBOT_NAME_HELP,
+        parse_robot_name,
+        point_radius,
+    )
 
     assert parse_robot_name(" sphere:0.02 ") == parse_robot_name("sphere:0.02")
     s = parse_robot_name("sphere:0.02")

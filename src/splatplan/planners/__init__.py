@@ -19,7 +19,7 @@ from ..errors import SplatplanError
 from .bspline import UniformBSpline, bspline_basis, bspline_eval, fit_bspline, knot_vector, resample_polyline
 from .costs import CollisionCost, ControlEffortCost, Cost, GoalPoseCost, JointLimitCost, Rollout, StateCost, TerminalCost, total_cost
 from .image_cost import ImageCost
-from .dynamics import Dynamics, HolonomicPoint, JointIntegrator, PlanarBase, sphere_links, yaw_to_quat
+from .dynamics import Dynamics, HolonomicPoint, JointIntegrator, PlanarBase, yaw_to_quat
 from .metrics import clearance, d_min, densify_path, smoothness
 from .mppi import MPPI, MPPIConfig, MPPIInfo
 from .refine import RefineConfig, RefineResult, refine_path
@@ -76,7 +76,6 @@ __all__ = [
     "resample_polyline",
     "shortcut_path",
     "smoothness",
-    "sphere_links",
     "yaw_to_quat",
 ]
 

@@ -84,7 +84,7 @@ class _DynamicsLinks:
         return res
 
 
-def _geometry(source) -> "LinkGeometry | _DynamicsLinks":
+def _geometry(source) -> LinkGeometry | _DynamicsLinks:
     """The link geometry of a Robot or of a dynamics model (its ``robot``; its own ``link_poses``
     when it has no Robot), or a geometry given as is."""
     if isinstance(source, (LinkGeometry, _DynamicsLinks)):

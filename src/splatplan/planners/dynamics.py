@@ -23,7 +23,7 @@ collision cost use the checker's ``query_robot`` (FK on the device) and ``link_p
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Callable, Protocol, runtime_checkable
+from typing import Protocol, runtime_checkable
 
 import numpy as np
 
@@ -238,13 +238,3 @@ class JointIntegrator:
             return self.robot.ellipsoids(s)
         centers, quats = self.fk(s)
         return np.asarray(centers, dtype=np.float64), None if quats is None else np.asarray(quats, dtype=np.float64), self.semi_axes
-
-
-def sphere_links(radius: float) -> Callable[[np.ndarray], tuple[np.ndarray, None, np.ndarray]]:
-    """``link_poses`` of a sphere robot whose configuration is its centre: (..., 3) -> one link."""
-    ax = np.full((1, 3), float(radius))
-
-    def link_poses(configs: np.ndarray):
-        return np.asarray(configs, dtype=np.float64)[..., None, :3], None, ax
-
-    return link_poses

@@ -9,7 +9,15 @@
 * :func:`fit_model` / :func:`mvee` - enclosing ellipsoids fitted to link meshes; YAML I/O.
 """
 
-from .builtin import DEFAULT_POINT_ROBOT, KNOWN, ROBOT_NAME_HELP, RobotName, load_robot, parse_robot_name, point_radius
+from .builtin import (
+    DEFAULT_POINT_ROBOT,
+    KNOWN,
+    ROBOT_NAME_HELP,
+    RobotName,
+    load_robot,
+    parse_robot_name,
+    point_radius,
+)
 from .fit import EllipsoidSet, fit_model, load_yaml, mvee, save_yaml
 from .robot import Robot
 from .urdf import read_srdf, read_urdf

@@ -82,7 +82,7 @@ class RobotName:
         return self.semi_axes is not None
 
 
-def parse_robot_name(spec: "str | Path") -> RobotName:
+def parse_robot_name(spec: str | Path) -> RobotName:
     """The one parser of robot names (:data:`ROBOT_NAME_HELP`): "panda", "go2", "sphere:R",
     "ellipsoid:A,B,C" or a path. Point-robot sizes are checked here (finite, > 0); whether a path
     is a URDF file is left to :func:`load_robot`.
