@@ -42,7 +42,7 @@ def as_robot(robot):
     if robot is None:
         from ..robots import DEFAULT_POINT_ROBOT
 
-        raise SplatplanError(f"give the robot: a Robot or a name such as 'panda', 'go2' or '{DEFAULT_POINT_ROBOT}' (a sphere of that radius)")
+        raise SplatplanError(f"give the robot: a Robot or a name such as 'panda', 'go2' or '{DEFAULT_POINT_ROBOT}' (a sphere robot), e.g. load_robot('{DEFAULT_POINT_ROBOT}')")
     if isinstance(robot, str):
         from ..robots import load_robot
 
