@@ -39,7 +39,7 @@ def _plot_field(path: Path, fields, gt, z: float, lo, hi, n_kept_floaters: int =
     from matplotlib.lines import Line2D
 
     from .eval._plots import top_view_handles
-    from .scenes.stonehenge import plot_top_view
+    from .scenes.builtin.stonehenge import plot_top_view
 
     fig, axes = plt.subplots(1, len(fields), figsize=(5.2 * len(fields), 6.3), constrained_layout=True)
     for ax, (ns, (xs, ys, f)) in zip(np.atleast_1d(axes), fields.items()):
@@ -82,7 +82,7 @@ def _plot_plans(path: Path, plans, gt, z: float, start, goal) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from .scenes.stonehenge import plot_top_view
+    from .scenes.builtin.stonehenge import plot_top_view
 
     from matplotlib.lines import Line2D
 
@@ -136,7 +136,7 @@ def run_demo(out_dir: Path, device: str = "auto", seed: int = 0) -> dict:
     from .planners import RRTConfig, plan
     from .planners.metrics import clearance, d_min, smoothness
     from .scenes.filters import filter_floaters
-    from .scenes.stonehenge import PLANE_Z, build_stonehenge
+    from .scenes.builtin.stonehenge import PLANE_Z, build_stonehenge
 
     t0 = time.perf_counter()
     raw, gt = build_stonehenge(level=1, seed=seed)

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from splatplan.errors import SplatplanError
-from splatplan.scenes.primitives import AnalyticScene, SurfaceSplatConfig, _sample_faces, box_sdf, make_box, splats_from_boxes
+from splatplan.scenes.builtin.primitives import AnalyticScene, SurfaceSplatConfig, _sample_faces, box_sdf, make_box, splats_from_boxes
 from splatplan.scenes.splats import quat_to_rotmat, rotmat_to_quat
-from splatplan.scenes.stonehenge import (
+from splatplan.scenes.builtin.stonehenge import (
     PLANE_Z,
     RING_GATES,
     ROBOT_RADIUS,

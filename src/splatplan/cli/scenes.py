@@ -131,7 +131,7 @@ def sidecar_path(out: Path) -> Path:
 
 def cmd_scene(args) -> int:
     from ..scenes.builtin import BUILTIN_SCENES, write_builtin
-    from ..scenes.stonehenge import ground_truth_path
+    from ..scenes.builtin.stonehenge import ground_truth_path
 
     if args.name == "from-moveit":
         return _scene_from_moveit(args)
@@ -182,7 +182,7 @@ def _check_out_ply(text: str) -> Path:
 def _scene_from_moveit(args) -> int:
     """``splatplan scene from-moveit SCENE.yaml --out X.ply``: splats + exact ground truth X.gt.json."""
     from ..scenes.moveit import DEFAULT_N_SPLATS, load_moveit_scene, write_moveit
-    from ..scenes.stonehenge import ground_truth_path
+    from ..scenes.builtin.stonehenge import ground_truth_path
 
     if args.input is None:
         raise SplatplanError("scene from-moveit needs the planning-scene YAML: splatplan scene from-moveit SCENE.yaml --out X.ply")

@@ -56,7 +56,7 @@ def load_stonehenge_filtered(level: int = 1, seed: int = 0, n_splats: int | None
     Returns:
         (splats, analytic_scene, filter_report).
     """
-    from ..scenes.stonehenge import build_stonehenge
+    from ..scenes.builtin.stonehenge import build_stonehenge
 
     splats, scene = build_stonehenge(level=level, seed=seed, n_splats=n_splats)
     splats, rep = filter_floaters(splats)
@@ -75,7 +75,7 @@ def load_scene_with_gt(path: str | Path, gt: str | Path | None, filtered: bool =
         SplatplanError: no ``gt`` given or a file is missing.
     """
     from ..scenes.load import load_scene
-    from ..scenes.primitives import AnalyticScene
+    from ..scenes.builtin.primitives import AnalyticScene
 
     if gt is None:
         raise SplatplanError(

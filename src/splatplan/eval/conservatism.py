@@ -298,7 +298,7 @@ def run_conservatism(out_dir: Path, quick: bool = False, seed: int | None = None
     import matplotlib.pyplot as plt
 
     from ..metric import CollisionChecker
-    from ..scenes.stonehenge import plot_top_view
+    from ..scenes.builtin.stonehenge import plot_top_view
     from ._plots import top_view_handles
 
     cfg = config or (ConservatismConfig.quick() if quick else ConservatismConfig())

@@ -39,7 +39,7 @@ def load_filtered_scene(scene, n_splats: int | None = None, seed: int = 0):
         raw, gt = build_builtin(name, seed=seed, n_splats=n_splats)
     else:
         from ..scenes.load import load_scene
-        from ..scenes.stonehenge import ground_truth_path, load_ground_truth
+        from ..scenes.builtin.stonehenge import ground_truth_path, load_ground_truth
 
         p = Path(name)
         if not p.is_file():

@@ -3,7 +3,7 @@
 Stand-in for Splat-Nav's trained Stonehenge (not available here), used by the studies E1-E4 of
 SPEC section 4. The geometry is a union of oriented boxes (:class:`AnalyticScene`), so the exact
 signed distance is known; the splats are sampled from the box surfaces by
-:func:`~splatplan.scenes.primitives.splats_from_boxes`.
+:func:`~splatplan.scenes.builtin.primitives.splats_from_boxes`.
 
 Units and frames
 ----------------
