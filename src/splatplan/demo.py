@@ -167,7 +167,7 @@ def run_demo(out_dir: Path, device: str = "auto", seed: int = 0) -> dict:
     # planning from the centre to a border goal on the plane, free at every n_sigma shown
     start = np.array([0.0, 0.0, PLANE_Z])
     goal = _free_border_goal([base.with_config(n_sigma=ns) for ns in N_SIGMAS], start)
-    rrt = RRTConfig(box_lo=(-0.5, -0.5, PLANE_Z), box_hi=(0.5, 0.5, PLANE_Z), time_budget_s=20.0)
+    rrt = RRTConfig(box_lo=(-0.5, -0.5, PLANE_Z), box_hi=(0.5, 0.5, PLANE_Z), time_limit_s=20.0)
     plans, rows = {}, []
     for ns in N_SIGMAS:
         res = plan(base.with_config(n_sigma=ns), start, goal, radius=RADIUS, refine=True, seed=seed, rrt_config=rrt)
@@ -196,7 +196,7 @@ def run_reach_demo(out: Path, device: str = "auto") -> dict:
     from .eval.reach import _plot_goal, quick_config
     from .render import SplatRenderer
     from .robots import load_robot
-    from .tasks._common import base_terrain, load_task_scene
+    from .tasks._common import load_task_scene
     from .tasks.reach import ReachConfig, make_reach_goals, reach_encoder, reach_start, run_reach, wrist_camera
     from ._warp import resolve_device
 

@@ -2,15 +2,8 @@
 
 from __future__ import annotations
 
-import json
-from pathlib import Path
-
-import numpy as np
-
 from ..errors import SplatplanError
-from ._common import (  # noqa: F401
-    ROBOT_HELP, SEED, _load, _out_dir, add_config_args, add_device_arg, atomic_path, config_from_args, load_poses, parse_robot, parse_vec3, write_json,
-)
+from ._common import SEED, _out_dir, add_device_arg
 
 
 def cmd_demo(args) -> int:

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from pathlib import Path
 
 import numpy as np
 
@@ -30,7 +29,6 @@ def cmd_mpc(args) -> int:
     collision = not args.no_collision
     tag = "" if collision else " [--no-collision: collision cost OFF]"
     if args.robot == "panda":
-        from ..robots import load_robot
         from ..tasks.arm import ArmConfig, run_arm
 
         if args.goal_pose is None:

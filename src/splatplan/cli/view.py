@@ -66,7 +66,6 @@ def cmd_view(args) -> int:
     tree = _read_tree(args.tree) if args.tree else None
     robot = None
     if args.robot:
-        from ..robots import load_robot
 
         robot = robot_at(args.robot, parse_base_pose(args.base_pose))
     elif args.base_pose is not None:

@@ -183,7 +183,7 @@ def _rrt_config(c: "ConservatismConfig", time_budget_s: float) -> RRTConfig:
         edge_resolution=c.edge_resolution,
         box_lo=(-0.5, -0.5, c.plane_z),
         box_hi=(0.5, 0.5, c.plane_z),
-        time_budget_s=time_budget_s,
+        time_limit_s=time_budget_s,
         max_nodes=c.max_nodes,
         shortcut=SHORTCUT,
     )

@@ -60,7 +60,6 @@ import functools
 import hashlib
 import inspect
 import json
-import math
 import time
 from collections import OrderedDict
 from dataclasses import asdict, dataclass, field

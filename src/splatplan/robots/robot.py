@@ -19,7 +19,7 @@ import numpy as np
 
 from ..errors import SplatplanError
 from .fit import EllipsoidSet
-from .kinematics import FIXED, PLANAR, PRISMATIC, REVOLUTE, TRANSLATION, Kinematics, link_poses_ref, rigid_groups
+from .kinematics import FIXED, PLANAR, PRISMATIC, TRANSLATION, Kinematics, link_poses_ref, rigid_groups
 
 
 class Robot:

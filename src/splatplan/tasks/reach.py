@@ -505,7 +505,6 @@ def run_reach(
         device: metric / renderer / encoder device.
         progress: optional callable(step, image_cost).
     """
-    from ..encoders import load_encoder
     from ..planners import MPPI, MPPIConfig
     from ..planners.costs import CollisionCost, ControlEffortCost, JointLimitCost
     from ..planners.dynamics import JointIntegrator
