@@ -15,6 +15,7 @@ from typing import Any, Mapping
 import numpy as np
 import torch
 
+from .._arrays import array_kind, host_array
 from ..errors import SplatplanError
 
 #: Default floor on the linear scales, in scene units, used where a formula divides by a scale
@@ -117,7 +118,7 @@ def as_scene_tensors(
 
     def _t(a: Any) -> torch.Tensor:
         # Quaternions are normalised in float64 before the cast, as in quat_to_rotmat.
-        t = a if isinstance(a, torch.Tensor) else torch.as_tensor(np.asarray(a))
+        t = a if array_kind(a) == "torch" else torch.as_tensor(host_array(a))
         return t.to(device=device, dtype=torch.float64)
 
     means_t, quats_t, scales_t = _t(means), _t(quats), _t(scales)
@@ -145,7 +146,7 @@ def as_scene_tensors(
 
 def as_centers(centers: Any, device: torch.device, dtype: torch.dtype) -> torch.Tensor:
     """Query sphere centres as a [B, 3] tensor (a single (3,) centre becomes [1, 3])."""
-    c = centers if isinstance(centers, torch.Tensor) else torch.as_tensor(np.asarray(centers, dtype=np.float64))
+    c = centers if array_kind(centers) == "torch" else torch.as_tensor(np.asarray(host_array(centers), dtype=np.float64))
     c = c.to(device=device, dtype=dtype)
     if c.ndim == 1 and c.shape[0] == 3:
         c = c[None]

@@ -20,6 +20,7 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
+from .._arrays import array_kind
 from .._warp import cpu_threads, resolve_device
 from .._warp import wp as _wp
 from ..errors import SplatplanError
@@ -195,7 +196,7 @@ class SplatRenderer:
         b = v.shape[0]
         out_bytes = estimate_bytes(b, width, height)
         require_bytes(out_bytes, f"the output of {b} image(s) of {width}x{height} (one render call)", "the image size or the cameras per call", limit=self.max_bytes)
-        kind = _output_kind(viewmats)
+        kind = array_kind(viewmats)
         if b == 0:
             return _wrap(np.zeros((0, height, width, 3), np.float32), np.zeros((0, height, width), np.float32),
                          np.zeros((0, height, width), np.float32), kind, self.device)  # fmt: skip
@@ -321,15 +322,6 @@ class SplatRenderer:
     def _workspace_budget(self) -> int:
         """Bytes one worker's workspace may take in the current call (set by render())."""
         return max(self.max_bytes - self._call_out_bytes - self._scene_bytes, 0) // self.threads
-
-
-def _output_kind(x) -> str:
-    mod = type(x).__module__
-    if mod.startswith("torch"):
-        return "torch"
-    if mod.startswith("warp"):
-        return "warp"
-    return "numpy"
 
 
 def _wrap(rgb: np.ndarray, depth: np.ndarray, alpha: np.ndarray, kind: str, device: str) -> RenderResult:
