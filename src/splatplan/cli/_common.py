@@ -267,17 +267,6 @@ def ground_robot_scene(scene, args, n_sigma: float):
     return out
 
 
-def progress(iterable=None, **kw):
-    """A tqdm progress bar on stderr, shown only when stderr is a terminal (SPLATPLAN_NO_TQDM=1 hides it)."""
-    from tqdm import tqdm
-
-    kw.setdefault("file", sys.stderr)
-    kw.setdefault("leave", False)
-    kw.setdefault("dynamic_ncols", True)
-    kw.setdefault("disable", bool(os.environ.get("SPLATPLAN_NO_TQDM")) or not sys.stderr.isatty())
-    return tqdm(iterable, **kw)
-
-
 # ---------------------------------------------------------------------------- signals
 class Terminated(SystemExit):
     """Raised by the CLI's SIGTERM handler (exit code 143), so ``finally`` blocks clean up."""

@@ -17,11 +17,12 @@ from pathlib import Path
 
 import numpy as np
 
+from .._progress import progress
 from .._resources import require_bytes
 from ..errors import SplatplanError
 from ._common import (
     BASE_POSE_HELP, POSITIVE_INT, ROBOT_HELP, _load, add_config_args, add_device_arg, atomic_path, config_from_args, load_npy, load_poses,
-    parse_base_pose, parse_robot, progress, robot_at, signals_deferred,
+    parse_base_pose, parse_robot, robot_at, signals_deferred,
 )  # fmt: skip
 
 #: queries (link poses) per kernel call: small enough that an interrupt waits < ~1 s on a CPU

@@ -29,7 +29,8 @@ from .._config import bounded, check_config
 from ..errors import PlanningError, SplatplanError
 from ..planners import RRTConfig, plan
 from ..planners.metrics import clearance, d_min, smoothness
-from ._common import load_stonehenge_filtered, mean_std, progress
+from .._progress import progress
+from ._common import load_stonehenge_filtered, mean_std
 
 #: The paper's Table II: n_sigma -> (mean, std) per column.
 PAPER_TABLE_II: dict[float, dict[str, tuple[float, float]]] = {
