@@ -87,6 +87,33 @@ def resolve_device(device: str | None) -> str:
     raise SplatplanError(f"unknown device {device!r}: use 'cpu', 'cuda' or 'cuda:N'")
 
 
+def resolve_torch_device(device) -> "torch.device":
+    """The torch device of ``None``/"auto"/"cpu"/"cuda"/"cuda:N" or a ``torch.device``.
+
+    "auto" means what it means for :func:`resolve_device`: CUDA when Warp sees a CUDA device (and
+    this torch build can use it), else the CPU.
+    """
+    import torch
+
+    from .errors import SplatplanError
+
+    if isinstance(device, torch.device):
+        dev = device
+    elif device in (None, "auto"):
+        cuda = torch.cuda.is_available() and wp().is_cuda_available()
+        return torch.device("cuda:0" if cuda else "cpu")
+    else:
+        try:
+            dev = torch.device(str(device))
+        except (RuntimeError, ValueError):
+            raise SplatplanError(f"unknown device {device!r}: use 'cpu', 'cuda' or 'cuda:N'") from None
+    if dev.type == "cuda" and not torch.cuda.is_available():
+        raise SplatplanError(f"device {device!r} requested but no CUDA device is available; use --device cpu")
+    if dev.type not in ("cpu", "cuda"):
+        raise SplatplanError(f"unknown device {device!r}: use 'cpu', 'cuda' or 'cuda:N'")
+    return dev
+
+
 def cpu_threads() -> int:
     """Worker threads for CPU launches (Warp runs one CPU launch on one thread)."""
     env = os.environ.get("SPLATPLAN_CPU_THREADS")

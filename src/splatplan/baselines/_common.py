@@ -16,6 +16,7 @@ import numpy as np
 import torch
 
 from .._arrays import array_kind, host_array
+from .._warp import resolve_torch_device
 from ..errors import SplatplanError
 
 #: Default floor on the linear scales, in scene units, used where a formula divides by a scale
@@ -85,7 +86,7 @@ class SceneTensors:
 
 def as_scene_tensors(
     splats_or_tensors: Any,
-    device: str | torch.device = "cpu",
+    device: str | torch.device = "auto",
     dtype: torch.dtype = torch.float32,
 ) -> SceneTensors:
     """Convert a scene to :class:`SceneTensors` on ``device``.
@@ -94,12 +95,13 @@ def as_scene_tensors(
         splats_or_tensors: a :class:`~splatplan.scenes.splats.Splats`, a :class:`SceneTensors`, or a
             mapping with keys ``means`` [N, 3], ``quats`` [N, 4] (wxyz), ``scales`` [N, 3] (linear
             std) and optionally ``opacities`` [N] (default 1); numpy arrays or torch tensors.
-        device: torch device, e.g. ``"cpu"`` or ``"cuda"``.
+        device: "auto" (CUDA when present, else the CPU), "cpu", "cuda", "cuda:N" or a ``torch.device``.
         dtype: floating dtype of every tensor (the originals run in float32).
 
     Returns:
         The scene tensors (rotations precomputed from the quaternions).
     """
+    device = resolve_torch_device(device)
     if isinstance(splats_or_tensors, SceneTensors):
         s = splats_or_tensors
         return SceneTensors(*(t.to(device=device, dtype=dtype) for t in (s.means, s.rotations, s.scales, s.opacities)))

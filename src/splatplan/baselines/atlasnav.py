@@ -43,7 +43,7 @@ class AtlasNav:
 
     Args:
         splats_or_tensors: a Splats, SceneTensors or mapping of arrays.
-        device: torch device.
+        device: "auto" (CUDA when present, else the CPU), "cpu", "cuda", "cuda:N" or a torch.device.
         n_std: ball radius in units of sigma (3 in ATLASNav).
         max_elems: cap on the elements of the [b, N, 3] chunk (None: device default, see module doc).
         dtype: torch dtype (float32).
@@ -54,7 +54,7 @@ class AtlasNav:
     def __init__(
         self,
         splats_or_tensors: Any,
-        device: str | torch.device = "cpu",
+        device: str | torch.device = "auto",
         n_std: float = 3.0,
         max_elems: int | None = None,
         dtype: torch.dtype = torch.float32,
@@ -100,7 +100,7 @@ class AtlasNav:
         return collision_from_score(self.score(centers, radius, batch))
 
 
-def atlasnav_score(splats_or_tensors: Any, centers: np.ndarray, radius: float, device: str | torch.device = "cpu", **method_kw) -> np.ndarray:
+def atlasnav_score(splats_or_tensors: Any, centers: np.ndarray, radius: float, device: str | torch.device = "auto", **method_kw) -> np.ndarray:
     """Native ATLASNav score ``min_i (|p - mu_i| - 3 sigma_i - r)``, float64 (B,); collision iff < 0.
 
     ``method_kw``: ``n_std``, ``max_elems``, ``dtype`` (constructor) and ``batch``.
@@ -109,7 +109,7 @@ def atlasnav_score(splats_or_tensors: Any, centers: np.ndarray, radius: float, d
     return AtlasNav(splats_or_tensors, device, **method_kw).score(centers, radius, batch)
 
 
-def collision_score(splats_or_tensors: Any, centers: np.ndarray, radius: float, device: str | torch.device = "cpu", **method_kw) -> np.ndarray:
+def collision_score(splats_or_tensors: Any, centers: np.ndarray, radius: float, device: str | torch.device = "auto", **method_kw) -> np.ndarray:
     """Oriented score (larger = collision): ``-atlasnav_score``."""
     return -atlasnav_score(splats_or_tensors, centers, radius, device, **method_kw)
 

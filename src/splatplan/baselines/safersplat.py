@@ -95,7 +95,7 @@ class SaferSplat:
 
     Args:
         splats_or_tensors: a Splats, SceneTensors or mapping of arrays.
-        device: torch device.
+        device: "auto" (CUDA when present, else the CPU), "cpu", "cuda", "cuda:N" or a torch.device.
         n_steps: bisection steps on Eberly's equation (25 as in SAFER-Splat).
         min_scale: floor on the semi-axes (2DGS disks have a zero third scale), scene units.
         dtype: torch dtype (float32 as the original).
@@ -106,7 +106,7 @@ class SaferSplat:
     def __init__(
         self,
         splats_or_tensors: Any,
-        device: str | torch.device = "cpu",
+        device: str | torch.device = "auto",
         n_steps: int = 25,
         min_scale: float = MIN_SCALE,
         dtype: torch.dtype = torch.float32,
@@ -151,7 +151,7 @@ class SaferSplat:
         return collision_from_score(self.score(centers, radius, batch))
 
 
-def safersplat_score(splats_or_tensors: Any, centers: np.ndarray, radius: float, device: str | torch.device = "cpu", **method_kw) -> np.ndarray:
+def safersplat_score(splats_or_tensors: Any, centers: np.ndarray, radius: float, device: str | torch.device = "auto", **method_kw) -> np.ndarray:
     """Native SAFER-Splat score ``min_i (phi_i d_i^2 - r^2)`` per centre, float64 (B,); collision iff < 0.
 
     ``method_kw``: ``n_steps``, ``min_scale``, ``dtype`` (constructor) and ``batch``.
@@ -160,7 +160,7 @@ def safersplat_score(splats_or_tensors: Any, centers: np.ndarray, radius: float,
     return SaferSplat(splats_or_tensors, device, **method_kw).score(centers, radius, batch)
 
 
-def collision_score(splats_or_tensors: Any, centers: np.ndarray, radius: float, device: str | torch.device = "cpu", **method_kw) -> np.ndarray:
+def collision_score(splats_or_tensors: Any, centers: np.ndarray, radius: float, device: str | torch.device = "auto", **method_kw) -> np.ndarray:
     """Oriented score (larger = collision): ``-safersplat_score``."""
     return -safersplat_score(splats_or_tensors, centers, radius, device, **method_kw)
 

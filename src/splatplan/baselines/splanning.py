@@ -60,7 +60,7 @@ class Splanning:
 
     Args:
         splats_or_tensors: a Splats, SceneTensors or mapping of arrays (opacities default 1).
-        device: torch device.
+        device: "auto" (CUDA when present, else the CPU), "cpu", "cuda", "cuda:N" or a torch.device.
         min_scale: floor on the linear scales (2DGS / degenerate splats), scene units.
         cull_std: cull Gaussians farther than ``cull_std * s_max + r`` (6 in SPLANNING).
         max_elems: cap on the elements of one [b, n, 3] block (None: device default).
@@ -72,7 +72,7 @@ class Splanning:
     def __init__(
         self,
         splats_or_tensors: Any,
-        device: str | torch.device = "cpu",
+        device: str | torch.device = "auto",
         min_scale: float = MIN_SCALE,
         cull_std: float = 6.0,
         max_elems: int | None = None,
@@ -142,7 +142,7 @@ class Splanning:
         return collision_from_score(self.score(centers, radius, batch), alpha)
 
 
-def splanning_score(splats_or_tensors: Any, centers: np.ndarray, radius: float, device: str | torch.device = "cpu", **method_kw) -> np.ndarray:
+def splanning_score(splats_or_tensors: Any, centers: np.ndarray, radius: float, device: str | torch.device = "auto", **method_kw) -> np.ndarray:
     """Native SPLANNING score ``p = 1 - exp(-I / (4 pi))`` per centre, float64 (B,).
 
     ``method_kw``: ``min_scale``, ``cull_std``, ``max_elems``, ``dtype`` (constructor) and ``batch``.
@@ -151,7 +151,7 @@ def splanning_score(splats_or_tensors: Any, centers: np.ndarray, radius: float, 
     return Splanning(splats_or_tensors, device, **method_kw).score(centers, radius, batch)
 
 
-def collision_score(splats_or_tensors: Any, centers: np.ndarray, radius: float, device: str | torch.device = "cpu", **method_kw) -> np.ndarray:
+def collision_score(splats_or_tensors: Any, centers: np.ndarray, radius: float, device: str | torch.device = "auto", **method_kw) -> np.ndarray:
     """Oriented score (larger = collision): ``p`` itself."""
     return splanning_score(splats_or_tensors, centers, radius, device, **method_kw)
 

@@ -77,7 +77,7 @@ class SplatNav:
     Args:
         splats_or_tensors: a Splats, SceneTensors or mapping of arrays (see
             :func:`~splatplan.baselines._common.as_scene_tensors`).
-        device: torch device.
+        device: "auto" (CUDA when present, else the CPU), "cpu", "cuda", "cuda:N" or a torch.device.
         level: ellipsoid level k; the ellipsoid is the splat with scales ``s * sqrt(k)`` (1 = 1 sigma).
         n_steps: bisection steps on dK/dt (10 as in Splat-Nav).
         dtype: torch dtype (float32 as the original).
@@ -88,7 +88,7 @@ class SplatNav:
     def __init__(
         self,
         splats_or_tensors: Any,
-        device: str | torch.device = "cpu",
+        device: str | torch.device = "auto",
         level: float = 1.0,
         n_steps: int = 10,
         dtype: torch.dtype = torch.float32,
@@ -136,7 +136,7 @@ class SplatNav:
         return collision_from_score(self.score(centers, radius, batch))
 
 
-def splatnav_score(splats_or_tensors: Any, centers: np.ndarray, radius: float, device: str | torch.device = "cpu", **method_kw) -> np.ndarray:
+def splatnav_score(splats_or_tensors: Any, centers: np.ndarray, radius: float, device: str | torch.device = "auto", **method_kw) -> np.ndarray:
     """Native Splat-Nav score ``min_i max_t K_i`` per centre, float64 (B,); collision iff < 1.
 
     ``method_kw``: ``level``, ``n_steps``, ``dtype`` (constructor) and ``batch`` (see :class:`SplatNav`).
@@ -145,7 +145,7 @@ def splatnav_score(splats_or_tensors: Any, centers: np.ndarray, radius: float, d
     return SplatNav(splats_or_tensors, device, **method_kw).score(centers, radius, batch)
 
 
-def collision_score(splats_or_tensors: Any, centers: np.ndarray, radius: float, device: str | torch.device = "cpu", **method_kw) -> np.ndarray:
+def collision_score(splats_or_tensors: Any, centers: np.ndarray, radius: float, device: str | torch.device = "auto", **method_kw) -> np.ndarray:
     """Oriented score (larger = collision): ``-splatnav_score``."""
     return -splatnav_score(splats_or_tensors, centers, radius, device, **method_kw)
 

@@ -171,7 +171,7 @@ def markdown(result: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
-def run_navigate_study(out_dir, *, encoder: str = "thumbnail", encoder_weights: str | None = None, quick: bool = False, device: str = "cpu", config=None, progress: bool = False) -> dict:
+def run_navigate_study(out_dir, *, encoder: str = "thumbnail", encoder_weights: str | None = None, quick: bool = False, device: str = "auto", config=None, progress: bool = False) -> dict:
     """Run the study; write ``navigate.json``, ``navigate.md`` and PNGs into ``out_dir``."""
     from ..encoders import load_encoder
     from ..render import SplatRenderer

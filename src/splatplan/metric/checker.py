@@ -73,7 +73,7 @@ class CollisionChecker:
         self,
         scene: Splats,
         n_sigma: float | None = None,
-        device: str | None = "cpu",
+        device: str | None = "auto",
         config: MetricConfig | None = None,
         backend: str = "warp",
         tiers=None,

@@ -20,7 +20,7 @@ def render(
     far: float = 1e10,
     background=(0.0, 0.0, 0.0),
     sh_degree: int | None = None,
-    device: str | None = None,
+    device: str | None = "auto",
     backend: str = "auto",
     max_bytes: int = MAX_BYTES,
 ) -> RenderResult:

@@ -92,7 +92,7 @@ class SplatRenderer:
 
     Args:
         scene: the splats (validated once here).
-        device: "cpu", "cuda", "cuda:N" or None/"auto".
+        device: "auto" (CUDA when Warp sees one, else the CPU; None means the same), "cpu", "cuda" or "cuda:N".
         threads: CPU worker threads (default: every core the process may use).
         blend: "tile" (one thread per tile; the CPU default) or "pixel" (one thread per pixel;
             the CUDA default). Both give the same images.
@@ -103,7 +103,7 @@ class SplatRenderer:
     def __init__(
         self,
         scene: Splats,
-        device: str | None = None,
+        device: str | None = "auto",
         *,
         threads: int | None = None,
         blend: str | None = None,

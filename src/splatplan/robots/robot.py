@@ -200,7 +200,7 @@ class Robot:
 
         launch_fk(self, q_wp, out_centers, out_rots, attachments(self, ellipsoids=ellipsoids))
 
-    def fk(self, q, device: str | None = "cpu", ellipsoids=None, links=None) -> tuple[np.ndarray, np.ndarray]:
+    def fk(self, q, device: str | None = "auto", ellipsoids=None, links=None) -> tuple[np.ndarray, np.ndarray]:
         """Convenience: numpy q (..., dof) -> Warp FK -> numpy (centres (..., E, 3), rotations (..., E, 3, 3)) float32.
 
         ``ellipsoids``: a subset of ellipsoid indices (E = its length); ``links``: link indices

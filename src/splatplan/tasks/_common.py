@@ -50,7 +50,7 @@ def load_filtered_scene(scene, n_splats: int | None = None, seed: int = 0):
     return splats, gt
 
 
-def load_task_scene(scene, n_sigma: float = 1.0, device: str | None = "cpu", n_splats: int | None = None, ground_below: float | None = None, terrain=None) -> TaskScene:
+def load_task_scene(scene, n_sigma: float = 1.0, device: str | None = "auto", n_splats: int | None = None, ground_below: float | None = None, terrain=None) -> TaskScene:
     """A built-in name ("tabletop", "apartment", "stonehenge") or a splat file (its ``.gt.json``
     beside it is used for the exact clearance when present).
 

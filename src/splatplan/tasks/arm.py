@@ -154,7 +154,7 @@ def run_arm(
     config: ArmConfig | None = None,
     collision: bool = True,
     q0=None,
-    device: str | None = "cpu",
+    device: str | None = "auto",
     check_goal: bool = True,
     progress=None,
 ) -> TaskResult:
