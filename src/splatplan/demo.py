@@ -32,9 +32,6 @@ def collision_field(checker, z: float, lo: np.ndarray, hi: np.ndarray, res: int 
 
 
 def _plot_field(path: Path, fields, gt, z: float, lo, hi, n_kept_floaters: int = 0, floater_opacity: tuple[float, float] = (0.1, 0.3)) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     from matplotlib.lines import Line2D
 
@@ -77,9 +74,6 @@ def _plot_field(path: Path, fields, gt, z: float, lo, hi, n_kept_floaters: int =
 
 
 def _plot_plans(path: Path, plans, gt, z: float, start, goal) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     from .scenes.builtin.stonehenge import plot_top_view

@@ -61,8 +61,9 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from ._common import CREATED_DIRS, remove_created_empty_dirs
+    from ._common import CREATED_DIRS, headless_matplotlib, remove_created_empty_dirs
 
+    headless_matplotlib()
     CREATED_DIRS.clear()
     try:
         rc = _main(argv)

@@ -327,6 +327,17 @@ def signals_deferred():
         raise KeyboardInterrupt
 
 
+# ---------------------------------------------------------------------------- plots
+def headless_matplotlib() -> None:
+    """The CLI only writes image files: matplotlib's Agg backend for this process and the worker
+    processes it starts, chosen once at start-up. The library never picks a backend (its plotting
+    returns Figures or saves through whatever backend its caller chose)."""
+    os.environ["MPLBACKEND"] = "Agg"  # read when matplotlib is imported: costs nothing when no command plots
+    mpl = sys.modules.get("matplotlib")
+    if mpl is not None:  # imported already (e.g. main() called in-process): switch it now
+        mpl.use("Agg")
+
+
 # ---------------------------------------------------------------------------- devices
 DEVICE_HELP = "auto (CUDA when present, else CPU) | cpu | cuda | cuda:N (default auto)"
 

@@ -33,9 +33,6 @@ def quick_config(cfg):
 
 
 def _plot_goal(path: Path, robot, scene, goal, target, runs: dict) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     n_views = max(len(r.views) for r in runs.values())
