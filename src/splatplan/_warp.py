@@ -1,7 +1,8 @@
 """Warp start-up in one place: quiet, with the kernel cache inside the project build tree.
 
 Import :func:`wp` from here instead of calling ``warp.init()`` anywhere else, so the banner
-never reaches the CLI's output and the cache never lands in the user's home by surprise.
+never reaches the CLI's output. The kernel cache is the user's choice when they made one
+(:func:`_cache_dir`); only then does splatplan leave Warp's process-wide setting alone.
 """
 
 from __future__ import annotations
@@ -16,30 +17,45 @@ from pathlib import Path
 _lock = threading.Lock()
 
 
-def _cache_dir() -> Path:
-    env = os.environ.get("SPLATPLAN_WARP_CACHE")
+def _cache_dir(current: str | None, environ=os.environ) -> Path | None:
+    """The kernel cache folder splatplan sets, or None to leave Warp's setting as it is.
+
+    In order: a ``warp.config.kernel_cache_dir`` already set (``current``: by the user, or by a
+    ``warp.init()`` that ran before splatplan's) stays; ``SPLATPLAN_WARP_CACHE``; Warp's own
+    ``WARP_CACHE_PATH`` (Warp reads it); in a source checkout ``<repo>/build/warp-cache`` (our own
+    runs and tests share one cache); otherwise Warp's default (its per-user cache folder).
+    """
+    if current is not None:
+        return None
+    env = environ.get("SPLATPLAN_WARP_CACHE")
     if env:
         return Path(env)
-    here = Path(__file__).resolve()
+    if environ.get("WARP_CACHE_PATH"):
+        return None
     # Editable/source checkout: <repo>/src/splatplan/_warp.py -> <repo>/build/warp-cache
-    repo = here.parents[2]
-    if (repo / "pyproject.toml").exists():
+    repo = Path(__file__).resolve().parents[2]
+    if (repo / "pyproject.toml").exists() and (repo / "src" / "splatplan").is_dir():
         return repo / "build" / "warp-cache"
-    return Path.home() / ".cache" / "splatplan" / "warp-cache"
+    return None
 
 
 @lru_cache(maxsize=1)
 def wp():
-    """Return the initialised ``warp`` module (quiet, project-local kernel cache)."""
+    """Return the initialised ``warp`` module (quiet; kernel cache: :func:`_cache_dir`)."""
     with _lock:
         import warp
 
+        # Warp prints its banner and every module load to stdout at its default log level; a level
+        # the user chose (anything but the default) stays.
         if hasattr(warp.config, "log_level"):  # warp >= 1.10
-            warp.config.log_level = warp.LOG_ERROR
-        warp.config.quiet = True  # older releases
-        cache = _cache_dir()
-        cache.mkdir(parents=True, exist_ok=True)
-        warp.config.kernel_cache_dir = str(cache)
+            if warp.config.log_level == warp.LOG_INFO:
+                warp.config.log_level = warp.LOG_ERROR
+        else:  # older releases
+            warp.config.quiet = True
+        cache = _cache_dir(warp.config.kernel_cache_dir)
+        if cache is not None:
+            cache.mkdir(parents=True, exist_ok=True)
+            warp.config.kernel_cache_dir = str(cache)
         # The native library prints a CUDA-driver warning straight to fd 2 on machines without a
         # GPU; keep it off the CLI's output (resolve_device gives our own message instead).
         with _silence_fd(2):
