@@ -27,14 +27,13 @@ face, walls 1.5x.
 from __future__ import annotations
 
 import functools
-import json
 from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ...errors import SplatplanError
 from ..splats import Splats
-from .primitives import AnalyticScene, _copy_splats, _yaw_quat, make_box, splats_from_boxes
+from ._layout import BoxList, sample_splats, splat_count
+from .primitives import AnalyticScene, _copy_splats, _yaw_quat
 
 __all__ = ["DOORS", "N_SPLATS", "ROOMS", "WALL_HEIGHT", "ApartmentLayout", "apartment_layout", "build_apartment", "room_of"]
 
@@ -124,12 +123,8 @@ def _wall_segments(axis: str, coord: float, start: float, end: float, gaps) -> l
 
 def _build_layout(seed: int) -> ApartmentLayout:
     rng = np.random.default_rng([int(seed), 9191])
-    boxes, labels, colors = [], [], []
-
-    def add(label: str, center, half, quat=(1.0, 0.0, 0.0, 0.0), color=None) -> None:
-        boxes.append(make_box(center, half, quat))
-        labels.append(label)
-        colors.append(np.asarray(color if color is not None else LABEL_COLORS[label], np.float64))
+    box_list = BoxList(LABEL_COLORS)
+    add = box_list.add
 
     def block(label: str, x: float, y: float, hx: float, hy: float, h: float, yaw: float = 0.0, color=None) -> None:
         add(label, (x, y, (h - 0.002) / 2), (hx, hy, (h + 0.002) / 2), _yaw_quat(yaw), color)  # sinks 2 mm
@@ -178,9 +173,7 @@ def _build_layout(seed: int) -> ApartmentLayout:
         center = np.array([c, mid, 0.3]) if ax == "x" else np.array([mid, c, 0.3])
         normal = np.array([1.0, 0.0]) if ax == "x" else np.array([0.0, 1.0])
         doors[name] = {"center": center, "width": float(e - s), "rooms": rooms, "normal": normal}
-    scene = AnalyticScene(
-        np.stack(boxes),
-        labels,
+    scene, colors = box_list.scene(
         {
             "name": "apartment",
             "seed": int(seed),
@@ -188,9 +181,9 @@ def _build_layout(seed: int) -> ApartmentLayout:
             "robot": "go2",
             "rooms": {k: [list(v[0]), list(v[1])] for k, v in ROOMS.items()},
             "doors": {k: {"center": v["center"].tolist(), "width": v["width"], "rooms": list(v["rooms"])} for k, v in doors.items()},
-        },
+        }
     )
-    return ApartmentLayout(scene=scene, colors=np.stack(colors), rooms={k: (np.array(v[0]), np.array(v[1])) for k, v in ROOMS.items()}, doors=doors)
+    return ApartmentLayout(scene=scene, colors=colors, rooms={k: (np.array(v[0]), np.array(v[1])) for k, v in ROOMS.items()}, doors=doors)
 
 
 @functools.lru_cache(maxsize=4)
@@ -204,7 +197,7 @@ def apartment_layout(seed: int = 0) -> ApartmentLayout:
     sc = lay.scene
     return replace(
         lay,
-        scene=AnalyticScene(sc.boxes.copy(), list(sc.labels), json.loads(json.dumps(sc.meta))),
+        scene=sc.copy(),
         colors=lay.colors.copy(),
         rooms={k: (v[0].copy(), v[1].copy()) for k, v in lay.rooms.items()},
         doors={k: {**v, "center": v["center"].copy(), "normal": v["normal"].copy()} for k, v in lay.doors.items()},
@@ -213,31 +206,9 @@ def apartment_layout(seed: int = 0) -> ApartmentLayout:
 
 @functools.lru_cache(maxsize=4)
 def _build_cached(seed: int, n_splats: int) -> Splats:
-    from .stonehenge import level_config
-
     lay = _layout_cached(seed)
-    scene = lay.scene
-    m = len(scene)
-    density = np.ones(m)
-    faces = np.ones((m, 6), bool)
-    for i, lab in enumerate(scene.labels):
-        if lab == "floor":
-            density[i] = 2.0
-            faces[i] = [False, False, False, False, True, False]  # only the top face is seen
-        elif lab == "wall":
-            density[i] = 1.5
-    splats = splats_from_boxes(
-        scene,
-        n_splats,
-        config=replace(level_config(1), floater_transparent_fraction=1.0),  # floaters the default filter drops
-        colors=lay.colors,
-        density=density,
-        faces=faces,
-        floater_region=(np.array([-3.9, -2.9, 0.05]), np.array([3.9, 2.9, 1.1])),
-        seed=np.random.default_rng([int(seed), int(n_splats), 1618]),
-    )
-    splats.info.update({"scene": "apartment", "seed": int(seed), "units": scene.meta["units"]})
-    return splats
+    region = (np.array([-3.9, -2.9, 0.05]), np.array([3.9, 2.9, 1.1]))
+    return sample_splats(lay.scene, lay.colors, n_splats, seed, 1618, region, density={"floor": 2.0, "wall": 1.5}, top_only=("floor",))
 
 
 def build_apartment(seed: int = 0, n_splats: int | None = None) -> tuple[Splats, AnalyticScene]:
@@ -251,7 +222,4 @@ def build_apartment(seed: int = 0, n_splats: int | None = None) -> tuple[Splats,
         (splats, scene): float32 splats (wxyz, linear stds; the last ``info["n_floaters"]`` are
         floaters) and the boxes, in metres with z up.
     """
-    n = N_SPLATS if n_splats is None else int(n_splats)
-    if n < 1:
-        raise SplatplanError(f"n_splats must be >= 1, got {n_splats}")
-    return _copy_splats(_build_cached(int(seed), n)), apartment_layout(seed).scene
+    return _copy_splats(_build_cached(int(seed), splat_count(n_splats, N_SPLATS))), apartment_layout(seed).scene

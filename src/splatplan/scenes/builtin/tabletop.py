@@ -31,14 +31,13 @@ Splats: ~150k by default (:data:`N_SPLATS`), the table legs sampled at 3x the sp
 from __future__ import annotations
 
 import functools
-import json
 from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ...errors import SplatplanError
 from ..splats import Splats
-from .primitives import AnalyticScene, _copy_splats, _yaw_quat, make_box, splats_from_boxes
+from ._layout import BoxList, sample_splats, splat_count
+from .primitives import AnalyticScene, _copy_splats, _yaw_quat
 
 __all__ = ["N_SPLATS", "TABLE_TOP", "TARGET_REGION", "TabletopLayout", "build_tabletop", "tabletop_layout"]
 
@@ -91,13 +90,8 @@ class TabletopLayout:
 
 def _build_layout(seed: int) -> TabletopLayout:
     rng = np.random.default_rng([int(seed), 4242])
-    boxes, labels, colors = [], [], []
-
-    def add(label: str, center, half, quat=(1.0, 0.0, 0.0, 0.0), color=None) -> None:
-        # heights below are written relative to the table top (z = 0 there), then shifted
-        boxes.append(make_box(np.asarray(center, np.float64) + (0.0, 0.0, TABLE_TOP), half, quat))
-        labels.append(label)
-        colors.append(np.asarray(color if color is not None else LABEL_COLORS[label], np.float64))
+    box_list = BoxList(LABEL_COLORS, offset=(0.0, 0.0, TABLE_TOP))  # heights below: relative to the table top
+    add = box_list.add
 
     j = lambda s: rng.uniform(-s, s)  # noqa: E731  small per-seed jitter (m)
     # table top (its top face is z = 0) and legs
@@ -126,18 +120,16 @@ def _build_layout(seed: int) -> TabletopLayout:
     add("object_purple", (0.37 + j(0.02), -0.50, 0.222 + 0.03 - 0.001), (0.03, 0.03, 0.03), _yaw_quat(rng.uniform(0, np.pi)), OBJECT_COLORS["object_purple"])
     add("object_orange", (0.30 + j(0.02), 0.58 + j(0.02), 0.04), (0.035, 0.035, 0.0405), _yaw_quat(rng.uniform(0, np.pi)), OBJECT_COLORS["object_orange"])
 
-    scene = AnalyticScene(
-        np.stack(boxes),
-        labels,
+    scene, colors = box_list.scene(
         {
             "name": "tabletop",
             "seed": int(seed),
             "units": "metres, z up, table top at z = -0.09, robot base at the origin looking along +x",
             "robot": "panda",
             "target_region": [TARGET_REGION[0].tolist(), TARGET_REGION[1].tolist()],
-        },
+        }
     )
-    return TabletopLayout(scene=scene, colors=np.stack(colors), target_region=TARGET_REGION, front_wall_top=front_h + TABLE_TOP)
+    return TabletopLayout(scene=scene, colors=colors, target_region=TARGET_REGION, front_wall_top=front_h + TABLE_TOP)
 
 
 @functools.lru_cache(maxsize=4)
@@ -151,7 +143,7 @@ def tabletop_layout(seed: int = 0) -> TabletopLayout:
     sc = lay.scene
     return replace(
         lay,
-        scene=AnalyticScene(sc.boxes.copy(), list(sc.labels), json.loads(json.dumps(sc.meta))),
+        scene=sc.copy(),
         colors=lay.colors.copy(),
         target_region=(lay.target_region[0].copy(), lay.target_region[1].copy()),
     )
@@ -159,30 +151,9 @@ def tabletop_layout(seed: int = 0) -> TabletopLayout:
 
 @functools.lru_cache(maxsize=4)
 def _build_cached(seed: int, n_splats: int) -> Splats:
-    from .stonehenge import level_config
-
     lay = _layout_cached(seed)
-    scene = lay.scene
-    m = len(scene)
-    density = np.ones(m)
-    faces = np.ones((m, 6), bool)
-    for i, lab in enumerate(scene.labels):
-        if lab == "table_leg":
-            density[i] = 3.0
-        if lab == "table":
-            density[i] = 1.5
-    splats = splats_from_boxes(
-        scene,
-        n_splats,
-        config=replace(level_config(1), floater_transparent_fraction=1.0),  # floaters the default filter drops
-        colors=lay.colors,
-        density=density,
-        faces=faces,
-        floater_region=(np.array([-0.2, -0.7, TABLE_TOP + 0.02]), np.array([0.95, 0.7, 0.8])),
-        seed=np.random.default_rng([int(seed), int(n_splats), 2718]),
-    )
-    splats.info.update({"scene": "tabletop", "seed": int(seed), "units": scene.meta["units"]})
-    return splats
+    region = (np.array([-0.2, -0.7, TABLE_TOP + 0.02]), np.array([0.95, 0.7, 0.8]))
+    return sample_splats(lay.scene, lay.colors, n_splats, seed, 2718, region, density={"table_leg": 3.0, "table": 1.5})
 
 
 def build_tabletop(seed: int = 0, n_splats: int | None = None) -> tuple[Splats, AnalyticScene]:
@@ -196,9 +167,5 @@ def build_tabletop(seed: int = 0, n_splats: int | None = None) -> tuple[Splats, 
         (splats, scene): float32 splats (wxyz, linear stds; the last ``info["n_floaters"]`` are
         floaters) and the boxes, in metres with z up.
     """
-    n = N_SPLATS if n_splats is None else int(n_splats)
-    if n < 1:
-        raise SplatplanError(f"n_splats must be >= 1, got {n_splats}")
-    s = _build_cached(int(seed), n)
-    return _copy_splats(s), tabletop_layout(seed).scene
+    return _copy_splats(_build_cached(int(seed), splat_count(n_splats, N_SPLATS))), tabletop_layout(seed).scene
 
