@@ -52,7 +52,12 @@ def sample_splats(
     top_only: tuple[str, ...] = (),  # labels of boxes seen from above only (a floor)
 ) -> Splats:
     """Splats of a box layout: the level-1 look of Stonehenge, floaters that the default floater
-    filter drops, ``info`` naming the scene; seeded by (seed, n_splats, seed_tag)."""
+    filter drops, ``info`` naming the scene; seeded by (seed, n_splats, seed_tag).
+
+    Returns:
+        float32 splats (wxyz, linear stds) in the layout's frame; the last ``info["n_floaters"]``
+        are the floaters.
+    """
     from .stonehenge import level_config
 
     dens = np.array([float(density.get(lab, 1.0)) for lab in scene.labels])

@@ -26,8 +26,9 @@ face, walls 1.5x.
 
 from __future__ import annotations
 
+import copy
 import functools
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -193,15 +194,7 @@ def _layout_cached(seed: int) -> ApartmentLayout:
 
 def apartment_layout(seed: int = 0) -> ApartmentLayout:
     """The analytic apartment for a seed (fresh copies; furniture jittered by seed)."""
-    lay = _layout_cached(int(seed))
-    sc = lay.scene
-    return replace(
-        lay,
-        scene=sc.copy(),
-        colors=lay.colors.copy(),
-        rooms={k: (v[0].copy(), v[1].copy()) for k, v in lay.rooms.items()},
-        doors={k: {**v, "center": v["center"].copy(), "normal": v["normal"].copy()} for k, v in lay.doors.items()},
-    )
+    return copy.deepcopy(_layout_cached(int(seed)))
 
 
 @functools.lru_cache(maxsize=4)
@@ -212,14 +205,6 @@ def _build_cached(seed: int, n_splats: int) -> Splats:
 
 
 def build_apartment(seed: int = 0, n_splats: int | None = None) -> tuple[Splats, AnalyticScene]:
-    """The apartment splats and their analytic ground truth (fresh copies; cached in memory).
-
-    Args:
-        seed: furniture jitter and splat sampling seed (deterministic).
-        n_splats: total splat count, floaters included (default :data:`N_SPLATS`).
-
-    Returns:
-        (splats, scene): float32 splats (wxyz, linear stds; the last ``info["n_floaters"]`` are
-        floaters) and the boxes, in metres with z up.
-    """
+    """The apartment splats and their boxes, fresh copies (cached in memory): see :func:`._layout.sample_splats`.
+    ``seed`` jitters the layout and seeds the sampling; ``n_splats`` counts floaters too (default :data:`N_SPLATS`)."""
     return _copy_splats(_build_cached(int(seed), splat_count(n_splats, N_SPLATS))), apartment_layout(seed).scene

@@ -30,8 +30,9 @@ Splats: ~150k by default (:data:`N_SPLATS`), the table legs sampled at 3x the sp
 
 from __future__ import annotations
 
+import copy
 import functools
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -139,14 +140,7 @@ def _layout_cached(seed: int) -> TabletopLayout:
 
 def tabletop_layout(seed: int = 0) -> TabletopLayout:
     """The analytic tabletop for a seed (fresh copies; small object/wall jitter by seed)."""
-    lay = _layout_cached(int(seed))
-    sc = lay.scene
-    return replace(
-        lay,
-        scene=sc.copy(),
-        colors=lay.colors.copy(),
-        target_region=(lay.target_region[0].copy(), lay.target_region[1].copy()),
-    )
+    return copy.deepcopy(_layout_cached(int(seed)))
 
 
 @functools.lru_cache(maxsize=4)
@@ -157,15 +151,7 @@ def _build_cached(seed: int, n_splats: int) -> Splats:
 
 
 def build_tabletop(seed: int = 0, n_splats: int | None = None) -> tuple[Splats, AnalyticScene]:
-    """The tabletop splats and their analytic ground truth (fresh copies; cached in memory).
-
-    Args:
-        seed: layout jitter and splat sampling seed (deterministic).
-        n_splats: total splat count, floaters included (default :data:`N_SPLATS`).
-
-    Returns:
-        (splats, scene): float32 splats (wxyz, linear stds; the last ``info["n_floaters"]`` are
-        floaters) and the boxes, in metres with z up.
-    """
+    """The tabletop splats and their boxes, fresh copies (cached in memory): see :func:`._layout.sample_splats`.
+    ``seed`` jitters the layout and seeds the sampling; ``n_splats`` counts floaters too (default :data:`N_SPLATS`)."""
     return _copy_splats(_build_cached(int(seed), splat_count(n_splats, N_SPLATS))), tabletop_layout(seed).scene
 
