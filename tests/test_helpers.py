@@ -102,3 +102,20 @@ def test_a_kernel_cache_set_before_splatplan_stays(tmp_path):
     lines = res.stdout.splitlines()
     assert len(lines) == 1, res.stdout  # nothing but our line: no banner
     assert lines[0].startswith("cache " + str(tmp_path / "mine")), lines
+
+
+def test_lazy_thread_pool_starts_stops_and_copies_empty():
+    import copy
+    import pickle
+
+    from splatplan._warp import LazyThreadPool
+
+    p = LazyThreadPool(2, "t")
+    ex = p.get()
+    assert p.get() is ex and ex.submit(lambda: 3).result() == 3
+    for q in (copy.copy(p), copy.deepcopy(p), pickle.loads(pickle.dumps(p))):
+        assert q._pool is None and (q.threads, q.name) == (2, "t")
+    p.close()
+    assert p._pool is None
+    assert p.get() is not ex  # a later use starts new workers
+    p.close()

@@ -13,6 +13,10 @@ import threading
 from contextlib import contextmanager
 from functools import lru_cache
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    import torch
 
 _lock = threading.Lock()
 
@@ -139,6 +143,68 @@ def cpu_threads() -> int:
         return max(1, len(os.sched_getaffinity(0)))
     except AttributeError:  # pragma: no cover - non-Linux
         return max(1, os.cpu_count() or 1)
+
+
+class LazyThreadPool:
+    """CPU worker threads owned by one object: started on first use, stopped by :meth:`close` (the
+    next use starts them again). Copies and pickles carry no threads (they start their own)."""
+
+    def __init__(self, threads: int | None = None, name: str = "splatplan") -> None:
+        self.threads = threads  #: workers (None: :func:`cpu_threads` when the pool starts)
+        self.name = name
+        self._lock = threading.Lock()
+        self._pool = None
+
+    def get(self):
+        """The running ``ThreadPoolExecutor`` (started here when needed)."""
+        from concurrent.futures import ThreadPoolExecutor
+
+        with self._lock:
+            if self._pool is None:
+                self._pool = ThreadPoolExecutor(max_workers=self.threads or cpu_threads(), thread_name_prefix=self.name)
+            return self._pool
+
+    def close(self, wait: bool = True) -> None:
+        """Stop the workers (after the queued work when ``wait``)."""
+        with self._lock:
+            pool, self._pool = self._pool, None
+        if pool is not None:
+            pool.shutdown(wait=wait)
+
+    def __getstate__(self) -> dict:
+        return {"threads": self.threads, "name": self.name}
+
+    def __setstate__(self, state: dict) -> None:
+        self.__init__(**state)
+
+    def __copy__(self) -> "LazyThreadPool":
+        return LazyThreadPool(self.threads, self.name)
+
+    def __deepcopy__(self, memo) -> "LazyThreadPool":
+        return self.__copy__()
+
+
+class OwnsThreadPool:
+    """Mixin of an object that keeps a :class:`LazyThreadPool` in ``self._pool``: ``close()`` stops
+    its threads and ``with obj:`` closes it on exit (the object stays usable)."""
+
+    _pool: LazyThreadPool
+
+    def close(self) -> None:
+        """Stop the CPU worker threads (the next CPU call starts them again)."""
+        self._pool.close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def __del__(self) -> None:  # pragma: no cover - best effort at interpreter exit
+        try:
+            self._pool.close(wait=False)
+        except Exception:
+            pass
 
 
 def wait_all(futures) -> None:

@@ -16,12 +16,11 @@ from __future__ import annotations
 import math
 import queue
 import threading
-from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
 from .._arrays import array_kind
-from .._warp import cpu_threads, resolve_device
+from .._warp import LazyThreadPool, OwnsThreadPool, cpu_threads, resolve_device
 from .._warp import wp as _wp
 from ..errors import SplatplanError
 from ..scenes.splats import Splats
@@ -87,7 +86,7 @@ def _wp_raster():
     return wp_raster
 
 
-class SplatRenderer:
+class SplatRenderer(OwnsThreadPool):
     """Render one scene from batches of cameras, repeatedly (scene data stays on the device).
 
     Args:
@@ -145,7 +144,7 @@ class SplatRenderer:
         else:
             self._centre, self._radius = np.zeros(3), 1.0
         self.threads = 1 if self.is_cuda else max(1, int(threads or cpu_threads()))
-        self._pool: ThreadPoolExecutor | None = None
+        self._pool = LazyThreadPool(self.threads, "splatplan-render")
         self._workspaces: queue.SimpleQueue = queue.SimpleQueue()
         for _ in range(self.threads):
             self._workspaces.put(_Workspace(d))
@@ -153,42 +152,9 @@ class SplatRenderer:
         self._call_out_bytes = 0
         wp.load_module(rast, device=d)  # compile before any worker thread launches
 
-    # ------------------------------------------------------------------ lifetime
-    def close(self) -> None:
-        """Stop the worker threads (the renderer can still be used; it restarts them)."""
-        if self._pool is not None:
-            self._pool.shutdown(wait=True)
-            self._pool = None
-
-    def __enter__(self) -> "SplatRenderer":
-        return self
-
-    def __exit__(self, *exc) -> None:
-        self.close()
-
-    def __del__(self) -> None:  # pragma: no cover - best effort
-        try:
-            self.close()
-        except Exception:
-            pass
-
-    def _get_pool(self) -> ThreadPoolExecutor:
-        if self._pool is None:
-            self._pool = ThreadPoolExecutor(max_workers=self.threads, thread_name_prefix="splatplan-render")
-        return self._pool
-
     # ------------------------------------------------------------------ rendering
     def render(
-        self,
-        viewmats,
-        Ks,
-        width: int,
-        height: int,
-        *,
-        near: float = 0.01,
-        far: float = 1e10,
-        background=(0.0, 0.0, 0.0),
-        sh_degree: int | None = None,
+        self, viewmats, Ks, width: int, height: int, *, near: float = 0.01, far: float = 1e10, background=(0.0, 0.0, 0.0), sh_degree: int | None = None
     ) -> RenderResult:
         """Render B cameras; see :func:`splatplan.render` for the conventions and outputs."""
         v, k, width, height, near, far, bg = check_render_args(viewmats, Ks, width, height, near, far, background)
@@ -243,7 +209,7 @@ class SplatRenderer:
                 for s0 in starts:
                     self._run_chunk(scene, ca, fr, zmax, out, s0, min(chunk, b - s0))
             else:
-                pool = self._get_pool()
+                pool = self._pool.get()
                 from .._warp import wait_all
 
                 wait_all(pool.submit(self._run_chunk, scene, ca, fr, zmax, out, s0, min(chunk, b - s0)) for s0 in starts)
