@@ -195,3 +195,65 @@ def sync(device: torch.device) -> None:
     """Wait for queued device work (no-op on CPU); used by the timing helpers."""
     if device.type == "cuda":
         torch.cuda.synchronize(device)
+
+
+class Baseline:
+    """What the four baseline classes share: the scene tensors on one torch device, queries in
+    blocks of rows, the oriented score and the native decision.
+
+    A subclass sets ``native_batch`` (queries per evaluation in the original code base) and
+    ``orientation`` (-1 when :meth:`collision_score` negates the native score, +1 when the native
+    score already grows with collision), and implements :meth:`score_torch` (the native score of
+    a [b, 3] block of centres -> [b]) and :meth:`decide` (the native decision).
+    """
+
+    native_batch: int = 1
+    orientation: float = -1.0
+
+    def __init__(self, splats_or_tensors: Any, device: str | torch.device, dtype: torch.dtype) -> None:
+        self.scene: SceneTensors = as_scene_tensors(splats_or_tensors, device, dtype)
+
+    @property
+    def device(self) -> torch.device:
+        return self.scene.device
+
+    def rows(self, batch: int) -> int:
+        """Queries per :meth:`score_torch` call for a caller's ``batch`` (a memory cap may lower it)."""
+        return max(1, int(batch))
+
+    def score_torch(self, centers: torch.Tensor, radius: float) -> torch.Tensor:  # [b, 3] -> [b]
+        raise NotImplementedError
+
+    def decide(self, score: np.ndarray) -> np.ndarray:
+        raise NotImplementedError
+
+    @torch.no_grad()
+    def score(self, centers: Any, radius: float, batch: int | None = None) -> np.ndarray:
+        """Native score per centre, float64 (B,).
+
+        Args:
+            centers: (B, 3) sphere centres, scene units.
+            radius: sphere radius r > 0, scene units.
+            batch: queries evaluated together (None: ``native_batch``; any value gives the same
+                scores, larger ones faster).
+        """
+        c = as_centers(centers, self.device, self.scene.dtype)
+        step = self.rows(self.native_batch if batch is None else batch)
+        out = [self.score_torch(c[i : i + step], radius) for i in range(0, c.shape[0], step)]
+        return to_numpy(torch.cat(out)) if out else np.zeros(0)
+
+    def collision_score(self, centers: Any, radius: float, batch: int | None = None) -> np.ndarray:
+        """The native score oriented so that larger = more likely in collision, float64 (B,)."""
+        return self.orientation * self.score(centers, radius, batch)
+
+    def in_collision(self, centers: Any, radius: float, batch: int | None = None) -> np.ndarray:
+        """The method's own classifier: bool (B,)."""
+        return self.decide(self.score(centers, radius, batch))
+
+    @classmethod
+    def evaluate(cls, splats_or_tensors: Any, centers: Any, radius: float, device: str | torch.device = "auto", oriented: bool = False, **method_kw) -> np.ndarray:
+        """One-off scores: ``cls(splats_or_tensors, device, **method_kw)`` then :meth:`score`
+        (:meth:`collision_score` when ``oriented``); ``method_kw`` may carry ``batch``."""
+        batch = method_kw.pop("batch", None)
+        obj = cls(splats_or_tensors, device, **method_kw)
+        return obj.collision_score(centers, radius, batch) if oriented else obj.score(centers, radius, batch)
