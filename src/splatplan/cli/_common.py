@@ -66,21 +66,14 @@ ROBOT_HELP = "robot link: 'sphere:R' or 'ellipsoid:A,B,C' (semi-axes, scene unit
 
 
 def parse_robot(spec: str) -> np.ndarray:
-    """'sphere:R' or 'ellipsoid:A,B,C' -> semi-axes (3,) float64."""
-    kind, _, rest = spec.partition(":")
+    """'sphere:R' or 'ellipsoid:A,B,C' -> semi-axes (3,) float64: the robots stage parses it
+    (:func:`splatplan.robots.load_robot`; one parser, one set of messages)."""
+    from ..robots import load_robot
+
     try:
-        vals = [float(v) for v in rest.split(",")] if rest else []
-    except ValueError:
-        raise SplatplanError(f"--robot {spec!r}: numbers expected after ':' ({ROBOT_HELP})") from None
-    if kind == "sphere" and len(vals) == 1:
-        axes = np.full(3, vals[0])
-    elif kind == "ellipsoid" and len(vals) == 3:
-        axes = np.asarray(vals)
-    else:
-        raise SplatplanError(f"--robot {spec!r} not understood: {ROBOT_HELP}")
-    if not np.all(np.isfinite(axes)) or np.any(axes <= 0):
-        raise SplatplanError(f"--robot {spec!r}: sizes must be finite and > 0")
-    return axes
+        return np.asarray(load_robot(spec).semi_axes[0], dtype=np.float64)
+    except SplatplanError as exc:
+        raise SplatplanError(f"--robot: {exc}") from None
 
 
 def parse_vec3(text: str, what: str) -> np.ndarray:
