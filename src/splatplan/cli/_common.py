@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._files import _umask, atomic_path  # noqa: F401 - the commands import atomic_path from here
+from .._files import _umask, atomic_path, existing_file  # noqa: F401 - the commands import atomic_path from here
 from .._config import check_config, check_value
 from ..errors import SplatplanError
 
@@ -141,11 +141,7 @@ def robot_at(spec: str, base_pose: np.ndarray | None, robot=None):
 
 def load_npy(path: str, what: str) -> np.ndarray:
     """A real numeric ``.npy`` array as float64, or a one-line error naming ``what`` and the problem."""
-    p = Path(path)
-    if p.is_dir():
-        raise SplatplanError(f"{what} {path} is a directory; expected a .npy file")
-    if not p.is_file():
-        raise SplatplanError(f"{what} {path} does not exist")
+    p = existing_file(path, what, "a .npy file")
     try:
         arr = np.load(p, allow_pickle=False)
     except Exception as exc:  # numpy raises several types for broken files

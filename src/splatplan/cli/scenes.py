@@ -150,13 +150,7 @@ def cmd_scene(args) -> int:
         raise SplatplanError(f"--level must be 1..5, got {args.level}")
     if not 0 <= args.seed < 2**63:
         raise SplatplanError(f"--seed must be an integer >= 0, got {args.seed}")
-    out = Path(args.out)
-    if out.suffix.lower() != ".ply":
-        raise SplatplanError(f"--out {args.out}: expected a .ply path")
-    if out.is_dir():
-        raise SplatplanError(f"--out {args.out} is a directory; give a PATH.ply")
-    if not out.parent.exists():
-        raise SplatplanError(f"output folder {out.parent} does not exist")
+    out = _check_out_ply(args.out)
     # Both files are written into a temp folder beside the output and moved into place only when
     # both are complete (an interrupted run leaves nothing behind).
     with atomic_dir(out.parent) as tmp:

@@ -45,24 +45,25 @@ def register(sub, eval_sub) -> None:
     add_config_args(s, NavigateConfig, group="navigation options (NavigateConfig)")
     s.set_defaults(func=cmd_navigate)
 
-    e = eval_sub.add_parser("reach", help="E5 visual reaching (paper Table IV): wrist-camera image goals, with / without the collision cost",
-                            description="E5 visual reaching: the Panda reaches 5 goal images in the tabletop with MPPI and the terminal image cost.")  # fmt: skip
-    e.add_argument("--out", required=True, help="output folder (created)")
-    e.add_argument("--quick", action="store_true", help="1 goal and small settings (< 2 min); flags still override them")
+    e = _study_parser(eval_sub, "reach", ReachConfig, cmd_eval_reach, "1 goal and small settings (< 2 min)",
+                      help="E5 visual reaching (paper Table IV): wrist-camera image goals, with / without the collision cost",
+                      description="E5 visual reaching: the Panda reaches 5 goal images in the tabletop with MPPI and the terminal image cost.")  # fmt: skip
     e.add_argument("--goals", type=POSITIVE_INT, default=5, help="number of goal images (default 5)")
+    _study_parser(eval_sub, "navigate", NavigateConfig, cmd_eval_navigate, "3 targets and a small tree (< 2 min)",
+                  help="E6 image-goal navigation: 10 held-out target images in the apartment",
+                  description="E6 image-goal navigation: exploration tree, view retrieval, MPPI drive, 10 held-out targets.")  # fmt: skip
+
+
+def _study_parser(eval_sub, name: str, config, func, quick: str, **texts):
+    """``splatplan eval NAME``: --out, --quick (``quick`` says what it runs), the encoder, --device and the config's flags."""
+    e = eval_sub.add_parser(name, **texts)
+    e.add_argument("--out", required=True, help="output folder (created)")
+    e.add_argument("--quick", action="store_true", help=f"{quick}; flags still override them")
     _encoder_args(e)
     add_device_arg(e)
-    add_config_args(e, ReachConfig, group="study options (ReachConfig)")
-    e.set_defaults(func=cmd_eval_reach)
-
-    n = eval_sub.add_parser("navigate", help="E6 image-goal navigation: 10 held-out target images in the apartment",
-                            description="E6 image-goal navigation: exploration tree, view retrieval, MPPI drive, 10 held-out targets.")  # fmt: skip
-    n.add_argument("--out", required=True, help="output folder (created)")
-    n.add_argument("--quick", action="store_true", help="3 targets and a small tree (< 2 min); flags still override them")
-    _encoder_args(n)
-    add_device_arg(n)
-    add_config_args(n, NavigateConfig, group="study options (NavigateConfig)")
-    n.set_defaults(func=cmd_eval_navigate)
+    add_config_args(e, config, group=f"study options ({config.__name__})")
+    e.set_defaults(func=func)
+    return e
 
 
 def cmd_eval_reach(args) -> int:
