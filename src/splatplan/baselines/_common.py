@@ -205,6 +205,11 @@ class Baseline:
     ``orientation`` (-1 when :meth:`collision_score` negates the native score, +1 when the native
     score already grows with collision), and implements :meth:`score_torch` (the native score of
     a [b, 3] block of centres -> [b]) and :meth:`decide` (the native decision).
+
+    Args:
+        splats_or_tensors: a Splats, SceneTensors or mapping of arrays (see :func:`as_scene_tensors`).
+        device: "auto" (CUDA when present, else the CPU), "cpu", "cuda", "cuda:N" or a torch.device.
+        dtype: torch dtype of the scene tensors (float32 as the originals).
     """
 
     native_batch: int = 1

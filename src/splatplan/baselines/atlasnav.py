@@ -41,12 +41,9 @@ _N_LIVE = 3
 class AtlasNav(Baseline):
     """ATLASNav's isotropic occupancy test over a fixed scene.
 
-    Args:
-        splats_or_tensors: a Splats, SceneTensors or mapping of arrays.
-        device: "auto" (CUDA when present, else the CPU), "cpu", "cuda", "cuda:N" or a torch.device.
+    Args (besides ``splats_or_tensors``, ``device`` and ``dtype``: see :class:`~._common.Baseline`):
         n_std: ball radius in units of sigma (3 in ATLASNav).
         max_elems: cap on the elements of the [b, N, 3] chunk (None: device default, see module doc).
-        dtype: torch dtype (float32).
     """
 
     native_batch = NATIVE_BATCH

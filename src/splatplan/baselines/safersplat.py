@@ -93,12 +93,9 @@ def ellipsoid_distance_torch(
 class SaferSplat(Baseline):
     """SAFER-Splat's barrier ``h = phi d^2 - r^2`` over a fixed scene (tensors precomputed once).
 
-    Args:
-        splats_or_tensors: a Splats, SceneTensors or mapping of arrays.
-        device: "auto" (CUDA when present, else the CPU), "cpu", "cuda", "cuda:N" or a torch.device.
+    Args (besides ``splats_or_tensors``, ``device`` and ``dtype``: see :class:`~._common.Baseline`):
         n_steps: bisection steps on Eberly's equation (25 as in SAFER-Splat).
         min_scale: floor on the semi-axes (2DGS disks have a zero third scale), scene units.
-        dtype: torch dtype (float32 as the original).
     """
 
     native_batch = NATIVE_BATCH

@@ -58,13 +58,10 @@ _N_LIVE = 6
 class Splanning(Baseline):
     """SPLANNING's collision probability over a fixed scene (tensors precomputed once).
 
-    Args:
-        splats_or_tensors: a Splats, SceneTensors or mapping of arrays (opacities default 1).
-        device: "auto" (CUDA when present, else the CPU), "cpu", "cuda", "cuda:N" or a torch.device.
+    Args (besides ``splats_or_tensors``, ``device`` and ``dtype``: see :class:`~._common.Baseline`):
         min_scale: floor on the linear scales (2DGS / degenerate splats), scene units.
         cull_std: cull Gaussians farther than ``cull_std * s_max + r`` (6 in SPLANNING).
         max_elems: cap on the elements of one [b, n, 3] block (None: device default).
-        dtype: torch dtype (float32).
     """
 
     native_batch = NATIVE_BATCH

@@ -74,13 +74,9 @@ def max_k_torch(
 class SplatNav(Baseline):
     """Splat-Nav's sphere-ellipsoid test over a fixed scene (tensors precomputed once).
 
-    Args:
-        splats_or_tensors: a Splats, SceneTensors or mapping of arrays (see
-            :func:`~splatplan.baselines._common.as_scene_tensors`).
-        device: "auto" (CUDA when present, else the CPU), "cpu", "cuda", "cuda:N" or a torch.device.
+    Args (besides ``splats_or_tensors``, ``device`` and ``dtype``: see :class:`~._common.Baseline`):
         level: ellipsoid level k; the ellipsoid is the splat with scales ``s * sqrt(k)`` (1 = 1 sigma).
         n_steps: bisection steps on dK/dt (10 as in Splat-Nav).
-        dtype: torch dtype (float32 as the original).
     """
 
     native_batch = NATIVE_BATCH
