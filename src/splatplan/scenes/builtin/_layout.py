@@ -19,7 +19,7 @@ class BoxList:
     """Boxes, labels and base colours of a layout, in the order they are added.
 
     Args:
-        label_colors: label -> RGB in [0, 1], for boxes added without an explicit colour.
+        label_colors: label -> RGB in [0, 1] (every label a box gets).
         offset: (3,) added to every centre (e.g. a table height the layout is written relative to).
     """
 
@@ -30,11 +30,12 @@ class BoxList:
         self.labels: list[str] = []
         self.colors: list[np.ndarray] = []
 
-    def add(self, label: str, center, half, quat=(1.0, 0.0, 0.0, 0.0), color=None) -> None:
-        """One box: ``center`` (3,) and half-extents ``half`` (3,) in metres, wxyz ``quat``."""
+    def add(self, label: str, center, half, quat=(1.0, 0.0, 0.0, 0.0)) -> None:
+        """One box of colour ``label_colors[label]``: ``center`` (3,) and half-extents ``half`` (3,)
+        in metres, wxyz ``quat``."""
         self.boxes.append(make_box(np.asarray(center, np.float64) + self.offset, half, quat))
         self.labels.append(label)
-        self.colors.append(np.asarray(color if color is not None else self.label_colors[label], np.float64))
+        self.colors.append(np.asarray(self.label_colors[label], np.float64))
 
     def scene(self, meta: dict) -> tuple[AnalyticScene, np.ndarray]:
         """(the boxes as an :class:`AnalyticScene` with ``meta``, float64 (M, 3) colours)."""

@@ -60,6 +60,7 @@ DOORS = (
     ("bedroom-kitchen", "y", 0.0, 2.55, 3.35, ("bedroom", "kitchen")),
 )
 
+#: Base colours per label (RGB in [0, 1]), the objects' distinct colours included.
 LABEL_COLORS = {
     "floor": (0.62, 0.50, 0.36),
     "wall": (0.90, 0.89, 0.85),
@@ -70,8 +71,7 @@ LABEL_COLORS = {
     "counter": (0.80, 0.80, 0.82),
     "fridge": (0.92, 0.94, 0.96),
     "shelf": (0.40, 0.28, 0.20),
-}
-OBJECT_COLORS = {
+    # objects: distinct colours
     "object_green_plant": (0.10, 0.55, 0.15),
     "object_yellow_box": (0.95, 0.80, 0.10),
     "object_orange_ball": (0.98, 0.45, 0.05),
@@ -81,6 +81,8 @@ OBJECT_COLORS = {
     "object_blue_crate": (0.10, 0.25, 0.90),
     "object_lime_stool": (0.60, 0.90, 0.10),
 }
+#: The distinct colours of the objects (labels "object_*").
+OBJECT_COLORS = {k: v for k, v in LABEL_COLORS.items() if k.startswith("object_")}
 
 
 @dataclass(frozen=True)
@@ -127,8 +129,8 @@ def _build_layout(seed: int) -> ApartmentLayout:
     box_list = BoxList(LABEL_COLORS)
     add = box_list.add
 
-    def block(label: str, x: float, y: float, hx: float, hy: float, h: float, yaw: float = 0.0, color=None) -> None:
-        add(label, (x, y, (h - 0.002) / 2), (hx, hy, (h + 0.002) / 2), _yaw_quat(yaw), color)  # sinks 2 mm
+    def block(label: str, x: float, y: float, hx: float, hy: float, h: float, yaw: float = 0.0) -> None:
+        add(label, (x, y, (h - 0.002) / 2), (hx, hy, (h + 0.002) / 2), _yaw_quat(yaw))  # sinks 2 mm
 
     j = lambda s: rng.uniform(-s, s)  # noqa: E731  small per-seed jitter (m)
     add("floor", (0.0, 0.0, -0.05), (4.2, 3.2, 0.05))
@@ -150,23 +152,23 @@ def _build_layout(seed: int) -> ApartmentLayout:
     block("table", -2.3 + j(0.05), 0.3 + j(0.05), 0.45, 0.30, 0.42, j(0.1))
     block("shelf", -2.0, 2.78, 0.80, 0.17, 1.0)
     block("table", -1.6 + j(0.05), -1.5 + j(0.05), 0.50, 0.40, 0.75, j(0.1))  # dining table
-    block("object_green_plant", -0.45, 2.55, 0.18, 0.18, 0.70, color=OBJECT_COLORS["object_green_plant"])
-    block("object_yellow_box", -2.9 + j(0.05), -1.2 + j(0.05), 0.20, 0.15, 0.30, rng.uniform(0, np.pi), OBJECT_COLORS["object_yellow_box"])
-    block("object_orange_ball", -1.5 + j(0.05), 1.2 + j(0.05), 0.12, 0.12, 0.24, rng.uniform(0, np.pi), OBJECT_COLORS["object_orange_ball"])
+    block("object_green_plant", -0.45, 2.55, 0.18, 0.18, 0.70)
+    block("object_yellow_box", -2.9 + j(0.05), -1.2 + j(0.05), 0.20, 0.15, 0.30, rng.uniform(0, np.pi))
+    block("object_orange_ball", -1.5 + j(0.05), 1.2 + j(0.05), 0.12, 0.12, 0.24, rng.uniform(0, np.pi))
     # bedroom: bed, wardrobe, chest, objects
     block("bed", 3.0, 1.8 + j(0.05), 0.95, 1.0, 0.50)
     block("bed", 3.93, 1.8, 0.05, 1.0, 0.90)  # headboard
     block("wardrobe", 1.0 + j(0.05), 2.7, 0.60, 0.27, 1.15)
-    block("object_cyan_chest", 3.7, 0.45 + j(0.05), 0.20, 0.30, 0.45, 0.0, OBJECT_COLORS["object_cyan_chest"])
-    block("object_magenta_box", 0.55 + j(0.05), 0.95 + j(0.05), 0.15, 0.15, 0.30, rng.uniform(0, np.pi), OBJECT_COLORS["object_magenta_box"])
+    block("object_cyan_chest", 3.7, 0.45 + j(0.05), 0.20, 0.30, 0.45, 0.0)
+    block("object_magenta_box", 0.55 + j(0.05), 0.95 + j(0.05), 0.15, 0.15, 0.30, rng.uniform(0, np.pi))
     # kitchen: counters along the walls, fridge, island, objects
     block("counter", 2.35, -2.7, 0.85, 0.30, 0.90)
     block("counter", 3.7, -1.2, 0.30, 0.60, 0.90)
     block("fridge", 3.62, -2.62, 0.33, 0.33, 1.15)
     block("table", 2.0 + j(0.05), -1.4 + j(0.05), 0.50, 0.30, 0.90, j(0.05))  # island
-    add("object_blue_crate", (2.0, -1.4, 0.90 + 0.12 - 0.001), (0.15, 0.12, 0.12), _yaw_quat(rng.uniform(0, np.pi)), OBJECT_COLORS["object_blue_crate"])
-    block("object_red_bin", 0.4 + j(0.03), -0.4, 0.15, 0.15, 0.40, color=OBJECT_COLORS["object_red_bin"])
-    block("object_lime_stool", 1.1 + j(0.03), -1.4 + j(0.03), 0.16, 0.16, 0.45, color=OBJECT_COLORS["object_lime_stool"])
+    add("object_blue_crate", (2.0, -1.4, 0.90 + 0.12 - 0.001), (0.15, 0.12, 0.12), _yaw_quat(rng.uniform(0, np.pi)))
+    block("object_red_bin", 0.4 + j(0.03), -0.4, 0.15, 0.15, 0.40)
+    block("object_lime_stool", 1.1 + j(0.03), -1.4 + j(0.03), 0.16, 0.16, 0.45)
 
     doors = {}
     for name, ax, c, s, e, rooms in DOORS:

@@ -51,7 +51,7 @@ TABLE_TOP = -0.09
 #: study places end-effector targets.
 TARGET_REGION = (np.array([0.60, -0.08, -0.03]), np.array([0.70, 0.08, 0.03]))
 
-#: Base colours per label (RGB in [0, 1]); objects carry their own colour in the layout.
+#: Base colours per label (RGB in [0, 1]), the objects' distinct colours included.
 LABEL_COLORS = {
     "table": (0.55, 0.40, 0.26),
     "table_leg": (0.35, 0.25, 0.16),
@@ -59,9 +59,7 @@ LABEL_COLORS = {
     "wall_bin": (0.75, 0.78, 0.80),
     "wall_side": (0.70, 0.72, 0.66),
     "shelf": (0.45, 0.45, 0.50),
-}
-#: Distinct object colours (name -> RGB).
-OBJECT_COLORS = {
+    # objects: distinct colours
     "object_red": (0.85, 0.12, 0.10),
     "object_yellow": (0.95, 0.82, 0.10),
     "object_green": (0.15, 0.65, 0.20),
@@ -69,6 +67,8 @@ OBJECT_COLORS = {
     "object_purple": (0.55, 0.20, 0.70),
     "object_orange": (0.98, 0.50, 0.05),
 }
+#: The distinct colours of the objects (labels "object_*").
+OBJECT_COLORS = {k: v for k, v in LABEL_COLORS.items() if k.startswith("object_")}
 
 
 @dataclass(frozen=True)
@@ -114,12 +114,12 @@ def _build_layout(seed: int) -> TabletopLayout:
         add("shelf", (x, -0.50, 0.10 - 0.0005), (0.015, 0.12, 0.10 + 0.0005))
     add("shelf", (0.37, -0.50, 0.21), (0.17, 0.13, 0.012))
     # coloured objects
-    add("object_red", (0.78 + j(0.01), -0.21 + j(0.01), 0.025), (0.025, 0.025, 0.0255), _yaw_quat(rng.uniform(0, np.pi)), OBJECT_COLORS["object_red"])
-    add("object_yellow", (0.78 + j(0.01), 0.21 + j(0.01), 0.035), (0.03, 0.02, 0.0355), _yaw_quat(rng.uniform(0, np.pi)), OBJECT_COLORS["object_yellow"])
-    add("object_green", (0.20 + j(0.02), 0.25 + j(0.02), 0.04), (0.03, 0.03, 0.0405), _yaw_quat(rng.uniform(0, np.pi)), OBJECT_COLORS["object_green"])
-    add("object_blue", (0.28 + j(0.02), -0.28 + j(0.02), 0.03), (0.05, 0.035, 0.0305), _yaw_quat(rng.uniform(0, np.pi)), OBJECT_COLORS["object_blue"])
-    add("object_purple", (0.37 + j(0.02), -0.50, 0.222 + 0.03 - 0.001), (0.03, 0.03, 0.03), _yaw_quat(rng.uniform(0, np.pi)), OBJECT_COLORS["object_purple"])
-    add("object_orange", (0.30 + j(0.02), 0.58 + j(0.02), 0.04), (0.035, 0.035, 0.0405), _yaw_quat(rng.uniform(0, np.pi)), OBJECT_COLORS["object_orange"])
+    add("object_red", (0.78 + j(0.01), -0.21 + j(0.01), 0.025), (0.025, 0.025, 0.0255), _yaw_quat(rng.uniform(0, np.pi)))
+    add("object_yellow", (0.78 + j(0.01), 0.21 + j(0.01), 0.035), (0.03, 0.02, 0.0355), _yaw_quat(rng.uniform(0, np.pi)))
+    add("object_green", (0.20 + j(0.02), 0.25 + j(0.02), 0.04), (0.03, 0.03, 0.0405), _yaw_quat(rng.uniform(0, np.pi)))
+    add("object_blue", (0.28 + j(0.02), -0.28 + j(0.02), 0.03), (0.05, 0.035, 0.0305), _yaw_quat(rng.uniform(0, np.pi)))
+    add("object_purple", (0.37 + j(0.02), -0.50, 0.222 + 0.03 - 0.001), (0.03, 0.03, 0.03), _yaw_quat(rng.uniform(0, np.pi)))
+    add("object_orange", (0.30 + j(0.02), 0.58 + j(0.02), 0.04), (0.035, 0.035, 0.0405), _yaw_quat(rng.uniform(0, np.pi)))
 
     scene, colors = box_list.scene(
         {
