@@ -62,6 +62,14 @@ def reject_nan_flags(args: argparse.Namespace) -> None:
             raise SplatplanError(f"--{dest.replace('_', '-')}: NaN is not a valid value")
 
 
+def add_command(sub, name: str, func, help: str, description: str | None = None) -> argparse.ArgumentParser:
+    """A (sub)command of ``sub`` whose action is ``func(args) -> exit code``; ``help`` is its line in
+    the parent's --help, ``description`` (default ``help``) heads its own."""
+    s = sub.add_parser(name, help=help, description=description)
+    s.set_defaults(func=func)
+    return s
+
+
 ROBOT_HELP = "robot link: 'sphere:R' or 'ellipsoid:A,B,C' (semi-axes, scene units)"
 
 

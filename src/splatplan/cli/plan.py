@@ -23,7 +23,7 @@ import numpy as np
 
 from ..errors import SplatplanError
 from ._common import (
-    BASE_POSE_HELP, SEED, _load, add_config_args, add_device_arg, add_terrain_args, allow_negative_values, config_from_args, float_arg,
+    BASE_POSE_HELP, SEED, _load, add_command, add_config_args, add_device_arg, add_terrain_args, allow_negative_values, config_from_args, float_arg,
     ground_robot_scene, parse_base_pose, robot_at, write_json,
 )  # fmt: skip
 
@@ -176,12 +176,9 @@ def register(sub, eval_sub) -> None:
     from ..metric import MetricConfig
     from ..planners import RefineConfig, RRTConfig
 
-    s = sub.add_parser(
-        "plan",
-        help="RRT / RRT-Connect (+ refinement) from a start to a goal configuration of a robot",
-        description="Batched RRT or RRT-Connect (+ zeroth-order refinement) in the robot's configuration space. Exit codes: 0 path found, "
-        "1 no path within the budget (an existing --out is kept unless --force), 2 bad input.",
-    )
+    s = add_command(sub, "plan", cmd_plan, "RRT / RRT-Connect (+ refinement) from a start to a goal configuration of a robot",
+                    "Batched RRT or RRT-Connect (+ zeroth-order refinement) in the robot's configuration space. Exit codes: 0 path found, "
+                    "1 no path within the budget (an existing --out is kept unless --force), 2 bad input.")  # fmt: skip
     allow_negative_values(s)
     s.add_argument("scene", metavar="SCENE")
     s.add_argument("--robot", default="sphere:0.015", help=ROBOT_HELP)
@@ -211,4 +208,3 @@ def register(sub, eval_sub) -> None:
     add_terrain_args(s)
     add_config_args(s, RRTConfig, prefix="rrt_", skip=("seed",), group="RRT options (RRTConfig; lengths in scene units of robot motion)")
     add_config_args(s, RefineConfig, prefix="refine_", skip=("seed",), group="refinement options (RefineConfig, with --refine)")
-    s.set_defaults(func=cmd_plan)

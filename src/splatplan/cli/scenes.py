@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import SplatplanError
-from ._common import SEED, _Unset, _load, add_config_args, atomic_dir, config_from_args, float_arg, int_arg, move_into, parse_vec3
+from ._common import SEED, _Unset, _load, add_command, add_config_args, atomic_dir, config_from_args, float_arg, int_arg, move_into, parse_vec3
 
 
 def cmd_info(args) -> int:
@@ -197,19 +197,18 @@ def _scene_from_moveit(args) -> int:
 
 
 def register(sub, eval_sub) -> None:
-    s = sub.add_parser("info", help="summarise a splat file")
+    s = add_command(sub, "info", cmd_info, "summarise a splat file")
     s.add_argument("scene", metavar="SCENE", help="splat file (.ply INRIA/2DGS/compressed, .splat, .spz, gsplat .pt)")
     s.add_argument("--json", action="store_true", help="print one JSON object")
     s.add_argument("--up-hint", default=None, choices=("+x", "-x", "+y", "-y", "+z", "-z"),
                    help="capture convention that breaks ties between perpendicular bounding planes in the up guess "
                    "(default +z for files splatplan wrote, with a .align.json/.gt.json beside them, else -y)")  # fmt: skip
-    s.set_defaults(func=cmd_info)
     from ..scenes.align import AlignConfig
 
-    s = sub.add_parser("scene", help="write a built-in scene or splats of a MoveIt planning scene with its ground truth, or align a capture",
-                       description="`scene NAME --out PATH.ply` writes a built-in scene; `scene from-moveit SCENE.yaml --out PATH.ply` samples "
-                       "a MoveIt planning scene into splats (ground truth in PATH.gt.json); `scene align IN --out OUT.ply` puts a capture in the "
-                       "robot's world (z up, floor at z = 0; the transform goes to OUT.align.json and is printed).")  # fmt: skip
+    s = add_command(sub, "scene", cmd_scene, "write a built-in scene or splats of a MoveIt planning scene with its ground truth, or align a capture",
+                    "`scene NAME --out PATH.ply` writes a built-in scene; `scene from-moveit SCENE.yaml --out PATH.ply` samples "
+                    "a MoveIt planning scene into splats (ground truth in PATH.gt.json); `scene align IN --out OUT.ply` puts a capture in the "
+                    "robot's world (z up, floor at z = 0; the transform goes to OUT.align.json and is printed).")  # fmt: skip
     s.add_argument("name", metavar="NAME", help="built-in scene name: stonehenge | tabletop | apartment; or 'from-moveit' or 'align'")
     s.add_argument("input", metavar="IN", nargs="?", default=None, help="align: the input splat file; from-moveit: a MoveIt planning-scene "
                    "YAML (box, cylinder, sphere primitives)")  # fmt: skip
@@ -227,4 +226,3 @@ def register(sub, eval_sub) -> None:
     s.add_argument("--level", type=int_arg(ge=1, le=5), default=1, help="Gaussian-size level 1..5 (larger, fewer splats)")
     s.add_argument("--seed", type=SEED, default=0, help="layout and sampling seed, an integer >= 0 (default 0)")
     s.add_argument("--n-splats", type=int_arg(ge=1), default=None, help="from-moveit only: total splats (default 100000: ~7-8 mm spacing on a metre-scale workcell)")
-    s.set_defaults(func=cmd_scene)

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import SplatplanError
-from ._common import BASE_POSE_HELP, _load, add_config_args, add_terrain_args, config_from_args, ground_robot_scene, parse_base_pose, robot_at
+from ._common import BASE_POSE_HELP, _load, add_command, add_config_args, add_terrain_args, config_from_args, ground_robot_scene, parse_base_pose, robot_at
 
 
 def _read_plan(path: str) -> np.ndarray:
@@ -90,7 +90,7 @@ def cmd_view(args) -> int:
 def register(sub, eval_sub) -> None:
     from ..viewer.app import ViewerConfig  # numpy only: viser is imported when the server starts
 
-    s = sub.add_parser("view", help="open a browser viewer of a scene, robot, plan, tree or MPC run")
+    s = add_command(sub, "view", cmd_view, "open a browser viewer of a scene, robot, plan, tree or MPC run")
     s.add_argument("scene", metavar="SCENE", help="splat file or a built-in scene file")
     s.add_argument("--robot", help="robot: panda | go2 | sphere:R | ellipsoid:A,B,C | path/to.urdf (default: a sphere sized to the scene)")
     s.add_argument("--base-pose", default=None, help=BASE_POSE_HELP)
@@ -99,4 +99,3 @@ def register(sub, eval_sub) -> None:
     s.add_argument("--tree", help="TREE.npz with 'nodes' (N, D) and 'parents' (N,)")
     add_config_args(s, ViewerConfig, group="viewer options")
     add_terrain_args(s)
-    s.set_defaults(func=cmd_view)
