@@ -72,7 +72,7 @@ def main(argv: list[str] | None = None) -> int:
     from splatplan.metric import CollisionChecker
     from splatplan.metric.wp_metric import TierConfig
     from splatplan.scenes.filters import filter_floaters
-    from splatplan.scenes.stonehenge import build_stonehenge
+    from splatplan.scenes.builtin.stonehenge import build_stonehenge
 
     base, _ = build_stonehenge(level=1, seed=0)
     base, _ = filter_floaters(base)

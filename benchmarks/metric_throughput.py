@@ -58,7 +58,7 @@ def main(argv: list[str] | None = None) -> int:
     from splatplan.scenes.filters import filter_floaters
     from splatplan.eval._common import make_queries
     from splatplan.eval.throughput import proc_status_mb, reset_peak_rss, trim_heap
-    from splatplan.scenes.stonehenge import build_stonehenge
+    from splatplan.scenes.builtin.stonehenge import build_stonehenge
 
     scene, _ = build_stonehenge(level=1, seed=0)
     scene, rep = filter_floaters(scene)

@@ -67,7 +67,7 @@ def bench_rrt(scene, gt, n_goals: int, seed: int = 0) -> dict:
     from splatplan.metric import CollisionChecker
     from splatplan.planners import RRTConfig, edge_points, plan
     from splatplan.planners.metrics import clearance
-    from splatplan.scenes.stonehenge import PLANE_Z
+    from splatplan.scenes.builtin.stonehenge import PLANE_Z
 
     load = _load()
     checker = CollisionChecker(scene, n_sigma=1.0)
@@ -106,7 +106,7 @@ def bench_rrt(scene, gt, n_goals: int, seed: int = 0) -> dict:
 def bench_mppi_base(scene, body: str, n_steps: int = 40, seed: int = 0) -> dict:
     from splatplan.metric import CollisionChecker
     from splatplan.planners import MPPI, MPPIConfig, PlanarBase
-    from splatplan.scenes.stonehenge import PLANE_Z
+    from splatplan.scenes.builtin.stonehenge import PLANE_Z
 
     load = _load()
     checker = CollisionChecker(scene, n_sigma=1.0)
@@ -285,7 +285,7 @@ def bench_mppi_panda(
         return out
     # one collision query of the same batch size on the unit-size Stonehenge, for comparison
     from splatplan.metric import CollisionChecker
-    from splatplan.scenes.stonehenge import build_stonehenge
+    from splatplan.scenes.builtin.stonehenge import build_stonehenge
 
     sraw, _ = build_stonehenge(level=1, seed=seed)
     sh, _ = filter_floaters(sraw)
@@ -443,7 +443,7 @@ def main(argv: list[str] | None = None) -> int:
         result["cpu_threads"] = os.cpu_count()
     else:
         from splatplan.scenes.filters import filter_floaters
-        from splatplan.scenes.stonehenge import build_stonehenge
+        from splatplan.scenes.builtin.stonehenge import build_stonehenge
 
         raw, gt = build_stonehenge(level=1, seed=0)
         scene, _ = filter_floaters(raw)

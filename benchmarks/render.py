@@ -65,7 +65,7 @@ def main(argv: list[str] | None = None) -> int:
 
     from splatplan._warp import cpu_threads, resolve_device
     from splatplan.render import SplatRenderer, intrinsics_from_fov
-    from splatplan.scenes.stonehenge import build_stonehenge
+    from splatplan.scenes.builtin.stonehenge import build_stonehenge
 
     device = resolve_device(args.device)
     scene, _ = build_stonehenge(level=1, seed=0, n_splats=args.n_splats)

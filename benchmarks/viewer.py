@@ -177,7 +177,7 @@ def main() -> None:
     ap.add_argument("--screenshot", help="also write the README screenshot (Panda in tabletop with a plan) here, e.g. docs/viewer.png")
     args = ap.parse_args()
     from splatplan.scenes.load import save_scene
-    from splatplan.scenes.stonehenge import build_stonehenge
+    from splatplan.scenes.builtin.stonehenge import build_stonehenge
     from splatplan.viewer import free_port
 
     os.environ.setdefault("PYTHONUNBUFFERED", "1")

@@ -24,7 +24,7 @@ _LAZY = {
     "QueryResult": ("splatplan.metric.config", "QueryResult"),
     "SplatplanError": ("splatplan.errors", "SplatplanError"),
     "PlanningError": ("splatplan.errors", "PlanningError"),
-    "build_stonehenge": ("splatplan.scenes.stonehenge", "build_stonehenge"),
+    "build_stonehenge": ("splatplan.scenes.builtin.stonehenge", "build_stonehenge"),
     "plan": ("splatplan.planners", "plan"),
     "RRT": ("splatplan.planners", "RRT"),
     "RRTConfig": ("splatplan.planners", "RRTConfig"),

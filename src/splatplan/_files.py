@@ -57,17 +57,24 @@ def atomic_path(path: str | Path):
             os.unlink(tmp)
 
 
+def existing_file(path: str | Path, what: str, kind: str, error: type[SplatplanError] = SplatplanError) -> Path:
+    """``path`` as a Path when it is a file; else one ``error`` line naming ``what`` (e.g. "poses
+    file") and the path: a folder, or nothing there (``kind``: what was expected, e.g. "a YAML file")."""
+    path = Path(path)
+    if path.is_dir():
+        raise error(f"{what} {path} is a directory; expected {kind}")
+    if not path.is_file():
+        raise error(f"{what} {path} does not exist")
+    return path
+
+
 def read_yaml(path: str | Path, what: str, error: type[SplatplanError] = SplatplanError):
     """Parse a YAML file; a missing file, a folder, a syntax error or binary data is one ``error``
     line naming ``what`` (e.g. "MoveIt YAML") and the path (with the line and column of a syntax
     error). Needs PyYAML (a core dependency)."""
     import yaml
 
-    path = Path(path)
-    if path.is_dir():
-        raise error(f"{what} {path} is a directory; expected a YAML file")
-    if not path.is_file():
-        raise error(f"{what} {path} does not exist")
+    path = existing_file(path, what, "a YAML file", error)
     try:
         return yaml.safe_load(path.read_text())
     except yaml.YAMLError as exc:

@@ -1,7 +1,8 @@
 """Warp start-up in one place: quiet, with the kernel cache inside the project build tree.
 
 Import :func:`wp` from here instead of calling ``warp.init()`` anywhere else, so the banner
-never reaches the CLI's output and the cache never lands in the user's home by surprise.
+never reaches the CLI's output. The kernel cache is the user's choice when they made one
+(:func:`_cache_dir`); only then does splatplan leave Warp's process-wide setting alone.
 """
 
 from __future__ import annotations
@@ -12,34 +13,53 @@ import threading
 from contextlib import contextmanager
 from functools import lru_cache
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    import torch
 
 _lock = threading.Lock()
 
 
-def _cache_dir() -> Path:
-    env = os.environ.get("SPLATPLAN_WARP_CACHE")
+def _cache_dir(current: str | None, environ=os.environ) -> Path | None:
+    """The kernel cache folder splatplan sets, or None to leave Warp's setting as it is.
+
+    In order: a ``warp.config.kernel_cache_dir`` already set (``current``: by the user, or by a
+    ``warp.init()`` that ran before splatplan's) stays; ``SPLATPLAN_WARP_CACHE``; Warp's own
+    ``WARP_CACHE_PATH`` (Warp reads it); in a source checkout ``<repo>/build/warp-cache`` (our own
+    runs and tests share one cache); otherwise Warp's default (its per-user cache folder).
+    """
+    if current is not None:
+        return None
+    env = environ.get("SPLATPLAN_WARP_CACHE")
     if env:
         return Path(env)
-    here = Path(__file__).resolve()
+    if environ.get("WARP_CACHE_PATH"):
+        return None
     # Editable/source checkout: <repo>/src/splatplan/_warp.py -> <repo>/build/warp-cache
-    repo = here.parents[2]
-    if (repo / "pyproject.toml").exists():
+    repo = Path(__file__).resolve().parents[2]
+    if (repo / "pyproject.toml").exists() and (repo / "src" / "splatplan").is_dir():
         return repo / "build" / "warp-cache"
-    return Path.home() / ".cache" / "splatplan" / "warp-cache"
+    return None
 
 
 @lru_cache(maxsize=1)
 def wp():
-    """Return the initialised ``warp`` module (quiet, project-local kernel cache)."""
+    """Return the initialised ``warp`` module (quiet; kernel cache: :func:`_cache_dir`)."""
     with _lock:
         import warp
 
+        # Warp prints its banner and every module load to stdout at its default log level; a level
+        # the user chose (anything but the default) stays.
         if hasattr(warp.config, "log_level"):  # warp >= 1.10
-            warp.config.log_level = warp.LOG_ERROR
-        warp.config.quiet = True  # older releases
-        cache = _cache_dir()
-        cache.mkdir(parents=True, exist_ok=True)
-        warp.config.kernel_cache_dir = str(cache)
+            if warp.config.log_level == warp.LOG_INFO:
+                warp.config.log_level = warp.LOG_ERROR
+        else:  # older releases
+            warp.config.quiet = True
+        cache = _cache_dir(warp.config.kernel_cache_dir)
+        if cache is not None:
+            cache.mkdir(parents=True, exist_ok=True)
+            warp.config.kernel_cache_dir = str(cache)
         # The native library prints a CUDA-driver warning straight to fd 2 on machines without a
         # GPU; keep it off the CLI's output (resolve_device gives our own message instead).
         with _silence_fd(2):
@@ -87,6 +107,33 @@ def resolve_device(device: str | None) -> str:
     raise SplatplanError(f"unknown device {device!r}: use 'cpu', 'cuda' or 'cuda:N'")
 
 
+def resolve_torch_device(device) -> "torch.device":
+    """The torch device of ``None``/"auto"/"cpu"/"cuda"/"cuda:N" or a ``torch.device``.
+
+    "auto" means what it means for :func:`resolve_device`: CUDA when Warp sees a CUDA device (and
+    this torch build can use it), else the CPU.
+    """
+    import torch
+
+    from .errors import SplatplanError
+
+    if isinstance(device, torch.device):
+        dev = device
+    elif device in (None, "auto"):
+        cuda = torch.cuda.is_available() and wp().is_cuda_available()
+        return torch.device("cuda:0" if cuda else "cpu")
+    else:
+        try:
+            dev = torch.device(str(device))
+        except (RuntimeError, ValueError):
+            raise SplatplanError(f"unknown device {device!r}: use 'cpu', 'cuda' or 'cuda:N'") from None
+    if dev.type == "cuda" and not torch.cuda.is_available():
+        raise SplatplanError(f"device {device!r} requested but no CUDA device is available; use --device cpu")
+    if dev.type not in ("cpu", "cuda"):
+        raise SplatplanError(f"unknown device {device!r}: use 'cpu', 'cuda' or 'cuda:N'")
+    return dev
+
+
 def cpu_threads() -> int:
     """Worker threads for CPU launches (Warp runs one CPU launch on one thread)."""
     env = os.environ.get("SPLATPLAN_CPU_THREADS")
@@ -96,6 +143,68 @@ def cpu_threads() -> int:
         return max(1, len(os.sched_getaffinity(0)))
     except AttributeError:  # pragma: no cover - non-Linux
         return max(1, os.cpu_count() or 1)
+
+
+class LazyThreadPool:
+    """CPU worker threads owned by one object: started on first use, stopped by :meth:`close` (the
+    next use starts them again). Copies and pickles carry no threads (they start their own)."""
+
+    def __init__(self, threads: int | None = None, name: str = "splatplan") -> None:
+        self.threads = threads  #: workers (None: :func:`cpu_threads` when the pool starts)
+        self.name = name
+        self._lock = threading.Lock()
+        self._pool = None
+
+    def get(self):
+        """The running ``ThreadPoolExecutor`` (started here when needed)."""
+        from concurrent.futures import ThreadPoolExecutor
+
+        with self._lock:
+            if self._pool is None:
+                self._pool = ThreadPoolExecutor(max_workers=self.threads or cpu_threads(), thread_name_prefix=self.name)
+            return self._pool
+
+    def close(self, wait: bool = True) -> None:
+        """Stop the workers (after the queued work when ``wait``)."""
+        with self._lock:
+            pool, self._pool = self._pool, None
+        if pool is not None:
+            pool.shutdown(wait=wait)
+
+    def __getstate__(self) -> dict:
+        return {"threads": self.threads, "name": self.name}
+
+    def __setstate__(self, state: dict) -> None:
+        self.__init__(**state)
+
+    def __copy__(self) -> "LazyThreadPool":
+        return LazyThreadPool(self.threads, self.name)
+
+    def __deepcopy__(self, memo) -> "LazyThreadPool":
+        return self.__copy__()
+
+
+class OwnsThreadPool:
+    """Mixin of an object that keeps a :class:`LazyThreadPool` in ``self._pool``: ``close()`` stops
+    its threads and ``with obj:`` closes it on exit (the object stays usable)."""
+
+    _pool: LazyThreadPool
+
+    def close(self) -> None:
+        """Stop the CPU worker threads (the next CPU call starts them again)."""
+        self._pool.close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def __del__(self) -> None:  # pragma: no cover - best effort at interpreter exit
+        try:
+            self._pool.close(wait=False)
+        except Exception:
+            pass
 
 
 def wait_all(futures) -> None:

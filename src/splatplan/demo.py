@@ -32,14 +32,11 @@ def collision_field(checker, z: float, lo: np.ndarray, hi: np.ndarray, radius: f
 
 
 def _plot_field(path: Path, fields, gt, z: float, lo, hi, radius: float, n_kept_floaters: int = 0, floater_opacity: tuple[float, float] = (0.1, 0.3)) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     from matplotlib.lines import Line2D
 
     from .eval._plots import top_view_handles
-    from .scenes.stonehenge import plot_top_view
+    from .scenes.builtin.stonehenge import plot_top_view
 
     fig, axes = plt.subplots(1, len(fields), figsize=(5.2 * len(fields), 6.3), constrained_layout=True)
     for ax, (ns, (xs, ys, f)) in zip(np.atleast_1d(axes), fields.items()):
@@ -77,12 +74,9 @@ def _plot_field(path: Path, fields, gt, z: float, lo, hi, radius: float, n_kept_
 
 
 def _plot_plans(path: Path, plans, gt, z: float, start, goal, radius: float) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from .scenes.stonehenge import plot_top_view
+    from .scenes.builtin.stonehenge import plot_top_view
 
     from matplotlib.lines import Line2D
 
@@ -137,7 +131,7 @@ def run_demo(out_dir: Path, device: str = "auto", seed: int = 0) -> dict:
     from .planners.metrics import clearance, d_min, smoothness
     from .robots import DEFAULT_POINT_ROBOT, load_robot
     from .scenes.filters import filter_floaters
-    from .scenes.stonehenge import PLANE_Z, build_stonehenge
+    from .scenes.builtin.stonehenge import PLANE_Z, build_stonehenge
 
     t0 = time.perf_counter()
     robot = load_robot(DEFAULT_POINT_ROBOT)
@@ -170,7 +164,7 @@ def run_demo(out_dir: Path, device: str = "auto", seed: int = 0) -> dict:
     # planning from the centre to a border goal on the plane, free at every n_sigma shown
     start = np.array([0.0, 0.0, PLANE_Z])
     goal = _free_border_goal([base.with_config(n_sigma=ns) for ns in N_SIGMAS], start, r_robot)
-    rrt = RRTConfig(box_lo=(-0.5, -0.5, PLANE_Z), box_hi=(0.5, 0.5, PLANE_Z), time_budget_s=20.0)
+    rrt = RRTConfig(box_lo=(-0.5, -0.5, PLANE_Z), box_hi=(0.5, 0.5, PLANE_Z), time_limit_s=20.0)
     plans, rows = {}, []
     for ns in N_SIGMAS:
         res = plan(base.with_config(n_sigma=ns), start, goal, robot=robot, refine=True, seed=seed, rrt_config=rrt)
@@ -199,7 +193,7 @@ def run_reach_demo(out: Path, device: str = "auto") -> dict:
     from .eval.reach import _plot_goal, quick_config
     from .render import SplatRenderer
     from .robots import load_robot
-    from .tasks._common import base_terrain, load_task_scene
+    from .tasks._common import load_task_scene
     from .tasks.reach import ReachConfig, make_reach_goals, reach_encoder, reach_start, run_reach, wrist_camera
     from ._warp import resolve_device
 

@@ -14,7 +14,7 @@ from splatplan.cli import main
 from splatplan.errors import SplatplanError
 from splatplan.eval.mbm import MBMConfig, dense_path, derived_margin, exact_clearance, summarise
 from splatplan.robots import load_robot
-from splatplan.scenes.primitives import AnalyticScene, make_box, make_cylinder
+from splatplan.scenes.builtin.primitives import AnalyticScene, make_box, make_cylinder
 
 REPO = Path(__file__).resolve().parents[2]
 MBM = REPO / ".." / "shared" / "data" / "mbm"

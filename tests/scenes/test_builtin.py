@@ -57,7 +57,7 @@ def test_apartment_doors_and_rooms():
 
 def test_write_builtin_roundtrip(tmp_path):
     from splatplan.scenes.load import load_scene
-    from splatplan.scenes.stonehenge import load_ground_truth
+    from splatplan.scenes.builtin.stonehenge import load_ground_truth
 
     ply, gt = write_builtin("apartment", tmp_path / "apt.ply")
     s = load_scene(ply, filter_floaters=False)

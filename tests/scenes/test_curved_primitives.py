@@ -12,7 +12,7 @@ import pytest
 
 from splatplan.errors import SplatplanError
 from splatplan.scenes.builtin import build_builtin
-from splatplan.scenes.primitives import (
+from splatplan.scenes.builtin.primitives import (
     AnalyticScene,
     box_sdf,
     cylinder_sdf,

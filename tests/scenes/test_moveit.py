@@ -13,7 +13,7 @@ import pytest
 from splatplan.cli import main
 from splatplan.errors import PlanningError, SceneFormatError
 from splatplan.scenes.moveit import load_moveit_request, load_moveit_scene, moveit_scene_from_dict
-from splatplan.scenes.primitives import AnalyticScene, box_sdf, cylinder_sdf, make_box, make_cylinder, make_sphere, sphere_sdf
+from splatplan.scenes.builtin.primitives import AnalyticScene, box_sdf, cylinder_sdf, make_box, make_cylinder, make_sphere, sphere_sdf
 
 REPO = Path(__file__).resolve().parents[2]
 MBM = REPO / ".." / "shared" / "data" / "mbm"

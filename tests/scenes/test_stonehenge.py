@@ -9,9 +9,9 @@ import pytest
 
 from splatplan.errors import SplatplanError
 from splatplan.robots import point_radius
-from splatplan.scenes.primitives import AnalyticScene, SurfaceSplatConfig, _sample_faces, box_sdf, make_box, splats_from_boxes
+from splatplan.scenes.builtin.primitives import AnalyticScene, SurfaceSplatConfig, _sample_faces, box_sdf, make_box, splats_from_boxes
 from splatplan.scenes.splats import quat_to_rotmat, rotmat_to_quat
-from splatplan.scenes.stonehenge import (
+from splatplan.scenes.builtin.stonehenge import (
     PLANE_Z,
     RING_GATES,
     box_cross_section,

@@ -7,7 +7,7 @@ torch raises a one-line :class:`~splatplan.errors.SplatplanError` naming
 All read the same splat arrays (means, **wxyz** quats, linear scales, opacities) and a robot
 sphere (centre, radius). Each module provides
 
-* ``<name>_score(splats_or_tensors, centers, radius, device="cpu", **method_kw) -> (B,)`` - the
+* ``<name>_score(splats_or_tensors, centers, radius, device="auto", **method_kw) -> (B,)`` - the
   method's native score (see each module and SPEC section 3),
 * ``collision_score(...)`` - the same, oriented so that **larger = more likely in collision**
   (for precision-recall threshold sweeps),

@@ -15,6 +15,8 @@ from typing import Any, Mapping
 import numpy as np
 import torch
 
+from .._arrays import array_kind, host_array
+from .._warp import resolve_torch_device
 from ..errors import SplatplanError
 
 #: Default floor on the linear scales, in scene units, used where a formula divides by a scale
@@ -84,7 +86,7 @@ class SceneTensors:
 
 def as_scene_tensors(
     splats_or_tensors: Any,
-    device: str | torch.device = "cpu",
+    device: str | torch.device = "auto",
     dtype: torch.dtype = torch.float32,
 ) -> SceneTensors:
     """Convert a scene to :class:`SceneTensors` on ``device``.
@@ -93,12 +95,13 @@ def as_scene_tensors(
         splats_or_tensors: a :class:`~splatplan.scenes.splats.Splats`, a :class:`SceneTensors`, or a
             mapping with keys ``means`` [N, 3], ``quats`` [N, 4] (wxyz), ``scales`` [N, 3] (linear
             std) and optionally ``opacities`` [N] (default 1); numpy arrays or torch tensors.
-        device: torch device, e.g. ``"cpu"`` or ``"cuda"``.
+        device: "auto" (CUDA when present, else the CPU), "cpu", "cuda", "cuda:N" or a ``torch.device``.
         dtype: floating dtype of every tensor (the originals run in float32).
 
     Returns:
         The scene tensors (rotations precomputed from the quaternions).
     """
+    device = resolve_torch_device(device)
     if isinstance(splats_or_tensors, SceneTensors):
         s = splats_or_tensors
         return SceneTensors(*(t.to(device=device, dtype=dtype) for t in (s.means, s.rotations, s.scales, s.opacities)))
@@ -117,7 +120,7 @@ def as_scene_tensors(
 
     def _t(a: Any) -> torch.Tensor:
         # Quaternions are normalised in float64 before the cast, as in quat_to_rotmat.
-        t = a if isinstance(a, torch.Tensor) else torch.as_tensor(np.asarray(a))
+        t = a if array_kind(a) == "torch" else torch.as_tensor(host_array(a))
         return t.to(device=device, dtype=torch.float64)
 
     means_t, quats_t, scales_t = _t(means), _t(quats), _t(scales)
@@ -145,7 +148,7 @@ def as_scene_tensors(
 
 def as_centers(centers: Any, device: torch.device, dtype: torch.dtype) -> torch.Tensor:
     """Query sphere centres as a [B, 3] tensor (a single (3,) centre becomes [1, 3])."""
-    c = centers if isinstance(centers, torch.Tensor) else torch.as_tensor(np.asarray(centers, dtype=np.float64))
+    c = centers if array_kind(centers) == "torch" else torch.as_tensor(np.asarray(host_array(centers), dtype=np.float64))
     c = c.to(device=device, dtype=dtype)
     if c.ndim == 1 and c.shape[0] == 3:
         c = c[None]
@@ -192,3 +195,70 @@ def sync(device: torch.device) -> None:
     """Wait for queued device work (no-op on CPU); used by the timing helpers."""
     if device.type == "cuda":
         torch.cuda.synchronize(device)
+
+
+class Baseline:
+    """What the four baseline classes share: the scene tensors on one torch device, queries in
+    blocks of rows, the oriented score and the native decision.
+
+    A subclass sets ``native_batch`` (queries per evaluation in the original code base) and
+    ``orientation`` (-1 when :meth:`collision_score` negates the native score, +1 when the native
+    score already grows with collision), and implements :meth:`score_torch` (the native score of
+    a [b, 3] block of centres -> [b]) and :meth:`decide` (the native decision).
+
+    Args:
+        splats_or_tensors: a Splats, SceneTensors or mapping of arrays (see :func:`as_scene_tensors`).
+        device: "auto" (CUDA when present, else the CPU), "cpu", "cuda", "cuda:N" or a torch.device.
+        dtype: torch dtype of the scene tensors (float32 as the originals).
+    """
+
+    native_batch: int = 1
+    orientation: float = -1.0
+
+    def __init__(self, splats_or_tensors: Any, device: str | torch.device, dtype: torch.dtype) -> None:
+        self.scene: SceneTensors = as_scene_tensors(splats_or_tensors, device, dtype)
+
+    @property
+    def device(self) -> torch.device:
+        return self.scene.device
+
+    def rows(self, batch: int) -> int:
+        """Queries per :meth:`score_torch` call for a caller's ``batch`` (a memory cap may lower it)."""
+        return max(1, int(batch))
+
+    def score_torch(self, centers: torch.Tensor, radius: float) -> torch.Tensor:  # [b, 3] -> [b]
+        raise NotImplementedError
+
+    def decide(self, score: np.ndarray) -> np.ndarray:
+        raise NotImplementedError
+
+    @torch.no_grad()
+    def score(self, centers: Any, radius: float, batch: int | None = None) -> np.ndarray:
+        """Native score per centre, float64 (B,).
+
+        Args:
+            centers: (B, 3) sphere centres, scene units.
+            radius: sphere radius r > 0, scene units.
+            batch: queries evaluated together (None: ``native_batch``; any value gives the same
+                scores, larger ones faster).
+        """
+        c = as_centers(centers, self.device, self.scene.dtype)
+        step = self.rows(self.native_batch if batch is None else batch)
+        out = [self.score_torch(c[i : i + step], radius) for i in range(0, c.shape[0], step)]
+        return to_numpy(torch.cat(out)) if out else np.zeros(0)
+
+    def collision_score(self, centers: Any, radius: float, batch: int | None = None) -> np.ndarray:
+        """The native score oriented so that larger = more likely in collision, float64 (B,)."""
+        return self.orientation * self.score(centers, radius, batch)
+
+    def in_collision(self, centers: Any, radius: float, batch: int | None = None) -> np.ndarray:
+        """The method's own classifier: bool (B,)."""
+        return self.decide(self.score(centers, radius, batch))
+
+    @classmethod
+    def evaluate(cls, splats_or_tensors: Any, centers: Any, radius: float, device: str | torch.device = "auto", oriented: bool = False, **method_kw) -> np.ndarray:
+        """One-off scores: ``cls(splats_or_tensors, device, **method_kw)`` then :meth:`score`
+        (:meth:`collision_score` when ``oriented``); ``method_kw`` may carry ``batch``."""
+        batch = method_kw.pop("batch", None)
+        obj = cls(splats_or_tensors, device, **method_kw)
+        return obj.collision_score(centers, radius, batch) if oriented else obj.score(centers, radius, batch)

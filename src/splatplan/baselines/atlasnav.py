@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 import torch
 
-from ._common import SceneTensors, as_centers, as_scene_tensors, check_radius, elem_budget, to_numpy
+from ._common import Baseline, check_radius, elem_budget
 
 __all__ = ["AtlasNav", "atlasnav_score", "collision_score", "collision_from_score", "NATIVE_BATCH", "THRESHOLD"]
 
@@ -38,80 +38,52 @@ THRESHOLD = 0.0
 _N_LIVE = 3
 
 
-class AtlasNav:
+class AtlasNav(Baseline):
     """ATLASNav's isotropic occupancy test over a fixed scene.
 
-    Args:
-        splats_or_tensors: a Splats, SceneTensors or mapping of arrays.
-        device: torch device.
+    Args (besides ``splats_or_tensors``, ``device`` and ``dtype``: see :class:`~._common.Baseline`):
         n_std: ball radius in units of sigma (3 in ATLASNav).
         max_elems: cap on the elements of the [b, N, 3] chunk (None: device default, see module doc).
-        dtype: torch dtype (float32).
     """
 
     native_batch = NATIVE_BATCH
 
-    def __init__(
-        self,
-        splats_or_tensors: Any,
-        device: str | torch.device = "cpu",
-        n_std: float = 3.0,
-        max_elems: int | None = None,
-        dtype: torch.dtype = torch.float32,
-    ) -> None:
-        self.scene: SceneTensors = as_scene_tensors(splats_or_tensors, device, dtype)
+    def __init__(self, splats_or_tensors: Any, device: str | torch.device = "auto", n_std: float = 3.0, max_elems: int | None = None, dtype: torch.dtype = torch.float32) -> None:
+        super().__init__(splats_or_tensors, device, dtype)
         self.sigma = self.scene.scales.mean(dim=-1)  # [N] isotropic std
         self.ball = float(n_std) * self.sigma  # [N]
         self.max_elems = max_elems
-
-    @property
-    def device(self) -> torch.device:
-        return self.scene.device
 
     def chunk_rows(self) -> int:
         """Queries per dense [b, N, 3] evaluation under the memory cap."""
         budget = elem_budget(self.device, self.scene.dtype, _N_LIVE, self.max_elems)
         return max(1, budget // (3 * len(self.scene)))
 
+    def rows(self, batch: int) -> int:
+        """The caller's ``batch``, split further into :meth:`chunk_rows` rows."""
+        return max(1, min(int(batch), self.chunk_rows()))
+
     def score_torch(self, centers: torch.Tensor, radius: float) -> torch.Tensor:
-        """min_i (|p - mu_i| - 3 sigma_i - r) for a [b, 3] block, dense over all Gaussians -> [b]."""
+        """min_i (|p - mu_i| - 3 sigma_i - r) for a [b, 3] block, dense over all Gaussians -> [b]
+        (collision iff < 0; :meth:`collision_score` is its negation)."""
         r = check_radius(radius)
         diff = centers[:, None, :] - self.scene.means[None, :, :]  # [b, N, 3]
         dist = diff.square().sum(-1).sqrt()  # [b, N]
         return (dist - self.ball[None] - r).min(dim=-1).values
 
-    @torch.no_grad()
-    def score(self, centers: np.ndarray, radius: float, batch: int = NATIVE_BATCH) -> np.ndarray:
-        """Native score per centre (collision iff < 0), float64 (B,).
-
-        ``batch`` is the caller's batch; each is further split into :meth:`chunk_rows` rows.
-        """
-        c = as_centers(centers, self.device, self.scene.dtype)
-        step = max(1, min(int(batch), self.chunk_rows()))
-        out = [self.score_torch(c[i : i + step], radius) for i in range(0, c.shape[0], step)]
-        return to_numpy(torch.cat(out)) if out else np.zeros(0)
-
-    def collision_score(self, centers: np.ndarray, radius: float, batch: int = NATIVE_BATCH) -> np.ndarray:
-        """``-min_i (|p - mu_i| - 3 sigma_i - r)``: larger = more likely in collision."""
-        return -self.score(centers, radius, batch)
-
-    def in_collision(self, centers: np.ndarray, radius: float, batch: int = NATIVE_BATCH) -> np.ndarray:
-        """Native classifier: bool (B,)."""
-        return collision_from_score(self.score(centers, radius, batch))
+    def decide(self, score: np.ndarray) -> np.ndarray:
+        return collision_from_score(score)
 
 
-def atlasnav_score(splats_or_tensors: Any, centers: np.ndarray, radius: float, device: str | torch.device = "cpu", **method_kw) -> np.ndarray:
+def atlasnav_score(splats_or_tensors: Any, centers: np.ndarray, radius: float, device: str | torch.device = "auto", **method_kw) -> np.ndarray:
     """Native ATLASNav score ``min_i (|p - mu_i| - 3 sigma_i - r)``, float64 (B,); collision iff < 0.
-
-    ``method_kw``: ``n_std``, ``max_elems``, ``dtype`` (constructor) and ``batch``.
-    """
-    batch = method_kw.pop("batch", NATIVE_BATCH)
-    return AtlasNav(splats_or_tensors, device, **method_kw).score(centers, radius, batch)
+    ``method_kw``: ``n_std``, ``max_elems``, ``dtype`` (constructor) and ``batch``."""
+    return AtlasNav.evaluate(splats_or_tensors, centers, radius, device, **method_kw)
 
 
-def collision_score(splats_or_tensors: Any, centers: np.ndarray, radius: float, device: str | torch.device = "cpu", **method_kw) -> np.ndarray:
+def collision_score(splats_or_tensors: Any, centers: np.ndarray, radius: float, device: str | torch.device = "auto", **method_kw) -> np.ndarray:
     """Oriented score (larger = collision): ``-atlasnav_score``."""
-    return -atlasnav_score(splats_or_tensors, centers, radius, device, **method_kw)
+    return AtlasNav.evaluate(splats_or_tensors, centers, radius, device, oriented=True, **method_kw)
 
 
 def collision_from_score(score: np.ndarray) -> np.ndarray:

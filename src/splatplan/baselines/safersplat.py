@@ -36,7 +36,7 @@ from typing import Any
 import numpy as np
 import torch
 
-from ._common import MIN_SCALE, SceneTensors, as_centers, as_scene_tensors, check_radius, to_numpy
+from ._common import MIN_SCALE, Baseline, check_radius
 
 __all__ = ["SaferSplat", "safersplat_score", "collision_score", "collision_from_score", "ellipsoid_distance_torch", "NATIVE_BATCH", "THRESHOLD"]
 
@@ -90,35 +90,21 @@ def ellipsoid_distance_torch(
     return d, inside
 
 
-class SaferSplat:
+class SaferSplat(Baseline):
     """SAFER-Splat's barrier ``h = phi d^2 - r^2`` over a fixed scene (tensors precomputed once).
 
-    Args:
-        splats_or_tensors: a Splats, SceneTensors or mapping of arrays.
-        device: torch device.
+    Args (besides ``splats_or_tensors``, ``device`` and ``dtype``: see :class:`~._common.Baseline`):
         n_steps: bisection steps on Eberly's equation (25 as in SAFER-Splat).
         min_scale: floor on the semi-axes (2DGS disks have a zero third scale), scene units.
-        dtype: torch dtype (float32 as the original).
     """
 
     native_batch = NATIVE_BATCH
 
-    def __init__(
-        self,
-        splats_or_tensors: Any,
-        device: str | torch.device = "cpu",
-        n_steps: int = 25,
-        min_scale: float = MIN_SCALE,
-        dtype: torch.dtype = torch.float32,
-    ) -> None:
-        self.scene: SceneTensors = as_scene_tensors(splats_or_tensors, device, dtype)
+    def __init__(self, splats_or_tensors: Any, device: str | torch.device = "auto", n_steps: int = 25, min_scale: float = MIN_SCALE, dtype: torch.dtype = torch.float32) -> None:
+        super().__init__(splats_or_tensors, device, dtype)
         self.n_steps = int(n_steps)
         self.semi_axes = self.scene.scales.clamp_min(float(min_scale))  # [N, 3]
         self.rot_t = self.scene.rotations.transpose(1, 2).contiguous()  # [N, 3, 3] = R^T
-
-    @property
-    def device(self) -> torch.device:
-        return self.scene.device
 
     def barrier_torch(self, centers: torch.Tensor, radius: float) -> torch.Tensor:
         """h = phi d^2 - r^2 for every (centre, Gaussian) of a [b, 3] block -> [b, N]."""
@@ -129,40 +115,23 @@ class SaferSplat:
         phi = torch.where(inside, -1.0, 1.0).to(d.dtype)
         return phi * d * d - r * r
 
-    @torch.no_grad()
-    def score(self, centers: np.ndarray, radius: float, batch: int = NATIVE_BATCH) -> np.ndarray:
-        """Native score ``min_i h_i`` per centre (collision iff < 0), float64 (B,).
+    def score_torch(self, centers: torch.Tensor, radius: float) -> torch.Tensor:
+        """``min_i h_i`` for a [b, 3] block -> [b] (collision iff < 0; :meth:`collision_score` is ``-min_i h_i``)."""
+        return self.barrier_torch(centers, radius).min(dim=-1).values
 
-        Args:
-            centers: (B, 3) sphere centres, scene units.
-            radius: sphere radius r > 0.
-            batch: queries evaluated together (1 = the original; larger gives identical values).
-        """
-        c = as_centers(centers, self.device, self.scene.dtype)
-        out = [self.barrier_torch(c[i : i + batch], radius).min(dim=-1).values for i in range(0, c.shape[0], max(1, int(batch)))]
-        return to_numpy(torch.cat(out)) if out else np.zeros(0)
-
-    def collision_score(self, centers: np.ndarray, radius: float, batch: int = NATIVE_BATCH) -> np.ndarray:
-        """``-min_i h_i``: larger = more likely in collision (collision iff > 0)."""
-        return -self.score(centers, radius, batch)
-
-    def in_collision(self, centers: np.ndarray, radius: float, batch: int = NATIVE_BATCH) -> np.ndarray:
-        """Native classifier: bool (B,), True iff some barrier is negative."""
-        return collision_from_score(self.score(centers, radius, batch))
+    def decide(self, score: np.ndarray) -> np.ndarray:
+        return collision_from_score(score)
 
 
-def safersplat_score(splats_or_tensors: Any, centers: np.ndarray, radius: float, device: str | torch.device = "cpu", **method_kw) -> np.ndarray:
+def safersplat_score(splats_or_tensors: Any, centers: np.ndarray, radius: float, device: str | torch.device = "auto", **method_kw) -> np.ndarray:
     """Native SAFER-Splat score ``min_i (phi_i d_i^2 - r^2)`` per centre, float64 (B,); collision iff < 0.
-
-    ``method_kw``: ``n_steps``, ``min_scale``, ``dtype`` (constructor) and ``batch``.
-    """
-    batch = method_kw.pop("batch", NATIVE_BATCH)
-    return SaferSplat(splats_or_tensors, device, **method_kw).score(centers, radius, batch)
+    ``method_kw``: ``n_steps``, ``min_scale``, ``dtype`` (constructor) and ``batch``."""
+    return SaferSplat.evaluate(splats_or_tensors, centers, radius, device, **method_kw)
 
 
-def collision_score(splats_or_tensors: Any, centers: np.ndarray, radius: float, device: str | torch.device = "cpu", **method_kw) -> np.ndarray:
+def collision_score(splats_or_tensors: Any, centers: np.ndarray, radius: float, device: str | torch.device = "auto", **method_kw) -> np.ndarray:
     """Oriented score (larger = collision): ``-safersplat_score``."""
-    return -safersplat_score(splats_or_tensors, centers, radius, device, **method_kw)
+    return SaferSplat.evaluate(splats_or_tensors, centers, radius, device, oriented=True, **method_kw)
 
 
 def collision_from_score(score: np.ndarray) -> np.ndarray:

@@ -44,7 +44,7 @@ from typing import Any
 import numpy as np
 import torch
 
-from ._common import MIN_SCALE, SceneTensors, as_centers, as_scene_tensors, check_radius, elem_budget, to_numpy
+from ._common import MIN_SCALE, Baseline, as_centers, check_radius, elem_budget, to_numpy
 
 __all__ = ["Splanning", "splanning_score", "collision_score", "collision_from_score", "NATIVE_BATCH", "DEFAULT_ALPHA"]
 
@@ -55,30 +55,28 @@ DEFAULT_ALPHA = 0.01
 _N_LIVE = 6
 
 
-class Splanning:
+class Splanning(Baseline):
     """SPLANNING's collision probability over a fixed scene (tensors precomputed once).
 
-    Args:
-        splats_or_tensors: a Splats, SceneTensors or mapping of arrays (opacities default 1).
-        device: torch device.
+    Args (besides ``splats_or_tensors``, ``device`` and ``dtype``: see :class:`~._common.Baseline`):
         min_scale: floor on the linear scales (2DGS / degenerate splats), scene units.
         cull_std: cull Gaussians farther than ``cull_std * s_max + r`` (6 in SPLANNING).
         max_elems: cap on the elements of one [b, n, 3] block (None: device default).
-        dtype: torch dtype (float32).
     """
 
     native_batch = NATIVE_BATCH
+    orientation = 1.0  # p grows with collision
 
     def __init__(
         self,
         splats_or_tensors: Any,
-        device: str | torch.device = "cpu",
+        device: str | torch.device = "auto",
         min_scale: float = MIN_SCALE,
         cull_std: float = 6.0,
         max_elems: int | None = None,
         dtype: torch.dtype = torch.float32,
     ) -> None:
-        self.scene: SceneTensors = as_scene_tensors(splats_or_tensors, device, dtype)
+        super().__init__(splats_or_tensors, device, dtype)
         s = self.scene.scales.clamp_min(float(min_scale))  # [N, 3]
         inv = 1.0 / (s * s)  # [N, 3] inv_k = 1 / s_k^2
         self.erf_scale = (inv / 2.0).sqrt()  # [N, 3] sqrt(inv_k / 2)
@@ -88,10 +86,6 @@ class Splanning:
         self.cull = float(cull_std) * s.max(dim=-1).values  # [N]
         self.rot = self.scene.rotations  # [N, 3, 3] R (local -> world)
         self.max_elems = max_elems
-
-    @property
-    def device(self) -> torch.device:
-        return self.scene.device
 
     def blocks(self, batch: int) -> tuple[int, int]:
         """(query rows, Gaussian columns) of one dense block under the memory cap."""
@@ -122,38 +116,34 @@ class Splanning:
         return total
 
     @torch.no_grad()
-    def integral(self, centers: np.ndarray, radius: float, batch: int = NATIVE_BATCH) -> np.ndarray:
+    def integral(self, centers: np.ndarray, radius: float, batch: int | None = None) -> np.ndarray:
         """The opacity-weighted density integral I per centre, float64 (B,)."""
         c = as_centers(centers, self.device, self.scene.dtype)
-        rows, cols = self.blocks(batch)
+        rows, cols = self.blocks(self.native_batch if batch is None else batch)
         out = [self.integral_torch(c[i : i + rows], radius, cols) for i in range(0, c.shape[0], rows)]
         return to_numpy(torch.cat(out)) if out else np.zeros(0)
 
-    def score(self, centers: np.ndarray, radius: float, batch: int = NATIVE_BATCH) -> np.ndarray:
-        """Native score ``p = 1 - exp(-I / (4 pi))`` per centre, float64 (B,)."""
+    def score(self, centers: np.ndarray, radius: float, batch: int | None = None) -> np.ndarray:
+        """Native score ``p = 1 - exp(-I / (4 pi))`` per centre, float64 (B,); :meth:`collision_score` is ``p`` itself."""
         return -np.expm1(-self.integral(centers, radius, batch) / (4.0 * math.pi))
 
-    def collision_score(self, centers: np.ndarray, radius: float, batch: int = NATIVE_BATCH) -> np.ndarray:
-        """``p`` itself (already larger = more likely in collision)."""
-        return self.score(centers, radius, batch)
+    def decide(self, score: np.ndarray, alpha: float = DEFAULT_ALPHA) -> np.ndarray:
+        return collision_from_score(score, alpha)
 
-    def in_collision(self, centers: np.ndarray, radius: float, batch: int = NATIVE_BATCH, alpha: float = DEFAULT_ALPHA) -> np.ndarray:
+    def in_collision(self, centers: np.ndarray, radius: float, batch: int | None = None, alpha: float = DEFAULT_ALPHA) -> np.ndarray:
         """Native classifier: bool (B,), ``p > alpha``."""
-        return collision_from_score(self.score(centers, radius, batch), alpha)
+        return self.decide(self.score(centers, radius, batch), alpha)
 
 
-def splanning_score(splats_or_tensors: Any, centers: np.ndarray, radius: float, device: str | torch.device = "cpu", **method_kw) -> np.ndarray:
+def splanning_score(splats_or_tensors: Any, centers: np.ndarray, radius: float, device: str | torch.device = "auto", **method_kw) -> np.ndarray:
     """Native SPLANNING score ``p = 1 - exp(-I / (4 pi))`` per centre, float64 (B,).
-
-    ``method_kw``: ``min_scale``, ``cull_std``, ``max_elems``, ``dtype`` (constructor) and ``batch``.
-    """
-    batch = method_kw.pop("batch", NATIVE_BATCH)
-    return Splanning(splats_or_tensors, device, **method_kw).score(centers, radius, batch)
+    ``method_kw``: ``min_scale``, ``cull_std``, ``max_elems``, ``dtype`` (constructor) and ``batch``."""
+    return Splanning.evaluate(splats_or_tensors, centers, radius, device, **method_kw)
 
 
-def collision_score(splats_or_tensors: Any, centers: np.ndarray, radius: float, device: str | torch.device = "cpu", **method_kw) -> np.ndarray:
+def collision_score(splats_or_tensors: Any, centers: np.ndarray, radius: float, device: str | torch.device = "auto", **method_kw) -> np.ndarray:
     """Oriented score (larger = collision): ``p`` itself."""
-    return splanning_score(splats_or_tensors, centers, radius, device, **method_kw)
+    return Splanning.evaluate(splats_or_tensors, centers, radius, device, oriented=True, **method_kw)
 
 
 def collision_from_score(score: np.ndarray, alpha: float = DEFAULT_ALPHA) -> np.ndarray:

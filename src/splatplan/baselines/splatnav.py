@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 import torch
 
-from ._common import SceneTensors, as_centers, as_scene_tensors, check_radius, to_numpy
+from ._common import Baseline, check_radius
 
 __all__ = ["SplatNav", "splatnav_score", "collision_score", "collision_from_score", "max_k_torch", "NATIVE_BATCH", "THRESHOLD"]
 
@@ -71,83 +71,45 @@ def max_k_torch(
     return (v2 * (tt * (1.0 - tt)) / (kappa + tt * dl)).sum(-1)
 
 
-class SplatNav:
+class SplatNav(Baseline):
     """Splat-Nav's sphere-ellipsoid test over a fixed scene (tensors precomputed once).
 
-    Args:
-        splats_or_tensors: a Splats, SceneTensors or mapping of arrays (see
-            :func:`~splatplan.baselines._common.as_scene_tensors`).
-        device: torch device.
+    Args (besides ``splats_or_tensors``, ``device`` and ``dtype``: see :class:`~._common.Baseline`):
         level: ellipsoid level k; the ellipsoid is the splat with scales ``s * sqrt(k)`` (1 = 1 sigma).
         n_steps: bisection steps on dK/dt (10 as in Splat-Nav).
-        dtype: torch dtype (float32 as the original).
     """
 
     native_batch = NATIVE_BATCH
 
-    def __init__(
-        self,
-        splats_or_tensors: Any,
-        device: str | torch.device = "cpu",
-        level: float = 1.0,
-        n_steps: int = 10,
-        dtype: torch.dtype = torch.float32,
-    ) -> None:
-        self.scene: SceneTensors = as_scene_tensors(splats_or_tensors, device, dtype)
+    def __init__(self, splats_or_tensors: Any, device: str | torch.device = "auto", level: float = 1.0, n_steps: int = 10, dtype: torch.dtype = torch.float32) -> None:
+        super().__init__(splats_or_tensors, device, dtype)
         self.level = float(level)
         self.n_steps = int(n_steps)
         self.lam = self.level * self.scene.scales**2  # [N, 3]
         self.rot_t = self.scene.rotations.transpose(1, 2).contiguous()  # [N, 3, 3] = R^T
 
-    @property
-    def device(self) -> torch.device:
-        return self.scene.device
-
     def score_torch(self, centers: torch.Tensor, radius: float) -> torch.Tensor:
-        """min_i max_t K_i for a [b, 3] block of centres, all evaluated together -> [b]."""
+        """min_i max_t K_i for a [b, 3] block of centres, all evaluated together -> [b]
+        (collision iff < 1; :meth:`collision_score` is its negation)."""
         kappa = check_radius(radius) ** 2
         diff = self.scene.means[None] - centers[:, None]  # [b, N, 3]
         v = torch.einsum("nij,bnj->bni", self.rot_t, diff)  # R^T (mu - c), [b, N, 3]
         k = max_k_torch(v * v, self.lam, kappa, self.n_steps)  # [b, N]
         return k.min(dim=-1).values
 
-    @torch.no_grad()
-    def score(self, centers: np.ndarray, radius: float, batch: int = NATIVE_BATCH) -> np.ndarray:
-        """Native score ``min_i max_t K_i`` per centre (collision iff < 1).
-
-        Args:
-            centers: (B, 3) sphere centres, scene units.
-            radius: sphere radius r > 0, scene units.
-            batch: queries evaluated together (1 = the original; larger gives identical values).
-
-        Returns:
-            float64 (B,).
-        """
-        c = as_centers(centers, self.device, self.scene.dtype)
-        out = [self.score_torch(c[i : i + batch], radius) for i in range(0, c.shape[0], max(1, int(batch)))]
-        return to_numpy(torch.cat(out)) if out else np.zeros(0)
-
-    def collision_score(self, centers: np.ndarray, radius: float, batch: int = NATIVE_BATCH) -> np.ndarray:
-        """``-min_i max_t K_i``: larger = more likely in collision (collision iff > -1)."""
-        return -self.score(centers, radius, batch)
-
-    def in_collision(self, centers: np.ndarray, radius: float, batch: int = NATIVE_BATCH) -> np.ndarray:
-        """Native classifier: bool (B,), True iff some Gaussian has max_t K < 1."""
-        return collision_from_score(self.score(centers, radius, batch))
+    def decide(self, score: np.ndarray) -> np.ndarray:
+        return collision_from_score(score)
 
 
-def splatnav_score(splats_or_tensors: Any, centers: np.ndarray, radius: float, device: str | torch.device = "cpu", **method_kw) -> np.ndarray:
+def splatnav_score(splats_or_tensors: Any, centers: np.ndarray, radius: float, device: str | torch.device = "auto", **method_kw) -> np.ndarray:
     """Native Splat-Nav score ``min_i max_t K_i`` per centre, float64 (B,); collision iff < 1.
-
-    ``method_kw``: ``level``, ``n_steps``, ``dtype`` (constructor) and ``batch`` (see :class:`SplatNav`).
-    """
-    batch = method_kw.pop("batch", NATIVE_BATCH)
-    return SplatNav(splats_or_tensors, device, **method_kw).score(centers, radius, batch)
+    ``method_kw``: ``level``, ``n_steps``, ``dtype`` (constructor) and ``batch`` (see :class:`SplatNav`)."""
+    return SplatNav.evaluate(splats_or_tensors, centers, radius, device, **method_kw)
 
 
-def collision_score(splats_or_tensors: Any, centers: np.ndarray, radius: float, device: str | torch.device = "cpu", **method_kw) -> np.ndarray:
+def collision_score(splats_or_tensors: Any, centers: np.ndarray, radius: float, device: str | torch.device = "auto", **method_kw) -> np.ndarray:
     """Oriented score (larger = collision): ``-splatnav_score``."""
-    return -splatnav_score(splats_or_tensors, centers, radius, device, **method_kw)
+    return SplatNav.evaluate(splats_or_tensors, centers, radius, device, oriented=True, **method_kw)
 
 
 def collision_from_score(score: np.ndarray) -> np.ndarray:

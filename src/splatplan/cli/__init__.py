@@ -61,8 +61,9 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from ._common import CREATED_DIRS, remove_created_empty_dirs
+    from ._common import CREATED_DIRS, headless_matplotlib, remove_created_empty_dirs
 
+    headless_matplotlib()
     CREATED_DIRS.clear()
     try:
         rc = _main(argv)
@@ -89,6 +90,14 @@ def _broken_pipe() -> int:
     return 141  # 128 + SIGPIPE: what a shell reports for a writer that its reader left
 
 
+#: One line per file error that means bad input (exit 2).
+_FILE_ERRORS = {
+    FileNotFoundError: "{}: no such file",
+    IsADirectoryError: "{}: is a directory, expected a file",
+    PermissionError: "permission denied: {}",
+}
+
+
 def _main(argv: list[str] | None) -> int:
     from ._common import Terminated, UsageError, check_device, cli_signal_handlers
 
@@ -107,14 +116,9 @@ def _main(argv: list[str] | None) -> int:
         except SplatplanError as exc:
             print(f"splatplan: error: {exc}", file=sys.stderr)
             return 2
-        except FileNotFoundError as exc:
-            print(f"splatplan: error: {exc.filename or exc}: no such file", file=sys.stderr)
-            return 2
-        except IsADirectoryError as exc:
-            print(f"splatplan: error: {exc.filename or exc}: is a directory, expected a file", file=sys.stderr)
-            return 2
-        except PermissionError as exc:
-            print(f"splatplan: error: permission denied: {exc.filename or exc}", file=sys.stderr)
+        except (FileNotFoundError, IsADirectoryError, PermissionError) as exc:
+            msg = next(m for t, m in _FILE_ERRORS.items() if isinstance(exc, t))
+            print(f"splatplan: error: {msg.format(exc.filename or exc)}", file=sys.stderr)
             return 2
         except KeyboardInterrupt:
             print("splatplan: interrupted", file=sys.stderr)

@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._files import _umask, atomic_path  # noqa: F401 - the commands import atomic_path from here
+from .._files import _umask, atomic_path, existing_file  # noqa: F401 - the commands import atomic_path from here
 from .._config import check_config, check_value
 from ..errors import SplatplanError
 
@@ -60,6 +60,14 @@ def reject_nan_flags(args: argparse.Namespace) -> None:
         vals = v if isinstance(v, (tuple, list)) else (v,)
         if any(isinstance(x, float) and np.isnan(x) for x in vals):
             raise SplatplanError(f"--{dest.replace('_', '-')}: NaN is not a valid value")
+
+
+def add_command(sub, name: str, func, help: str, description: str | None = None) -> argparse.ArgumentParser:
+    """A (sub)command of ``sub`` whose action is ``func(args) -> exit code``; ``help`` is its line in
+    the parent's --help, ``description`` (default ``help``) heads its own."""
+    s = sub.add_parser(name, help=help, description=description)
+    s.set_defaults(func=func)
+    return s
 
 
 def parse_vec3(text: str, what: str) -> np.ndarray:
@@ -127,11 +135,7 @@ def robot_at(spec: str, base_pose: np.ndarray | None, robot=None):
 
 def load_npy(path: str, what: str) -> np.ndarray:
     """A real numeric ``.npy`` array as float64, or a one-line error naming ``what`` and the problem."""
-    p = Path(path)
-    if p.is_dir():
-        raise SplatplanError(f"{what} {path} is a directory; expected a .npy file")
-    if not p.is_file():
-        raise SplatplanError(f"{what} {path} does not exist")
+    p = existing_file(path, what, "a .npy file")
     try:
         arr = np.load(p, allow_pickle=False)
     except Exception as exc:  # numpy raises several types for broken files
@@ -246,17 +250,6 @@ def ground_robot_scene(scene, args, n_sigma: float):
     return out
 
 
-def progress(iterable=None, **kw):
-    """A tqdm progress bar on stderr, shown only when stderr is a terminal (SPLATPLAN_NO_TQDM=1 hides it)."""
-    from tqdm import tqdm
-
-    kw.setdefault("file", sys.stderr)
-    kw.setdefault("leave", False)
-    kw.setdefault("dynamic_ncols", True)
-    kw.setdefault("disable", bool(os.environ.get("SPLATPLAN_NO_TQDM")) or not sys.stderr.isatty())
-    return tqdm(iterable, **kw)
-
-
 # ---------------------------------------------------------------------------- signals
 class Terminated(SystemExit):
     """Raised by the CLI's SIGTERM handler (exit code 143), so ``finally`` blocks clean up."""
@@ -315,6 +308,17 @@ def signals_deferred():
         if signal.SIGTERM in pending:
             raise Terminated(128 + signal.SIGTERM)
         raise KeyboardInterrupt
+
+
+# ---------------------------------------------------------------------------- plots
+def headless_matplotlib() -> None:
+    """The CLI only writes image files: matplotlib's Agg backend for this process and the worker
+    processes it starts, chosen once at start-up. The library never picks a backend (its plotting
+    returns Figures or saves through whatever backend its caller chose)."""
+    os.environ["MPLBACKEND"] = "Agg"  # read when matplotlib is imported: costs nothing when no command plots
+    mpl = sys.modules.get("matplotlib")
+    if mpl is not None:  # imported already (e.g. main() called in-process): switch it now
+        mpl.use("Agg")
 
 
 # ---------------------------------------------------------------------------- devices

@@ -17,12 +17,13 @@ from pathlib import Path
 
 import numpy as np
 
+from .._progress import progress
 from .._resources import require_bytes
 from ..errors import SplatplanError
 from ..robots.builtin import ROBOT_NAME_HELP, parse_robot_name
 from ._common import (
-    BASE_POSE_HELP, POSITIVE_INT, _load, add_config_args, add_device_arg, atomic_path, config_from_args, load_npy, load_poses,
-    parse_base_pose, progress, robot_at, signals_deferred,
+    BASE_POSE_HELP, POSITIVE_INT, _load, add_command, add_config_args, add_device_arg, atomic_path, config_from_args, load_npy,
+    load_poses, parse_base_pose, robot_at, signals_deferred,
 )  # fmt: skip
 
 #: queries (link poses) per kernel call: small enough that an interrupt waits < ~1 s on a CPU
@@ -167,12 +168,9 @@ def cmd_check(args) -> int:
 def register(sub, eval_sub) -> None:
     from ..metric import MetricConfig
 
-    s = sub.add_parser(
-        "check",
-        help="CollisionSplatting metric for a batch of link poses or robot configurations",
-        description="CollisionSplatting metric for link poses (--robot sphere:R|ellipsoid:A,B,C --poses) "
-        "or robot configurations (--robot panda|go2|URDF --configs).",
-    )
+    s = add_command(sub, "check", cmd_check, "CollisionSplatting metric for a batch of link poses or robot configurations",
+                    "CollisionSplatting metric for link poses (--robot sphere:R|ellipsoid:A,B,C --poses) or robot configurations "
+                    "(--robot panda|go2|URDF --configs).")  # fmt: skip
     s.add_argument("scene", metavar="SCENE")
     s.add_argument("--robot", required=True, help=f"{ROBOT_NAME_HELP}; a point robot (sphere, ellipsoid) takes --poses or --configs, the others --configs")
     s.add_argument("--poses", help="POSES.npy: (B,3) centres or (B,7) centre + wxyz quaternion, scene frame (single-link robots)")
@@ -183,4 +181,3 @@ def register(sub, eval_sub) -> None:
     s.add_argument("--chunk", type=POSITIVE_INT, default=DEFAULT_CHUNK, help=f"link poses per kernel call; Ctrl-C is honoured between calls (default {DEFAULT_CHUNK})")
     add_device_arg(s)
     add_config_args(s, MetricConfig, group="metric options (MetricConfig)")
-    s.set_defaults(func=cmd_check)

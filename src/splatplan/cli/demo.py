@@ -2,15 +2,8 @@
 
 from __future__ import annotations
 
-import json
-from pathlib import Path
-
-import numpy as np
-
 from ..errors import SplatplanError
-from ._common import (  # noqa: F401
-    SEED, _load, _out_dir, add_config_args, add_device_arg, atomic_path, config_from_args, load_poses, parse_vec3, write_json,
-)
+from ._common import SEED, _out_dir, add_command, add_device_arg
 
 
 def cmd_demo(args) -> int:
@@ -23,8 +16,7 @@ def cmd_demo(args) -> int:
 
 
 def register(sub, eval_sub) -> None:
-    s = sub.add_parser("demo", help="the main job on the built-in scene: collision field and plans")
+    s = add_command(sub, "demo", cmd_demo, "the main job on the built-in scene: collision field and plans")
     s.add_argument("--out", default="demo_out", help="output folder (default demo_out)")
     s.add_argument("--seed", type=SEED, default=0, help="scene and planner seed, an integer >= 0 (default 0)")
     add_device_arg(s)
-    s.set_defaults(func=cmd_demo)

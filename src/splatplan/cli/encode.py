@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import SplatplanError
-from ._common import add_config_args, add_device_arg, atomic_path, config_from_args, float_arg
+from ._common import add_command, add_config_args, add_device_arg, atomic_path, config_from_args, float_arg
 
 
 def cmd_encode(args) -> int:
@@ -64,9 +64,9 @@ def _resized(im: np.ndarray, like: np.ndarray) -> np.ndarray:
 def register(sub, eval_sub) -> None:
     from ..encoders import ENCODER_NAMES, EncoderConfig
 
-    s = sub.add_parser("encode", help="embed images with an image encoder; print pairwise distances",
-                       description="Embed image files (PNG/JPEG/...; RGBA composited over black, grey replicated to RGB) "
-                                   "and print the embedding size and pairwise squared distances.")
+    s = add_command(sub, "encode", cmd_encode, "embed images with an image encoder; print pairwise distances",
+                    "Embed image files (PNG/JPEG/...; RGBA composited over black, grey replicated to RGB) "
+                    "and print the embedding size and pairwise squared distances.")  # fmt: skip
     s.add_argument("images", nargs="+", metavar="IMG")
     s.add_argument("--encoder", required=True, choices=ENCODER_NAMES, metavar="NAME",
                    help=f"one of {', '.join(ENCODER_NAMES)} (thumbnail is weight-free, not learned)")
@@ -78,4 +78,3 @@ def register(sub, eval_sub) -> None:
     s.add_argument("--w-patch", type=float_arg(ge=0), default=0.0, help="weight of the mean patch-token distance in the printed distances (default 0: global embedding only)")
     s.add_argument("--out", metavar="EMB.npy", help="write the (N, D) float32 embeddings, one row per image in order")
     add_device_arg(s)
-    s.set_defaults(func=cmd_encode)

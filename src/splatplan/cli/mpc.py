@@ -2,13 +2,12 @@
 
 from __future__ import annotations
 
-from pathlib import Path
 
 import numpy as np
 
 from ..errors import SplatplanError
 from ._common import (
-    BASE_POSE_HELP, SEED, _out_dir, add_config_args, add_device_arg, config_from_args, float_arg, parse_base_pose, robot_at, write_json,
+    BASE_POSE_HELP, SEED, _out_dir, add_command, add_config_args, add_device_arg, config_from_args, float_arg, parse_base_pose, robot_at, write_json,
 )  # fmt: skip
 
 
@@ -30,7 +29,6 @@ def cmd_mpc(args) -> int:
     collision = not args.no_collision
     tag = "" if collision else " [--no-collision: collision cost OFF]"
     if args.robot == "panda":
-        from ..robots import load_robot
         from ..tasks.arm import ArmConfig, run_arm
 
         if args.goal_pose is None:
@@ -99,7 +97,7 @@ def register(sub, eval_sub) -> None:
     from ..tasks.arm import ArmConfig
     from ..tasks.base import BaseConfig
 
-    s = sub.add_parser("mpc", help="MPPI with the collision cost: Panda reaching (tabletop) or Go2 driving (apartment)")
+    s = add_command(sub, "mpc", cmd_mpc, "MPPI with the collision cost: Panda reaching (tabletop) or Go2 driving (apartment)")
     s.add_argument("--robot", required=True, choices=("panda", "go2"), help="panda (7-DoF arm) or go2 (planar base)")
     s.add_argument("--scene", default=None, help="built-in scene name or a splat file (default tabletop for panda, apartment for go2); files without a .gt.json get a metric clearance")
     s.add_argument("--goal-pose", default=None, help="panda: X,Y,Z,QW,QX,QY,QZ end-effector goal (metres, wxyz world <- panda_hand_tcp)")
@@ -114,7 +112,6 @@ def register(sub, eval_sub) -> None:
     add_device_arg(s)
     add_config_args(s, ArmConfig, prefix="arm_", skip=("seed",), group="panda (ArmConfig) options")
     add_config_args(s, BaseConfig, prefix="base_", skip=("seed",), group="go2 (BaseConfig) options")
-    s.set_defaults(func=cmd_mpc)
     for name, help_ in (("arm", "Panda reaching behind a wall of tabletop, with/without the collision cost (paper Table IV, no image)"),
                         ("base", "Go2 driving to goals in other rooms of apartment given only the goal, with/without the collision cost")):  # fmt: skip
         e = eval_sub.add_parser(name, help=help_)

@@ -24,7 +24,7 @@ import numpy as np
 from ..errors import SplatplanError
 from ..robots.builtin import DEFAULT_POINT_ROBOT, ROBOT_NAME_HELP
 from ._common import (
-    BASE_POSE_HELP, SEED, _load, add_config_args, add_device_arg, add_terrain_args, allow_negative_values, config_from_args, float_arg,
+    BASE_POSE_HELP, SEED, _load, add_command, add_config_args, add_device_arg, add_terrain_args, allow_negative_values, config_from_args, float_arg,
     ground_robot_scene, parse_base_pose, robot_at, write_json,
 )  # fmt: skip
 
@@ -174,12 +174,9 @@ def register(sub, eval_sub) -> None:
     from ..metric import MetricConfig
     from ..planners import RefineConfig, RRTConfig
 
-    s = sub.add_parser(
-        "plan",
-        help="RRT / RRT-Connect (+ refinement) from a start to a goal configuration of a robot",
-        description="Batched RRT or RRT-Connect (+ zeroth-order refinement) in the robot's configuration space. Exit codes: 0 path found, "
-        "1 no path within the budget (an existing --out is kept unless --force), 2 bad input.",
-    )
+    s = add_command(sub, "plan", cmd_plan, "RRT / RRT-Connect (+ refinement) from a start to a goal configuration of a robot",
+                    "Batched RRT or RRT-Connect (+ zeroth-order refinement) in the robot's configuration space. Exit codes: 0 path found, "
+                    "1 no path within the budget (an existing --out is kept unless --force), 2 bad input.")  # fmt: skip
     allow_negative_values(s)
     s.add_argument("scene", metavar="SCENE")
     s.add_argument("--robot", default=DEFAULT_POINT_ROBOT, help=f"{ROBOT_NAME_HELP} (default {DEFAULT_POINT_ROBOT})")
@@ -209,4 +206,3 @@ def register(sub, eval_sub) -> None:
     add_terrain_args(s)
     add_config_args(s, RRTConfig, prefix="rrt_", skip=("seed",), group="RRT options (RRTConfig; lengths in scene units of robot motion)")
     add_config_args(s, RefineConfig, prefix="refine_", skip=("seed",), group="refinement options (RefineConfig, with --refine)")
-    s.set_defaults(func=cmd_plan)

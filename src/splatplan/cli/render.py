@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import SplatplanError
-from ._common import add_device_arg, atomic_path, check_device, float_arg, load_npy, parse_vec3
+from ._common import add_command, add_device_arg, atomic_path, check_device, float_arg, load_npy, parse_vec3
 
 _IMAGE_EXT = (".png", ".jpg", ".jpeg")
 
@@ -117,13 +117,9 @@ def cmd_render(args) -> int:
 
 
 def register(sub, eval_sub) -> None:
-    s = sub.add_parser(
-        "render",
-        help="render an image (and depth) of a splat scene",
-        description="Render one pinhole view. Camera: --eye/--look-at/--up (+ --fov) or a 4x4 world-to-camera "
-        "matrix (--viewmat, OpenCV axes: x right, y down, z forward) with optional --K intrinsics. "
-        "One call may take at most 2 GiB (outputs + workspace).",
-    )
+    s = add_command(sub, "render", cmd_render, "render an image (and depth) of a splat scene",
+                    "Render one pinhole view. Camera: --eye/--look-at/--up (+ --fov) or a 4x4 world-to-camera matrix (--viewmat, OpenCV "
+                    "axes: x right, y down, z forward) with optional --K intrinsics. One call may take at most 2 GiB (outputs + workspace).")  # fmt: skip
     s.add_argument("scene", metavar="SCENE", help="splat file (any supported format) or a built-in scene name (stonehenge, tabletop, apartment)")
     s.add_argument("--eye", help="camera position X,Y,Z (scene frame)")
     s.add_argument("--look-at", dest="look_at", help="point the camera looks at X,Y,Z")
@@ -144,4 +140,3 @@ def register(sub, eval_sub) -> None:
     s.add_argument("--backend", default="auto", choices=["auto", "warp", "gsplat", "reference"], help="renderer (default auto = our Warp kernels)")
     s.add_argument("--keep-floaters", action="store_true", help="do not drop floaters when loading the scene")
     add_device_arg(s)
-    s.set_defaults(func=cmd_render)

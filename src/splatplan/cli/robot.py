@@ -27,7 +27,7 @@ import numpy as np
 from ..errors import SplatplanError
 from ..robots.builtin import ROBOT_NAME_HELP
 from ..robots.fit import MAX_PER_LINK
-from ._common import float_arg, int_arg
+from ._common import add_command, float_arg, int_arg
 
 #: ``--per-link``: ellipsoids (slabs) per link, 1..MAX_PER_LINK
 PER_LINK = int_arg(ge=1, le=MAX_PER_LINK)
@@ -154,15 +154,14 @@ def cmd_fit(args) -> int:
 def register(sub, eval_sub) -> None:
     p = sub.add_parser("robot", help="robots: info (links, ellipsoids, limits), fit (ellipsoids to link meshes)")
     rs = p.add_subparsers(dest="robot_cmd", required=True, metavar="ACTION")
-    pi = rs.add_parser("info", help="links, ellipsoids, joint limits, volume ratios of a robot")
+    pi = add_command(rs, "info", cmd_info, "links, ellipsoids, joint limits, volume ratios of a robot")
     pi.add_argument("robot", metavar="NAME|URDF", help=ROBOT_NAME_HELP)
     pi.add_argument("--json", action="store_true", help="print one JSON object")
     pi.add_argument("--meshes-from", default=None, metavar="URDF", help="measure the model against this URDF's collision meshes (same link names)")
     pi.add_argument("--no-measure", action="store_true", help="skip measuring the model against the meshes")
     pi.add_argument("--samples", type=int_arg(ge=100, le=2_000_000), default=5000, help="Monte Carlo samples per link for the model measurement (standard error ~ 1/sqrt(samples))")
     _robot_args(pi)
-    pi.set_defaults(func=cmd_info)
-    pf = rs.add_parser("fit", help="fit enclosing ellipsoids to a URDF's link meshes -> YAML (+ PNG)")
+    pf = add_command(rs, "fit", cmd_fit, "fit enclosing ellipsoids to a URDF's link meshes -> YAML (+ PNG)")
     pf.add_argument("urdf", metavar="URDF", help="a .urdf path (or a built-in: panda, go2)")
     pf.add_argument("--out", required=True, help="output ELLIPSOIDS.yaml (a PNG of the fit is written next to it)")
     pf.add_argument("--method", choices=("split", "cover"), default="split", help="split (default): enclosing ellipsoids, K per link; cover: a "
@@ -174,4 +173,3 @@ def register(sub, eval_sub) -> None:
     from ._common import add_config_args
 
     add_config_args(pf, FitConfig, prefix="fit_", group="cover fitter (--method cover)")
-    pf.set_defaults(func=cmd_fit)

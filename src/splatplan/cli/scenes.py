@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import SplatplanError
-from ._common import SEED, _Unset, _load, add_config_args, atomic_dir, config_from_args, float_arg, int_arg, move_into, parse_vec3
+from ._common import SEED, _Unset, _load, add_command, add_config_args, atomic_dir, config_from_args, float_arg, int_arg, move_into, parse_vec3
 
 
 def cmd_info(args) -> int:
@@ -131,7 +131,7 @@ def sidecar_path(out: Path) -> Path:
 
 def cmd_scene(args) -> int:
     from ..scenes.builtin import BUILTIN_SCENES, write_builtin
-    from ..scenes.stonehenge import ground_truth_path
+    from ..scenes.builtin.stonehenge import ground_truth_path
 
     if args.name == "from-moveit":
         return _scene_from_moveit(args)
@@ -150,13 +150,7 @@ def cmd_scene(args) -> int:
         raise SplatplanError(f"--level must be 1..5, got {args.level}")
     if not 0 <= args.seed < 2**63:
         raise SplatplanError(f"--seed must be an integer >= 0, got {args.seed}")
-    out = Path(args.out)
-    if out.suffix.lower() != ".ply":
-        raise SplatplanError(f"--out {args.out}: expected a .ply path")
-    if out.is_dir():
-        raise SplatplanError(f"--out {args.out} is a directory; give a PATH.ply")
-    if not out.parent.exists():
-        raise SplatplanError(f"output folder {out.parent} does not exist")
+    out = _check_out_ply(args.out)
     # Both files are written into a temp folder beside the output and moved into place only when
     # both are complete (an interrupted run leaves nothing behind).
     with atomic_dir(out.parent) as tmp:
@@ -182,7 +176,7 @@ def _check_out_ply(text: str) -> Path:
 def _scene_from_moveit(args) -> int:
     """``splatplan scene from-moveit SCENE.yaml --out X.ply``: splats + exact ground truth X.gt.json."""
     from ..scenes.moveit import DEFAULT_N_SPLATS, load_moveit_scene, write_moveit
-    from ..scenes.stonehenge import ground_truth_path
+    from ..scenes.builtin.stonehenge import ground_truth_path
 
     if args.input is None:
         raise SplatplanError("scene from-moveit needs the planning-scene YAML: splatplan scene from-moveit SCENE.yaml --out X.ply")
@@ -203,19 +197,18 @@ def _scene_from_moveit(args) -> int:
 
 
 def register(sub, eval_sub) -> None:
-    s = sub.add_parser("info", help="summarise a splat file")
+    s = add_command(sub, "info", cmd_info, "summarise a splat file")
     s.add_argument("scene", metavar="SCENE", help="splat file (.ply INRIA/2DGS/compressed, .splat, .spz, gsplat .pt)")
     s.add_argument("--json", action="store_true", help="print one JSON object")
     s.add_argument("--up-hint", default=None, choices=("+x", "-x", "+y", "-y", "+z", "-z"),
                    help="capture convention that breaks ties between perpendicular bounding planes in the up guess "
                    "(default +z for files splatplan wrote, with a .align.json/.gt.json beside them, else -y)")  # fmt: skip
-    s.set_defaults(func=cmd_info)
     from ..scenes.align import AlignConfig
 
-    s = sub.add_parser("scene", help="write a built-in scene or splats of a MoveIt planning scene with its ground truth, or align a capture",
-                       description="`scene NAME --out PATH.ply` writes a built-in scene; `scene from-moveit SCENE.yaml --out PATH.ply` samples "
-                       "a MoveIt planning scene into splats (ground truth in PATH.gt.json); `scene align IN --out OUT.ply` puts a capture in the "
-                       "robot's world (z up, floor at z = 0; the transform goes to OUT.align.json and is printed).")  # fmt: skip
+    s = add_command(sub, "scene", cmd_scene, "write a built-in scene or splats of a MoveIt planning scene with its ground truth, or align a capture",
+                    "`scene NAME --out PATH.ply` writes a built-in scene; `scene from-moveit SCENE.yaml --out PATH.ply` samples "
+                    "a MoveIt planning scene into splats (ground truth in PATH.gt.json); `scene align IN --out OUT.ply` puts a capture in the "
+                    "robot's world (z up, floor at z = 0; the transform goes to OUT.align.json and is printed).")  # fmt: skip
     s.add_argument("name", metavar="NAME", help="built-in scene name: stonehenge | tabletop | apartment; or 'from-moveit' or 'align'")
     s.add_argument("input", metavar="IN", nargs="?", default=None, help="align: the input splat file; from-moveit: a MoveIt planning-scene "
                    "YAML (box, cylinder, sphere primitives)")  # fmt: skip
@@ -233,4 +226,3 @@ def register(sub, eval_sub) -> None:
     s.add_argument("--level", type=int_arg(ge=1, le=5), default=1, help="Gaussian-size level 1..5 (larger, fewer splats)")
     s.add_argument("--seed", type=SEED, default=0, help="layout and sampling seed, an integer >= 0 (default 0)")
     s.add_argument("--n-splats", type=int_arg(ge=1), default=None, help="from-moveit only: total splats (default 100000: ~7-8 mm spacing on a metre-scale workcell)")
-    s.set_defaults(func=cmd_scene)

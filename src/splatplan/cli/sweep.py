@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import sys
 
-from ._common import _out_dir, add_engine_args, engine_from_args
+from ._common import _out_dir, add_command, add_engine_args, engine_from_args
 
 
 def cmd_sweep(args) -> int:
@@ -31,14 +31,10 @@ def cmd_sweep(args) -> int:
 
 
 def register(sub, eval_sub) -> None:
-    s = sub.add_parser(
-        "sweep",
-        help="a grid of plan or check jobs over many scene files (serial, or on Dask)",
-        description="Run a grid of plan or check jobs (scenes x n_sigma x planners x pairs x seeds) described by a YAML spec; "
-        "results stream to DIR/results.jsonl and a rerun resumes. Exit codes: 0 done, 1 some tasks failed, 2 bad input.",
-    )
+    s = add_command(sub, "sweep", cmd_sweep, "a grid of plan or check jobs over many scene files (serial, or on Dask)",
+                    "Run a grid of plan or check jobs (scenes x n_sigma x planners x pairs x seeds) described by a YAML spec; results "
+                    "stream to DIR/results.jsonl and a rerun resumes. Exit codes: 0 done, 1 some tasks failed, 2 bad input.")  # fmt: skip
     s.add_argument("spec", metavar="SPEC.yaml", help="the sweep (keys: scenes, job, robot, n_sigma, seeds, planners, time_limit, max_iters, "
                    "refine, pairs, pair_seed, n_configs, filter_floaters, n_splats, device)")  # fmt: skip
     s.add_argument("--out", required=True, help="output folder (created; reused to resume)")
     add_engine_args(s)
-    s.set_defaults(func=cmd_sweep)

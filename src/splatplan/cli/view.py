@@ -10,7 +10,7 @@ import numpy as np
 
 from ..errors import SplatplanError
 from ..robots.builtin import ROBOT_NAME_HELP
-from ._common import BASE_POSE_HELP, _load, add_config_args, add_terrain_args, config_from_args, ground_robot_scene, parse_base_pose, robot_at
+from ._common import BASE_POSE_HELP, _load, add_command, add_config_args, add_terrain_args, config_from_args, ground_robot_scene, parse_base_pose, robot_at
 
 
 def _read_plan(path: str) -> np.ndarray:
@@ -67,7 +67,6 @@ def cmd_view(args) -> int:
     tree = _read_tree(args.tree) if args.tree else None
     robot = None
     if args.robot:
-        from ..robots import load_robot
 
         robot = robot_at(args.robot, parse_base_pose(args.base_pose))
     elif args.base_pose is not None:
@@ -92,7 +91,7 @@ def cmd_view(args) -> int:
 def register(sub, eval_sub) -> None:
     from ..viewer.app import ViewerConfig  # numpy only: viser is imported when the server starts
 
-    s = sub.add_parser("view", help="open a browser viewer of a scene, robot, plan, tree or MPC run")
+    s = add_command(sub, "view", cmd_view, "open a browser viewer of a scene, robot, plan, tree or MPC run")
     s.add_argument("scene", metavar="SCENE", help="splat file or a built-in scene file")
     s.add_argument("--robot", help=f"robot: {ROBOT_NAME_HELP} (default: a sphere sized to the scene)")
     s.add_argument("--base-pose", default=None, help=BASE_POSE_HELP)
@@ -101,4 +100,3 @@ def register(sub, eval_sub) -> None:
     s.add_argument("--tree", help="TREE.npz with 'nodes' (N, D) and 'parents' (N,)")
     add_config_args(s, ViewerConfig, group="viewer options")
     add_terrain_args(s)
-    s.set_defaults(func=cmd_view)

@@ -54,7 +54,7 @@ class EncoderConfig:
         return check_config(self)
 
 
-def load_encoder(name: str | EncoderConfig = "thumbnail", weights: str | None = None, device: Any = "cpu", **options):
+def load_encoder(name: str | EncoderConfig = "thumbnail", weights: str | None = None, device: Any = "auto", **options):
     """Build an :class:`Encoder` by name (or from an :class:`EncoderConfig`).
 
     Args:

@@ -19,6 +19,7 @@ from typing import Any
 
 import numpy as np
 
+from .._warp import resolve_torch_device
 from ..errors import SplatplanError
 
 
@@ -31,24 +32,6 @@ def require(module: str, extra: str = "vision", what: str = "image encoders"):
 
 
 torch = require("torch")
-
-
-def resolve_torch_device(device: Any) -> "torch.device":
-    """None/"auto" -> CUDA when present else CPU; "cpu", "cuda", "cuda:N" or a ``torch.device``."""
-    if isinstance(device, torch.device):
-        dev = device
-    elif device in (None, "auto"):
-        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
-    else:
-        try:
-            dev = torch.device(str(device))
-        except (RuntimeError, ValueError):
-            raise SplatplanError(f"unknown device {device!r}: use 'cpu', 'cuda' or 'cuda:N'") from None
-    if dev.type == "cuda" and not torch.cuda.is_available():
-        raise SplatplanError(f"device {device!r} requested but no CUDA device is available; use --device cpu")
-    if dev.type not in ("cpu", "cuda"):
-        raise SplatplanError(f"unknown device {device!r}: use 'cpu', 'cuda' or 'cuda:N'")
-    return dev
 
 
 def size_hw(image_size: int | tuple[int, int]) -> tuple[int, ...]:
@@ -178,7 +161,7 @@ class Encoder:
     has_tokens: bool = False
     image_size: tuple[int, int] = (224, 224)
 
-    def __init__(self, *, device: Any = "cpu", batch_size: int = 32, normalize: bool = False) -> None:
+    def __init__(self, *, device: Any = "auto", batch_size: int = 32, normalize: bool = False) -> None:
         if int(batch_size) < 1:
             raise SplatplanError(f"batch_size must be >= 1, got {batch_size}")
         self.device = resolve_torch_device(device)

@@ -141,7 +141,7 @@ class Dinov2Encoder(Encoder):
     has_tokens = True
 
     def __init__(self, model, name: str, *, pooling: str = "cls", image_size: int | tuple[int, int] = 224,
-                 device: Any = "cpu", batch_size: int = 32, normalize: bool = False) -> None:
+                 device: Any = "auto", batch_size: int = 32, normalize: bool = False) -> None:
         super().__init__(device=device, batch_size=batch_size, normalize=normalize)
         if pooling not in POOLINGS:
             raise SplatplanError(f"DINOv2 pooling {pooling!r} unknown: use one of {', '.join(POOLINGS)}")

@@ -172,7 +172,7 @@ class EfficientNetLite0Encoder(Encoder):
     has_tokens = True
 
     def __init__(self, weights: str | Path | None = None, *, random_init: bool = False, pooling: str = "mean",
-                 image_size: int | tuple[int, int] = 224, device: Any = "cpu", batch_size: int = 32, normalize: bool = False) -> None:
+                 image_size: int | tuple[int, int] = 224, device: Any = "auto", batch_size: int = 32, normalize: bool = False) -> None:
         super().__init__(device=device, batch_size=batch_size, normalize=normalize)
         if pooling != "mean":
             raise SplatplanError(f"efficientnet-lite0 pooling {pooling!r}: only 'mean' (global average of the head features)")

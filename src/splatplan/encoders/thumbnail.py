@@ -41,7 +41,7 @@ class ThumbnailEncoder(Encoder):
 
     has_tokens = False
 
-    def __init__(self, size: int = 16, *, levels: int = 1, device: Any = "cpu", batch_size: int = 256, normalize: bool = False) -> None:
+    def __init__(self, size: int = 16, *, levels: int = 1, device: Any = "auto", batch_size: int = 256, normalize: bool = False) -> None:
         super().__init__(device=device, batch_size=batch_size, normalize=normalize)
         if not 1 <= int(size) <= 256:
             raise SplatplanError(f"thumbnail size must be between 1 and 256 pixels, got {size}")

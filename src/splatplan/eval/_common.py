@@ -6,12 +6,12 @@ x, y in [-0.5, 0.5]); robot = the sphere :data:`~splatplan.robots.DEFAULT_POINT_
 
 from __future__ import annotations
 
-import os
-import sys
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
 
+from .._warp import cpu_threads
 from ..errors import SplatplanError
 from ..scenes.filters import FilterReport, filter_floaters
 from ..scenes.splats import Splats
@@ -26,25 +26,19 @@ DISPLAY = {
 }
 
 
-def n_cores() -> int:
-    """CPU cores this process may run on (affinity mask), >= 1; ``SPLATPLAN_CPU_THREADS`` when set
-    (a job-engine worker gets 1, so N workers use N cores, not N x all of them)."""
-    env = os.environ.get("SPLATPLAN_CPU_THREADS")
-    if env:
-        return max(1, int(env))
-    try:
-        return max(1, len(os.sched_getaffinity(0)))
-    except AttributeError:  # pragma: no cover - non-Linux
-        return max(1, os.cpu_count() or 1)
-
-
-def set_torch_threads() -> int:
-    """Let torch use every core (the baselines are torch code). Returns the thread count."""
+@contextmanager
+def set_torch_threads(n: int | None = None):
+    """Let torch use ``n`` intra-op threads inside the block (default: every core this process may
+    use, :func:`splatplan._warp.cpu_threads`); the previous count is restored on exit. Yields ``n``."""
     import torch
 
-    n = n_cores()
+    n = cpu_threads() if n is None else max(1, int(n))
+    before = torch.get_num_threads()
     torch.set_num_threads(n)
-    return n
+    try:
+        yield n
+    finally:
+        torch.set_num_threads(before)
 
 
 def load_stonehenge_filtered(level: int = 1, seed: int = 0, n_splats: int | None = None):
@@ -53,7 +47,7 @@ def load_stonehenge_filtered(level: int = 1, seed: int = 0, n_splats: int | None
     Returns:
         (splats, analytic_scene, filter_report).
     """
-    from ..scenes.stonehenge import build_stonehenge
+    from ..scenes.builtin.stonehenge import build_stonehenge
 
     splats, scene = build_stonehenge(level=level, seed=seed, n_splats=n_splats)
     splats, rep = filter_floaters(splats)
@@ -72,7 +66,7 @@ def load_scene_with_gt(path: str | Path, gt: str | Path | None, filtered: bool =
         SplatplanError: no ``gt`` given or a file is missing.
     """
     from ..scenes.load import load_scene
-    from ..scenes.primitives import AnalyticScene
+    from ..scenes.builtin.primitives import AnalyticScene
 
     if gt is None:
         raise SplatplanError(
@@ -138,14 +132,3 @@ def make_queries(
     d = rng.normal(size=(b - b // 2, 3))
     d *= (0.05 * rng.uniform(0, 1, (len(d), 1)) ** (1 / 3)) / np.linalg.norm(d, axis=1, keepdims=True)
     return np.concatenate([u, means[rng.integers(0, len(means), len(d))] + d])
-
-
-def progress(iterable=None, **kw):
-    """A tqdm progress bar on stderr when it is a terminal (SPLATPLAN_NO_TQDM=1 hides it there too)."""
-    from tqdm import tqdm
-
-    kw.setdefault("file", sys.stderr)
-    kw.setdefault("leave", False)
-    kw.setdefault("dynamic_ncols", True)
-    kw.setdefault("disable", bool(os.environ.get("SPLATPLAN_NO_TQDM")) or not sys.stderr.isatty())
-    return tqdm(iterable, **kw)

@@ -60,7 +60,7 @@ def pick_targets(n: int, seed: int = 0, min_goal_clearance: float = 0.01, max_tr
     return out
 
 
-def arm_throughput(n_samples: int = 256, horizon: int = 32, n_steps: int = 3, device: str | None = "cpu", n_splats: int = 200_000) -> dict:
+def arm_throughput(n_samples: int = 256, horizon: int = 32, n_steps: int = 3, device: str | None = "auto", n_splats: int = 200_000) -> dict:
     """MPC steps/s of the Panda under MPPI with the collision cost on every ellipsoid at every step
     of the horizon (stride 1, one iteration per step), on a ``n_splats`` tabletop (warm-up step
     first). The issue's target: >= 5 steps/s at K = 256, T = 32 on a 200k-splat scene (CPU)."""
@@ -75,7 +75,7 @@ def arm_throughput(n_samples: int = 256, horizon: int = 32, n_steps: int = 3, de
             "steps_per_s": r.steps_per_s, "device": str(ts.checker.device)}  # fmt: skip
 
 
-def run_arm_study(out_dir, quick: bool = False, seed: int = 0, device: str | None = "cpu") -> dict:
+def run_arm_study(out_dir, quick: bool = False, seed: int = 0, device: str | None = "auto") -> dict:
     """Run the study, write ``arm.json`` and ``arm.md`` into ``out_dir``; returns the JSON dict."""
     from ..tasks._common import load_task_scene
     from ..tasks.arm import ArmConfig, run_arm

@@ -64,7 +64,7 @@ def pick_goals(n: int, seed: int = 0, min_clearance: float = 0.1) -> list[np.nda
     return out
 
 
-def run_base_study(out_dir, quick: bool = False, seed: int = 0, device: str | None = "cpu") -> dict:
+def run_base_study(out_dir, quick: bool = False, seed: int = 0, device: str | None = "auto") -> dict:
     """Run the study, write ``base.json`` and ``base.md`` into ``out_dir``; returns the JSON dict."""
     from ..tasks._common import base_terrain, load_task_scene
     from ..tasks.base import BaseConfig, load_go2, run_base

@@ -29,8 +29,9 @@ from .._config import bounded, check_config
 from ..errors import PlanningError, SplatplanError
 from ..planners import RRTConfig, plan
 from ..planners.metrics import clearance, d_min, smoothness
+from .._progress import progress
 from ..robots import load_robot, point_radius
-from ._common import load_stonehenge_filtered, mean_std, progress
+from ._common import load_stonehenge_filtered, mean_std
 
 #: The paper's Table II: n_sigma -> (mean, std) per column.
 PAPER_TABLE_II: dict[float, dict[str, tuple[float, float]]] = {
@@ -183,7 +184,7 @@ def _rrt_config(c: "ConservatismConfig", time_budget_s: float) -> RRTConfig:
         edge_resolution=c.edge_resolution,
         box_lo=(-0.5, -0.5, c.plane_z),
         box_hi=(0.5, 0.5, c.plane_z),
-        time_budget_s=time_budget_s,
+        time_limit_s=time_budget_s,
         max_nodes=c.max_nodes,
         shortcut=SHORTCUT,
     )
@@ -298,7 +299,7 @@ def run_conservatism(out_dir: Path, quick: bool = False, seed: int | None = None
     import matplotlib.pyplot as plt
 
     from ..metric import CollisionChecker
-    from ..scenes.stonehenge import plot_top_view
+    from ..scenes.builtin.stonehenge import plot_top_view
     from ._plots import top_view_handles
 
     cfg = config or (ConservatismConfig.quick() if quick else ConservatismConfig())

@@ -64,7 +64,7 @@ from pathlib import Path
 from typing import Any, Callable, Iterable
 
 from ..errors import SplatplanError
-from ._common import progress as _progress
+from .._progress import progress as _progress
 
 __all__ = ["EngineConfig", "RunResult", "Task", "code_version", "engine_from_flags", "load_results", "run_tasks"]
 

@@ -30,8 +30,9 @@ from scipy.spatial import cKDTree
 
 from .._config import bounded, check_config
 from ..errors import PlanningError, SplatplanError
-from ._common import mean_std, progress
+from .._progress import progress
 from ..robots import point_radius
+from ._common import mean_std
 from .conservatism import PLANE_Z, border_goals, free_start, load_scene, plan_trials
 
 #: The paper's Table III: scene -> (path length mean, std), (closest distance mean, std).

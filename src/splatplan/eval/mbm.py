@@ -60,7 +60,6 @@ import functools
 import hashlib
 import inspect
 import json
-import math
 import time
 from collections import OrderedDict
 from dataclasses import asdict, dataclass, field
@@ -217,7 +216,7 @@ class _Prepared:
     """One problem's scene as every planner sees it (all derived from the config's seed)."""
 
     splats: object  # splatplan.scenes.Splats, floaters filtered (metres, z-up)
-    scene: object  # splatplan.scenes.primitives.AnalyticScene: the exact primitives
+    scene: object  # splatplan.scenes.builtin.primitives.AnalyticScene: the exact primitives
     checker: object  # CollisionChecker on the splats at config.n_sigma (cpu)
     margin: float  # planning margin (m)
     spacing_nn: float  # median NN distance of the means (m; nan with a fixed margin)

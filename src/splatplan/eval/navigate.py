@@ -109,9 +109,6 @@ def _arrow(ax, pose, color, label=None) -> None:
 
 
 def plot_trial(path: Path, gt, tree, target_img, match_img, target_pose, match, drive, title: str) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     fig = plt.figure(figsize=(11, 4.6), constrained_layout=True)
@@ -139,9 +136,6 @@ def plot_trial(path: Path, gt, tree, target_img, match_img, target_pose, match, 
 
 
 def plot_tree(path: Path, gt, tree, start, targets=()) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(figsize=(9, 7), constrained_layout=True)
@@ -171,7 +165,7 @@ def markdown(result: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
-def run_navigate_study(out_dir, *, encoder: str = "thumbnail", encoder_weights: str | None = None, quick: bool = False, device: str = "cpu", config=None, progress: bool = False) -> dict:
+def run_navigate_study(out_dir, *, encoder: str = "thumbnail", encoder_weights: str | None = None, quick: bool = False, device: str = "auto", config=None, progress: bool = False) -> dict:
     """Run the study; write ``navigate.json``, ``navigate.md`` and PNGs into ``out_dir``."""
     from ..encoders import load_encoder
     from ..render import SplatRenderer

@@ -92,8 +92,10 @@ import numpy as np
 from .._config import bounded, check_config
 from .._resources import require_bytes
 from ..errors import SplatplanError
+from .._progress import progress
+from .._warp import cpu_threads
 from ..robots import point_radius
-from ._common import DISPLAY, load_scene_with_gt, n_cores, progress, set_torch_threads
+from ._common import DISPLAY, load_scene_with_gt, set_torch_threads
 
 __all__ = ["PRConfig", "VARIANTS", "precision_recall_curve", "average_precision", "best_f1", "pr_summary", "report", "run_pr"]
 
@@ -371,8 +373,6 @@ def culled_collision_scores(
         Queries with no candidate get ``clamp`` (or the method's score against an empty
         neighbourhood, 0, when ``clamp`` is None: SPLANNING's p with I = 0).
     """
-    import torch
-
     means = scene_t.means.double().numpy()  # (N, 3)
     q = np.asarray(queries, dtype=np.float64)
     floor = 0.0 if clamp is None else clamp
@@ -411,22 +411,18 @@ def culled_collision_scores(
 
     n_pairs = 0
     bar = progress(total=len(t_start) - 1, desc=desc, unit="tile")
-    threads = torch.get_num_threads()
-    torch.set_num_threads(1)  # one tile per core: the tiles are too small for intra-op threads
-    try:
-        with ThreadPoolExecutor(max_workers=n_cores()) as pool:
-            for qi, s, n in pool.map(evaluate, tiles()):
-                bar.update(1)
-                if s is None:
-                    continue
-                n_pairs += n
-                if clamp is None:
-                    out[qi] = s
-                else:
-                    out[qi] = np.maximum(s, clamp)
-                    clamped[qi] = s <= clamp
-    finally:
-        torch.set_num_threads(threads)
+    # one tile per core: the tiles are too small for intra-op threads
+    with set_torch_threads(1), ThreadPoolExecutor(max_workers=cpu_threads()) as pool:
+        for qi, s, n in pool.map(evaluate, tiles()):
+            bar.update(1)
+            if s is None:
+                continue
+            n_pairs += n
+            if clamp is None:
+                out[qi] = s
+            else:
+                out[qi] = np.maximum(s, clamp)
+                clamped[qi] = s <= clamp
     bar.close()
     return out, clamped, n_pairs
 
@@ -649,7 +645,7 @@ class _PRSetup:
 
         r = float(cfg.radius)
         if scene == "stonehenge":
-            from ..scenes.stonehenge import build_stonehenge
+            from ..scenes.builtin.stonehenge import build_stonehenge
 
             raw, geom = build_stonehenge(level=cfg.level, seed=cfg.seed, n_splats=cfg.n_splats)
             self.scene_name = f"built-in Stonehenge level {cfg.level} seed {cfg.seed}"
@@ -726,13 +722,9 @@ def pr_task(spec: dict, ctx: PRContext) -> dict:
         s_all[~ctx.reach] = s_deep
     dt = time.perf_counter() - t0
     t1 = time.perf_counter()
-    threads = torch.get_num_threads()
-    torch.set_num_threads(1)  # batch-1 calls: intra-op threads only add barrier waits on a busy machine
-    try:
-        with torch.no_grad():
-            check = _culling_check(name, full_obj, ctx.q, s_eval, cl_eval, ctx.near, r, cfg)
-    finally:
-        torch.set_num_threads(threads)
+    # batch-1 calls: intra-op threads only add barrier waits on a busy machine
+    with set_torch_threads(1), torch.no_grad():
+        check = _culling_check(name, full_obj, ctx.q, s_eval, cl_eval, ctx.near, r, cfg)
     check["seconds"] = time.perf_counter() - t1
     return {"s_all": s_all, "cl_eval": cl_eval, "n_pairs": int(n_pairs), "rule": rule, "seconds": dt, "check": check}
 
@@ -811,7 +803,7 @@ def run_pr(
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     t_all = time.perf_counter()
-    threads = set_torch_threads()
+    threads = cpu_threads()  # torch threads in the scoring: see culled_collision_scores / pr_task
     r = float(cfg.radius)
 
     if scene == "stonehenge" and gt is not None:

@@ -33,9 +33,6 @@ def quick_config(cfg):
 
 
 def _plot_goal(path: Path, robot, scene, goal, target, runs: dict) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     n_views = max(len(r.views) for r in runs.values())
@@ -120,7 +117,7 @@ def markdown(result: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
-def run_reach_study(out_dir, *, encoder: str = "thumbnail", encoder_weights: str | None = None, quick: bool = False, device: str = "cpu", config=None, n_goals: int = 5, progress: bool = False) -> dict:
+def run_reach_study(out_dir, *, encoder: str = "thumbnail", encoder_weights: str | None = None, quick: bool = False, device: str = "auto", config=None, n_goals: int = 5, progress: bool = False) -> dict:
     """Run the study, write ``reach.json``, ``reach.md`` and one PNG per goal into ``out_dir``."""
     from ..render import SplatRenderer
     from ..robots import load_robot

@@ -50,8 +50,9 @@ import numpy as np
 
 from .._config import bounded, check_config
 from ..errors import SplatplanError
+from .._warp import cpu_threads
 from ..robots import point_radius
-from ._common import DISPLAY, make_queries, n_cores
+from ._common import DISPLAY, make_queries
 
 __all__ = ["ThroughputConfig", "PAPER_TABLE_I", "run_throughput"]
 
@@ -238,12 +239,12 @@ def _worker(spec: dict) -> dict:
     """Time and measure one (method, batch) in this (fresh) process. See the module docstring."""
     import torch
 
-    from .._warp import cpu_threads, wp
-    from ._common import load_stonehenge_filtered, set_torch_threads
+    from .._warp import wp
+    from ._common import load_stonehenge_filtered
 
     method, batch, device = spec["method"], int(spec["batch"]), spec["device"]
     radius, n_sigma = float(spec["radius"]), float(spec["n_sigma"])
-    threads = set_torch_threads() if spec.get("torch_threads") is None else int(spec["torch_threads"])
+    threads = cpu_threads() if spec.get("torch_threads") is None else int(spec["torch_threads"])
     torch.set_num_threads(threads)
     wp()  # initialise Warp (import cost is not the method's memory)
     splats, _, rep = load_stonehenge_filtered(spec["level"], spec["seed"], spec["n_splats"])
@@ -441,7 +442,7 @@ def run_throughput(out_dir: Path, quick: bool = False, device: str = "auto", con
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     t_all = time.perf_counter()
-    from ._common import progress
+    from .._progress import progress
 
     rows = []
     for method, batch in progress(cfg.rows, desc="throughput", unit="row"):
@@ -463,7 +464,7 @@ def run_throughput(out_dir: Path, quick: bool = False, device: str = "auto", con
             rows.append(_run_worker_subprocess(spec, cfg.worker_timeout_s))
             continue
         tries = []
-        for th in dict.fromkeys(n_cores() if t is None else int(t) for t in cfg.baseline_threads):
+        for th in dict.fromkeys(cpu_threads() if t is None else int(t) for t in cfg.baseline_threads):
             tries.append(_run_worker_subprocess({**spec, "torch_threads": th}, cfg.worker_timeout_s))
         good = [t for t in tries if "error" not in t]
         row = max(good, key=lambda t: t["checks_per_s"]) if good else tries[0]
@@ -491,7 +492,7 @@ def run_throughput(out_dir: Path, quick: bool = False, device: str = "auto", con
         "device": dev,
         "rows": rows,
         "cpu": platform.processor() or platform.machine(),
-        "cores": n_cores(),
+        "cores": cpu_threads(),
         "n_splats": first["n_splats"],
         "floaters_dropped": first["floaters_dropped"],
         "radius": cfg.radius,

@@ -27,12 +27,12 @@ from dataclasses import replace
 
 import numpy as np
 
+from .._arrays import array_kind, host_array
 from ..errors import SplatplanError
 from ..scenes.splats import Splats
 from .config import MetricConfig, QueryResult
 from .interop import (
     MetricWorkspace,
-    array_kind,
     as_host_queries,
     axes_medians,
     check_device,
@@ -40,7 +40,6 @@ from .interop import (
     device_axes_medians,
     device_rows,
     device_side_rows,
-    host_array,
     host_link_batch,
     torch_device_name,
     warp_device_name,
@@ -74,7 +73,7 @@ class CollisionChecker:
         self,
         scene: Splats,
         n_sigma: float | None = None,
-        device: str | None = "cpu",
+        device: str | None = "auto",
         config: MetricConfig | None = None,
         backend: str = "warp",
         tiers=None,

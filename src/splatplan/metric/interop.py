@@ -17,11 +17,11 @@ Rotations and semi-axes whose leading shape is a suffix of the batch shape (e.g.
 
 from __future__ import annotations
 
-import sys
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from .._arrays import array_kind, host_array
 from .._warp import wp as _wp
 from ..errors import SplatplanError
 
@@ -32,17 +32,6 @@ def _wdt(tail: tuple[int, ...]):
     """Warp dtype of one row with trailing shape ``tail``: (3,) vec3, (4,) vec4, (3, 3) mat33."""
     wp = _wp()
     return {(3,): wp.vec3, (4,): wp.vec4, (3, 3): wp.mat33}[tuple(tail)]
-
-
-def array_kind(x) -> str:
-    """"warp", "torch" or "numpy" (everything else is taken by ``np.asarray``)."""
-    warp = sys.modules.get("warp")
-    if warp is not None and isinstance(x, warp.array):
-        return "warp"
-    torch = sys.modules.get("torch")
-    if torch is not None and isinstance(x, torch.Tensor):
-        return "torch"
-    return "numpy"
 
 
 def torch_device_name(t) -> str:
@@ -141,16 +130,6 @@ def _compact(x: np.ndarray, shape: tuple[int, ...], tail: int, name: str) -> tup
         raise SplatplanError(f"{name} shape {x.shape} does not broadcast to the batch {tuple(shape)}") from exc
     b = int(np.prod(shape, dtype=np.int64))
     return full.reshape((b,) + tl), max(b, 1)
-
-
-def host_array(x) -> np.ndarray:
-    """A numpy, torch or Warp array as a numpy array on the host (dtype kept)."""
-    k = array_kind(x)
-    if k == "torch":
-        return x.detach().cpu().numpy()
-    if k == "warp":
-        return x.numpy()
-    return np.asarray(x)
 
 
 def _to_numpy(x) -> np.ndarray:

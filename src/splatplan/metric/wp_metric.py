@@ -200,7 +200,7 @@ def _softmin_power(cfg: MetricConfig) -> int:
 class WarpMetric:
     """Scene data on one Warp device, cached hash grids and a CPU thread pool; see :class:`CollisionChecker`."""
 
-    def __init__(self, scene: Splats, device: str | None = "cpu", tiers: TierConfig | None = None) -> None:
+    def __init__(self, scene: Splats, device: str | None = "auto", tiers: TierConfig | None = None) -> None:
         self.device = resolve_device(device)
         self.tiers = tiers or TierConfig()
         self._lp_one: LanePartials | None = None  # placeholders of the one-lane launch (_lane_partials)

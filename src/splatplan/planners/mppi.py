@@ -35,7 +35,7 @@ from .._config import bounded, check_config
 from .._resources import require_rollouts
 from ..errors import SplatplanError
 from .bspline import UniformBSpline
-from .costs import CollisionCost, ControlEffortCost, Cost, Rollout, StateCost, TerminalCost, _geometry, reduce_time, total_cost
+from .costs import CollisionCost, ControlEffortCost, Cost, Rollout, StateCost, TerminalCost, _geometry, total_cost
 from .dynamics import Dynamics
 
 
@@ -184,9 +184,6 @@ def _per_dim(v, du: int, name: str) -> np.ndarray | None:
     if a.shape != (du,):
         raise SplatplanError(f"MPPIConfig.{name} needs 1 or {du} values, got {np.shape(v)}")
     return a.copy()
-
-
-_reduce_time = reduce_time  # backward-compatible name
 
 
 def mppi_weights(costs: np.ndarray, temperature: float) -> np.ndarray:

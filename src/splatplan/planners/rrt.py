@@ -48,7 +48,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import InitVar, dataclass, field
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.spatial.distance import cdist
@@ -112,12 +112,6 @@ class RRTConfig:
     connect_attempts: int = bounded(4, ge=1)
     #: RRT-Connect: longest connect run per attempt, in strides (None = all the way to the target)
     connect_strides: float | None = bounded(4.0, gt=0)
-    #: deprecated alias of time_limit_s (overrides it when given)
-    time_budget_s: InitVar[float | None] = None
-
-    def __post_init__(self, time_budget_s: float | None) -> None:
-        if time_budget_s is not None:
-            self.time_limit_s = float(time_budget_s)
 
     def validate(self) -> "RRTConfig":
         check_config(self)  # each field's declared range (splatplan._config); cross-field rules below

@@ -170,12 +170,7 @@ class RRTConnect(RRT):
             t_now = time.perf_counter()
             c_search = c_before
             res.time_s = t_now - t0
-            split = {
-                "sampling": t_sample,
-                "nearest": t_near,
-                "collision": c_search,
-                "shortcut": t_now - t_short,
-            }
+            split = {"sampling": t_sample, "nearest": t_near, "collision": c_search, "shortcut": t_now - t_short}
             split["other"] = max(0.0, res.time_s - sum(split.values()))
             res.info["time_split"] = split
             res.info["n_queries"] = geom.n_queries - q0
@@ -185,19 +180,15 @@ class RRTConnect(RRT):
         if edges.edges_free(start[None], goal[None])[0]:
             return result(True, np.stack([start, goal]), "direct edge from start to goal is free", 0)
 
+        limit_s = st.time_limit_s if st.time_limit_s is not None else (None if deadline is None else deadline - t0)  # the budget the user gave
         it = 0
         runs: list[tuple[int, int, int, int]] = []  # connect runs still free, carried to the next iteration
         while True:
-            if cfg.max_iters is not None and it >= cfg.max_iters:
-                message = f"within the iteration budget ({cfg.max_iters:,} iterations, {trees[0].n + trees[1].n:,} nodes)"
-                break
-            if trees[0].n + trees[1].n >= cap_max:
-                message = f"within the node budget ({cfg.max_nodes:,} nodes)"
-                break
-            if time.perf_counter() > end:
-                limit = st.time_limit_s if st.time_limit_s is not None else deadline - t0  # the budget the user gave
-                message = f"within {limit:.1f} s ({trees[0].n + trees[1].n:,} nodes)"
-                info["time_limit_hit"] = True
+            spent = _spent(cfg, it, trees[0].n + trees[1].n, cap_max, end, limit_s)
+            if spent is not None:
+                message, timed_out = spent
+                if timed_out:
+                    info["time_limit_hit"] = True
                 break
             a_id = it % 2
             it += 1
@@ -241,7 +232,6 @@ class RRTConnect(RRT):
             new_ids = np.full(m, -1, dtype=np.int64)
             if ext_free.any():
                 new_ids[ext_free] = ta.add(new[ext_free], near[ext_free])
-            runs = []
             for c, (f, i_from, g, tgt) in enumerate(todo):
                 if tgt < 0:  # the target is a new node of this iteration: it exists if its extension was free
                     tgt = int(new_ids[-1 - tgt])
@@ -252,22 +242,45 @@ class RRTConnect(RRT):
                     raw = np.vstack([ps, pg[::-1]]) if f == 0 else np.vstack([pg, ps[::-1]])
                     t_sample += time.perf_counter() - t6
                     return result(True, raw, f"trees joined after {it} iterations", it)
-            for c, (f, i_from, g, tgt) in enumerate(todo):
-                if kc[c] == 0:
-                    continue
-                # nodes on the check-sample grid, about one per stride, and the last free sample
-                seg = float(np.linalg.norm((c_to[c] - c_from[c]) * w))
-                every = max(1, int(stride * nc[c] / max(seg, 1e-300)))
-                ii = np.arange(every, kc[c] + 1, every)
-                if ii.size == 0 or ii[-1] != kc[c]:
-                    ii = np.append(ii, kc[c])
-                pts = c_from[c] + (ii / nc[c])[:, None] * (c_to[c] - c_from[c])  # (K, D)
-                tree = trees[f]
-                parent = np.concatenate([[i_from], np.arange(tree.n, tree.n + len(ii) - 1)])
-                ids = tree.add(pts, parent)
-                if tgt < 0:
-                    tgt = int(new_ids[-1 - tgt])
-                if kc[c] == nc[c] and frac[c] < 1.0 and tgt >= 0 and len(runs) < 2 * n_conn:
-                    runs.append((f, int(ids[-1]), g, tgt))  # free so far: the run goes on next iteration
+            runs = _grow_runs(trees, todo, kc, nc, c_from, c_to, frac, new_ids, w, stride, 2 * n_conn)
             t_sample += time.perf_counter() - t6
         return result(False, None, f"no path found {message}", it)
+
+
+def _grow_runs(trees, todo, kc, nc, c_from, c_to, frac, new_ids, w, stride: float, max_runs: int) -> list[tuple[int, int, int, int]]:
+    """Grow each tree by the free part of its connect runs (``todo``: (tree, front node, target
+    tree, target node or -1 - index into the new nodes)); ``kc``/``nc`` (C,): free / all check
+    samples of each run, ``c_from``/``c_to`` (C, D) its tried part, ``frac`` (C,) the share of the
+    whole run tried. Nodes go on the check-sample grid, about one per stride, plus the last free
+    sample. Returns the runs that were free so far but not finished (they go on next iteration)."""
+    runs: list[tuple[int, int, int, int]] = []
+    for c, (f, i_from, g, tgt) in enumerate(todo):
+        if kc[c] == 0:
+            continue
+        seg = float(np.linalg.norm((c_to[c] - c_from[c]) * w))
+        every = max(1, int(stride * nc[c] / max(seg, 1e-300)))
+        ii = np.arange(every, kc[c] + 1, every)
+        if ii.size == 0 or ii[-1] != kc[c]:
+            ii = np.append(ii, kc[c])
+        pts = c_from[c] + (ii / nc[c])[:, None] * (c_to[c] - c_from[c])  # (K, D)
+        tree = trees[f]
+        parent = np.concatenate([[i_from], np.arange(tree.n, tree.n + len(ii) - 1)])
+        ids = tree.add(pts, parent)
+        if tgt < 0:
+            tgt = int(new_ids[-1 - tgt])
+        if kc[c] == nc[c] and frac[c] < 1.0 and tgt >= 0 and len(runs) < max_runs:
+            runs.append((f, int(ids[-1]), g, tgt))
+    return runs
+
+
+def _spent(cfg, it: int, n_nodes: int, cap_max: float, end: float, limit_s: float | None) -> tuple[str, bool] | None:
+    """The budget that is spent as ("within ..." for the failure message, whether it is the time),
+    or None: iterations, nodes, then time (``end``: a ``time.perf_counter()`` value; ``limit_s``:
+    the budget the user gave, finite whenever ``end`` is)."""
+    if cfg.max_iters is not None and it >= cfg.max_iters:
+        return f"within the iteration budget ({cfg.max_iters:,} iterations, {n_nodes:,} nodes)", False
+    if n_nodes >= cap_max:
+        return f"within the node budget ({cfg.max_nodes:,} nodes)", False
+    if time.perf_counter() > end:
+        return f"within {limit_s:.1f} s ({n_nodes:,} nodes)", True
+    return None

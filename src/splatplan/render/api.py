@@ -10,19 +10,8 @@ BACKENDS = ("auto", "warp", "gsplat", "reference")
 
 
 def render(
-    scene: Splats,
-    viewmats,
-    Ks,
-    width: int,
-    height: int,
-    *,
-    near: float = 0.01,
-    far: float = 1e10,
-    background=(0.0, 0.0, 0.0),
-    sh_degree: int | None = None,
-    device: str | None = None,
-    backend: str = "auto",
-    max_bytes: int = MAX_BYTES,
+    scene: Splats, viewmats, Ks, width: int, height: int, *, near: float = 0.01, far: float = 1e10, background=(0.0, 0.0, 0.0),
+    sh_degree: int | None = None, device: str | None = "auto", backend: str = "auto", max_bytes: int = MAX_BYTES
 ) -> RenderResult:
     """Render a splat scene from a batch of B pinhole cameras.
 

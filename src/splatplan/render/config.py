@@ -23,6 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._arrays import host_array
 from ..errors import SplatplanError
 
 #: Tile side in pixels (binning unit of the rasteriser).
@@ -106,12 +107,8 @@ def resolve_sh_degree(sh_degree: int | None, scene_degree: int) -> int:
 
 
 def _to_numpy(x, what: str) -> np.ndarray:
-    if hasattr(x, "detach") and hasattr(x, "cpu"):  # torch
-        x = x.detach().cpu().numpy()
-    elif hasattr(x, "numpy") and hasattr(x, "device") and hasattr(x, "ptr"):  # wp.array
-        x = x.numpy()
     try:
-        arr = np.asarray(x, dtype=np.float64)
+        arr = np.asarray(host_array(x), dtype=np.float64)
     except (TypeError, ValueError):
         raise SplatplanError(f"{what} must be a numeric array") from None
     return arr

@@ -33,7 +33,7 @@ def gsplat_available() -> bool:
 class GsplatRenderer:
     """Scene tensors on the GPU for repeated ``gsplat.rasterization`` calls (same API as SplatRenderer.render)."""
 
-    def __init__(self, scene: Splats, device: str | None = None) -> None:
+    def __init__(self, scene: Splats, device: str | None = "auto") -> None:
         try:
             import gsplat
             import torch

@@ -136,16 +136,7 @@ def blend_reference(pr: dict, width: int, height: int, background: np.ndarray) -
 
 
 def render_reference(
-    scene: Splats,
-    viewmats,
-    Ks,
-    width: int,
-    height: int,
-    *,
-    near: float = 0.01,
-    far: float = 1e10,
-    background=(0.0, 0.0, 0.0),
-    sh_degree: int | None = None,
+    scene: Splats, viewmats, Ks, width: int, height: int, *, near: float = 0.01, far: float = 1e10, background=(0.0, 0.0, 0.0), sh_degree: int | None = None
 ) -> RenderResult:
     """Numpy reference of :func:`splatplan.render` (same arguments and conventions; CPU, slow)."""
     v, k, width, height, near, far, bg = check_render_args(viewmats, Ks, width, height, near, far, background)

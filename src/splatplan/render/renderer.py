@@ -16,11 +16,11 @@ from __future__ import annotations
 import math
 import queue
 import threading
-from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
-from .._warp import cpu_threads, resolve_device
+from .._arrays import array_kind
+from .._warp import LazyThreadPool, OwnsThreadPool, cpu_threads, resolve_device
 from .._warp import wp as _wp
 from ..errors import SplatplanError
 from ..scenes.splats import Splats
@@ -86,12 +86,12 @@ def _wp_raster():
     return wp_raster
 
 
-class SplatRenderer:
+class SplatRenderer(OwnsThreadPool):
     """Render one scene from batches of cameras, repeatedly (scene data stays on the device).
 
     Args:
         scene: the splats (validated once here).
-        device: "cpu", "cuda", "cuda:N" or None/"auto".
+        device: "auto" (CUDA when Warp sees one, else the CPU; None means the same), "cpu", "cuda" or "cuda:N".
         threads: CPU worker threads (default: every core the process may use).
         blend: "tile" (one thread per tile; the CPU default) or "pixel" (one thread per pixel;
             the CUDA default). Both give the same images.
@@ -102,7 +102,7 @@ class SplatRenderer:
     def __init__(
         self,
         scene: Splats,
-        device: str | None = None,
+        device: str | None = "auto",
         *,
         threads: int | None = None,
         blend: str | None = None,
@@ -144,7 +144,7 @@ class SplatRenderer:
         else:
             self._centre, self._radius = np.zeros(3), 1.0
         self.threads = 1 if self.is_cuda else max(1, int(threads or cpu_threads()))
-        self._pool: ThreadPoolExecutor | None = None
+        self._pool = LazyThreadPool(self.threads, "splatplan-render")
         self._workspaces: queue.SimpleQueue = queue.SimpleQueue()
         for _ in range(self.threads):
             self._workspaces.put(_Workspace(d))
@@ -152,42 +152,9 @@ class SplatRenderer:
         self._call_out_bytes = 0
         wp.load_module(rast, device=d)  # compile before any worker thread launches
 
-    # ------------------------------------------------------------------ lifetime
-    def close(self) -> None:
-        """Stop the worker threads (the renderer can still be used; it restarts them)."""
-        if self._pool is not None:
-            self._pool.shutdown(wait=True)
-            self._pool = None
-
-    def __enter__(self) -> "SplatRenderer":
-        return self
-
-    def __exit__(self, *exc) -> None:
-        self.close()
-
-    def __del__(self) -> None:  # pragma: no cover - best effort
-        try:
-            self.close()
-        except Exception:
-            pass
-
-    def _get_pool(self) -> ThreadPoolExecutor:
-        if self._pool is None:
-            self._pool = ThreadPoolExecutor(max_workers=self.threads, thread_name_prefix="splatplan-render")
-        return self._pool
-
     # ------------------------------------------------------------------ rendering
     def render(
-        self,
-        viewmats,
-        Ks,
-        width: int,
-        height: int,
-        *,
-        near: float = 0.01,
-        far: float = 1e10,
-        background=(0.0, 0.0, 0.0),
-        sh_degree: int | None = None,
+        self, viewmats, Ks, width: int, height: int, *, near: float = 0.01, far: float = 1e10, background=(0.0, 0.0, 0.0), sh_degree: int | None = None
     ) -> RenderResult:
         """Render B cameras; see :func:`splatplan.render` for the conventions and outputs."""
         v, k, width, height, near, far, bg = check_render_args(viewmats, Ks, width, height, near, far, background)
@@ -195,7 +162,7 @@ class SplatRenderer:
         b = v.shape[0]
         out_bytes = estimate_bytes(b, width, height)
         require_bytes(out_bytes, f"the output of {b} image(s) of {width}x{height} (one render call)", "the image size or the cameras per call", limit=self.max_bytes)
-        kind = _output_kind(viewmats)
+        kind = array_kind(viewmats)
         if b == 0:
             return _wrap(np.zeros((0, height, width, 3), np.float32), np.zeros((0, height, width), np.float32),
                          np.zeros((0, height, width), np.float32), kind, self.device)  # fmt: skip
@@ -242,7 +209,7 @@ class SplatRenderer:
                 for s0 in starts:
                     self._run_chunk(scene, ca, fr, zmax, out, s0, min(chunk, b - s0))
             else:
-                pool = self._get_pool()
+                pool = self._pool.get()
                 from .._warp import wait_all
 
                 wait_all(pool.submit(self._run_chunk, scene, ca, fr, zmax, out, s0, min(chunk, b - s0)) for s0 in starts)
@@ -321,15 +288,6 @@ class SplatRenderer:
     def _workspace_budget(self) -> int:
         """Bytes one worker's workspace may take in the current call (set by render())."""
         return max(self.max_bytes - self._call_out_bytes - self._scene_bytes, 0) // self.threads
-
-
-def _output_kind(x) -> str:
-    mod = type(x).__module__
-    if mod.startswith("torch"):
-        return "torch"
-    if mod.startswith("warp"):
-        return "warp"
-    return "numpy"
 
 
 def _wrap(rgb: np.ndarray, depth: np.ndarray, alpha: np.ndarray, kind: str, device: str) -> RenderResult:

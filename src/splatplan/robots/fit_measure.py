@@ -22,7 +22,7 @@ import numpy as np
 
 from ..errors import SplatplanError
 from .fit import mahalanobis
-from .fit_cover import inside_any, sample_solids, solids_of, sphere_points, surface_of
+from .fit_cover import sample_solids, solids_of, sphere_points, surface_of
 
 
 @dataclass

@@ -17,12 +17,13 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
+from .._warp import LazyThreadPool, OwnsThreadPool
 from ..errors import SplatplanError
 from .fit import EllipsoidSet
-from .kinematics import FIXED, PLANAR, PRISMATIC, REVOLUTE, TRANSLATION, Kinematics, link_poses_ref, rigid_groups
+from .kinematics import FIXED, PLANAR, PRISMATIC, TRANSLATION, Kinematics, link_poses_ref, rigid_groups
 
 
-class Robot:
+class Robot(OwnsThreadPool):
     """A robot: flat kinematics + collision ellipsoids (see the module docstring).
 
     Attributes:
@@ -93,7 +94,7 @@ class Robot:
         self.static_ellipsoids = self.static_links[self.ellipsoid_link]
         self.self_collision_pairs = self._pairs(disabled_pairs or set())
         self._lock = threading.Lock()
-        self._pool: ThreadPoolExecutor | None = None
+        self._pool = LazyThreadPool(name=f"splatplan-fk-{name}")
         self._wp_cache: dict = {}
 
     # ------------------------------------------------------------------ basic properties
@@ -130,7 +131,7 @@ class Robot:
         if not (np.isfinite(m) and m >= 0):
             raise SplatplanError(f"robot {self.name}: the inflation margin must be finite and >= 0, got {margin_m}")
         out = copy.copy(self)
-        out.__dict__.update(_lock=threading.Lock(), _pool=None, _wp_cache={})
+        out.__dict__.update(_lock=threading.Lock(), _pool=copy.copy(self._pool), _wp_cache={})
         out.semi_axes = inflate_semi_axes(self.semi_axes, m)
         out.motion_bound = out._motion_bound()
         out.info = {**self.info, "inflated_by_m": m + float(self.info.get("inflated_by_m", 0.0))}
@@ -206,7 +207,7 @@ class Robot:
 
         launch_fk(self, q_wp, out_centers, out_rots, attachments(self, ellipsoids=ellipsoids))
 
-    def fk(self, q, device: str | None = "cpu", ellipsoids=None, links=None) -> tuple[np.ndarray, np.ndarray]:
+    def fk(self, q, device: str | None = "auto", ellipsoids=None, links=None) -> tuple[np.ndarray, np.ndarray]:
         """Convenience: numpy q (..., dof) -> Warp FK -> numpy (centres (..., E, 3), rotations (..., E, 3, 3)) float32.
 
         ``ellipsoids``: a subset of ellipsoid indices (E = its length); ``links``: link indices
@@ -230,41 +231,16 @@ class Robot:
         return oc.numpy().reshape(lead + (e, 3)), orr.numpy().reshape(lead + (e, 3, 3))
 
     def _thread_pool(self) -> ThreadPoolExecutor:
-        from .._warp import cpu_threads
+        return self._pool.get()
 
-        with self._lock:
-            if self._pool is None:
-                self._pool = ThreadPoolExecutor(max_workers=cpu_threads(), thread_name_prefix=f"splatplan-fk-{self.name}")
-            return self._pool
-
-    def close(self) -> None:
-        """Shut down the CPU thread pool (recreated on the next CPU launch)."""
-        with self._lock:
-            if self._pool is not None:
-                self._pool.shutdown(wait=True)
-                self._pool = None
-
-    def __enter__(self) -> "Robot":
-        return self
-
-    def __exit__(self, *exc) -> None:
-        self.close()
-
-    def __getstate__(self) -> dict:  # picklable (worker processes): no pool, lock or device arrays
+    def __getstate__(self) -> dict:  # picklable (worker processes): no threads, lock or device arrays
         state = self.__dict__.copy()
-        state.update(_lock=None, _pool=None, _wp_cache={})
+        state.update(_lock=None, _wp_cache={})  # the LazyThreadPool pickles without threads
         return state
 
     def __setstate__(self, state: dict) -> None:
         self.__dict__.update(state)
         self._lock = threading.Lock()
-
-    def __del__(self):  # pragma: no cover - best effort
-        try:
-            if self._pool is not None:
-                self._pool.shutdown(wait=False)
-        except Exception:
-            pass
 
     # ------------------------------------------------------------------ motion bound
 

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import SplatplanError
-from .kinematics import FIXED, PRISMATIC, REVOLUTE, Kinematics
+from .kinematics import PRISMATIC, REVOLUTE, Kinematics
 
 
 def share_dir() -> Path | None:

@@ -267,7 +267,7 @@ def write_moveit(path: str | Path, out_ply: str | Path, n_splats: int = DEFAULT_
     Returns:
         (ply path, ground-truth JSON path).
     """
-    from .stonehenge import _save_ply, ground_truth_path
+    from .builtin.stonehenge import _save_ply, ground_truth_path
 
     out_ply = Path(out_ply)
     splats, scene = build_moveit(path, n_splats, seed)

@@ -39,7 +39,7 @@ def load_filtered_scene(scene, n_splats: int | None = None, seed: int = 0):
         raw, gt = build_builtin(name, seed=seed, n_splats=n_splats)
     else:
         from ..scenes.load import load_scene
-        from ..scenes.stonehenge import ground_truth_path, load_ground_truth
+        from ..scenes.builtin.stonehenge import ground_truth_path, load_ground_truth
 
         p = Path(name)
         if not p.is_file():
@@ -50,7 +50,7 @@ def load_filtered_scene(scene, n_splats: int | None = None, seed: int = 0):
     return splats, gt
 
 
-def load_task_scene(scene, n_sigma: float = 1.0, device: str | None = "cpu", n_splats: int | None = None, ground_below: float | None = None, terrain=None) -> TaskScene:
+def load_task_scene(scene, n_sigma: float = 1.0, device: str | None = "auto", n_splats: int | None = None, ground_below: float | None = None, terrain=None) -> TaskScene:
     """A built-in name ("tabletop", "apartment", "stonehenge") or a splat file (its ``.gt.json``
     beside it is used for the exact clearance when present).
 

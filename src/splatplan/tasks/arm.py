@@ -32,7 +32,7 @@ import numpy as np
 from .._config import bounded, check_config
 from .._resources import require_rollouts
 from ..errors import SplatplanError
-from ._common import TaskResult, TaskScene, check_start, load_task_scene, moving_clearance, trajectory_clearance
+from ._common import TaskResult, check_start, load_task_scene, moving_clearance, trajectory_clearance
 from ._ik import rotation_error, solve_ik
 
 __all__ = ["ArmConfig", "check_reachable", "down_quat", "run_arm"]
@@ -154,7 +154,7 @@ def run_arm(
     config: ArmConfig | None = None,
     collision: bool = True,
     q0=None,
-    device: str | None = "cpu",
+    device: str | None = "auto",
     check_goal: bool = True,
     progress=None,
 ) -> TaskResult:

@@ -471,7 +471,7 @@ def run_base(
     config: BaseConfig | None = None,
     collision: bool = True,
     route: np.ndarray | None = None,
-    device: str | None = "cpu",
+    device: str | None = "auto",
     progress=None,
 ) -> TaskResult:
     """Drive the base to ``goal_xy`` with MPPI (see the module docstring).

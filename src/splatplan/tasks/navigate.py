@@ -187,7 +187,7 @@ def floor_mask(splats, height: float = 0.05) -> np.ndarray:
     return terrain_mask(splats, 0.0, height, n_sigma=0.0, max_tilt_deg=25.0) & (np.asarray(splats.means)[:, 2] > -height)
 
 
-def load_nav_scene(scene="apartment", cfg: NavigateConfig | None = None, device: str | None = "cpu", seed: int = 0) -> NavScene:
+def load_nav_scene(scene="apartment", cfg: NavigateConfig | None = None, device: str | None = "auto", seed: int = 0) -> NavScene:
     """A built-in scene name (or a splat file) -> :class:`NavScene` (floaters filtered)."""
     from ..metric import CollisionChecker
 

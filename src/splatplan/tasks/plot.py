@@ -76,9 +76,6 @@ def _draw_memory(ax, maps: dict) -> None:
 
 def plot_run(robot, task_scene, result, *, kind: str, n_frames: int = 6, title: str = ""):
     """A Figure of the run: ``kind`` "arm" (top and side views) or "base" (top view at body height)."""
-    import matplotlib
-
-    matplotlib.use("Agg")  # noqa: the CLI and tests render off-screen
     import matplotlib.pyplot as plt
     from matplotlib.patches import Polygon
 

@@ -457,7 +457,7 @@ def make_reach_goals(
     ]
 
 
-def reach_encoder(name: str = "thumbnail", weights: str | None = None, device: str | None = "cpu", config: ReachConfig | None = None):
+def reach_encoder(name: str = "thumbnail", weights: str | None = None, device: str | None = "auto", config: ReachConfig | None = None):
     """The encoder of a reach run: :func:`~splatplan.encoders.load_encoder`, except that
     ``"thumbnail"`` is the ``thumbnail_levels``-band Laplacian pyramid of side
     ``encoder_image_size`` (default 8: bands of 4 and 8 px) rather than the single 16x16 thumbnail."""
@@ -485,7 +485,7 @@ def run_reach(
     encoder_weights: str | None = None,
     goal_camera_pose=None,
     renderer=None,
-    device: str | None = "cpu",
+    device: str | None = "auto",
     progress=None,
 ) -> ReachResult:
     """Reach the view of ``target_image`` with the wrist camera (see the module docstring).
@@ -505,7 +505,6 @@ def run_reach(
         device: metric / renderer / encoder device.
         progress: optional callable(step, image_cost).
     """
-    from ..encoders import load_encoder
     from ..planners import MPPI, MPPIConfig
     from ..planners.costs import CollisionCost, ControlEffortCost, JointLimitCost
     from ..planners.dynamics import JointIntegrator

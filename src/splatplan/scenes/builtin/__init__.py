@@ -20,7 +20,7 @@ from typing import Callable
 
 from ..._resources import require_bytes
 from ...errors import SplatplanError
-from . import apartment, primitives, stonehenge, tabletop
+from . import apartment, stonehenge, tabletop
 from .primitives import AnalyticScene, SurfaceSplatConfig, splats_from_boxes, splats_from_scene
 
 __all__ = ["BUILTIN_SCENES", "AnalyticScene", "SurfaceSplatConfig", "build_builtin", "splats_from_boxes", "splats_from_scene", "write_builtin"]

@@ -26,15 +26,15 @@ face, walls 1.5x.
 
 from __future__ import annotations
 
+import copy
 import functools
-import json
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
-from ...errors import SplatplanError
 from ..splats import Splats
-from .primitives import AnalyticScene, _copy_splats, _yaw_quat, make_box, splats_from_boxes
+from ._layout import BoxList, sample_splats, splat_count
+from .primitives import AnalyticScene, _copy_splats, _yaw_quat
 
 __all__ = ["DOORS", "N_SPLATS", "ROOMS", "WALL_HEIGHT", "ApartmentLayout", "apartment_layout", "build_apartment", "room_of"]
 
@@ -60,6 +60,7 @@ DOORS = (
     ("bedroom-kitchen", "y", 0.0, 2.55, 3.35, ("bedroom", "kitchen")),
 )
 
+#: Base colours per label (RGB in [0, 1]), the objects' distinct colours included.
 LABEL_COLORS = {
     "floor": (0.62, 0.50, 0.36),
     "wall": (0.90, 0.89, 0.85),
@@ -70,8 +71,7 @@ LABEL_COLORS = {
     "counter": (0.80, 0.80, 0.82),
     "fridge": (0.92, 0.94, 0.96),
     "shelf": (0.40, 0.28, 0.20),
-}
-OBJECT_COLORS = {
+    # objects: distinct colours
     "object_green_plant": (0.10, 0.55, 0.15),
     "object_yellow_box": (0.95, 0.80, 0.10),
     "object_orange_ball": (0.98, 0.45, 0.05),
@@ -81,6 +81,8 @@ OBJECT_COLORS = {
     "object_blue_crate": (0.10, 0.25, 0.90),
     "object_lime_stool": (0.60, 0.90, 0.10),
 }
+#: The distinct colours of the objects (labels "object_*").
+OBJECT_COLORS = {k: v for k, v in LABEL_COLORS.items() if k.startswith("object_")}
 
 
 @dataclass(frozen=True)
@@ -124,15 +126,11 @@ def _wall_segments(axis: str, coord: float, start: float, end: float, gaps) -> l
 
 def _build_layout(seed: int) -> ApartmentLayout:
     rng = np.random.default_rng([int(seed), 9191])
-    boxes, labels, colors = [], [], []
+    box_list = BoxList(LABEL_COLORS)
+    add = box_list.add
 
-    def add(label: str, center, half, quat=(1.0, 0.0, 0.0, 0.0), color=None) -> None:
-        boxes.append(make_box(center, half, quat))
-        labels.append(label)
-        colors.append(np.asarray(color if color is not None else LABEL_COLORS[label], np.float64))
-
-    def block(label: str, x: float, y: float, hx: float, hy: float, h: float, yaw: float = 0.0, color=None) -> None:
-        add(label, (x, y, (h - 0.002) / 2), (hx, hy, (h + 0.002) / 2), _yaw_quat(yaw), color)  # sinks 2 mm
+    def block(label: str, x: float, y: float, hx: float, hy: float, h: float, yaw: float = 0.0) -> None:
+        add(label, (x, y, (h - 0.002) / 2), (hx, hy, (h + 0.002) / 2), _yaw_quat(yaw))  # sinks 2 mm
 
     j = lambda s: rng.uniform(-s, s)  # noqa: E731  small per-seed jitter (m)
     add("floor", (0.0, 0.0, -0.05), (4.2, 3.2, 0.05))
@@ -154,23 +152,23 @@ def _build_layout(seed: int) -> ApartmentLayout:
     block("table", -2.3 + j(0.05), 0.3 + j(0.05), 0.45, 0.30, 0.42, j(0.1))
     block("shelf", -2.0, 2.78, 0.80, 0.17, 1.0)
     block("table", -1.6 + j(0.05), -1.5 + j(0.05), 0.50, 0.40, 0.75, j(0.1))  # dining table
-    block("object_green_plant", -0.45, 2.55, 0.18, 0.18, 0.70, color=OBJECT_COLORS["object_green_plant"])
-    block("object_yellow_box", -2.9 + j(0.05), -1.2 + j(0.05), 0.20, 0.15, 0.30, rng.uniform(0, np.pi), OBJECT_COLORS["object_yellow_box"])
-    block("object_orange_ball", -1.5 + j(0.05), 1.2 + j(0.05), 0.12, 0.12, 0.24, rng.uniform(0, np.pi), OBJECT_COLORS["object_orange_ball"])
+    block("object_green_plant", -0.45, 2.55, 0.18, 0.18, 0.70)
+    block("object_yellow_box", -2.9 + j(0.05), -1.2 + j(0.05), 0.20, 0.15, 0.30, rng.uniform(0, np.pi))
+    block("object_orange_ball", -1.5 + j(0.05), 1.2 + j(0.05), 0.12, 0.12, 0.24, rng.uniform(0, np.pi))
     # bedroom: bed, wardrobe, chest, objects
     block("bed", 3.0, 1.8 + j(0.05), 0.95, 1.0, 0.50)
     block("bed", 3.93, 1.8, 0.05, 1.0, 0.90)  # headboard
     block("wardrobe", 1.0 + j(0.05), 2.7, 0.60, 0.27, 1.15)
-    block("object_cyan_chest", 3.7, 0.45 + j(0.05), 0.20, 0.30, 0.45, 0.0, OBJECT_COLORS["object_cyan_chest"])
-    block("object_magenta_box", 0.55 + j(0.05), 0.95 + j(0.05), 0.15, 0.15, 0.30, rng.uniform(0, np.pi), OBJECT_COLORS["object_magenta_box"])
+    block("object_cyan_chest", 3.7, 0.45 + j(0.05), 0.20, 0.30, 0.45, 0.0)
+    block("object_magenta_box", 0.55 + j(0.05), 0.95 + j(0.05), 0.15, 0.15, 0.30, rng.uniform(0, np.pi))
     # kitchen: counters along the walls, fridge, island, objects
     block("counter", 2.35, -2.7, 0.85, 0.30, 0.90)
     block("counter", 3.7, -1.2, 0.30, 0.60, 0.90)
     block("fridge", 3.62, -2.62, 0.33, 0.33, 1.15)
     block("table", 2.0 + j(0.05), -1.4 + j(0.05), 0.50, 0.30, 0.90, j(0.05))  # island
-    add("object_blue_crate", (2.0, -1.4, 0.90 + 0.12 - 0.001), (0.15, 0.12, 0.12), _yaw_quat(rng.uniform(0, np.pi)), OBJECT_COLORS["object_blue_crate"])
-    block("object_red_bin", 0.4 + j(0.03), -0.4, 0.15, 0.15, 0.40, color=OBJECT_COLORS["object_red_bin"])
-    block("object_lime_stool", 1.1 + j(0.03), -1.4 + j(0.03), 0.16, 0.16, 0.45, color=OBJECT_COLORS["object_lime_stool"])
+    add("object_blue_crate", (2.0, -1.4, 0.90 + 0.12 - 0.001), (0.15, 0.12, 0.12), _yaw_quat(rng.uniform(0, np.pi)))
+    block("object_red_bin", 0.4 + j(0.03), -0.4, 0.15, 0.15, 0.40)
+    block("object_lime_stool", 1.1 + j(0.03), -1.4 + j(0.03), 0.16, 0.16, 0.45)
 
     doors = {}
     for name, ax, c, s, e, rooms in DOORS:
@@ -178,9 +176,7 @@ def _build_layout(seed: int) -> ApartmentLayout:
         center = np.array([c, mid, 0.3]) if ax == "x" else np.array([mid, c, 0.3])
         normal = np.array([1.0, 0.0]) if ax == "x" else np.array([0.0, 1.0])
         doors[name] = {"center": center, "width": float(e - s), "rooms": rooms, "normal": normal}
-    scene = AnalyticScene(
-        np.stack(boxes),
-        labels,
+    scene, colors = box_list.scene(
         {
             "name": "apartment",
             "seed": int(seed),
@@ -188,9 +184,9 @@ def _build_layout(seed: int) -> ApartmentLayout:
             "robot": "go2",
             "rooms": {k: [list(v[0]), list(v[1])] for k, v in ROOMS.items()},
             "doors": {k: {"center": v["center"].tolist(), "width": v["width"], "rooms": list(v["rooms"])} for k, v in doors.items()},
-        },
+        }
     )
-    return ApartmentLayout(scene=scene, colors=np.stack(colors), rooms={k: (np.array(v[0]), np.array(v[1])) for k, v in ROOMS.items()}, doors=doors)
+    return ApartmentLayout(scene=scene, colors=colors, rooms={k: (np.array(v[0]), np.array(v[1])) for k, v in ROOMS.items()}, doors=doors)
 
 
 @functools.lru_cache(maxsize=4)
@@ -200,58 +196,17 @@ def _layout_cached(seed: int) -> ApartmentLayout:
 
 def apartment_layout(seed: int = 0) -> ApartmentLayout:
     """The analytic apartment for a seed (fresh copies; furniture jittered by seed)."""
-    lay = _layout_cached(int(seed))
-    sc = lay.scene
-    return replace(
-        lay,
-        scene=AnalyticScene(sc.boxes.copy(), list(sc.labels), json.loads(json.dumps(sc.meta))),
-        colors=lay.colors.copy(),
-        rooms={k: (v[0].copy(), v[1].copy()) for k, v in lay.rooms.items()},
-        doors={k: {**v, "center": v["center"].copy(), "normal": v["normal"].copy()} for k, v in lay.doors.items()},
-    )
+    return copy.deepcopy(_layout_cached(int(seed)))
 
 
 @functools.lru_cache(maxsize=4)
 def _build_cached(seed: int, n_splats: int) -> Splats:
-    from .stonehenge import level_config
-
     lay = _layout_cached(seed)
-    scene = lay.scene
-    m = len(scene)
-    density = np.ones(m)
-    faces = np.ones((m, 6), bool)
-    for i, lab in enumerate(scene.labels):
-        if lab == "floor":
-            density[i] = 2.0
-            faces[i] = [False, False, False, False, True, False]  # only the top face is seen
-        elif lab == "wall":
-            density[i] = 1.5
-    splats = splats_from_boxes(
-        scene,
-        n_splats,
-        config=replace(level_config(1), floater_transparent_fraction=1.0),  # floaters the default filter drops
-        colors=lay.colors,
-        density=density,
-        faces=faces,
-        floater_region=(np.array([-3.9, -2.9, 0.05]), np.array([3.9, 2.9, 1.1])),
-        seed=np.random.default_rng([int(seed), int(n_splats), 1618]),
-    )
-    splats.info.update({"scene": "apartment", "seed": int(seed), "units": scene.meta["units"]})
-    return splats
+    region = (np.array([-3.9, -2.9, 0.05]), np.array([3.9, 2.9, 1.1]))
+    return sample_splats(lay.scene, lay.colors, n_splats, seed, 1618, region, density={"floor": 2.0, "wall": 1.5}, top_only=("floor",))
 
 
 def build_apartment(seed: int = 0, n_splats: int | None = None) -> tuple[Splats, AnalyticScene]:
-    """The apartment splats and their analytic ground truth (fresh copies; cached in memory).
-
-    Args:
-        seed: furniture jitter and splat sampling seed (deterministic).
-        n_splats: total splat count, floaters included (default :data:`N_SPLATS`).
-
-    Returns:
-        (splats, scene): float32 splats (wxyz, linear stds; the last ``info["n_floaters"]`` are
-        floaters) and the boxes, in metres with z up.
-    """
-    n = N_SPLATS if n_splats is None else int(n_splats)
-    if n < 1:
-        raise SplatplanError(f"n_splats must be >= 1, got {n_splats}")
-    return _copy_splats(_build_cached(int(seed), n)), apartment_layout(seed).scene
+    """The apartment splats and their boxes, fresh copies (cached in memory): see :func:`._layout.sample_splats`.
+    ``seed`` jitters the layout and seeds the sampling; ``n_splats`` counts floaters too (default :data:`N_SPLATS`)."""
+    return _copy_splats(_build_cached(int(seed), splat_count(n_splats, N_SPLATS))), apartment_layout(seed).scene

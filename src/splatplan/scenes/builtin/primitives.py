@@ -680,6 +680,10 @@ class AnalyticScene:
         """float64 (M, 8, 3) world corners of every box."""
         return np.stack([box_corners(b) for b in self.boxes]) if len(self) else np.zeros((0, 8, 3))
 
+    def copy(self) -> "AnalyticScene":
+        """A deep copy (arrays, labels and meta)."""
+        return AnalyticScene(self.boxes.copy(), list(self.labels), json.loads(json.dumps(self.meta)), self.cylinders.copy(), self.spheres.copy())
+
     def select(self, mask_or_idx) -> "AnalyticScene":
         """A new scene with the chosen primitives (boolean mask or index array over all primitives,
         boxes first, then cylinders, then spheres)."""
@@ -963,6 +967,58 @@ def _box_aabbs(scene: AnalyticScene) -> tuple[np.ndarray, np.ndarray]:
     return scene.boxes[:, :3] - half, scene.boxes[:, :3] + half
 
 
+def _surface_samples(scene: AnalyticScene, n_surf: int, density: np.ndarray, faces: np.ndarray, rng: np.random.Generator):
+    """Surface samples (a :func:`_sample_faces` dict) at the base spacing that gives at least
+    ``n_surf`` of them, and that spacing: a coarse pilot measures the exposed area, then the
+    spacing shrinks until there are enough samples."""
+    curved_area = _curved_areas(scene)  # (C + S,)
+    dens_all = np.concatenate([density, np.ones(len(curved_area))]) if len(curved_area) else density  # per primitive
+    # Pilot at a coarse spacing: the exposed area per box, in units of the base spacing.
+    total = 0.0
+    for i, box in enumerate(scene.boxes):
+        h = box[3:6]
+        areas = 4 * np.array([h[1] * h[2], h[1] * h[2], h[0] * h[2], h[0] * h[2], h[0] * h[1], h[0] * h[1]])
+        total += float((areas * faces[i]).sum()) / density[i] ** 2
+    if len(curved_area):
+        total += float(curved_area.sum())
+    h_base = np.sqrt(total / n_surf) * 3.0
+    pilot = _sample_faces(scene, h_base * density, faces, rng, curved_spacing=h_base)
+    weighted = float(np.sum(pilot["h"] ** 2 / dens_all[pilot["face_box"][pilot["frame"]]] ** 2))
+    h_base = np.sqrt(weighted / n_surf) * 0.98
+    for _ in range(5):
+        smp = _sample_faces(scene, h_base * density, faces, rng, curved_spacing=h_base)
+        if len(smp["p"]) >= n_surf:
+            break
+        h_base *= 0.97 * np.sqrt(len(smp["p"]) / n_surf)
+    return smp, h_base
+
+
+def _floaters(scene: AnalyticScene, cfg: SurfaceSplatConfig, n: int, region, med_size: float, rng: np.random.Generator):
+    """``n`` floaters: (means, quats, scales, opacities, colours) rows, in free space at least
+    ``cfg.floater_clearance`` from the geometry inside ``region`` (lo, hi) (default the scene
+    bounds), sized relative to ``med_size`` (the median largest std of the surface splats)."""
+    lo, hi = region if region is not None else scene.bounds()
+    lo, hi = np.asarray(lo, np.float64), np.asarray(hi, np.float64)
+    fm = np.zeros((0, 3))
+    for _ in range(50):
+        cand = rng.uniform(lo, hi, (max(64, 4 * n), 3))
+        cand = cand[scene.sdf(cand) > cfg.floater_clearance]
+        fm = np.concatenate([fm, cand])[:n]
+        if len(fm) == n:
+            break
+    if len(fm) < n:
+        raise SplatplanError("splats_from_scene: no free space for floaters in floater_region")
+    big = rng.uniform(*cfg.floater_size_range, n) * med_size
+    fs = big[:, None] * np.concatenate([np.ones((n, 1)), rng.uniform(0.3, 1.0, (n, 2))], axis=1)
+    fq = rng.standard_normal((n, 4))
+    fq /= np.linalg.norm(fq, axis=1, keepdims=True)
+    fq *= np.where(fq[:, :1] < 0, -1.0, 1.0)
+    transparent = rng.random(n) < cfg.floater_transparent_fraction
+    fo = np.where(transparent, rng.uniform(0.01, 0.09, n), rng.uniform(0.1, 0.3, n))
+    fc = np.clip(0.8 + 0.1 * rng.standard_normal((n, 3)), 0, 1)
+    return fm, fq, fs, fo, fc
+
+
 def splats_from_scene(
     scene: AnalyticScene,
     n_splats: int,
@@ -1018,8 +1074,6 @@ def splats_from_scene(
     colors = np.full((n_all, 3), 0.5) if colors is None else np.asarray(colors, np.float64).reshape(n_all, 3)
     density = np.ones(m) if density is None else np.asarray(density, np.float64).reshape(m)
     faces = np.ones((m, 6), bool) if faces is None else np.asarray(faces, bool).reshape(m, 6)
-    curved_area = _curved_areas(scene)  # (C + S,)
-    dens_all = np.concatenate([density, np.ones(len(curved_area))]) if len(curved_area) else density  # per primitive
     cfg = config
 
     n_float = int(round(cfg.floater_fraction * n_splats))
@@ -1027,23 +1081,7 @@ def splats_from_scene(
         n_float = max(1, n_float)
     n_surf = n_splats - n_float
 
-    # Pilot at a coarse spacing: the exposed area per box, in units of the base spacing.
-    total = 0.0
-    for i, box in enumerate(scene.boxes):
-        h = box[3:6]
-        areas = 4 * np.array([h[1] * h[2], h[1] * h[2], h[0] * h[2], h[0] * h[2], h[0] * h[1], h[0] * h[1]])
-        total += float((areas * faces[i]).sum()) / density[i] ** 2
-    if len(curved_area):
-        total += float(curved_area.sum())
-    h_base = np.sqrt(total / n_surf) * 3.0
-    pilot = _sample_faces(scene, h_base * density, faces, rng, curved_spacing=h_base)
-    weighted = float(np.sum(pilot["h"] ** 2 / dens_all[pilot["face_box"][pilot["frame"]]] ** 2))
-    h_base = np.sqrt(weighted / n_surf) * 0.98
-    for _ in range(5):
-        smp = _sample_faces(scene, h_base * density, faces, rng, curved_spacing=h_base)
-        if len(smp["p"]) >= n_surf:
-            break
-        h_base *= 0.97 * np.sqrt(len(smp["p"]) / n_surf)
+    smp, h_base = _surface_samples(scene, n_surf, density, faces, rng)
     keep = np.sort(rng.choice(len(smp["p"]), size=n_surf, replace=False))
     p, fid, hl = smp["p"][keep], smp["frame"][keep], smp["h"][keep]
     face_rot, face_box = smp["face_rot"], smp["face_box"]
@@ -1090,31 +1128,8 @@ def splats_from_scene(
 
     # Floaters.
     if n_float:
-        lo, hi = floater_region if floater_region is not None else scene.bounds()
-        lo, hi = np.asarray(lo, np.float64), np.asarray(hi, np.float64)
-        fm = np.zeros((0, 3))
-        for _ in range(50):
-            cand = rng.uniform(lo, hi, (max(64, 4 * n_float), 3))
-            cand = cand[scene.sdf(cand) > cfg.floater_clearance]
-            fm = np.concatenate([fm, cand])[:n_float]
-            if len(fm) == n_float:
-                break
-        if len(fm) < n_float:
-            raise SplatplanError("splats_from_scene: no free space for floaters in floater_region")
-        med = float(np.median(scales.max(axis=1)))
-        big = rng.uniform(*cfg.floater_size_range, n_float) * med
-        fs = big[:, None] * np.concatenate([np.ones((n_float, 1)), rng.uniform(0.3, 1.0, (n_float, 2))], axis=1)
-        fq_ = rng.standard_normal((n_float, 4))
-        fq_ /= np.linalg.norm(fq_, axis=1, keepdims=True)
-        fq_ *= np.where(fq_[:, :1] < 0, -1.0, 1.0)
-        transparent = rng.random(n_float) < cfg.floater_transparent_fraction
-        fo = np.where(transparent, rng.uniform(0.01, 0.09, n_float), rng.uniform(0.1, 0.3, n_float))
-        fc = np.clip(0.8 + 0.1 * rng.standard_normal((n_float, 3)), 0, 1)
-        means = np.concatenate([means, fm])
-        scales = np.concatenate([scales, fs])
-        quats = np.concatenate([quats, fq_])
-        opac = np.concatenate([opac, fo])
-        cols = np.concatenate([cols, fc])
+        fl = _floaters(scene, cfg, n_float, floater_region, float(np.median(scales.max(axis=1))), rng)
+        means, quats, scales, opac, cols = (np.concatenate([a, b]) for a, b in zip((means, quats, scales, opac, cols), fl))
 
     return Splats(
         means=means,

@@ -3,7 +3,7 @@
 Stand-in for Splat-Nav's trained Stonehenge (not available here), used by the studies E1-E4 of
 SPEC section 4. The geometry is a union of oriented boxes (:class:`AnalyticScene`), so the exact
 signed distance is known; the splats are sampled from the box surfaces by
-:func:`~splatplan.scenes.primitives.splats_from_boxes`.
+:func:`~splatplan.scenes.builtin.primitives.splats_from_boxes`.
 
 Units and frames
 ----------------
@@ -34,7 +34,6 @@ stones. The last ``splats.info["n_floaters"]`` splats are floaters.
 from __future__ import annotations
 
 import functools
-import json
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -42,6 +41,7 @@ import numpy as np
 
 from ...errors import SplatplanError
 from ...robots.builtin import point_radius
+from ._layout import splat_count
 from .primitives import AnalyticScene, SurfaceSplatConfig, _copy_splats, _yaw_quat, box_corners, make_box, splats_from_boxes
 from ..splats import SH_C0, Splats, quat_multiply
 
@@ -340,7 +340,7 @@ def stonehenge_layout(seed: int = 0) -> StonehengeLayout:
     lay = _layout_cached(int(seed))
     return replace(
         lay,
-        scene=AnalyticScene(lay.scene.boxes.copy(), list(lay.scene.labels), json.loads(json.dumps(lay.scene.meta))),
+        scene=lay.scene.copy(),
         gate_widths=lay.gate_widths.copy(),
         gate_centers=lay.gate_centers.copy(),
         gate_has_lintel=lay.gate_has_lintel.copy(),
@@ -421,11 +421,8 @@ def build_stonehenge(level: int = 1, seed: int = 0, n_splats: int | None = None)
     lv = int(level)
     if lv not in (1, 2, 3, 4, 5):
         raise SplatplanError(f"stonehenge level must be 1..5, got {level}")
-    n = default_n_splats(lv) if n_splats is None else int(n_splats)
-    if n < 1:
-        raise SplatplanError(f"n_splats must be >= 1, got {n_splats}")
-    s, sc = _build_cached(lv, int(seed), n)
-    return _copy_splats(s), AnalyticScene(sc.boxes.copy(), list(sc.labels), json.loads(json.dumps(sc.meta)))
+    s, sc = _build_cached(lv, int(seed), splat_count(n_splats, default_n_splats(lv)))
+    return _copy_splats(s), sc.copy()
 
 
 # ---------------------------------------------------------------------------------------------

@@ -30,15 +30,15 @@ Splats: ~150k by default (:data:`N_SPLATS`), the table legs sampled at 3x the sp
 
 from __future__ import annotations
 
+import copy
 import functools
-import json
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
-from ...errors import SplatplanError
 from ..splats import Splats
-from .primitives import AnalyticScene, _copy_splats, _yaw_quat, make_box, splats_from_boxes
+from ._layout import BoxList, sample_splats, splat_count
+from .primitives import AnalyticScene, _copy_splats, _yaw_quat
 
 __all__ = ["N_SPLATS", "TABLE_TOP", "TARGET_REGION", "TabletopLayout", "build_tabletop", "tabletop_layout"]
 
@@ -51,7 +51,7 @@ TABLE_TOP = -0.09
 #: study places end-effector targets.
 TARGET_REGION = (np.array([0.60, -0.08, -0.03]), np.array([0.70, 0.08, 0.03]))
 
-#: Base colours per label (RGB in [0, 1]); objects carry their own colour in the layout.
+#: Base colours per label (RGB in [0, 1]), the objects' distinct colours included.
 LABEL_COLORS = {
     "table": (0.55, 0.40, 0.26),
     "table_leg": (0.35, 0.25, 0.16),
@@ -59,9 +59,7 @@ LABEL_COLORS = {
     "wall_bin": (0.75, 0.78, 0.80),
     "wall_side": (0.70, 0.72, 0.66),
     "shelf": (0.45, 0.45, 0.50),
-}
-#: Distinct object colours (name -> RGB).
-OBJECT_COLORS = {
+    # objects: distinct colours
     "object_red": (0.85, 0.12, 0.10),
     "object_yellow": (0.95, 0.82, 0.10),
     "object_green": (0.15, 0.65, 0.20),
@@ -69,6 +67,8 @@ OBJECT_COLORS = {
     "object_purple": (0.55, 0.20, 0.70),
     "object_orange": (0.98, 0.50, 0.05),
 }
+#: The distinct colours of the objects (labels "object_*").
+OBJECT_COLORS = {k: v for k, v in LABEL_COLORS.items() if k.startswith("object_")}
 
 
 @dataclass(frozen=True)
@@ -91,13 +91,8 @@ class TabletopLayout:
 
 def _build_layout(seed: int) -> TabletopLayout:
     rng = np.random.default_rng([int(seed), 4242])
-    boxes, labels, colors = [], [], []
-
-    def add(label: str, center, half, quat=(1.0, 0.0, 0.0, 0.0), color=None) -> None:
-        # heights below are written relative to the table top (z = 0 there), then shifted
-        boxes.append(make_box(np.asarray(center, np.float64) + (0.0, 0.0, TABLE_TOP), half, quat))
-        labels.append(label)
-        colors.append(np.asarray(color if color is not None else LABEL_COLORS[label], np.float64))
+    box_list = BoxList(LABEL_COLORS, offset=(0.0, 0.0, TABLE_TOP))  # heights below: relative to the table top
+    add = box_list.add
 
     j = lambda s: rng.uniform(-s, s)  # noqa: E731  small per-seed jitter (m)
     # table top (its top face is z = 0) and legs
@@ -119,25 +114,23 @@ def _build_layout(seed: int) -> TabletopLayout:
         add("shelf", (x, -0.50, 0.10 - 0.0005), (0.015, 0.12, 0.10 + 0.0005))
     add("shelf", (0.37, -0.50, 0.21), (0.17, 0.13, 0.012))
     # coloured objects
-    add("object_red", (0.78 + j(0.01), -0.21 + j(0.01), 0.025), (0.025, 0.025, 0.0255), _yaw_quat(rng.uniform(0, np.pi)), OBJECT_COLORS["object_red"])
-    add("object_yellow", (0.78 + j(0.01), 0.21 + j(0.01), 0.035), (0.03, 0.02, 0.0355), _yaw_quat(rng.uniform(0, np.pi)), OBJECT_COLORS["object_yellow"])
-    add("object_green", (0.20 + j(0.02), 0.25 + j(0.02), 0.04), (0.03, 0.03, 0.0405), _yaw_quat(rng.uniform(0, np.pi)), OBJECT_COLORS["object_green"])
-    add("object_blue", (0.28 + j(0.02), -0.28 + j(0.02), 0.03), (0.05, 0.035, 0.0305), _yaw_quat(rng.uniform(0, np.pi)), OBJECT_COLORS["object_blue"])
-    add("object_purple", (0.37 + j(0.02), -0.50, 0.222 + 0.03 - 0.001), (0.03, 0.03, 0.03), _yaw_quat(rng.uniform(0, np.pi)), OBJECT_COLORS["object_purple"])
-    add("object_orange", (0.30 + j(0.02), 0.58 + j(0.02), 0.04), (0.035, 0.035, 0.0405), _yaw_quat(rng.uniform(0, np.pi)), OBJECT_COLORS["object_orange"])
+    add("object_red", (0.78 + j(0.01), -0.21 + j(0.01), 0.025), (0.025, 0.025, 0.0255), _yaw_quat(rng.uniform(0, np.pi)))
+    add("object_yellow", (0.78 + j(0.01), 0.21 + j(0.01), 0.035), (0.03, 0.02, 0.0355), _yaw_quat(rng.uniform(0, np.pi)))
+    add("object_green", (0.20 + j(0.02), 0.25 + j(0.02), 0.04), (0.03, 0.03, 0.0405), _yaw_quat(rng.uniform(0, np.pi)))
+    add("object_blue", (0.28 + j(0.02), -0.28 + j(0.02), 0.03), (0.05, 0.035, 0.0305), _yaw_quat(rng.uniform(0, np.pi)))
+    add("object_purple", (0.37 + j(0.02), -0.50, 0.222 + 0.03 - 0.001), (0.03, 0.03, 0.03), _yaw_quat(rng.uniform(0, np.pi)))
+    add("object_orange", (0.30 + j(0.02), 0.58 + j(0.02), 0.04), (0.035, 0.035, 0.0405), _yaw_quat(rng.uniform(0, np.pi)))
 
-    scene = AnalyticScene(
-        np.stack(boxes),
-        labels,
+    scene, colors = box_list.scene(
         {
             "name": "tabletop",
             "seed": int(seed),
             "units": "metres, z up, table top at z = -0.09, robot base at the origin looking along +x",
             "robot": "panda",
             "target_region": [TARGET_REGION[0].tolist(), TARGET_REGION[1].tolist()],
-        },
+        }
     )
-    return TabletopLayout(scene=scene, colors=np.stack(colors), target_region=TARGET_REGION, front_wall_top=front_h + TABLE_TOP)
+    return TabletopLayout(scene=scene, colors=colors, target_region=TARGET_REGION, front_wall_top=front_h + TABLE_TOP)
 
 
 @functools.lru_cache(maxsize=4)
@@ -147,58 +140,18 @@ def _layout_cached(seed: int) -> TabletopLayout:
 
 def tabletop_layout(seed: int = 0) -> TabletopLayout:
     """The analytic tabletop for a seed (fresh copies; small object/wall jitter by seed)."""
-    lay = _layout_cached(int(seed))
-    sc = lay.scene
-    return replace(
-        lay,
-        scene=AnalyticScene(sc.boxes.copy(), list(sc.labels), json.loads(json.dumps(sc.meta))),
-        colors=lay.colors.copy(),
-        target_region=(lay.target_region[0].copy(), lay.target_region[1].copy()),
-    )
+    return copy.deepcopy(_layout_cached(int(seed)))
 
 
 @functools.lru_cache(maxsize=4)
 def _build_cached(seed: int, n_splats: int) -> Splats:
-    from .stonehenge import level_config
-
     lay = _layout_cached(seed)
-    scene = lay.scene
-    m = len(scene)
-    density = np.ones(m)
-    faces = np.ones((m, 6), bool)
-    for i, lab in enumerate(scene.labels):
-        if lab == "table_leg":
-            density[i] = 3.0
-        if lab == "table":
-            density[i] = 1.5
-    splats = splats_from_boxes(
-        scene,
-        n_splats,
-        config=replace(level_config(1), floater_transparent_fraction=1.0),  # floaters the default filter drops
-        colors=lay.colors,
-        density=density,
-        faces=faces,
-        floater_region=(np.array([-0.2, -0.7, TABLE_TOP + 0.02]), np.array([0.95, 0.7, 0.8])),
-        seed=np.random.default_rng([int(seed), int(n_splats), 2718]),
-    )
-    splats.info.update({"scene": "tabletop", "seed": int(seed), "units": scene.meta["units"]})
-    return splats
+    region = (np.array([-0.2, -0.7, TABLE_TOP + 0.02]), np.array([0.95, 0.7, 0.8]))
+    return sample_splats(lay.scene, lay.colors, n_splats, seed, 2718, region, density={"table_leg": 3.0, "table": 1.5})
 
 
 def build_tabletop(seed: int = 0, n_splats: int | None = None) -> tuple[Splats, AnalyticScene]:
-    """The tabletop splats and their analytic ground truth (fresh copies; cached in memory).
-
-    Args:
-        seed: layout jitter and splat sampling seed (deterministic).
-        n_splats: total splat count, floaters included (default :data:`N_SPLATS`).
-
-    Returns:
-        (splats, scene): float32 splats (wxyz, linear stds; the last ``info["n_floaters"]`` are
-        floaters) and the boxes, in metres with z up.
-    """
-    n = N_SPLATS if n_splats is None else int(n_splats)
-    if n < 1:
-        raise SplatplanError(f"n_splats must be >= 1, got {n_splats}")
-    s = _build_cached(int(seed), n)
-    return _copy_splats(s), tabletop_layout(seed).scene
+    """The tabletop splats and their boxes, fresh copies (cached in memory): see :func:`._layout.sample_splats`.
+    ``seed`` jitters the layout and seeds the sampling; ``n_splats`` counts floaters too (default :data:`N_SPLATS`)."""
+    return _copy_splats(_build_cached(int(seed), splat_count(n_splats, N_SPLATS))), tabletop_layout(seed).scene
 

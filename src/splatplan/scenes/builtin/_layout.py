@@ -1,0 +1,88 @@
+"""What the box-built scenes (apartment, tabletop) share: a box list with a colour per label, and
+their splat sampling (level-1 look, floaters the default filter drops, per-label density).
+
+Units and frames are the caller's (metres, z up for both scenes).
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from ...errors import SplatplanError
+from ..splats import Splats
+from .primitives import AnalyticScene, make_box, splats_from_scene
+
+
+class BoxList:
+    """Boxes, labels and base colours of a layout, in the order they are added.
+
+    Args:
+        label_colors: label -> RGB in [0, 1] (every label a box gets).
+        offset: (3,) added to every centre (e.g. a table height the layout is written relative to).
+    """
+
+    def __init__(self, label_colors: dict, offset=(0.0, 0.0, 0.0)) -> None:
+        self.label_colors = label_colors
+        self.offset = np.asarray(offset, np.float64)
+        self.boxes: list[np.ndarray] = []
+        self.labels: list[str] = []
+        self.colors: list[np.ndarray] = []
+
+    def add(self, label: str, center, half, quat=(1.0, 0.0, 0.0, 0.0)) -> None:
+        """One box of colour ``label_colors[label]``: ``center`` (3,) and half-extents ``half`` (3,)
+        in metres, wxyz ``quat``."""
+        self.boxes.append(make_box(np.asarray(center, np.float64) + self.offset, half, quat))
+        self.labels.append(label)
+        self.colors.append(np.asarray(self.label_colors[label], np.float64))
+
+    def scene(self, meta: dict) -> tuple[AnalyticScene, np.ndarray]:
+        """(the boxes as an :class:`AnalyticScene` with ``meta``, float64 (M, 3) colours)."""
+        return AnalyticScene(np.stack(self.boxes), self.labels, meta), np.stack(self.colors)
+
+
+def sample_splats(
+    scene: AnalyticScene,
+    colors: np.ndarray,  # (M, 3) base RGB per box
+    n_splats: int,
+    seed: int,
+    seed_tag: int,
+    floater_region: tuple[np.ndarray, np.ndarray],  # world AABB (lo (3,), hi (3,)) of the floaters
+    density: dict,  # label -> relative spacing (2 = twice the spacing); other labels 1
+    top_only: tuple[str, ...] = (),  # labels of boxes seen from above only (a floor)
+) -> Splats:
+    """Splats of a box layout: the level-1 look of Stonehenge, floaters that the default floater
+    filter drops, ``info`` naming the scene; seeded by (seed, n_splats, seed_tag).
+
+    Returns:
+        float32 splats (wxyz, linear stds) in the layout's frame; the last ``info["n_floaters"]``
+        are the floaters.
+    """
+    from .stonehenge import level_config
+
+    dens = np.array([float(density.get(lab, 1.0)) for lab in scene.labels])
+    faces = np.ones((len(scene), 6), bool)
+    for i, lab in enumerate(scene.labels):
+        if lab in top_only:
+            faces[i] = [False, False, False, False, True, False]  # FACE_NAMES order: only +z
+    splats = splats_from_scene(
+        scene,
+        n_splats,
+        config=replace(level_config(1), floater_transparent_fraction=1.0),
+        colors=colors,
+        density=dens,
+        faces=faces,
+        floater_region=floater_region,
+        seed=np.random.default_rng([int(seed), int(n_splats), int(seed_tag)]),
+    )
+    splats.info.update({"scene": scene.meta["name"], "seed": int(seed), "units": scene.meta["units"]})
+    return splats
+
+
+def splat_count(n_splats: int | None, default: int) -> int:
+    """``n_splats`` (``default`` when None) as an int >= 1."""
+    n = default if n_splats is None else int(n_splats)
+    if n < 1:
+        raise SplatplanError(f"n_splats must be >= 1, got {n_splats}")
+    return n
