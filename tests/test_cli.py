@@ -314,9 +314,9 @@ def test_config_flags_parse_every_type():
 
     p = build_parser()
     a = p.parse_args(["eval", "pr", "--out", "x", "--quick", "--n-sigmas", "0,1.5", "--n-splats", "none", "--variants", "default,log_mean_exp"])
-    cfg = config_from_args(a, PRConfig, base=PRConfig.quick())
+    cfg = config_from_args(a, PRConfig, base=PRConfig.quick_config())
     assert cfg.n_sigmas == (0.0, 1.5) and cfg.n_splats is None and cfg.variants == ("default", "log_mean_exp")
-    assert cfg.spacing == PRConfig.quick().spacing  # unset flags keep the --quick values
+    assert cfg.spacing == PRConfig.quick_config().spacing  # unset flags keep the --quick values
     a = p.parse_args(["eval", "throughput", "--out", "x", "--rows", "splatnav:1,collisionsplatting:4096", "--timed-queries", "atlasnav=8",
                       "--baseline-threads", "none,1"])  # fmt: skip
     cfg = config_from_args(a, ThroughputConfig)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -10,15 +11,8 @@ import torch
 
 from splatplan.baselines import BASELINES, as_scene_tensors
 from splatplan.errors import SplatplanError
-from splatplan.eval.pr import (
-    _cull_rule,
-    average_precision,
-    best_f1,
-    culled_collision_scores,
-    precision_recall_curve,
-    pr_summary,
-    run_pr,
-)
+from splatplan.eval._pr_culling import cull_rule, culled_collision_scores
+from splatplan.eval.pr import PRConfig, average_precision, best_f1, pr_summary, precision_recall_curve, report, run
 from splatplan.scenes.splats import Splats
 
 
@@ -99,7 +93,7 @@ def test_culled_scores_equal_full_scores(name):
     info = BASELINES[name]
     full_obj = info.cls(scene_t, "cpu")
     full = full_obj.collision_score(q, r, batch=64)
-    incl, clamp, _ = _cull_rule(name, full_obj, r)
+    incl, clamp, _ = cull_rule(name, full_obj, r)
     got, clamped, n_pairs = culled_collision_scores(info.cls, scene_t, incl, clamp, q, r, tile=0.03, block=0.09)
     assert 0 < n_pairs < 300 * 600  # culling did cull
     if clamp is None:
@@ -116,7 +110,10 @@ def test_culled_scores_equal_full_scores(name):
 @pytest.fixture(scope="module")
 def quick_pr(tmp_path_factory):
     out = tmp_path_factory.mktemp("pr")
-    return out, run_pr(out, quick=True)
+    res = run(PRConfig.quick_config())
+    written = report(res, out)
+    assert [p.name for p in written] == ["pr.json", "pr.md", "pr.png"]
+    return out, res.to_json()
 
 
 def test_quick_pr_outputs(quick_pr):
@@ -139,9 +136,12 @@ def test_quick_pr_outputs(quick_pr):
 
 def test_scene_path_needs_ground_truth(tmp_path):
     with pytest.raises(SplatplanError, match="--gt"):
-        run_pr(tmp_path, scene=str(tmp_path / "scene.ply"), gt=None, quick=True)
+        run(replace(PRConfig.quick_config(), scene=str(tmp_path / "scene.ply"), gt=None))
     with pytest.raises(SplatplanError, match="built-in"):
-        run_pr(tmp_path, scene="stonehenge", gt="x.gt.json", quick=True)
+        run(replace(PRConfig.quick_config(), scene="stonehenge", gt="x.gt.json"))
+    with pytest.raises(SplatplanError, match="device"):
+        run(replace(PRConfig.quick_config(), device="tpu"))
+    assert list(tmp_path.iterdir()) == []  # run writes nothing
 
 
 def test_quick_pr_fidelity_variants(quick_pr):
