@@ -56,8 +56,8 @@ def main(argv: list[str] | None = None) -> int:
     from splatplan.eval._common import make_queries
     from splatplan.eval._harness import proc_status_mb, reset_peak_rss, timed_runs, trim_heap
     from splatplan.metric import CollisionChecker
-    from splatplan.scenes.filters import filter_floaters
     from splatplan.scenes.builtin.stonehenge import build_stonehenge
+    from splatplan.scenes.filters import filter_floaters
 
     scene, _ = build_stonehenge(level=1, seed=0)
     scene, rep = filter_floaters(scene)

@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 
 from ._common import DISPLAY
+from ._study import note_lines
 
 #: one PR curve for the figure: (precision (P,), recall (P,), AP), thinned to ``plot_points``
 Curve = tuple[np.ndarray, np.ndarray, float]
@@ -122,10 +123,7 @@ def markdown(res: dict[str, Any]) -> str:
         f"All points: {res['n_queries_all']:,} ({res['n_positive_all']:,} positive). Above ground (z > r): "
         f"{res['n_queries_above_ground']:,} ({res['n_positive_above_ground']:,} positive).",
         "",
-    ]
-    if res.get("note"):
-        rows += [f"**{res['note']}**", ""]
-    rows += [
+        *note_lines(res.get("note")),
         "| method | score | AP | best F1 | own rule P / R | AP all points | AP above ground | clamped (pos.) | time (s) |",
         "|---|---|---|---|---|---|---|---|---|",
     ]

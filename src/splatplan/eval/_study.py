@@ -7,10 +7,11 @@ from __future__ import annotations
 
 import json
 import re
-from dataclasses import asdict
+from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
+from .._config import check_config
 from .._files import atomic_path
 from ..errors import SplatplanError
 
@@ -22,6 +23,28 @@ def check_device(device: str, owner: str) -> None:
     """Raise SplatplanError unless ``device`` is spelled as :data:`DEVICE_DOC` says (not resolved here)."""
     if not isinstance(device, str) or not re.fullmatch(r"auto|cpu|cuda(:\d+)?", device):
         raise SplatplanError(f"{owner}.device {device!r} not understood: use {DEVICE_DOC}")
+
+
+@dataclass
+class StudyConfig:
+    """Base of the study configs: the fields every study has, and :meth:`validate`, which checks
+    every field's declared range (:mod:`splatplan._config`), the device spelling, then the study's
+    cross-field rules (:meth:`check`)."""
+
+    #: Where the metric runs: auto (CUDA when present, else CPU) | cpu | cuda | cuda:N.
+    device: str = "auto"
+    #: The study's smoke-test settings (its ``quick_config()``, ``--quick``); recorded in the JSON.
+    quick: bool = False
+
+    def validate(self):
+        """Raise SplatplanError naming the field when a value is not allowed; returns self."""
+        check_config(self)
+        check_device(self.device, type(self).__name__)
+        self.check()
+        return self
+
+    def check(self) -> None:
+        """The study's cross-field rules (raise SplatplanError); none by default."""
 
 
 def config_dict(cfg) -> dict[str, Any]:
@@ -46,3 +69,18 @@ def save_figure(fig, path: str | Path, dpi: float | None = None) -> Path:
     with atomic_path(path) as tmp:
         fig.savefig(tmp, format=Path(path).suffix.lstrip(".") or None, **({"dpi": dpi} if dpi else {}))
     return Path(path)
+
+
+def write_outputs(out_dir: str | Path, stem: str, data, md: str, figures: tuple = ()) -> list[Path]:
+    """A study's outputs in ``out_dir`` (an existing folder), each written atomically:
+    ``<stem>.json`` (``data``), ``<stem>.md`` (``md``) and every ``(file name, Figure, dpi or
+    None)`` of ``figures``. Returns the paths in that order."""
+    out_dir = Path(out_dir)
+    paths = [write_json(out_dir / f"{stem}.json", data), write_text(out_dir / f"{stem}.md", md)]
+    return paths + [save_figure(fig, out_dir / name, dpi=dpi) for name, fig, dpi in figures]
+
+
+def note_lines(note: str | None) -> list[str]:
+    """A study note as a bold markdown paragraph (no lines when there is none)."""
+    return [f"**{note}**", ""] if note else []
+

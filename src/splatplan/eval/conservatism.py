@@ -30,12 +30,12 @@ from typing import Any
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .._config import bounded, check_config
+from .._config import bounded
 from ..errors import PlanningError, SplatplanError
 from ..planners import RRTConfig, plan
 from ..planners.metrics import clearance, d_min, smoothness
 from ._common import ROBOT_RADIUS, load_stonehenge_filtered, mean_std, progress
-from ._study import check_device, config_dict, save_figure, write_json, write_text
+from ._study import StudyConfig, config_dict, write_outputs
 
 __all__ = ["ConservatismConfig", "ConservatismResult", "PAPER_TABLE_II", "markdown", "report", "run"]
 
@@ -64,7 +64,7 @@ SHORTCUT = False
 
 
 @dataclass
-class ConservatismConfig:
+class ConservatismConfig(StudyConfig):
     """Knobs of study E3 (defaults = the full run; :meth:`quick` = the < 1 min smoke version)."""
 
     #: n_sigma values to plan with (the same goals for each).
@@ -90,26 +90,16 @@ class ConservatismConfig:
     level: int = bounded(1, ge=1, le=5)
     #: Scene, goal and planner seed (an integer >= 0).
     seed: int = bounded(0, ge=0)
-    #: Metric device: auto (CUDA when present, else CPU) | cpu | cuda | cuda:N.
-    device: str = "auto"
-    #: The smoke-test settings of :meth:`quick_config` (recorded in the JSON).
-    quick: bool = False
 
     @classmethod
     def quick_config(cls) -> "ConservatismConfig":
         """3 goals per n_sigma and a 10 s RRT budget (< 1 minute on a laptop CPU)."""
         return cls(n_goals=3, time_budget_s=10.0, quick=True)
 
-    def validate(self) -> "ConservatismConfig":
-        check_config(self)  # each field's declared range (splatplan._config); cross-field rules below
-        check_device(self.device, "ConservatismConfig")
-        if self.n_goals < 1 or not self.n_sigmas:
-            raise SplatplanError("ConservatismConfig: n_goals must be >= 1 and n_sigmas not empty")
-        if not (self.radius > 0 and self.stride > 0 and self.time_budget_s > 0):
-            raise SplatplanError("ConservatismConfig: radius, stride and time_budget_s must be > 0")
-        if self.seed < 0:
-            raise SplatplanError(f"ConservatismConfig: seed must be >= 0, got {self.seed}")
-        return self
+    def check(self) -> None:
+        """Cross-field rules (the ranges are declared with the fields)."""
+        if not self.n_sigmas:
+            raise SplatplanError("ConservatismConfig.n_sigmas must not be empty")
 
 
 def rrt_description(stride: float, batch_size: int, edge_resolution: float | None, radius: float) -> str:
@@ -425,9 +415,4 @@ def paths_figure(result: ConservatismResult):
 
 def report(result: ConservatismResult, out_dir: str | Path) -> list[Path]:
     """Write ``conservatism.json``, ``conservatism.md`` and ``fig4_paths.png`` into ``out_dir`` (an existing folder)."""
-    out_dir = Path(out_dir)
-    return [
-        write_json(out_dir / "conservatism.json", result.to_json()),
-        write_text(out_dir / "conservatism.md", markdown(result)),
-        save_figure(paths_figure(result), out_dir / "fig4_paths.png", dpi=120),
-    ]
+    return write_outputs(out_dir, "conservatism", result.to_json(), markdown(result), (("fig4_paths.png", paths_figure(result), 120),))

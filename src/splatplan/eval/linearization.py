@@ -30,10 +30,10 @@ from typing import Any
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .._config import bounded, check_config
+from .._config import bounded
 from ..errors import PlanningError, SplatplanError
 from ._common import ROBOT_RADIUS, mean_std, progress
-from ._study import check_device, config_dict, save_figure, write_json, write_text
+from ._study import StudyConfig, config_dict, write_outputs
 from .conservatism import PLANE_Z, border_goals, free_start, load_scene, plan_trials
 
 __all__ = ["LinearizationConfig", "LinearizationResult", "PAPER_TABLE_III", "markdown", "report", "run"]
@@ -56,7 +56,7 @@ N_SIGMA = 1.0
 
 
 @dataclass
-class LinearizationConfig:
+class LinearizationConfig(StudyConfig):
     """Knobs of study E4 (defaults = the full run; :meth:`quick` = the < 1 min smoke version)."""
 
     #: Stonehenge levels whose metric is plotted along the straight path (M1..M5).
@@ -75,24 +75,16 @@ class LinearizationConfig:
     n_candidates: int = bounded(3000, ge=1)
     #: Scene, goal and planner seed (an integer >= 0).
     seed: int = bounded(0, ge=0)
-    #: Metric device: auto (CUDA when present, else CPU) | cpu | cuda | cuda:N.
-    device: str = "auto"
-    #: The smoke-test settings of :meth:`quick_config` (recorded in the JSON).
-    quick: bool = False
 
     @classmethod
     def quick_config(cls) -> "LinearizationConfig":
         """3 goals per level and a 10 s RRT budget (< 1 minute)."""
         return cls(n_goals=3, time_budget_s=10.0, quick=True)
 
-    def validate(self) -> "LinearizationConfig":
-        check_config(self)  # each field's declared range (splatplan._config); cross-field rules below
-        check_device(self.device, "LinearizationConfig")
-        if not set(self.plan_levels) <= set(self.levels) or not all(1 <= lv <= 5 for lv in self.levels):
-            raise SplatplanError(f"LinearizationConfig: levels must lie in 1..5 and include plan_levels, got {self.levels} / {self.plan_levels}")
-        if self.n_goals < 1 or not self.time_budget_s > 0 or self.n_sigma < 0 or self.seed < 0:
-            raise SplatplanError("LinearizationConfig: n_goals >= 1, time_budget_s > 0, n_sigma >= 0 and seed >= 0 required")
-        return self
+    def check(self) -> None:
+        """Cross-field rules (the ranges are declared with the fields)."""
+        if not set(self.plan_levels) <= set(self.levels):
+            raise SplatplanError(f"LinearizationConfig: levels must include plan_levels, got {self.levels} / {self.plan_levels}")
 
 
 def choose_straight_path(
@@ -277,9 +269,4 @@ def metric_figure(result: LinearizationResult):
 
 def report(result: LinearizationResult, out_dir: str | Path) -> list[Path]:
     """Write ``linearization.json``, ``linearization.md`` and ``fig5_metric_along_path.png`` into ``out_dir`` (an existing folder)."""
-    out_dir = Path(out_dir)
-    return [
-        write_json(out_dir / "linearization.json", result.to_json()),
-        write_text(out_dir / "linearization.md", markdown(result)),
-        save_figure(metric_figure(result), out_dir / "fig5_metric_along_path.png", dpi=120),
-    ]
+    return write_outputs(out_dir, "linearization", result.to_json(), markdown(result), (("fig5_metric_along_path.png", metric_figure(result), 120),))

@@ -89,13 +89,13 @@ from typing import Any
 
 import numpy as np
 
-from .._config import bounded, check_config
+from .._config import bounded
 from ..errors import SplatplanError
 from ._common import DISPLAY, ROBOT_RADIUS, set_torch_threads
 from ._pr_metrics import average_precision, best_f1, decision_prf, pr_summary, precision_recall_curve, thin_curve
 from ._pr_report import Curve, pr_figure
 from ._pr_report import markdown as _markdown
-from ._study import check_device, config_dict, save_figure, write_json, write_text
+from ._study import StudyConfig, config_dict, write_outputs
 
 __all__ = ["PRConfig", "PRResult", "VARIANTS", "precision_recall_curve", "average_precision", "best_f1", "pr_summary", "markdown", "report", "run"]
 
@@ -134,8 +134,10 @@ def variant_settings(name: str, cfg: "PRConfig") -> tuple[str, str, dict[str, An
 
 
 @dataclass
-class PRConfig:
-    """Knobs of the precision-recall study (defaults = the full run)."""
+class PRConfig(StudyConfig):
+    """Knobs of the precision-recall study (defaults = the full run). ``device`` is where
+    CollisionSplatting's kernel runs; the baselines' culled tile evaluation is a CPU algorithm (many
+    small torch calls on a thread pool) and always runs on the CPU."""
 
     #: Lattice spacing of the query grid (scene units); the grid holds the cell centres.
     spacing: float = bounded(0.01, gt=0)
@@ -194,16 +196,9 @@ class PRConfig:
     scene: str = "stonehenge"
     #: ground-truth .gt.json of a scene file (written by 'splatplan scene'); only with a scene file
     gt: str | None = None
-    #: Where CollisionSplatting's kernel runs: auto (CUDA when present, else CPU) | cpu | cuda | cuda:N
-    #: (the baselines' culled tile evaluation is a CPU algorithm and always runs on the CPU).
-    device: str = "auto"
-    #: The smoke-test settings of :meth:`quick_config` (recorded in the JSON).
-    quick: bool = False
 
-    def validate(self) -> "PRConfig":
-        """Check every field's declared range (:mod:`splatplan._config`) and the cross-field rules; returns self."""
-        check_config(self)
-        check_device(self.device, "PRConfig")
+    def check(self) -> None:
+        """Cross-field rules: known variants and baselines, n_sigma 1 present, --gt only with a scene file."""
         for v in self.variants:
             variant_settings(v, self)  # unknown names fail before any work
         names = self.baseline_names()
@@ -215,7 +210,6 @@ class PRConfig:
             raise SplatplanError(f"PRConfig.n_sigmas must be finite, >= 0 and include 1 (the headline), got {self.n_sigmas}")
         if self.scene == "stonehenge" and self.gt is not None:
             raise SplatplanError("--gt is only for a scene file; the built-in stonehenge carries its own ground truth")
-        return self
 
     def baseline_names(self) -> tuple[str, ...]:
         """The chosen baselines in table order."""
@@ -576,14 +570,9 @@ def markdown(result: PRResult) -> str:
 
 def report(result: PRResult, out_dir: str | Path) -> list[Path]:
     """Write ``pr.json``, ``pr.md`` and ``pr.png`` into ``out_dir`` (an existing folder); returns their paths."""
-    out_dir = Path(out_dir)
     title = f"E1: {result.scene}, {result.n_queries:,} queries (sdf > -r), r = {result.radius}"
     fig = pr_figure(result.curves, title, result.variant_curves, result.variants)
-    return [
-        write_json(out_dir / "pr.json", result.to_json()),
-        write_text(out_dir / "pr.md", markdown(result)),
-        save_figure(fig, out_dir / "pr.png"),
-    ]
+    return write_outputs(out_dir, "pr", result.to_json(), markdown(result), (("pr.png", fig, None),))
 
 
 def _softmin_check(checker, scenes: dict, cfg: PRConfig, q: np.ndarray, near: np.ndarray) -> dict[str, Any]:

@@ -45,10 +45,10 @@ from typing import Any
 
 import numpy as np
 
-from .._config import bounded, check_config
+from .._config import bounded
 from ..errors import SplatplanError
 from ._common import DISPLAY, ROBOT_RADIUS, n_cores, progress
-from ._study import check_device, config_dict, write_json, write_text
+from ._study import StudyConfig, config_dict, note_lines, write_outputs
 
 __all__ = ["PAPER_TABLE_I", "ThroughputConfig", "ThroughputResult", "markdown", "report", "run"]
 
@@ -65,8 +65,8 @@ PAPER_TABLE_I: dict[tuple[str, int], tuple[float, float, float]] = {
 
 
 @dataclass
-class ThroughputConfig:
-    """Knobs of the throughput study (defaults = the full run)."""
+class ThroughputConfig(StudyConfig):
+    """Knobs of the throughput study (defaults = the full run); every method runs on ``device``."""
 
     #: Timed evaluations after the warm-up; the median is reported.
     repeats: int = bounded(3, ge=1)
@@ -107,19 +107,12 @@ class ThroughputConfig:
     worker_timeout_s: float = bounded(600.0, gt=0)
     #: Free-form note stored in the JSON.
     note: str = ""
-    #: Where every method runs: auto (CUDA when present, else CPU) | cpu | cuda | cuda:N.
-    device: str = "auto"
-    #: The smoke-test settings of :meth:`quick_config` (recorded in the JSON).
-    quick: bool = False
 
-    def validate(self) -> "ThroughputConfig":
-        """Check every field's declared range (:mod:`splatplan._config`) and the row names; returns self."""
-        check_config(self)
-        check_device(self.device, "ThroughputConfig")
+    def check(self) -> None:
+        """Every row names a known method and a batch >= 1 (the other ranges are declared with the fields)."""
         for m, b in self.rows:
             if m.replace("_collision_only", "") not in DISPLAY or b < 1:
                 raise SplatplanError(f"unknown throughput row ({m!r}, {b})")
-        return self
 
     @classmethod
     def quick_config(cls) -> "ThroughputConfig":
@@ -191,10 +184,7 @@ def _markdown(res: dict[str, Any]) -> str:
         f"({res['n_splats']:,} splats after filtering), sphere r = {res['radius']}, n_sigma = {res['n_sigma']} (ours). "
         f"Paper: RTX 6000 Pro GPU / 16-core Ryzen 9 9950X CPU.",
         "",
-    ]
-    if res.get("note"):
-        lines += [f"**{res['note']}**", ""]
-    lines += [
+        *note_lines(res.get("note")),
         f"| method | batch | checks/s ours ({col}) | peak memory ours (MB) | paper {col} checks/s | paper GPU checks/s | paper memory (GB) | timed |",
         "|---|---|---|---|---|---|---|---|",
     ]
@@ -345,5 +335,4 @@ def run(config: ThroughputConfig) -> ThroughputResult:
 
 def report(result: ThroughputResult, out_dir: str | Path) -> list[Path]:
     """Write ``throughput.json`` and ``throughput.md`` into ``out_dir`` (an existing folder); returns their paths."""
-    out_dir = Path(out_dir)
-    return [write_json(out_dir / "throughput.json", result.to_json()), write_text(out_dir / "throughput.md", markdown(result))]
+    return write_outputs(out_dir, "throughput", result.to_json(), markdown(result))
