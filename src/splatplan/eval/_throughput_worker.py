@@ -183,7 +183,6 @@ def run_worker_subprocess(spec: dict, timeout_s: float) -> dict:
     return json.loads(lines[-1])
 
 
-
 def _main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description="E2 throughput worker (internal): one (method, batch) per process")
     ap.add_argument("--worker", required=True, help="JSON spec")

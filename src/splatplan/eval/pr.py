@@ -80,6 +80,7 @@ engine's results file when asked); :func:`report` writes ``pr.json``, ``pr.md`` 
 curves; variants on the right). The metrics are in ``_pr_metrics``, the culling per baseline in
 ``_pr_culling``, the engine tasks in ``_pr_scoring``, the figure and tables in ``_pr_report``.
 """
+
 from __future__ import annotations
 
 import time
@@ -130,7 +131,6 @@ def variant_settings(name: str, cfg: "PRConfig") -> tuple[str, str, dict[str, An
         label = label.replace(key, f"{val:g}")
     label = label.replace("opacity < 0.1", f"opacity < {cfg.eval_opacity_below:g}")
     return label, kind, changes
-
 
 
 @dataclass

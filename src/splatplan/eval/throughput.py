@@ -131,7 +131,6 @@ class ThroughputConfig(StudyConfig):
         )
 
 
-
 @dataclass
 class ThroughputResult:
     """What E2 measured; every field is a key of ``throughput.json`` (same names, same order)."""
