@@ -12,7 +12,7 @@ import torch
 from splatplan.baselines import BASELINES, as_scene_tensors
 from splatplan.errors import SplatplanError
 from splatplan.eval._pr_culling import cull_rule, culled_collision_scores
-from splatplan.eval.pr import PRConfig, average_precision, best_f1, pr_summary, precision_recall_curve, report, run
+from splatplan.eval.pr import PRConfig, PRResult, average_precision, best_f1, markdown, pr_summary, precision_recall_curve, report, run
 from splatplan.scenes.splats import Splats
 
 
@@ -132,6 +132,7 @@ def test_quick_pr_outputs(quick_pr):
     assert (out / "pr.png").stat().st_size > 10_000
     md = (out / "pr.md").read_text()
     assert "| method |" in md and "Splat-Nav" in md and "SPLANNING" in md
+    assert markdown(PRResult(**data)) == md  # the tables are a function of the JSON alone
 
 
 def test_scene_path_needs_ground_truth(tmp_path):

@@ -4,15 +4,14 @@ from __future__ import annotations
 
 import json
 import os
+from dataclasses import replace
 
 import numpy as np
 import pytest
 
 from splatplan.errors import SplatplanError
-from dataclasses import replace
-
 from splatplan.eval._harness import proc_status_mb, reset_peak_rss, timed_runs
-from splatplan.eval.throughput import ThroughputConfig, report, run
+from splatplan.eval.throughput import ThroughputConfig, ThroughputResult, markdown, report, run
 
 EXPECTED_ROWS = {("splatnav", 1), ("safersplat", 1), ("atlasnav", 4096), ("splanning", 4096), ("collisionsplatting", 4096), ("collisionsplatting", 32768)}
 
@@ -38,6 +37,7 @@ def test_quick_throughput_outputs(quick_tp):
     md = (out / "throughput.md").read_text()
     assert "| method | batch |" in md and "13,653.3" in md and "Splat-Nav" in md
     assert data["quick"] is True
+    assert markdown(ThroughputResult(**data)) == md  # the table is a function of the JSON alone
 
 
 @pytest.mark.skipif(not os.path.exists("/proc/self/clear_refs"), reason="needs Linux /proc")

@@ -1,6 +1,6 @@
-"""Plumbing shared by the study modules (pr, throughput, conservatism, linearization): atomic
-output files for their ``report`` functions, the device spelling check of their configs and the
-config echo of their JSON.
+"""Plumbing shared by the study modules (pr, throughput, conservatism, linearization): the base of
+their configs (:class:`StudyConfig`: ``device``, ``quick``, ``validate``), the config echo of their
+JSON, and the atomic output files of their ``report`` functions (:func:`write_outputs`).
 """
 
 from __future__ import annotations

@@ -254,10 +254,6 @@ def _fmt(ms) -> str:
     return "n/a" if not np.isfinite(m) else f"{m:.4f} ± {s:.4f}"
 
 
-#: fields of :class:`ConservatismResult` that feed the figure only (not written to the JSON)
-_PLOT_ONLY = ("scene", "paths")
-
-
 @dataclass
 class ConservatismResult:
     """What E3 measured: ``rows`` and ``setup`` are the JSON; ``scene`` and ``paths`` feed Fig. 4."""

@@ -118,10 +118,6 @@ def choose_straight_path(
     raise PlanningError("no collision-free straight segment found for the metric-along-path plot")
 
 
-#: fields of :class:`LinearizationResult` that feed the figure only (not written to the JSON)
-_PLOT_ONLY = ("arc", "clearance_true", "along")
-
-
 @dataclass
 class LinearizationResult:
     """What E4 measured: ``rows`` and ``setup`` are the JSON; the rest feeds Fig. 5."""
