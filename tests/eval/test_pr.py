@@ -164,3 +164,18 @@ def test_quick_pr_fidelity_variants(quick_pr):
         assert chk["n"] > 0 and chk["n_inf_mismatch"] == 0 and chk["max_abs_dev"] < 1e-3
     md = (out / "pr.md").read_text()
     assert "fidelity variants" in md and "beyond the paper" in md and md.count("(`opacity_") >= 2
+
+
+def test_results_file_resumes(tmp_path):
+    """run(..., results=PATH): the scoring tasks stream to PATH; a rerun skips them and gives the same numbers."""
+    cfg = replace(PRConfig.quick_config(), n_splats=4000, spacing=0.06, n_sigmas=(1.0,), baselines=("splanning",), variants=("default",), n_check=1, n_check_clamped=0)
+    path = tmp_path / "pr.results.jsonl"
+    first = run(cfg, results=path)
+    n_lines = len(path.read_text().splitlines())
+    assert n_lines == 3  # splanning, CollisionSplatting at n_sigma 1, variant (a) at n_sigma 1
+    second = run(cfg, results=path)
+    assert len(path.read_text().splitlines()) == n_lines  # nothing rerun
+    for key in ("collisionsplatting", "splanning"):
+        assert second.methods[key]["ap"] == first.methods[key]["ap"]
+    assert second.engine == {"kind": "serial"}
+    assert {p.name for p in tmp_path.iterdir()} <= {"pr.results.jsonl", "pr.results.jsonl.arrays"}  # run writes nothing else
