@@ -1,6 +1,6 @@
 """Figure helpers shared by the studies and the demo: legends a newcomer can read.
 
-Every mark drawn by :func:`splatplan.scenes.stonehenge.plot_top_view` gets a legend entry here
+Every mark drawn by :func:`splatplan.scenes.builtin.stonehenge.plot_top_view` gets a legend entry here
 (grey outlines, coloured stones, red dashed outlines), so no figure relies on a reader knowing
 the plotting code.
 """
@@ -17,7 +17,7 @@ def top_view_handles(scene, z: float, *, footprints: bool = True, inflate: float
     from matplotlib.lines import Line2D
     from matplotlib.patches import Patch
 
-    from ..scenes.stonehenge import _LABEL_COLORS, box_cross_section
+    from ..scenes.builtin.stonehenge import _LABEL_COLORS, box_cross_section
 
     kinds = []
     for box, lab in zip(scene.boxes, scene.labels):

@@ -67,7 +67,7 @@ class PRSetup:
 
         r = float(cfg.radius)
         if cfg.scene == "stonehenge":
-            from ..scenes.stonehenge import build_stonehenge
+            from ..scenes.builtin.stonehenge import build_stonehenge
 
             raw, geom = build_stonehenge(level=cfg.level, seed=cfg.seed, n_splats=cfg.n_splats)
             self.scene_name = f"built-in Stonehenge level {cfg.level} seed {cfg.seed}"
