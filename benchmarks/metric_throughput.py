@@ -33,7 +33,6 @@ import json
 import os
 import platform
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -54,11 +53,11 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
 
     from splatplan._warp import cpu_threads, wp
-    from splatplan.metric import CollisionChecker
-    from splatplan.scenes.filters import filter_floaters
     from splatplan.eval._common import make_queries
-    from splatplan.eval.throughput import proc_status_mb, reset_peak_rss, trim_heap
+    from splatplan.eval._harness import proc_status_mb, reset_peak_rss, timed_runs, trim_heap
+    from splatplan.metric import CollisionChecker
     from splatplan.scenes.builtin.stonehenge import build_stonehenge
+    from splatplan.scenes.filters import filter_floaters
 
     scene, _ = build_stonehenge(level=1, seed=0)
     scene, rep = filter_floaters(scene)
@@ -77,13 +76,7 @@ def main(argv: list[str] | None = None) -> int:
         checker.collides(centers, None, radius)
         wp().synchronize()
         for fn in ("query", "collides"):
-            times, cpu = [], []
-            for _ in range(args.repeats):
-                t, c0 = time.perf_counter(), time.process_time()
-                getattr(checker, fn)(centers, None, radius)
-                wp().synchronize()
-                times.append(time.perf_counter() - t)
-                cpu.append(time.process_time() - c0)
+            times, cpu = timed_runs(lambda fn=fn: getattr(checker, fn)(centers, None, radius), args.repeats, sync=wp().synchronize)
             med = float(np.median(times))
             rows.append({
                 "method": "collisionsplatting" + ("" if fn == "query" else "_collision_only"),
@@ -146,14 +139,9 @@ def main(argv: list[str] | None = None) -> int:
 
 def _median_time(fn, repeats: int) -> float:
     from splatplan._warp import wp
+    from splatplan.eval._harness import timed_runs
 
-    times = []
-    for _ in range(repeats):
-        t = time.perf_counter()
-        fn()
-        wp().synchronize()
-        times.append(time.perf_counter() - t)
-    return float(np.median(times))
+    return float(np.median(timed_runs(fn, repeats, sync=wp().synchronize)[0]))
 
 
 def _device_rows(checker, scene, lo, hi, batches: list[int], radius: float, repeats: int) -> list[dict]:

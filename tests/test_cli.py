@@ -313,10 +313,14 @@ def test_config_flags_parse_every_type():
     from splatplan.eval.throughput import ThroughputConfig
 
     p = build_parser()
-    a = p.parse_args(["eval", "pr", "--out", "x", "--quick", "--n-sigmas", "0,1.5", "--n-splats", "none", "--variants", "default,log_mean_exp"])
-    cfg = config_from_args(a, PRConfig, base=PRConfig.quick())
-    assert cfg.n_sigmas == (0.0, 1.5) and cfg.n_splats is None and cfg.variants == ("default", "log_mean_exp")
-    assert cfg.spacing == PRConfig.quick().spacing  # unset flags keep the --quick values
+    a = p.parse_args(["eval", "pr", "--out", "x", "--quick", "--n-sigmas", "0,1,1.5", "--n-splats", "none", "--variants", "default,log_mean_exp"])
+    cfg = config_from_args(a, PRConfig, base=PRConfig.quick_config())
+    assert cfg.n_sigmas == (0.0, 1.0, 1.5) and cfg.n_splats is None and cfg.variants == ("default", "log_mean_exp")
+    assert cfg.spacing == PRConfig.quick_config().spacing and cfg.quick  # unset flags keep the --quick values
+    from splatplan.errors import SplatplanError
+
+    with pytest.raises(SplatplanError, match="include 1"):  # the cross-field rules run with the flags, before any work
+        config_from_args(p.parse_args(["eval", "pr", "--out", "x", "--n-sigmas", "0,1.5"]), PRConfig)
     a = p.parse_args(["eval", "throughput", "--out", "x", "--rows", "splatnav:1,collisionsplatting:4096", "--timed-queries", "atlasnav=8",
                       "--baseline-threads", "none,1"])  # fmt: skip
     cfg = config_from_args(a, ThroughputConfig)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -10,15 +11,8 @@ import torch
 
 from splatplan.baselines import BASELINES, as_scene_tensors
 from splatplan.errors import SplatplanError
-from splatplan.eval.pr import (
-    _cull_rule,
-    average_precision,
-    best_f1,
-    culled_collision_scores,
-    precision_recall_curve,
-    pr_summary,
-    run_pr,
-)
+from splatplan.eval._pr_culling import cull_rule, culled_collision_scores
+from splatplan.eval.pr import PRConfig, PRResult, average_precision, best_f1, markdown, pr_summary, precision_recall_curve, report, run
 from splatplan.scenes.splats import Splats
 
 
@@ -99,7 +93,7 @@ def test_culled_scores_equal_full_scores(name):
     info = BASELINES[name]
     full_obj = info.cls(scene_t, "cpu")
     full = full_obj.collision_score(q, r, batch=64)
-    incl, clamp, _ = _cull_rule(name, full_obj, r)
+    incl, clamp, _ = cull_rule(name, full_obj, r)
     got, clamped, n_pairs = culled_collision_scores(info.cls, scene_t, incl, clamp, q, r, tile=0.03, block=0.09)
     assert 0 < n_pairs < 300 * 600  # culling did cull
     if clamp is None:
@@ -116,7 +110,10 @@ def test_culled_scores_equal_full_scores(name):
 @pytest.fixture(scope="module")
 def quick_pr(tmp_path_factory):
     out = tmp_path_factory.mktemp("pr")
-    return out, run_pr(out, quick=True)
+    res = run(PRConfig.quick_config())
+    written = report(res, out)
+    assert [p.name for p in written] == ["pr.json", "pr.md", "pr.png"]
+    return out, res.to_json()
 
 
 def test_quick_pr_outputs(quick_pr):
@@ -135,13 +132,17 @@ def test_quick_pr_outputs(quick_pr):
     assert (out / "pr.png").stat().st_size > 10_000
     md = (out / "pr.md").read_text()
     assert "| method |" in md and "Splat-Nav" in md and "SPLANNING" in md
+    assert markdown(PRResult(**data)) == md  # the tables are a function of the JSON alone
 
 
 def test_scene_path_needs_ground_truth(tmp_path):
     with pytest.raises(SplatplanError, match="--gt"):
-        run_pr(tmp_path, scene=str(tmp_path / "scene.ply"), gt=None, quick=True)
+        run(replace(PRConfig.quick_config(), scene=str(tmp_path / "scene.ply"), gt=None))
     with pytest.raises(SplatplanError, match="built-in"):
-        run_pr(tmp_path, scene="stonehenge", gt="x.gt.json", quick=True)
+        run(replace(PRConfig.quick_config(), scene="stonehenge", gt="x.gt.json"))
+    with pytest.raises(SplatplanError, match="device"):
+        run(replace(PRConfig.quick_config(), device="tpu"))
+    assert list(tmp_path.iterdir()) == []  # run writes nothing
 
 
 def test_quick_pr_fidelity_variants(quick_pr):
@@ -163,3 +164,18 @@ def test_quick_pr_fidelity_variants(quick_pr):
         assert chk["n"] > 0 and chk["n_inf_mismatch"] == 0 and chk["max_abs_dev"] < 1e-3
     md = (out / "pr.md").read_text()
     assert "fidelity variants" in md and "beyond the paper" in md and md.count("(`opacity_") >= 2
+
+
+def test_results_file_resumes(tmp_path):
+    """run(..., results=PATH): the scoring tasks stream to PATH; a rerun skips them and gives the same numbers."""
+    cfg = replace(PRConfig.quick_config(), n_splats=4000, spacing=0.06, n_sigmas=(1.0,), baselines=("splanning",), variants=("default",), n_check=1, n_check_clamped=0)
+    path = tmp_path / "pr.results.jsonl"
+    first = run(cfg, results=path)
+    n_lines = len(path.read_text().splitlines())
+    assert n_lines == 3  # splanning, CollisionSplatting at n_sigma 1, variant (a) at n_sigma 1
+    second = run(cfg, results=path)
+    assert len(path.read_text().splitlines()) == n_lines  # nothing rerun
+    for key in ("collisionsplatting", "splanning"):
+        assert second.methods[key]["ap"] == first.methods[key]["ap"]
+    assert second.engine == {"kind": "serial"}
+    assert {p.name for p in tmp_path.iterdir()} <= {"pr.results.jsonl", "pr.results.jsonl.arrays"}  # run writes nothing else

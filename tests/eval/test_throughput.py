@@ -4,12 +4,14 @@ from __future__ import annotations
 
 import json
 import os
+from dataclasses import replace
 
 import numpy as np
 import pytest
 
 from splatplan.errors import SplatplanError
-from splatplan.eval.throughput import proc_status_mb, reset_peak_rss, run_throughput
+from splatplan.eval._harness import proc_status_mb, reset_peak_rss, timed_runs
+from splatplan.eval.throughput import ThroughputConfig, ThroughputResult, markdown, report, run
 
 EXPECTED_ROWS = {("splatnav", 1), ("safersplat", 1), ("atlasnav", 4096), ("splanning", 4096), ("collisionsplatting", 4096), ("collisionsplatting", 32768)}
 
@@ -17,7 +19,9 @@ EXPECTED_ROWS = {("splatnav", 1), ("safersplat", 1), ("atlasnav", 4096), ("splan
 @pytest.fixture(scope="module")
 def quick_tp(tmp_path_factory):
     out = tmp_path_factory.mktemp("tp")
-    return out, run_throughput(out, quick=True)
+    res = run(ThroughputConfig.quick_config())
+    assert [p.name for p in report(res, out)] == ["throughput.json", "throughput.md"]
+    return out, res
 
 
 def test_quick_throughput_outputs(quick_tp):
@@ -33,6 +37,7 @@ def test_quick_throughput_outputs(quick_tp):
     md = (out / "throughput.md").read_text()
     assert "| method | batch |" in md and "13,653.3" in md and "Splat-Nav" in md
     assert data["quick"] is True
+    assert markdown(ThroughputResult(**data)) == md  # the table is a function of the JSON alone
 
 
 @pytest.mark.skipif(not os.path.exists("/proc/self/clear_refs"), reason="needs Linux /proc")
@@ -44,6 +49,15 @@ def test_memory_probe_sees_an_allocation():
     del a
 
 
-def test_bad_device(tmp_path):
-    with pytest.raises(SplatplanError):
-        run_throughput(tmp_path, quick=True, device="tpu")
+def test_timed_runs_counts_wall_and_cpu_time():
+    calls = []
+    wall, cpu = timed_runs(lambda: calls.append(sum(range(20000))), 3, sync=lambda: calls.append("sync"))
+    assert len(wall) == len(cpu) == 3 and all(w > 0 and c >= 0 for w, c in zip(wall, cpu))
+    assert calls[1::2] == ["sync"] * 3  # the device is synchronised after every call, inside the timing
+
+
+def test_bad_device_and_rows():
+    with pytest.raises(SplatplanError, match="device"):
+        run(replace(ThroughputConfig.quick_config(), device="tpu"))
+    with pytest.raises(SplatplanError, match="unknown throughput row"):
+        run(replace(ThroughputConfig.quick_config(), rows=(("nomethod", 4),)))

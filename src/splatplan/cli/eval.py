@@ -1,55 +1,49 @@
 """`splatplan eval STUDY`: the paper's studies (one nested subcommand per study).
 
-Every study is ``run_<study>(out_dir, config=..., device=...)`` plus ``report(result) -> markdown``;
-every field of its config dataclass is a flag here (``--quick`` starts from the config's
-``quick()`` values, flags override either). When a study is done its markdown table is printed.
+Every study module exposes ``XConfig`` (a flat dataclass: every field is a flag here; ``--quick``
+starts from ``XConfig.quick_config()`` and flags override either), ``run(config, engine=None) ->
+XResult``, ``markdown(result)`` and ``report(result, out_dir) -> [paths written]``. When a study is
+done its markdown table is printed.
 """
 
 from __future__ import annotations
 
 import importlib
 
-from ._common import _out_dir, add_config_args, add_device_arg, add_engine_args, config_from_args, engine_from_args
+from ._common import _out_dir, _Unset, add_config_args, add_engine_args, config_from_args, engine_from_args
 
-#: studies whose tasks run on the job engine (--workers N / --scheduler ADDR); `eval mbm` (registered
-#: on its own, see :func:`register`) runs on it too
+#: studies whose tasks run on the job engine (--workers N / --scheduler ADDR); finished tasks stream
+#: to OUT/<study>.results.jsonl and a rerun resumes. `eval mbm` (registered on its own, see
+#: :func:`register`) runs on it too
 ENGINE_STUDIES = ("pr", "conservatism")
 
-#: study -> (help, module under splatplan.eval, config class, run function, output files)
+#: study -> (help, module under splatplan.eval, config class)
 STUDIES = {
-    "pr": ("E1 precision-recall against the four baselines (paper Fig. 3)", "pr", "PRConfig", "run_pr", ("pr.json", "pr.md", "pr.png")),
-    "throughput": ("E2 checks/s and memory of every method (paper Table I)", "throughput", "ThroughputConfig", "run_throughput", ("throughput.json", "throughput.md")),
-    "conservatism": (
-        "E3 path length / clearance vs n_sigma (paper Table II, Fig. 4)", "conservatism", "ConservatismConfig", "run_conservatism",
-        ("conservatism.json", "conservatism.md", "fig4_paths.png"),
-    ),  # fmt: skip
-    "linearization": (
-        "E4 scenes M1..M5 of growing splat size (paper Table III, Fig. 5)", "linearization", "LinearizationConfig", "run_linearization",
-        ("linearization.json", "linearization.md", "fig5_metric_along_path.png"),
-    ),  # fmt: skip
+    "pr": ("E1 precision-recall against the four baselines (paper Fig. 3)", "pr", "PRConfig"),
+    "throughput": ("E2 checks/s and memory of every method (paper Table I)", "throughput", "ThroughputConfig"),
+    "conservatism": ("E3 path length / clearance vs n_sigma (paper Table II, Fig. 4)", "conservatism", "ConservatismConfig"),
+    "linearization": ("E4 scenes M1..M5 of growing splat size (paper Table III, Fig. 5)", "linearization", "LinearizationConfig"),
 }
 
 
 def _study(name: str):
-    _, mod, cfg_name, run_name, files = STUDIES[name]
+    """(module, config class) of study ``name``."""
+    _, mod, cfg_name = STUDIES[name]
     m = importlib.import_module(f"splatplan.eval.{mod}")
-    return m, getattr(m, cfg_name), getattr(m, run_name), files
+    return m, getattr(m, cfg_name)
 
 
 def cmd_eval(args) -> int:
-    mod, cfg_cls, run, files = _study(args.study)
+    mod, cfg_cls = _study(args.study)
     engine = engine_from_args(args) if args.study in ENGINE_STUDIES else None
-    base = cfg_cls.quick() if args.quick else cfg_cls()
-    cfg = config_from_args(args, cfg_cls, base=base)
-    if hasattr(cfg, "validate"):
-        cfg.validate()
+    base = cfg_cls.quick_config() if args.cfg_quick is True else cfg_cls()
+    cfg = config_from_args(args, cfg_cls, base=base)  # validated
     out = _out_dir(args.out)
-    kw = {"scene": args.scene, "gt": args.gt} if args.study == "pr" else {}
-    if args.study in ENGINE_STUDIES:
-        kw["engine"] = engine
-    res = run(out, quick=args.quick, config=cfg, device=args.device, **kw)
-    print(mod.report(res).rstrip())
-    print(f"\nwrote {', '.join(str(out / f) for f in files)}")
+    kw = {"engine": engine, "results": out / f"{args.study}.results.jsonl"} if args.study in ENGINE_STUDIES else {}
+    res = mod.run(cfg, **kw)
+    written = mod.report(res, out)
+    print(mod.markdown(res).rstrip())
+    print(f"\nwrote {', '.join(str(p) for p in written)}")
     return 0
 
 
@@ -78,15 +72,12 @@ def register(sub, eval_sub) -> None:
     add_config_args(s, MBMConfig, group="benchmark options (MBMConfig)")
     s.set_defaults(func=cmd_mbm)
     for name, (help_, *_rest) in STUDIES.items():
-        mod, cfg_cls, _, _ = _study(name)
+        mod, cfg_cls = _study(name)
         s = eval_sub.add_parser(name, help=help_, description=(mod.__doc__ or help_).strip().splitlines()[0])
         s.add_argument("--out", required=True, help="output folder (created)")
-        s.add_argument("--quick", action="store_true", help="start from the small smoke-test settings (< 1 min); flags still override them")
-        if name == "pr":
-            s.add_argument("--scene", default="stonehenge", help="'stonehenge' (built-in) or a splat file with --gt")
-            s.add_argument("--gt", help="ground-truth .gt.json of a scene file (written by 'splatplan scene')")
-        add_device_arg(s)
+        s.add_argument("--quick", dest="cfg_quick", action="store_const", const=True, default=_Unset,
+                       help="start from the small smoke-test settings (< 1 min); flags still override them")  # fmt: skip
         if name in ENGINE_STUDIES:
             add_engine_args(s)
-        add_config_args(s, cfg_cls, group=f"study options ({cfg_cls.__name__})")
+        add_config_args(s, cfg_cls, skip=("quick",), group=f"study options ({cfg_cls.__name__})")
         s.set_defaults(func=cmd_eval, study=name)

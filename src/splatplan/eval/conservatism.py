@@ -12,26 +12,34 @@ and after refinement, as mean and standard deviation over the successful trials.
 
 Every knob is a field of :class:`ConservatismConfig` (``splatplan eval conservatism --help``).
 
-Outputs in ``out_dir``: ``conservatism.json``, ``conservatism.md`` (ours beside the paper's
-Table II) and ``fig4_paths.png`` (paths at n_sigma 0, 0.5, 1, 1.5 over the top view).
+:func:`run` plans the trials (``run(ConservatismConfig(...)) -> ConservatismResult``, no files
+written but the engine's results file when asked); :func:`report` writes ``conservatism.json``,
+``conservatism.md`` (ours beside the paper's Table II) and ``fig4_paths.png`` (paths at n_sigma 0,
+0.5, 1, 1.5 over the top view).
 """
 
 from __future__ import annotations
 
+import functools
+import hashlib
 import json
-from dataclasses import asdict, dataclass, replace
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .._config import bounded, check_config
+from .._config import bounded
 from ..errors import PlanningError, SplatplanError
 from ..planners import RRTConfig, plan
 from ..planners.metrics import clearance, d_min, smoothness
 from .._progress import progress
 from ..robots import load_robot, point_radius
 from ._common import load_stonehenge_filtered, mean_std
+from ._study import StudyConfig, config_dict, write_outputs
+
+__all__ = ["ConservatismConfig", "ConservatismResult", "PAPER_TABLE_II", "markdown", "report", "run"]
 
 #: The paper's Table II: n_sigma -> (mean, std) per column.
 PAPER_TABLE_II: dict[float, dict[str, tuple[float, float]]] = {
@@ -48,7 +56,7 @@ PAPER_TABLE_II: dict[float, dict[str, tuple[float, float]]] = {
 
 N_SIGMAS = (0.0, 0.25, 0.5, 0.75, 1.0, 1.25, 1.5, 1.75, 2.0)
 COLUMNS = ("length_rrt", "length_refined", "dmin_rrt", "dmin_refined", "smoothness_rrt", "smoothness_refined")
-#: planning plane of the study (scene units); the robot is the sphere DEFAULT_POINT_ROBOT (r = 0.015)
+#: planning plane of the study (scene units, z up)
 PLANE_Z = 0.06
 #: goals lie on the square |x| = BORDER or |y| = BORDER
 BORDER = 0.47
@@ -58,7 +66,7 @@ SHORTCUT = False
 
 
 @dataclass
-class ConservatismConfig:
+class ConservatismConfig(StudyConfig):
     """Knobs of study E3 (defaults = the full run; :meth:`quick` = the < 1 min smoke version)."""
 
     #: n_sigma values to plan with (the same goals for each).
@@ -86,19 +94,14 @@ class ConservatismConfig:
     seed: int = bounded(0, ge=0)
 
     @classmethod
-    def quick(cls) -> "ConservatismConfig":
+    def quick_config(cls) -> "ConservatismConfig":
         """3 goals per n_sigma and a 10 s RRT budget (< 1 minute on a laptop CPU)."""
-        return cls(n_goals=3, time_budget_s=10.0)
+        return cls(n_goals=3, time_budget_s=10.0, quick=True)
 
-    def validate(self) -> "ConservatismConfig":
-        check_config(self)  # each field's declared range (splatplan._config); cross-field rules below
-        if self.n_goals < 1 or not self.n_sigmas:
-            raise SplatplanError("ConservatismConfig: n_goals must be >= 1 and n_sigmas not empty")
-        if not (self.radius > 0 and self.stride > 0 and self.time_budget_s > 0):
-            raise SplatplanError("ConservatismConfig: radius, stride and time_budget_s must be > 0")
-        if self.seed < 0:
-            raise SplatplanError(f"ConservatismConfig: seed must be >= 0, got {self.seed}")
-        return self
+    def check(self) -> None:
+        """Cross-field rules (the ranges are declared with the fields)."""
+        if not self.n_sigmas:
+            raise SplatplanError("ConservatismConfig.n_sigmas must not be empty")
 
 
 def rrt_description(stride: float, batch_size: int, edge_resolution: float | None, radius: float) -> str:
@@ -253,9 +256,28 @@ def _fmt(ms) -> str:
     return "n/a" if not np.isfinite(m) else f"{m:.4f} ± {s:.4f}"
 
 
-def report(out: dict) -> str:
+@dataclass
+class ConservatismResult:
+    """What E3 measured: ``rows`` and ``setup`` are the JSON; ``scene`` and ``paths`` feed Fig. 4."""
+
+    #: one row per n_sigma: n_sigma, [mean, std] of every column over the successful trials
+    #: (COLUMNS, clearance_rrt / _refined, time_s), success_rate, n_trials, refined_rate
+    rows: list[dict]
+    #: scene, robot, start, goals, planner, device, engine and the config (tuples as lists)
+    setup: dict[str, Any]
+    #: figure only: the analytic scene (for the top view)
+    scene: Any = field(default=None, repr=False)
+    #: figure only: n_sigma -> [(raw RRT path (P, 3), refined path (P', 3))] of the successful trials
+    paths: dict[float, list[tuple[np.ndarray, np.ndarray]]] = field(default_factory=dict, repr=False)
+
+    def to_json(self) -> dict[str, Any]:
+        """The content of ``conservatism.json``."""
+        return {"rows": self.rows, "setup": self.setup}
+
+
+def markdown(result: ConservatismResult) -> str:
     """The markdown table of E3 (ours beside the paper's Table II)."""
-    st = out["setup"]
+    st = result.setup
     lines = [
         "# E3: conservatism (paper Table II)",
         "",
@@ -267,7 +289,7 @@ def report(out: dict) -> str:
         "| n_sigma | " + " | ".join(f"{c} (ours) | {c} (paper)" for c in COLUMNS) + " | success | refined | true clearance refined |",
         "|" + "---|" * (2 + 2 * len(COLUMNS) + 2),
     ]
-    for r in out["rows"]:
+    for r in result.rows:
         paper = PAPER_TABLE_II.get(round(r["n_sigma"], 2), {})
         cells = [f"{r['n_sigma']:.2f}"]
         for c in COLUMNS:
@@ -277,58 +299,45 @@ def report(out: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
-def run_conservatism(out_dir: Path, quick: bool = False, seed: int | None = None, config: ConservatismConfig | None = None, device: str = "auto", engine=None) -> dict:
-    """Run study E3 and write ``conservatism.json``, ``conservatism.md`` and ``fig4_paths.png``.
+def _trial_tasks(cfg: ConservatismConfig, start: np.ndarray, goals: np.ndarray, device: str) -> list:
+    """One engine task per (n_sigma, goal); the key hashes the config, the device and the code."""
+    from .engine import Task, code_version
 
-    Args:
-        out_dir: output folder (created if missing).
-        quick: start from :meth:`ConservatismConfig.quick` (3 goals, 10 s budget) instead of the full run.
-        seed: scene, goal and planner seed (overrides the config's).
-        config: explicit knobs (override ``quick``).
-        device: metric device ("auto" = CUDA when present, "cpu", "cuda", "cuda:N").
-        engine: where the trials run (:class:`~splatplan.eval.engine.EngineConfig` or its dict;
-            default serial). Every (n_sigma, goal) trial is one task; finished trials stream to
-            ``conservatism.results.jsonl`` and a rerun with the same config skips them.
-
-    Returns:
-        The JSON content: ``{"rows": [{"n_sigma", "length_rrt": [mean, std], ...}], "setup": {...}}``.
-    """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from ..metric import CollisionChecker
-    from ..scenes.builtin.stonehenge import plot_top_view
-    from ._plots import top_view_handles
-
-    cfg = config or (ConservatismConfig.quick() if quick else ConservatismConfig())
-    if seed is not None:
-        cfg = replace(cfg, seed=int(seed))
-    cfg.validate()
-    out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    splats, scene = load_scene(cfg.level, cfg.seed)
-    base = CollisionChecker(splats, n_sigma=0.0, device=device)
-    tree = cKDTree(splats.means.astype(np.float64))
-    strict = [base.with_config(n_sigma=max(cfg.n_sigmas))]
-    start = free_start(np.array([0.0, 0.0, cfg.plane_z]), strict, radius=cfg.radius)
-    rng = np.random.default_rng(cfg.seed)
-    goals = border_goals(cfg.n_goals, rng, strict, z=cfg.plane_z, radius=cfg.radius)
-    import functools
-    import hashlib
-
-    from .engine import Task, code_version, run_tasks
-
-    cfg_dict = {k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(cfg).items()}
-    sig = hashlib.sha1(json.dumps({"config": cfg_dict, "device": str(base.device), "code": code_version()}, sort_keys=True).encode()).hexdigest()[:8]
-    tasks = [
+    cfg_dict = config_dict(cfg)
+    sig = hashlib.sha1(json.dumps({"config": cfg_dict, "device": device, "code": code_version()}, sort_keys=True).encode()).hexdigest()[:8]
+    return [
         Task(f"{sig}/ns={float(ns):g}/goal={i}", {"n_sigma": float(ns), "goal": g.tolist(), "start": start.tolist(), "seed": cfg.seed + i, "config": cfg_dict})
         for ns in cfg.n_sigmas
         for i, g in enumerate(goals)
     ]
+
+
+def run(config: ConservatismConfig, engine=None, *, results: str | Path | None = None) -> ConservatismResult:
+    """Run study E3 (the protocol of the module docstring); writes no file but the engine's ``results``.
+
+    Args:
+        config: the knobs (:meth:`ConservatismConfig.quick_config`: 3 goals, 10 s budget); validated here.
+        engine: where the trials run (:class:`~splatplan.eval.engine.EngineConfig` or its dict;
+            default serial). Every (n_sigma, goal) trial is one task.
+        results: JSON-lines file finished trials stream to; a rerun with the same config skips
+            them. None: in memory only.
+
+    Returns:
+        :class:`ConservatismResult`: ``rows`` (one per n_sigma, [mean, std] per column) and ``setup``.
+    """
+    from ..metric import CollisionChecker
+    from .engine import run_tasks
+
+    cfg = config.validate()
+    splats, scene = load_scene(cfg.level, cfg.seed)
+    base = CollisionChecker(splats, n_sigma=0.0, device=cfg.device)
+    strict = [base.with_config(n_sigma=max(cfg.n_sigmas))]
+    start = free_start(np.array([0.0, 0.0, cfg.plane_z]), strict, radius=cfg.radius)
+    rng = np.random.default_rng(cfg.seed)
+    goals = border_goals(cfg.n_goals, rng, strict, z=cfg.plane_z, radius=cfg.radius)
+    tasks = _trial_tasks(cfg, start, goals, str(base.device))
     factory = functools.partial(make_context, cfg.level, cfg.seed, str(base.device))
-    ran = run_tasks(tasks, conservatism_task, factory, engine, out_dir / "conservatism.results.jsonl", desc="E3 trials")
+    ran = run_tasks(tasks, conservatism_task, factory, engine, results, desc="E3 trials")
     rows, paths = [], {}
     for ns in cfg.n_sigmas:
         trials = []
@@ -341,35 +350,43 @@ def run_conservatism(out_dir: Path, quick: bool = False, seed: int | None = None
         row["refined_rate"] = float(np.mean([t["refined"] for t in trials if t])) if any(trials) else 0.0
         rows.append(row)
         paths[float(ns)] = [(np.asarray(t["path_rrt"]), np.asarray(t["path"])) for t in trials if t]
-    out = {
-        "rows": rows,
-        "setup": {
-            "scene": f"stonehenge level {cfg.level}",
-            "level": cfg.level,
-            "n_splats": len(splats),
-            "floaters_dropped": splats.info.get("floaters_dropped", 0),
-            "robot_radius": cfg.radius,
-            "plane_z": cfg.plane_z,
-            "n_goals": cfg.n_goals,
-            "start": start.tolist(),
-            "goals": goals.tolist(),
-            "rrt": rrt_description(cfg.stride, cfg.batch_size, cfg.edge_resolution, cfg.radius) + f", budget {cfg.time_budget_s:g} s / {cfg.max_nodes:,} nodes",
-            "refinement": "one MPPI update over the whole path (RefineConfig defaults)",
-            "device": str(base.device),
-            "engine": ran.engine,
-            "n_task_errors": len(ran.errors),
-            "quick": bool(quick),
-            "seed": int(cfg.seed),
-            "config": {k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(cfg).items()},
-        },
+    setup = {
+        "scene": f"stonehenge level {cfg.level}",
+        "level": cfg.level,
+        "n_splats": len(splats),
+        "floaters_dropped": splats.info.get("floaters_dropped", 0),
+        "robot_radius": cfg.radius,
+        "plane_z": cfg.plane_z,
+        "n_goals": cfg.n_goals,
+        "start": start.tolist(),
+        "goals": goals.tolist(),
+        "rrt": rrt_description(cfg.stride, cfg.batch_size, cfg.edge_resolution, cfg.radius) + f", budget {cfg.time_budget_s:g} s / {cfg.max_nodes:,} nodes",
+        "refinement": "one MPPI update over the whole path (RefineConfig defaults)",
+        "device": str(base.device),
+        "engine": ran.engine,
+        "n_task_errors": len(ran.errors),
+        "quick": bool(cfg.quick),
+        "seed": int(cfg.seed),
+        "config": config_dict(cfg),
     }
-    (out_dir / "conservatism.json").write_text(json.dumps(out, indent=2))
-    (out_dir / "conservatism.md").write_text(report(out))
+    return ConservatismResult(rows=rows, setup=setup, scene=scene, paths=paths)
+
+
+def paths_figure(result: ConservatismResult):
+    """Fig. 4: the raw RRT and refined paths at n_sigma 0, 0.5, 1, 1.5 over the top view. Returns the Figure."""
+    from matplotlib.figure import Figure
+    from matplotlib.lines import Line2D
+
+    from ..scenes.builtin.stonehenge import plot_top_view
+    from ._plots import top_view_handles
+
+    st, paths, scene = result.setup, result.paths, result.scene
+    z, start, goals = st["plane_z"], np.asarray(st["start"]), np.asarray(st["goals"])
     shown = [ns for ns in (0.0, 0.5, 1.0, 1.5) if ns in paths] or list(paths)[:4]
-    fig, axs = plt.subplots(1, len(shown), figsize=(4 * len(shown), 5.6), squeeze=False)
-    axs = axs[0]
+    fig = Figure(figsize=(4 * len(shown), 5.6))
+    axs = fig.subplots(1, len(shown), squeeze=False)[0]
     for ax, ns in zip(axs, shown):
-        plot_top_view(ax, scene, cfg.plane_z)
+        plot_top_view(ax, scene, z)
         for p0, p1 in paths.get(ns, []):
             ax.plot(p0[:, 0], p0[:, 1], "--", color="tab:blue", lw=0.8, alpha=0.7)
             ax.plot(p1[:, 0], p1[:, 1], "-", color="tab:red", lw=1.2)
@@ -381,18 +398,19 @@ def run_conservatism(out_dir: Path, quick: bool = False, seed: int | None = None
         ax.set_aspect("equal")
         ax.set_xlabel("x (scene units)")
         ax.set_ylabel("y (scene units)")
-    from matplotlib.lines import Line2D
-
     handles = [
         Line2D([], [], ls="--", color="tab:blue", label="RRT path (raw tree path)"),
         Line2D([], [], color="tab:red", label="after the zeroth-order refinement"),
         Line2D([], [], ls="", marker="o", color="k", ms=4, label="start"),
         Line2D([], [], ls="", marker="*", color="k", ms=6, label="goals on the border"),
-        *top_view_handles(scene, cfg.plane_z),
+        *top_view_handles(scene, z),
     ]
     fig.legend(handles=handles, loc="lower center", ncol=4, fontsize=7, frameon=False)
-    fig.suptitle(f"E3: paths of a sphere (r = {cfg.radius:g}) in the plane z = {cfg.plane_z:g}, top view; larger n_sigma = more conservative", fontsize=10)
+    fig.suptitle(f"E3: paths of a sphere (r = {st['robot_radius']:g}) in the plane z = {z:g}, top view; larger n_sigma = more conservative", fontsize=10)
     fig.tight_layout(rect=(0, 0.16, 1, 0.95))
-    fig.savefig(out_dir / "fig4_paths.png", dpi=120)
-    plt.close(fig)
-    return out
+    return fig
+
+
+def report(result: ConservatismResult, out_dir: str | Path) -> list[Path]:
+    """Write ``conservatism.json``, ``conservatism.md`` and ``fig4_paths.png`` into ``out_dir`` (an existing folder)."""
+    return write_outputs(out_dir, "conservatism", result.to_json(), markdown(result), (("fig4_paths.png", paths_figure(result), 120),))

@@ -17,23 +17,28 @@ floaters filtered). Two measurements, both at n_sigma = 1 with a sphere robot of
    beside the paper's Table III (M1..M3).
 
 Every knob is a field of :class:`LinearizationConfig` (``splatplan eval linearization --help``).
+:func:`run` measures (``run(LinearizationConfig(...)) -> LinearizationResult``, no files written);
+:func:`report` writes the JSON, the markdown and the figure.
 """
 
 from __future__ import annotations
 
-import json
-from dataclasses import asdict, dataclass, replace
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .._config import bounded, check_config
+from .._config import bounded
 from ..errors import PlanningError, SplatplanError
 from .._progress import progress
 from ..robots import point_radius
 from ._common import mean_std
+from ._study import StudyConfig, config_dict, write_outputs
 from .conservatism import PLANE_Z, border_goals, free_start, load_scene, plan_trials
+
+__all__ = ["LinearizationConfig", "LinearizationResult", "PAPER_TABLE_III", "markdown", "report", "run"]
 
 #: The paper's Table III: scene -> (path length mean, std), (closest distance mean, std).
 PAPER_TABLE_III = {
@@ -53,7 +58,7 @@ N_SIGMA = 1.0
 
 
 @dataclass
-class LinearizationConfig:
+class LinearizationConfig(StudyConfig):
     """Knobs of study E4 (defaults = the full run; :meth:`quick` = the < 1 min smoke version)."""
 
     #: Stonehenge levels whose metric is plotted along the straight path (M1..M5).
@@ -74,17 +79,14 @@ class LinearizationConfig:
     seed: int = bounded(0, ge=0)
 
     @classmethod
-    def quick(cls) -> "LinearizationConfig":
+    def quick_config(cls) -> "LinearizationConfig":
         """3 goals per level and a 10 s RRT budget (< 1 minute)."""
-        return cls(n_goals=3, time_budget_s=10.0)
+        return cls(n_goals=3, time_budget_s=10.0, quick=True)
 
-    def validate(self) -> "LinearizationConfig":
-        check_config(self)  # each field's declared range (splatplan._config); cross-field rules below
-        if not set(self.plan_levels) <= set(self.levels) or not all(1 <= lv <= 5 for lv in self.levels):
-            raise SplatplanError(f"LinearizationConfig: levels must lie in 1..5 and include plan_levels, got {self.levels} / {self.plan_levels}")
-        if self.n_goals < 1 or not self.time_budget_s > 0 or self.n_sigma < 0 or self.seed < 0:
-            raise SplatplanError("LinearizationConfig: n_goals >= 1, time_budget_s > 0, n_sigma >= 0 and seed >= 0 required")
-        return self
+    def check(self) -> None:
+        """Cross-field rules (the ranges are declared with the fields)."""
+        if not set(self.plan_levels) <= set(self.levels):
+            raise SplatplanError(f"LinearizationConfig: levels must include plan_levels, got {self.levels} / {self.plan_levels}")
 
 
 def choose_straight_path(
@@ -97,10 +99,10 @@ def choose_straight_path(
     z: float = PLANE_Z,
     radius: float = point_radius(),
 ) -> np.ndarray:
-    """A straight segment (2, 3) at height z, at least ``min_length`` long, collision-free for a
-    sphere of ``radius`` against the exact geometry (clearance >= ``min_clearance``) and every checker, running as close to the
+    """A straight segment (2, 3) at height z, at least ``min_length`` long, collision-free for the
+    exact geometry (clearance >= ``min_clearance``) and for every checker, running as close to the
     stones as allowed (smallest mean clearance, clearances above 0.05 counted as 0.05)."""
-    axes = (radius, radius, radius)
+    axes = (radius,) * 3
     p0 = np.concatenate([rng.uniform(-0.47, 0.47, (n_candidates, 2)), np.full((n_candidates, 1), z)], axis=1)
     p1 = np.concatenate([rng.uniform(-0.47, 0.47, (n_candidates, 2)), np.full((n_candidates, 1), z)], axis=1)
     keep = np.linalg.norm(p1 - p0, axis=1) >= min_length
@@ -119,9 +121,30 @@ def choose_straight_path(
     raise PlanningError("no collision-free straight segment found for the metric-along-path plot")
 
 
-def report(out: dict) -> str:
+@dataclass
+class LinearizationResult:
+    """What E4 measured: ``rows`` and ``setup`` are the JSON; the rest feeds Fig. 5."""
+
+    #: one row per planned level: level, [mean, std] of length / dmin (raw RRT) and of the refined
+    #: path, success_rate, n_splats, mean_max_scale and the metric along the straight path
+    rows: list[dict]
+    #: n_sigma, levels, robot, straight path, start, goals, device and the config (tuples as lists)
+    setup: dict[str, Any]
+    #: figure only: (S,) arc length along the straight path (scene units)
+    arc: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
+    #: figure only: (S,) exact clearance (sdf - r) along it
+    clearance_true: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
+    #: figure only: level -> (min_s2 (S,), softmin (S,), both clipped at plot_s2_cap; splat count)
+    along: dict[int, tuple[np.ndarray, np.ndarray, int]] = field(default_factory=dict, repr=False)
+
+    def to_json(self) -> dict[str, Any]:
+        """The content of ``linearization.json``."""
+        return {"rows": self.rows, "setup": self.setup}
+
+
+def markdown(result: LinearizationResult) -> str:
     """The markdown table of E4 (ours beside the paper's Table III)."""
-    st = out["setup"]
+    st = result.setup
     fmt = lambda ms: "n/a" if not np.isfinite(ms[0]) else f"{ms[0]:.4f} ± {ms[1]:.4f}"  # noqa: E731
     lines = [
         "# E4: linearisation effect (paper Table III)",
@@ -132,7 +155,7 @@ def report(out: dict) -> str:
         "| scene | splats | path length (ours) | path length (paper) | d_min (ours) | d_min (paper) | success | min over path of min_s2 |",
         "|---|---|---|---|---|---|---|---|",
     ]
-    for r in out["rows"]:
+    for r in result.rows:
         p = PAPER_TABLE_III.get(r["level"])
         lines.append(
             f"| M{r['level']} | {r['n_splats']} | {fmt(r['length'])} | {fmt(p['length']) if p else '—'} | "
@@ -141,38 +164,40 @@ def report(out: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
-def run_linearization(out_dir: Path, quick: bool = False, seed: int | None = None, config: LinearizationConfig | None = None, device: str = "auto") -> dict:
-    """Run study E4 and write ``linearization.json``, ``linearization.md`` and
-    ``fig5_metric_along_path.png`` into ``out_dir``.
+def _plan_row(lv: int, splats, scene, checker, start, goals, cfg: LinearizationConfig, along: dict) -> dict:
+    """The planner of E3 from the centre to every goal at level ``lv``: length and d_min of the raw RRT path."""
+    trials, _ = plan_trials(checker, start, goals, cKDTree(splats.means.astype(np.float64)), scene.sdf, cfg.seed, cfg.time_budget_s, tag=f"M{lv}")
+    ok = [r for r in trials if r]
+    return {
+        "level": int(lv),
+        "length": mean_std([r["length_rrt"] for r in ok], finite_only=True),
+        "dmin": mean_std([r["dmin_rrt"] for r in ok], finite_only=True),
+        "length_refined": mean_std([r["length_refined"] for r in ok], finite_only=True),
+        "dmin_refined": mean_std([r["dmin_refined"] for r in ok], finite_only=True),
+        "success_rate": len(ok) / max(1, len(trials)),
+        "n_splats": len(splats),
+        "mean_max_scale": float(splats.scales.max(axis=1).mean()),
+        "metric_along_path": along,
+    }
+
+
+def run(config: LinearizationConfig) -> LinearizationResult:
+    """Run study E4 (the protocol of the module docstring); writes no file.
 
     Args:
-        out_dir: output folder (created if missing).
-        quick: start from :meth:`LinearizationConfig.quick` (3 goals per level, 10 s budget).
-        seed: scene, goal and planner seed (overrides the config's).
-        config: explicit knobs (override ``quick``).
-        device: metric device ("auto" = CUDA when present, "cpu", "cuda", "cuda:N").
+        config: the knobs (:meth:`LinearizationConfig.quick_config`: 3 goals per level, 10 s budget); validated here.
 
     Returns:
-        The JSON content: ``{"rows": [{"level", "length": [mean, std], "dmin": [mean, std]}], ...}``.
+        :class:`LinearizationResult`: ``rows`` (one per planned level) and ``setup``, plus the curves of Fig. 5.
     """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     from ..metric import CollisionChecker
 
-    cfg = config or (LinearizationConfig.quick() if quick else LinearizationConfig())
-    if seed is not None:
-        cfg = replace(cfg, seed=int(seed))
-    cfg.validate()
-    out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
+    cfg = config.validate()
     rng = np.random.default_rng(cfg.seed)
     scenes = {}
     for lv in progress(cfg.levels, desc="build scenes"):
         splats, scene = load_scene(lv, cfg.seed)
-        scenes[lv] = (splats, scene, CollisionChecker(splats, n_sigma=cfg.n_sigma, device=device))
+        scenes[lv] = (splats, scene, CollisionChecker(splats, n_sigma=cfg.n_sigma, device=cfg.device))
     analytic = scenes[cfg.levels[0]][1]  # the geometry is the same at every level (same layout seed)
     checkers = [scenes[lv][2] for lv in cfg.plan_levels]
     radius = point_radius()  # the robot: the studies' sphere DEFAULT_POINT_ROBOT, as in E3 (whose planner runs here)
@@ -184,71 +209,64 @@ def run_linearization(out_dir: Path, quick: bool = False, seed: int | None = Non
     pts = line[0] + t[:, None] * (line[1] - line[0])  # (S, 3)
     arc = t * float(np.linalg.norm(line[1] - line[0]))
     clr_true = analytic.sdf(pts) - radius
-    fig, axs = plt.subplots(2, 1, figsize=(8, 7.0), sharex=True)
-    rows, along = [], {}
+    rows, curves = [], {}
     cap = cfg.plot_s2_cap
     for lv in progress(cfg.levels, desc="levels"):
         splats, scene, ch = scenes[lv]
-        plot_ch = ch.with_config(s2_cap=cap)  # exact min_s2 up to a larger distance
-        q = plot_ch.query(pts, None, (radius, radius, radius))
+        q = ch.with_config(s2_cap=cap).query(pts, None, (radius,) * 3)  # exact min_s2 up to a larger distance
         min_s2 = np.minimum(q.min_s2.astype(np.float64), cap)
         soft = np.minimum(q.softmin.astype(np.float64), cap)
-        along[lv] = {"min_s2_min": float(min_s2.min()), "softmin_min": float(soft.min()), "min_s2_mean": float(min_s2.mean())}
-        axs[0].plot(arc, min_s2, label=f"M{lv} ({len(splats) // 1000}k splats)")
+        curves[lv] = (min_s2, soft, len(splats))
+        along = {"min_s2_min": float(min_s2.min()), "softmin_min": float(soft.min()), "min_s2_mean": float(min_s2.mean())}
+        if lv in cfg.plan_levels:
+            rows.append(_plan_row(lv, splats, scene, ch, start, goals, cfg, along))
+    setup = {
+        "n_sigma": cfg.n_sigma,
+        "levels": list(cfg.levels),
+        "n_goals": cfg.n_goals,
+        "robot_radius": radius,
+        "plane_z": PLANE_Z,
+        "straight_path": line.tolist(),
+        "straight_path_min_true_clearance": float(clr_true.min()),
+        "start": start.tolist(),
+        "goals": goals.tolist(),
+        "length_dmin_of": "batched RRT path (as the paper's Table III: its M1 row equals Table II's n_sigma=1 RRT column)",
+        "device": str(checkers[0].device),
+        "quick": bool(cfg.quick),
+        "seed": int(cfg.seed),
+        "config": config_dict(cfg),
+    }
+    return LinearizationResult(rows=rows, setup=setup, arc=arc, clearance_true=clr_true, along=curves)
+
+
+def metric_figure(result: LinearizationResult):
+    """Fig. 5: min_s2 (top) and softmin (bottom, with the true clearance) along the straight path per level. Returns the Figure."""
+    from matplotlib.figure import Figure
+
+    st, arc = result.setup, result.arc
+    cap = st["config"]["plot_s2_cap"]
+    fig = Figure(figsize=(8, 7.0))
+    axs = fig.subplots(2, 1, sharex=True)
+    for lv, (min_s2, soft, n_splats) in result.along.items():
+        axs[0].plot(arc, min_s2, label=f"M{lv} ({n_splats // 1000}k splats)")
         axs[1].plot(arc, soft, label=f"M{lv}")
-        if lv not in cfg.plan_levels:
-            continue
-        trials, _ = plan_trials(ch, start, goals, cKDTree(splats.means.astype(np.float64)), scene.sdf, cfg.seed, cfg.time_budget_s, tag=f"M{lv}")
-        ok = [r for r in trials if r]
-        rows.append(
-            {
-                "level": int(lv),
-                "length": mean_std([r["length_rrt"] for r in ok], finite_only=True),
-                "dmin": mean_std([r["dmin_rrt"] for r in ok], finite_only=True),
-                "length_refined": mean_std([r["length_refined"] for r in ok], finite_only=True),
-                "dmin_refined": mean_std([r["dmin_refined"] for r in ok], finite_only=True),
-                "success_rate": len(ok) / max(1, len(trials)),
-                "n_splats": len(splats),
-                "mean_max_scale": float(splats.scales.max(axis=1).mean()),
-                "metric_along_path": along[lv],
-            }
-        )
     axs[0].set_ylabel(f"conservative scaling distance\n(min s2~, clipped at {cap:g})")
     axs[0].axhline(1.0, color="k", lw=0.6, ls=":", label="1 = touching (below: collision)")
     axs[1].set_ylabel("smooth minimum over nearby splats\n(softmin of s2~)")
     axs[1].axhline(1.0, color="k", lw=0.6, ls=":")
     ax2 = axs[1].twinx()
-    ax2.plot(arc, clr_true, color="0.6", lw=0.8, ls="--", label="true clearance (right axis)")
+    ax2.plot(arc, result.clearance_true, color="0.6", lw=0.8, ls="--", label="true clearance (right axis)")
     ax2.set_ylabel("true clearance to the stones (scene units)", color="0.5")
     ax2.legend(loc="upper right", fontsize=7)
     axs[1].set_xlabel("distance along the straight path (scene units)")
     axs[0].legend(fontsize=7)
     axs[1].legend(loc="upper left", fontsize=7)
-    axs[0].set_title(f"Metric along a straight collision-free path (n_sigma = {cfg.n_sigma:g}, sphere r = {radius:g}); "
+    axs[0].set_title(f"Metric along a straight collision-free path (n_sigma = {st['n_sigma']:g}, sphere r = {st['robot_radius']}); "
                      "M1..M5: larger and fewer splats", fontsize=9)  # fmt: skip
     fig.tight_layout()
-    fig.savefig(out_dir / "fig5_metric_along_path.png", dpi=120)
-    plt.close(fig)
+    return fig
 
-    out = {
-        "rows": rows,
-        "setup": {
-            "n_sigma": cfg.n_sigma,
-            "levels": list(cfg.levels),
-            "n_goals": cfg.n_goals,
-            "robot_radius": radius,
-            "plane_z": PLANE_Z,
-            "straight_path": line.tolist(),
-            "straight_path_min_true_clearance": float(clr_true.min()),
-            "start": start.tolist(),
-            "goals": goals.tolist(),
-            "length_dmin_of": "batched RRT path (as the paper's Table III: its M1 row equals Table II's n_sigma=1 RRT column)",
-            "device": str(checkers[0].device),
-            "quick": bool(quick),
-            "seed": int(cfg.seed),
-            "config": {k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(cfg).items()},
-        },
-    }
-    (out_dir / "linearization.json").write_text(json.dumps(out, indent=2))
-    (out_dir / "linearization.md").write_text(report(out))
-    return out
+
+def report(result: LinearizationResult, out_dir: str | Path) -> list[Path]:
+    """Write ``linearization.json``, ``linearization.md`` and ``fig5_metric_along_path.png`` into ``out_dir`` (an existing folder)."""
+    return write_outputs(out_dir, "linearization", result.to_json(), markdown(result), (("fig5_metric_along_path.png", metric_figure(result), 120),))

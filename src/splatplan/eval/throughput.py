@@ -29,32 +29,31 @@ Protocol
   libraries, scene arrays and queries. On CUDA: ``torch.cuda.max_memory_allocated`` plus the
   growth of Warp's memory-pool high-water mark.
 
-Outputs in ``out_dir``: ``throughput.json`` and ``throughput.md`` (ours beside the paper's Table I).
+Code: :func:`run` is the protocol (``run(ThroughputConfig(...)) -> ThroughputResult``, no files
+written); each (method, batch) row is measured by ``_throughput_worker`` in its own interpreter,
+with the memory and timing probes of ``_harness`` (shared with ``benchmarks/metric_throughput.py``).
+:func:`report` writes ``throughput.json`` and ``throughput.md`` (ours beside the paper's Table I).
 """
 
 from __future__ import annotations
 
-import argparse
-import gc
-import json
-import os
 import platform
-import subprocess
-import sys
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from .._config import bounded, check_config
+from .._config import bounded
 from ..errors import SplatplanError
+from .._progress import progress
 from .._warp import cpu_threads
 from ..robots import point_radius
-from ._common import DISPLAY, make_queries
+from ._common import DISPLAY
+from ._study import StudyConfig, config_dict, note_lines, write_outputs
 
-__all__ = ["ThroughputConfig", "PAPER_TABLE_I", "run_throughput"]
+__all__ = ["PAPER_TABLE_I", "ThroughputConfig", "ThroughputResult", "markdown", "report", "run"]
 
 #: The paper's Table I: (method, batch) -> (GPU checks/s, CPU checks/s, memory GB).
 #: RTX 6000 Pro GPU, 16-core Ryzen 9 9950X CPU.
@@ -69,8 +68,8 @@ PAPER_TABLE_I: dict[tuple[str, int], tuple[float, float, float]] = {
 
 
 @dataclass
-class ThroughputConfig:
-    """Knobs of the throughput study (defaults = the full run)."""
+class ThroughputConfig(StudyConfig):
+    """Knobs of the throughput study (defaults = the full run); every method runs on ``device``."""
 
     #: Timed evaluations after the warm-up; the median is reported.
     repeats: int = bounded(3, ge=1)
@@ -112,12 +111,14 @@ class ThroughputConfig:
     #: Free-form note stored in the JSON.
     note: str = ""
 
-    def validate(self) -> "ThroughputConfig":
-        """Check every field's declared range (:mod:`splatplan._config`); returns self."""
-        return check_config(self)
+    def check(self) -> None:
+        """Every row names a known method and a batch >= 1 (the other ranges are declared with the fields)."""
+        for m, b in self.rows:
+            if m.replace("_collision_only", "") not in DISPLAY or b < 1:
+                raise SplatplanError(f"unknown throughput row ({m!r}, {b})")
 
     @classmethod
-    def quick(cls) -> "ThroughputConfig":
+    def quick_config(cls) -> "ThroughputConfig":
         """A < 1 min smoke version: 20k-splat scene, few checks, one timed run."""
         return cls(
             repeats=1,
@@ -129,222 +130,44 @@ class ThroughputConfig:
             baseline_threads=(None,),
             worker_timeout_s=120.0,
             note="quick run: Stonehenge level 1 with 20,000 splats (not ~200k), 1-2 timed runs; smoke test only",
+            quick=True,
         )
 
 
-# ---------------------------------------------------------------------------------------------
-# Memory probes (Linux /proc)
-# ---------------------------------------------------------------------------------------------
+@dataclass
+class ThroughputResult:
+    """What E2 measured; every field is a key of ``throughput.json`` (same names, same order)."""
 
+    #: where every method ran (resolved: "cpu" or "cuda:N")
+    device: str
+    #: one dict per (method, batch): checks_per_s (+ std), peak_mem_mb, timed_queries,
+    #: extrapolated, seconds, prep/warm-up figures, threads; or ``error``
+    rows: list[dict]
+    #: the CPU's name and the cores this process may use
+    cpu: str
+    cores: int
+    #: the scene: splats after the floater filter and the floaters dropped
+    n_splats: int
+    floaters_dropped: int
+    #: robot sphere radius (scene units) and CollisionSplatting's n_sigma
+    radius: float
+    n_sigma: float
+    #: how the memory was measured, in words
+    memory_measure: str
+    #: the paper's Table I, "method@batch" -> GPU / CPU checks/s and memory (GB)
+    paper_table_i: dict[str, dict]
+    #: fastest baseline, speed-up of ours over it (ours and the paper's), memory comparison
+    targets: dict[str, Any]
+    #: the smoke-test settings were used
+    quick: bool
+    note: str
+    #: the ThroughputConfig (tuples as lists)
+    config: dict[str, Any]
+    seconds_total: float
 
-def proc_status_mb(key: str) -> float:
-    """A ``/proc/self/status`` field (e.g. VmRSS, VmHWM) in MiB; NaN when unavailable."""
-    try:
-        with open("/proc/self/status") as f:
-            for line in f:
-                if line.startswith(key + ":"):
-                    return int(line.split()[1]) / 1024.0
-    except OSError:
-        pass
-    return float("nan")
-
-
-def trim_heap() -> None:
-    """Return freed heap pages to the OS (glibc ``malloc_trim(0)``; no-op elsewhere).
-
-    Without it, memory freed while the scene was built stays resident in the heap, later
-    allocations reuse those pages without raising RSS, and the peak is under-estimated.
-    """
-    try:
-        import ctypes
-
-        ctypes.CDLL("libc.so.6").malloc_trim(0)
-    except (OSError, AttributeError):
-        pass
-
-
-def reset_peak_rss() -> bool:
-    """Reset the RSS high-water mark VmHWM to the current RSS (Linux >= 4.0). True on success."""
-    try:
-        with open("/proc/self/clear_refs", "w") as f:
-            f.write("5")
-        return True
-    except OSError:
-        return False
-
-
-# ---------------------------------------------------------------------------------------------
-# Worker (runs in a fresh subprocess)
-# ---------------------------------------------------------------------------------------------
-
-
-def _dummy_splats(n: int = 64):
-    """A tiny random scene for warming code paths up before the memory baseline."""
-    from ..scenes.splats import Splats
-
-    rng = np.random.default_rng(1)
-    q = rng.normal(size=(n, 4))
-    return Splats(
-        means=rng.uniform(-0.1, 0.1, (n, 3)),
-        quats=q / np.linalg.norm(q, axis=1, keepdims=True),
-        scales=rng.uniform(0.001, 0.003, (n, 3)),
-        opacities=np.full(n, 0.9),
-        colors=np.full((n, 3), 0.5),
-    )
-
-
-def _make_runner(method: str, splats: Any, device: str, radius: float, n_sigma: float):
-    """(build, run): build() constructs the method's scene data; run(centers) evaluates a batch."""
-    if method.startswith("collisionsplatting"):
-        from .._warp import wp
-        from ..metric import CollisionChecker
-
-        collision_only = method.endswith("collision_only")
-        state: dict[str, Any] = {}
-
-        def build() -> None:
-            state["c"] = CollisionChecker(splats, n_sigma=n_sigma, device=device)
-
-        def run(centers: np.ndarray) -> None:
-            c = state["c"]
-            if collision_only:
-                c.collides(centers, None, radius)
-            else:
-                c.query(centers, None, radius)
-            wp().synchronize()
-
-        return build, run
-
-    import torch
-
-    from ..baselines import BASELINES
-    from ..baselines._common import sync
-
-    info = BASELINES[method]
-    dev = torch.device(device)
-    state = {}
-
-    def build() -> None:
-        state["o"] = info.cls(splats, dev)
-        sync(dev)
-
-    def run(centers: np.ndarray) -> None:
-        state["o"].score(centers, radius, batch=max(1, min(len(centers), info.native_batch)) if info.native_batch > 1 else 1)
-        sync(dev)
-
-    return build, run
-
-
-def _worker(spec: dict) -> dict:
-    """Time and measure one (method, batch) in this (fresh) process. See the module docstring."""
-    import torch
-
-    from .._warp import wp
-    from ._common import load_stonehenge_filtered
-
-    method, batch, device = spec["method"], int(spec["batch"]), spec["device"]
-    radius, n_sigma = float(spec["radius"]), float(spec["n_sigma"])
-    threads = cpu_threads() if spec.get("torch_threads") is None else int(spec["torch_threads"])
-    torch.set_num_threads(threads)
-    wp()  # initialise Warp (import cost is not the method's memory)
-    splats, _, rep = load_stonehenge_filtered(spec["level"], spec["seed"], spec["n_splats"])
-    lo, hi = splats.bounds()
-    centers = make_queries(splats.means.astype(np.float64), lo, hi, batch, np.random.default_rng(spec["query_seed"]))
-    batch1 = method in ("splatnav", "safersplat")
-    n_timed = int(spec["batch1_checks"]) if batch1 else min(batch, int(spec.get("timed_queries") or batch))
-    timed = centers[np.arange(n_timed) % len(centers)]  # (n_timed, 3)
-
-    # warm the code paths up on a dummy scene (kernel loading, runtime initialisation)
-    dummy = _dummy_splats()
-    b0, r0 = _make_runner(method, dummy, device, radius, n_sigma)
-    b0()
-    r0(timed[:2] if not batch1 else timed[:1])
-    del b0, r0, dummy
-    gc.collect()
-    trim_heap()
-
-    cuda = device.startswith("cuda")
-    if cuda:
-        torch.cuda.synchronize()
-        torch.cuda.reset_peak_memory_stats()
-        wp_dev = wp().get_device(device)
-        wp_before = wp().get_mempool_used_mem_current(wp_dev) if wp().is_mempool_enabled(wp_dev) else 0
-    hwm_ok = reset_peak_rss()
-    rss0 = proc_status_mb("VmRSS")
-
-    t0 = time.perf_counter()
-    build, run = _make_runner(method, splats, device, radius, n_sigma)
-    build()
-    prep_s = time.perf_counter() - t0
-    prep_mem = proc_status_mb("VmHWM") - rss0 if hwm_ok and not cuda else float("nan")  # scene data only
-
-    def evaluate() -> None:
-        if batch1:
-            for c in timed:
-                run(c[None])
-        else:
-            run(timed)
-
-    t0 = time.perf_counter()
-    if batch1:
-        run(timed[:1])  # warm-up: one check
-    else:
-        evaluate()  # warm-up: the timed batch (builds grids, compiles)
-    warmup_s = time.perf_counter() - t0
-    seconds = []
-    for _ in range(int(spec["repeats"])):
-        t0 = time.perf_counter()
-        evaluate()
-        seconds.append(time.perf_counter() - t0)
-    med = float(np.median(seconds))
-    rates = [n_timed / s for s in seconds]
-    if cuda:
-        peak = torch.cuda.max_memory_allocated() / 2**20
-        if wp().is_mempool_enabled(wp_dev):
-            peak += max(0, wp().get_mempool_used_mem_high(wp_dev) - wp_before) / 2**20
-        mem_how = "torch.cuda.max_memory_allocated + Warp mempool high-water growth"
-    else:
-        peak = proc_status_mb("VmHWM") - rss0 if hwm_ok else float("nan")
-        mem_how = "VmHWM - VmRSS after loading (HWM reset via /proc/self/clear_refs)"
-    return {
-        "method": method,
-        "batch": batch,
-        "checks_per_s": n_timed / med,
-        "checks_per_s_std": float(np.std(rates)),
-        "peak_mem_mb": float(peak),
-        "timed_queries": n_timed,
-        "extrapolated": bool(not batch1 and n_timed != batch),
-        "seconds": seconds,
-        "prep_s": prep_s,
-        "prep_peak_mem_mb": float(prep_mem),
-        "warmup_s": warmup_s,
-        "rss_before_mb": rss0,
-        "memory_measure": mem_how,
-        "torch_threads": threads,
-        "kernel_threads": cpu_threads() if device == "cpu" else None,
-        "n_splats": len(splats),
-        "floaters_dropped": int(rep.n_dropped),
-    }
-
-
-def _run_worker_subprocess(spec: dict, timeout_s: float) -> dict:
-    """Run :func:`_worker` in a fresh interpreter; returns its result dict (or an error row)."""
-    cmd = [sys.executable, "-m", "splatplan.eval.throughput", "--worker", json.dumps(spec)]
-    env = dict(os.environ)
-    try:
-        proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout_s, env=env)
-    except subprocess.TimeoutExpired:
-        return {"method": spec["method"], "batch": spec["batch"], "error": f"worker timed out after {timeout_s:.0f} s"}
-    lines = [ln for ln in proc.stdout.splitlines() if ln.startswith("{")]
-    if proc.returncode != 0 or not lines:
-        tail = (proc.stderr or "").strip().splitlines()[-5:]
-        return {"method": spec["method"], "batch": spec["batch"], "error": f"worker failed (rc {proc.returncode}): " + " | ".join(tail)}
-    return json.loads(lines[-1])
-
-
-# ---------------------------------------------------------------------------------------------
-# The study
-# ---------------------------------------------------------------------------------------------
+    def to_json(self) -> dict[str, Any]:
+        """The content of ``throughput.json``."""
+        return {f.name: getattr(self, f.name) for f in fields(self)}
 
 
 def _fmt(x: float | None, nd: int = 1) -> str:
@@ -353,7 +176,7 @@ def _fmt(x: float | None, nd: int = 1) -> str:
     return f"{x:,.{nd}f}"
 
 
-def _markdown(res: dict) -> str:
+def _markdown(res: dict[str, Any]) -> str:
     dev = res["device"]
     col = "GPU" if dev.startswith("cuda") else "CPU"
     lines = [
@@ -363,10 +186,7 @@ def _markdown(res: dict) -> str:
         f"({res['n_splats']:,} splats after filtering), sphere r = {res['radius']}, n_sigma = {res['n_sigma']} (ours). "
         f"Paper: RTX 6000 Pro GPU / 16-core Ryzen 9 9950X CPU.",
         "",
-    ]
-    if res.get("note"):
-        lines += [f"**{res['note']}**", ""]
-    lines += [
+        *note_lines(res.get("note")),
         f"| method | batch | checks/s ours ({col}) | peak memory ours (MB) | paper {col} checks/s | paper GPU checks/s | paper memory (GB) | timed |",
         "|---|---|---|---|---|---|---|---|",
     ]
@@ -408,73 +228,46 @@ def _markdown(res: dict) -> str:
     return "\n".join(lines)
 
 
-def report(res: dict) -> str:
+def markdown(result: ThroughputResult) -> str:
     """The markdown table of E2 (ours beside the paper's Table I)."""
-    return _markdown(res)
+    return _markdown(result.to_json())
 
 
-def run_throughput(out_dir: Path, quick: bool = False, device: str = "auto", config: ThroughputConfig | None = None) -> dict:
-    """Run E2 and write ``throughput.json`` and ``throughput.md`` into ``out_dir``.
+def _row_spec(cfg: ThroughputConfig, method: str, batch: int, device: str) -> dict[str, Any]:
+    """The worker's spec of one (method, batch) row."""
+    return {
+        "method": method,
+        "batch": int(batch),
+        "device": device,
+        "radius": cfg.radius,
+        "n_sigma": cfg.n_sigma,
+        "level": cfg.level,
+        "seed": cfg.seed,
+        "n_splats": cfg.n_splats,
+        "query_seed": cfg.query_seed,
+        "repeats": cfg.repeats_ours if method.startswith("collisionsplatting") else cfg.repeats,
+        "batch1_checks": cfg.batch1_checks,
+        "timed_queries": cfg.timed_queries.get(method),
+    }
 
-    Args:
-        out_dir: output folder (created).
-        quick: the < 1 min smoke version (:meth:`ThroughputConfig.quick`).
-        device: "auto" (CUDA when present), "cpu" or "cuda"/"cuda:N" (every method runs there).
-        config: explicit knobs (override ``quick``).
 
-    Returns:
-        The dict written to ``throughput.json``.
-    """
-    from .._warp import resolve_device
+def _measure_row(cfg: ThroughputConfig, spec: dict[str, Any]) -> dict[str, Any]:
+    """One row, each in a fresh worker process: ours once; a baseline once per torch thread count
+    of ``baseline_threads`` (the fastest reported, every rate kept in ``checks_per_s_by_threads``)."""
+    from ._throughput_worker import run_worker_subprocess
 
-    cfg = (config or (ThroughputConfig.quick() if quick else ThroughputConfig())).validate()
-    dev = resolve_device(device)  # clear error for a missing GPU
-    if dev.startswith("cuda"):
-        import torch
+    if spec["method"].startswith("collisionsplatting"):
+        return run_worker_subprocess(spec, cfg.worker_timeout_s)
+    tries = [run_worker_subprocess({**spec, "torch_threads": th}, cfg.worker_timeout_s) for th in dict.fromkeys(cpu_threads() if t is None else int(t) for t in cfg.baseline_threads)]
+    good = [t for t in tries if "error" not in t]
+    if not good:
+        return tries[0]
+    row = max(good, key=lambda t: t["checks_per_s"])
+    return {**row, "checks_per_s_by_threads": {str(t["torch_threads"]): t["checks_per_s"] for t in good}}
 
-        if not torch.cuda.is_available():
-            raise SplatplanError("device 'cuda' requested but torch sees no CUDA device; use --device cpu")
-    if cfg.repeats < 1 or cfg.batch1_checks < 1:
-        raise SplatplanError("ThroughputConfig: repeats and batch1_checks must be >= 1")
-    for m, b in cfg.rows:
-        if m.replace("_collision_only", "") not in DISPLAY or b < 1:
-            raise SplatplanError(f"unknown throughput row ({m!r}, {b})")
-    out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    t_all = time.perf_counter()
-    from .._progress import progress
 
-    rows = []
-    for method, batch in progress(cfg.rows, desc="throughput", unit="row"):
-        spec = {
-            "method": method,
-            "batch": int(batch),
-            "device": dev,
-            "radius": cfg.radius,
-            "n_sigma": cfg.n_sigma,
-            "level": cfg.level,
-            "seed": cfg.seed,
-            "n_splats": cfg.n_splats,
-            "query_seed": cfg.query_seed,
-            "repeats": cfg.repeats_ours if method.startswith("collisionsplatting") else cfg.repeats,
-            "batch1_checks": cfg.batch1_checks,
-            "timed_queries": cfg.timed_queries.get(method),
-        }
-        if method.startswith("collisionsplatting"):
-            rows.append(_run_worker_subprocess(spec, cfg.worker_timeout_s))
-            continue
-        tries = []
-        for th in dict.fromkeys(cpu_threads() if t is None else int(t) for t in cfg.baseline_threads):
-            tries.append(_run_worker_subprocess({**spec, "torch_threads": th}, cfg.worker_timeout_s))
-        good = [t for t in tries if "error" not in t]
-        row = max(good, key=lambda t: t["checks_per_s"]) if good else tries[0]
-        if good:
-            row = {**row, "checks_per_s_by_threads": {str(t["torch_threads"]): t["checks_per_s"] for t in good}}
-        rows.append(row)
-    ok = [r for r in rows if "error" not in r]
-    if not any(r["method"] == "collisionsplatting" for r in ok):
-        errs = "; ".join(f"{r['method']}: {r['error']}" for r in rows if "error" in r)
-        raise SplatplanError(f"throughput study failed: {errs or 'no CollisionSplatting row'}")
+def _targets(ok: list[dict], device: str) -> dict[str, Any]:
+    """Speed-up of ours (batch 4096) over the fastest baseline, ours and the paper's; memory against the batched baselines."""
 
     def rate(m: str, b: int | None = None) -> float:
         v = [r["checks_per_s"] for r in ok if r["method"] == m and (b is None or r["batch"] == b)]
@@ -483,49 +276,65 @@ def run_throughput(out_dir: Path, quick: bool = False, device: str = "auto", con
     ours = rate("collisionsplatting", 4096) if np.isfinite(rate("collisionsplatting", 4096)) else rate("collisionsplatting")
     base = {m: rate(m) for m in ("splatnav", "safersplat", "atlasnav", "splanning") if np.isfinite(rate(m))}
     fastest = max(base, key=base.get) if base else "none"
-    col = 0 if dev.startswith("cuda") else 1
+    col = 0 if device.startswith("cuda") else 1
     paper_fastest = max(PAPER_TABLE_I[(m, b)][col] for m, b in PAPER_TABLE_I if m != "collisionsplatting")
     mem = {r["method"]: r["peak_mem_mb"] for r in ok if r["method"] in ("atlasnav", "splanning")}
     ours_mem = max((r["peak_mem_mb"] for r in ok if r["method"] == "collisionsplatting" and r["batch"] == 4096), default=float("nan"))
-    first = ok[0]
-    res = {
-        "device": dev,
-        "rows": rows,
-        "cpu": platform.processor() or platform.machine(),
-        "cores": cpu_threads(),
-        "n_splats": first["n_splats"],
-        "floaters_dropped": first["floaters_dropped"],
-        "radius": cfg.radius,
-        "n_sigma": cfg.n_sigma,
-        "memory_measure": first["memory_measure"] + ", each (method, batch) in a fresh subprocess, above libraries, scene arrays and queries",
-        "paper_table_i": {f"{m}@{b}": {"gpu_checks_per_s": v[0], "cpu_checks_per_s": v[1], "memory_gb": v[2]} for (m, b), v in PAPER_TABLE_I.items()},
-        "targets": {
-            "fastest_baseline": fastest,
-            "speedup_vs_fastest_baseline": ours / base[fastest] if base else float("nan"),
-            "paper_speedup_vs_fastest_baseline": PAPER_TABLE_I[("collisionsplatting", 4096)][col] / paper_fastest,
-            "ours_at_least_10x_fastest_baseline": bool(base and ours >= 10 * base[fastest]),
-            "ours_mem_mb": ours_mem,
-            "batched_baseline_mem_mb": mem,
-            "ours_memory_lowest_among_batched": bool(mem and all(ours_mem < v for v in mem.values())),
-        },
-        "quick": bool(quick),
-        "note": cfg.note,
-        "config": {k: ([list(x) for x in v] if k == "rows" else v) for k, v in asdict(cfg).items()},
-        "seconds_total": time.perf_counter() - t_all,
+    return {
+        "fastest_baseline": fastest,
+        "speedup_vs_fastest_baseline": ours / base[fastest] if base else float("nan"),
+        "paper_speedup_vs_fastest_baseline": PAPER_TABLE_I[("collisionsplatting", 4096)][col] / paper_fastest,
+        "ours_at_least_10x_fastest_baseline": bool(base and ours >= 10 * base[fastest]),
+        "ours_mem_mb": ours_mem,
+        "batched_baseline_mem_mb": mem,
+        "ours_memory_lowest_among_batched": bool(mem and all(ours_mem < v for v in mem.values())),
     }
-    (out_dir / "throughput.json").write_text(json.dumps(res, indent=2) + "\n")
-    (out_dir / "throughput.md").write_text(_markdown(res))
-    return res
 
 
-def _main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description="E2 throughput worker (internal): one (method, batch) per process")
-    ap.add_argument("--worker", required=True, help="JSON spec")
-    args = ap.parse_args(argv)
-    res = _worker(json.loads(args.worker))
-    sys.stdout.write(json.dumps(res) + "\n")
-    return 0
+def run(config: ThroughputConfig) -> ThroughputResult:
+    """Run E2 (the protocol of the module docstring): every row in its own worker process; writes no file.
+
+    Args:
+        config: the knobs (:meth:`ThroughputConfig.quick_config` for the smoke version); validated here.
+
+    Raises:
+        SplatplanError: a bad config, CUDA asked for but absent, or no CollisionSplatting row measured.
+    """
+    from .._warp import resolve_device
+
+    cfg = config.validate()
+    dev = resolve_device(cfg.device)  # clear error for a missing GPU
+    if dev.startswith("cuda"):
+        import torch
+
+        if not torch.cuda.is_available():
+            raise SplatplanError("device 'cuda' requested but torch sees no CUDA device; use --device cpu")
+    t_all = time.perf_counter()
+    rows = [_measure_row(cfg, _row_spec(cfg, m, b, dev)) for m, b in progress(cfg.rows, desc="throughput", unit="row")]
+    ok = [r for r in rows if "error" not in r]
+    if not any(r["method"] == "collisionsplatting" for r in ok):
+        errs = "; ".join(f"{r['method']}: {r['error']}" for r in rows if "error" in r)
+        raise SplatplanError(f"throughput study failed: {errs or 'no CollisionSplatting row'}")
+    first = ok[0]
+    return ThroughputResult(
+        device=dev,
+        rows=rows,
+        cpu=platform.processor() or platform.machine(),
+        cores=cpu_threads(),
+        n_splats=first["n_splats"],
+        floaters_dropped=first["floaters_dropped"],
+        radius=cfg.radius,
+        n_sigma=cfg.n_sigma,
+        memory_measure=first["memory_measure"] + ", each (method, batch) in a fresh subprocess, above libraries, scene arrays and queries",
+        paper_table_i={f"{m}@{b}": {"gpu_checks_per_s": v[0], "cpu_checks_per_s": v[1], "memory_gb": v[2]} for (m, b), v in PAPER_TABLE_I.items()},
+        targets=_targets(ok, dev),
+        quick=bool(cfg.quick),
+        note=cfg.note,
+        config=config_dict(cfg),
+        seconds_total=time.perf_counter() - t_all,
+    )
 
 
-if __name__ == "__main__":
-    sys.exit(_main())
+def report(result: ThroughputResult, out_dir: str | Path) -> list[Path]:
+    """Write ``throughput.json`` and ``throughput.md`` into ``out_dir`` (an existing folder); returns their paths."""
+    return write_outputs(out_dir, "throughput", result.to_json(), markdown(result))

@@ -1,4 +1,4 @@
-"""Smoke tests of the E3 / E4 studies in --quick mode (built-in Stonehenge; ~25 s together)."""
+"""Smoke tests of the E3 / E4 studies in --quick mode (built-in Stonehenge; ~25 s together): run(config) -> result, report(result, out_dir)."""
 
 from __future__ import annotations
 
@@ -11,12 +11,15 @@ pytestmark = pytest.mark.slow
 
 
 def test_conservatism_quick(tmp_path):
-    from splatplan.eval.conservatism import N_SIGMAS, run_conservatism
+    from splatplan.eval.conservatism import N_SIGMAS, ConservatismConfig, report, run
 
-    out = run_conservatism(tmp_path, quick=True, seed=0)
+    out = run(ConservatismConfig.quick_config())
+    assert list(tmp_path.iterdir()) == []  # run writes nothing
+    assert [p.name for p in report(out, tmp_path)] == ["conservatism.json", "conservatism.md", "fig4_paths.png"]
     data = json.loads((tmp_path / "conservatism.json").read_text())
     assert [r["n_sigma"] for r in data["rows"]] == list(N_SIGMAS)
-    for r in out["rows"]:
+    assert set(data) == {"rows", "setup"} and data["setup"]["quick"] is True
+    for r in out.rows:
         for k in ("length_rrt", "length_refined", "dmin_rrt", "dmin_refined", "smoothness_rrt", "smoothness_refined"):
             assert len(r[k]) == 2
         assert r["success_rate"] > 0
@@ -27,13 +30,14 @@ def test_conservatism_quick(tmp_path):
 
 
 def test_linearization_quick(tmp_path):
-    from splatplan.eval.linearization import run_linearization
+    from splatplan.eval.linearization import PLAN_LEVELS, LinearizationConfig, report, run
 
-    out = run_linearization(tmp_path, quick=True, seed=0)
+    out = run(LinearizationConfig.quick_config())
+    assert [p.name for p in report(out, tmp_path)] == ["linearization.json", "linearization.md", "fig5_metric_along_path.png"]
     data = json.loads((tmp_path / "linearization.json").read_text())
-    from splatplan.eval.linearization import PLAN_LEVELS
 
     assert [r["level"] for r in data["rows"]] == list(PLAN_LEVELS) == [1, 2, 3]  # the paper's M1..M3
-    assert all(np.isfinite(r["length"][0]) and np.isfinite(r["dmin"][0]) for r in out["rows"])
+    assert all(np.isfinite(r["length"][0]) and np.isfinite(r["dmin"][0]) for r in out.rows)
+    assert sorted(out.along) == list(out.setup["levels"]) and all(len(c[0]) == len(out.arc) for c in out.along.values())
     assert (tmp_path / "fig5_metric_along_path.png").stat().st_size > 10_000
     assert "M1" in (tmp_path / "linearization.md").read_text()
