@@ -113,6 +113,9 @@ class RRTConfig:
     connect_attempts: int = bounded(4, ge=1)
     #: RRT-Connect: longest connect run per attempt, in strides (None = all the way to the target)
     connect_strides: float | None = bounded(4.0, gt=0)
+    #: batched calls per edge check, coarse to fine (samples at every 4^(s-1)-th, ..., 4th, every
+    #: index); checks stop at an edge's first hit; 1 = every sample in one call (same answers)
+    edge_stages: int = bounded(3, ge=1, le=8)
     #: deprecated alias of time_limit_s (overrides it when given)
     time_budget_s: InitVar[float | None] = None
 
@@ -286,6 +289,17 @@ def edge_samples(a: np.ndarray, b: np.ndarray, motion: np.ndarray, resolution: f
 class EdgeChecker:
     """Batched straight-edge collision checks of a robot against a checker.
 
+    **Coarse to fine (``stages`` > 1).** The check samples of all edges are checked in ``stages``
+    batched calls, from coarse to fine: call j takes the samples whose index along their edge is a
+    multiple of ``4^(stages - 1 - j)`` (the first call also each edge's end point), and only those
+    still needed: samples before the first hit found so far on edges whose free prefix is asked
+    for (:meth:`free_prefix`), nothing more on an edge that only has to be free or not
+    (:meth:`edges_free`, or ``exact=False``) once a hit is found. The last call has stride 1, so
+    every sample before an edge's first hit is checked: the answers are exactly those of checking
+    every sample in one call (``stages=1``, the reference; ``tests/planners/test_edge_stages.py``),
+    with fewer checks where edges collide (an RRT's extension edges often do, and every sample
+    after the first hit was checked for nothing) at the cost of more, smaller calls.
+
     Args:
         checker: a :class:`~splatplan.metric.CollisionChecker`.
         geometry: a :class:`LinkGeometry` (or, as before the Robot type, a ``link_poses``
@@ -294,13 +308,20 @@ class EdgeChecker:
             (configuration units for a bare callable).
         inflate: check inner samples with the semi-axes grown by half the sample spacing (valid
             for translating spheres only; see the module docstring).
+        stages: batched calls per check, coarse to fine (1 = every sample in one call).
     """
 
-    def __init__(self, checker, geometry: LinkGeometry | LinkPoses, resolution: float, inflate: bool = False) -> None:
+    #: stride ratio between consecutive stages of the coarse-to-fine check
+    STAGE_FACTOR = 4
+
+    def __init__(self, checker, geometry: LinkGeometry | LinkPoses, resolution: float, inflate: bool = False, stages: int = 1) -> None:
         self.checker = checker
         self.geometry = geometry if isinstance(geometry, LinkGeometry) else LinkGeometry(link_poses=geometry)
         self.resolution = float(resolution)
         self.inflate = bool(inflate)
+        if int(stages) < 1:
+            raise SplatplanError(f"EdgeChecker stages must be >= 1, got {stages}")
+        self.stages = int(stages)
         #: wall-clock seconds spent in collision checks (statistics)
         self.time_s = 0.0
 
@@ -315,19 +336,22 @@ class EdgeChecker:
 
     def edges_free(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         """(E, D), (E, D) -> bool (E,): True where the whole edge (end point included, start
-        excluded) is collision-free at ``resolution``. One batched checker call."""
-        k, n = self.free_prefix(a, b)
+        excluded) is collision-free at ``resolution``. An edge's checks stop at its first hit found."""
+        k, n = self.free_prefix(a, b, exact=np.zeros(len(a), dtype=bool))
         return k == n
 
-    def free_prefix(self, a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """How far along each of E edges the check samples stay free. One batched checker call.
+    def free_prefix(self, a: np.ndarray, b: np.ndarray, exact: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """How far along each of E edges the check samples stay free (``stages`` batched calls).
 
         Args:
             a: (E, D) edge starts (assumed checked already); b: (E, D) edge ends.
+            exact: (E,) bool, the edges whose free prefix is needed (default: all); for the others
+                only whether they are free (k == n) is, and their checks stop at the first hit.
 
         Returns:
             k (E,) int64: the number of leading free check samples of each edge (samples
-            ``a + (i / n)(b - a)``, i = 1..k, are free; k == n: the whole edge is free);
+            ``a + (i / n)(b - a)``, i = 1..k, are free; k == n: the whole edge is free); where
+            ``exact`` is False and the edge collides, some k < n (a hit at sample k + 1);
             n (E,) int64: the edge's sample count (see :func:`edge_samples`).
         """
         a = np.asarray(a, dtype=np.float64)
@@ -336,20 +360,30 @@ class EdgeChecker:
             return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
         t0 = time.perf_counter()
         pts, idx, n = edge_samples(a, b, self.geometry.motion(b - a), self.resolution)  # (P, D)
+        first = np.cumsum(n) - n  # (E,) offset of each edge's first sample
+        loc = np.arange(idx.size) - first[idx] + 1  # (P,) 1..n_e: the sample's index along its edge
+        margin = None
         if self.inflate:
-            last = np.cumsum(n) - 1  # (E,) index of each edge's end point
             spacing = np.linalg.norm(b - a, axis=-1) / n  # (E,)
             margin = 0.5 * spacing[idx]
-            margin[last] = 0.0  # the end point with the true size
-            hit = self.configs_collide(pts, margin)
-        else:
-            hit = self.configs_collide(pts)  # (P,)
-        first = np.cumsum(n) - n  # (E,) offset of each edge's first sample
-        k = n.copy()
-        hi = np.nonzero(hit)[0]
-        np.minimum.at(k, idx[hi], hi - first[idx[hi]])  # 0-based index of the first hit = free samples before it
+            margin[loc == n[idx]] = 0.0  # the end point with the true size
+        exact = np.ones(len(a), dtype=bool) if exact is None else np.asarray(exact, dtype=bool).reshape(len(a))
+        hit_at = n + 1  # (E,) 1-based index of the first hit found so far (n + 1: none)
+        todo = np.ones(idx.size, dtype=bool)  # (P,) samples not checked yet
+        for j in range(self.stages):
+            stride = self.STAGE_FACTOR ** (self.stages - 1 - j)
+            sel = todo & (loc < hit_at[idx]) & (exact | (hit_at > n))[idx]
+            if stride > 1:
+                sel &= (loc % stride == 0) | (loc == n[idx]) if j == 0 else (loc % stride == 0)
+            s = np.nonzero(sel)[0]
+            if s.size == 0:
+                continue
+            hit = self.configs_collide(pts[s]) if margin is None else self.configs_collide(pts[s], margin[s])  # (S,)
+            todo[s] = False
+            h = s[hit]
+            np.minimum.at(hit_at, idx[h], loc[h])
         self.time_s += time.perf_counter() - t0
-        return k, n
+        return np.minimum(hit_at - 1, n), n
 
     def path_free(self, path: np.ndarray) -> bool:
         """Whether every point of a polyline (P, D), sampled at ``resolution``, is collision-free."""
@@ -605,7 +639,7 @@ class RRT:
         lo, hi = st.box_lo, st.box_hi
         geom = self.geometry
         w = geom.distance_scale()  # (D,) configuration -> metric space
-        edges = EdgeChecker(self.checker, geom, st.edge_resolution, inflate=self.inflate_edges)
+        edges = EdgeChecker(self.checker, geom, st.edge_resolution, inflate=self.inflate_edges, stages=cfg.edge_stages)
         q0 = geom.n_queries
         check_endpoint(self.checker, geom, start, "start")
         if goal is not None:

@@ -122,7 +122,7 @@ class RRTConnect(RRT):
         lo, hi = st.box_lo, st.box_hi
         geom = self.geometry
         w = geom.distance_scale()  # (D,) configuration -> metric space
-        edges = EdgeChecker(self.checker, geom, st.edge_resolution, inflate=self.inflate_edges)
+        edges = EdgeChecker(self.checker, geom, st.edge_resolution, inflate=self.inflate_edges, stages=cfg.edge_stages)
         q0 = geom.n_queries
         check_endpoint(self.checker, geom, start, "start")
         check_endpoint(self.checker, geom, goal, "goal")
@@ -233,7 +233,8 @@ class RRTConnect(RRT):
             t_sample += (t2 - t1) + (t4 - t3)
             t_near += (t3 - t2) + (t5 - t4)
             # 3. one collision call for every edge of the iteration
-            k, n = edges.free_prefix(np.concatenate([base, c_from]), np.concatenate([new, c_to]))
+            exact = np.arange(m + len(c_from)) >= m  # the connect runs' free prefixes; the extensions only free or not
+            k, n = edges.free_prefix(np.concatenate([base, c_from]), np.concatenate([new, c_to]), exact=exact)
             t6 = time.perf_counter()
             ext_free = k[:m] == n[:m]  # (M,)
             kc, nc = k[m:], n[m:]  # (C,)
