@@ -13,7 +13,8 @@ slow check calls in collision.
     python benchmarks/planners_mbm.py [--robot URDF] [--families a,b] [--n-per-family 10] [--margin-m 0]
         [--time-limit 10] [--threads N] [--out benchmarks/results/mbm/rrtconnect_fast_fit.json]
 
-Prints a table (per family and overall: solved / both free, median and p95 planning time,
+Prints a table (per family and overall: solved / both free, median and p95 planning time (wall),
+the median CPU time of the process (all threads; steadier than wall time on a loaded machine),
 configurations checked per plan, the time split) and writes JSON with one row per problem. Timings
 depend on the machine's load: the JSON records the 1-minute load average before and after.
 """
@@ -55,11 +56,13 @@ def run(args) -> dict:
         hit = np.asarray(robot_collides(prep.checker, plan_robot, np.stack([q0, q1]))).any(axis=-1)
         row = {"family": task.family, "index": task.index, "both_free": bool(not hit.any()), "prep_s": t_prep}
         if row["both_free"]:
+            c0 = time.process_time()
             r = plan(prep.checker, q0, q1, robot=plan_robot, seed=cfg.seed + task.index, refine=False, planner=args.planner,
                      rrt_config=RRTConfig(time_limit_s=args.time_limit, edge_resolution=res, edge_stages=args.edge_stages))  # fmt: skip
+            cpu = time.process_time() - c0  # CPU seconds of this process (all its threads): steadier than wall time under load
             split = {k: float(v) for k, v in r.info.get("time_split", {}).items()}
             n_e = plan_robot.n_ellipsoids
-            row.update(solved=bool(r.success), time_s=float(r.time_s), n_nodes=int(r.n_nodes), n_iters=int(r.n_iters),
+            row.update(solved=bool(r.success), time_s=float(r.time_s), cpu_s=cpu, n_nodes=int(r.n_nodes), n_iters=int(r.n_iters),
                        configs=int(r.info.get("n_queries", 0)) // n_e, configs_shortcut=int(r.info.get("n_queries_shortcut", 0)) // n_e,
                        time_split=split, path_vertices=len(r.path), length=float(r.length))  # fmt: skip
             if r.success:
@@ -84,6 +87,7 @@ def summarise(rows: list[dict]) -> dict:
             "both_free": len(rs), "solved": int(sum(r["solved"] for r in rs)),
             "median_s": float(np.median(t)) if len(t) else None, "p95_s": float(np.percentile(t, 95)) if len(t) else None,
             "max_s": float(t.max()) if len(t) else None,
+            "median_cpu_s": float(np.median([r["cpu_s"] for r in rs if r["solved"]])) if len(t) else None,
             "median_configs": float(np.median([r["configs"] for r in rs])) if rs else None,
             "median_split_s": split,
             "slow_check_failures": int(sum(1 for r in rs if r.get("path_free_slow_check") is False)),
@@ -112,11 +116,11 @@ def main(argv=None) -> int:
     res = run(args)
     res["summary"] = summarise(res["rows"])
     res.update(config=vars(args), load_avg_1min=[load0, os.getloadavg()[0]], cpu_count=os.cpu_count(), wall_s=time.perf_counter() - t0)
-    print(f"\n{'family':<16} {'solved/free':>11} {'median s':>9} {'p95 s':>7} {'configs':>8}  split (median s: sampling/nearest/collision/shortcut/other)")
+    print(f"\n{'family':<16} {'solved/free':>11} {'median s':>9} {'p95 s':>7} {'cpu s':>6} {'configs':>8}  split (median s: sampling/nearest/collision/shortcut/other)")
     for f, s in res["summary"].items():
         sp = "/".join(f"{s['median_split_s'].get(k, 0):.3f}" for k in ("sampling", "nearest", "collision", "shortcut", "other"))
         fmt = lambda v: "-" if v is None else f"{v:.3f}"  # noqa: E731
-        print(f"{f:<16} {s['solved']:>5}/{s['both_free']:<5} {fmt(s['median_s']):>9} {fmt(s['p95_s']):>7} {s['median_configs'] or 0:>8.0f}  {sp}"
+        print(f"{f:<16} {s['solved']:>5}/{s['both_free']:<5} {fmt(s['median_s']):>9} {fmt(s['p95_s']):>7} {fmt(s['median_cpu_s']):>6} {s['median_configs'] or 0:>8.0f}  {sp}"
               + (f"  SLOW CHECK FAILED {s['slow_check_failures']}" if s["slow_check_failures"] else ""))  # fmt: skip
     print(f"load average (1 min) {res['load_avg_1min'][0]:.2f} -> {res['load_avg_1min'][1]:.2f} on {os.cpu_count()} cores")
     if args.out:
