@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-DEFAULT_ROBOT = ROOT.parent / "shared" / "data" / "mbm" / "panda" / "panda.urdf"
+DEFAULT_MBM = ROOT.parent / "shared" / "data" / "mbm"
 
 
 def run(args) -> dict:
@@ -42,11 +42,13 @@ def run(args) -> dict:
     from splatplan.robots import load_robot
     from splatplan.scenes.moveit import load_moveit_request
 
-    cfg = MBMConfig(families=tuple(args.families.split(",")), n_per_family=args.n_per_family, n_splats=args.n_splats,
+    cfg = MBMConfig(problems=args.problems, families=tuple(args.families.split(",")), n_per_family=args.n_per_family, n_splats=args.n_splats,
                     margin_m=args.margin_m, check_margin=False, time_limit=args.time_limit)  # fmt: skip
     robot = load_robot(str(args.robot))
     plan_robot = robot.inflated(args.margin_m) if args.margin_m > 0 else robot
     res = 0.25 * robot.min_semi_axis
+    kw = {"edge_stages": args.edge_stages} if "edge_stages" in RRTConfig.__dataclass_fields__ else {}  # (older versions: one call)
+    rcfg = RRTConfig(time_limit_s=args.time_limit, edge_resolution=res, **kw)
     rows = []
     for task in list_tasks(cfg):
         t0 = time.perf_counter()
@@ -57,8 +59,7 @@ def run(args) -> dict:
         row = {"family": task.family, "index": task.index, "both_free": bool(not hit.any()), "prep_s": t_prep}
         if row["both_free"]:
             c0 = time.process_time()
-            r = plan(prep.checker, q0, q1, robot=plan_robot, seed=cfg.seed + task.index, refine=False, planner=args.planner,
-                     rrt_config=RRTConfig(time_limit_s=args.time_limit, edge_resolution=res, edge_stages=args.edge_stages))  # fmt: skip
+            r = plan(prep.checker, q0, q1, robot=plan_robot, seed=cfg.seed + task.index, refine=False, planner=args.planner, rrt_config=rcfg)
             cpu = time.process_time() - c0  # CPU seconds of this process (all its threads): steadier than wall time under load
             split = {k: float(v) for k, v in r.info.get("time_split", {}).items()}
             n_e = plan_robot.n_ellipsoids
@@ -97,7 +98,8 @@ def summarise(rows: list[dict]) -> dict:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--robot", default=str(DEFAULT_ROBOT))
+    ap.add_argument("--robot", default=str(DEFAULT_MBM / "panda" / "panda.urdf"))
+    ap.add_argument("--problems", default=str(DEFAULT_MBM / "problems"))
     ap.add_argument("--families", default="table_pick,box,bookshelf_small")
     ap.add_argument("--n-per-family", type=int, default=10)
     ap.add_argument("--n-splats", type=int, default=100_000)

@@ -453,6 +453,41 @@ def robust_scene_box(scene, percentile: float = BOX_PERCENTILE) -> tuple[np.ndar
     return lo.astype(np.float64), hi.astype(np.float64)
 
 
+@dataclass
+class _Search:
+    """What one search (:meth:`RRT.plan`, :meth:`RRTConnect.plan`) sets up before its first iteration."""
+
+    t0: float  # time.perf_counter() when the call began
+    st: RRTSettings
+    start: np.ndarray  # (D,)
+    goal: np.ndarray | None  # (D,) or None (exploration)
+    w: np.ndarray  # (D,) configuration -> metric space (motion bound per coordinate)
+    edges: EdgeChecker
+    q0: int  # the geometry's query count when the search began
+    rng: np.random.Generator
+    frozen: np.ndarray  # (D,) bool: coordinates held fixed (lo == hi)
+    span: np.ndarray  # (D,) hi - lo (0 where frozen)
+    end: float  # time.perf_counter() value the search stops at (inf: none)
+    deadline: float | None  # the caller's deadline
+
+    def sample(self, n: int) -> np.ndarray:
+        """(n, D) uniform samples of the sampling box."""
+        return self.st.box_lo + self.rng.random((n, self.start.size)) * self.span
+
+    def stop(self, config: RRTConfig, it: int, n_nodes: int, info: dict) -> str | None:
+        """Why the search stops before iteration ``it + 1`` (None: it goes on); a time-out sets
+        ``info["time_limit_hit"]``."""
+        if config.max_iters is not None and it >= config.max_iters:
+            return f"within the iteration budget ({config.max_iters:,} iterations, {n_nodes:,} nodes)"
+        if config.max_nodes is not None and n_nodes >= config.max_nodes:
+            return f"within the node budget ({config.max_nodes:,} nodes)"
+        if time.perf_counter() > self.end:
+            limit = self.st.time_limit_s if self.st.time_limit_s is not None else self.deadline - self.t0  # the budget the user gave
+            info["time_limit_hit"] = True
+            return f"within {limit:.1f} s ({n_nodes:,} nodes)"
+        return None
+
+
 class RRT:
     """Batched RRT over a robot's configuration space (see the module docstring).
 
@@ -617,6 +652,25 @@ class RRT:
         connect = 4.0 * stride if cfg.connect_radius is None else float(cfg.connect_radius)
         return RRTSettings(lo, hi, stride, res, tol, connect, cfg.time_limit_s, derived, notes)
 
+    def _setup(self, start, goal, deadline: float | None) -> _Search:
+        """Settings, edge checker, endpoint checks, sampler and deadline of one search (raises like :meth:`plan`)."""
+        t0 = time.perf_counter()
+        st = self.settings(start, goal)
+        start = np.asarray(start, dtype=np.float64).reshape(-1)
+        goal = None if goal is None else np.asarray(goal, dtype=np.float64).reshape(-1)
+        geom = self.geometry
+        edges = EdgeChecker(self.checker, geom, st.edge_resolution, inflate=self.inflate_edges, stages=self.config.edge_stages)
+        q0 = geom.n_queries
+        check_endpoint(self.checker, geom, start, "start")
+        if goal is not None:
+            check_endpoint(self.checker, geom, goal, "goal")
+        frozen = st.box_hi <= st.box_lo
+        end = math.inf if deadline is None else float(deadline)
+        if st.time_limit_s is not None:
+            end = min(end, t0 + st.time_limit_s)
+        return _Search(t0, st, start, goal, geom.distance_scale(), edges, q0, np.random.default_rng(self.config.seed), frozen,
+                       np.where(frozen, 0.0, st.box_hi - st.box_lo), end, deadline)  # fmt: skip
+
     # ------------------------------------------------------------------ search
     def plan(self, start, goal=None, deadline: float | None = None) -> PlanResult:
         """Grow a tree from ``start``; towards ``goal`` (goal mode) or everywhere (goal=None).
@@ -630,21 +684,10 @@ class RRT:
             PlanningError: start or goal in collision, outside the sampling box / scene bounds /
                 joint limits, or a bad box.
         """
-        t0 = time.perf_counter()
         cfg = self.config
-        st = self.settings(start, goal)
-        start = np.asarray(start, dtype=np.float64).reshape(-1)
-        goal = None if goal is None else np.asarray(goal, dtype=np.float64).reshape(-1)
-        d = start.size
-        lo, hi = st.box_lo, st.box_hi
-        geom = self.geometry
-        w = geom.distance_scale()  # (D,) configuration -> metric space
-        edges = EdgeChecker(self.checker, geom, st.edge_resolution, inflate=self.inflate_edges, stages=cfg.edge_stages)
-        q0 = geom.n_queries
-        check_endpoint(self.checker, geom, start, "start")
-        if goal is not None:
-            check_endpoint(self.checker, geom, goal, "goal")
-        rng = np.random.default_rng(cfg.seed)
+        s = self._setup(start, goal, deadline)
+        t0, st, start, goal, w, edges, q0, rng = s.t0, s.st, s.start, s.goal, s.w, s.edges, s.q0, s.rng
+        d, lo, frozen, geom = start.size, st.box_lo, s.frozen, self.geometry
         connect_r = st.connect_radius
 
         # the tree: numpy on CPU, grown in place (see module docstring); zs = nodes * w (metric space)
@@ -656,8 +699,6 @@ class RRT:
         cost = np.zeros(cap)  # path length from the root (metric)
         nodes[0], zs[0] = start, start * w
         n = 1
-        frozen = hi <= lo
-        span = np.where(frozen, 0.0, hi - lo)
         goal_z = None if goal is None else goal * w
         info = {"settings": st.as_dict(), "edge_resolution": st.edge_resolution, "stride": st.stride, "planner": "rrt"}
         clock = {"sampling": 0.0, "nearest": 0.0}
@@ -690,27 +731,11 @@ class RRT:
             return self._finish(result(True, raw, "direct edge from start to goal is free", 0), edges, t0, w, q0, clock, deadline)
 
         it = 0
-        message = ""
-        t_search = time.perf_counter()
-        end = math.inf if deadline is None else float(deadline)
-        if st.time_limit_s is not None:
-            end = min(end, t_search + st.time_limit_s)
-        while True:
-            if cfg.max_iters is not None and it >= cfg.max_iters:
-                message = f"within the iteration budget ({cfg.max_iters:,} iterations, {n:,} nodes)"
-                break
-            if n >= cap_max:
-                message = f"within the node budget ({cfg.max_nodes:,} nodes)"
-                break
-            if time.perf_counter() > end:
-                limit = st.time_limit_s if st.time_limit_s is not None else deadline - t0  # the budget the user gave
-                message = f"within {limit:.1f} s ({n:,} nodes)"
-                info["time_limit_hit"] = True
-                break
+        while (message := s.stop(cfg, it, n, info)) is None:
             it += 1
             nb = cfg.batch_size
             t1 = time.perf_counter()
-            samples = lo + rng.random((nb, d)) * span  # (N, D)
+            samples = s.sample(nb)  # (N, D)
             if goal is not None and cfg.goal_bias > 0:
                 samples[rng.random(nb) < cfg.goal_bias] = goal
             sz = samples * w
