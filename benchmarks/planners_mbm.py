@@ -47,7 +47,8 @@ def run(args) -> dict:
     robot = load_robot(str(args.robot))
     plan_robot = robot.inflated(args.margin_m) if args.margin_m > 0 else robot
     res = 0.25 * robot.min_semi_axis
-    kw = {"edge_stages": args.edge_stages} if "edge_stages" in RRTConfig.__dataclass_fields__ else {}  # (older versions: one call)
+    kw = {"batch_size": args.batch_size} if args.batch_size else {}
+    kw.update({"edge_stages": args.edge_stages} if "edge_stages" in RRTConfig.__dataclass_fields__ else {})  # (older versions: one call)
     rcfg = RRTConfig(time_limit_s=args.time_limit, edge_resolution=res, **kw)
     rows = []
     for task in list_tasks(cfg):
@@ -106,7 +107,8 @@ def main(argv=None) -> int:
     ap.add_argument("--margin-m", type=float, default=0.0)
     ap.add_argument("--time-limit", type=float, default=10.0)
     ap.add_argument("--planner", default="rrtconnect")
-    ap.add_argument("--edge-stages", type=int, default=3, help="RRTConfig.edge_stages (1 = every check sample in one call)")
+    ap.add_argument("--batch-size", type=int, default=None, help="RRTConfig.batch_size (default: the config's)")
+    ap.add_argument("--edge-stages", type=int, default=4, help="RRTConfig.edge_stages (1 = every check sample in one call)")
     ap.add_argument("--threads", type=int, default=None, help="CPU threads of the checker (SPLATPLAN_CPU_THREADS)")
     ap.add_argument("--note", default="", help="free text stored in the JSON (e.g. 'before', 'after')")
     ap.add_argument("--out", default=None)

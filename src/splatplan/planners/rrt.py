@@ -115,7 +115,7 @@ class RRTConfig:
     connect_strides: float | None = bounded(4.0, gt=0)
     #: batched calls per edge check, coarse to fine (samples at every 4^(s-1)-th, ..., 4th, every
     #: index); checks stop at an edge's first hit; 1 = every sample in one call (same answers)
-    edge_stages: int = bounded(3, ge=1, le=8)
+    edge_stages: int = bounded(4, ge=1, le=8)
     #: deprecated alias of time_limit_s (overrides it when given)
     time_budget_s: InitVar[float | None] = None
 
