@@ -113,12 +113,16 @@ class TierConfig:
     #: than a few splats, only the cells that the link's ellipsoid can reach (ROW_CLIP of the full
     #: kernel, :mod:`.wp_metric_kernel`); False: whole rows of the link's box.
     collide_row_clip: bool = True
-    #: The collision-only kernel's grids use ``collide_cell_scale`` x (elongated_)cell_factor times its
-    #: radius. Its radius is for cap 1, half the full query's at the default s2_cap 4, so 2 gives both
-    #: the same cell width (the cell factors were tuned on full queries). Finer cells cost a grid row
-    #: per cell row of the link box (MBM Panda edge checks, one thread: the fitted one-per-link model
-    #: 8.2 -> 4.3 us per configuration from 1 to 2, VAMP's 59 spheres 9.6 -> 7.7).
-    collide_cell_scale: float = bounded(2.0, gt=0)
+    #: ``collides_robot`` (the collision-only kernel on robot batches) uses grids with cells this many
+    #: times wider than (elongated_)cell_factor x its radius. Its radius is for cap 1, half the full
+    #: query's at the default s2_cap 4, so 2 gives both the same cell width. The best width depends on
+    #: the splats per cell: finer cells read fewer splats but cost a probe per cell row of the link box.
+    #: Measured per CPU-second, one thread: MBM Panda edge checks (100k splats over a few m^2) the fitted
+    #: one-per-link model 1.9x and VAMP's 59 spheres 1.2x faster with 2 than with 1; the Panda on
+    #: Stonehenge scaled x4 1.6x faster, at scale 1 (200k splats in 1 m, as dense as it gets) 1.5x
+    #: slower. Plain ``collides`` keeps 1: small spheres (r = 1.5 cm at n_sigma 1 on Stonehenge) are
+    #: 1.5x slower with 2.
+    robot_collide_cell_scale: float = bounded(2.0, gt=0)
 
     def validate(self) -> "TierConfig":
         """Check every field's declared range (:mod:`splatplan._config`); returns self."""
@@ -288,10 +292,10 @@ class WarpMetric:
         """((first, last) class of each tier, quantised (2^(1/4)) cell width of each tier) for a typical
         query with semi-axes in [a_min, a_max]; finer cells (``elongated_cell_factor``) when the typical
         link is elongated (a_max >= 1.5 a_min), whose reads the kernels bound by the link box;
-        ``collide``: for the collision-only kernel (cells ``collide_cell_scale`` times wider)."""
+        ``collide``: for ``collides_robot`` (cells ``robot_collide_cell_scale`` times wider)."""
         cf = self.tiers.elongated_cell_factor if a_max >= 1.5 * a_min else self.tiers.cell_factor
         if collide:
-            cf *= self.tiers.collide_cell_scale
+            cf *= self.tiers.robot_collide_cell_scale
         args = (float(n_sigma), float(cap), float(a_min), float(a_max), float(cf))
         key = self._keys.get(args)  # memoised: search_radius in Python scope costs ~0.2 ms a call
         if key is None:
@@ -341,7 +345,7 @@ class WarpMetric:
 
     def gridset(self, n_sigma: float, cap: float, a_min: float, a_max: float, collide: bool = False) -> _GridSet:
         """Hash grids of every tier for this query radius (cached; safe from several threads;
-        ``collide``: the collision-only kernel's, see :meth:`grid_key`).
+        ``collide``: those of ``collides_robot``, see :meth:`grid_key`).
 
         Each grid set keeps its own copy of the splat data in the grid's cell order, so the
         indices a grid returns walk memory almost sequentially (a large win on CPU caches).
@@ -467,8 +471,8 @@ class WarpMetric:
     def collides(self, links: LinkBatch, b: int, a_min: float, a_max: float, cfg: MetricConfig, out_hit, bad, scratch=None, robot_batch: bool = False) -> None:
         """in_collision of b queries into ``out_hit`` (bool device array of at least b rows);
         ``robot_batch``: the queries are the ellipsoids of robot configurations, in order (not sorted
-        unless ``TierConfig.sort_robot_collides``)."""
-        gs = self.gridset(cfg.n_sigma, 1.0, a_min, a_max, collide=True)
+        unless ``TierConfig.sort_robot_collides``; grids ``robot_collide_cell_scale`` times coarser)."""
+        gs = self.gridset(cfg.n_sigma, 1.0, a_min, a_max, collide=robot_batch)
         if robot_batch and not self.tiers.sort_robot_collides:
             links.use_order = 0  # a robot batch (collides_robot): kept in configuration order
         else:

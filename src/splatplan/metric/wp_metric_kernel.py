@@ -46,8 +46,10 @@ float32 error of the Schur complement (about (a_max / a_min)^2 ulps) for links w
 the only ones clipped; the cell bounds are padded by 1% of a cell. The set of splats scanned shrinks,
 never the set with s2~ < cap, so the outputs are unchanged. It matters for elongated links near dense
 surfaces, whose axis-aligned boxes hold ~10x more splats than their ellipsoid (Panda links near the
-table: the full query ~1.5x faster). The collision-only kernel scans whole rows: its early exit keeps
-candidates cheap, and clipping measured slower there.
+table: the full query ~1.5x faster). The collision-only kernel clips its rows the same way
+(``TierConfig.collide_row_clip``, on by default): measured slower on early versions, where its
+candidates were cheap, but it saves 1.4x on robot edge checks, whose configurations are mostly free
+and near surfaces (every candidate is read), and 4x on the Panda at Stonehenge's scale 1.
 
 An earlier version also cut elongated links into up to 4 slabs along the long axis, one grid query
 each. Once rows were clipped to the ellipsoid, the slabs' overlapping boxes only made splats be read
