@@ -2,8 +2,9 @@
 
 Each iteration draws ``batch_size`` samples (goal-biased), finds the nearest tree node of every
 sample (one vectorised distance matrix), steers from it by at most ``stride``, discretises every
-new edge (see *Edge resolution*) and checks all edges in **one** batched collision call over every
-robot ellipsoid. Collision-free edges become new nodes.
+new edge (see *Edge resolution*) and checks all edges together over every robot ellipsoid: a few
+batched collision calls, coarse to fine, an edge's checks stopping at its first hit
+(``edge_stages``, :class:`EdgeChecker`). Collision-free edges become new nodes.
 
 * **Goal mode** (``goal`` given): new nodes within ``connect_radius`` of the goal try a direct,
   collision-checked edge to the goal (one batched call); the first iteration with a free one ends
@@ -754,7 +755,7 @@ class RRT:
             step = np.minimum(dist, st.stride) / dist
             new = base + delta * step[:, None]  # steer: at most `stride` towards the sample
             new[:, frozen] = lo[frozen]
-            free = edges.edges_free(base, new)  # ONE batched call over every edge point and ellipsoid
+            free = edges.edges_free(base, new)  # every edge point and ellipsoid in edge_stages batched calls
             if not free.any():
                 continue
             k = int(min(free.sum(), cap_max - n))

@@ -10,8 +10,9 @@ Two trees grow, one from the start and one from the goal, and take turns. Each i
    extension). A run advances at most ``connect_strides`` strides per iteration and, while it stays
    free, goes on in the next iterations (at most ``2 * connect_attempts`` runs carried on): a run
    that hits an obstacle early wastes few checks, one in free space still reaches its target.
-3. **One collision call** checks every new edge of the iteration (the extensions and the connect
-   runs) with :meth:`EdgeChecker.free_prefix`, at the edge resolution of the RRT (the same
+3. **One batched check** (``edge_stages`` collision calls, coarse to fine) covers every new edge
+   of the iteration with :meth:`EdgeChecker.free_prefix`: the connect runs' free prefixes, the
+   extensions' free or not (their checks stop at the first hit); at the edge resolution of the RRT (the same
    guarantee: no point of any robot ellipsoid moves more than ``edge_resolution`` between two
    consecutive checked configurations).
 4. Free extensions become nodes of A. A connect run that is free up to its first colliding check
