@@ -97,6 +97,10 @@ def summarise(rows: list[dict]) -> dict:
     return out
 
 
+def fmt(v) -> str:
+    return "-" if v is None else f"{v:.3f}"
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--robot", default=str(DEFAULT_MBM / "panda" / "panda.urdf"))
@@ -123,7 +127,6 @@ def main(argv=None) -> int:
     print(f"\n{'family':<16} {'solved/free':>11} {'median s':>9} {'p95 s':>7} {'cpu s':>6} {'configs':>8}  split (median s: sampling/nearest/collision/shortcut/other)")
     for f, s in res["summary"].items():
         sp = "/".join(f"{s['median_split_s'].get(k, 0):.3f}" for k in ("sampling", "nearest", "collision", "shortcut", "other"))
-        fmt = lambda v: "-" if v is None else f"{v:.3f}"  # noqa: E731
         print(f"{f:<16} {s['solved']:>5}/{s['both_free']:<5} {fmt(s['median_s']):>9} {fmt(s['p95_s']):>7} {fmt(s['median_cpu_s']):>6} {s['median_configs'] or 0:>8.0f}  {sp}"
               + (f"  SLOW CHECK FAILED {s['slow_check_failures']}" if s["slow_check_failures"] else ""))  # fmt: skip
     print(f"load average (1 min) {res['load_avg_1min'][0]:.2f} -> {res['load_avg_1min'][1]:.2f} on {os.cpu_count()} cores")

@@ -48,7 +48,7 @@ def test_arm_stages_match_one_call(panda_boxes, stages):
     np.testing.assert_array_equal(k[exact], k_ref[exact])  # exact prefixes where asked
     np.testing.assert_array_equal(k == n, k_ref == n_ref)  # free or not everywhere
     assert np.all(k[~exact] <= n[~exact])
-    hit_pts, idx, _ = edge_samples(a, b, geom.motion(b - a), res)
+    hit_pts, _, _ = edge_samples(a, b, geom.motion(b - a), res)
     first = np.cumsum(n) - n
     for e in np.nonzero(~exact & (k < n))[0]:  # a reported hit is a real one
         assert geom.collides(panda_boxes, hit_pts[first[e] + k[e]][None])[0]
