@@ -43,3 +43,15 @@ def test_elongated_links_match_reference(device, n_sigma, cell_factor):
     centers = centers + rng.normal(0, 0.003, centers.shape)  # queries near (not on) the packed links
     cfg = MetricConfig(n_sigma=n_sigma, s2_cap=9.0, k_collide=2)
     _compare(scene, centers, quats, axes, cfg, device, TierConfig(cell_factor=cell_factor))
+
+
+@pytest.mark.parametrize("n_sigma", [0.0, 1.0])
+def test_elongated_links_unclipped_collide_kernel(n_sigma):
+    """TierConfig(collide_row_clip=False): the collision-only kernel scans whole rows of the link box."""
+    rng = np.random.default_rng(77 + int(n_sigma))
+    quats, axes = _elongated_links(rng, 60)
+    centers = rng.uniform(-0.2, 0.2, (60, 3))
+    scene = _packed_scene(rng, quats, axes, centers, 40)
+    centers = centers + rng.normal(0, 0.003, centers.shape)
+    cfg = MetricConfig(n_sigma=n_sigma, s2_cap=9.0, k_collide=2)
+    _compare(scene, centers, quats, axes, cfg, "cpu", TierConfig(cell_factor=0.3, collide_row_clip=False))

@@ -174,3 +174,27 @@ def test_query_robot_on_an_ellipsoid_subset(device):
     for bad in ([], [robot.n_ellipsoids], [-1]):
         with pytest.raises(SplatplanError, match="ellipsoids must be"):
             ch.query_robot(robot, q, ellipsoids=bad)
+
+
+@pytest.mark.parametrize("device", DEVICES)
+@pytest.mark.parametrize("n_sigma", [0.0, 1.0])
+def test_collides_robot_fast_paths_match_reference(device, n_sigma):
+    """The collision-only kernel's row clipping and the unsorted robot batch (TierConfig
+    collide_row_clip, sort_robot_collides, both on and off) against the float64 brute force, on a
+    batch large enough to be sorted (> sort_min_batch queries)."""
+    from splatplan.metric.wp_metric import TierConfig
+
+    robot = load_robot("panda")
+    rng = np.random.default_rng(11)
+    scene = _arm_scene(rng)
+    q = rng.uniform(robot.joint_limits[:, 0], robot.joint_limits[:, 1], (160, robot.dof))  # 1,760 ellipsoids
+    cfg = MetricConfig(n_sigma=n_sigma)
+    hits = []
+    for clip, sort in ((True, False), (False, False), (True, True), (False, True)):
+        ch = CollisionChecker(scene, config=cfg, device=device, tiers=TierConfig(collide_row_clip=clip, sort_robot_collides=sort, cell_factor=0.5))
+        hits.append(np.asarray(ch.collides_robot(robot, q)))
+    for h in hits[1:]:
+        np.testing.assert_array_equal(h, hits[0])
+    res = CollisionChecker(scene, config=cfg, device=device).query_robot(robot, q)
+    _check_robot(scene, robot, q, cfg, res, hits[0])
+    assert hits[0].any() and (~hits[0]).any()

@@ -256,7 +256,7 @@ class CollisionChecker:
         if full:
             self._impl.query(links, n, amin, amax, self.config, ws.outputs(), ws.scratch())
         else:
-            self._impl.collides(links, n, amin, amax, self.config, ws.in_collision, ws.bad, ws.scratch())
+            self._impl.collides(links, n, amin, amax, self.config, ws.in_collision, ws.bad, ws.scratch(), robot_batch=True)
         self._raise_bad(ws, kind, validate)
         if full:
             return QueryResult(**{k: convert_out(getattr(ws, k), n, oshape, kind, False) for k in _FIELDS})

@@ -88,6 +88,12 @@ class TierConfig:
     sort_queries: bool = True
     #: ... for batches of at least this many queries.
     sort_min_batch: int = bounded(1024, ge=0)
+    #: ... also for ``collides_robot`` (the collision-only kernel on robot batches). Off by default: a
+    #: robot batch comes in configuration order (the E ellipsoids of one configuration, then the next;
+    #: an RRT's edge samples one after the other), already close in space, and on CPU the sort costs
+    #: more than it saves (MBM Panda edge checks, one thread: 59 spheres 17 -> 9.5 us per configuration
+    #: without it, 11 fitted ellipsoids 9.2 -> 8.1 us).
+    sort_robot_collides: bool = False
     #: Sort a robot batch (semi-axes repeating with a period of at most 512 ellipsoids: ``query_robot``)
     #: by ellipsoid first, then Morton order, so that neighbouring threads (a GPU warp) hold the same
     #: link, whose work per query is alike (Panda near the table: 1 to 300 cell rows per query by link).
@@ -103,6 +109,20 @@ class TierConfig:
     #: float sums up to summation order. Extra device memory per call: 28 bytes x lanes per query
     #: (the partial sums; 73 MB for 327k queries at 8 lanes).
     lanes: int | None = bounded(None, ge=1)
+    #: The collision-only kernel (``collides``, RRT edge checks) reads, in every cell row holding more
+    #: than a few splats, only the cells that the link's ellipsoid can reach (ROW_CLIP of the full
+    #: kernel, :mod:`.wp_metric_kernel`); False: whole rows of the link's box.
+    collide_row_clip: bool = True
+    #: ``collides_robot`` (the collision-only kernel on robot batches) uses grids with cells this many
+    #: times wider than (elongated_)cell_factor x its radius. Its radius is for cap 1, half the full
+    #: query's at the default s2_cap 4, so 2 gives both the same cell width. The best width depends on
+    #: the splats per cell: finer cells read fewer splats but cost a probe per cell row of the link box.
+    #: Measured per CPU-second, one thread: MBM Panda edge checks (100k splats over a few m^2) the fitted
+    #: one-per-link model 1.9x and VAMP's 59 spheres 1.2x faster with 2 than with 1; the Panda on
+    #: Stonehenge scaled x4 1.6x faster, at scale 1 (200k splats in 1 m, as dense as it gets) 1.5x
+    #: slower. Plain ``collides`` keeps 1: small spheres (r = 1.5 cm at n_sigma 1 on Stonehenge) are
+    #: 1.5x slower with 2.
+    robot_collide_cell_scale: float = bounded(2.0, gt=0)
 
     def validate(self) -> "TierConfig":
         """Check every field's declared range (:mod:`splatplan._config`); returns self."""
@@ -165,7 +185,7 @@ class _GridSet:
     sigma: list  # largest std per tier
 
 
-def metric_params(cfg: MetricConfig, pow_m: int) -> MetricParams:
+def metric_params(cfg: MetricConfig, pow_m: int, collide_clip: bool = False) -> MetricParams:
     """The kernels' struct for ``cfg``."""
     p = MetricParams()
     p.n_sigma = float(cfg.n_sigma)
@@ -181,6 +201,7 @@ def metric_params(cfg: MetricConfig, pow_m: int) -> MetricParams:
     p.opacity_min = float(cfg.opacity_min)
     p.opacity_scaled = 1 if cfg.opacity_scaled_inflation else 0
     p.use_opacity = 1 if (cfg.opacity_min > 0 or cfg.opacity_scaled_inflation) else 0
+    p.collide_clip = 1 if collide_clip else 0
     return p
 
 
@@ -267,11 +288,14 @@ class WarpMetric:
             pool.shutdown(wait=True)
 
     # ------------------------------------------------------------------ grids
-    def grid_key(self, n_sigma: float, cap: float, a_min: float, a_max: float) -> tuple:
+    def grid_key(self, n_sigma: float, cap: float, a_min: float, a_max: float, collide: bool = False) -> tuple:
         """((first, last) class of each tier, quantised (2^(1/4)) cell width of each tier) for a typical
         query with semi-axes in [a_min, a_max]; finer cells (``elongated_cell_factor``) when the typical
-        link is elongated (a_max >= 1.5 a_min), whose reads the kernels bound by the link box."""
+        link is elongated (a_max >= 1.5 a_min), whose reads the kernels bound by the link box;
+        ``collide``: for ``collides_robot`` (cells ``robot_collide_cell_scale`` times wider)."""
         cf = self.tiers.elongated_cell_factor if a_max >= 1.5 * a_min else self.tiers.cell_factor
+        if collide:
+            cf *= self.tiers.robot_collide_cell_scale
         args = (float(n_sigma), float(cap), float(a_min), float(a_max), float(cf))
         key = self._keys.get(args)  # memoised: search_radius in Python scope costs ~0.2 ms a call
         if key is None:
@@ -319,13 +343,14 @@ class WarpMetric:
             j = cut[j]
         return tuple(reversed(groups))
 
-    def gridset(self, n_sigma: float, cap: float, a_min: float, a_max: float) -> _GridSet:
-        """Hash grids of every tier for this query radius (cached; safe from several threads).
+    def gridset(self, n_sigma: float, cap: float, a_min: float, a_max: float, collide: bool = False) -> _GridSet:
+        """Hash grids of every tier for this query radius (cached; safe from several threads;
+        ``collide``: those of ``collides_robot``, see :meth:`grid_key`).
 
         Each grid set keeps its own copy of the splat data in the grid's cell order, so the
         indices a grid returns walk memory almost sequentially (a large win on CPU caches).
         """
-        key = self.grid_key(n_sigma, cap, a_min, a_max)
+        key = self.grid_key(n_sigma, cap, a_min, a_max, collide)
         with self._lock:
             gs = self._gridsets.get(key)
             if gs is None:
@@ -443,11 +468,16 @@ class WarpMetric:
         if lanes > 1:
             wp.launch(metric_lanes_combine_kernel, dim=b, inputs=[lp, params, out], device=self.device)
 
-    def collides(self, links: LinkBatch, b: int, a_min: float, a_max: float, cfg: MetricConfig, out_hit, bad, scratch=None) -> None:
-        """in_collision of b queries into ``out_hit`` (bool device array of at least b rows)."""
-        gs = self.gridset(cfg.n_sigma, 1.0, a_min, a_max)
-        self.sort_queries(links, b, *(scratch or self._scratch(b)))
-        self._launch(metric_collide_kernel, b, [links, gs.tiers, metric_params(cfg, 0), out_hit, bad])
+    def collides(self, links: LinkBatch, b: int, a_min: float, a_max: float, cfg: MetricConfig, out_hit, bad, scratch=None, robot_batch: bool = False) -> None:
+        """in_collision of b queries into ``out_hit`` (bool device array of at least b rows);
+        ``robot_batch``: the queries are the ellipsoids of robot configurations, in order (not sorted
+        unless ``TierConfig.sort_robot_collides``; grids ``robot_collide_cell_scale`` times coarser)."""
+        gs = self.gridset(cfg.n_sigma, 1.0, a_min, a_max, collide=robot_batch)
+        if robot_batch and not self.tiers.sort_robot_collides:
+            links.use_order = 0  # a robot batch (collides_robot): kept in configuration order
+        else:
+            self.sort_queries(links, b, *(scratch or self._scratch(b)))
+        self._launch(metric_collide_kernel, b, [links, gs.tiers, metric_params(cfg, 0, self.tiers.collide_row_clip), out_hit, bad])
 
     def _scratch(self, b: int):
         n = 2 * b if self.tiers.sort_queries and b >= self.tiers.sort_min_batch else 1

@@ -46,8 +46,10 @@ float32 error of the Schur complement (about (a_max / a_min)^2 ulps) for links w
 the only ones clipped; the cell bounds are padded by 1% of a cell. The set of splats scanned shrinks,
 never the set with s2~ < cap, so the outputs are unchanged. It matters for elongated links near dense
 surfaces, whose axis-aligned boxes hold ~10x more splats than their ellipsoid (Panda links near the
-table: the full query ~1.5x faster). The collision-only kernel scans whole rows: its early exit keeps
-candidates cheap, and clipping measured slower there.
+table: the full query ~1.5x faster). The collision-only kernel clips its rows the same way
+(``TierConfig.collide_row_clip``, on by default): measured slower on early versions, where its
+candidates were cheap, but it saves 1.4x on robot edge checks, whose configurations are mostly free
+and near surfaces (every candidate is read), and 4x on the Panda at Stonehenge's scale 1.
 
 An earlier version also cut elongated links into up to 4 slabs along the long axis, one grid query
 each. Once rows were clipped to the ellipsoid, the slabs' overlapping boxes only made splats be read
@@ -158,6 +160,7 @@ class MetricParams:
     opacity_min: float  # splats with opacity below it are free space
     opacity_scaled: int  # 1: inflation n_sigma * o_i * sigma_i
     use_opacity: int  # 1 when either opacity option is active (else opacity is never read)
+    collide_clip: int  # 1: the collision-only kernel clips rows to the link's ellipsoid too (ROW_CLIP)
 
 
 @wp.struct
@@ -222,20 +225,25 @@ def link_valid(links: LinkBatch, q: int, c: wp.vec3, ax: wp.vec3):
 
 
 @wp.func
-def link_s2(d: wp.vec3, dd: float, link_a: wp.mat33, sphere: bool, inv_r2: float, m: wp.mat33, n_sigma: float, s2_cut: float):
-    """s2~ of one splat; for a sphere link (A = I / r^2, so A d = d / r^2) it reuses dd = |d|^2.
+def link_s2(d: wp.vec3, dd: float, link_a: wp.mat33, sphere: bool, inv_r2: float, mrows: wp.array(dtype=wp.mat33), i: int, n_sigma: float, s2_cut: float):
+    """s2~ of splat i (``mrows[i]`` = its diag(s) R^T, read only when n_sigma > 0); for a sphere link
+    (A = I / r^2, so A d = d / r^2) it reuses dd = |d|^2.
 
     For other links, a splat with s2 > s2_cut = (rho / a_max)^2 is returned as +inf before its
     inflation is computed: by the radius bound it has s2~ >= cap anyway (this prunes the corners
     of the bounding sphere of an elongated link cheaply).
     """
     if sphere:
-        return wp.max(0.0, (dd - n_sigma * 2.0 * wp.length(m * d)) * inv_r2)
+        if n_sigma == 0.0:  # no inflation (the term below would be 0): skip the splat's matrix
+            return dd * inv_r2
+        return wp.max(0.0, (dd - n_sigma * 2.0 * wp.length(mrows[i] * d)) * inv_r2)
     ad = link_a * d
     s2 = wp.dot(d, ad)
     if s2 > s2_cut:
         return float(wp.inf)
-    return wp.max(0.0, s2 - n_sigma * wp.length(m * (2.0 * ad)))
+    if n_sigma == 0.0:
+        return wp.max(0.0, s2)
+    return wp.max(0.0, s2 - n_sigma * wp.length(mrows[i] * (2.0 * ad)))
 
 
 @wp.func
@@ -517,7 +525,7 @@ def metric_full_kernel(
                             ns = splat_inflation(splats, p, i)
                             if ns < 0.0:
                                 continue
-                            v = link_s2(d, dd, a, sphere, inv_r2, splats.mrows[i], ns, s2_cut)
+                            v = link_s2(d, dd, a, sphere, inv_r2, splats.mrows, i, ns, s2_cut)
                             best = wp.min(best, v)
                             if v < 1.0:
                                 ncol += 1
@@ -611,6 +619,8 @@ def metric_collide_kernel(
     sphere = a_min == a_max
     inv_r2 = 1.0 / (a_min * a_min)
     k_collide = p.k_collide
+    clip_ok = a_max <= ROW_CLIP_MAX_RATIO * a_min
+    e1, e2 = schur_form(a)
     for j in range(splats.n_tiers):
         if ncol > k_collide:
             break
@@ -630,19 +640,40 @@ def metric_collide_kernel(
             r_x = wp.min(rho, box_reach(rot, h, 0))
             r_y = wp.min(rho, box_reach(rot, h, 1))
             r_z = wp.min(rho, box_reach(rot, h, 2))
-        xs, nx, _fx = cell_range(c[0], r_x, inv_w, dim[0], c_lo[0], c_hi[0])
-        ys, ny, _fy = cell_range(c[1], r_y, inv_w, dim[1], c_lo[1], c_hi[1])
-        zs, nz, _fz = cell_range(c[2], r_z, inv_w, dim[2], c_lo[2], c_hi[2])
-        # whole rows (no ROW_CLIP): the early exit keeps candidates cheap here, and clipping measured slower
-        x0 = wrap(xs, dim[0])
-        x1 = x0 + nx - 1
-        n_run = 1
-        if x1 >= dim[0]:
-            n_run = 2
+        xs, nx, fx = cell_range(c[0], r_x, inv_w, dim[0], c_lo[0], c_hi[0])
+        ys, ny, fy = cell_range(c[1], r_y, inv_w, dim[1], c_lo[1], c_hi[1])
+        zs, nz, fz = cell_range(c[2], r_z, inv_w, dim[2], c_lo[2], c_hi[2])
+        clip = p.collide_clip != 0 and clip_ok and fx and fy and fz  # ROW_CLIP (TierConfig.collide_row_clip)
+        x0s = wrap(xs, dim[0])
         for iz in range(nz):
+            if ncol > k_collide:
+                break
             z = wrap(zs + iz, dim[2])
             for iy in range(ny):
+                if ncol > k_collide:
+                    break
                 row = cb + (z * dim[1] + wrap(ys + iy, dim[1])) * dim[0]
+                xa = int(0)  # cells xs + xa .. xs + xb of this row (unwrapped)
+                xb = nx - 1
+                if clip:
+                    if run_count(splats.cell_start, row, x0s, nx, dim[0]) <= ROW_CLIP_MIN:
+                        xa = 0  # (a short row is scanned whole)
+                    else:
+                        y0, y1, z0, z1 = row_bounds(ys + iy, zs + iz, inv_w)
+                        xl, xh = row_x_span(c, e1, e2, s2_cut, c, rho, y0, y1, z0, z1, sphere)
+                        if xl > xh:
+                            continue
+                        xa = wp.max(xa, x_cell(xl, inv_w, -1.0) - xs)
+                        xb = wp.min(xb, x_cell(xh, inv_w, 1.0) - xs)
+                        if xb < xa:
+                            continue
+                x0 = x0s + xa
+                if x0 >= dim[0]:
+                    x0 -= dim[0]
+                x1 = x0 + xb - xa
+                n_run = 1
+                if x1 >= dim[0]:
+                    n_run = 2
                 for run in range(n_run):
                     a0, a1 = run_cells(run, x0, x1, dim[0])
                     for i in range(splats.cell_start[row + a0], splats.cell_start[row + a1 + 1]):
@@ -653,7 +684,7 @@ def metric_collide_kernel(
                         if dd <= rho2:
                             ns = splat_inflation(splats, p, i)
                             if ns >= 0.0:
-                                if link_s2(d, dd, a, sphere, inv_r2, splats.mrows[i], ns, s2_cut) < 1.0:
+                                if link_s2(d, dd, a, sphere, inv_r2, splats.mrows, i, ns, s2_cut) < 1.0:
                                     ncol += 1
     out_hit[q] = ncol > k_collide
 

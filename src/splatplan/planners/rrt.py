@@ -2,8 +2,9 @@
 
 Each iteration draws ``batch_size`` samples (goal-biased), finds the nearest tree node of every
 sample (one vectorised distance matrix), steers from it by at most ``stride``, discretises every
-new edge (see *Edge resolution*) and checks all edges in **one** batched collision call over every
-robot ellipsoid. Collision-free edges become new nodes.
+new edge (see *Edge resolution*) and checks all edges together over every robot ellipsoid: a few
+batched collision calls, coarse to fine, an edge's checks stopping at its first hit
+(``edge_stages``, :class:`EdgeChecker`). Collision-free edges become new nodes.
 
 * **Goal mode** (``goal`` given): new nodes within ``connect_radius`` of the goal try a direct,
   collision-checked edge to the goal (one batched call); the first iteration with a free one ends
@@ -112,6 +113,9 @@ class RRTConfig:
     connect_attempts: int = bounded(4, ge=1)
     #: RRT-Connect: longest connect run per attempt, in strides (None = all the way to the target)
     connect_strides: float | None = bounded(4.0, gt=0)
+    #: batched calls per edge check, coarse to fine (samples at every 4^(s-1)-th, ..., 4th, every
+    #: index); checks stop at an edge's first hit; 1 = every sample in one call (same answers)
+    edge_stages: int = bounded(4, ge=1, le=8)
 
     def validate(self) -> "RRTConfig":
         check_config(self)  # each field's declared range (splatplan._config); cross-field rules below
@@ -279,19 +283,37 @@ def edge_samples(a: np.ndarray, b: np.ndarray, motion: np.ndarray, resolution: f
 class EdgeChecker:
     """Batched straight-edge collision checks of a robot against a checker.
 
+    **Coarse to fine (``stages`` > 1).** The check samples of all edges are checked in ``stages``
+    batched calls, from coarse to fine: call j takes the samples whose index along their edge is a
+    multiple of ``4^(stages - 1 - j)`` (the first call also each edge's end point), and only those
+    still needed: samples before the first hit found so far on edges whose free prefix is asked
+    for (:meth:`free_prefix`), nothing more on an edge that only has to be free or not
+    (:meth:`edges_free`, or ``exact=False``) once a hit is found. The last call has stride 1, so
+    every sample before an edge's first hit is checked: the answers are exactly those of checking
+    every sample in one call (``stages=1``, the reference; ``tests/planners/test_edge_stages.py``),
+    with fewer checks where edges collide (an RRT's extension edges often do, and every sample
+    after the first hit was checked for nothing) at the cost of more, smaller calls.
+
     Args:
         checker: a :class:`~splatplan.metric.CollisionChecker`.
         geometry: the robot's :class:`~splatplan.planners.robot_links.LinkGeometry`.
         resolution: largest displacement of any ellipsoid point between consecutive checks.
         inflate: check inner samples with the semi-axes grown by half the sample spacing (valid
             for translating spheres only; see the module docstring).
+        stages: batched calls per check, coarse to fine (1 = every sample in one call).
     """
 
-    def __init__(self, checker, geometry: LinkGeometry, resolution: float, inflate: bool = False) -> None:
+    #: stride ratio between consecutive stages of the coarse-to-fine check
+    STAGE_FACTOR = 4
+
+    def __init__(self, checker, geometry: LinkGeometry, resolution: float, inflate: bool = False, stages: int = 1) -> None:
         self.checker = checker
         self.geometry = geometry
         self.resolution = float(resolution)
         self.inflate = bool(inflate)
+        if int(stages) < 1:
+            raise SplatplanError(f"EdgeChecker stages must be >= 1, got {stages}")
+        self.stages = int(stages)
         #: wall-clock seconds spent in collision checks (statistics)
         self.time_s = 0.0
 
@@ -306,19 +328,22 @@ class EdgeChecker:
 
     def edges_free(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         """(E, D), (E, D) -> bool (E,): True where the whole edge (end point included, start
-        excluded) is collision-free at ``resolution``. One batched checker call."""
-        k, n = self.free_prefix(a, b)
+        excluded) is collision-free at ``resolution``. An edge's checks stop at its first hit found."""
+        k, n = self.free_prefix(a, b, exact=np.zeros(len(a), dtype=bool))
         return k == n
 
-    def free_prefix(self, a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """How far along each of E edges the check samples stay free. One batched checker call.
+    def free_prefix(self, a: np.ndarray, b: np.ndarray, exact: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """How far along each of E edges the check samples stay free (``stages`` batched calls).
 
         Args:
             a: (E, D) edge starts (assumed checked already); b: (E, D) edge ends.
+            exact: (E,) bool, the edges whose free prefix is needed (default: all); for the others
+                only whether they are free (k == n) is, and their checks stop at the first hit.
 
         Returns:
             k (E,) int64: the number of leading free check samples of each edge (samples
-            ``a + (i / n)(b - a)``, i = 1..k, are free; k == n: the whole edge is free);
+            ``a + (i / n)(b - a)``, i = 1..k, are free; k == n: the whole edge is free); where
+            ``exact`` is False and the edge collides, some k < n (a hit at sample k + 1);
             n (E,) int64: the edge's sample count (see :func:`edge_samples`).
         """
         a = np.asarray(a, dtype=np.float64)
@@ -327,20 +352,30 @@ class EdgeChecker:
             return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
         t0 = time.perf_counter()
         pts, idx, n = edge_samples(a, b, self.geometry.motion(b - a), self.resolution)  # (P, D)
+        first = np.cumsum(n) - n  # (E,) offset of each edge's first sample
+        loc = np.arange(idx.size) - first[idx] + 1  # (P,) 1..n_e: the sample's index along its edge
+        margin = None
         if self.inflate:
-            last = np.cumsum(n) - 1  # (E,) index of each edge's end point
             spacing = np.linalg.norm(b - a, axis=-1) / n  # (E,)
             margin = 0.5 * spacing[idx]
-            margin[last] = 0.0  # the end point with the true size
-            hit = self.configs_collide(pts, margin)
-        else:
-            hit = self.configs_collide(pts)  # (P,)
-        first = np.cumsum(n) - n  # (E,) offset of each edge's first sample
-        k = n.copy()
-        hi = np.nonzero(hit)[0]
-        np.minimum.at(k, idx[hi], hi - first[idx[hi]])  # 0-based index of the first hit = free samples before it
+            margin[loc == n[idx]] = 0.0  # the end point with the true size
+        exact = np.ones(len(a), dtype=bool) if exact is None else np.asarray(exact, dtype=bool).reshape(len(a))
+        hit_at = n + 1  # (E,) 1-based index of the first hit found so far (n + 1: none)
+        todo = np.ones(idx.size, dtype=bool)  # (P,) samples not checked yet
+        for j in range(self.stages):
+            stride = self.STAGE_FACTOR ** (self.stages - 1 - j)
+            sel = todo & (loc < hit_at[idx]) & (exact | (hit_at > n))[idx]
+            if stride > 1:
+                sel &= (loc % stride == 0) | (loc == n[idx]) if j == 0 else (loc % stride == 0)
+            s = np.nonzero(sel)[0]
+            if s.size == 0:
+                continue
+            hit = self.configs_collide(pts[s]) if margin is None else self.configs_collide(pts[s], margin[s])  # (S,)
+            todo[s] = False
+            h = s[hit]
+            np.minimum.at(hit_at, idx[h], loc[h])
         self.time_s += time.perf_counter() - t0
-        return k, n
+        return np.minimum(hit_at - 1, n), n
 
     def path_free(self, path: np.ndarray) -> bool:
         """Whether every point of a polyline (P, D), sampled at ``resolution``, is collision-free."""
@@ -407,6 +442,41 @@ def robust_scene_box(scene, percentile: float = BOX_PERCENTILE) -> tuple[np.ndar
     m = np.asarray(scene.means)
     lo, hi = np.percentile(m, [percentile, 100.0 - percentile], axis=0)
     return lo.astype(np.float64), hi.astype(np.float64)
+
+
+@dataclass
+class _Search:
+    """What one search (:meth:`RRT.plan`, :meth:`RRTConnect.plan`) sets up before its first iteration."""
+
+    t0: float  # time.perf_counter() when the call began
+    st: RRTSettings
+    start: np.ndarray  # (D,)
+    goal: np.ndarray | None  # (D,) or None (exploration)
+    w: np.ndarray  # (D,) configuration -> metric space (motion bound per coordinate)
+    edges: EdgeChecker
+    q0: int  # the geometry's query count when the search began
+    rng: np.random.Generator
+    frozen: np.ndarray  # (D,) bool: coordinates held fixed (lo == hi)
+    span: np.ndarray  # (D,) hi - lo (0 where frozen)
+    end: float  # time.perf_counter() value the search stops at (inf: none)
+    deadline: float | None  # the caller's deadline
+
+    def sample(self, n: int) -> np.ndarray:
+        """(n, D) uniform samples of the sampling box."""
+        return self.st.box_lo + self.rng.random((n, self.start.size)) * self.span
+
+    def stop(self, config: RRTConfig, it: int, n_nodes: int, info: dict) -> str | None:
+        """Why the search stops before iteration ``it + 1`` (None: it goes on); a time-out sets
+        ``info["time_limit_hit"]``."""
+        if config.max_iters is not None and it >= config.max_iters:
+            return f"within the iteration budget ({config.max_iters:,} iterations, {n_nodes:,} nodes)"
+        if config.max_nodes is not None and n_nodes >= config.max_nodes:
+            return f"within the node budget ({config.max_nodes:,} nodes)"
+        if time.perf_counter() > self.end:
+            limit = self.st.time_limit_s if self.st.time_limit_s is not None else self.deadline - self.t0  # the budget the user gave
+            info["time_limit_hit"] = True
+            return f"within {limit:.1f} s ({n_nodes:,} nodes)"
+        return None
 
 
 class RRT:
@@ -555,6 +625,25 @@ class RRT:
         connect = 4.0 * stride if cfg.connect_radius is None else float(cfg.connect_radius)
         return RRTSettings(lo, hi, stride, res, tol, connect, cfg.time_limit_s, derived, notes)
 
+    def _setup(self, start, goal, deadline: float | None) -> _Search:
+        """Settings, edge checker, endpoint checks, sampler and deadline of one search (raises like :meth:`plan`)."""
+        t0 = time.perf_counter()
+        st = self.settings(start, goal)
+        start = np.asarray(start, dtype=np.float64).reshape(-1)
+        goal = None if goal is None else np.asarray(goal, dtype=np.float64).reshape(-1)
+        geom = self.geometry
+        edges = EdgeChecker(self.checker, geom, st.edge_resolution, inflate=self.inflate_edges, stages=self.config.edge_stages)
+        q0 = geom.n_queries
+        check_endpoint(self.checker, geom, start, "start")
+        if goal is not None:
+            check_endpoint(self.checker, geom, goal, "goal")
+        frozen = st.box_hi <= st.box_lo
+        end = math.inf if deadline is None else float(deadline)
+        if st.time_limit_s is not None:
+            end = min(end, t0 + st.time_limit_s)
+        return _Search(t0, st, start, goal, geom.distance_scale(), edges, q0, np.random.default_rng(self.config.seed), frozen,
+                       np.where(frozen, 0.0, st.box_hi - st.box_lo), end, deadline)  # fmt: skip
+
     # ------------------------------------------------------------------ search
     def plan(self, start, goal=None, deadline: float | None = None) -> PlanResult:
         """Grow a tree from ``start``; towards ``goal`` (goal mode) or everywhere (goal=None).
@@ -568,21 +657,10 @@ class RRT:
             PlanningError: start or goal in collision, outside the sampling box / scene bounds /
                 joint limits, or a bad box.
         """
-        t0 = time.perf_counter()
         cfg = self.config
-        st = self.settings(start, goal)
-        start = np.asarray(start, dtype=np.float64).reshape(-1)
-        goal = None if goal is None else np.asarray(goal, dtype=np.float64).reshape(-1)
-        d = start.size
-        lo, hi = st.box_lo, st.box_hi
-        geom = self.geometry
-        w = geom.distance_scale()  # (D,) configuration -> metric space
-        edges = EdgeChecker(self.checker, geom, st.edge_resolution, inflate=self.inflate_edges)
-        q0 = geom.n_queries
-        check_endpoint(self.checker, geom, start, "start")
-        if goal is not None:
-            check_endpoint(self.checker, geom, goal, "goal")
-        rng = np.random.default_rng(cfg.seed)
+        s = self._setup(start, goal, deadline)
+        t0, st, start, goal, w, edges, q0, rng = s.t0, s.st, s.start, s.goal, s.w, s.edges, s.q0, s.rng
+        d, lo, frozen, geom = start.size, st.box_lo, s.frozen, self.geometry
         connect_r = st.connect_radius
 
         # the tree: numpy on CPU, grown in place (see module docstring); zs = nodes * w (metric space)
@@ -594,8 +672,6 @@ class RRT:
         cost = np.zeros(cap)  # path length from the root (metric)
         nodes[0], zs[0] = start, start * w
         n = 1
-        frozen = hi <= lo
-        span = np.where(frozen, 0.0, hi - lo)
         goal_z = None if goal is None else goal * w
         info = {"settings": st.as_dict(), "edge_resolution": st.edge_resolution, "stride": st.stride, "planner": "rrt"}
         clock = {"sampling": 0.0, "nearest": 0.0}
@@ -628,27 +704,11 @@ class RRT:
             return self._finish(result(True, raw, "direct edge from start to goal is free", 0), edges, t0, w, q0, clock, deadline)
 
         it = 0
-        message = ""
-        t_search = time.perf_counter()
-        end = math.inf if deadline is None else float(deadline)
-        if st.time_limit_s is not None:
-            end = min(end, t_search + st.time_limit_s)
-        while True:
-            if cfg.max_iters is not None and it >= cfg.max_iters:
-                message = f"within the iteration budget ({cfg.max_iters:,} iterations, {n:,} nodes)"
-                break
-            if n >= cap_max:
-                message = f"within the node budget ({cfg.max_nodes:,} nodes)"
-                break
-            if time.perf_counter() > end:
-                limit = st.time_limit_s if st.time_limit_s is not None else deadline - t0  # the budget the user gave
-                message = f"within {limit:.1f} s ({n:,} nodes)"
-                info["time_limit_hit"] = True
-                break
+        while (message := s.stop(cfg, it, n, info)) is None:
             it += 1
             nb = cfg.batch_size
             t1 = time.perf_counter()
-            samples = lo + rng.random((nb, d)) * span  # (N, D)
+            samples = s.sample(nb)  # (N, D)
             if goal is not None and cfg.goal_bias > 0:
                 samples[rng.random(nb) < cfg.goal_bias] = goal
             sz = samples * w
@@ -667,7 +727,7 @@ class RRT:
             step = np.minimum(dist, st.stride) / dist
             new = base + delta * step[:, None]  # steer: at most `stride` towards the sample
             new[:, frozen] = lo[frozen]
-            free = edges.edges_free(base, new)  # ONE batched call over every edge point and ellipsoid
+            free = edges.edges_free(base, new)  # every edge point and ellipsoid in edge_stages batched calls
             if not free.any():
                 continue
             k = int(min(free.sum(), cap_max - n))

@@ -10,8 +10,9 @@ Two trees grow, one from the start and one from the goal, and take turns. Each i
    extension). A run advances at most ``connect_strides`` strides per iteration and, while it stays
    free, goes on in the next iterations (at most ``2 * connect_attempts`` runs carried on): a run
    that hits an obstacle early wastes few checks, one in free space still reaches its target.
-3. **One collision call** checks every new edge of the iteration (the extensions and the connect
-   runs) with :meth:`EdgeChecker.free_prefix`, at the edge resolution of the RRT (the same
+3. **One batched check** (``edge_stages`` collision calls, coarse to fine) covers every new edge
+   of the iteration with :meth:`EdgeChecker.free_prefix`: the connect runs' free prefixes, the
+   extensions' free or not (their checks stop at the first hit); at the edge resolution of the RRT (the same
    guarantee: no point of any robot ellipsoid moves more than ``edge_resolution`` between two
    consecutive checked configurations).
 4. Free extensions become nodes of A. A connect run that is free up to its first colliding check
@@ -47,7 +48,7 @@ import numpy as np
 from scipy.spatial.distance import cdist
 
 from ..errors import PlanningError
-from .rrt import RRT, EdgeChecker, PlanResult, check_endpoint, path_length, shortcut_path
+from .rrt import RRT, PlanResult, _Search, path_length, shortcut_path
 
 
 class _Tree:
@@ -111,176 +112,142 @@ class RRTConnect(RRT):
             PlanningError: no goal, start or goal in collision, outside the sampling box / scene
                 bounds / joint limits, or a bad box.
         """
-        t0 = time.perf_counter()
         if goal is None:
             raise PlanningError("RRT-Connect needs a goal; use the RRT planner to explore without one")
         cfg = self.config
-        st = self.settings(start, goal)
-        start = np.asarray(start, dtype=np.float64).reshape(-1)
-        goal = np.asarray(goal, dtype=np.float64).reshape(-1)
-        d = start.size
-        lo, hi = st.box_lo, st.box_hi
-        geom = self.geometry
-        w = geom.distance_scale()  # (D,) configuration -> metric space
-        edges = EdgeChecker(self.checker, geom, st.edge_resolution, inflate=self.inflate_edges)
-        q0 = geom.n_queries
-        check_endpoint(self.checker, geom, start, "start")
-        check_endpoint(self.checker, geom, goal, "goal")
-        rng = np.random.default_rng(cfg.seed)
-        frozen = hi <= lo
-        span = np.where(frozen, 0.0, hi - lo)
-        stride = st.stride
-        cap_max = math.inf if cfg.max_nodes is None else int(cfg.max_nodes)
-        cap0 = int(min(cap_max, 4096))
-        trees = [_Tree(start, w, cap0), _Tree(goal, w, cap0)]  # 0: from the start, 1: from the goal
-        n_conn = int(cfg.connect_attempts)
-        conn_len = math.inf if cfg.connect_strides is None else float(cfg.connect_strides) * stride
-        t_sample = t_near = 0.0
-        end = math.inf if deadline is None else float(deadline)
-        if st.time_limit_s is not None:
-            end = min(end, time.perf_counter() + st.time_limit_s)
-        info = {"settings": st.as_dict(), "edge_resolution": st.edge_resolution, "stride": st.stride, "planner": self.name}
-
-        def result(success: bool, path: np.ndarray | None, message: str, it: int) -> PlanResult:
-            ta, tb = trees
-            nodes = np.concatenate([ta.nodes[: ta.n], tb.nodes[: tb.n]])
-            parents = np.concatenate([ta.parents[: ta.n], np.where(tb.parents[: tb.n] >= 0, tb.parents[: tb.n] + ta.n, -1)])
-            res = PlanResult(
-                success=success,
-                path=np.zeros((0, d)) if path is None else path,
-                length=math.inf if path is None else path_length(path, w),
-                time_s=0.0,
-                n_nodes=ta.n + tb.n,
-                n_iters=it,
-                tree_nodes=nodes,
-                tree_parents=parents,
-                message=message,
-                path_rrt=None if path is None else path.copy(),
-                info={**info, "tree_sizes": [ta.n, tb.n]},
-            )
-            t_short = time.perf_counter()
-            c_before = edges.time_s
-            q_before = geom.n_queries
-            if success and cfg.shortcut and len(res.path) > 2:
-                dl = None if math.isinf(end) else end
-                res.path = shortcut_path(edges, res.path, deadline=dl, candidates="doubling")
-                if len(res.path) > 3:  # (with 3 vertices the one candidate edge was just checked)
-                    res.path = shortcut_path(edges, res.path, deadline=dl)  # every candidate on the few vertices left
-                res.length = path_length(res.path, w)
-            t_now = time.perf_counter()
-            c_search = c_before
-            res.time_s = t_now - t0
-            split = {"sampling": t_sample, "nearest": t_near, "collision": c_search, "shortcut": t_now - t_short}
-            split["other"] = max(0.0, res.time_s - sum(split.values()))
-            res.info["time_split"] = split
-            res.info["n_queries"] = geom.n_queries - q0
-            res.info["n_queries_shortcut"] = geom.n_queries - q_before
-            return res
-
-        if edges.edges_free(start[None], goal[None])[0]:
-            return result(True, np.stack([start, goal]), "direct edge from start to goal is free", 0)
-
-        limit_s = st.time_limit_s if st.time_limit_s is not None else (None if deadline is None else deadline - t0)  # the budget the user gave
+        s = self._setup(start, goal, deadline)
+        cap0 = int(min(math.inf if cfg.max_nodes is None else cfg.max_nodes, 4096))
+        trees = [_Tree(s.start, s.w, cap0), _Tree(s.goal, s.w, cap0)]  # 0: from the start, 1: from the goal
+        clock = {"sampling": 0.0, "nearest": 0.0}
+        info = {"settings": s.st.as_dict(), "edge_resolution": s.st.edge_resolution, "stride": s.st.stride, "planner": self.name}
+        if s.edges.edges_free(s.start[None], s.goal[None])[0]:
+            return self._result(s, trees, info, clock, np.stack([s.start, s.goal]), "direct edge from start to goal is free", 0)
         it = 0
         runs: list[tuple[int, int, int, int]] = []  # connect runs still free, carried to the next iteration
-        while True:
-            spent = _spent(cfg, it, trees[0].n + trees[1].n, cap_max, end, limit_s)
-            if spent is not None:
-                message, timed_out = spent
-                if timed_out:
-                    info["time_limit_hit"] = True
-                break
+        while (message := s.stop(cfg, it, trees[0].n + trees[1].n, info)) is None:
             a_id = it % 2
             it += 1
-            ta, tb = trees[a_id], trees[1 - a_id]
-            # 1. extend A towards uniform samples
-            t1 = time.perf_counter()
-            samples = lo + rng.random((cfg.batch_size, d)) * span  # (N, D)
-            sz = samples * w
-            t2 = time.perf_counter()
-            near = ta.nearest(sz)  # (N,)
-            t3 = time.perf_counter()
-            base = ta.nodes[near]
-            dist = np.linalg.norm(sz - ta.zs[near], axis=1)  # (N,) metric distance
-            ok = dist > 1e-12
-            base, near, dist, samples = base[ok], near[ok], dist[ok], samples[ok]
-            step = np.minimum(dist, stride) / np.maximum(dist, 1e-300)
-            new = base + (samples - base) * step[:, None]  # (M, D) steer: at most `stride` towards the sample
-            new[:, frozen] = lo[frozen]
+            base, near, new = self._extend(s, trees[a_id], clock)  # 1. extend A towards uniform samples
+            todo, c_from, c_to, frac = self._connect_runs(s, trees, a_id, new, runs, clock)  # 2. connect B towards them
+            # 3. one collision call for every edge of the iteration: the connect runs' free prefixes,
+            # the extensions only free or not
             m = len(new)
-            t4 = time.perf_counter()
-            # 2. connect B towards the new nodes closest to it; carry on the runs that were free
-            near_b = tb.nearest(new * w) if m else np.zeros(0, dtype=np.int64)  # (M,)
-            t5 = time.perf_counter()
-            d_b = np.linalg.norm(new * w - tb.zs[near_b], axis=1)  # (M,)
-            pick = np.argsort(d_b, kind="stable")[: min(n_conn, m)]  # (C,) indices into new
-            # a run: (tree it grows, its front node, tree of the target, target node id or -1 - index into new)
-            todo = [(1 - a_id, int(near_b[j]), a_id, -1 - int(j)) for j in pick] + runs
-            c_from = np.array([trees[f].nodes[i] for f, i, _, _ in todo]).reshape(-1, d)  # (C, D)
-            c_tgt = np.array([new[-1 - t] if t < 0 else trees[g].nodes[t] for _, _, g, t in todo]).reshape(-1, d)
-            c_len = np.linalg.norm((c_tgt - c_from) * w, axis=1)  # (C,)
-            frac = np.minimum(1.0, conn_len / np.maximum(c_len, 1e-300))  # (C,) share of the run tried now
-            c_to = c_from + (c_tgt - c_from) * frac[:, None]
-            t_sample += (t2 - t1) + (t4 - t3)
-            t_near += (t3 - t2) + (t5 - t4)
-            # 3. one collision call for every edge of the iteration
-            k, n = edges.free_prefix(np.concatenate([base, c_from]), np.concatenate([new, c_to]))
-            t6 = time.perf_counter()
+            exact = np.arange(m + len(c_from)) >= m
+            k, n = s.edges.free_prefix(np.concatenate([base, c_from]), np.concatenate([new, c_to]), exact=exact)
+            t0 = time.perf_counter()
+            # 4. grow A by the free extensions, B by the free part of each connect run; join the trees
             ext_free = k[:m] == n[:m]  # (M,)
-            kc, nc = k[m:], n[m:]  # (C,)
-            # 4. grow A by the free extensions, B by the free part of each connect run
             new_ids = np.full(m, -1, dtype=np.int64)
             if ext_free.any():
-                new_ids[ext_free] = ta.add(new[ext_free], near[ext_free])
-            for c, (f, i_from, g, tgt) in enumerate(todo):
-                if tgt < 0:  # the target is a new node of this iteration: it exists if its extension was free
-                    tgt = int(new_ids[-1 - tgt])
-                    if tgt < 0:
-                        continue  # (its free part still grows the tree below)
-                if kc[c] == nc[c] and frac[c] >= 1.0 and tgt >= 0:
-                    ps, pg = trees[f].trace(i_from), trees[g].trace(tgt)  # root of f -> joint, root of g -> joint
-                    raw = np.vstack([ps, pg[::-1]]) if f == 0 else np.vstack([pg, ps[::-1]])
-                    t_sample += time.perf_counter() - t6
-                    return result(True, raw, f"trees joined after {it} iterations", it)
-            runs = _grow_runs(trees, todo, kc, nc, c_from, c_to, frac, new_ids, w, stride, 2 * n_conn)
-            t_sample += time.perf_counter() - t6
-        return result(False, None, f"no path found {message}", it)
+                new_ids[ext_free] = trees[a_id].add(new[ext_free], near[ext_free])
+            raw = _joined(trees, todo, new_ids, k[m:], n[m:], frac)
+            if raw is None:
+                runs = self._grow_runs(s, trees, todo, new_ids, k[m:], n[m:], frac, c_from, c_to)
+            clock["sampling"] += time.perf_counter() - t0
+            if raw is not None:
+                return self._result(s, trees, info, clock, raw, f"trees joined after {it} iterations", it)
+        return self._result(s, trees, info, clock, None, f"no path found {message}", it)
+
+    def _extend(self, s: _Search, ta: _Tree, clock: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Steer from A's nearest nodes at most ``stride`` towards ``batch_size`` uniform samples:
+        (base (M, D), their node ids (M,), new configurations (M, D))."""
+        t1 = time.perf_counter()
+        samples = s.sample(self.config.batch_size)  # (N, D)
+        sz = samples * s.w
+        t2 = time.perf_counter()
+        near = ta.nearest(sz)  # (N,)
+        t3 = time.perf_counter()
+        base = ta.nodes[near]
+        dist = np.linalg.norm(sz - ta.zs[near], axis=1)  # (N,) metric distance
+        ok = dist > 1e-12
+        base, near, dist, samples = base[ok], near[ok], dist[ok], samples[ok]
+        step = np.minimum(dist, s.st.stride) / np.maximum(dist, 1e-300)
+        new = base + (samples - base) * step[:, None]  # (M, D) steer: at most `stride` towards the sample
+        new[:, s.frozen] = s.st.box_lo[s.frozen]
+        clock["sampling"] += (t2 - t1) + (time.perf_counter() - t3)
+        clock["nearest"] += t3 - t2
+        return base, near, new
+
+    def _connect_runs(self, s: _Search, trees: list[_Tree], a_id: int, new: np.ndarray, runs: list, clock: dict):
+        """The connect runs of an iteration: from B's nearest nodes towards the ``connect_attempts``
+        new nodes closest to B, plus the runs carried on. Returns (todo, c_from (C, D), c_to (C, D),
+        frac (C,)): a run is (tree it grows, its front node, tree of the target, target node id or
+        -1 - index into ``new``), tried now up to ``c_to``, the share ``frac`` of the way."""
+        tb, w, d = trees[1 - a_id], s.w, s.start.size
+        m = len(new)
+        t4 = time.perf_counter()
+        near_b = tb.nearest(new * w) if m else np.zeros(0, dtype=np.int64)  # (M,)
+        t5 = time.perf_counter()
+        d_b = np.linalg.norm(new * w - tb.zs[near_b], axis=1)  # (M,)
+        pick = np.argsort(d_b, kind="stable")[: min(int(self.config.connect_attempts), m)]  # (C,) indices into new
+        todo = [(1 - a_id, int(near_b[j]), a_id, -1 - int(j)) for j in pick] + runs
+        c_from = np.array([trees[f].nodes[i] for f, i, _, _ in todo]).reshape(-1, d)  # (C, D)
+        c_tgt = np.array([new[-1 - t] if t < 0 else trees[g].nodes[t] for _, _, g, t in todo]).reshape(-1, d)
+        c_len = np.linalg.norm((c_tgt - c_from) * w, axis=1)  # (C,)
+        strides = self.config.connect_strides
+        conn_len = math.inf if strides is None else float(strides) * s.st.stride
+        frac = np.minimum(1.0, conn_len / np.maximum(c_len, 1e-300))  # (C,) share of the run tried now
+        clock["nearest"] += t5 - t4
+        clock["sampling"] += time.perf_counter() - t5
+        return todo, c_from, c_from + (c_tgt - c_from) * frac[:, None], frac
+
+    def _grow_runs(self, s: _Search, trees: list[_Tree], todo: list, new_ids: np.ndarray, kc, nc, frac, c_from, c_to) -> list:
+        """Add the free part of each connect run to its tree, one node every stride on the
+        check-sample grid (nodes are always checked configurations) and the last free sample;
+        returns the runs free so far that go on in the next iteration."""
+        runs = []
+        for c, (f, i_from, g, tgt) in enumerate(todo):
+            if kc[c] == 0:
+                continue
+            seg = float(np.linalg.norm((c_to[c] - c_from[c]) * s.w))
+            every = max(1, int(s.st.stride * nc[c] / max(seg, 1e-300)))
+            ii = np.arange(every, kc[c] + 1, every)
+            if ii.size == 0 or ii[-1] != kc[c]:
+                ii = np.append(ii, kc[c])
+            pts = c_from[c] + (ii / nc[c])[:, None] * (c_to[c] - c_from[c])  # (K, D)
+            tree = trees[f]
+            ids = tree.add(pts, np.concatenate([[i_from], np.arange(tree.n, tree.n + len(ii) - 1)]))
+            if tgt < 0:
+                tgt = int(new_ids[-1 - tgt])
+            if kc[c] == nc[c] and frac[c] < 1.0 and tgt >= 0 and len(runs) < 2 * int(self.config.connect_attempts):
+                runs.append((f, int(ids[-1]), g, tgt))  # free so far: the run goes on next iteration
+        return runs
+
+    def _result(self, s: _Search, trees: list[_Tree], info: dict, clock: dict, path: np.ndarray | None, message: str, it: int) -> PlanResult:
+        """The result (both trees, start tree first), the path shortcut when found, the time split."""
+        ta, tb = trees
+        d, w, edges, cfg = s.start.size, s.w, s.edges, self.config
+        nodes = np.concatenate([ta.nodes[: ta.n], tb.nodes[: tb.n]])
+        parents = np.concatenate([ta.parents[: ta.n], np.where(tb.parents[: tb.n] >= 0, tb.parents[: tb.n] + ta.n, -1)])
+        res = PlanResult(
+            success=path is not None, path=np.zeros((0, d)) if path is None else path,
+            length=math.inf if path is None else path_length(path, w), time_s=0.0, n_nodes=ta.n + tb.n, n_iters=it,
+            tree_nodes=nodes, tree_parents=parents, message=message, path_rrt=None if path is None else path.copy(),
+            info={**info, "tree_sizes": [ta.n, tb.n]},
+        )  # fmt: skip
+        t_short = time.perf_counter()
+        c_search, q_before = edges.time_s, edges.n_queries
+        if path is not None and cfg.shortcut and len(res.path) > 2:
+            dl = None if math.isinf(s.end) else s.end
+            res.path = shortcut_path(edges, res.path, deadline=dl, candidates="doubling")
+            if len(res.path) > 3:  # (with 3 vertices the one candidate edge was just checked)
+                res.path = shortcut_path(edges, res.path, deadline=dl)  # every candidate on the few vertices left
+            res.length = path_length(res.path, w)
+        t_now = time.perf_counter()
+        res.time_s = t_now - s.t0
+        split = {"sampling": clock["sampling"], "nearest": clock["nearest"], "collision": c_search, "shortcut": t_now - t_short}
+        split["other"] = max(0.0, res.time_s - sum(split.values()))
+        res.info.update(time_split=split, n_queries=edges.n_queries - s.q0, n_queries_shortcut=edges.n_queries - q_before)
+        return res
 
 
-def _grow_runs(trees, todo, kc, nc, c_from, c_to, frac, new_ids, w, stride: float, max_runs: int) -> list[tuple[int, int, int, int]]:
-    """Grow each tree by the free part of its connect runs (``todo``: (tree, front node, target
-    tree, target node or -1 - index into the new nodes)); ``kc``/``nc`` (C,): free / all check
-    samples of each run, ``c_from``/``c_to`` (C, D) its tried part, ``frac`` (C,) the share of the
-    whole run tried. Nodes go on the check-sample grid, about one per stride, plus the last free
-    sample. Returns the runs that were free so far but not finished (they go on next iteration)."""
-    runs: list[tuple[int, int, int, int]] = []
+def _joined(trees: list[_Tree], todo: list, new_ids: np.ndarray, kc: np.ndarray, nc: np.ndarray, frac: np.ndarray) -> np.ndarray | None:
+    """The raw path (P, D) start -> goal when a connect run reached its target node whole and free
+    (the target of a run towards a new node exists if that node's extension was free), else None."""
     for c, (f, i_from, g, tgt) in enumerate(todo):
-        if kc[c] == 0:
-            continue
-        seg = float(np.linalg.norm((c_to[c] - c_from[c]) * w))
-        every = max(1, int(stride * nc[c] / max(seg, 1e-300)))
-        ii = np.arange(every, kc[c] + 1, every)
-        if ii.size == 0 or ii[-1] != kc[c]:
-            ii = np.append(ii, kc[c])
-        pts = c_from[c] + (ii / nc[c])[:, None] * (c_to[c] - c_from[c])  # (K, D)
-        tree = trees[f]
-        parent = np.concatenate([[i_from], np.arange(tree.n, tree.n + len(ii) - 1)])
-        ids = tree.add(pts, parent)
         if tgt < 0:
             tgt = int(new_ids[-1 - tgt])
-        if kc[c] == nc[c] and frac[c] < 1.0 and tgt >= 0 and len(runs) < max_runs:
-            runs.append((f, int(ids[-1]), g, tgt))
-    return runs
-
-
-def _spent(cfg, it: int, n_nodes: int, cap_max: float, end: float, limit_s: float | None) -> tuple[str, bool] | None:
-    """The budget that is spent as ("within ..." for the failure message, whether it is the time),
-    or None: iterations, nodes, then time (``end``: a ``time.perf_counter()`` value; ``limit_s``:
-    the budget the user gave, finite whenever ``end`` is)."""
-    if cfg.max_iters is not None and it >= cfg.max_iters:
-        return f"within the iteration budget ({cfg.max_iters:,} iterations, {n_nodes:,} nodes)", False
-    if n_nodes >= cap_max:
-        return f"within the node budget ({cfg.max_nodes:,} nodes)", False
-    if time.perf_counter() > end:
-        return f"within {limit_s:.1f} s ({n_nodes:,} nodes)", True
+        if tgt >= 0 and kc[c] == nc[c] and frac[c] >= 1.0:
+            ps, pg = trees[f].trace(i_from), trees[g].trace(tgt)  # root of f -> joint, root of g -> joint
+            return np.vstack([ps, pg[::-1]]) if f == 0 else np.vstack([pg, ps[::-1]])
     return None
