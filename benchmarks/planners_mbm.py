@@ -68,7 +68,7 @@ def run(args) -> dict:
                        configs=int(r.info.get("n_queries", 0)) // n_e, configs_shortcut=int(r.info.get("n_queries_shortcut", 0)) // n_e,
                        time_split=split, path_vertices=len(r.path), length=float(r.length))  # fmt: skip
             if r.success:
-                edges = EdgeChecker(prep.checker, LinkGeometry(robot=plan_robot), res)
+                edges = EdgeChecker(prep.checker, LinkGeometry(plan_robot), res)
                 row["path_free_slow_check"] = bool(edges.path_free(r.path))
         prep.checker.close()
         rows.append(row)

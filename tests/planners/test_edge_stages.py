@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from splatplan.errors import SplatplanError
-from splatplan.planners import RRT, EdgeChecker, LinkGeometry, edge_samples
+from splatplan.planners import RRT, EdgeChecker, edge_samples
+from splatplan.planners.robot_links import LinkGeometry
 
 from .scenes import make_checker, make_scene, wall_scene
 
@@ -31,7 +32,7 @@ def _arm_edges(robot, rng, e: int, scale: float):
 @pytest.mark.parametrize("stages", [2, 3, 5])
 def test_arm_stages_match_one_call(panda_boxes, stages):
     robot = robots.load_robot("panda")
-    geom = LinkGeometry(robot=robot)
+    geom = LinkGeometry(robot)
     rng = np.random.default_rng(stages)
     a, b = _arm_edges(robot, rng, 24, 0.5)
     a[:3] = b[:3]  # zero-length edges: one sample each
@@ -58,7 +59,7 @@ def test_arm_stages_match_one_call(panda_boxes, stages):
 
 def test_sphere_inflated_stages_match_one_call():
     ch = make_checker(wall_scene(), n_sigma=0.0)
-    rrt = RRT(ch)
+    rrt = RRT(ch, robot="sphere:0.015")
     rng = np.random.default_rng(1)
     a = np.column_stack([rng.uniform(-0.25, 0.25, 40), rng.uniform(-0.3, 0.3, 40), np.full(40, 0.06)])
     b = a + np.column_stack([rng.normal(scale=0.15, size=(40, 2)), np.zeros(40)])
@@ -74,7 +75,7 @@ def test_sphere_inflated_stages_match_one_call():
 
 
 def test_empty_and_bad_stages(panda_boxes):
-    geom = LinkGeometry(robot=robots.load_robot("panda"))
+    geom = LinkGeometry(robots.load_robot("panda"))
     k, n = EdgeChecker(panda_boxes, geom, 0.01, stages=3).free_prefix(np.zeros((0, 7)), np.zeros((0, 7)))
     assert k.shape == n.shape == (0,)
     with pytest.raises(SplatplanError):
