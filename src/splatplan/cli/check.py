@@ -135,7 +135,10 @@ def _check_robot(robot, q: np.ndarray, checker, scene, chunk: int) -> dict[str, 
 def cmd_check(args) -> int:
     from ..metric import CollisionChecker, MetricConfig
 
-    name = parse_robot_name(args.robot)  # fails fast on a malformed sphere:R / ellipsoid:A,B,C
+    try:
+        name = parse_robot_name(args.robot)  # fails fast on a malformed sphere:R / ellipsoid:A,B,C
+    except SplatplanError as exc:
+        raise SplatplanError(f"--robot: {exc}") from None
     link = name.is_point
     axes = np.asarray(name.semi_axes, dtype=np.float64) if link else None  # (3,)
     if (args.poses is None) == (args.configs is None):
