@@ -76,7 +76,7 @@ ESCAPES = [
                                    "--out", "{d}/r.png", "--background", "2,0,0"]),  # fmt: skip
     ("encode --encoder-image-size 0", ["encode", "{d}/img.png", "--encoder", "thumbnail", "--encoder-image-size", "0"]),
     ("view --max-splats 0", ["view", BANANA, "--max-splats", "0"]),
-    ("mpc panda --arm-noise-sigma -1", PANDA + ["--out", "{d}/m", "--arm-noise-sigma", "-1"]),
+    ("mpc panda --arm-mppi-noise-sigma -1", PANDA + ["--out", "{d}/m", "--arm-mppi-noise-sigma", "-1"]),
     ("mpc panda --arm-n-knots 1000", PANDA + ["--out", "{d}/m", "--arm-n-knots", "1000"]),
     ("mpc panda --arm-max-steps 0", PANDA + ["--out", "{d}/m", "--arm-max-steps", "0"]),
     ("mpc panda --arm-velocity-scale 0", PANDA + ["--out", "{d}/m", "--arm-velocity-scale", "0"]),
@@ -113,7 +113,7 @@ def test_oom_and_hang_name_the_flag(files, capsys):
     rc, _, err = run_main(["robot", "fit", "panda", "--out", str(files / "e.yaml"), "--per-link", "100000"], capsys)
     assert rc == 2 and "--per-link" in err
     # found beyond the list: sizes that grow memory without bound
-    rc, _, err = run_main(PANDA + ["--out", str(files / "m"), "--arm-n-samples", "1000000000"], capsys)
+    rc, _, err = run_main(PANDA + ["--out", str(files / "m"), "--arm-mppi-n-samples", "1000000000"], capsys)
     assert rc == 2 and "n_samples" in err and not (files / "m").exists()
     rc, _, err = run_main(["view", BANANA, "--field-res", "10000000", "--device", "cpu"], capsys)
     assert rc == 2 and "--field-res" in err

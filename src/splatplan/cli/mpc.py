@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -38,7 +39,8 @@ def cmd_mpc(args) -> int:
         gp = _floats(args.goal_pose, 7, "--goal-pose", "X,Y,Z,QW,QX,QY,QZ")
         if np.linalg.norm(gp[3:]) < 1e-8:
             raise SplatplanError(f"--goal-pose {args.goal_pose!r}: the quaternion QW,QX,QY,QZ is zero")
-        cfg = config_from_args(args, ArmConfig, "arm_", seed=args.seed)
+        cfg = config_from_args(args, ArmConfig, "arm_")
+        cfg = replace(cfg, mppi=replace(cfg.mppi, seed=args.seed))
         robot = robot_at("panda", parse_base_pose(args.base_pose))
         scene = args.scene or "tabletop"
         q0 = None if args.start is None else _floats(args.start, robot.dof, "--start", f"with {robot.dof} joint values")
@@ -112,7 +114,7 @@ def register(sub, eval_sub) -> None:
     s.add_argument("--out", required=True, help="output folder (result.json, motion.png)")
     s.add_argument("--seed", type=SEED, default=0, help="noise seed")
     add_device_arg(s)
-    add_config_args(s, ArmConfig, prefix="arm_", skip=("seed",), group="panda (ArmConfig) options")
+    add_config_args(s, ArmConfig, prefix="arm_", skip=("mppi.seed",), group="panda (ArmConfig) options")
     add_config_args(s, BaseConfig, prefix="base_", skip=("seed",), group="go2 (BaseConfig) options")
     s.set_defaults(func=cmd_mpc)
     for name, help_ in (("arm", "Panda reaching behind a wall of tabletop, with/without the collision cost (paper Table IV, no image)"),

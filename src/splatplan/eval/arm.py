@@ -68,7 +68,8 @@ def arm_throughput(n_samples: int = 256, horizon: int = 32, n_steps: int = 3, de
     from ..tasks.arm import ArmConfig, down_quat, run_arm
 
     ts = load_task_scene("tabletop", device=device, n_splats=n_splats)
-    cfg = ArmConfig(n_samples=n_samples, horizon=horizon, collision_stride=1, max_steps=1, stop_tol=0.0)
+    base = ArmConfig()
+    cfg = replace(base, mppi=replace(base.mppi, n_samples=n_samples, horizon=horizon), collision_stride=1, max_steps=1, stop_tol=0.0)
     run_arm("panda", ts, [0.64, 0.0, 0.0], down_quat(), config=cfg, check_goal=False, device=device)  # warm-up (kernels, grids)
     r = run_arm("panda", ts, [0.64, 0.0, 0.0], down_quat(), config=replace(cfg, max_steps=n_steps), check_goal=False, device=device)
     return {"n_samples": n_samples, "horizon": horizon, "n_splats": len(ts.splats), "n_ellipsoids": 11, "collision_stride": 1,
@@ -82,15 +83,16 @@ def run_arm_study(out_dir, quick: bool = False, seed: int = 0, device: str | Non
 
     t0 = time.perf_counter()
     n = 1 if quick else 5
-    cfg = ArmConfig(seed=seed, max_steps=150)
+    cfg = ArmConfig(max_steps=150)
+    cfg = replace(cfg, mppi=replace(cfg.mppi, seed=seed))
     if quick:
-        cfg = replace(cfg, n_samples=32, horizon=12, max_steps=25, collision_stride=3)
+        cfg = replace(cfg, mppi=replace(cfg.mppi, n_samples=32, horizon=12), max_steps=25, collision_stride=3)
     targets = pick_targets(n, seed=seed)
     ts = load_task_scene("tabletop", n_sigma=cfg.n_sigma, device=device)
     trials = []
     for i, (p, quat) in enumerate(targets):
         for collision in (True, False):
-            r = run_arm("panda", ts, p, quat, config=replace(cfg, seed=seed + i), collision=collision, q0=np.asarray(START_Q), device=device)
+            r = run_arm("panda", ts, p, quat, config=replace(cfg, mppi=replace(cfg.mppi, seed=seed + i)), collision=collision, q0=np.asarray(START_Q), device=device)
             trials.append({
                 "target": i, "config": "with_collision" if collision else "without_collision", "goal_position": p.round(4).tolist(),
                 "goal_quat_wxyz": quat.round(4).tolist(), "success": r.success, "min_clearance_m": r.min_clearance_m, "min_clearance_moving_links_m": r.extra["min_clearance_moving_links_m"],

@@ -372,7 +372,7 @@ class _BasePlanner:
         if self.collision is not None:
             terms = self.collision.terms(ro)
             col = np.sum(list(terms.values()), axis=0)
-            q = ro.cache["query"]  # (K, T', E) over the evaluated steps
+            q = self.collision.query(ro)  # (K, T', E) over the evaluated steps (memoised by terms)
             hit = np.asarray(q.in_collision).reshape(k, -1).any(axis=1)
         ctrl = cfg.w_control * np.sum(controls**2, axis=(1, 2)) * cfg.dt + cfg.w_yaw_rate * np.sum(controls[..., 2] ** 2, axis=1) * cfg.dt
         dist = np.linalg.norm(states[..., :2] - self.goal, axis=-1)  # (K, T) m, straight line
