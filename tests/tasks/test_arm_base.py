@@ -17,7 +17,7 @@ def tabletop_small():
 
 def test_ik_reaches_a_pose():
     from splatplan.robots import load_robot
-    from splatplan.tasks._ik import solve_ik
+    from splatplan.robots.ik import solve_ik
     from splatplan.tasks.arm import down_quat
 
     robot = load_robot("panda")
@@ -75,7 +75,8 @@ def test_tiny_base_run_moves_toward_the_goal():
 
     from splatplan.tasks.base import BaseConfig, load_go2, run_base
 
-    cfg = replace(BaseConfig(), n_samples=16, horizon=10, max_steps=10)
+    cfg = BaseConfig(max_steps=10)
+    cfg = replace(cfg, mppi=replace(cfg.mppi, n_samples=16, horizon=10))
     start = np.array([-2.3, -0.6, 0.0])
     goal = np.array([-1.0, 2.0])
     r = run_base(load_go2(), "apartment", goal, start=start, config=cfg)

@@ -53,7 +53,8 @@ def cmd_mpc(args) -> int:
         if args.goal is None:
             raise SplatplanError("--robot go2 needs --goal X,Y (metres)")
         g = _floats(args.goal, 2, "--goal", "X,Y")
-        cfg = config_from_args(args, BaseConfig, "base_", seed=args.seed)
+        cfg = config_from_args(args, BaseConfig, "base_")
+        cfg = replace(cfg, mppi=replace(cfg.mppi, seed=args.seed))
         robot = robot_at("go2", parse_base_pose(args.base_pose), robot=load_go2())
         scene = args.scene or "apartment"
         default = np.asarray(START, np.float64) if scene == "apartment" else np.zeros(3)  # the origin lies in the apartment's x = 0 wall
@@ -115,7 +116,7 @@ def register(sub, eval_sub) -> None:
     s.add_argument("--seed", type=SEED, default=0, help="noise seed")
     add_device_arg(s)
     add_config_args(s, ArmConfig, prefix="arm_", skip=("mppi.seed",), group="panda (ArmConfig) options")
-    add_config_args(s, BaseConfig, prefix="base_", skip=("seed",), group="go2 (BaseConfig) options")
+    add_config_args(s, BaseConfig, prefix="base_", skip=("mppi.seed",), group="go2 (BaseConfig) options")
     s.set_defaults(func=cmd_mpc)
     for name, help_ in (("arm", "Panda reaching behind a wall of tabletop, with/without the collision cost (paper Table IV, no image)"),
                         ("base", "Go2 driving to goals in other rooms of apartment given only the goal, with/without the collision cost")):  # fmt: skip

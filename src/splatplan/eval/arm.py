@@ -37,7 +37,7 @@ def pick_targets(n: int, seed: int = 0, min_goal_clearance: float = 0.01, max_tr
     """``n`` (position (3,), wxyz quat (4,)) targets behind the wall with a collision-free IK goal."""
     from ..robots import load_robot
     from ..scenes.builtin.tabletop import TARGET_REGION, tabletop_layout
-    from ..tasks._ik import solve_ik
+    from ..robots.ik import solve_ik
     from ..tasks.arm import down_quat
 
     robot = load_robot("panda")

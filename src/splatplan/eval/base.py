@@ -1,7 +1,7 @@
 """Base study: the Go2 driving from the living room of ``apartment`` to goals in the other rooms,
 given **only the goal position** (as the final node of an RRT path would be): with the collision
 cost (plain MPPI), with the collision cost and the sensed-obstacle memory
-(:class:`~splatplan.tasks.base.ObstacleMemory`, ``BaseConfig.memory``), and without the collision
+(:class:`~splatplan.planners.memory.ObstacleMemory`, ``BaseConfig.memory``), and without the collision
 cost.
 
 Goals: random positions in the bedroom and the kitchen where the Go2 stands collision-free at some
@@ -71,7 +71,8 @@ def run_base_study(out_dir, quick: bool = False, seed: int = 0, device: str | No
 
     t0 = time.perf_counter()
     n = 1 if quick else 5
-    cfg = BaseConfig(seed=seed, max_steps=250)
+    cfg = BaseConfig(max_steps=250)
+    cfg = replace(cfg, mppi=replace(cfg.mppi, seed=seed))
     if quick:
         cfg = replace(cfg, max_steps=130)
     goals = pick_goals(n, seed=seed)
@@ -80,7 +81,7 @@ def run_base_study(out_dir, quick: bool = False, seed: int = 0, device: str | No
     trials = []
     for i, g in enumerate(goals):
         for name, (collision, memory, _) in CONFIGS.items():
-            r = run_base(robot, ts, g, start=START, config=replace(cfg, seed=seed + i, memory=memory), collision=collision, device=device)
+            r = run_base(robot, ts, g, start=START, config=replace(cfg, mppi=replace(cfg.mppi, seed=seed + i), memory=memory), collision=collision, device=device)
             mem = r.extra["memory"] or {}
             trials.append({
                 "goal": i, "config": name, "goal_position": g.round(4).tolist(),

@@ -29,7 +29,7 @@ PAPER = {"without_collision": (-0.021, 0.0147, 3.48), "with_collision": (0.017, 
 
 def quick_config(cfg):
     """Smaller settings for ``--quick`` (< 2 min on 2 busy cores)."""
-    return replace(cfg, n_samples=16, horizon=24, n_knots=6, dt=0.1, plan_iters=20, plan_start_iters=10, plan_start_refine=5, refine_plan_iters=10, image_size=32, n_views=4)
+    return replace(cfg, mppi=replace(cfg.mppi, n_samples=16, horizon=24, n_knots=6, dt=0.1), plan_iters=20, plan_start_iters=10, plan_start_refine=5, refine_plan_iters=10, image_size=32, n_views=4)
 
 
 def _plot_goal(path: Path, robot, scene, goal, target, runs: dict) -> None:
@@ -103,7 +103,7 @@ def _row(config: str, runs: list) -> dict:
 def markdown(result: dict) -> str:
     lines = [
         f"Visual reaching (E5), encoder `{result['encoder']}`, {result['n_goals']} goals, images {result['config']['image_size']}x{result['config']['image_size']}, "
-        f"K = {result['config']['n_samples']}, T = {result['config']['horizon']}{' (--quick)' if result['quick'] else ''}",
+        f"K = {result['config']['mppi']['n_samples']}, T = {result['config']['mppi']['horizon']}{' (--quick)' if result['quick'] else ''}",
         "",
         "| config | clearance (m) | clearance, moving links (m) | translation error (m) | rotation error (deg) | successes | paper clearance | paper error (m) | paper error (deg) |",
         "|---|---|---|---|---|---|---|---|---|",
@@ -142,7 +142,7 @@ def run_reach_study(out_dir, *, encoder: str = "thumbnail", encoder_weights: str
     runs = {"with_collision": [], "without_collision": []}
     goals_json = []
     with SplatRenderer(ts.splats, device) as rend:
-        goals = make_reach_goals(robot, ts, rend, cam, n=n_goals, q_start=q0, n_behind=min(2, n_goals), seed=cfg.seed)
+        goals = make_reach_goals(robot, ts, rend, cam, n=n_goals, q_start=q0, n_behind=min(2, n_goals), seed=cfg.mppi.seed)
         if len(goals) < n_goals:
             raise SplatplanError(f"found only {len(goals)} of {n_goals} goal configurations (reachable, collision-free, a full and textured wrist view "
                                  f"within reach of the start): ask for fewer goals or change the seed")  # fmt: skip

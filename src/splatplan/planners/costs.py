@@ -435,15 +435,20 @@ class GoalPoseCost(Cost):
 
 
 class ControlEffortCost(Cost):
-    """``weight * sum_t |u_t|^2 dt`` (controls in the dynamics' units)."""
+    """``weight * sum_t |u_t|^2 dt + sum_d dim_weights[d] * sum_t u_td^2 dt`` (controls in the
+    dynamics' units; ``dim_weights`` {control dimension: extra weight}, e.g. {2: w} for a base's yaw rate)."""
 
     name = "control"
 
-    def __init__(self, weight: float = 0.01) -> None:
+    def __init__(self, weight: float = 0.01, dim_weights: dict[int, float] | None = None) -> None:
         self.weight = float(weight)
+        self.dim_weights = {int(d): float(w) for d, w in (dim_weights or {}).items()}
 
     def __call__(self, rollout: Rollout) -> np.ndarray:
-        return self.weight * np.sum(rollout.controls**2, axis=(1, 2)) * rollout.dt
+        c = self.weight * np.sum(rollout.controls**2, axis=(1, 2)) * rollout.dt
+        for d, w in self.dim_weights.items():
+            c = c + w * np.sum(rollout.controls[..., d] ** 2, axis=1) * rollout.dt
+        return c
 
 
 class JointLimitCost(Cost):

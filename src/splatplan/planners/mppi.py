@@ -202,12 +202,16 @@ class SamplingStrategy:
     """Extension point of :class:`MPPI`: how the knot sequences of one iteration are sampled, and
     optionally which knots replace the weighted-mean update.
 
-    ``sample(mppi, x, rng)`` returns (K', n_knots, du) knot sequences (MPPI clips them to the control
+    ``begin_step(mppi, x)`` is called once at the start of every :meth:`MPPI.step` (a strategy
+    with state across steps updates it there). ``sample(mppi, x, rng)`` returns (K', n_knots, du) knot sequences (MPPI clips them to the control
     bounds; K' may differ from ``n_samples``), drawing noise only from ``rng`` (MPPI's generator).
     ``select(mppi, x, samples, evaluation)`` may return (n_knots, du) knots to take as the new
     nominal instead of the MPPI weighted mean (None: the weighted mean), e.g. a recovery manoeuvre
     that found a way out.
     """
+
+    def begin_step(self, mppi: "MPPI", x: np.ndarray) -> None:
+        return None
 
     def sample(self, mppi: "MPPI", x: np.ndarray, rng: np.random.Generator) -> np.ndarray:  # pragma: no cover - abstract
         raise NotImplementedError
@@ -495,6 +499,7 @@ class MPPI:
         if n_iters < 1 or not lam > 0:
             raise SplatplanError(f"MPPI.step needs n_iters >= 1 and temperature > 0, got {n_iters} and {lam}")
         x = np.asarray(x, dtype=np.float64).reshape(-1)
+        self.sampler.begin_step(self, x)
         elite_knots, elite_cost = None, np.inf  # (n, du) lowest-cost sample of this step (cfg.elite)
         for _ in range(n_iters):
             samples = self._clip(self.sampler.sample(self, x, self.rng))  # (K, n, du)

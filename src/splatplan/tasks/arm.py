@@ -19,7 +19,7 @@ Warm start by shifting the knots one control period (MPPI's own); the knots are 
 B-spline so that the applied first control is set by knots that shape the whole rollout; the
 knot noise shrinks near the goal (``noise_anneal_m``). The collision cost may query every
 ``collision_stride``-th step of the horizon. The goal pose is checked for reachability by IK
-(:func:`~splatplan.tasks._ik.solve_ik`) before any step: an unreachable goal is an error.
+(:func:`~splatplan.robots.ik.solve_ik`) before any step: an unreachable goal is an error.
 """
 
 from __future__ import annotations
@@ -30,11 +30,11 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from .._config import NESTED_SKIP, bounded, check_config
-from ..planners.mppi import MPPIConfig
 from ..errors import SplatplanError
-from ._common import TaskResult, TaskScene, check_start, load_task_scene, moving_clearance, trajectory_clearance
 from ..planners.dynamics import JointIntegrator
-from ._ik import rotation_error, solve_ik
+from ..planners.mppi import MPPIConfig
+from ..robots.ik import rotation_error, solve_ik
+from ._common import TaskResult, TaskScene, check_start, load_task_scene, moving_clearance, trajectory_clearance
 
 __all__ = ["ArmConfig", "check_reachable", "down_quat", "run_arm"]
 

@@ -379,7 +379,7 @@ def drive_to(robot, nav: NavScene, goal_xy, cfg: NavigateConfig, *, start=None, 
         costs.append(StateCost(lambda s: wrap_angle(s[..., 2] - yaw0) ** 2, weight=cfg.w_yaw, name="heading"))
     um = np.asarray(cfg.u_max, np.float64)
     mcfg = MPPIConfig(n_samples=cfg.n_samples, horizon=cfg.horizon, n_knots=cfg.n_knots, dt=cfg.dt, temperature=cfg.temperature,
-                      noise_sigma=tuple(cfg.noise_sigma), n_iters=cfg.n_iters, u_min=tuple(-um), u_max=tuple(um), seed=cfg.seed)  # fmt: skip
+                      noise_sigma=tuple(cfg.noise_sigma), n_iters=cfg.n_iters, u_min=tuple(-um), u_max=tuple(um), seed=cfg.seed, report_nominal=False)  # fmt: skip
     mppi = MPPI(dyn, drive_checker, mcfg, costs=costs)
     states = [x.copy()]
     prog = 0
