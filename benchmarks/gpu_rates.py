@@ -39,7 +39,7 @@ def device_name(device: str) -> str:
 
 def bench_reach(device: str, size: int, encoder: str, quick: bool, backend: str = "warp") -> dict:
     from splatplan.encoders import load_encoder
-    from splatplan.eval.reach import quick_config
+    from splatplan.eval.reach import quick_task_config
     from splatplan.render import SplatRenderer
     from splatplan.robots import load_robot
     from splatplan.tasks._common import load_task_scene
@@ -47,7 +47,7 @@ def bench_reach(device: str, size: int, encoder: str, quick: bool, backend: str 
 
     from dataclasses import replace
 
-    cfg = replace(quick_config(ReachConfig()) if quick else ReachConfig(), image_size=size)
+    cfg = replace(quick_task_config(ReachConfig()) if quick else ReachConfig(), image_size=size)
     robot = load_robot("panda")
     ts = load_task_scene("tabletop", n_sigma=cfg.n_sigma, device=device, n_splats=cfg.n_splats)
     random = encoder.startswith("dinov2")

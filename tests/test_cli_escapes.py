@@ -91,7 +91,7 @@ ESCAPES = [
     ("navigate --dt 0", NAV + ["--out", "{d}/n", "--dt", "0"]),
     ("navigate --n-samples 0", NAV + ["--out", "{d}/n", "--n-samples", "0"]),
     ("navigate --index-spacing-m 0", NAV + ["--out", "{d}/n", "--index-spacing-m", "0"]),
-    ("--base-mppi-n-iters does nothing", GO2 + ["--out", "{d}/m", "--base-mppi-n-iters", "3"]),
+    ("--base-n-iters does nothing", GO2 + ["--out", "{d}/m", "--base-n-iters", "3"]),
     ("argparse usage block", ["plan"]),
 ]
 

@@ -193,7 +193,7 @@ def run_reach_demo(out: Path, device: str = "auto") -> dict:
     """One short visual-reaching run (E5): the Panda's wrist camera reaches a goal image in the
     tabletop with MPPI, the terminal image cost (the E5 study's weight-free thumbnail pyramid, its
     ``--quick`` settings) and the collision cost -> ``demo_reach.png`` (target image, final image, wrist views, camera path). ~10 s on 2 cores."""
-    from .eval.reach import _plot_goal, quick_config
+    from .eval.reach import _plot_goal, quick_task_config
     from .render import SplatRenderer
     from .robots import load_robot
     from .tasks._common import base_terrain, load_task_scene
@@ -202,7 +202,7 @@ def run_reach_demo(out: Path, device: str = "auto") -> dict:
 
     t0 = time.perf_counter()
     dev = resolve_device(device)
-    cfg = quick_config(ReachConfig())  # exactly the study's --quick run (its first goal, with the collision cost)
+    cfg = quick_task_config(ReachConfig())  # exactly the study's --quick run (its first goal, with the collision cost)
     robot = load_robot("panda")
     ts = load_task_scene("tabletop", n_sigma=cfg.n_sigma, device=dev, n_splats=cfg.n_splats)
     cam = wrist_camera(robot, cfg.image_size, cfg.fov_deg, cfg.camera_link)

