@@ -127,7 +127,7 @@ def test_reach_rejects_zero_plan_starts():
 def test_goal_refiner_ill_conditioned_quadratic():
     """The refiner keeps the plan unless a sample beats it (monotone), and its covariance follows a
     narrow valley: on a 7-D quadratic with condition number 1e4 it gets 1e-3 of the start cost."""
-    from splatplan.tasks.reach import GoalRefiner
+    from splatplan.planners.goal_refiner import GoalRefiner
 
     rng = np.random.default_rng(3)
     rot = np.linalg.qr(rng.standard_normal((7, 7)))[0]
