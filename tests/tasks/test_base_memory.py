@@ -211,3 +211,28 @@ def test_memory_maps_reach_the_plot_not_the_json():
     labels = [h.get_label() for h in ax.get_lines()]
     assert "sensed blocked (memory)" in labels and "sensed free (memory)" in labels
     plt.close(fig)
+
+
+def test_recovery_sweeps_out_of_the_u_trap_through_the_strategy(go2):
+    """The stagnation recovery (StructuredDrives, off by default) starts a sweep in the U trap: the
+    goal cost switches to the sweep term and back, every event is recorded, no run error."""
+    from splatplan.planners.drive import DriveGoalCost
+    from splatplan.planners.costs import Rollout
+    from splatplan.tasks.base import BaseConfig, run_base
+
+    ts = _scene([(1.0, -1.1, 1.0, 1.1), (-1.5, 1.1, 1.0, 1.1), (-1.5, -1.1, 1.0, -1.1)])
+    cfg = BaseConfig(max_steps=30, ground_z=None, recovery=True, stuck_steps=4, recovery_min_distance_m=0.1)
+    r = run_base(go2, ts, (2.5, 0.0), start=(0.0, 0.0, 0.0), config=cfg)
+    events = [e["event"] for e in r.extra["events"]]
+    assert "detour" in events and r.min_clearance_m > 0, events
+    # the sweep term: progress along the swept heading is rewarded, the goal term still reported
+    cost = DriveGoalCost((2.5, 0.0))
+    states = np.zeros((2, 3, 3))
+    states[1, :, 1] = [0.1, 0.2, 0.3]  # sample 1 walks along +y, facing +x
+    ro = Rollout(states, np.zeros((2, 3, 3)), 0.2)
+    goal_only = cost.evaluate(ro)
+    cost.sweep = (np.pi / 2, np.zeros(2))
+    swept = cost.evaluate(ro)
+    assert set(goal_only.terms) == {"goal"} and set(swept.terms) == {"sweep"}
+    assert swept.terms["sweep"][1] < swept.terms["sweep"][0]
+    np.testing.assert_array_equal(swept.values["goal_cost"], goal_only.terms["goal"])
