@@ -2,25 +2,32 @@
 
 One MPC step (:meth:`MPPI.step`) runs ``n_iters`` iterations of:
 
-1. sample K control-knot sequences ``V_k = U_bar + eps_k``, ``eps_k ~ N(0, diag(sigma^2))`` per knot
-   (sample 0 is the unperturbed nominal), clipped to the control bounds;
-2. controls ``u_k = B V_k`` (uniform clamped cubic B-spline basis B (T, n_knots)), so the clipped
-   knots keep every control inside the bounds (convex hull property);
+1. sample K control-knot sequences, by default (:class:`GaussianKnots`) ``V_k = U_bar + eps_k``,
+   ``eps_k ~ N(0, diag(sigma^2))`` per knot (sample 0 is the unperturbed nominal), clipped to the
+   control bounds; a :class:`SamplingStrategy` may sample otherwise (e.g. the planar base's
+   structured drives, :mod:`splatplan.planners.drive`);
+2. controls ``u_k = B V_k`` (uniform cubic B-spline basis B (T, n_knots), clamped or not:
+   ``MPPIConfig.clamped_spline``), so the clipped knots keep every control inside the bounds
+   (convex hull property);
 3. roll out ``x_k = f(x, u_k)`` (K, T, dx);
 4. cost ``C_k = sum_c cost_c(rollout_k)`` over a list of composable cost objects
-   (:mod:`splatplan.planners.costs`). Built from the config and the ``task_cost`` /
-   ``terminal_cost`` callables when no list is given:
+   (:mod:`splatplan.planners.costs`), reported as a typed :class:`Evaluation`. Built from
+   :class:`CostWeights` and the ``task_cost`` / ``terminal_cost`` callables when no list is given:
    ``w_col sum_{t,l} cost_{ktl} + w_hit sum_{t,l} [in collision]_{ktl}`` (:class:`CollisionCost`:
    one query on the (K, T, dof) batch over every robot ellipsoid)
    ``+ w_task task(x_k)`` (:class:`StateCost`) ``+ w_ctrl sum_t |u_kt|^2 dt``
    (:class:`ControlEffortCost`) ``+ w_term terminal(x_kT)`` (:class:`TerminalCost`);
 5. weights ``w_k = exp(-(C_k - min C) / lambda) / sum_l exp(-(C_l - min C) / lambda)``;
-6. ``U_bar <- sum_k w_k V_k``.
+6. ``U_bar <- sum_k w_k V_k`` (or the knots the strategy's ``select`` returns).
 
 Then the first control of the nominal is returned and the knots are warm-started for the next
 step by shifting the curve one control period forward in time (least squares, see
-:class:`~splatplan.planners.bspline.UniformBSpline`). The image cost of the paper enters through
-``terminal_cost`` (states at T -> (K,) costs).
+:class:`~splatplan.planners.bspline.UniformBSpline`). The image cost of the paper enters as a cost
+object (:class:`~splatplan.planners.image_cost.ImageCost`) or through ``terminal_cost``.
+
+Nothing inside MPPI is changed from outside while it runs: a schedule passes ``n_iters``,
+``temperature`` and ``goal_step`` to :meth:`MPPI.step`, scales the noise with
+:meth:`MPPI.set_noise_scale` and sets the nominal / noise generator with :meth:`MPPI.reset`.
 """
 
 from __future__ import annotations
