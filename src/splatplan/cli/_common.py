@@ -582,6 +582,8 @@ def _metavar(tp) -> str:
         mv = "NAME:N,..." if inner and typing.get_origin(inner[0]) is tuple else "A,B,..."
     elif origin is dict:
         mv = "KEY=V,..."
+    elif _is_union(tp) and any(typing.get_origin(a) is tuple for a in typing.get_args(tp)):
+        mv = "X|A,B,..."
     else:
         mv = {float: "FLOAT", int: "INT", bool: "BOOL"}.get(tp, "STR")
     return f"{mv}|none" if optional else mv
@@ -663,6 +665,13 @@ def _parser_for(tp, flag: str, f: dataclasses.Field | None = None, owner: str = 
                         raise ValueError(it)
                     out[_scalar(kt, k.strip())] = _scalar(vt, v.strip())
                 return out
+            tuples = [a for a in typing.get_args(inner) if typing.get_origin(a) is tuple] if _is_union(inner) else []
+            if tuples:  # e.g. float | tuple[float, ...]: one value or a comma list of the tuple's items
+                el = [t for t in typing.get_args(tuples[0]) if t is not Ellipsis][0]
+                items = [_scalar(el, x) for x in text.split(",") if x.strip()]
+                if not items:
+                    raise ValueError(text)
+                return tuple(items) if "," in text else items[0]
             return _scalar(inner, text)
         except ValueError:
             raise argparse.ArgumentTypeError(f"cannot read {text!r} as {_metavar(tp)}") from None
