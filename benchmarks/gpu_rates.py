@@ -39,7 +39,7 @@ def device_name(device: str) -> str:
 
 def bench_reach(device: str, size: int, encoder: str, quick: bool, backend: str = "warp") -> dict:
     from splatplan.encoders import load_encoder
-    from splatplan.eval.reach import quick_config
+    from splatplan.eval.reach import quick_task_config
     from splatplan.render import SplatRenderer
     from splatplan.robots import load_robot
     from splatplan.tasks._common import load_task_scene
@@ -47,7 +47,7 @@ def bench_reach(device: str, size: int, encoder: str, quick: bool, backend: str 
 
     from dataclasses import replace
 
-    cfg = replace(quick_config(ReachConfig()) if quick else ReachConfig(), image_size=size)
+    cfg = replace(quick_task_config(ReachConfig()) if quick else ReachConfig(), image_size=size)
     robot = load_robot("panda")
     ts = load_task_scene("tabletop", n_sigma=cfg.n_sigma, device=device, n_splats=cfg.n_splats)
     random = encoder.startswith("dinov2")
@@ -55,7 +55,7 @@ def bench_reach(device: str, size: int, encoder: str, quick: bool, backend: str 
     cam = wrist_camera(robot, cfg.image_size, cfg.fov_deg, cfg.camera_link)
     q0 = reach_start(robot, cfg.camera_link)
     with SplatRenderer(ts.splats, device) as rend:
-        g = make_reach_goals(robot, ts, rend, cam, n=1, q_start=q0, n_behind=1, seed=cfg.seed)[0]
+        g = make_reach_goals(robot, ts, rend, cam, n=1, q_start=q0, n_behind=1, seed=cfg.mppi.seed)[0]
         target = cam.render(rend, robot, g["q"][None], background=(cfg.background,) * 3).rgb[0]
         import numpy as np
 
@@ -69,7 +69,7 @@ def bench_reach(device: str, size: int, encoder: str, quick: bool, backend: str 
         enc.encode(target[None])
         r = run_reach(robot, ts, target, config=cfg, collision=True, q0=q0, encoder=enc, goal_camera_pose=g["camera_pose"], renderer=run_rend, device=device)
     return {
-        "encoder": enc.name, "renderer": backend, "image_size": cfg.image_size, "K": cfg.n_samples, "T": cfg.horizon, "device": device,
+        "encoder": enc.name, "renderer": backend, "image_size": cfg.image_size, "K": cfg.mppi.n_samples, "T": cfg.mppi.horizon, "device": device,
         "mpc_steps": len(r.trajectory) - 1, "mppi_iterations": r.iterations, "time_s": r.time_s,
         "mpc_steps_per_s": r.steps_per_s, "mppi_iterations_per_s": r.iterations_per_s,
         "translation_error_m": r.translation_error_m, "rotation_error_deg": r.rotation_error_deg, "min_clearance_m": r.min_clearance_m,

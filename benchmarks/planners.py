@@ -222,6 +222,7 @@ def bench_mppi_panda(
     ``profile``: also report the wall seconds per MPC step spent in each cost object (the rest is
     sampling, the B-spline, rollouts and the weights)."""
     from splatplan.planners import MPPI, CollisionCost, ControlEffortCost, GoalPoseCost, JointIntegrator, JointLimitCost, MPPIConfig
+    from splatplan.planners.mppi import CostWeights
     from splatplan.planners.costs import fk_device
     from splatplan.planners.mppi import joint_speed_bound
     from splatplan.scenes.builtin.tabletop import TARGET_REGION
@@ -233,7 +234,7 @@ def bench_mppi_panda(
     cfg = MPPIConfig(n_samples=n_samples, horizon=32, n_knots=6, dt=0.05, n_iters=1, noise_sigma=0.4, temperature=0.05,
                      u_min=-1.0, u_max=1.0, seed=seed, prune_margin=prune_margin, prune_chunks=prune_chunks)  # fmt: skip
     dyn = JointIntegrator(robot)
-    col = CollisionCost(checker, dyn, weight=1.0, hit_weight=10.0, s2_cap=cfg.collision_s2_cap, time_stride=time_stride,
+    col = CollisionCost(checker, dyn, weight=1.0, hit_weight=10.0, s2_cap=CostWeights().collision_s2_cap, time_stride=time_stride,
                         speed_bound=joint_speed_bound(dyn, cfg.u_min, cfg.u_max), static_shortcut=static_shortcut)  # fmt: skip
     costs = [
         col,
@@ -245,7 +246,7 @@ def bench_mppi_panda(
     spent = {type(c).__name__: 0.0 for c in costs}
     if profile:
         for c in costs:
-            c.terms = _timed(c.terms, spent, type(c).__name__)
+            c.evaluate = _timed(c.evaluate, spent, type(c).__name__)
             if hasattr(c, "chunk_terms"):  # the pruned evaluation's collision queries
                 c.chunk_terms = _timed(c.chunk_terms, spent, type(c).__name__)
     x = robot.q_default.copy()
@@ -289,7 +290,7 @@ def bench_mppi_panda(
 
     sraw, _ = build_stonehenge(level=1, seed=seed)
     sh, _ = filter_floaters(sraw)
-    sc = CollisionChecker(sh, n_sigma=1.0).with_config(s2_cap=cfg.collision_s2_cap)
+    sc = CollisionChecker(sh, n_sigma=1.0).with_config(s2_cap=CostWeights().collision_s2_cap)
     n_cfg = 64 if quick else 512  # a slice of the (K, T) batch; the full batch's time is projected
     qb = np.clip(robot.q_default + np.random.default_rng(seed).normal(scale=0.2, size=(n_cfg, 7)), robot.joint_limits[:, 0], robot.joint_limits[:, 1])
     sc.query_robot(robot, qb[:4])

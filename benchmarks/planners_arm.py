@@ -39,7 +39,7 @@ def arm_problems(n: int, n_splats: int, n_sigma: float, seed: int = 0):
     from splatplan.robots import load_robot
     from splatplan.scenes.builtin.tabletop import build_tabletop
     from splatplan.scenes.filters import filter_floaters
-    from splatplan.tasks._ik import solve_ik
+    from splatplan.robots.ik import solve_ik
 
     robot = load_robot("panda")
     splats, gt = build_tabletop(seed, n_splats=n_splats)

@@ -76,20 +76,20 @@ ESCAPES = [
                                    "--out", "{d}/r.png", "--background", "2,0,0"]),  # fmt: skip
     ("encode --encoder-image-size 0", ["encode", "{d}/img.png", "--encoder", "thumbnail", "--encoder-image-size", "0"]),
     ("view --max-splats 0", ["view", BANANA, "--max-splats", "0"]),
-    ("mpc panda --arm-noise-sigma -1", PANDA + ["--out", "{d}/m", "--arm-noise-sigma", "-1"]),
-    ("mpc panda --arm-n-knots 1000", PANDA + ["--out", "{d}/m", "--arm-n-knots", "1000"]),
+    ("mpc panda --arm-mppi-noise-sigma -1", PANDA + ["--out", "{d}/m", "--arm-mppi-noise-sigma", "-1"]),
+    ("mpc panda --arm-mppi-n-knots 1000", PANDA + ["--out", "{d}/m", "--arm-mppi-n-knots", "1000"]),
     ("mpc panda --arm-max-steps 0", PANDA + ["--out", "{d}/m", "--arm-max-steps", "0"]),
     ("mpc panda --arm-velocity-scale 0", PANDA + ["--out", "{d}/m", "--arm-velocity-scale", "0"]),
     ("mpc panda --arm-velocity-scale -1", PANDA + ["--out", "{d}/m", "--arm-velocity-scale", "-1"]),
     ("mpc panda --arm-position-tol -1", PANDA + ["--out", "{d}/m", "--arm-position-tol", "-1"]),
-    ("mpc go2 --base-n-samples 0", GO2 + ["--out", "{d}/m", "--base-n-samples", "0"]),
-    ("mpc go2 --base-dt 0", GO2 + ["--out", "{d}/m", "--base-dt", "0"]),
+    ("mpc go2 --base-mppi-n-samples 0", GO2 + ["--out", "{d}/m", "--base-mppi-n-samples", "0"]),
+    ("mpc go2 --base-mppi-dt 0", GO2 + ["--out", "{d}/m", "--base-mppi-dt", "0"]),
     ("mpc go2 --base-goal-tol -1", GO2 + ["--out", "{d}/m", "--base-goal-tol", "-1"]),
     ("mpc go2 --base-sensor-radius-m -1", GO2 + ["--out", "{d}/m", "--base-sensor-radius-m", "-1"]),
     ("mpc go2 --base-memory-cell-m 0", GO2 + ["--out", "{d}/m", "--base-memory-cell-m", "0"]),
     ("mpc go2 --base-memory-yaws 0", GO2 + ["--out", "{d}/m", "--base-memory-yaws", "0"]),
-    ("navigate --dt 0", NAV + ["--out", "{d}/n", "--dt", "0"]),
-    ("navigate --n-samples 0", NAV + ["--out", "{d}/n", "--n-samples", "0"]),
+    ("navigate --mppi-dt 0", NAV + ["--out", "{d}/n", "--mppi-dt", "0"]),
+    ("navigate --mppi-n-samples 0", NAV + ["--out", "{d}/n", "--mppi-n-samples", "0"]),
     ("navigate --index-spacing-m 0", NAV + ["--out", "{d}/n", "--index-spacing-m", "0"]),
     ("--base-n-iters does nothing", GO2 + ["--out", "{d}/m", "--base-n-iters", "3"]),
     ("argparse usage block", ["plan"]),
@@ -113,7 +113,7 @@ def test_oom_and_hang_name_the_flag(files, capsys):
     rc, _, err = run_main(["robot", "fit", "panda", "--out", str(files / "e.yaml"), "--per-link", "100000"], capsys)
     assert rc == 2 and "--per-link" in err
     # found beyond the list: sizes that grow memory without bound
-    rc, _, err = run_main(PANDA + ["--out", str(files / "m"), "--arm-n-samples", "1000000000"], capsys)
+    rc, _, err = run_main(PANDA + ["--out", str(files / "m"), "--arm-mppi-n-samples", "1000000000"], capsys)
     assert rc == 2 and "n_samples" in err and not (files / "m").exists()
     rc, _, err = run_main(["view", BANANA, "--field-res", "10000000", "--device", "cpu"], capsys)
     assert rc == 2 and "--field-res" in err
@@ -129,10 +129,11 @@ def test_oom_and_hang_name_the_flag(files, capsys):
 
 def test_library_gets_the_same_message():
     from splatplan.errors import SplatplanError
+    from splatplan.planners import MPPIConfig
     from splatplan.tasks.base import BaseConfig
 
-    with pytest.raises(SplatplanError, match=r"BaseConfig\.dt must be > 0, got 0"):
-        BaseConfig(dt=0.0).validate()
+    with pytest.raises(SplatplanError, match=r"MPPIConfig\.dt must be > 0, got 0"):
+        BaseConfig(mppi=MPPIConfig(dt=0.0)).validate()
     assert not hasattr(BaseConfig(), "n_iters")  # removed: it was never read
 
 

@@ -303,7 +303,7 @@ def test_enumeration_covers_every_command_and_flag():
     cmds = {c for c, _ in leaf_parsers(parser)}
     assert {("plan",), ("check",), ("view",), ("mpc",), ("eval", "pr"), ("robot", "fit"), ("navigate",)} <= cmds
     flags = {(c, n) for c, n, _ in ALL_CASES}
-    assert (("mpc",), "--arm-n-knots") in flags and (("view",), "--port") in flags
+    assert (("mpc",), "--arm-mppi-n-knots") in flags and (("view",), "--port") in flags
     assert len(flags) > 300  # every value-taking flag of every command
 
 

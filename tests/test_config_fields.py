@@ -97,13 +97,14 @@ def test_constraint_api():
 
 def test_cli_flag_and_library_give_the_same_message(capsys):
     from splatplan.cli import main
+    from splatplan.planners import MPPIConfig
     from splatplan.tasks.arm import ArmConfig
 
-    assert main(["mpc", "--robot", "panda", "--out", "x", "--arm-dt", "0"]) == 2
+    assert main(["mpc", "--robot", "panda", "--out", "x", "--arm-mppi-dt", "0"]) == 2
     err = capsys.readouterr().err.strip()
-    assert err == "splatplan: error: argument --arm-dt: must be > 0, got 0.0 (ArmConfig.dt)"
-    with pytest.raises(SplatplanError, match=r"^ArmConfig\.dt must be > 0, got 0\.0$"):
-        ArmConfig(dt=0.0).validate()
+    assert err == "splatplan: error: argument --arm-mppi-dt: must be > 0, got 0.0 (MPPIConfig.dt)"
+    with pytest.raises(SplatplanError, match=r"^MPPIConfig\.dt must be > 0, got 0\.0$"):
+        ArmConfig(mppi=MPPIConfig(dt=0.0)).validate()
 
 
 def test_every_plain_flag_is_read():

@@ -47,9 +47,12 @@ from dataclasses import dataclass
 
 from .errors import SplatplanError
 
-__all__ = ["Bounds", "bounded", "bounds", "check_config", "check_value", "field_bounds"]
+__all__ = ["NESTED_SKIP", "Bounds", "bounded", "bounds", "check_config", "check_value", "field_bounds"]
 
 _KEY = "splatplan.bounds"
+#: ``field(metadata={NESTED_SKIP: ("u_min", ...)})`` on a config embedded in another (e.g. a task's
+#: ``MPPIConfig``): those of its fields get no CLI flag, the enclosing config sets them
+NESTED_SKIP = "splatplan.nested_skip"
 
 
 @dataclass(frozen=True)

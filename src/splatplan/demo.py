@@ -190,7 +190,7 @@ def run_reach_demo(out: Path, device: str = "auto") -> dict:
     """One short visual-reaching run (E5): the Panda's wrist camera reaches a goal image in the
     tabletop with MPPI, the terminal image cost (the E5 study's weight-free thumbnail pyramid, its
     ``--quick`` settings) and the collision cost -> ``demo_reach.png`` (target image, final image, wrist views, camera path). ~10 s on 2 cores."""
-    from .eval.reach import _plot_goal, quick_config
+    from .eval.reach import _plot_goal, quick_task_config
     from .render import SplatRenderer
     from .robots import load_robot
     from .tasks._common import load_task_scene
@@ -199,18 +199,18 @@ def run_reach_demo(out: Path, device: str = "auto") -> dict:
 
     t0 = time.perf_counter()
     dev = resolve_device(device)
-    cfg = quick_config(ReachConfig())  # exactly the study's --quick run (its first goal, with the collision cost)
+    cfg = quick_task_config(ReachConfig())  # exactly the study's --quick run (its first goal, with the collision cost)
     robot = load_robot("panda")
     ts = load_task_scene("tabletop", n_sigma=cfg.n_sigma, device=dev, n_splats=cfg.n_splats)
     cam = wrist_camera(robot, cfg.image_size, cfg.fov_deg, cfg.camera_link)
     q0 = reach_start(robot, cfg.camera_link)
     with SplatRenderer(ts.splats, dev) as rend:
-        goal = make_reach_goals(robot, ts, rend, cam, n=1, q_start=q0, n_behind=1, n_candidates=128, seed=cfg.seed)[0]
+        goal = make_reach_goals(robot, ts, rend, cam, n=1, q_start=q0, n_behind=1, n_candidates=128, seed=cfg.mppi.seed)[0]
         target = np.asarray(cam.render(rend, robot, goal["q"][None], background=(cfg.background,) * 3).rgb[0])
         res = run_reach(robot, ts, target, config=cfg, q0=q0, encoder=reach_encoder("thumbnail", device=dev, config=cfg), goal_camera_pose=goal["camera_pose"], renderer=rend, device=dev)
     path = Path(out) / "demo_reach.png"
     _plot_goal(path, robot, ts, goal, target, {"with_collision": res})
-    print(f"\nvisual reaching ({goal['name']}, {res.encoder}, {cfg.image_size}x{cfg.image_size} renders, K = {cfg.n_samples}): camera error "
+    print(f"\nvisual reaching ({goal['name']}, {res.encoder}, {cfg.image_size}x{cfg.image_size} renders, K = {cfg.mppi.n_samples}): camera error "
           f"{100 * res.translation_error_m:.1f} cm / {res.rotation_error_deg:.1f} deg, min clearance {100 * res.min_clearance_m:+.2f} cm (moving links {100 * res.extra['min_clearance_moving_links_m']:+.2f} cm), "
           f"{res.steps_per_s:.2f} MPC steps/s; wrote {path} in {time.perf_counter() - t0:.1f} s")
     return res.summary()
@@ -237,7 +237,8 @@ def run_robot_demo(out: Path, device: str = "auto") -> dict:
     dev = resolve_device(device)
     out = Path(out)
     summary = {}
-    acfg = replace(ArmConfig(), n_samples=48, horizon=12, max_steps=45, collision_stride=3)
+    acfg = ArmConfig(max_steps=45, collision_stride=3)
+    acfg = replace(acfg, mppi=replace(acfg.mppi, n_samples=48, horizon=12))
     panda = load_robot("panda")
     ts = load_task_scene("tabletop", n_sigma=acfg.n_sigma, device=dev)
     arm = run_arm(panda, ts, [0.64, 0.02, 0.0], down_quat(0.2), config=acfg, device=dev)
@@ -245,7 +246,7 @@ def run_robot_demo(out: Path, device: str = "auto") -> dict:
     fig.savefig(out / "demo_arm.png", dpi=90)
     plt.close(fig)
     summary["arm"] = {k: getattr(arm, k) for k in ("success", "final_position_error_m", "min_clearance_m", "steps_per_s")}
-    print(f"\narm (Panda, tabletop, K = {acfg.n_samples}, T = {acfg.horizon}): end-effector error {100 * arm.final_position_error_m:.1f} cm / "
+    print(f"\narm (Panda, tabletop, K = {acfg.mppi.n_samples}, T = {acfg.mppi.horizon}): end-effector error {100 * arm.final_position_error_m:.1f} cm / "
           f"{arm.final_orientation_error_deg:.1f} deg, min clearance {100 * arm.min_clearance_m:+.2f} cm (exact; moving links {100 * arm.extra['min_clearance_moving_links_m']:+.2f} cm), {arm.steps_per_s:.2f} MPC steps/s")  # fmt: skip
     bcfg = replace(BaseConfig(), max_steps=150, memory=True)
     go2 = load_go2()
@@ -255,7 +256,7 @@ def run_robot_demo(out: Path, device: str = "auto") -> dict:
     fig.savefig(out / "demo_go2.png", dpi=90)
     plt.close(fig)
     summary["go2"] = {k: getattr(base, k) for k in ("success", "final_position_error_m", "min_clearance_m", "steps_per_s")}
-    print(f"quadruped (Go2, apartment, K = {bcfg.n_samples}, T = {bcfg.horizon}): distance to goal {base.final_position_error_m:.2f} m, "
+    print(f"quadruped (Go2, apartment, K = {bcfg.mppi.n_samples}, T = {bcfg.mppi.horizon}): distance to goal {base.final_position_error_m:.2f} m, "
           f"min clearance {100 * base.min_clearance_m:+.1f} cm (exact), "
           + (f"time to goal {base.extra['time_to_goal_s']:.1f} s" if base.success else "goal not reached")
           + f", {base.steps_per_s:.2f} MPC steps/s")  # fmt: skip

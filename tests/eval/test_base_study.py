@@ -9,7 +9,7 @@ import numpy as np
 
 def test_rows_report_each_config_with_its_meaning(tmp_path, monkeypatch):
     import splatplan.tasks.base as tb
-    from splatplan.eval.base import CONFIGS, START, run_base_study
+    from splatplan.eval.base import CONFIGS, START, BaseStudyConfig, report, run
     from splatplan.tasks._common import TaskResult
 
     calls = []
@@ -24,7 +24,10 @@ def test_rows_report_each_config_with_its_meaning(tmp_path, monkeypatch):
                           extra={"time_to_goal_s": 0.8, "n_steps": 4, "events": [], "memory": mem})  # fmt: skip
 
     monkeypatch.setattr(tb, "run_base", fake_run_base)
-    res = run_base_study(tmp_path, quick=True)
+    result = run(BaseStudyConfig.quick_config())
+    assert report(result, tmp_path) == [tmp_path / "base.json", tmp_path / "base.md"]
+    res = result.to_json()
+    assert res["quick"] is True and res["config"]["max_steps"] == 130
     assert [r["config"] for r in res["rows"]] == list(CONFIGS) == ["with_collision", "with_collision_memory", "without_collision"]
     assert calls == [(START, True, False), (START, True, True), (START, False, False)]
     rows = {r["config"]: r for r in res["rows"]}

@@ -3,12 +3,14 @@ dynamics built from a Robot."""
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
 from splatplan.errors import SplatplanError
 from splatplan.planners import (
-    MPPI, CollisionCost, ControlEffortCost, GoalPoseCost, HolonomicPoint, JointIntegrator, JointLimitCost, MPPIConfig, PlanarBase,
+    MPPI, CollisionCost, ControlEffortCost, CostWeights, GoalPoseCost, HolonomicPoint, JointIntegrator, JointLimitCost, MPPIConfig, PlanarBase,
     Rollout, StateCost, TerminalCost, total_cost,
 )  # fmt: skip
 
@@ -26,7 +28,8 @@ def _cfg(**kw):
     base = dict(n_samples=64, horizon=12, n_knots=5, dt=0.1, noise_sigma=0.1, n_iters=1, w_collision=2.0, w_hit=5.0,
                 w_task=0.7, w_control=0.3, w_terminal=1.5, seed=0)  # fmt: skip
     base.update(kw)
-    return MPPIConfig(**base)
+    names = {f.name for f in dataclasses.fields(CostWeights)}
+    return MPPIConfig(**{k: v for k, v in base.items() if k not in names}), CostWeights(**{k: v for k, v in base.items() if k in names})
 
 
 def task(s):
@@ -38,34 +41,35 @@ def terminal(xt):
 
 
 def test_costs_compose_to_the_old_mppi_cost(checker):
-    cfg = _cfg()
+    cfg, w = _cfg()
     dyn = HolonomicPoint()
-    mppi = MPPI(dyn, checker, cfg, task_cost=task, terminal_cost=terminal)
+    mppi = MPPI(dyn, checker, cfg, task_cost=task, terminal_cost=terminal, weights=w)
     rng = np.random.default_rng(0)
     knots = rng.normal(scale=0.2, size=(cfg.n_samples, cfg.n_knots, 3))
     x0 = np.array([-0.12, 0.0, 0.06])
-    total, terms, states, controls, res = mppi.evaluate(x0, knots)
+    ev = mppi.evaluate(x0, knots)
+    total, terms, states, controls, res = ev.total, ev.terms, ev.states, ev.controls, ev.query
     # the pre-refactor formula, by hand
     c, q, a = dyn.link_poses(states)
-    ref = checker.with_config(s2_cap=cfg.collision_s2_cap).query(c, q, a)
+    ref = checker.with_config(s2_cap=w.collision_s2_cap).query(c, q, a)
     k = cfg.n_samples
-    old = (cfg.w_collision * ref.cost.reshape(k, -1).astype(np.float64).sum(1) + cfg.w_hit * ref.in_collision.reshape(k, -1).sum(1)
-           + cfg.w_task * task(states).sum(1) + cfg.w_control * np.sum(controls**2, axis=(1, 2)) * cfg.dt
-           + cfg.w_terminal * terminal(states[:, -1]))  # fmt: skip
+    old = (w.w_collision * ref.cost.reshape(k, -1).astype(np.float64).sum(1) + w.w_hit * ref.in_collision.reshape(k, -1).sum(1)
+           + w.w_task * task(states).sum(1) + w.w_control * np.sum(controls**2, axis=(1, 2)) * cfg.dt
+           + w.w_terminal * terminal(states[:, -1]))  # fmt: skip
     assert ref.in_collision.any() and not ref.in_collision.all()  # both kinds of samples
     np.testing.assert_allclose(total, old, rtol=1e-9, atol=1e-9)
     assert set(terms) == {"collision", "hit", "task", "control", "terminal"}
     np.testing.assert_array_equal(res.in_collision, ref.in_collision)
     # the same objective as an explicit list of cost objects
-    costs = [CollisionCost(checker, dyn, weight=cfg.w_collision, hit_weight=cfg.w_hit, s2_cap=cfg.collision_s2_cap),
-             StateCost(task, cfg.w_task), ControlEffortCost(cfg.w_control), TerminalCost(terminal, cfg.w_terminal)]  # fmt: skip
+    costs = [CollisionCost(checker, dyn, weight=w.w_collision, hit_weight=w.w_hit, s2_cap=w.collision_s2_cap),
+             StateCost(task, w.w_task), ControlEffortCost(w.w_control), TerminalCost(terminal, w.w_terminal)]  # fmt: skip
     explicit = MPPI(dyn, checker, cfg, costs=costs)
-    total2, terms2, *_ = explicit.evaluate(x0, knots)
+    total2 = explicit.evaluate(x0, knots).total
     np.testing.assert_allclose(total2, old, rtol=1e-9, atol=1e-9)
     roll = Rollout(states, controls, cfg.dt)
     t3, _ = total_cost(costs, roll)
     np.testing.assert_allclose(t3, old, rtol=1e-9, atol=1e-9)
-    assert "query" in roll.cache  # computed once, shared
+    assert any(k[0] == "collision_query" for k in roll.cache if isinstance(k, tuple))  # computed once, shared
 
 
 def test_goal_pose_and_joint_limit_costs():

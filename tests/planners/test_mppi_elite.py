@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from splatplan.planners import MPPI, HolonomicPoint, MPPIConfig
+from splatplan.planners import MPPI, CostWeights, HolonomicPoint, MPPIConfig
 
 START = np.array([0.0, 0.0, 0.06])
 GOAL = np.array([0.3, -0.2, 0.06])
@@ -21,8 +21,8 @@ def _run(elite: bool, seed: int = 0):
 
     # a very high temperature: the weighted mean is nearly the plain sample mean, worse than the best sample
     cfg = MPPIConfig(n_samples=16, horizon=10, n_knots=4, dt=0.1, temperature=1e3, noise_sigma=0.3, n_iters=4,
-                     u_min=(-0.5, -0.5, 0.0), u_max=(0.5, 0.5, 0.0), w_control=0.0, seed=seed, elite=elite)  # fmt: skip
-    mppi = MPPI(HolonomicPoint(), None, cfg, terminal_cost=terminal)
+                     u_min=(-0.5, -0.5, 0.0), u_max=(0.5, 0.5, 0.0), seed=seed, elite=elite)  # fmt: skip
+    mppi = MPPI(HolonomicPoint(), None, cfg, terminal_cost=terminal, weights=CostWeights(w_control=0.0))
     _, info = mppi.step(START)
     return info, float(np.min(np.concatenate(seen)))
 

@@ -43,15 +43,15 @@ def test_pruned_batch_costs_are_exact_or_hopeless_lower_bounds(arm, stride):
     rng = np.random.default_rng(0)
     knots = np.clip(rng.normal(0, 0.6, (48, 5, robot.dof)), -1, 1)
     x = np.asarray(START_Q, dtype=float)  # the arm study's start, gripper in front of the bin wall near the table
-    t_full, terms_full, *_ = full.evaluate(x, knots)
-    t_pr, terms_pr, *_ = pruned.evaluate(x, knots)
+    ev_full, ev_pr = full.evaluate(x, knots), pruned.evaluate(x, knots)
+    t_full, terms_full, t_pr, terms_pr = ev_full.total, ev_full.terms, ev_pr.total, ev_pr.terms
     cut = float(t_full.min()) + 40.0 * 0.05
     kept = t_pr >= t_full - 1e-9 * np.abs(t_full)  # complete (equal) ...
     np.testing.assert_allclose(t_pr[kept], t_full[kept], rtol=1e-12)
     low = ~kept  # ... or a lower bound of a hopeless sample
     assert np.all(t_pr[low] <= t_full[low]) and np.all(t_full[low] > cut)
-    assert pruned.n_pruned >= int(low.sum())  # a pruned sample whose later chunks were free reads exact
-    assert pruned.n_pruned > 0  # the table makes most random samples hopeless
+    assert ev_pr.n_pruned >= int(low.sum())  # a pruned sample whose later chunks were free reads exact
+    assert ev_pr.n_pruned > 0  # the table makes most random samples hopeless
     assert int(np.argmin(t_pr)) == int(np.argmin(t_full)) and t_pr.min() == pytest.approx(t_full.min(), rel=1e-12)
     for name in terms_full:
         assert terms_pr[name].shape == (48,)

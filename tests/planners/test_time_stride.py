@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from splatplan.errors import SplatplanError
-from splatplan.planners import MPPI, CollisionCost, HolonomicPoint, JointIntegrator, MPPIConfig, PlanarBase
+from splatplan.planners import MPPI, CollisionCost, CostWeights, HolonomicPoint, JointIntegrator, MPPIConfig, PlanarBase
 from splatplan.planners.costs import Rollout
-from splatplan.planners.mppi import joint_speed_bound
+from splatplan.planners.mppi import collision_stride_value, joint_speed_bound
 from splatplan.robots import load_robot
 
 from .scenes import make_checker, make_scene
@@ -59,9 +59,9 @@ def test_auto_stride_bounds_the_motion_of_every_point(panda, checker):
         move = np.linalg.norm(np.diff(p, axis=1), axis=-1)
         assert move.max() <= gap * (1 + 1e-9)
     roll = Rollout(states, u, dt)
-    cost(roll)
-    assert roll.cache["collision_stride"] == cost.stride(dt, 40)
-    assert roll.cache["query"].min_s2.shape == (8, len(steps), panda.n_ellipsoids)
+    value = cost.evaluate(roll)
+    assert value.query.min_s2.shape == (8, len(steps), panda.n_ellipsoids)
+    np.testing.assert_allclose(value.terms["hit"], cost.stride(dt, 40) * 10.0 * value.query.in_collision.reshape(8, -1).sum(1))  # sums scaled by the stride
 
 
 def test_auto_stride_is_one_when_a_step_moves_more_than_the_gap(panda, checker):
@@ -82,7 +82,7 @@ def test_speed_bounds_of_the_dynamics(panda, checker):
     # MPPI: the control bounds tighten the joint speed
     dyn = JointIntegrator(panda)
     np.testing.assert_allclose(joint_speed_bound(dyn, -1.0, 1.0), np.minimum(panda.velocity_limits, 1.0))
-    mppi = MPPI(dyn, checker, MPPIConfig(n_samples=4, horizon=8, n_knots=4, dt=0.001, u_min=-0.5, u_max=0.5, collision_time_stride="auto", collision_max_gap_m=0.01))
+    mppi = MPPI(dyn, checker, MPPIConfig(n_samples=4, horizon=8, n_knots=4, dt=0.001, u_min=-0.5, u_max=0.5), weights=CostWeights(collision_stride="auto", collision_max_gap_m=0.01))
     col = mppi.costs[0]
     np.testing.assert_allclose(col.speed_bound, 0.5)
     assert col.max_gap_m == 0.01 and col.stride(0.001, 8) == int(0.01 // (0.5 * panda.motion_bound.sum() * 0.001))
@@ -92,9 +92,9 @@ def test_speed_bounds_of_the_dynamics(panda, checker):
 
 def test_config_validates_the_stride():
     with pytest.raises(SplatplanError):
-        MPPIConfig(collision_time_stride=0).validate()
+        CostWeights(collision_stride=0).validate()
     with pytest.raises(SplatplanError):
-        MPPIConfig(collision_time_stride="often").validate()
+        CostWeights(collision_stride="often").validate()
     with pytest.raises(SplatplanError):
-        MPPIConfig(collision_max_gap_m=-1.0).validate()
-    assert MPPIConfig(collision_time_stride="3").validate().collision_time_stride == 3
+        CostWeights(collision_max_gap_m=-1.0).validate()
+    assert collision_stride_value(CostWeights(collision_stride="3").validate().collision_stride) == 3

@@ -17,7 +17,7 @@ def tabletop_small():
 
 def test_ik_reaches_a_pose():
     from splatplan.robots import load_robot
-    from splatplan.tasks._ik import solve_ik
+    from splatplan.robots.ik import solve_ik
     from splatplan.tasks.arm import down_quat
 
     robot = load_robot("panda")
@@ -44,7 +44,8 @@ def test_tiny_arm_run_reduces_goal_error(tabletop_small):
     from splatplan.tasks.arm import ArmConfig, down_quat, run_arm
 
     goal = np.array([0.45, 0.0, 0.35])
-    cfg = replace(ArmConfig(), n_samples=16, horizon=8, max_steps=12, collision_stride=4)
+    cfg = ArmConfig(max_steps=12, collision_stride=4)
+    cfg = replace(cfg, mppi=replace(cfg.mppi, n_samples=16, horizon=8))
     r = run_arm("panda", tabletop_small, goal, down_quat(0.0), config=cfg, check_goal=False)
     from splatplan.robots import load_robot
 
@@ -74,7 +75,8 @@ def test_tiny_base_run_moves_toward_the_goal():
 
     from splatplan.tasks.base import BaseConfig, load_go2, run_base
 
-    cfg = replace(BaseConfig(), n_samples=16, horizon=10, max_steps=10)
+    cfg = BaseConfig(max_steps=10)
+    cfg = replace(cfg, mppi=replace(cfg.mppi, n_samples=16, horizon=10))
     start = np.array([-2.3, -0.6, 0.0])
     goal = np.array([-1.0, 2.0])
     r = run_base(load_go2(), "apartment", goal, start=start, config=cfg)
@@ -96,12 +98,12 @@ def test_densify_bounds_motion():
 
 
 def test_bad_prune_margin_exits_2_with_one_line(tmp_path, capsys):
-    """`mpc --robot panda --arm-prune-margin` with an impossible value: one named stderr line, exit 2, no folder."""
+    """`mpc --robot panda --arm-mppi-prune-margin` with an impossible value: one named stderr line, exit 2, no folder."""
     from splatplan.cli import main
 
     for value in ("-1", "0", "nan"):
         out = tmp_path / f"run{value}"
-        rc = main(["mpc", "--robot", "panda", "--scene", "tabletop", "--goal-pose", "0.5,0,0.3,0,1,0,0", "--arm-prune-margin", value, "--out", str(out)])
+        rc = main(["mpc", "--robot", "panda", "--scene", "tabletop", "--goal-pose", "0.5,0,0.3,0,1,0,0", "--arm-mppi-prune-margin", value, "--out", str(out)])
         err = capsys.readouterr().err.strip().splitlines()
         assert rc == 2 and len(err) == 1 and "prune_margin" in err[0] and "Traceback" not in err[0], (value, err)
         assert not out.exists()

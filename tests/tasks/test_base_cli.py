@@ -14,7 +14,7 @@ def test_go2_default_start_in_apartment_is_the_study_start(tmp_path):
 
     out = tmp_path / "run"
     rc = main(["mpc", "--robot", "go2", "--scene", "apartment", "--goal=-1.8,-0.6", "--out", str(out),
-               "--base-max-steps", "2", "--base-n-samples", "8", "--base-horizon", "6", "--base-memory", "true", "--base-sensor-radius-m", "0.5"])  # fmt: skip
+               "--base-max-steps", "2", "--base-mppi-n-samples", "8", "--base-mppi-horizon", "6", "--base-memory", "true", "--base-sensor-radius-m", "0.5"])  # fmt: skip
     assert rc in (0, 1)
     d = json.loads((out / "result.json").read_text())
     np.testing.assert_allclose(d["trajectory"][0], START)

@@ -38,7 +38,7 @@ def go2():
 
 
 def test_grid_marks_a_wall_blocked_and_free_space_free(go2):
-    from splatplan.tasks.base import ObstacleMemory
+    from splatplan.planners.memory import ObstacleMemory
 
     ts = _scene([(1.0, -1.5, 1.0, 1.5)])  # a wall along y at x = 1
     lo, hi = ts.splats.bounds()
@@ -66,7 +66,7 @@ def test_grid_marks_a_wall_blocked_and_free_space_free(go2):
 
 
 def test_geodesic_around_a_wall_is_longer_than_the_straight_line():
-    from splatplan.tasks.base import geodesic_field
+    from splatplan.planners.memory import geodesic_field
 
     blocked = np.zeros((40, 30), bool)
     blocked[20, 3:] = True  # a wall at x = 2.05 from y = 0.3 up, gap below
@@ -87,7 +87,7 @@ def test_geodesic_around_a_wall_is_longer_than_the_straight_line():
 
 @pytest.mark.parametrize("seed", range(6))
 def test_geodesic_field_matches_the_reference(seed):
-    from splatplan.tasks.base import _geodesic_field_reference, geodesic_field
+    from splatplan.planners.memory import _geodesic_field_reference, geodesic_field
 
     rng = np.random.default_rng(seed)
     nx, ny = rng.integers(1, 14, 2)
@@ -103,7 +103,7 @@ def test_memory_escapes_a_u_trap_that_plain_mppi_does_not(go2):
 
     # a U open to the left; the base starts inside, the goal lies behind the U's bottom
     ts = _scene([(1.0, -1.1, 1.0, 1.1), (-1.5, 1.1, 1.0, 1.1), (-1.5, -1.1, 1.0, -1.1)])
-    cfg = BaseConfig(max_steps=90, ground_z=None, seed=0)
+    cfg = BaseConfig(max_steps=90, ground_z=None)
     start, goal = (0.0, 0.0, 0.0), (2.5, 0.0)
     plain = run_base(go2, ts, goal, start=start, config=cfg)
     mem = run_base(go2, ts, goal, start=start, config=replace(cfg, memory=True))
@@ -114,7 +114,7 @@ def test_memory_escapes_a_u_trap_that_plain_mppi_does_not(go2):
 
 @pytest.mark.parametrize("seed", range(4))
 def test_line_of_sight_matches_dense_sampling_of_the_segment(seed):
-    from splatplan.tasks.base import line_of_sight
+    from splatplan.planners.memory import line_of_sight
 
     rng = np.random.default_rng(seed)
     opaque = rng.random((30, 24)) < rng.uniform(0.02, 0.15)  # (MX, MY) squares of res
@@ -138,7 +138,7 @@ def test_line_of_sight_matches_dense_sampling_of_the_segment(seed):
 
 
 def test_line_of_sight_is_conservative_against_the_metric_along_the_segment(go2):
-    from splatplan.tasks.base import ObstacleMemory, _line_of_sight_reference, line_of_sight
+    from splatplan.planners.memory import ObstacleMemory, _line_of_sight_reference, line_of_sight
 
     ts = _scene([(1.0, -1.5, 1.0, 1.5), (-1.0, 0.8, -0.2, 0.8)])
     lo, hi = ts.splats.bounds()
@@ -153,7 +153,7 @@ def test_line_of_sight_is_conservative_against_the_metric_along_the_segment(go2)
 
 
 def test_a_wall_hides_the_cells_behind_it_until_the_base_drives_around_it(go2):
-    from splatplan.tasks.base import ObstacleMemory
+    from splatplan.planners.memory import ObstacleMemory
 
     ts = _scene([(1.0, -1.5, 1.0, 1.5)])  # a wall along y at x = 1, y in [-1.5, 1.5]
     lo, hi = ts.splats.bounds()
@@ -211,3 +211,28 @@ def test_memory_maps_reach_the_plot_not_the_json():
     labels = [h.get_label() for h in ax.get_lines()]
     assert "sensed blocked (memory)" in labels and "sensed free (memory)" in labels
     plt.close(fig)
+
+
+def test_recovery_sweeps_out_of_the_u_trap_through_the_strategy(go2):
+    """The stagnation recovery (StructuredDrives, off by default) starts a sweep in the U trap: the
+    goal cost switches to the sweep term and back, every event is recorded, no run error."""
+    from splatplan.planners.drive import DriveGoalCost
+    from splatplan.planners.costs import Rollout
+    from splatplan.tasks.base import BaseConfig, run_base
+
+    ts = _scene([(1.0, -1.1, 1.0, 1.1), (-1.5, 1.1, 1.0, 1.1), (-1.5, -1.1, 1.0, -1.1)])
+    cfg = BaseConfig(max_steps=30, ground_z=None, recovery=True, stuck_steps=4, recovery_min_distance_m=0.1)
+    r = run_base(go2, ts, (2.5, 0.0), start=(0.0, 0.0, 0.0), config=cfg)
+    events = [e["event"] for e in r.extra["events"]]
+    assert "detour" in events and r.min_clearance_m > 0, events
+    # the sweep term: progress along the swept heading is rewarded, the goal term still reported
+    cost = DriveGoalCost((2.5, 0.0))
+    states = np.zeros((2, 3, 3))
+    states[1, :, 1] = [0.1, 0.2, 0.3]  # sample 1 walks along +y, facing +x
+    ro = Rollout(states, np.zeros((2, 3, 3)), 0.2)
+    goal_only = cost.evaluate(ro)
+    cost.sweep = (np.pi / 2, np.zeros(2))
+    swept = cost.evaluate(ro)
+    assert set(goal_only.terms) == {"goal"} and set(swept.terms) == {"sweep"}
+    assert swept.terms["sweep"][1] < swept.terms["sweep"][0]
+    np.testing.assert_array_equal(swept.values["goal_cost"], goal_only.terms["goal"])

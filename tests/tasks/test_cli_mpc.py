@@ -31,7 +31,7 @@ def test_no_collision_is_said_everywhere(tmp_path, capsys):
 
     out = tmp_path / "run"
     rc = main(["mpc", "--robot", "go2", "--goal=-1.8,-0.6", "--start=-2.3,-0.6,0", "--no-collision", "--out", str(out),
-               "--base-max-steps", "3", "--base-n-samples", "8", "--base-horizon", "6"])  # fmt: skip
+               "--base-max-steps", "3", "--base-mppi-n-samples", "8", "--base-mppi-horizon", "6"])  # fmt: skip
     assert rc in (0, 1)
     printed = capsys.readouterr().out
     assert "--no-collision" in printed and printed.count("collision cost OFF") == 2
@@ -50,7 +50,7 @@ def test_scene_file_without_ground_truth_uses_the_metric(tmp_path, capsys):
     gt.unlink()
     out = tmp_path / "run"
     rc = main(["mpc", "--robot", "go2", "--scene", str(ply), "--goal=-1.8,-0.6", "--start=-2.3,-0.6,0", "--out", str(out),
-               "--base-max-steps", "3", "--base-n-samples", "8", "--base-horizon", "6"])  # fmt: skip
+               "--base-max-steps", "3", "--base-mppi-n-samples", "8", "--base-mppi-horizon", "6"])  # fmt: skip
     assert rc in (0, 1)
     d = json.loads((out / "result.json").read_text())
     assert d["clearance_source"] == "metric" and "metric" in d["clearance_note"] and "(metric)" in capsys.readouterr().out

@@ -90,4 +90,4 @@ def test_cli_bad_target_images(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "not a readable image" in err and "Traceback" not in err
     assert main(["navigate", "--target-image", str(bad), "--out", out, "--weak-ratio", "0"]) == 2
-    assert main(["eval", "reach", "--goals", "0", "--out", out]) == 2
+    assert main(["eval", "reach", "--n-goals", "0", "--out", out]) == 2

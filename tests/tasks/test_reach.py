@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from splatplan.errors import SplatplanError
-from splatplan.planners import ImageCost, Rollout
+from splatplan.planners import ImageCost, MPPIConfig, Rollout
 from splatplan.render import SplatRenderer
 
 robots = pytest.importorskip("splatplan.robots")
@@ -44,8 +44,8 @@ def test_image_cost_shape_and_ordering(setup):
     assert int(np.argmin(c)) == 0 and c[0] < 1e-3
     np.testing.assert_allclose(c, cost.cost_of_states(ends), atol=1e-6)
     # the cost only looks at the chosen time step (terminal by default)
-    cost.time_index = 0
-    assert np.allclose(cost(roll), cost(roll)[0])
+    at0 = Rollout(roll.states, roll.controls, roll.dt, goal_step=0)  # a shrinking horizon names the goal step
+    assert np.allclose(cost(at0), cost(at0)[0])
 
 
 def test_image_cost_log_transform(setup):
@@ -57,7 +57,9 @@ def test_image_cost_log_transform(setup):
     raw = ImageCost(rend, cam, robot, enc, target, **kw).cost_of_states(ends) / 2.0
     logc = ImageCost(rend, cam, robot, enc, target, log_eps=0.01, **kw)
     c = logc.cost_of_states(ends)
-    np.testing.assert_allclose(logc.last_raw, raw, rtol=1e-6, atol=1e-9)
+    value = logc.evaluate(Rollout(ends[:, None], np.zeros((4, 1, 7)), 0.1))  # the raw costs are reported, not stored
+    np.testing.assert_allclose(value.values["image_raw"], raw, rtol=1e-6, atol=1e-9)
+    np.testing.assert_allclose(value.terms["image"], c, rtol=1e-9)
     np.testing.assert_allclose(c, 2.0 * np.log1p(raw / 0.01), rtol=1e-6, atol=1e-9)
     assert np.array_equal(np.argsort(c), np.argsort(raw))  # monotone: same ranking of the samples
     with pytest.raises(SplatplanError, match="log_eps"):
@@ -80,13 +82,13 @@ def test_tiny_reach_run(setup):
     robot, ts, cam, q0, rend, enc = setup
     goal = q0 + np.array([0.1, 0.05, 0.0, 0.1, 0.0, -0.05, 0.1])
     target = np.asarray(cam.render(rend, robot, goal[None], background=(0.5,) * 3).rgb[0])
-    cfg = ReachConfig(n_samples=8, horizon=6, n_knots=4, dt=0.1, plan_iters=3, image_size=24, n_views=2, n_splats=20_000)
+    cfg = ReachConfig(mppi=MPPIConfig(n_samples=8, horizon=6, n_knots=4, dt=0.1, temperature=0.1, noise_sigma=0.25), plan_iters=3, image_size=24, n_views=2, n_splats=20_000)
     t_goal = robot.link_poses(goal)[robot.link_names.index(cfg.camera_link)]
     res = run_reach(robot, ts, target, config=cfg, q0=q0, encoder=enc, renderer=rend, goal_camera_pose=t_goal)
-    assert res.trajectory.shape == (cfg.horizon + 1, 7)
+    assert res.trajectory.shape == (cfg.mppi.horizon + 1, 7)
     extra_starts = (cfg.plan_starts - 1) * min(cfg.plan_start_iters, cfg.plan_iters - 1) + cfg.plan_starts * cfg.plan_start_refine  # multi-start initial plan
-    refinements = cfg.refine_plan_iters + (cfg.horizon - 1) * cfg.refine_iters  # goal-state refinement
-    assert res.iterations == cfg.plan_iters + extra_starts + refinements + (cfg.horizon - 1) * cfg.iters_per_step
+    refinements = cfg.refine_plan_iters + (cfg.mppi.horizon - 1) * cfg.refine_iters  # goal-state refinement
+    assert res.iterations == cfg.plan_iters + extra_starts + refinements + (cfg.mppi.horizon - 1) * cfg.iters_per_step
     assert res.final_image.shape == (24, 24, 3) and len(res.views) >= 1
     assert np.isfinite(res.translation_error_m) and np.isfinite(res.rotation_error_deg)
     assert res.clearance_source == "analytic" and np.isfinite(res.min_clearance_m)
@@ -104,14 +106,14 @@ def test_multi_start_plan_and_elite(setup):
     robot, ts, cam, q0, rend, enc = setup
     goal = q0 + np.array([0.1, 0.05, 0.0, 0.1, 0.0, -0.05, 0.1])
     target = np.asarray(cam.render(rend, robot, goal[None], background=(0.5,) * 3).rgb[0])
-    cfg = ReachConfig(n_samples=8, horizon=5, n_knots=4, dt=0.1, plan_iters=4, image_size=24, n_views=0, n_splats=20_000, plan_starts=3, plan_start_iters=2, plan_chunk=1)
+    cfg = ReachConfig(mppi=MPPIConfig(n_samples=8, horizon=5, n_knots=4, dt=0.1, temperature=0.1, noise_sigma=0.25), plan_iters=4, image_size=24, n_views=0, n_splats=20_000, plan_starts=3, plan_start_iters=2, plan_chunk=1)
     res = run_reach(robot, ts, target, config=cfg, q0=q0, encoder=enc, renderer=rend)
     # every start runs plan_start_iters; the chosen one continues to plan_iters
-    refinements = cfg.refine_plan_iters + (cfg.horizon - 1) * cfg.refine_iters
-    assert res.iterations == cfg.plan_iters + (cfg.plan_starts - 1) * cfg.plan_start_iters + cfg.plan_starts * cfg.plan_start_refine + refinements + (cfg.horizon - 1) * cfg.iters_per_step
+    refinements = cfg.refine_plan_iters + (cfg.mppi.horizon - 1) * cfg.refine_iters
+    assert res.iterations == cfg.plan_iters + (cfg.plan_starts - 1) * cfg.plan_start_iters + cfg.plan_starts * cfg.plan_start_refine + refinements + (cfg.mppi.horizon - 1) * cfg.iters_per_step
     assert len(res.extra["plan_start_costs"]) == cfg.plan_starts
-    assert res.trajectory.shape == (cfg.horizon + 1, 7) and np.all(np.isfinite(res.trajectory))
-    res2 = run_reach(robot, ts, target, config=replace(cfg, elite=True), q0=q0, encoder=enc, renderer=rend)
+    assert res.trajectory.shape == (cfg.mppi.horizon + 1, 7) and np.all(np.isfinite(res.trajectory))
+    res2 = run_reach(robot, ts, target, config=replace(cfg, mppi=replace(cfg.mppi, elite=True)), q0=q0, encoder=enc, renderer=rend)
     assert res2.iterations == res.iterations and np.all(np.isfinite(res2.trajectory))
 
 
@@ -125,7 +127,7 @@ def test_reach_rejects_zero_plan_starts():
 def test_goal_refiner_ill_conditioned_quadratic():
     """The refiner keeps the plan unless a sample beats it (monotone), and its covariance follows a
     narrow valley: on a 7-D quadratic with condition number 1e4 it gets 1e-3 of the start cost."""
-    from splatplan.tasks.reach import GoalRefiner
+    from splatplan.planners.goal_refiner import GoalRefiner
 
     rng = np.random.default_rng(3)
     rot = np.linalg.qr(rng.standard_normal((7, 7)))[0]
@@ -174,8 +176,8 @@ def test_goals_do_not_depend_on_the_image_size(setup):
 
 def test_study_names_a_goal_shortfall(tmp_path, monkeypatch):
     import splatplan.tasks.reach as reach
-    from splatplan.eval.reach import run_reach_study
+    from splatplan.eval.reach import ReachStudyConfig, run
 
     monkeypatch.setattr(reach, "make_reach_goals", lambda *a, **k: [])
     with pytest.raises(SplatplanError, match="found only 0 of 3 goal configurations"):
-        run_reach_study(tmp_path, n_goals=3, config=reach.ReachConfig(n_splats=20_000, image_size=16))
+        run(ReachStudyConfig(n_goals=3, task=reach.ReachConfig(n_splats=20_000, image_size=16), device="cpu"))

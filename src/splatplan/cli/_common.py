@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from .._files import _umask, atomic_path, existing_file  # noqa: F401 - the commands import atomic_path from here
-from .._config import check_config, check_value
+from .._config import NESTED_SKIP, check_config, check_value
 from ..errors import SplatplanError
 
 #: a command-line token starting with a minus and a digit ("-0.3,0,0.06", "-1e-3", "-.5") or a
@@ -475,6 +475,10 @@ def _show(v) -> str:
 def add_config_args(parser: argparse.ArgumentParser, cls, prefix: str = "", skip: tuple[str, ...] = (), group: str | None = None, base=None) -> None:
     """Add one ``--<prefix><field>`` flag per field of dataclass ``cls`` (help = its ``#:`` doc).
 
+    A field that is itself a config dataclass (e.g. a task's ``mppi: MPPIConfig``) is flattened:
+    ``--<prefix><field>-<subfield>`` per subfield, except those its ``NESTED_SKIP`` metadata
+    (:mod:`splatplan._config`) or ``skip`` (as ``"field.subfield"``) names.
+
     Defaults are "unset" (= keep the config's value); read them back with :func:`config_from_args`.
     Value syntax: numbers and strings as usual; bools true/false; ``X | None`` fields also take
     ``none``; tuples take comma-separated items (``0,1,2``), tuples of pairs ``a:1,b:2``, dicts
@@ -488,9 +492,13 @@ def add_config_args(parser: argparse.ArgumentParser, cls, prefix: str = "", skip
     for f in dataclasses.fields(cls):
         if f.name in skip or not f.init:
             continue
-        flag = "--" + (prefix + f.name).replace("_", "-")
         tp = hints.get(f.name, str)
         default = getattr(base, f.name) if base is not None else _field_default(f)
+        if _nested(tp):  # an embedded config: its fields flattened as --<prefix><field>-<subfield>
+            inner_skip = tuple(f.metadata.get(NESTED_SKIP, ())) + tuple(n.split(".", 1)[1] for n in skip if n.startswith(f.name + "."))
+            add_config_args(g, tp, prefix=f"{prefix}{f.name}_", skip=inner_skip, group=False, base=default)
+            continue
+        flag = "--" + (prefix + f.name).replace("_", "-")
         doc = docs.get(f.name, "")
         help_ = f"{doc} (default {_show(default)})".strip()
         g.add_argument(flag, dest=f"cfg_{prefix}{f.name}", default=_Unset, type=_parser_for(tp, flag, f, cls.__name__), metavar=_metavar(tp), help=help_.replace("%", "%%"))
@@ -503,7 +511,13 @@ def config_from_args(args: argparse.Namespace, cls, prefix: str = "", base=None,
     ``overrides`` that are not None win over both.
     """
     kw = {}
+    hints = typing.get_type_hints(cls)
     for f in dataclasses.fields(cls):
+        tp = hints.get(f.name, str)
+        if f.init and _nested(tp):
+            inner = getattr(base, f.name) if base is not None else _field_default(f)
+            kw[f.name] = config_from_args(args, tp, prefix=f"{prefix}{f.name}_", base=inner)
+            continue
         v = getattr(args, f"cfg_{prefix}{f.name}", _Unset)
         if v is not _Unset:
             kw[f.name] = None if v is _EXPLICIT_NONE else v
@@ -519,6 +533,11 @@ def config_from_args(args: argparse.Namespace, cls, prefix: str = "", base=None,
     else:
         check_config(cfg)
     return cfg
+
+
+def _nested(tp) -> bool:
+    """Whether a field's type is an embedded config dataclass (flattened into prefixed flags)."""
+    return isinstance(tp, type) and dataclasses.is_dataclass(tp)
 
 
 def _is_union(tp) -> bool:
@@ -546,6 +565,8 @@ def _metavar(tp) -> str:
         mv = "NAME:N,..." if inner and typing.get_origin(inner[0]) is tuple else "A,B,..."
     elif origin is dict:
         mv = "KEY=V,..."
+    elif _is_union(tp) and any(typing.get_origin(a) is tuple for a in typing.get_args(tp)):
+        mv = "X|A,B,..."
     else:
         mv = {float: "FLOAT", int: "INT", bool: "BOOL"}.get(tp, "STR")
     return f"{mv}|none" if optional else mv
@@ -627,6 +648,13 @@ def _parser_for(tp, flag: str, f: dataclasses.Field | None = None, owner: str = 
                         raise ValueError(it)
                     out[_scalar(kt, k.strip())] = _scalar(vt, v.strip())
                 return out
+            tuples = [a for a in typing.get_args(inner) if typing.get_origin(a) is tuple] if _is_union(inner) else []
+            if tuples:  # e.g. float | tuple[float, ...]: one value or a comma list of the tuple's items
+                el = [t for t in typing.get_args(tuples[0]) if t is not Ellipsis][0]
+                items = [_scalar(el, x) for x in text.split(",") if x.strip()]
+                if not items:
+                    raise ValueError(text)
+                return tuple(items) if "," in text else items[0]
             return _scalar(inner, text)
         except ValueError:
             raise argparse.ArgumentTypeError(f"cannot read {text!r} as {_metavar(tp)}") from None

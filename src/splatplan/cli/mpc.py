@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
 
 import numpy as np
 
 from ..errors import SplatplanError
 from ._common import (
-    BASE_POSE_HELP, SEED, _out_dir, add_command, add_config_args, add_device_arg, config_from_args, float_arg, parse_base_pose, robot_at, write_json,
+    BASE_POSE_HELP, SEED, _out_dir, add_config_args, add_device_arg, atomic_path, check_device, config_from_args, float_arg, parse_base_pose, robot_at, write_json,
 )  # fmt: skip
 
 
@@ -36,7 +37,8 @@ def cmd_mpc(args) -> int:
         gp = _floats(args.goal_pose, 7, "--goal-pose", "X,Y,Z,QW,QX,QY,QZ")
         if np.linalg.norm(gp[3:]) < 1e-8:
             raise SplatplanError(f"--goal-pose {args.goal_pose!r}: the quaternion QW,QX,QY,QZ is zero")
-        cfg = config_from_args(args, ArmConfig, "arm_", seed=args.seed)
+        cfg = config_from_args(args, ArmConfig, "arm_")
+        cfg = replace(cfg, mppi=replace(cfg.mppi, seed=args.seed))
         robot = robot_at("panda", parse_base_pose(args.base_pose))
         scene = args.scene or "tabletop"
         q0 = None if args.start is None else _floats(args.start, robot.dof, "--start", f"with {robot.dof} joint values")
@@ -49,7 +51,8 @@ def cmd_mpc(args) -> int:
         if args.goal is None:
             raise SplatplanError("--robot go2 needs --goal X,Y (metres)")
         g = _floats(args.goal, 2, "--goal", "X,Y")
-        cfg = config_from_args(args, BaseConfig, "base_", seed=args.seed)
+        cfg = config_from_args(args, BaseConfig, "base_")
+        cfg = replace(cfg, mppi=replace(cfg.mppi, seed=args.seed))
         robot = robot_at("go2", parse_base_pose(args.base_pose), robot=load_go2())
         scene = args.scene or "apartment"
         default = np.asarray(START, np.float64) if scene == "apartment" else np.zeros(3)  # the origin lies in the apartment's x = 0 wall
@@ -68,10 +71,8 @@ def cmd_mpc(args) -> int:
     d = res.to_json()
     write_json(out / "result.json", d)
     fig = plot_run(robot, ts, res, kind=kind)
-    fig.savefig(out / "motion.png", dpi=100)
-    import matplotlib.pyplot as plt
-
-    plt.close(fig)
+    with atomic_path(out / "motion.png") as tmp:
+        fig.savefig(tmp, format="png", dpi=100)
     print(
         f"{robot.name} on {scene}{tag}: {'reached' if res.success else 'NOT reached'}; final position error {res.final_position_error_m * 100:.2f} cm; "
         f"min clearance {res.min_clearance_m * 100:.2f} cm ({res.clearance_source}); {res.steps_per_s:.2f} MPC steps/s over {res.time_s:.1f} s"
@@ -81,15 +82,18 @@ def cmd_mpc(args) -> int:
 
 
 def cmd_eval(args) -> int:
+    """``eval arm`` / ``eval base``: run(config) -> result, report(result, out)."""
+    import importlib
+
+    mod = importlib.import_module(f"splatplan.eval.{args.study}")
+    cls = mod.ArmStudyConfig if args.study == "arm" else mod.BaseStudyConfig
+    cfg = config_from_args(args, cls, base=cls.quick_config() if args.quick else cls())
+    cfg = replace(cfg, device=check_device(cfg.device))  # auto -> cuda:0 or cpu, as every --device
     out = _out_dir(args.out)
-    if args.study == "arm":
-        from ..eval.arm import run_arm_study
-
-        run_arm_study(out, quick=args.quick, seed=args.seed, device=args.device)
-    else:
-        from ..eval.base import run_base_study
-
-        run_base_study(out, quick=args.quick, seed=args.seed, device=args.device)
+    res = mod.run(cfg)
+    written = mod.report(res, out)
+    print(mod.markdown(res).rstrip())
+    print(f"\nwrote {', '.join(str(p) for p in written)}")
     return 0
 
 
@@ -97,7 +101,7 @@ def register(sub, eval_sub) -> None:
     from ..tasks.arm import ArmConfig
     from ..tasks.base import BaseConfig
 
-    s = add_command(sub, "mpc", cmd_mpc, "MPPI with the collision cost: Panda reaching (tabletop) or Go2 driving (apartment)")
+    s = sub.add_parser("mpc", help="MPPI with the collision cost: Panda reaching (tabletop) or Go2 driving (apartment)")
     s.add_argument("--robot", required=True, choices=("panda", "go2"), help="panda (7-DoF arm) or go2 (planar base)")
     s.add_argument("--scene", default=None, help="built-in scene name or a splat file (default tabletop for panda, apartment for go2); files without a .gt.json get a metric clearance")
     s.add_argument("--goal-pose", default=None, help="panda: X,Y,Z,QW,QX,QY,QZ end-effector goal (metres, wxyz world <- panda_hand_tcp)")
@@ -110,13 +114,16 @@ def register(sub, eval_sub) -> None:
     s.add_argument("--out", required=True, help="output folder (result.json, motion.png)")
     s.add_argument("--seed", type=SEED, default=0, help="noise seed")
     add_device_arg(s)
-    add_config_args(s, ArmConfig, prefix="arm_", skip=("seed",), group="panda (ArmConfig) options")
-    add_config_args(s, BaseConfig, prefix="base_", skip=("seed",), group="go2 (BaseConfig) options")
-    for name, help_ in (("arm", "Panda reaching behind a wall of tabletop, with/without the collision cost (paper Table IV, no image)"),
-                        ("base", "Go2 driving to goals in other rooms of apartment given only the goal, with/without the collision cost")):  # fmt: skip
+    add_config_args(s, ArmConfig, prefix="arm_", skip=("mppi.seed",), group="panda (ArmConfig) options")
+    add_config_args(s, BaseConfig, prefix="base_", skip=("mppi.seed",), group="go2 (BaseConfig) options")
+    s.set_defaults(func=cmd_mpc)
+    from ..eval.arm import ArmStudyConfig
+    from ..eval.base import BaseStudyConfig
+
+    for name, cls, help_ in (("arm", ArmStudyConfig, "Panda reaching behind a wall of tabletop, with/without the collision cost (paper Table IV, no image)"),
+                             ("base", BaseStudyConfig, "Go2 driving to goals in other rooms of apartment given only the goal, with/without the collision cost")):  # fmt: skip
         e = eval_sub.add_parser(name, help=help_)
         e.add_argument("--out", required=True, help="output folder")
-        e.add_argument("--quick", action="store_true", help="small version (< 2 min on 2 cores)")
-        e.add_argument("--seed", type=SEED, default=0, help="random seed (integer >= 0; default 0)")
-        add_device_arg(e)
+        e.add_argument("--quick", action="store_true", help="start from the small settings (< 2 min on 2 cores); flags still override them")
+        add_config_args(e, cls, skip=("quick",), group=f"study options ({cls.__name__})")
         e.set_defaults(func=cmd_eval, study=name)

@@ -127,7 +127,7 @@ def cmd_plan(args) -> int:
         scene = ground_robot_scene(scene, args, mcfg.n_sigma)
     checker = CollisionChecker(scene, device=args.device, config=mcfg)
     if goal_pose is not None:  # inverse kinematics: the collision-free solution nearest to the start
-        from ..tasks._ik import collision_free_ik
+        from ..robots.ik import collision_free_ik
 
         goal = collision_free_ik(robot, checker, goal_pose[:3], goal_pose[3:], link=args.ee_link, near=start, seed=args.seed)
         notes.append(f"--goal-pose: IK goal configuration {np.round(goal, 4).tolist()}")

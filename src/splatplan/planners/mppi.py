@@ -2,31 +2,38 @@
 
 One MPC step (:meth:`MPPI.step`) runs ``n_iters`` iterations of:
 
-1. sample K control-knot sequences ``V_k = U_bar + eps_k``, ``eps_k ~ N(0, diag(sigma^2))`` per knot
-   (sample 0 is the unperturbed nominal), clipped to the control bounds;
-2. controls ``u_k = B V_k`` (uniform clamped cubic B-spline basis B (T, n_knots)), so the clipped
-   knots keep every control inside the bounds (convex hull property);
+1. sample K control-knot sequences, by default (:class:`GaussianKnots`) ``V_k = U_bar + eps_k``,
+   ``eps_k ~ N(0, diag(sigma^2))`` per knot (sample 0 is the unperturbed nominal), clipped to the
+   control bounds; a :class:`SamplingStrategy` may sample otherwise (e.g. the planar base's
+   structured drives, :mod:`splatplan.planners.drive`);
+2. controls ``u_k = B V_k`` (uniform cubic B-spline basis B (T, n_knots), clamped or not:
+   ``MPPIConfig.clamped_spline``), so the clipped knots keep every control inside the bounds
+   (convex hull property);
 3. roll out ``x_k = f(x, u_k)`` (K, T, dx);
 4. cost ``C_k = sum_c cost_c(rollout_k)`` over a list of composable cost objects
-   (:mod:`splatplan.planners.costs`). Built from the config and the ``task_cost`` /
-   ``terminal_cost`` callables when no list is given:
+   (:mod:`splatplan.planners.costs`), reported as a typed :class:`Evaluation`. Built from
+   :class:`CostWeights` and the ``task_cost`` / ``terminal_cost`` callables when no list is given:
    ``w_col sum_{t,l} cost_{ktl} + w_hit sum_{t,l} [in collision]_{ktl}`` (:class:`CollisionCost`:
    one query on the (K, T, dof) batch over every robot ellipsoid)
    ``+ w_task task(x_k)`` (:class:`StateCost`) ``+ w_ctrl sum_t |u_kt|^2 dt``
    (:class:`ControlEffortCost`) ``+ w_term terminal(x_kT)`` (:class:`TerminalCost`);
 5. weights ``w_k = exp(-(C_k - min C) / lambda) / sum_l exp(-(C_l - min C) / lambda)``;
-6. ``U_bar <- sum_k w_k V_k``.
+6. ``U_bar <- sum_k w_k V_k`` (or the knots the strategy's ``select`` returns).
 
 Then the first control of the nominal is returned and the knots are warm-started for the next
 step by shifting the curve one control period forward in time (least squares, see
-:class:`~splatplan.planners.bspline.UniformBSpline`). The image cost of the paper enters through
-``terminal_cost`` (states at T -> (K,) costs).
+:class:`~splatplan.planners.bspline.UniformBSpline`). The image cost of the paper enters as a cost
+object (:class:`~splatplan.planners.image_cost.ImageCost`) or through ``terminal_cost``.
+
+Nothing inside MPPI is changed from outside while it runs: a schedule passes ``n_iters``,
+``temperature`` and ``goal_step`` to :meth:`MPPI.step`, scales the noise with
+:meth:`MPPI.set_noise_scale` and sets the nominal / noise generator with :meth:`MPPI.reset`.
 """
 
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Callable
 
 import numpy as np
@@ -35,13 +42,14 @@ from .._config import bounded, check_config
 from .._resources import require_rollouts
 from ..errors import SplatplanError
 from .bspline import UniformBSpline
-from .costs import CollisionCost, ControlEffortCost, Cost, Rollout, StateCost, TerminalCost, _geometry, total_cost
+from .costs import CollisionCost, ControlEffortCost, Cost, Rollout, StateCost, TerminalCost, _geometry, evaluate_costs
 from .dynamics import Dynamics
 
 
 @dataclass
 class MPPIConfig:
-    """Knobs of :class:`MPPI`. Time in seconds, controls in the dynamics' units."""
+    """Algorithm settings of :class:`MPPI` (the cost weights are the costs' own, or
+    :class:`CostWeights` for the default cost list). Time in seconds, controls in the dynamics' units."""
 
     #: number of sampled control sequences K per iteration
     n_samples: int = bounded(256, ge=2)
@@ -61,29 +69,14 @@ class MPPIConfig:
     u_min: float | tuple[float, ...] | None = None
     #: upper control bound per dimension (or one for all); None = unbounded
     u_max: float | tuple[float, ...] | None = None
-    #: weight of the collision cost (checker ``cost`` summed over time and links)
-    w_collision: float = bounded(1.0, ge=0)
-    #: neighbourhood of the rollouts' collision cost: splats with s2~ below this (the checker's
-    #: ``s2_cap`` for MPPI queries). Beyond it a splat's cost d_max exp(-gamma (s2~ - 1)) is below
-    #: exp(-gamma (cap - 1)) (1.8% of d_max for the defaults gamma = 4, cap = 2); a smaller cap is a
-    #: much smaller search radius. None = the checker's own s2_cap.
-    collision_s2_cap: float | None = bounded(2.0, ge=1)
-    #: evaluate the collision cost on every n-th rollout step only (the last always; sums scaled by
-    #: n): n times fewer queries, at the risk of stepping over thin obstacles; 1 = every step;
-    #: "auto" = the largest n such that no ellipsoid point moves more than collision_max_gap_m
-    #: between evaluated steps (from the robot's motion_bound, its speed limits and the control
-    #: bounds, times dt; see CollisionCost)
-    collision_time_stride: int | str = 1
-    #: gap of collision_time_stride="auto" (scene units); None = half the smallest moving semi-axis
-    collision_max_gap_m: float | None = bounded(None, gt=0)
-    #: extra cost per (time step, link) in collision (``in_collision``); 0 = the paper's cost only
-    w_hit: float = bounded(10.0, ge=0)
-    #: weight of the task cost callable
-    w_task: float = bounded(1.0, ge=0)
-    #: weight of the control effort sum_t |u_t|^2 dt
-    w_control: float = bounded(0.01, ge=0)
-    #: weight of the terminal cost callable (e.g. the image cost)
-    w_terminal: float = bounded(1.0, ge=0)
+    #: clamped (endpoint-interpolating) B-spline knot vector; False = plain uniform, so that the
+    #: applied first control (c0 + 4 c1 + c2) / 6 is set by knots that shape the whole rollout
+    #: rather than by c0 alone (see :mod:`splatplan.planners.bspline`)
+    clamped_spline: bool = True
+    #: after the iterations, cost the updated nominal once more and query its collisions at every
+    #: step (``MPPIInfo.nominal_cost``, ``nominal_values``, ``nominal_in_collision``, ``nominal_min_s2``);
+    #: False = the info's nominal is its rollout only (one evaluation and one query fewer per step)
+    report_nominal: bool = True
     #: seed of the noise generator
     seed: int = bounded(0, ge=0)
     #: prune hopeless samples (opt-in): a sample whose cost is proven to exceed the best complete
@@ -94,7 +87,7 @@ class MPPIConfig:
     #: cost), the others the next chunk only while their lower bound (every other cost term, exact,
     #: plus the collision terms so far, which are >= 0) stays within the margin. The update equals
     #: the unpruned one to float64 rounding; the costs and terms of pruned samples are those lower
-    #: bounds (``MPPIInfo.n_pruned`` counts them). Needs exactly one CollisionCost among the costs
+    #: bounds (``Evaluation.n_pruned`` counts them). Needs exactly one CollisionCost among the costs
     #: and n_samples > prune_probe; None = off
     prune_margin: float | None = bounded(None, gt=0)
     #: chunks of the horizon's evaluated steps for ``prune_margin``
@@ -107,6 +100,7 @@ class MPPIConfig:
     elite: bool = False
 
     def validate(self) -> "MPPIConfig":
+        """Check every field's declared range and the cross-field rules (never changes the config); returns self."""
         check_config(self)  # each field's declared range (splatplan._config); cross-field rules below
         require_rollouts(self.n_samples, self.horizon, "MPPIConfig")
         if self.n_samples < 2:
@@ -115,25 +109,133 @@ class MPPIConfig:
             raise SplatplanError(f"MPPIConfig.horizon must be >= 2, got {self.horizon}")
         if self.n_knots < 4:
             raise SplatplanError(f"MPPIConfig.n_knots must be >= 4 (cubic B-spline), got {self.n_knots}")
+        if self.n_knots > self.horizon:
+            raise SplatplanError(f"MPPIConfig.n_knots must be <= horizon (knots of a spline over the horizon's steps), got n_knots={self.n_knots}, horizon={self.horizon}")
         if not self.dt > 0 or not self.temperature > 0:
             raise SplatplanError("MPPIConfig.dt and temperature must be > 0")
         if self.n_iters < 1:
             raise SplatplanError(f"MPPIConfig.n_iters must be >= 1, got {self.n_iters}")
-        stride = self.collision_time_stride
-        if isinstance(stride, str):
-            if stride != "auto" and not stride.isdigit():
-                raise SplatplanError(f"MPPIConfig.collision_time_stride must be an integer >= 1 or 'auto', got {stride!r}")
-            if stride != "auto":
-                self.collision_time_stride = stride = int(stride)
-        if not isinstance(stride, str) and int(stride) < 1:
-            raise SplatplanError(f"MPPIConfig.collision_time_stride must be >= 1 or 'auto', got {stride}")
         if self.prune_margin is not None and not (np.isfinite(self.prune_margin) and self.prune_margin > 0):
             raise SplatplanError(f"MPPIConfig.prune_margin must be finite and > 0 (or None: off), got {self.prune_margin}")
         if self.prune_chunks < 2 or self.prune_probe < 1:
             raise SplatplanError(f"MPPIConfig.prune_chunks must be >= 2 and prune_probe >= 1, got {self.prune_chunks} and {self.prune_probe}")
-        if self.collision_max_gap_m is not None and not (np.isfinite(self.collision_max_gap_m) and self.collision_max_gap_m > 0):
-            raise SplatplanError(f"MPPIConfig.collision_max_gap_m must be finite and > 0, got {self.collision_max_gap_m}")
         return self
+
+
+def collision_stride_value(stride: int | str, owner: str = "collision_stride") -> int | str:
+    """A collision stride setting as an int >= 1 or "auto" (digits in a string are an int)."""
+    if isinstance(stride, str):
+        if stride == "auto":
+            return stride
+        if not stride.isdigit():
+            raise SplatplanError(f"{owner} must be an integer >= 1 or 'auto', got {stride!r}")
+        stride = int(stride)
+    if int(stride) < 1:
+        raise SplatplanError(f"{owner} must be >= 1 or 'auto', got {stride}")
+    return int(stride)
+
+
+@dataclass
+class CostWeights:
+    """Weights of the default cost list of :class:`MPPI` (used when it is given no ``costs``):
+    :class:`CollisionCost`, :class:`ControlEffortCost` and the ``task_cost`` / ``terminal_cost``
+    callables."""
+
+    #: weight of the collision cost (checker ``cost`` summed over time and links)
+    w_collision: float = bounded(1.0, ge=0)
+    #: extra cost per (time step, link) in collision (``in_collision``); 0 = the paper's cost only
+    w_hit: float = bounded(10.0, ge=0)
+    #: weight of the task cost callable
+    w_task: float = bounded(1.0, ge=0)
+    #: weight of the control effort sum_t |u_t|^2 dt
+    w_control: float = bounded(0.01, ge=0)
+    #: weight of the terminal cost callable (e.g. the image cost)
+    w_terminal: float = bounded(1.0, ge=0)
+    #: neighbourhood of the rollouts' collision cost: splats with s2~ below this (the s2_cap of the
+    #: collision cost's queries). Beyond it a splat's cost d_max exp(-gamma (s2~ - 1)) is below
+    #: exp(-gamma (cap - 1)) (1.8% of d_max for the defaults gamma = 4, cap = 2); a smaller cap is a
+    #: much smaller search radius. None = the checker's own s2_cap.
+    collision_s2_cap: float | None = bounded(2.0, ge=1)
+    #: evaluate the collision cost on every n-th rollout step only (the last always; sums scaled by
+    #: n): n times fewer queries, at the risk of stepping over thin obstacles; 1 = every step;
+    #: "auto" = the largest n such that no ellipsoid point moves more than collision_max_gap_m
+    #: between evaluated steps (from the robot's motion_bound, its speed limits and the control
+    #: bounds, times dt; see CollisionCost)
+    collision_stride: int | str = 1
+    #: gap of collision_stride="auto" (scene units); None = half the smallest moving semi-axis
+    collision_max_gap_m: float | None = bounded(None, gt=0)
+
+    def validate(self) -> "CostWeights":
+        """Check the declared ranges and the stride (never changes the config); returns self."""
+        check_config(self)
+        collision_stride_value(self.collision_stride, "CostWeights.collision_stride")
+        if self.collision_max_gap_m is not None and not (np.isfinite(self.collision_max_gap_m) and self.collision_max_gap_m > 0):
+            raise SplatplanError(f"CostWeights.collision_max_gap_m must be finite and > 0, got {self.collision_max_gap_m}")
+        return self
+
+
+@dataclass
+class Evaluation:
+    """A batch of K knot sequences rolled out and costed (:meth:`MPPI.evaluate`).
+
+    Attributes:
+        total: (K,) total cost of every sample.
+        terms: name -> (K,) weighted cost terms (they sum to ``total``).
+        values: name -> per-sample diagnostics the costs report beside their terms, unweighted
+            (e.g. "image_raw": (K,) the image cost before its weight and log; "goal_distance": (K, T)).
+        states: (K, T, dx) rollouts; controls: (K, T, du) their controls.
+        query: the collision cost's QueryResult over its evaluated steps, fields (K, T', L), or
+            None (no collision cost, or a pruned evaluation).
+        n_pruned: samples not collision-checked to the end (``MPPIConfig.prune_margin``; their
+            ``total`` and terms are lower bounds).
+    """
+
+    total: np.ndarray
+    terms: dict
+    values: dict
+    states: np.ndarray
+    controls: np.ndarray
+    query: object = None
+    n_pruned: int = 0
+
+    def in_collision(self) -> np.ndarray:
+        """(K,) bool: some ellipsoid of the sample collides at some evaluated step (False without a query)."""
+        if self.query is None:
+            return np.zeros(len(self.total), dtype=bool)
+        return np.asarray(self.query.in_collision).reshape(len(self.total), -1).any(axis=1)
+
+
+class SamplingStrategy:
+    """Extension point of :class:`MPPI`: how the knot sequences of one iteration are sampled, and
+    optionally which knots replace the weighted-mean update.
+
+    ``begin_step(mppi, x)`` is called once at the start of every :meth:`MPPI.step` (a strategy
+    with state across steps updates it there). ``sample(mppi, x, rng)`` returns (K', n_knots, du) knot sequences (MPPI clips them to the control
+    bounds; K' may differ from ``n_samples``), drawing noise only from ``rng`` (MPPI's generator).
+    ``select(mppi, x, samples, evaluation)`` may return (n_knots, du) knots to take as the new
+    nominal instead of the MPPI weighted mean (None: the weighted mean), e.g. a recovery manoeuvre
+    that found a way out.
+    """
+
+    def begin_step(self, mppi: "MPPI", x: np.ndarray) -> None:
+        return None
+
+    def sample(self, mppi: "MPPI", x: np.ndarray, rng: np.random.Generator) -> np.ndarray:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def select(self, mppi: "MPPI", x: np.ndarray, samples: np.ndarray, evaluation: Evaluation) -> np.ndarray | None:
+        return None
+
+
+class GaussianKnots(SamplingStrategy):
+    """The default: ``V_k = U_bar + eps_k``, ``eps_k ~ N(0, diag(sigma^2))`` per knot, K = ``n_samples``,
+    sample 0 the unperturbed nominal; sigma is ``MPPIConfig.noise_sigma`` times the current noise
+    scale (:meth:`MPPI.set_noise_scale`)."""
+
+    def sample(self, mppi: "MPPI", x: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        eps = rng.standard_normal((mppi.config.n_samples, mppi.config.n_knots, mppi.du)) * mppi.sigma  # (K, n, du)
+        eps[0] = 0.0  # keep the nominal itself among the samples
+        return mppi.knots[None] + eps
 
 
 @dataclass
@@ -149,9 +251,12 @@ class MPPIInfo:
         nominal_states: (T, dx) rollout of the updated nominal (before the warm-start shift).
         nominal_controls: (T, du) its controls; ``nominal_controls[0]`` is the applied control.
         nominal_knots: (n_knots, du) its control points.
-        nominal_in_collision: (T, L) bool, collision state of the nominal trajectory's links.
-        nominal_min_s2: (T, L) conservative min scaling distance along the nominal trajectory.
-        nominal_cost: total cost of the nominal (same terms as ``costs``).
+        nominal_in_collision: (T, L) bool, collision state of the nominal trajectory's links
+            (all False without ``report_nominal`` or a checker).
+        nominal_min_s2: (T, L) conservative min scaling distance along the nominal trajectory (inf then).
+        nominal_cost: total cost of the nominal (same terms as ``costs``; NaN without ``report_nominal``).
+        nominal_values: the values the costs reported on the nominal (see :class:`Evaluation`).
+        evaluation: the :class:`Evaluation` of the last iteration's samples.
         time_s: wall-clock seconds of the step.
         n_pruned: samples of the last iteration not collision-checked to the end
             (``MPPIConfig.prune_margin``; their ``costs`` are lower bounds).
@@ -168,6 +273,8 @@ class MPPIInfo:
     nominal_in_collision: np.ndarray
     nominal_min_s2: np.ndarray
     nominal_cost: float
+    nominal_values: dict = field(default_factory=dict)
+    evaluation: Evaluation | None = None
     time_s: float = 0.0
     n_pruned: int = 0
 
@@ -208,7 +315,7 @@ def joint_speed_bound(dynamics, u_min, u_max) -> np.ndarray | None:
     if lo is not None and hi is not None:
         v = np.minimum(v, np.maximum(np.abs(lo), np.abs(hi)))
     if not np.all(np.isfinite(v)):
-        raise SplatplanError("collision_time_stride='auto' needs bounded joint speeds: give u_min/u_max or velocity limits")
+        raise SplatplanError("collision_stride='auto' needs bounded joint speeds: give u_min/u_max or velocity limits")
     return v
 
 
@@ -217,17 +324,25 @@ class MPPI:
 
     Args:
         dynamics: a :class:`~splatplan.planners.dynamics.Dynamics` (rollout + link_poses).
-        checker: a :class:`~splatplan.metric.CollisionChecker` (any backend); None disables the
-            collision terms.
-        config: :class:`MPPIConfig`.
+        checker: a :class:`~splatplan.metric.CollisionChecker` (any backend) for the default
+            collision cost and the nominal's collision report; None = neither (a
+            :class:`CollisionCost` in ``costs`` still works: it carries its own checker).
+        config: :class:`MPPIConfig` (algorithm settings).
         task_cost: states (K, T, dx) -> (K,) or (K, T) (summed over time) geometric task cost
-            (wrapped in a :class:`StateCost` of weight ``w_task``).
+            (wrapped in a :class:`StateCost` of weight ``weights.w_task``).
         terminal_cost: terminal states (K, dx) -> (K,) cost (e.g. the image cost), or None
-            (wrapped in a :class:`TerminalCost` of weight ``w_terminal``).
-        costs: the cost objects to sum (weights inside each); None = built from the config:
-            :class:`CollisionCost` (``w_collision``, ``w_hit``, ``collision_s2_cap``; when a checker
-            is given), :class:`ControlEffortCost` (``w_control``). ``task_cost`` /
-            ``terminal_cost`` are appended in both cases.
+            (wrapped in a :class:`TerminalCost` of weight ``weights.w_terminal``).
+        costs: the cost objects to sum (weights inside each); None = built from ``weights``:
+            :class:`CollisionCost` (``w_collision``, ``w_hit``, ``collision_s2_cap``,
+            ``collision_stride``; when a checker is given), :class:`ControlEffortCost`
+            (``w_control``). ``task_cost`` / ``terminal_cost`` are appended in both cases.
+        weights: :class:`CostWeights` of the default cost list and the two callables.
+        sampler: the :class:`SamplingStrategy` (default :class:`GaussianKnots`).
+
+    Per-call settings (a documented contract, instead of changing attributes mid-run):
+    :meth:`step` takes ``n_iters``, ``temperature`` and ``goal_step`` for that step only,
+    :meth:`set_noise_scale` scales the knot noise from now on, :meth:`reset` sets the nominal and
+    optionally the noise generator.
     """
 
     def __init__(
@@ -238,44 +353,50 @@ class MPPI:
         task_cost: Callable[[np.ndarray], np.ndarray] | None = None,
         terminal_cost: Callable[[np.ndarray], np.ndarray] | None = None,
         costs: list[Cost] | None = None,
+        weights: CostWeights | None = None,
+        sampler: SamplingStrategy | None = None,
     ) -> None:
         self.dynamics = dynamics
         self.config = (config or MPPIConfig()).validate()
         cfg = self.config
-        cap = cfg.collision_s2_cap
-        self.checker = checker.with_config(s2_cap=cap) if checker is not None and cap is not None else checker
+        wts = (weights or CostWeights()).validate()
+        self.checker = checker
         self.task_cost = task_cost
         self.terminal_cost = terminal_cost
-        self.geometry = _geometry(dynamics) if checker is not None else None  # robot links for the collision terms
         du = int(dynamics.control_dim)
         if costs is None:
             costs = []
-            if checker is not None and (cfg.w_collision > 0 or cfg.w_hit > 0):
-                auto = cfg.collision_time_stride == "auto"
+            if checker is not None and (wts.w_collision > 0 or wts.w_hit > 0):
+                stride = collision_stride_value(wts.collision_stride, "CostWeights.collision_stride")
+                auto = stride == "auto"
                 costs.append(
                     CollisionCost(
-                        checker, dynamics if auto else self.geometry, weight=cfg.w_collision, hit_weight=cfg.w_hit, s2_cap=cap,
-                        time_stride=cfg.collision_time_stride, max_gap_m=cfg.collision_max_gap_m,
+                        checker, dynamics if auto else _geometry(dynamics), weight=wts.w_collision, hit_weight=wts.w_hit, s2_cap=wts.collision_s2_cap,
+                        time_stride=stride, max_gap_m=wts.collision_max_gap_m,
                         speed_bound=joint_speed_bound(dynamics, cfg.u_min, cfg.u_max) if auto else None,
                     )
                 )  # fmt: skip
-            costs.append(ControlEffortCost(cfg.w_control))
+            costs.append(ControlEffortCost(wts.w_control))
         else:
             costs = list(costs)
         if task_cost is not None:
-            costs.append(StateCost(task_cost, cfg.w_task))
+            costs.append(StateCost(task_cost, wts.w_task))
         if terminal_cost is not None:
-            costs.append(TerminalCost(terminal_cost, cfg.w_terminal))
+            costs.append(TerminalCost(terminal_cost, wts.w_terminal))
         #: the cost objects summed by :meth:`evaluate`
         self.costs = costs
+        cols = [c for c in costs if isinstance(c, CollisionCost)]
+        # the nominal's collision report: the collision cost's own checker (its cap), else the checker as given
+        self._report = (cols[0].checker, cols[0].geometry) if cols else ((checker, _geometry(dynamics)) if checker is not None else None)
+        self.sampler = sampler if sampler is not None else GaussianKnots()
         self.du = du
-        self.sigma = _per_dim(cfg.noise_sigma, du, "noise_sigma")
+        self.noise_sigma = _per_dim(cfg.noise_sigma, du, "noise_sigma")  # (du,) the configured std
+        self.sigma = self.noise_sigma.copy()  # (du,) the current std (set_noise_scale)
         self.u_min = _per_dim(cfg.u_min, du, "u_min")
         self.u_max = _per_dim(cfg.u_max, du, "u_max")
-        self.spline = UniformBSpline(cfg.n_knots, cfg.horizon)
+        self.spline = UniformBSpline(cfg.n_knots, cfg.horizon, clamped=cfg.clamped_spline)
         self.rng = np.random.default_rng(cfg.seed)
         self.knots = self._clip(np.zeros((cfg.n_knots, du)))  # (n_knots, du) nominal
-        self.n_pruned = 0  # samples pruned by the last evaluate (prune_margin)
 
     # ------------------------------------------------------------------ helpers
     def _clip(self, knots: np.ndarray) -> np.ndarray:
@@ -285,39 +406,55 @@ class MPPI:
             knots = np.minimum(knots, self.u_max)
         return knots
 
-    def reset(self, knots: np.ndarray | None = None) -> None:
-        """Set the nominal control knots (n_knots, du) (zeros when None)."""
+    def clip(self, knots: np.ndarray) -> np.ndarray:
+        """Knots (..., n_knots, du) clipped to the control bounds."""
+        return self._clip(np.asarray(knots, dtype=np.float64))
+
+    def reset(self, knots: np.ndarray | None = None, rng: np.random.Generator | int | None = None) -> None:
+        """Set the nominal control knots (n_knots, du) (zeros when None), clipped to the bounds; with
+        ``rng`` (a Generator, used as is, or a seed) also the noise generator."""
         k = np.zeros((self.config.n_knots, self.du)) if knots is None else np.asarray(knots, dtype=np.float64).reshape(self.config.n_knots, self.du)
         self.knots = self._clip(k)
+        if rng is not None:
+            self.rng = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
 
-    def evaluate(self, x: np.ndarray, knots: np.ndarray) -> tuple[np.ndarray, dict, np.ndarray, np.ndarray, object]:
+    def set_noise_scale(self, *factors: float) -> None:
+        """From now on the knot noise std is ``noise_sigma * factors[0] * factors[1] * ...``
+        (multiplied in this order; none = the configured std)."""
+        s = self.noise_sigma
+        for f in factors:
+            s = s * float(f)
+        self.sigma = np.array(s, dtype=np.float64, copy=True)
+
+    def evaluate(self, x: np.ndarray, knots: np.ndarray, goal_step: int | None = None) -> Evaluation:
         """Roll out and cost a batch of knot sequences.
 
         Args:
             x: current state (dx,).
             knots: (K, n_knots, du) control points.
+            goal_step: index of the rollout step at the goal time (:attr:`Rollout.goal_step`:
+                shrinking-horizon costs end there); None = the last step.
 
         Returns:
-            total (K,), terms {name: (K,)}, states (K, T, dx), controls (K, T, du), the QueryResult
-            (fields shaped (K, T, L)) or None without a checker.
+            an :class:`Evaluation`.
         """
         cfg = self.config
         controls = self.spline(knots)  # (K, T, du)
         states = self.dynamics.rollout(x, controls, cfg.dt)  # (K, T, dx)
-        rollout = Rollout(states, controls, cfg.dt)
+        rollout = Rollout(states, controls, cfg.dt, goal_step=goal_step)
         cols = [c for c in self.costs if isinstance(c, CollisionCost)]
-        self.n_pruned = 0
         if cfg.prune_margin is not None and len(cols) == 1 and rollout.k > cfg.prune_probe:
-            total, terms = self._pruned_cost(rollout, cols[0])
-        else:
-            total, terms = total_cost(self.costs, rollout)
-        return total, terms, states, controls, rollout.cache.get("query")
+            total, terms, values, n_pruned = self._pruned_cost(rollout, cols[0])
+            return Evaluation(total, terms, values, states, controls, None, n_pruned)
+        total, terms, values, query = evaluate_costs(self.costs, rollout)
+        return Evaluation(total, terms, values, states, controls, query, 0)
 
-    def _pruned_cost(self, rollout: Rollout, col: CollisionCost) -> tuple[np.ndarray, dict[str, np.ndarray]]:
-        """total (K,), terms of a batch with hopeless samples pruned (see ``MPPIConfig.prune_margin``)."""
+    def _pruned_cost(self, rollout: Rollout, col: CollisionCost) -> tuple[np.ndarray, dict, dict, int]:
+        """total (K,), terms, values and the pruned count of a batch with hopeless samples pruned
+        (see ``MPPIConfig.prune_margin``)."""
         cfg = self.config
         k, t_len = rollout.k, rollout.states.shape[1]
-        base, terms = total_cost([c for c in self.costs if c is not col], rollout)  # every other term, exact
+        base, terms, values, _ = evaluate_costs([c for c in self.costs if c is not col], rollout)  # every other term, exact
         for name, v in col.self_terms(rollout).items():
             base = base + v
             terms[name] = v
@@ -346,63 +483,79 @@ class MPPI:
             idx = np.flatnonzero(alive)
             if idx.size:
                 add(idx, chunk)
-        self.n_pruned = int(k - cfg.prune_probe - alive.sum())
         terms.update(coll)
-        return lower(), terms
+        return lower(), terms, values, int(k - cfg.prune_probe - alive.sum())
 
     # ------------------------------------------------------------------ MPC step
-    def step(self, x) -> tuple[np.ndarray, MPPIInfo]:
-        """One MPC step from state ``x`` (dx,): ``n_iters`` MPPI iterations, then warm start.
+    def step(self, x, *, n_iters: int | None = None, temperature: float | None = None, goal_step: int | None = None) -> tuple[np.ndarray, MPPIInfo]:
+        """One MPC step from state ``x`` (dx,): MPPI iterations, then warm start.
+
+        Args:
+            x: current state (dx,).
+            n_iters: iterations of this step (default ``config.n_iters``).
+            temperature: temperature of this step (default ``config.temperature``).
+            goal_step: rollout step at the goal time for this step's evaluations (see :meth:`evaluate`).
 
         Returns:
             u0 (du,): the control to apply now, and an :class:`MPPIInfo`.
         """
         t0 = time.perf_counter()
         cfg = self.config
+        n_iters = cfg.n_iters if n_iters is None else int(n_iters)
+        lam = cfg.temperature if temperature is None else float(temperature)
+        if n_iters < 1 or not lam > 0:
+            raise SplatplanError(f"MPPI.step needs n_iters >= 1 and temperature > 0, got {n_iters} and {lam}")
         x = np.asarray(x, dtype=np.float64).reshape(-1)
-        k, n = cfg.n_samples, cfg.n_knots
+        self.sampler.begin_step(self, x)
         elite_knots, elite_cost = None, np.inf  # (n, du) lowest-cost sample of this step (cfg.elite)
-        for _ in range(cfg.n_iters):
-            eps = self.rng.standard_normal((k, n, self.du)) * self.sigma  # (K, n, du)
-            eps[0] = 0.0  # keep the nominal itself among the samples
-            samples = self._clip(self.knots[None] + eps)  # (K, n, du)
+        for _ in range(n_iters):
+            samples = self._clip(self.sampler.sample(self, x, self.rng))  # (K, n, du)
             if elite_knots is not None:
                 samples[1] = elite_knots  # the best sample so far competes again
-            total, terms, states, _, _ = self.evaluate(x, samples)
-            c = np.where(np.isfinite(total), total, np.inf)
+            ev = self.evaluate(x, samples, goal_step)
+            c = np.where(np.isfinite(ev.total), ev.total, np.inf)
             cmin = float(np.min(c))
             if cfg.elite and cmin < elite_cost:
                 elite_knots, elite_cost = samples[int(np.argmin(c))].copy(), cmin
-            n_pruned = self.n_pruned
-            w = mppi_weights(c, cfg.temperature)  # (K,)
-            self.knots = self._clip(np.einsum("k,knd->nd", w, samples))
-        best = int(np.argmin(c))
-        nom_total, _, nom_states, nom_controls, nom_res = self.evaluate(x, self.knots[None])
-        if elite_knots is not None and elite_cost < float(nom_total[0]):
-            self.knots = elite_knots  # the weighted mean is worse than the best sample seen: keep that
-            nom_total, _, nom_states, nom_controls, nom_res = self.evaluate(x, self.knots[None])
-        if self.checker is not None and (nom_res is None or nom_res.min_s2.shape[1] != cfg.horizon):
-            # collision terms off (or evaluated on a time stride): still report every step
-            nom_res = self.geometry.query(self.checker, nom_states)  # (1, T, L)
-        n_links = 1 if nom_res is None else nom_res.min_s2.shape[-1]
-        info = MPPIInfo(
-            costs=total,
-            cost_terms=terms,
-            weights=w,
-            best_states=states[best],
-            best_cost=float(total[best]),
-            nominal_states=nom_states[0],
-            nominal_controls=nom_controls[0],
-            nominal_knots=self.knots.copy(),
-            nominal_in_collision=np.zeros((cfg.horizon, n_links), dtype=bool) if nom_res is None else nom_res.in_collision[0],
-            nominal_min_s2=np.full((cfg.horizon, n_links), np.inf) if nom_res is None else nom_res.min_s2[0],
-            nominal_cost=float(nom_total[0]),
-            n_pruned=n_pruned,
-        )
-        u0 = nom_controls[0, 0].copy()
+            w = mppi_weights(c, lam)  # (K,)
+            chosen = self.sampler.select(self, x, samples, ev)
+            self.knots = self._clip(np.einsum("k,knd->nd", w, samples) if chosen is None else chosen)
+        info = self._info(x, ev, w, elite_knots, elite_cost, goal_step)
+        u0 = info.nominal_controls[0].copy()
         self.knots = self._clip(self.spline.shift(self.knots))  # warm start: shift by one period
         info.time_s = time.perf_counter() - t0
         return u0, info
+
+    def _info(self, x: np.ndarray, ev: Evaluation, w: np.ndarray, elite_knots, elite_cost: float, goal_step: int | None) -> MPPIInfo:
+        """The step's :class:`MPPIInfo` (evaluates the nominal when ``report_nominal`` or elitism needs it)."""
+        cfg = self.config
+        best = int(np.argmin(np.where(np.isfinite(ev.total), ev.total, np.inf)))
+        nom = None
+        if cfg.report_nominal or elite_knots is not None:
+            nom = self.evaluate(x, self.knots[None], goal_step)
+            if elite_knots is not None and elite_cost < float(nom.total[0]):
+                self.knots = elite_knots  # the weighted mean is worse than the best sample seen: keep that
+                nom = self.evaluate(x, self.knots[None], goal_step)
+        if nom is None:
+            controls = self.spline(self.knots[None])  # (1, T, du)
+            nom_states, nom_controls, nom_cost, values = self.dynamics.rollout(x, controls, cfg.dt)[0], controls[0], float("nan"), {}
+        else:
+            nom_states, nom_controls, nom_cost, values = nom.states[0], nom.controls[0], float(nom.total[0]), nom.values
+        res = None if nom is None else nom.query
+        if cfg.report_nominal and self._report is not None and (res is None or res.min_s2.shape[1] != cfg.horizon):
+            # collision terms off (or evaluated on a time stride): still report every step
+            checker, geometry = self._report
+            res = geometry.query(checker, nom_states[None])  # (1, T, L)
+        if not cfg.report_nominal:
+            res = None
+        n_links = 1 if res is None else res.min_s2.shape[-1]
+        return MPPIInfo(
+            costs=ev.total, cost_terms=ev.terms, weights=w, best_states=ev.states[best], best_cost=float(ev.total[best]),
+            nominal_states=nom_states, nominal_controls=nom_controls, nominal_knots=self.knots.copy(),
+            nominal_in_collision=np.zeros((cfg.horizon, n_links), dtype=bool) if res is None else res.in_collision[0],
+            nominal_min_s2=np.full((cfg.horizon, n_links), np.inf) if res is None else res.min_s2[0],
+            nominal_cost=nom_cost, nominal_values=values, evaluation=ev, n_pruned=ev.n_pruned,
+        )  # fmt: skip
 
     def run(
         self,

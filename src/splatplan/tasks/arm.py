@@ -19,47 +19,42 @@ Warm start by shifting the knots one control period (MPPI's own); the knots are 
 B-spline so that the applied first control is set by knots that shape the whole rollout; the
 knot noise shrinks near the goal (``noise_anneal_m``). The collision cost may query every
 ``collision_stride``-th step of the horizon. The goal pose is checked for reachability by IK
-(:func:`~splatplan.tasks._ik.solve_ik`) before any step: an unreachable goal is an error.
+(:func:`~splatplan.robots.ik.solve_ik`) before any step: an unreachable goal is an error.
 """
 
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from .._config import bounded, check_config
-from .._resources import require_rollouts
+from .._config import NESTED_SKIP, bounded, check_config
 from ..errors import SplatplanError
-from ._common import TaskResult, check_start, load_task_scene, moving_clearance, trajectory_clearance
-from ._ik import rotation_error, solve_ik
+from ..planners.dynamics import JointIntegrator
+from ..planners.mppi import MPPIConfig
+from ..robots.ik import rotation_error, solve_ik
+from ._common import TaskResult, TaskScene, check_start, load_task_scene, moving_clearance, trajectory_clearance
 
 __all__ = ["ArmConfig", "check_reachable", "down_quat", "run_arm"]
+
+
+def _arm_mppi() -> MPPIConfig:
+    """The arm's MPPI settings: K = 64, T = 16, 5 unclamped knots (the applied first control is set
+    by knots that shape the whole rollout), one iteration per step, pruning at margin 40."""
+    return MPPIConfig(n_samples=64, horizon=16, n_knots=5, dt=0.1, temperature=0.3, noise_sigma=0.35, n_iters=1, clamped_spline=False, report_nominal=False, prune_margin=40.0)
 
 
 @dataclass
 class ArmConfig:
     """Knobs of :func:`run_arm` (MPPI over joint-velocity B-splines)."""
 
-    #: sampled control sequences K per MPPI iteration
-    n_samples: int = bounded(64, ge=2)
-    #: horizon T (control steps)
-    horizon: int = bounded(16, ge=2)
-    #: B-spline knots per joint over the horizon (>= 4)
-    n_knots: int = bounded(5, ge=4)
-    #: control period (s)
-    dt: float = bounded(0.1, gt=0)
-    #: MPPI temperature (smaller = greedier)
-    temperature: float = bounded(0.3, gt=0)
-    #: std of the knot perturbations (rad/s)
-    noise_sigma: float = bounded(0.35, ge=0)
+    #: MPPI settings (noise_sigma in rad/s; the control bounds come from velocity_scale)
+    mppi: MPPIConfig = field(default_factory=_arm_mppi, metadata={NESTED_SKIP: ("u_min", "u_max")})
     #: near the goal the noise shrinks: std x clip(position error / this (m), noise_floor, 1)
     noise_anneal_m: float = bounded(0.3, gt=0)
     #: smallest noise fraction of the annealing
     noise_floor: float = bounded(0.05, ge=0, le=1)
-    #: MPPI iterations per MPC step
-    n_iters: int = bounded(1, ge=1)
     #: maximum MPC steps
     max_steps: int = bounded(90, ge=1)
     #: joint velocity bound as a fraction of the robot's velocity limits
@@ -90,10 +85,6 @@ class ArmConfig:
     collision_s2_cap: float = bounded(1.4, ge=1)
     #: query the collision cost on every stride-th step of the horizon (1 = every step)
     collision_stride: int = bounded(2, ge=1)
-    #: prune hopeless samples (MPPIConfig.prune_margin): a sample whose weight is proven below
-    #: exp(-margin) of the best's is not collision-checked to the end (same update to float64
-    #: rounding); None = every sample checked over the whole horizon
-    prune_margin: float | None = bounded(40.0, gt=0)
     #: end-effector link
     ee_link: str = "panda_hand_tcp"
     #: success: final position error below this (m) with a positive clearance throughout
@@ -102,17 +93,12 @@ class ArmConfig:
     orientation_tol_deg: float = bounded(10.0, gt=0, le=180)
     #: stop early once the position error is below this (m) and the orientation within tolerance
     stop_tol: float = bounded(0.008, ge=0)
-    #: noise seed
-    seed: int = bounded(0, ge=0)
 
     def validate(self) -> "ArmConfig":
         """Check every field's declared range (:mod:`splatplan._config`) and the cross-field rules; returns self."""
         check_config(self)
-        require_rollouts(self.n_samples, self.horizon, "ArmConfig")
-        if self.n_knots > self.horizon:
-            raise SplatplanError(f"ArmConfig.n_knots must be <= horizon (knots of a spline over the horizon's steps), got n_knots={self.n_knots}, horizon={self.horizon}")
+        self.mppi.validate()
         return self
-
 
 
 def down_quat(yaw: float = 0.0) -> np.ndarray:
@@ -145,6 +131,48 @@ def _ee_error(robot, q: np.ndarray, li: int, p_goal: np.ndarray, r_goal: np.ndar
     return pe, re
 
 
+def _goal_pose(goal_position, goal_quat) -> tuple[np.ndarray, np.ndarray | None]:
+    """Checked goal position (3,) and unit wxyz quaternion (4,) | None."""
+    p_goal = np.asarray(goal_position, np.float64).reshape(3)
+    if not np.all(np.isfinite(p_goal)):
+        raise SplatplanError(f"goal position {p_goal.tolist()} is not finite")
+    if goal_quat is None:
+        return p_goal, None
+    quat = np.asarray(goal_quat, np.float64).reshape(4)
+    if not np.all(np.isfinite(quat)) or np.linalg.norm(quat) < 1e-8:
+        raise SplatplanError(f"goal quaternion {quat.tolist()} must be finite and non-zero (wxyz)")
+    return p_goal, quat / np.linalg.norm(quat)
+
+
+def _posture_reference(robot, ts: TaskScene, p_goal, quat, q: np.ndarray, cfg: ArmConfig, collision: bool) -> np.ndarray:
+    """The IK solution of the goal pose nearest to ``q`` (collision-free ones first when the
+    collision cost is on; the no-collision baseline knows nothing of the scene). Raises when the
+    goal is unreachable."""
+    sols = check_reachable(robot, p_goal, quat, cfg.ee_link, seed=cfg.mppi.seed)
+    pool = sols
+    if collision:
+        free = ~np.asarray(ts.checker.collides_robot(robot, sols)).any(axis=-1)
+        pool = sols[free] if np.any(free) else sols
+    return pool[np.argmin(np.sum((pool - q) ** 2, axis=1))]
+
+
+def _arm_costs(robot, ts: TaskScene, p_goal, quat, q_ref: np.ndarray, cfg: ArmConfig, collision: bool) -> list:
+    """The cost list of :func:`run_arm` (see the module docstring)."""
+    from ..planners.costs import CollisionCost, ControlEffortCost, GoalPoseCost, JointLimitCost, StateCost, fk_device
+
+    costs = [
+        GoalPoseCost(robot, position=p_goal, quat=quat, link=cfg.ee_link, position_weight=cfg.w_position, orientation_weight=cfg.w_orientation, terminal_factor=cfg.terminal_factor,
+                     device=fk_device(ts.checker)),
+        ControlEffortCost(cfg.w_control),
+        JointLimitCost(robot, weight=cfg.w_limits, margin=0.05),
+    ]  # fmt: skip
+    if cfg.w_posture > 0:
+        costs.append(StateCost(lambda s: np.sum((s - q_ref) ** 2, axis=-1), weight=cfg.w_posture, name="posture"))
+    if collision:
+        costs.insert(0, CollisionCost(ts.checker, robot, weight=cfg.w_collision, hit_weight=cfg.w_hit, s2_cap=cfg.collision_s2_cap, self_collision_weight=cfg.w_self_collision, time_stride=cfg.collision_stride))
+    return costs
+
+
 def run_arm(
     robot,
     scene,
@@ -175,10 +203,7 @@ def run_arm(
     Returns:
         :class:`TaskResult` (``trajectory`` in joint space).
     """
-    from ..planners import MPPI, MPPIConfig
-    from ..planners.bspline import UniformBSpline
-    from ..planners.costs import CollisionCost, ControlEffortCost, GoalPoseCost, JointLimitCost, StateCost, fk_device
-    from ..planners.dynamics import JointIntegrator
+    from ..planners import MPPI
     from ..robots import load_robot
     from ..scenes.splats import quat_to_rotmat
 
@@ -186,52 +211,18 @@ def run_arm(
     robot = load_robot(robot)
     if cfg.ee_link not in robot.link_names:
         raise SplatplanError(f"robot {robot.name} has no end-effector link {cfg.ee_link!r}; links: {', '.join(robot.link_names)}")
-    p_goal = np.asarray(goal_position, np.float64).reshape(3)
-    if not np.all(np.isfinite(p_goal)):
-        raise SplatplanError(f"goal position {p_goal.tolist()} is not finite")
-    quat = None
-    if goal_quat is not None:
-        quat = np.asarray(goal_quat, np.float64).reshape(4)
-        if not np.all(np.isfinite(quat)) or np.linalg.norm(quat) < 1e-8:
-            raise SplatplanError(f"goal quaternion {quat.tolist()} must be finite and non-zero (wxyz)")
-        quat = quat / np.linalg.norm(quat)
+    p_goal, quat = _goal_pose(goal_position, goal_quat)
     ts = load_task_scene(scene, n_sigma=cfg.n_sigma, device=device)
     q = robot.check_q(robot.q_default if q0 is None else q0).reshape(robot.dof).copy()
-    q_ref = np.asarray(robot.q_default, np.float64)
-    if check_goal:
-        sols = check_reachable(robot, p_goal, quat, cfg.ee_link, seed=cfg.seed)
-        pool = sols
-        if collision:  # the no-collision baseline knows nothing of the scene: nearest IK solution
-            free = ~np.asarray(ts.checker.collides_robot(robot, sols)).any(axis=-1)
-            pool = sols[free] if np.any(free) else sols
-        q_ref = pool[np.argmin(np.sum((pool - q) ** 2, axis=1))]
+    q_ref = _posture_reference(robot, ts, p_goal, quat, q, cfg, collision) if check_goal else np.asarray(robot.q_default, np.float64)
     check_start(robot, ts.checker, q)
 
     vmax = cfg.velocity_scale * np.asarray(robot.velocity_limits, np.float64)
     dyn = JointIntegrator(robot, velocity_limits=vmax)
-    costs = [
-        GoalPoseCost(robot, position=p_goal, quat=quat, link=cfg.ee_link, position_weight=cfg.w_position, orientation_weight=cfg.w_orientation, terminal_factor=cfg.terminal_factor,
-                     device=fk_device(ts.checker)),
-        ControlEffortCost(cfg.w_control),
-        JointLimitCost(robot, weight=cfg.w_limits, margin=0.05),
-    ]
-    if cfg.w_posture > 0:
-        costs.append(StateCost(lambda s: np.sum((s - q_ref) ** 2, axis=-1), weight=cfg.w_posture, name="posture"))
-    if collision:
-        costs.insert(0, CollisionCost(ts.checker, robot, weight=cfg.w_collision, hit_weight=cfg.w_hit, s2_cap=cfg.collision_s2_cap, self_collision_weight=cfg.w_self_collision, time_stride=cfg.collision_stride))
-    mcfg = MPPIConfig(
-        n_samples=cfg.n_samples, horizon=cfg.horizon, n_knots=cfg.n_knots, dt=cfg.dt, temperature=cfg.temperature,
-        noise_sigma=cfg.noise_sigma, n_iters=cfg.n_iters, u_min=tuple(-vmax), u_max=tuple(vmax), seed=cfg.seed,
-        prune_margin=cfg.prune_margin,
-    )  # fmt: skip
-    mppi = MPPI(dyn, ts.checker if collision else None, mcfg, costs=costs)
-    # Unclamped knots: the applied first control (c0 + 4 c1 + c2) / 6 is set by knots that shape the
-    # whole rollout, not by c0 alone (which barely changes the cost and would be mostly noise).
-    mppi.spline = UniformBSpline(cfg.n_knots, cfg.horizon, clamped=False)
+    mppi = MPPI(dyn, None, replace(cfg.mppi, u_min=tuple(-vmax), u_max=tuple(vmax)), costs=_arm_costs(robot, ts, p_goal, quat, q_ref, cfg, collision))
     li = robot.link_names.index(cfg.ee_link)
     r_goal = None if quat is None else quat_to_rotmat(quat)
     states = [q.copy()]
-    sigma0 = np.array(mppi.sigma, copy=True)
     t0 = time.perf_counter()
     n_steps = 0
     for step in range(cfg.max_steps):
@@ -240,9 +231,9 @@ def run_arm(
             progress(step, pe)
         if pe < cfg.stop_tol and np.rad2deg(re) < cfg.orientation_tol_deg:
             break
-        mppi.sigma = sigma0 * float(np.clip(pe / cfg.noise_anneal_m, cfg.noise_floor, 1.0))
+        mppi.set_noise_scale(np.clip(pe / cfg.noise_anneal_m, cfg.noise_floor, 1.0))  # finer near the goal
         u, _ = mppi.step(q)
-        q = dyn.rollout(q, u[None, None, :], cfg.dt)[0, 0]
+        q = dyn.rollout(q, u[None, None, :], cfg.mppi.dt)[0, 0]
         states.append(q.copy())
         n_steps += 1
     elapsed = time.perf_counter() - t0

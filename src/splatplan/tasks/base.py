@@ -1,59 +1,34 @@
 """Quadruped base driving under MPPI (paper Sec. IV, E6's last stage): the Go2 to a goal position
 given **only the goal** (e.g. the final node of an RRT path), around obstacles and through
-doorways on the collision cost alone.
+doorways on the collision cost alone. A recipe: a :class:`BaseConfig` (embedding the
+:class:`~splatplan.planners.MPPIConfig`), the Go2, a cost list and the MPC loop.
 
 State (x, y, yaw) of the base in the world (metres, radians); controls (vx, vy, wz) in the body
-frame, a cubic B-spline over the horizon, clipped to the robot's velocity limits
-(:class:`~splatplan.planners.dynamics.PlanarBase`). Every body and leg ellipsoid of the Go2 at its
-standing height enters the collision cost (one ``query_robot`` per MPC step on the (K, T, 3)
-batch, every step of the horizon: with a stride of 2 the base grazed a door post, -3.6 cm exact).
-Goal cost per rollout: ``w_goal (sum_t d_t + terminal_factor d_T + min_factor min_t d_t)`` with d
-the distance of the base to the goal, plus ``w_heading`` for facing the goal and a small yaw-rate
-cost (without them the heading drifts, and the 0.7 m long body meets a doorway sideways).
+frame, an unclamped cubic B-spline over the horizon, clipped to the robot's velocity limits
+(:class:`~splatplan.planners.dynamics.PlanarBase`). Costs: every body and leg ellipsoid of the Go2
+at its standing height in the collision cost (one ``query_robot`` per MPC step on the (K, T, 3)
+batch, every step of the horizon: with a stride of 2 the base grazed a door post, -3.6 cm exact),
+the control effort plus a small yaw-rate cost, and the goal term
+(:class:`~splatplan.planners.drive.DriveGoalCost`). Sampling:
+:class:`~splatplan.planners.drive.StructuredDrives` (structured drives beside the Gaussian knot
+noise, and the optional stagnation recovery); :mod:`splatplan.planners.drive` describes both.
 
-The planner (:class:`_BasePlanner`, MPPI over the same B-spline knots as
-:class:`~splatplan.planners.MPPI`, with its own sampling) adds three local-planner techniques, all
-from the goal and the collision checks near the base only (no prior map, no route):
-
-* **Structured samples**: next to the Gaussian knot perturbations of the nominal, straight drives
-  in ``n_directions`` world directions and the same drives switching to the bearing to the goal
-  after 1/4, 1/2 and 3/4 of the horizon (knots fitted by ridge least squares), all turning the base towards their direction of travel
-  (``primitive_turn_rate``). They let MPPI see "along the wall, then through the doorway".
-* **Stagnation recovery** (``recovery``): when the distance to the goal has not improved by
-  ``stuck_progress_m`` for ``stuck_steps`` steps (and the base is more than
-  ``recovery_min_distance_m`` from the goal), the base sidesteps: it sweeps perpendicular to the
-  bearing to the goal, first to the side ``first_sweep`` (clockwise by default, a fixed convention
-  like the Bug algorithms' turning direction; the other side where an earlier sweep started
-  within 0.5 m), facing its direction of travel (``w_align``), and reverses with twice the length
-  when blocked or after ``detour_length_m`` (a doubling search). The sweep's cost is progress
-  along its direction (``w_sweep``) plus the collision cost. It ends as soon as a collision-free
-  rollout gets ``detour_exit_margin_m`` closer to the goal than the base ever was and than any
-  collision-free rollout of goal mode ever got; the nominal then becomes that rollout. Every
-  sweep, reversal and resume is recorded in ``extra["events"]``. **Off by default**: in the base
-  study it reached no goal that plain MPPI missed (3/5 either way; the kitchen goals fail both
-  ways), and it can fire while the base is still lining up with a doorway (bedroom goal
-  (1.12, 1.81), seeds 0-5: 5/6 reached with it, 6/6 without).
-* **Sensed-obstacle memory** (``memory``, off by default; :class:`ObstacleMemory`): how
-  navigation stacks get out of local minima with no prior map (the freespace assumption of D*
-  Lite in unknown terrain). The base keeps a coarse occupancy grid (``memory_cell_m``) of the
-  scene box, *unknown = free* at the start; every MPC step it senses the cells within
-  ``sensor_radius_m`` that it has not sensed before and that are in its line of sight
-  (``sensor_occlusion``, on by default: like a 2D lidar at ``sensor_height_m``, the segment to the
-  cell is free of scene surfaces by the metric up to one cell before the cell's centre; cells out
-  of sight stay unknown and are tried again every step) (blocked: the Go2 collides there at every
-  one of ``memory_yaws`` headings; batched ``collides_robot`` calls, memoised). The goal terms d_t
-  above then read the **geodesic** distance to the goal on that grid (8-connected Dijkstra over
-  the not-blocked cells, recomputed only when new cells are blocked, bilinear between cell
-  centres) with an inflation layer (``memory_inflation_m``, ``memory_inflation_cost``: cells
-  near blocked ones cost more, so the geodesic keeps to the middle of passages and doorways;
-  without it the base hugged the door post of the kitchen doorway, every sample collided, and it
-  backed out); the heading term faces the field's descent, and the structured drives switch to
-  following that descent (streamlines) instead of the bearing to the goal, plus two pure
-  followers. The collision cost is unchanged: the field only shapes the goal cost. The sensor
-  sees nothing beyond its radius nor behind a surface; no map of the scene is built before
-  driving. In the base study it reaches the two kitchen goals that plain MPPI misses (5/5 against
-  3/5; with the line of sight as without it, in 21-24 s against 16-17 s: the base learns less of
-  the wall ahead of time).
+* **Stagnation recovery** (``recovery``) is **off by default**: in the base study it reached no
+  goal that plain MPPI missed (3/5 either way; the kitchen goals fail both ways), and it can fire
+  while the base is still lining up with a doorway (bedroom goal (1.12, 1.81), seeds 0-5: 5/6
+  reached with it, 6/6 without).
+* **Sensed-obstacle memory** (``memory``, off by default;
+  :class:`~splatplan.planners.memory.ObstacleMemory`): how navigation stacks get out of local
+  minima with no prior map (the freespace assumption of D* Lite in unknown terrain). The base keeps
+  a coarse occupancy grid (``memory_cell_m``) of the scene box, *unknown = free* at the start;
+  every MPC step it senses the cells within ``sensor_radius_m`` that it has not sensed before and
+  that are in its line of sight (``sensor_occlusion``: like a 2D lidar at ``sensor_height_m``)
+  (blocked: the Go2 collides there at every one of ``memory_yaws`` headings). The goal term then
+  reads the **geodesic** distance to the goal on that grid, with an inflation layer
+  (``memory_inflation_m``, ``memory_inflation_cost``: the geodesic keeps to the middle of passages
+  and doorways; without it the base hugged the door post of the kitchen doorway, every sample
+  collided, and it backed out). The collision cost is unchanged. In the base study it reaches the
+  two kitchen goals that plain MPPI misses (5/5 against 3/5, in 21-24 s against 16-17 s).
 
 **Conservatism.** The base runs the metric at ``n_sigma = 0.75``: at n_sigma = 1 the splats'
 inflation (about 0.13 m per side on the walls) leaves **no** collision-free pose of the Go2 (yaw 0)
@@ -63,24 +38,23 @@ one, so the kitchen is unreachable; at 0.75 the free bands of the centre are 16,
 exact boxes by 2-3 cm in tight spots, which the metric at 0.5 did not see. The exact clearance
 to the boxes is what the studies report.
 
-With ``route`` (a path, e.g. from :func:`plan_route`), the goal cost follows the route's
+With ``route`` (a path, e.g. from :func:`plan_route`), the goal term follows the route's
 waypoints instead and the recovery and the memory are off (``--route`` in the CLI).
 """
 
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from .._config import bounded, check_config
-from .._resources import require_rollouts
+from .._config import NESTED_SKIP, bounded, check_config
 from ..errors import SplatplanError
+from ..planners.mppi import MPPIConfig
 from ._common import TaskResult, base_terrain, check_start, load_task_scene, trajectory_clearance
-from .memory import ObstacleMemory, _geodesic_field_reference, _line_of_sight_reference, geodesic_field, line_of_sight  # noqa: F401  (re-exported)
 
-__all__ = ["FOOT_CLEARANCE", "START", "BaseConfig", "ObstacleMemory", "geodesic_field", "line_of_sight", "load_go2", "plan_route", "run_base"]
+__all__ = ["FOOT_CLEARANCE", "START", "BaseConfig", "load_go2", "plan_route", "run_base"]
 
 #: The Go2's feet ellipsoids are lifted this far (m) above the floor (as in a trot's swing phase), so
 #: the floor itself is not a collision.
@@ -102,22 +76,17 @@ def load_go2():
     return robot
 
 
+def _base_mppi() -> MPPIConfig:
+    """The base's MPPI settings: K = 64, T = 20 steps of 0.2 s, 6 unclamped knots, one iteration per step."""
+    return MPPIConfig(n_samples=64, horizon=20, n_knots=6, dt=0.2, temperature=0.5, noise_sigma=(0.6, 0.4, 0.3), n_iters=1, clamped_spline=False, report_nominal=False)
+
+
 @dataclass
 class BaseConfig:
     """Knobs of :func:`run_base` (MPPI over body-frame velocity B-splines)."""
 
-    #: sampled control sequences K per MPPI iteration
-    n_samples: int = bounded(64, ge=2)
-    #: horizon T (control steps)
-    horizon: int = bounded(20, ge=2)
-    #: B-spline knots per control over the horizon
-    n_knots: int = bounded(6, ge=4)
-    #: control period (s)
-    dt: float = bounded(0.2, gt=0)
-    #: MPPI temperature
-    temperature: float = bounded(0.5, gt=0)
-    #: knot noise std (vx m/s, vy m/s, wz rad/s)
-    noise_sigma: tuple[float, float, float] = bounded((0.6, 0.4, 0.3), ge=0)
+    #: MPPI settings (noise_sigma: vx m/s, vy m/s, wz rad/s; the control bounds are the robot's velocity limits)
+    mppi: MPPIConfig = field(default_factory=_base_mppi, metadata={NESTED_SKIP: ("u_min", "u_max")})
     #: maximum MPC steps
     max_steps: int = bounded(250, ge=1)
     #: weight of the distance to the goal (per metre, per step)
@@ -185,7 +154,7 @@ class BaseConfig:
     ground_band: float = bounded(0.05, ge=0)
     #: sensed-obstacle memory (off by default): a coarse occupancy grid, unknown = free, filled with
     #: the cells sensed within sensor_radius_m of the base every MPC step; the goal cost then uses
-    #: the geodesic distance to the goal on it instead of the straight line (see ObstacleMemory)
+    #: the geodesic distance to the goal on it instead of the straight line (see planners.memory)
     memory: bool = False
     #: memory: sensing radius around the base (m); nothing beyond it is sensed
     sensor_radius_m: float = bounded(2.5, gt=0)
@@ -205,17 +174,11 @@ class BaseConfig:
     #: memory: height of the sensor's scan plane above the floor (m; the Go2's body spans ~0.28-0.52 m,
     #: its legs below; lower obstacles are seen over, as a lidar on the body would)
     sensor_height_m: float = bounded(0.3, ge=0)
-    #: noise seed
-    seed: int = bounded(0, ge=0)
-
     def validate(self) -> "BaseConfig":
         """Check every field's declared range (:mod:`splatplan._config`) and the cross-field rules; returns self."""
         check_config(self)
-        require_rollouts(self.n_samples, self.horizon, "BaseConfig")
-        if self.n_knots > self.horizon:
-            raise SplatplanError(f"BaseConfig.n_knots must be <= horizon (knots of a spline over the horizon's steps), got n_knots={self.n_knots}, horizon={self.horizon}")
+        self.mppi.validate()
         return self
-
 
 
 def plan_route(
@@ -260,208 +223,6 @@ def _free_yaw(robot, checker, xy) -> float | None:
     return float(yaws[np.argmax(free)]) if free.any() else None
 
 
-class _BasePlanner:
-    """MPPI over body-frame velocity B-splines for the planar base, with structured samples and a
-    stagnation recovery (see the module docstring). One :meth:`step` per control period."""
-
-    def __init__(self, dyn, cfg: BaseConfig, vmax: np.ndarray, collision_cost, goal: np.ndarray, recovery: bool = True, memory: ObstacleMemory | None = None) -> None:
-        from ..planners.bspline import UniformBSpline
-
-        self.dyn, self.cfg, self.vmax = dyn, cfg, np.asarray(vmax, np.float64)
-        self.collision = collision_cost
-        self.spline = UniformBSpline(cfg.n_knots, cfg.horizon, clamped=False)  # see tasks.arm
-        bb = self.spline.basis  # (T, n_knots); ridge: the unclamped first / last knots barely act, unregularised they blow up
-        self._basis_pinv = np.linalg.solve(bb.T @ bb + 0.1 * np.eye(cfg.n_knots), bb.T)  # (n_knots, T): controls -> knots
-        self.sigma = np.asarray(cfg.noise_sigma, np.float64).reshape(3)
-        self.rng = np.random.default_rng(cfg.seed)
-        self.knots = np.zeros((cfg.n_knots, 3))  # (n_knots, 3) nominal body-frame (vx, vy, wz)
-        self.goal = np.asarray(goal, np.float64)
-        self.recovery = bool(recovery)
-        self.memory = memory  # ObstacleMemory: geodesic goal distance and heading (None: straight line)
-        self.mode = "goal"
-        self.best = np.inf  # best distance to the goal reached so far (m)
-        self.best_step = 0
-        self.step_i = 0
-        self.detour: dict | None = None
-        self.events: list[dict] = []
-        self.seen = np.inf  # closest approach to the goal of the last goal-mode step's collision-free rollouts (m)
-
-    # ---------------------------------------------------------------- samples
-    def _clip(self, knots: np.ndarray) -> np.ndarray:
-        return np.clip(knots, -self.vmax, self.vmax)
-
-    def _drive_knots(self, x: np.ndarray, v_world: np.ndarray) -> np.ndarray:
-        """(P, T, 2) world-frame velocities per control step -> (P, n_knots, 3) body-frame knots
-        (least-squares fit of the controls) that also turn the base towards its direction of
-        travel at up to ``primitive_turn_rate``."""
-        cfg = self.cfg
-        p, t_len, _ = v_world.shape
-        u = np.zeros((p, t_len, 3))
-        yaw = np.full(p, float(x[2]))
-        for t in range(t_len):
-            psi = np.arctan2(v_world[:, t, 1], v_world[:, t, 0])
-            wz = np.clip(np.angle(np.exp(1j * (psi - yaw))) / cfg.dt, -cfg.primitive_turn_rate, cfg.primitive_turn_rate)
-            c, s_ = np.cos(yaw), np.sin(yaw)
-            u[:, t, 0] = c * v_world[:, t, 0] + s_ * v_world[:, t, 1]
-            u[:, t, 1] = -s_ * v_world[:, t, 0] + c * v_world[:, t, 1]
-            u[:, t, 2] = wz
-            yaw = yaw + wz * cfg.dt
-        return np.einsum("nt,ptd->pnd", self._basis_pinv, u)
-
-    def primitives(self, x: np.ndarray) -> np.ndarray:
-        """(P, n_knots, 3) structured samples: straight drives in ``n_directions`` world
-        directions (one is the bearing to the target: the goal, or the sweep's direction), and
-        the same drives switching to the bearing to the target (from the predicted switch point)
-        after 1/4, 1/2 and 3/4 of the horizon; all turn the base towards their direction of travel."""
-        cfg = self.cfg
-        m, t_len = cfg.n_directions, cfg.horizon
-        if m <= 0:
-            return np.zeros((0, cfg.n_knots, 3))
-        tgt = self.goal
-        if self.mode == "detour":
-            tgt = x[:2] + 10.0 * np.array([np.cos(self.detour["heading"]), np.sin(self.detour["heading"])])
-        geo = self.memory is not None and self.mode == "goal"  # the target's direction: descent of the memory's field
-        b = float(self.memory.heading(x[:2])) if geo else float(np.arctan2(tgt[1] - x[1], tgt[0] - x[0]))
-        th = b + 2 * np.pi * np.arange(m) / m  # (m,)
-        v = cfg.primitive_speed * np.stack([np.cos(th), np.sin(th)], axis=1)  # (m, 2) world, m/s
-        vw = [np.repeat(v[:, None], t_len, axis=1)]  # straight
-        if geo:  # the same drives following the field's descent from their switch points, and two pure followers
-            return self._drive_knots(x, np.concatenate(vw + self._followers(x, v, t_len)))
-        for frac in (0.25, 0.5, 0.75):
-            j = max(1, int(round(frac * t_len)))
-            d = tgt - (x[:2] + v * j * cfg.dt)  # (m, 2) from the predicted switch points
-            w = cfg.primitive_speed * d / np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-9)
-            k = np.empty((m, t_len, 2))
-            k[:, :j] = v[:, None]
-            k[:, j:] = w[:, None]
-            vw.append(k)
-        return self._drive_knots(x, np.concatenate(vw))
-
-    def _followers(self, x: np.ndarray, v: np.ndarray, t_len: int) -> list[np.ndarray]:
-        """Memory mode: (m, T, 2) world velocities of the drives ``v`` (m, 2) switching after 1/4,
-        1/2, 3/4 of the horizon to following the descent of the geodesic field (a streamline
-        integrated from the predicted switch point), and (2, T, 2) pure followers at full and half
-        ``primitive_speed``."""
-        cfg = self.cfg
-        out = []
-        for frac in (0.25, 0.5, 0.75, 0.0):
-            j = int(round(frac * t_len))
-            vel = np.repeat(v[:, None], t_len, axis=1) if j else np.zeros((2, t_len, 2))  # (P, T, 2) world, m/s
-            speed = np.full((len(vel), 1), cfg.primitive_speed) if j else cfg.primitive_speed * np.array([[1.0], [0.5]])  # (P, 1) m/s
-            p = x[:2] + vel[:, 0] * j * cfg.dt  # (P, 2) world, the switch points
-            for t in range(j, t_len):
-                h = self.memory.heading(p)
-                vel[:, t] = speed * np.stack([np.cos(h), np.sin(h)], axis=1)
-                p = p + vel[:, t] * cfg.dt
-            out.append(vel)
-        return out
-
-    # ---------------------------------------------------------------- costs
-    def evaluate(self, x: np.ndarray, knots: np.ndarray) -> dict:
-        """Roll out and cost (K, n_knots, 3) knots: states (K, T, 3), per-step goal distances
-        (K, T), goal-mode cost, collision cost and in-collision flags (K,)."""
-        from ..planners.costs import Rollout
-
-        cfg = self.cfg
-        controls = self.spline(knots)  # (K, T, 3) body frame
-        states = self.dyn.rollout(x, controls, cfg.dt)  # (K, T, 3) world
-        ro = Rollout(states, controls, cfg.dt)
-        k = len(knots)
-        col = np.zeros(k)
-        hit = np.zeros(k, bool)  # (K,) any ellipsoid in collision at any checked step
-        if self.collision is not None:
-            terms = self.collision.terms(ro)
-            col = np.sum(list(terms.values()), axis=0)
-            q = ro.cache["query"]  # (K, T', E) over the evaluated steps
-            hit = np.asarray(q.in_collision).reshape(k, -1).any(axis=1)
-        ctrl = cfg.w_control * np.sum(controls**2, axis=(1, 2)) * cfg.dt + cfg.w_yaw_rate * np.sum(controls[..., 2] ** 2, axis=1) * cfg.dt
-        dist = np.linalg.norm(states[..., :2] - self.goal, axis=-1)  # (K, T) m, straight line
-        gd = dist if self.memory is None else self.memory.distance(states[..., :2])  # (K, T) m, geodesic on the memory
-        goal = cfg.w_goal * (gd.sum(axis=1) + cfg.terminal_factor * gd[:, -1] + cfg.min_factor * gd.min(axis=1))
-        if cfg.w_heading > 0:
-            if self.memory is None:
-                bearing = np.arctan2(self.goal[1] - states[..., 1], self.goal[0] - states[..., 0])
-            else:  # face along the geodesic
-                bearing = self.memory.heading(states[..., :2])
-            goal = goal + cfg.w_heading * np.where(dist < 0.3, 0.0, 1.0 - np.cos(states[..., 2] - bearing)).sum(axis=1)
-        return {"states": states, "dist": dist, "goal": goal, "collision": col, "control": ctrl, "hit": hit}
-
-    # ---------------------------------------------------------------- recovery
-    def _start_detour(self, x: np.ndarray) -> None:
-        """Stagnation: sidestep, perpendicular to the bearing to the goal, first to the side
-        ``first_sweep`` (the other side where an earlier sweep started within 0.5 m: that one did
-        not lead out), reversing with doubled length when blocked or done."""
-        cfg = self.cfg
-        bearing = float(np.arctan2(self.goal[1] - x[1], self.goal[0] - x[0]))
-        side = float(np.sign(cfg.first_sweep) or 1.0)
-        for e in self.events:
-            if e["event"] == "detour" and np.linalg.norm(np.asarray(e["xy"]) - x[:2]) < 0.5:
-                side = -e["side_sign"]
-        self.detour = {"ref": min(self.best, self.seen), "side": side, "heading": bearing + side * np.pi / 2, "limit": cfg.detour_length_m, "walked": 0.0, "last": x[:2].copy(), "window": [x[:2].copy()]}
-        self.mode = "detour"
-        self.events.append({"step": self.step_i, "event": "detour", "xy": x[:2].round(3).tolist(), "side": "counterclockwise" if side > 0 else "clockwise", "side_sign": side, "distance_m": round(float(self.best), 3)})
-
-    # ---------------------------------------------------------------- step
-    def step(self, x: np.ndarray) -> np.ndarray:
-        """One control period from (x, y, yaw): returns the body-frame command (vx, vy, wz)."""
-        from ..planners.mppi import mppi_weights
-
-        cfg = self.cfg
-        if self.memory is not None:
-            self.memory.sense(x[:2])
-        dist_now = float(np.linalg.norm(x[:2] - self.goal))
-        if dist_now < self.best - cfg.stuck_progress_m:
-            self.best, self.best_step = dist_now, self.step_i
-        if self.recovery and self.mode == "goal" and self.step_i - self.best_step >= cfg.stuck_steps and dist_now > cfg.recovery_min_distance_m:
-            self._start_detour(x)
-        if self.mode == "detour":
-            det = self.detour
-            det["walked"] += float(np.linalg.norm(x[:2] - det["last"]))
-            det["last"] = x[:2].copy()
-            det["window"] = (det["window"] + [x[:2].copy()])[-cfg.stuck_steps :]
-            blocked = len(det["window"]) == cfg.stuck_steps and np.linalg.norm(det["window"][-1] - det["window"][0]) < 2 * cfg.stuck_progress_m
-            if blocked or det["walked"] >= det["limit"]:  # sweep back the other way, twice as far
-                det["heading"] += np.pi
-                det["side"] = -det["side"]
-                det["limit"] = 2.0 * det["limit"] + det["walked"]
-                det["walked"], det["window"] = 0.0, [x[:2].copy()]
-                self.events.append({"step": self.step_i, "event": "reverse", "xy": x[:2].round(3).tolist()})
-        prim = self.primitives(x)
-        k_rand = max(cfg.n_samples - len(prim), 1)
-        eps = self.rng.standard_normal((k_rand, cfg.n_knots, 3)) * self.sigma
-        eps[0] = 0.0  # the nominal itself
-        samples = self._clip(np.concatenate([prim, self.knots[None] + eps]))  # (K, n, 3)
-        ev = self.evaluate(x, samples)
-        base = ev["collision"] + ev["control"]
-        resumed = False
-        if self.mode == "detour":
-            # leave the detour when a collision-free rollout gets clearly closer than ever before
-            ok = (~ev["hit"]) & (ev["dist"].min(axis=1) < self.detour["ref"] - cfg.detour_exit_margin_m)
-            if ok.any():
-                i = int(np.flatnonzero(ok)[np.argmin((base + ev["goal"])[ok])])
-                self.events.append({"step": self.step_i, "event": "resume", "xy": x[:2].round(3).tolist(), "rollout_distance_m": round(float(ev["dist"][i].min()), 3)})
-                self.mode, self.detour = "goal", None
-                self.best_step = self.step_i
-                self.knots = samples[i].copy()
-                resumed = True
-        if self.mode == "goal":  # what goal mode can see: the closest approach of a collision-free rollout
-            free_d = ev["dist"].min(axis=1)[~ev["hit"]]
-            self.seen = min(self.seen, float(free_d.min()) if free_d.size else np.inf)  # over every goal-mode step
-        if not resumed:
-            if self.mode == "detour":
-                d = np.array([np.cos(self.detour["heading"]), np.sin(self.detour["heading"])])
-                prog = (ev["states"][..., :2] - x[:2]) @ d  # (K, T) m along the followed heading
-                align = (1.0 - np.cos(ev["states"][..., 2] - self.detour["heading"])).sum(axis=1)  # walk forward
-                total = base - cfg.w_sweep * prog.sum(axis=1) + cfg.w_align * align
-            else:
-                total = base + ev["goal"]
-            self.knots = self._clip(np.einsum("k,knd->nd", mppi_weights(total, cfg.temperature), samples))
-        u0 = self.spline(self.knots[None])[0, 0].copy()
-        self.knots = self._clip(self.spline.shift(self.knots))  # warm start: shift by one period
-        self.step_i += 1
-        return u0
-
-
 def run_base(
     robot,
     scene,
@@ -487,7 +248,9 @@ def run_base(
         device: metric device.
         progress: optional callable(step, distance) per MPC step.
     """
-    from ..planners.dynamics import PlanarBase
+    from ..planners import MPPI, CollisionCost, ControlEffortCost, PlanarBase
+    from ..planners.drive import DriveGoalCost, StructuredDrives
+    from ..planners.memory import ObstacleMemory
 
     cfg = (config or BaseConfig()).validate()
     robot = load_go2() if robot is None or robot == "go2" else robot
@@ -507,17 +270,19 @@ def run_base(
 
     vmax = np.asarray(robot.velocity_limits, np.float64)
     dyn = PlanarBase(robot)
-    collision_cost = None
-    if collision:
-        from ..planners.costs import CollisionCost
-
-        collision_cost = CollisionCost(ts.checker, robot, weight=cfg.w_collision, hit_weight=cfg.w_hit, s2_cap=cfg.collision_s2_cap, time_stride=cfg.collision_stride)
     memory = None
     if cfg.memory and route is None:
         memory = ObstacleMemory(robot, ts.checker, lo, hi, g, cell=cfg.memory_cell_m, radius=cfg.sensor_radius_m, n_yaws=cfg.memory_yaws,
                                 inflation_m=cfg.memory_inflation_m, inflation_cost=cfg.memory_inflation_cost,
                                 occlusion=cfg.sensor_occlusion, sensor_height=cfg.sensor_height_m)  # fmt: skip
-    planner = _BasePlanner(dyn, cfg, vmax, collision_cost, g, recovery=collision and cfg.recovery and route is None, memory=memory)
+    goal_cost = DriveGoalCost(g, w_goal=cfg.w_goal, terminal_factor=cfg.terminal_factor, min_factor=cfg.min_factor, w_heading=cfg.w_heading, w_sweep=cfg.w_sweep, w_align=cfg.w_align, field=memory)
+    costs = [ControlEffortCost(cfg.w_control, {2: cfg.w_yaw_rate}), goal_cost]
+    if collision:
+        costs.insert(0, CollisionCost(ts.checker, robot, weight=cfg.w_collision, hit_weight=cfg.w_hit, s2_cap=cfg.collision_s2_cap, time_stride=cfg.collision_stride))
+    drives = StructuredDrives(goal_cost, n_directions=cfg.n_directions, speed=cfg.primitive_speed, turn_rate=cfg.primitive_turn_rate, recovery=collision and cfg.recovery and route is None,
+                              stuck_steps=cfg.stuck_steps, min_distance_m=cfg.recovery_min_distance_m, stuck_progress_m=cfg.stuck_progress_m, detour_length_m=cfg.detour_length_m,
+                              exit_margin_m=cfg.detour_exit_margin_m, first_sweep=cfg.first_sweep)  # fmt: skip
+    mppi = MPPI(dyn, None, replace(cfg.mppi, u_min=tuple(-vmax), u_max=tuple(vmax)), costs=costs, sampler=drives)
     wps = None if route is None else np.asarray(route, np.float64)[:, :2]
     states = [x.copy()]
     t0 = time.perf_counter()
@@ -531,9 +296,11 @@ def run_base(
         if wps is not None:  # track the first waypoint more than 1 m ahead along the route
             i = int(np.argmin(np.linalg.norm(wps - x[:2], axis=1)))
             ahead = [j for j in range(i, len(wps)) if np.linalg.norm(wps[j] - x[:2]) > 1.0]
-            planner.goal = wps[ahead[0]] if ahead else g
-        u = planner.step(x)
-        x = dyn.rollout(x, u[None, None, :], cfg.dt)[0, 0]
+            goal_cost.goal = wps[ahead[0]] if ahead else g
+        if memory is not None:
+            memory.sense(x[:2])
+        u, _ = mppi.step(x)
+        x = dyn.rollout(x, u[None, None, :], cfg.mppi.dt)[0, 0]
         states.append(x.copy())
         n_steps += 1
     elapsed = time.perf_counter() - t0
@@ -552,7 +319,7 @@ def run_base(
         clearance_source=source,
         message="" if success else ("in collision" if clearance <= 0 else "goal not reached within max_steps"),
         goal={"position": g.tolist()},
-        extra={"robot": robot.name, "scene": ts.name, "n_steps": n_steps, "time_to_goal_s": n_steps * cfg.dt, "route": None if wps is None else wps.round(4).tolist(), "n_splats": len(ts.splats), "events": planner.events,
+        extra={"robot": robot.name, "scene": ts.name, "n_steps": n_steps, "time_to_goal_s": n_steps * cfg.mppi.dt, "route": None if wps is None else wps.round(4).tolist(), "n_splats": len(ts.splats), "events": drives.events,
                "memory": None if memory is None else {**memory.stats, "cell_m": memory.cell, "sensor_radius_m": memory.radius, "n_yaws": len(memory.yaws), "shape": list(memory.shape),
                                                         "occlusion": memory.occlusion, "sensor_height_m": memory.sensor_height}},
         maps={} if memory is None else {"memory_blocked": memory.blocked.copy(), "memory_sensed": memory.sensed.copy(), "memory_origin": memory.origin.copy(), "memory_cell": memory.cell},

@@ -30,19 +30,25 @@ Units: metres, radians; world frame z up; yaw about +z, 0 = looking along +x.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from .._config import bounded, check_config
-from .._resources import require_rollouts
+from .._config import NESTED_SKIP, bounded, check_config
 from ..errors import SplatplanError
+from ..planners.mppi import MPPIConfig
 from ._common import TaskScene, load_filtered_scene
 
 __all__ = [
     "NavigateConfig", "NavScene", "ViewIndex", "Match", "DriveResult", "head_camera", "load_nav_scene", "explore",
     "build_view_index", "retrieve", "drive_to", "tree_branch", "wrap_angle", "nav_robot", "thin_nodes",
 ]  # fmt: skip
+
+
+def _drive_mppi() -> MPPIConfig:
+    """The drive's MPPI settings: K = 48, T = 16 steps of 0.1 s, 5 knots, commands within (0.6 m/s, 0.3 m/s, 1 rad/s)."""
+    return MPPIConfig(n_samples=48, horizon=16, n_knots=5, dt=0.1, temperature=0.05, noise_sigma=(0.25, 0.15, 0.5), n_iters=1,
+                      u_min=(-0.6, -0.3, -1.0), u_max=(0.6, 0.3, 1.0), report_nominal=False)  # fmt: skip
 
 
 @dataclass
@@ -89,22 +95,8 @@ class NavigateConfig:
     render_batch: int = bounded(256, ge=1)
     #: a match is weak when best cost / median cost over all views exceeds this
     weak_ratio: float = bounded(0.5, gt=0, le=1)
-    #: MPPI samples K
-    n_samples: int = bounded(48, ge=2)
-    #: MPPI horizon T (steps)
-    horizon: int = bounded(16, ge=2)
-    #: B-spline knots per control over the horizon
-    n_knots: int = bounded(5, ge=4)
-    #: control period (s)
-    dt: float = bounded(0.1, gt=0)
-    #: MPPI temperature
-    temperature: float = bounded(0.05, gt=0)
-    #: knot noise std (vx m/s, vy m/s, wz rad/s)
-    noise_sigma: tuple[float, float, float] = bounded((0.25, 0.15, 0.5), ge=0)
-    #: command bounds (vx m/s, vy m/s, wz rad/s), symmetric
-    u_max: tuple[float, float, float] = bounded((0.6, 0.3, 1.0), ge=0)
-    #: MPPI iterations per MPC step
-    n_iters: int = bounded(1, ge=1)
+    #: the drive's MPPI settings (noise and bounds: vx m/s, vy m/s, wz rad/s; the noise seed is ``seed``)
+    mppi: MPPIConfig = field(default_factory=_drive_mppi, metadata={NESTED_SKIP: ("seed",)})
     #: weight of the distance to the (carrot) goal, per metre per step
     w_goal: float = bounded(2.0, ge=0)
     #: weight of the summed CollisionSplatting cost
@@ -134,9 +126,7 @@ class NavigateConfig:
     def validate(self) -> "NavigateConfig":
         """Check every field's declared range (:mod:`splatplan._config`) and the cross-field rules; returns self."""
         check_config(self)
-        require_rollouts(self.n_samples, self.horizon, "NavigateConfig")
-        if self.n_knots > self.horizon:
-            raise SplatplanError(f"NavigateConfig.n_knots must be <= horizon (knots of a spline over the horizon's steps), got n_knots={self.n_knots}, horizon={self.horizon}")
+        self.mppi.validate()
         if not all(lo < hi for lo, hi in zip(self.box_lo, self.box_hi)):
             raise SplatplanError(f"NavigateConfig.box_lo must be < box_hi on both axes, got {self.box_lo} and {self.box_hi}")
         return self
@@ -355,7 +345,7 @@ def drive_to(robot, nav: NavScene, goal_xy, cfg: NavigateConfig, *, start=None, 
         goal_xy: (2,) the retrieved node's position (m).
         branch: (P, 2+) tree path ending at the goal, followed with a carrot when ``cfg.follow_tree``.
     """
-    from ..planners import MPPI, MPPIConfig
+    from ..planners import MPPI
     from ..planners.costs import CollisionCost, ControlEffortCost, GoalPoseCost, StateCost
     from ..planners.dynamics import PlanarBase
     from ._common import check_start, trajectory_clearance
@@ -377,10 +367,7 @@ def drive_to(robot, nav: NavScene, goal_xy, cfg: NavigateConfig, *, start=None, 
     if cfg.w_yaw > 0 and cfg.tree_yaw is not None:
         yaw0 = float(cfg.tree_yaw)
         costs.append(StateCost(lambda s: wrap_angle(s[..., 2] - yaw0) ** 2, weight=cfg.w_yaw, name="heading"))
-    um = np.asarray(cfg.u_max, np.float64)
-    mcfg = MPPIConfig(n_samples=cfg.n_samples, horizon=cfg.horizon, n_knots=cfg.n_knots, dt=cfg.dt, temperature=cfg.temperature,
-                      noise_sigma=tuple(cfg.noise_sigma), n_iters=cfg.n_iters, u_min=tuple(-um), u_max=tuple(um), seed=cfg.seed)  # fmt: skip
-    mppi = MPPI(dyn, drive_checker, mcfg, costs=costs)
+    mppi = MPPI(dyn, None, replace(cfg.mppi, seed=cfg.seed), costs=costs)
     states = [x.copy()]
     prog = 0
     t0 = time.perf_counter()
@@ -395,7 +382,7 @@ def drive_to(robot, nav: NavScene, goal_xy, cfg: NavigateConfig, *, start=None, 
         carrot, prog = _carrot(path, x[:2], cfg.lookahead_m, prog) if cfg.follow_tree else (goal, 0)
         goal_cost.position = np.asarray(carrot, np.float64)
         u, _ = mppi.step(x)
-        x = dyn.rollout(x, u[None, None, :], cfg.dt)[0, 0]
+        x = dyn.rollout(x, u[None, None, :], cfg.mppi.dt)[0, 0]
         x[2] = float(wrap_angle(x[2]))
         states.append(x.copy())
     elapsed = time.perf_counter() - t0

@@ -76,7 +76,8 @@ def _draw_memory(ax, maps: dict) -> None:
 
 def plot_run(robot, task_scene, result, *, kind: str, n_frames: int = 6, title: str = ""):
     """A Figure of the run: ``kind`` "arm" (top and side views) or "base" (top view at body height)."""
-    import matplotlib.pyplot as plt
+    import matplotlib
+    from matplotlib.figure import Figure
     from matplotlib.patches import Polygon
 
     traj = np.asarray(result.trajectory)
@@ -94,8 +95,9 @@ def plot_run(robot, task_scene, result, *, kind: str, n_frames: int = 6, title: 
         lo, hi = task_scene.splats.bounds()
         lo, hi = lo - 0.1, hi + 0.1
         z_cut = float(robot.info.get("standing_height_m", 0.35))
-    fig, axes = plt.subplots(1, len(views), figsize=(6.5 * len(views), 6.0), constrained_layout=True, squeeze=False)
-    cmap = plt.get_cmap("viridis")
+    fig = Figure(figsize=(6.5 * len(views), 6.0), constrained_layout=True)  # no pyplot state: any backend, nothing to close
+    axes = fig.subplots(1, len(views), squeeze=False)
+    cmap = matplotlib.colormaps["viridis"]
     for ax, (dims, name) in zip(axes[0], views):
         _draw_scene(ax, task_scene.splats, an, dims, z_cut, (lo, hi))
         maps = getattr(result, "maps", None) or {}

@@ -49,34 +49,31 @@ Units: metres, radians, seconds; world frame z up (the tabletop scene's).
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from .._config import bounded, check_config
-from .._resources import require_rollouts
+from .._config import NESTED_SKIP, bounded, check_config
 from ..errors import SplatplanError
+from ..planners.goal_refiner import GoalRefiner
+from ..planners.mppi import MPPI, MPPIConfig
 from ._common import TaskScene, check_start, load_task_scene, moving_clearance, trajectory_clearance
 
-__all__ = ["BEHIND_WALL", "START_CAMERA", "GoalRefiner", "ReachConfig", "ReachResult", "camera_pose_error", "make_reach_goals", "reach_encoder", "reach_start", "run_reach", "wrist_camera"]
+__all__ = ["BEHIND_WALL", "START_CAMERA", "ReachConfig", "ReachResult", "camera_pose_error", "make_reach_goals", "reach_encoder", "reach_start", "run_reach", "wrist_camera"]
+
+
+def _reach_mppi() -> MPPIConfig:
+    """The reach's MPPI settings (the paper's authors' example): K = 32, T = 48, 8 knots, dt = 0.05 s, temperature 0.1."""
+    return MPPIConfig(n_samples=32, horizon=48, n_knots=8, dt=0.05, temperature=0.1, noise_sigma=0.25, n_iters=1)
 
 
 @dataclass
 class ReachConfig:
     """Knobs of :func:`run_reach` (MPPI over joint-velocity B-splines with the image cost)."""
 
-    #: sampled control sequences K per MPPI iteration
-    n_samples: int = bounded(32, ge=2)
-    #: horizon T (control steps); the arm executes T steps in all (shrinking horizon)
-    horizon: int = bounded(48, ge=2)
-    #: B-spline knots per joint over the horizon (>= 4)
-    n_knots: int = bounded(8, ge=4)
-    #: control period (s)
-    dt: float = bounded(0.05, gt=0)
-    #: MPPI temperature (smaller = greedier)
-    temperature: float = bounded(0.1, gt=0)
-    #: std of the knot perturbations (rad/s)
-    noise_sigma: float = bounded(0.25, ge=0)
+    #: MPPI settings (noise_sigma in rad/s; the horizon is the executed steps too: a shrinking horizon; the iterations
+    #: per step come from the schedule below, the control bounds from velocity_scale)
+    mppi: MPPIConfig = field(default_factory=_reach_mppi, metadata={NESTED_SKIP: ("u_min", "u_max", "n_iters", "report_nominal")})
     #: knot noise at the last MPC step as a fraction of noise_sigma (linear in the remaining
     #: horizon: finer exploration as the goal time approaches); 1 = constant noise
     noise_final: float = bounded(0.3, ge=0)
@@ -105,9 +102,6 @@ class ReachConfig:
     #: goal-state refinement iterations ending each start of a multi-start plan, before the starts
     #: are compared (a look-alike view and the goal's basin then differ in cost; 0 = compare as is)
     plan_start_refine: int = bounded(10, ge=0)
-    #: MPPI elitism (MPPIConfig.elite): the best sample seen in a step competes in its later
-    #: iterations and replaces a worse weighted mean at the step's end
-    elite: bool = False
     #: MPPI iterations per later MPC step
     iters_per_step: int = bounded(2, ge=1)
     #: the last final_steps MPC steps run final_iters iterations each (fine convergence at the goal)
@@ -169,7 +163,7 @@ class ReachConfig:
     #: neighbourhood of the rollouts' collision cost (checker s2_cap for MPPI queries)
     collision_s2_cap: float = bounded(1.3, ge=1)
     #: evaluate the collision cost on every n-th rollout step (1 = every step)
-    collision_time_stride: int = bounded(2, ge=1)
+    collision_stride: int = bounded(2, ge=1)
     #: splats of a built-in scene (fewer = faster renders; the clearance uses the exact geometry)
     n_splats: int = bounded(60_000, ge=1)
     #: link carrying the wrist camera (camera axes = link axes, OpenCV: looks along link z)
@@ -180,19 +174,13 @@ class ReachConfig:
     orientation_tol_deg: float = bounded(15.0, gt=0, le=180)
     #: intermediate wrist views kept for the figures
     n_views: int = bounded(6, ge=0)
-    #: noise seed
-    seed: int = bounded(0, ge=0)
-
     def validate(self) -> "ReachConfig":
         """Check every field's declared range (:mod:`splatplan._config`) and the cross-field rules; returns self."""
         check_config(self)
-        require_rollouts(self.n_samples, self.horizon, "ReachConfig")
-        if self.n_knots > self.horizon:
-            raise SplatplanError(f"ReachConfig.n_knots must be <= horizon (knots of a spline over the horizon's steps), got n_knots={self.n_knots}, horizon={self.horizon}")
+        self.mppi.validate()
         if self.refine_sigma_min > self.refine_sigma:
             raise SplatplanError(f"ReachConfig.refine_sigma_min must be <= refine_sigma, got {self.refine_sigma_min} > {self.refine_sigma}")
         return self
-
 
 
 @dataclass
@@ -256,83 +244,6 @@ class ReachResult:
         }
 
 
-class _UntilGoal:
-    """The path costs (collision, effort, limits) on the rollout steps up to the goal time only: in
-    the shrinking-horizon loop the tail beyond it is never executed, and costing it (a held velocity
-    carrying the arm into a wall) would trade the goal view for a phantom collision."""
-
-    name = "path"
-
-    def __init__(self, costs: list, n_steps: int) -> None:
-        self.costs, self.n_steps = costs, int(n_steps)
-
-    def terms(self, rollout) -> dict:
-        from ..planners.costs import Rollout, total_cost
-
-        n = self.n_steps
-        return total_cost(self.costs, Rollout(rollout.states[:, :n], rollout.controls[:, :n], rollout.dt))[1]
-
-    def __call__(self, rollout) -> np.ndarray:
-        return np.sum(list(self.terms(rollout).values()), axis=0)
-
-
-class GoalRefiner:
-    """Elitist evolution strategy with covariance adaptation for the plan's goal-time state.
-
-    Each iteration samples K offsets ``d_k = sigma A z_k`` (``A A^T = C``, ``z_k ~ N(0, I)``, row 0 =
-    0: the current plan), and :meth:`update` keeps the cheapest (so the plan never gets worse), adapts
-    ``sigma`` to success (x ``grow`` after an improvement, x ``shrink`` otherwise, within
-    [``sigma_min``, ``sigma``]) and C with the rank-one and rank-mu updates of CMA-ES (Hansen, "The
-    CMA Evolution Strategy: A Tutorial", 2016) from the mu = K / 4 best offsets, normalised to
-    det C = 1. Near the goal the image cost is a narrow valley (translating the camera while turning
-    it to keep looking at the same point barely changes the view): an isotropic search then only
-    accepts tiny steps, the learned C stretches the samples along the valley.
-    """
-
-    def __init__(self, dim: int, n_samples: int, sigma: float, *, sigma_min: float = 0.002, grow: float = 1.5, shrink: float = 0.6, rng=None) -> None:
-        if n_samples < 2 or not sigma > 0:
-            raise SplatplanError(f"GoalRefiner needs n_samples >= 2 and sigma > 0, got {n_samples} and {sigma}")
-        self.dim, self.n_samples = int(dim), int(n_samples)
-        self.sigma_max, self.sigma_min = float(sigma), float(min(sigma_min, sigma))
-        self.sigma, self.grow, self.shrink = float(sigma), float(grow), float(shrink)
-        self.rng = rng if rng is not None else np.random.default_rng(0)
-        self.cov = np.eye(self.dim)  # (dim, dim) search shape, det 1
-        self.path = np.zeros(self.dim)  # evolution path of the selected steps
-        self.mu = max(1, (self.n_samples - 1) // 4)
-        w = np.log(self.mu + 0.5) - np.log(np.arange(1, self.mu + 1))
-        self.weights = w / w.sum()  # (mu,) recombination weights, best first
-        self.mu_eff = 1.0 / float(np.sum(self.weights**2))
-        n, me = self.dim, self.mu_eff
-        self.c_path = 4.0 / (n + 4.0)
-        self.c_one = 2.0 / ((n + 1.3) ** 2 + me)
-        self.c_mu = min(1.0 - self.c_one, 2.0 * (me - 2.0 + 1.0 / me) / ((n + 2.0) ** 2 + me))
-        self._y = np.zeros((self.n_samples, self.dim))
-
-    def sample(self) -> np.ndarray:
-        """(K, dim) offsets; row 0 is 0."""
-        a = np.linalg.cholesky(self.cov)
-        self._y = self.rng.standard_normal((self.n_samples, self.dim)) @ a.T  # (K, dim) in units of sigma
-        self._y[0] = 0.0
-        return self.sigma * self._y
-
-    def update(self, offsets: np.ndarray, costs: np.ndarray) -> int:
-        """Costs (K,) of the last :meth:`sample`'s offsets -> index of the sample to keep (0 = the plan)."""
-        c = np.where(np.isfinite(costs), np.asarray(costs, np.float64), np.inf)
-        order = np.argsort(c, kind="stable")
-        best = int(order[0]) if c[order[0]] < c[0] else 0
-        sel = np.array([i for i in order if i != 0][: self.mu])
-        if np.all(np.isfinite(c[sel])):
-            y = self._y[sel]  # (mu, dim)
-            cp = self.c_path
-            self.path = (1.0 - cp) * self.path + np.sqrt(cp * (2.0 - cp) * self.mu_eff) * (self.weights @ y)
-            cov = (1.0 - self.c_one - self.c_mu) * self.cov + self.c_one * np.outer(self.path, self.path) + self.c_mu * np.einsum("i,ij,ik->jk", self.weights, y, y)
-            ev = np.linalg.eigvalsh(cov)
-            if ev[0] > 0:
-                self.cov = cov / np.exp(np.mean(np.log(ev)))
-        self.sigma = float(np.clip(self.sigma * (self.grow if best else self.shrink), self.sigma_min, self.sigma_max))
-        return best
-
-
 def wrist_camera(robot, image_size: int = 64, fov_deg: float = 70.0, link: str = "panda_hand_tcp"):
     """The wrist camera: a :class:`~splatplan.render.MountedCamera` at ``link`` (identity offset:
     the camera looks along the link's z axis, image x along link x)."""
@@ -359,7 +270,7 @@ BEHIND_WALL = (np.array([0.46, -0.28, -0.09]), np.array([0.84, 0.28, 0.15]))
 
 def reach_start(robot, camera_link: str = "panda_hand_tcp") -> np.ndarray:
     """The studies' start configuration: IK of :data:`START_CAMERA` nearest ``q_default``."""
-    from ._ik import solve_ik
+    from ..robots.ik import solve_ik
     from ..scenes.splats import rotmat_to_quat
 
     p, r = START_CAMERA
@@ -505,18 +416,10 @@ def run_reach(
         device: metric / renderer / encoder device.
         progress: optional callable(step, image_cost).
     """
-    from ..planners import MPPI, MPPIConfig
-    from ..planners.costs import CollisionCost, ControlEffortCost, JointLimitCost
-    from ..planners.dynamics import JointIntegrator
-    from ..planners.image_cost import ImageCost
     from ..render import SplatRenderer
     from ..robots import load_robot
 
     cfg = (config or ReachConfig()).validate()
-    if cfg.plan_iters < 1 or cfg.iters_per_step < 1:
-        raise SplatplanError("ReachConfig.plan_iters and iters_per_step must be >= 1")
-    if cfg.plan_starts < 1 or cfg.plan_start_iters < 1:
-        raise SplatplanError(f"ReachConfig.plan_starts and plan_start_iters must be >= 1, got {cfg.plan_starts} and {cfg.plan_start_iters}")
     robot = load_robot(robot)
     ts = load_task_scene(scene, n_sigma=cfg.n_sigma, device=device, n_splats=cfg.n_splats)
     img = np.asarray(target_image, np.float32)
@@ -530,123 +433,12 @@ def run_reach(
     own = renderer is None
     rend = SplatRenderer(ts.splats, device) if own else renderer
     try:
-        vmax = cfg.velocity_scale * np.asarray(robot.velocity_limits, np.float64)
-        dyn = JointIntegrator(robot, velocity_limits=vmax)
-        image_cost = ImageCost(rend, cam, robot, enc, img, weight=cfg.w_image, w_global=cfg.w_global, w_patch=cfg.w_patch, background=(cfg.background,) * 3, w_empty=cfg.w_empty, log_eps=cfg.image_log_eps, normalize=cfg.normalize_features)
-        path_costs = [ControlEffortCost(cfg.w_control), JointLimitCost(robot, weight=cfg.w_limits, margin=0.05)]
-        if collision:
-            path_costs.insert(0, CollisionCost(ts.checker, robot, weight=cfg.w_collision, hit_weight=cfg.w_hit, s2_cap=cfg.collision_s2_cap, time_stride=cfg.collision_time_stride))
-        until_goal = _UntilGoal(path_costs, cfg.horizon)
-        costs = [until_goal, image_cost]
-        mcfg = MPPIConfig(
-            n_samples=cfg.n_samples, horizon=cfg.horizon, n_knots=cfg.n_knots, dt=cfg.dt, temperature=cfg.temperature,
-            noise_sigma=cfg.noise_sigma, n_iters=cfg.plan_iters, u_min=tuple(-vmax), u_max=tuple(vmax), seed=cfg.seed, elite=cfg.elite,
-        )  # fmt: skip
-        mppi = MPPI(dyn, ts.checker if collision else None, mcfg, costs=costs)
-        sigma0 = np.array(mppi.sigma, copy=True)
-        states, trace, views = [q.copy()], [], []
-        view_every = max(1, cfg.horizon // max(cfg.n_views, 1))
-        iters = 0
-        progress_scale = 1.0
-
-        def anneal(c: float) -> float:  # noise scale from the raw image cost of the current plan
-            return float(np.clip(np.sqrt(c / cfg.noise_cost_ref), cfg.noise_min_scale, 1.0)) if cfg.noise_cost_ref > 0 else 1.0
-
+        run = _ReachRun(robot, ts, rend, cam, enc, img, cfg, collision)
         t0 = time.perf_counter()
-        # initial plan over the whole horizon, in chunks so that the noise can anneal on progress between
-        # them (each chunk's warm-start shift is undone: nothing is executed yet)
-        chunk = max(1, cfg.plan_chunk) if cfg.noise_cost_ref > 0 else cfg.plan_iters
-        def plan_chunk(n: int, scale: float):
-            """n MPPI iterations at noise sigma0 * scale, nothing executed (the warm-start shift is
-            undone); returns the step's info and the noise scale annealed on the plan's image cost."""
-            mppi.config.n_iters = n
-            mppi.sigma = sigma0 * scale
-            _, info = mppi.step(q)
-            mppi.reset(info.nominal_knots)
-            return info, anneal(float(np.min(image_cost.last_raw)))
-
-        def new_refiner(*key: int) -> GoalRefiner:
-            rng = np.random.default_rng([cfg.seed, 1, *key])
-            return GoalRefiner(robot.dof, cfg.n_samples, cfg.refine_sigma, sigma_min=cfg.refine_sigma_min, grow=cfg.refine_grow, shrink=cfg.refine_shrink, rng=rng)
-
-        refiner = new_refiner()
-
-        def refine(n: int, m: int) -> float:
-            """n refinement iterations of the plan's state at the goal time (m controls ahead): offset d_k
-            moves it through the knot offset d_k / (m dt) (the B-spline basis sums to 1). Returns the
-            total cost of the kept plan (inf when n = 0)."""
-            kept = np.inf
-            for _ in range(n):
-                d = refiner.sample()  # (K, 7) rad, row 0 = 0 (the plan itself)
-                samples = np.clip(mppi.knots[None] + d[:, None, :] / (m * cfg.dt), -vmax, vmax)  # (K, n_knots, 7)
-                total = mppi.evaluate(q, samples)[0]
-                b = refiner.update(d, total)
-                mppi.reset(samples[b])
-                kept = float(total[b])
-            return kept
-
-        done, start_costs = 0, []
-        if cfg.plan_starts > 1:
-            # multi-start: several short plans from zero velocity, each with its own noise; the best continues
-            n0 = min(cfg.plan_start_iters, cfg.plan_iters - 1)
-            starts = []
-            for j in range(cfg.plan_starts):
-                mppi.rng = np.random.default_rng(cfg.seed + j)
-                mppi.reset()
-                scale, left = 1.0, n0
-                while left > 0:
-                    n = min(chunk, left)
-                    info, scale = plan_chunk(n, scale)
-                    left -= n
-                cost, knots = info.nominal_cost, info.nominal_knots
-                if cfg.plan_start_refine > 0:  # compare the starts' local minima, not their progress
-                    refiner = new_refiner(j)
-                    cost, knots = refine(cfg.plan_start_refine, cfg.horizon), mppi.knots.copy()
-                starts.append((cost, j, knots, scale, mppi.rng, refiner))
-            start_costs = [round(float(e[0]), 4) for e in starts]
-            _, _, knots, progress_scale, mppi.rng, refiner = min(starts, key=lambda e: (e[0], e[1]))
-            mppi.reset(knots)
-            done = n0  # the chosen start's iterations; the other starts' are extra
-            iters += n0 * (cfg.plan_starts - 1) + cfg.plan_start_refine * cfg.plan_starts
-        while cfg.plan_iters - done > chunk:
-            info, progress_scale = plan_chunk(chunk, progress_scale)
-            done += chunk
-        iters += done
-        if cfg.refine_plan_iters > 0:
-            image_cost.time_index = cfg.horizon - 1
-            refine(cfg.refine_plan_iters, cfg.horizon)
-            iters += cfg.refine_plan_iters
-        for s in range(cfg.horizon):
-            mppi.config.temperature = cfg.temperature if s == 0 or cfg.track_temperature is None else cfg.track_temperature
-            image_cost.time_index = cfg.horizon - 1 - s  # the goal time stays at T
-            until_goal.n_steps = cfg.horizon - s  # the rollout's tail beyond the goal time is never executed
-            if s > 0 and cfg.refine_iters > 0:
-                refine(cfg.refine_iters, cfg.horizon - s)
-                iters += cfg.refine_iters
-            mppi.config.n_iters = cfg.plan_iters - done if s == 0 else (cfg.final_iters if s >= cfg.horizon - cfg.final_steps else cfg.iters_per_step)
-            mppi.sigma = sigma0 * progress_scale * (cfg.noise_final + (1.0 - cfg.noise_final) * (cfg.horizon - s) / cfg.horizon)
-            u, info = mppi.step(q)
-            iters += mppi.config.n_iters
-            q = dyn.rollout(q, u[None, None, :], cfg.dt)[0, 0]
-            states.append(q.copy())
-            if cfg.keep_goal_state and s + 1 < cfg.horizon:
-                # the least-squares warm-start shift moves the plan's state at the goal time; a constant
-                # velocity offset (the B-spline basis sums to 1) puts it back where the plan had it
-                m = cfg.horizon - 1 - s  # controls from the new state up to the goal time
-                planned = info.nominal_states[cfg.horizon - 1 - s]
-                shifted = dyn.rollout(q, mppi.spline(mppi.knots[None]), cfg.dt)[0, m - 1]
-                mppi.reset(mppi.knots + (planned - shifted)[: mppi.du] / (m * cfg.dt))
-            best = float(np.min(image_cost.last_raw))  # raw image cost of the updated nominal plan
-            trace.append(best)
-            progress_scale = anneal(best)
-            if progress is not None:
-                progress(s, best)
-            if cfg.n_views > 0 and s % view_every == 0:
-                views.append((s, image_cost.render(q[None])[0]))
+        states, trace, views = run.execute(q, progress)
         elapsed = time.perf_counter() - t0
-        final = image_cost.render(q[None])[0]
-        final = final.detach().cpu().numpy() if hasattr(final, "detach") else np.asarray(final)
-        views = [(s, v.detach().cpu().numpy() if hasattr(v, "detach") else np.asarray(v)) for s, v in views]
+        final = _host(run.image_cost.render(states[-1][None])[0])
+        views = [(s, _host(v)) for s, v in views]
     finally:
         if own:
             rend.close()
@@ -668,12 +460,143 @@ def run_reach(
         min_clearance_m=clearance,
         clearance_source=source,
         image_cost_trace=np.asarray(trace),
-        iterations=iters,
+        iterations=run.iters,
         time_s=elapsed,
         collision_cost=bool(collision),
         encoder=enc.name,
         success=success,
-        extra={"robot": robot.name, "scene": ts.name, "n_splats": len(ts.splats), "image_size": cfg.image_size, "n_samples": cfg.n_samples, "horizon": cfg.horizon, "plan_start_costs": start_costs,
+        extra={"robot": robot.name, "scene": ts.name, "n_splats": len(ts.splats), "image_size": cfg.image_size, "n_samples": cfg.mppi.n_samples, "horizon": cfg.mppi.horizon,
+               "plan_start_costs": run.start_costs,
                # the moving links only: the Panda's fixed link0 sits 2.2 cm above the table whatever the arm does
                "min_clearance_moving_links_m": round(float(moving_clearance(robot, ts, traj)), 6)},
     )
+
+
+def _host(image) -> np.ndarray:
+    """An image (numpy, or a torch tensor on any device) as a host numpy array."""
+    return image.detach().cpu().numpy() if hasattr(image, "detach") else np.asarray(image)
+
+
+class _ReachRun:
+    """The schedule of :func:`run_reach` (module docstring) on one :class:`~splatplan.planners.MPPI`:
+    multi-start initial plan, goal-state refinement, shrinking-horizon tracking. Counts the MPPI
+    iterations in ``iters``; ``start_costs`` are the multi-start costs."""
+
+    def __init__(self, robot, ts: TaskScene, renderer, camera, encoder, target: np.ndarray, cfg: ReachConfig, collision: bool) -> None:
+        from ..planners.costs import CollisionCost, ControlEffortCost, JointLimitCost, UntilGoalCost
+        from ..planners.dynamics import JointIntegrator
+        from ..planners.image_cost import ImageCost
+
+        self.cfg, self.robot = cfg, robot
+        self.vmax = cfg.velocity_scale * np.asarray(robot.velocity_limits, np.float64)
+        self.dyn = JointIntegrator(robot, velocity_limits=self.vmax)
+        self.image_cost = ImageCost(renderer, camera, robot, encoder, target, weight=cfg.w_image, w_global=cfg.w_global, w_patch=cfg.w_patch, background=(cfg.background,) * 3,
+                                    w_empty=cfg.w_empty, log_eps=cfg.image_log_eps, normalize=cfg.normalize_features)  # fmt: skip
+        path_costs = [ControlEffortCost(cfg.w_control), JointLimitCost(robot, weight=cfg.w_limits, margin=0.05)]
+        if collision:
+            path_costs.insert(0, CollisionCost(ts.checker, robot, weight=cfg.w_collision, hit_weight=cfg.w_hit, s2_cap=cfg.collision_s2_cap, time_stride=cfg.collision_stride))
+        mcfg = replace(cfg.mppi, u_min=tuple(-self.vmax), u_max=tuple(self.vmax), report_nominal=True)  # the nominal's raw image cost anneals the noise
+        self.mppi = MPPI(self.dyn, None, mcfg, costs=[UntilGoalCost(path_costs), self.image_cost])
+        self.refiner = self._new_refiner()
+        self.iters, self.start_costs = 0, []
+
+    def anneal(self, c: float) -> float:
+        """Noise scale from the raw image cost ``c`` of the current plan."""
+        cfg = self.cfg
+        return float(np.clip(np.sqrt(c / cfg.noise_cost_ref), cfg.noise_min_scale, 1.0)) if cfg.noise_cost_ref > 0 else 1.0
+
+    def plan_chunk(self, q: np.ndarray, n: int, scale: float):
+        """n MPPI iterations at noise scale ``scale``, nothing executed (the warm-start shift is
+        undone); returns the step's info and the noise scale annealed on the plan's image cost."""
+        self.mppi.set_noise_scale(scale)
+        _, info = self.mppi.step(q, n_iters=n)
+        self.mppi.reset(info.nominal_knots)
+        return info, self.anneal(float(np.min(info.nominal_values["image_raw"])))
+
+    def _new_refiner(self, *key: int) -> GoalRefiner:
+        cfg = self.cfg
+        rng = np.random.default_rng([cfg.mppi.seed, 1, *key])
+        return GoalRefiner(self.robot.dof, cfg.mppi.n_samples, cfg.refine_sigma, sigma_min=cfg.refine_sigma_min, grow=cfg.refine_grow, shrink=cfg.refine_shrink, rng=rng)
+
+    def refine(self, q: np.ndarray, n: int, m: int, goal_step: int | None = None) -> float:
+        """n refinement iterations of the plan's state at the goal time (m controls ahead): offset d_k
+        moves it through the knot offset d_k / (m dt) (the B-spline basis sums to 1). Returns the
+        total cost of the kept plan (inf when n = 0)."""
+        kept = np.inf
+        for _ in range(n):
+            d = self.refiner.sample()  # (K, 7) rad, row 0 = 0 (the plan itself)
+            samples = np.clip(self.mppi.knots[None] + d[:, None, :] / (m * self.cfg.mppi.dt), -self.vmax, self.vmax)  # (K, n_knots, 7)
+            total = self.mppi.evaluate(q, samples, goal_step).total
+            b = self.refiner.update(d, total)
+            self.mppi.reset(samples[b])
+            kept = float(total[b])
+        return kept
+
+    def initial_plan(self, q: np.ndarray, chunk: int) -> tuple[int, float]:
+        """The multi-start plan (when ``plan_starts`` > 1) and the rest of ``plan_iters`` but the
+        last chunk; returns the iterations done on the kept plan and its noise scale."""
+        cfg, mppi = self.cfg, self.mppi
+        done, scale = 0, 1.0
+        if cfg.plan_starts > 1:  # several short plans from zero velocity, each with its own noise; the best continues
+            n0 = min(cfg.plan_start_iters, cfg.plan_iters - 1)
+            starts = []
+            for j in range(cfg.plan_starts):
+                mppi.reset(rng=cfg.mppi.seed + j)
+                sc, left = 1.0, n0
+                while left > 0:
+                    n = min(chunk, left)
+                    info, sc = self.plan_chunk(q, n, sc)
+                    left -= n
+                cost, knots = info.nominal_cost, info.nominal_knots
+                if cfg.plan_start_refine > 0:  # compare the starts' local minima, not their progress
+                    self.refiner = self._new_refiner(j)
+                    cost, knots = self.refine(q, cfg.plan_start_refine, cfg.mppi.horizon), mppi.knots.copy()
+                starts.append((cost, j, knots, sc, mppi.rng, self.refiner))
+            self.start_costs = [round(float(e[0]), 4) for e in starts]
+            _, _, knots, scale, rng, self.refiner = min(starts, key=lambda e: (e[0], e[1]))
+            mppi.reset(knots, rng=rng)
+            done = n0  # the chosen start's iterations; the other starts' are extra
+            self.iters += n0 * (cfg.plan_starts - 1) + cfg.plan_start_refine * cfg.plan_starts
+        while cfg.plan_iters - done > chunk:
+            _, scale = self.plan_chunk(q, chunk, scale)
+            done += chunk
+        self.iters += done
+        if cfg.refine_plan_iters > 0:
+            self.refine(q, cfg.refine_plan_iters, cfg.mppi.horizon)
+            self.iters += cfg.refine_plan_iters
+        return done, scale
+
+    def execute(self, q: np.ndarray, progress=None) -> tuple[list, list, list]:
+        """Plan, then execute the T steps; returns the states, the per-step raw image cost of the
+        plan, and the kept wrist views [(step, image)]."""
+        cfg, mppi, t_len = self.cfg, self.mppi, self.cfg.mppi.horizon
+        states, trace, views = [q.copy()], [], []
+        view_every = max(1, t_len // max(cfg.n_views, 1))
+        chunk = max(1, cfg.plan_chunk) if cfg.noise_cost_ref > 0 else cfg.plan_iters  # the noise anneals on progress between chunks
+        done, scale = self.initial_plan(q, chunk)
+        for s in range(t_len):
+            goal = t_len - 1 - s  # the goal time stays at T; the rollout's tail beyond it is never executed
+            if s > 0 and cfg.refine_iters > 0:
+                self.refine(q, cfg.refine_iters, t_len - s, goal)
+                self.iters += cfg.refine_iters
+            n_iters = cfg.plan_iters - done if s == 0 else (cfg.final_iters if s >= t_len - cfg.final_steps else cfg.iters_per_step)
+            lam = cfg.mppi.temperature if s == 0 or cfg.track_temperature is None else cfg.track_temperature
+            mppi.set_noise_scale(scale, cfg.noise_final + (1.0 - cfg.noise_final) * (t_len - s) / t_len)
+            u, info = mppi.step(q, n_iters=n_iters, temperature=lam, goal_step=goal)
+            self.iters += n_iters
+            q = self.dyn.rollout(q, u[None, None, :], cfg.mppi.dt)[0, 0]
+            states.append(q.copy())
+            if cfg.keep_goal_state and s + 1 < t_len:
+                # the least-squares warm-start shift moves the plan's state at the goal time; a constant
+                # velocity offset (the B-spline basis sums to 1) puts it back where the plan had it
+                m = t_len - 1 - s  # controls from the new state up to the goal time
+                shifted = self.dyn.rollout(q, mppi.spline(mppi.knots[None]), cfg.mppi.dt)[0, m - 1]
+                mppi.reset(mppi.knots + (info.nominal_states[goal] - shifted)[: mppi.du] / (m * cfg.mppi.dt))
+            best = float(np.min(info.nominal_values["image_raw"]))  # raw image cost of the updated nominal plan
+            trace.append(best)
+            scale = self.anneal(best)
+            if progress is not None:
+                progress(s, best)
+            if cfg.n_views > 0 and s % view_every == 0:
+                views.append((s, self.image_cost.render(q[None])[0]))
+        return states, trace, views

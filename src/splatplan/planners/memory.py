@@ -1,7 +1,8 @@
 """Sensed-obstacle memory of the planar base (:class:`ObstacleMemory`): a coarse 2D occupancy grid
 sensed around the base with line of sight, *unknown = free*, and the geodesic distance to the goal
-over it (:func:`geodesic_field`, with its slow heapq reference), used by the goal-only base MPPI
-of :mod:`splatplan.tasks.base` (``BaseConfig.memory``; the module docstring there says how).
+over it (:func:`geodesic_field`, with its slow heapq reference): the goal-distance field of
+:class:`~splatplan.planners.drive.DriveGoalCost` in the goal-only base MPPI of
+:mod:`splatplan.tasks.base` (``BaseConfig.memory``; :mod:`splatplan.planners.drive` says how).
 
 Frames and units: world frame, metres, z up; grid cell (i, j) along x, y.
 """

@@ -1,0 +1,261 @@
+"""Goal-only driving of a planar base under :class:`~splatplan.planners.MPPI`: a goal-cost field
+(:class:`DriveGoalCost`) and a sampling strategy (:class:`StructuredDrives`) that together get a
+base to a goal position around obstacles and through doorways, from the goal and the collision
+checks near the base only (no prior map, no route). Used by :mod:`splatplan.tasks.base` (the Go2).
+
+State (x, y, yaw) of the base in the world (metres, radians); controls (vx, vy, wz) in the body
+frame (:class:`~splatplan.planners.dynamics.PlanarBase`), knots of a B-spline over the horizon.
+
+* **Goal cost** (:class:`DriveGoalCost`): ``w_goal (sum_t d_t + terminal_factor d_T + min_factor
+  min_t d_t)`` with d the distance of the base to the goal, plus ``w_heading`` for facing the goal
+  (without it the heading drifts, and a long body meets a doorway sideways). With a field
+  (:class:`~splatplan.planners.memory.ObstacleMemory`) d is the **geodesic** distance to the goal
+  on the cells sensed so far, and the heading term faces the field's descent. During a sweep of
+  the recovery (below) the term is the sweep's instead: progress along its direction (``w_sweep``)
+  and facing it (``w_align``). It reports the straight-line distances ("goal_distance", (K, T))
+  and the goal term ("goal_cost", (K,)) as values in every mode.
+* **Structured samples** (:class:`StructuredDrives`): next to the Gaussian knot perturbations of
+  the nominal, straight drives in ``n_directions`` world directions and the same drives switching
+  to the bearing to the goal after 1/4, 1/2 and 3/4 of the horizon (knots fitted by ridge least
+  squares), all turning the base towards their direction of travel (``turn_rate``). They let MPPI
+  see "along the wall, then through the doorway". With a field, the drives switch to following its
+  descent (streamlines) instead, plus two pure followers.
+* **Stagnation recovery** (``recovery``): when the distance to the goal has not improved by
+  ``stuck_progress_m`` for ``stuck_steps`` steps (and the base is more than ``min_distance_m``
+  from the goal), the base sidesteps: it sweeps perpendicular to the bearing to the goal, first to
+  the side ``first_sweep`` (clockwise by default, a fixed convention like the Bug algorithms'
+  turning direction; the other side where an earlier sweep started within 0.5 m), facing its
+  direction of travel, and reverses with twice the length when blocked or after ``detour_length_m``
+  (a doubling search). It ends as soon as a collision-free rollout gets ``exit_margin_m`` closer to
+  the goal than the base ever was and than any collision-free rollout of goal mode ever got; the
+  nominal then becomes that rollout (:meth:`StructuredDrives.select`). Every sweep, reversal and
+  resume is recorded in ``events``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .costs import Cost, CostValue, Rollout
+from .mppi import MPPI, Evaluation, SamplingStrategy
+
+__all__ = ["DriveGoalCost", "StructuredDrives"]
+
+
+class DriveGoalCost(Cost):
+    """Goal term of a planar base (see the module docstring): one term, "goal" (or "sweep" during a
+    recovery sweep), and the values "goal_distance" (K, T) (straight line, m) and "goal_cost" (K,).
+
+    Attributes a driver may set between steps: ``goal`` (2,) (e.g. the next waypoint of a route),
+    ``sweep`` = (heading rad, origin (2,)) during a recovery sweep, None otherwise.
+    """
+
+    name = "goal"
+
+    def __init__(self, goal, *, w_goal: float = 1.0, terminal_factor: float = 5.0, min_factor: float = 5.0, w_heading: float = 0.5,
+                 w_sweep: float = 0.3, w_align: float = 1.0, field=None) -> None:  # fmt: skip
+        self.goal = np.asarray(goal, np.float64).reshape(2)
+        self.w_goal, self.terminal_factor, self.min_factor, self.w_heading = float(w_goal), float(terminal_factor), float(min_factor), float(w_heading)
+        self.w_sweep, self.w_align = float(w_sweep), float(w_align)
+        #: a geodesic goal-distance field (``distance(xy)``, ``heading(xy)``; an ObstacleMemory), or None = straight line
+        self.field = field
+        self.sweep: tuple[float, np.ndarray] | None = None
+
+    def goal_cost(self, states: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(K,) goal-mode cost and (K, T) straight-line distances of states (K, T, 3)."""
+        dist = np.linalg.norm(states[..., :2] - self.goal, axis=-1)  # (K, T) m, straight line
+        gd = dist if self.field is None else self.field.distance(states[..., :2])  # (K, T) m, geodesic on the field
+        goal = self.w_goal * (gd.sum(axis=1) + self.terminal_factor * gd[:, -1] + self.min_factor * gd.min(axis=1))
+        if self.w_heading > 0:
+            if self.field is None:
+                bearing = np.arctan2(self.goal[1] - states[..., 1], self.goal[0] - states[..., 0])
+            else:  # face along the geodesic
+                bearing = self.field.heading(states[..., :2])
+            goal = goal + self.w_heading * np.where(dist < 0.3, 0.0, 1.0 - np.cos(states[..., 2] - bearing)).sum(axis=1)
+        return goal, dist
+
+    def evaluate(self, rollout: Rollout) -> CostValue:
+        goal, dist = self.goal_cost(rollout.states)
+        values = {"goal_distance": dist, "goal_cost": goal}
+        if self.sweep is None:
+            return CostValue({"goal": goal}, values)
+        heading, origin = self.sweep
+        d = np.array([np.cos(heading), np.sin(heading)])
+        prog = (rollout.states[..., :2] - origin) @ d  # (K, T) m along the swept heading
+        align = (1.0 - np.cos(rollout.states[..., 2] - heading)).sum(axis=1)  # walk forward
+        return CostValue({"sweep": -self.w_sweep * prog.sum(axis=1) + self.w_align * align}, values)
+
+    def __call__(self, rollout: Rollout) -> np.ndarray:
+        return np.sum(list(self.evaluate(rollout).terms.values()), axis=0)
+
+
+class StructuredDrives(SamplingStrategy):
+    """Sampling of :class:`MPPI` for goal-only driving (see the module docstring): structured drives
+    plus ``n_samples - P`` (at least 1) Gaussian knot perturbations of the nominal (the first
+    unperturbed), and the stagnation recovery. Needs the :class:`DriveGoalCost` among MPPI's costs
+    (the recovery switches it between goal and sweep mode) and ``n_iters = 1``.
+
+    Args:
+        goal_cost: the :class:`DriveGoalCost` (its ``goal`` and ``field`` steer the drives).
+        n_directions: world directions of the straight drives (0 = no structured samples).
+        speed: speed of the drives (m/s); turn_rate: their turn rate towards the direction of travel (rad/s).
+        recovery: enable the stagnation recovery; the other arguments are its settings (module docstring).
+    """
+
+    def __init__(self, goal_cost: DriveGoalCost, *, n_directions: int = 8, speed: float = 0.8, turn_rate: float = 1.5,
+                 recovery: bool = False, stuck_steps: int = 10, min_distance_m: float = 0.5, stuck_progress_m: float = 0.05,
+                 detour_length_m: float = 2.0, exit_margin_m: float = 0.3, first_sweep: int = -1) -> None:  # fmt: skip
+        self.goal_cost = goal_cost
+        self.n_directions, self.speed, self.turn_rate = int(n_directions), float(speed), float(turn_rate)
+        self.recovery, self.stuck_steps, self.min_distance_m, self.stuck_progress_m = bool(recovery), int(stuck_steps), float(min_distance_m), float(stuck_progress_m)
+        self.detour_length_m, self.exit_margin_m, self.first_sweep = float(detour_length_m), float(exit_margin_m), int(first_sweep)
+        self._basis_pinv = None  # (n_knots, T) controls -> knots, from the MPPI's spline (bind)
+        self.mode = "goal"
+        self.best = np.inf  # best distance to the goal reached so far (m)
+        self.best_step = 0
+        self.step_i = -1
+        self.detour: dict | None = None
+        self.events: list[dict] = []
+        self.seen = np.inf  # closest approach to the goal of the goal-mode steps' collision-free rollouts (m)
+
+    def bind(self, basis: np.ndarray, dt: float) -> None:
+        """Use the spline basis (T, n_knots) and control period ``dt`` (s) of the MPPI (done by the
+        first :meth:`begin_step`)."""
+        bb = np.asarray(basis, np.float64)  # ridge: the unclamped first / last knots barely act, unregularised they blow up
+        self.horizon, self.n_knots = bb.shape
+        self.dt = float(dt)
+        self._basis_pinv = np.linalg.solve(bb.T @ bb + 0.1 * np.eye(self.n_knots), bb.T)
+
+    # ---------------------------------------------------------------- samples
+    def _drive_knots(self, x: np.ndarray, v_world: np.ndarray) -> np.ndarray:
+        """(P, T, 2) world-frame velocities per control step -> (P, n_knots, 3) body-frame knots
+        (least-squares fit of the controls) that also turn the base towards its direction of
+        travel at up to ``turn_rate``."""
+        p, t_len, _ = v_world.shape
+        u = np.zeros((p, t_len, 3))
+        yaw = np.full(p, float(x[2]))
+        for t in range(t_len):
+            psi = np.arctan2(v_world[:, t, 1], v_world[:, t, 0])
+            wz = np.clip(np.angle(np.exp(1j * (psi - yaw))) / self.dt, -self.turn_rate, self.turn_rate)
+            c, s_ = np.cos(yaw), np.sin(yaw)
+            u[:, t, 0] = c * v_world[:, t, 0] + s_ * v_world[:, t, 1]
+            u[:, t, 1] = -s_ * v_world[:, t, 0] + c * v_world[:, t, 1]
+            u[:, t, 2] = wz
+            yaw = yaw + wz * self.dt
+        return np.einsum("nt,ptd->pnd", self._basis_pinv, u)
+
+    def primitives(self, x: np.ndarray) -> np.ndarray:
+        """(P, n_knots, 3) structured samples: straight drives in ``n_directions`` world
+        directions (one is the bearing to the target: the goal, or the sweep's direction), and
+        the same drives switching to the bearing to the target (from the predicted switch point)
+        after 1/4, 1/2 and 3/4 of the horizon; all turn the base towards their direction of travel."""
+        m, t_len = self.n_directions, self.horizon
+        if m <= 0:
+            return np.zeros((0, self.n_knots, 3))
+        tgt = self.goal_cost.goal
+        if self.mode == "detour":
+            tgt = x[:2] + 10.0 * np.array([np.cos(self.detour["heading"]), np.sin(self.detour["heading"])])
+        field = self.goal_cost.field
+        geo = field is not None and self.mode == "goal"  # the target's direction: descent of the field
+        b = float(field.heading(x[:2])) if geo else float(np.arctan2(tgt[1] - x[1], tgt[0] - x[0]))
+        th = b + 2 * np.pi * np.arange(m) / m  # (m,)
+        v = self.speed * np.stack([np.cos(th), np.sin(th)], axis=1)  # (m, 2) world, m/s
+        vw = [np.repeat(v[:, None], t_len, axis=1)]  # straight
+        if geo:  # the same drives following the field's descent from their switch points, and two pure followers
+            return self._drive_knots(x, np.concatenate(vw + self._followers(x, v, t_len)))
+        for frac in (0.25, 0.5, 0.75):
+            j = max(1, int(round(frac * t_len)))
+            d = tgt - (x[:2] + v * j * self.dt)  # (m, 2) from the predicted switch points
+            w = self.speed * d / np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-9)
+            k = np.empty((m, t_len, 2))
+            k[:, :j] = v[:, None]
+            k[:, j:] = w[:, None]
+            vw.append(k)
+        return self._drive_knots(x, np.concatenate(vw))
+
+    def _followers(self, x: np.ndarray, v: np.ndarray, t_len: int) -> list[np.ndarray]:
+        """Field mode: (m, T, 2) world velocities of the drives ``v`` (m, 2) switching after 1/4,
+        1/2, 3/4 of the horizon to following the descent of the field (a streamline integrated
+        from the predicted switch point), and (2, T, 2) pure followers at full and half speed."""
+        field = self.goal_cost.field
+        out = []
+        for frac in (0.25, 0.5, 0.75, 0.0):
+            j = int(round(frac * t_len))
+            vel = np.repeat(v[:, None], t_len, axis=1) if j else np.zeros((2, t_len, 2))  # (P, T, 2) world, m/s
+            speed = np.full((len(vel), 1), self.speed) if j else self.speed * np.array([[1.0], [0.5]])  # (P, 1) m/s
+            p = x[:2] + vel[:, 0] * j * self.dt  # (P, 2) world, the switch points
+            for t in range(j, t_len):
+                h = field.heading(p)
+                vel[:, t] = speed * np.stack([np.cos(h), np.sin(h)], axis=1)
+                p = p + vel[:, t] * self.dt
+            out.append(vel)
+        return out
+
+    def sample(self, mppi: MPPI, x: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        """The structured drives, then the nominal and its Gaussian perturbations (K = n_samples - P, at least 1)."""
+        prim = self.primitives(x)
+        k_rand = max(mppi.config.n_samples - len(prim), 1)
+        eps = rng.standard_normal((k_rand, mppi.config.n_knots, mppi.du)) * mppi.sigma
+        eps[0] = 0.0  # the nominal itself
+        return np.concatenate([prim, mppi.knots[None] + eps])
+
+    # ---------------------------------------------------------------- recovery
+    def begin_step(self, mppi: MPPI, x: np.ndarray) -> None:
+        """The stagnation bookkeeping of a new MPC step: may start or reverse a sweep."""
+        if self._basis_pinv is None:
+            self.bind(mppi.spline.basis, mppi.config.dt)
+        self.step_i += 1
+        dist_now = float(np.linalg.norm(x[:2] - self.goal_cost.goal))
+        if dist_now < self.best - self.stuck_progress_m:
+            self.best, self.best_step = dist_now, self.step_i
+        if self.recovery and self.mode == "goal" and self.step_i - self.best_step >= self.stuck_steps and dist_now > self.min_distance_m:
+            self._start_detour(x)
+        if self.mode == "detour":
+            det = self.detour
+            det["walked"] += float(np.linalg.norm(x[:2] - det["last"]))
+            det["last"] = x[:2].copy()
+            det["window"] = (det["window"] + [x[:2].copy()])[-self.stuck_steps :]
+            blocked = len(det["window"]) == self.stuck_steps and np.linalg.norm(det["window"][-1] - det["window"][0]) < 2 * self.stuck_progress_m
+            if blocked or det["walked"] >= det["limit"]:  # sweep back the other way, twice as far
+                det["heading"] += np.pi
+                det["side"] = -det["side"]
+                det["limit"] = 2.0 * det["limit"] + det["walked"]
+                det["walked"], det["window"] = 0.0, [x[:2].copy()]
+                self.events.append({"step": self.step_i, "event": "reverse", "xy": x[:2].round(3).tolist()})
+        self.goal_cost.sweep = (self.detour["heading"], x[:2].copy()) if self.mode == "detour" else None
+
+    def _start_detour(self, x: np.ndarray) -> None:
+        """Stagnation: sidestep, perpendicular to the bearing to the goal, first to the side
+        ``first_sweep`` (the other side where an earlier sweep started within 0.5 m: that one did
+        not lead out), reversing with doubled length when blocked or done."""
+        g = self.goal_cost.goal
+        bearing = float(np.arctan2(g[1] - x[1], g[0] - x[0]))
+        side = float(np.sign(self.first_sweep) or 1.0)
+        for e in self.events:
+            if e["event"] == "detour" and np.linalg.norm(np.asarray(e["xy"]) - x[:2]) < 0.5:
+                side = -e["side_sign"]
+        self.detour = {"ref": min(self.best, self.seen), "side": side, "heading": bearing + side * np.pi / 2, "limit": self.detour_length_m, "walked": 0.0, "last": x[:2].copy(), "window": [x[:2].copy()]}
+        self.mode = "detour"
+        self.events.append({"step": self.step_i, "event": "detour", "xy": x[:2].round(3).tolist(), "side": "counterclockwise" if side > 0 else "clockwise", "side_sign": side, "distance_m": round(float(self.best), 3)})
+
+    def select(self, mppi: MPPI, x: np.ndarray, samples: np.ndarray, evaluation: Evaluation) -> np.ndarray | None:
+        """Leave a sweep when a collision-free rollout gets clearly closer to the goal than ever
+        before (its knots become the nominal); in goal mode remember the closest approach of the
+        collision-free rollouts."""
+        dmin = evaluation.values["goal_distance"].min(axis=1)  # (K,)
+        free = ~evaluation.in_collision()
+        chosen = None
+        if self.mode == "detour":
+            ok = free & (dmin < self.detour["ref"] - self.exit_margin_m)
+            if ok.any():
+                base = 0.0
+                for name, v in evaluation.terms.items():
+                    base = base if name == "sweep" else base + v
+                i = int(np.flatnonzero(ok)[np.argmin((base + evaluation.values["goal_cost"])[ok])])
+                self.events.append({"step": self.step_i, "event": "resume", "xy": x[:2].round(3).tolist(), "rollout_distance_m": round(float(evaluation.values["goal_distance"][i].min()), 3)})
+                self.mode, self.detour, self.goal_cost.sweep = "goal", None, None
+                self.best_step = self.step_i
+                chosen = samples[i].copy()
+        if self.mode == "goal":  # what goal mode can see: the closest approach of a collision-free rollout
+            self.seen = min(self.seen, float(dmin[free].min()) if free.any() else np.inf)
+        return chosen
