@@ -423,7 +423,12 @@ def _dask_client(engine: EngineConfig):
         return client, None, {"kind": "dask", "workers": n, "scheduler": engine.scheduler}
     # the local cluster: loopback only, no dashboard, one task thread per worker process; workers
     # split their collision calls over cores / workers threads (no oversubscription of the cores)
-    with _workers_ignore_sigint():
+    import warnings
+
+    with _workers_ignore_sigint(), warnings.catch_warnings():
+        # the scheduler's HTTP routes (health, metrics; no dashboard) bind 127.0.0.1:8787, or another
+        # port when that one is taken (another cluster on this machine): not the user's business
+        warnings.filterwarnings("ignore", message="Port .* is already in use")
         cluster = LocalCluster(
             host="127.0.0.1",
             processes=True,
