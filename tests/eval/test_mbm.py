@@ -195,3 +195,17 @@ def test_tasks_carry_the_parsed_problem(tmp_path):
     drop = ("time_s", "wall_s", "time_split", "message")
     same = [json.dumps({k: v for k, v in r.items() if k not in drop}, sort_keys=True) for r in (row, again)]  # NaN-safe
     assert same[0] == same[1]
+
+
+def test_ball_clearance_needs_no_solve():
+    """A ball (a sphere model's link) apart from the primitives has clearance d_c - radius exactly:
+    the shortcut agrees with the solver, per configuration and along a path."""
+    robot = load_robot("sphere:0.05")
+    scene = _toy_scene()
+    rng = np.random.default_rng(4)
+    q = np.array([-0.6, -0.6, 0.0]) + rng.random((40, 3)) * np.array([1.6, 1.6, 1.0])  # centres, some inside
+    c, quat, a = robot.ellipsoids(q)
+    ref = scene.ellipsoid_clearance(c, quat, a).min(axis=1)
+    np.testing.assert_allclose(exact_clearance(scene, robot, q), ref, atol=1e-7)
+    path = np.linspace([0.9, 0.9, 0.6], [0.8, -0.9, 0.7], 50)
+    assert path_min_clearance(scene, robot, path) == pytest.approx(scene.ellipsoid_clearance(*robot.ellipsoids(path)).min(), abs=1e-7)

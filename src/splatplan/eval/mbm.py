@@ -375,9 +375,18 @@ def exact_clearance(scene, robot, q: np.ndarray) -> np.ndarray:
     ub = np.where(d_c < 0, d_c, np.maximum(d_c - a_min, 0.0)).min(axis=1, keepdims=True)  # (N, 1)
     cand = d_c - a_max <= ub + 1e-12  # (N, E)
     out = np.full((n, e), np.inf)
-    ci, ei = np.nonzero(cand)
+    known = cand & _ball_apart(d_c, a_min, a_max)
+    out[known] = (d_c - a_max)[known]
+    ci, ei = np.nonzero(cand & ~known)
     out[ci, ei] = scene.ellipsoid_clearance(c[ci, ei], quat[ci, ei], a[ei])
     return out.min(axis=1)
+
+
+def _ball_apart(d_c: np.ndarray, a_min: np.ndarray, a_max: np.ndarray) -> np.ndarray:
+    """(N, E) bool: the ellipsoid is a ball (equal semi-axes, e.g. a sphere model) no closer to the
+    primitives than its radius, so its clearance is exactly ``d_c - radius`` (the distance to a
+    closed set is 1-Lipschitz and falls at rate 1 towards the nearest point): no solve needed."""
+    return (a_max - a_min <= 1e-12 * a_max) & (d_c >= a_max)
 
 
 def dense_path(robot, path: np.ndarray, fraction: float = 0.25) -> np.ndarray:
@@ -417,6 +426,8 @@ def path_min_clearance(scene, robot, q: np.ndarray, first: int = 32, stride: int
     lb = d_c - a_max  # (N, E)
     cum = np.concatenate([[0.0], np.cumsum(np.abs(np.diff(q, axis=0)) @ np.asarray(robot.motion_bound, dtype=np.float64))])  # (N,)
     val = np.full((n, e), np.nan)  # solved clearances
+    ball = _ball_apart(d_c, a_min, a_max)
+    val[ball] = lb[ball]  # exact: d_c - radius
 
     def solve(mask: np.ndarray) -> float:
         ci, ei = np.nonzero(mask & np.isnan(val))
