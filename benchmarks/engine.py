@@ -192,7 +192,11 @@ def overhead(workers: int, n: int) -> dict:
 
     from splatplan.eval.engine import Task, _dask_task
 
-    cluster = LocalCluster(host="127.0.0.1", processes=True, n_workers=workers, threads_per_worker=1, dashboard_address=None, silence_logs=50)
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message="Port .* is already in use")
+        cluster = LocalCluster(host="127.0.0.1", processes=True, n_workers=workers, threads_per_worker=1, dashboard_address=None, silence_logs=50)
     client = Client(cluster)
     try:
         warm = client.gather([client.submit(_dask_task, noop, no_context, {"i": i}, pure=False) for i in range(2 * workers)])
@@ -294,6 +298,11 @@ def main(argv: list[str] | None = None) -> int:
             f"{r['task_s_median']:.2f} | {'yes' if r['same_rows'] else 'NO'} | {m['8']:.1f} | {m['32']:.1f} |"
         )
     for r in rows:
+        if "serial_per_worker_threads_s" in r:
+            lines.append(f"\n{r['job_set']}: serial with {r['serial_threads']} threads per collision call (as a user runs it) {r['serial_s']:.1f} s -> "
+                         f"{args.workers} workers x {r['worker_threads']} thread(s) {r['dask_s']:.1f} s: **{r['speedup']:.2f}x**; serial with {r['worker_threads']} thread(s) "
+                         f"(the same per-task threads as a worker) {r['serial_per_worker_threads_s']:.1f} s: {r['speedup_same_threads']:.2f}x, engine efficiency "
+                         f"{100 * r['engine_efficiency_same_threads']:.0f}%; non-planning seconds per problem (serial): median {r['non_planning_s_per_problem'].get('median', float('nan')):.2f}")  # fmt: skip
         if "differing" in r:
             lines.append(f"\n{r['job_set']}: {r['n_solved']}/{r['n_both_free']} solved serially (of the problems with both endpoints free; {r['n_tasks']} tasks), {r['hit_time_limit']} at the time limit; "
                          f"worker time outside tasks per task {r['overhead_per_task_derived_s']:.2f} s (scheduling, transfer, idle tail); "
