@@ -8,10 +8,13 @@ Job sets: plan jobs of ``splatplan sweep`` on built-in scenes, run to a fixed RR
 * ``tabletop``: the Panda on the built-in tabletop, n_sigma 1, random free joint-space pairs;
 * ``mbm`` (``--mbm N``): the ``eval mbm`` tasks (:func:`splatplan.eval.mbm.mbm_task`, our planner)
   on the first N problems of each shared MotionBenchMaker family (``--mbm-splats`` splats per
-  scene, ``--mbm-time-limit``); each worker builds its robot once and its scenes once per problem.
-  These jobs end at a solution or the time limit, so a search the limit cuts short may differ
-  between the runs (``same_rows`` then says NO and ``differing`` names the tasks).
-  ``--mbm-only`` skips the built-in sets.
+  scene); each worker builds its robot once and its scenes once per problem. The searches run to
+  an iteration budget (``--mbm-max-iters``, default 100, about the 10 s limit on a quiet machine;
+  0 = the wall-clock ``--mbm-time-limit``, where a search the limit cuts short may differ between
+  the runs), so every row is the same serial and distributed (``same_rows``). Serial runs twice:
+  with every core in each collision call (as a user runs it: the speedup) and with the workers'
+  per-task threads, cores / workers (the engine's own efficiency). ``--mbm-only`` skips the
+  built-in sets.
 
 Measured:
 
@@ -235,7 +238,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--mbm-splats", type=int, default=100_000, help="splats per MBM scene")
     ap.add_argument("--mbm-time-limit", type=float, default=10.0, help="planning time limit per MBM problem (s)")
     ap.add_argument("--mbm-margin", type=float, default=None, help="MBM planning margin (m); default derived from the splats and n_sigma")
-    ap.add_argument("--mbm-max-iters", type=int, default=2000, help="iteration budget per MBM search (reproducible rows; 0 = the wall-clock --mbm-time-limit)")
+    ap.add_argument("--mbm-max-iters", type=int, default=100, help="iteration budget per MBM search (reproducible rows; 0 = the wall-clock --mbm-time-limit)")
     ap.add_argument("--mbm-n-sigma", type=float, default=None, help="MBM n_sigma (default: MBMConfig's)")
     ap.add_argument("--mbm-only", action="store_true", help="run only the MBM job set (with --mbm)")
     ap.add_argument("--out", default=str(Path(__file__).resolve().parent / "results" / "engine.json"))
