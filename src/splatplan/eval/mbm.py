@@ -791,6 +791,10 @@ def report(result: MBMResult) -> str:
             f"{_fmt(s['median_time_s'], '.3g')} | {_fmt(s['p95_time_s'], '.3g')} | {_fmt(s['worst_exact_clearance_m'], '+.2f', 1e3)} | "
             f"{s['negative_clearance_paths']} | {_fmt(s['margin_m_median'], '.1f', 1e3)} | {_fmt(s['rho_measured_m_max'], '.1f', 1e3)} |"
         )
+    late = result.summary.get("overall", {}).get("solved_late")
+    if late is not None:
+        lines += ["", f"Searches ran to {cfg.max_iters:,} iterations with no wall-clock limit (reproducible anywhere): "
+                  f"{late} of the solutions took longer than the {cfg.time_limit:g} s time limit on this machine."]  # fmt: skip
     if result.summary_by_planner:
         lines += ["", "Planners (same splats, checker, margin, edge resolution and time limit; ours seeded, OMPL's not):", "",
                   "| planner | family | solved / free | median time (s) | p95 time (s) | worst exact clearance (mm) | paths < 0 |",
