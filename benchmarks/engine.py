@@ -48,6 +48,7 @@ import os
 import statistics
 import sys
 import time
+import warnings
 from dataclasses import replace
 from pathlib import Path
 
@@ -194,8 +195,6 @@ def overhead(workers: int, n: int) -> dict:
     from distributed import Client, LocalCluster
 
     from splatplan.eval.engine import Task, _dask_task
-
-    import warnings
 
     with warnings.catch_warnings():
         warnings.filterwarnings("ignore", message="Port .* is already in use")

@@ -61,6 +61,7 @@ import threading
 import time
 import traceback
 import uuid
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Iterable
@@ -423,8 +424,6 @@ def _dask_client(engine: EngineConfig):
         return client, None, {"kind": "dask", "workers": n, "scheduler": engine.scheduler}
     # the local cluster: loopback only, no dashboard, one task thread per worker process; workers
     # split their collision calls over cores / workers threads (no oversubscription of the cores)
-    import warnings
-
     with _workers_ignore_sigint(), warnings.catch_warnings():
         # the scheduler's HTTP routes (health, metrics; no dashboard) bind 127.0.0.1:8787, or another
         # port when that one is taken (another cluster on this machine): not the user's business

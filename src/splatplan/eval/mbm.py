@@ -793,8 +793,8 @@ def report(result: MBMResult) -> str:
         )
     late = result.summary.get("overall", {}).get("solved_late")
     if late is not None:
-        lines += ["", f"Searches ran to {cfg.max_iters:,} iterations with no wall-clock limit (reproducible anywhere): "
-                  f"{late} of the solutions took longer than the {cfg.time_limit:g} s time limit on this machine."]  # fmt: skip
+        lines += ["", (f"Searches ran to {cfg.max_iters:,} iterations with no wall-clock limit (reproducible anywhere): "
+                       f"{late} of the solutions took longer than the {cfg.time_limit:g} s time limit on this machine.")]  # fmt: skip
     if result.summary_by_planner:
         lines += ["", "Planners (same splats, checker, margin, edge resolution and time limit; ours seeded, OMPL's not):", "",
                   "| planner | family | solved / free | median time (s) | p95 time (s) | worst exact clearance (mm) | paths < 0 |",
