@@ -478,7 +478,7 @@ def covering_radius(scene, splats, spacing: float, n_sigma: float = 0.0, seed: i
     rot = quat_to_rotmat(np.asarray(splats.quats, dtype=np.float64)).reshape(-1, 3, 3)  # splat -> world
     semi = n_sigma * np.maximum(np.asarray(splats.scales, dtype=np.float64), 1e-12)  # (N, 3); 2DGS disks: ~0 thick
     ub = np.empty(len(x))
-    for s in range(0, len(x), chunk):  # cheap bound: |x - mu| (1 - n / mahalanobis)+, min over the k
+    for s in range(0, len(x), chunk):  # cheap bound: |x - mu| (1 - 1 / m)+, m = x's Mahalanobis radius in units of n_sigma; min over the k
         sl = slice(s, s + chunk)
         u = np.einsum("pkji,pkj->pki", rot[idx[sl]], x[sl, None, :] - mu[idx[sl]])  # (P, k, 3) splat frames
         maha = np.linalg.norm(u / semi[idx[sl]], axis=2)  # in units of the n_sigma-ellipsoid
@@ -499,9 +499,10 @@ def derived_margin(robot, means: np.ndarray, factor: float, fraction: float = 0.
                    scales: np.ndarray | None = None, floor_factor: float = 0.5) -> tuple[float, float, float]:  # fmt: skip
     """(margin m, spacing estimate h, edge resolution r), from the splats alone:
     ``m = max(factor h - n_sigma s_t, floor_factor h) + r / 2``, h = the median nearest-neighbour
-    distance of the means (N, 3) (over ~20k of them, evenly strided), s_t = the median middle std of ``scales`` (N, 3) (a surface
-    splat's smaller tangential std; 0 without scales), r = ``fraction x`` the robot's own smallest
-    semi-axis (the resolution the benchmark asks the planner for, whatever the inflation).
+    distance of the means (N, 3) (over ~20k of them, evenly strided), s_t = the median middle std
+    of ``scales`` (N, 3) (a surface splat's smaller tangential std; 0 without scales), r =
+    ``fraction x`` the robot's own smallest semi-axis (the resolution the benchmark asks the
+    planner for, whatever the inflation).
     ``factor h`` estimates the covering radius of the surface by the means, rho(0); each splat's
     n_sigma-ellipsoid reaches at least n_sigma s_t from its mean along the surface, which closes
     the gaps between means, so rho(n_sigma) shrinks by about that much, down to the floor (the
