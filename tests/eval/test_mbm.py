@@ -137,6 +137,8 @@ def test_summarise_counts():
     s = summarise([row, {**row, "goal_free": False, "solved": False}])
     assert s["valid_endpoints"] == 2 and s["free_endpoints"] == 3 and s["problems_both_free"] == 1
     assert s["solved"] == 1 and s["negative_clearance_paths"] == 1 and s["worst_exact_clearance_m"] == -0.001
+    assert s["solved_late"] is None  # a wall-clock run: nothing is late
+    assert summarise([row], time_limit=0.5)["solved_late"] == 1 and summarise([row], time_limit=2.0)["solved_late"] == 0
 
 
 SCENE_YAML = """world:
