@@ -31,7 +31,7 @@ DISPLAY = {
 
 def n_cores() -> int:
     """CPU cores this process may run on (affinity mask), >= 1; ``SPLATPLAN_CPU_THREADS`` when set
-    (a job-engine worker gets 1, so N workers use N cores, not N x all of them)."""
+    (a local job-engine worker gets cores / N, so N workers share the cores, not N x all of them)."""
     env = os.environ.get("SPLATPLAN_CPU_THREADS")
     if env:
         return max(1, int(env))

@@ -6,8 +6,9 @@ task of the run needs (the scene, its checker, the robot). :func:`run_tasks` run
 
 * **serial** (``{"kind": "serial"}``, the default): in this process, the context built once;
 * **dask** (``{"kind": "dask", "workers": N}``): on a ``distributed.LocalCluster`` of N worker
-  processes, one thread each, listening on loopback only (127.0.0.1, no dashboard); or
-  (``{"kind": "dask", "scheduler": "tcp://HOST:PORT"}``) on an existing cluster.
+  processes, one task at a time each (its collision calls on cores / N threads), listening on
+  loopback only (127.0.0.1, no dashboard); or (``{"kind": "dask", "scheduler": "tcp://HOST:PORT"}``)
+  on an existing cluster.
 
 Guarantees:
 
