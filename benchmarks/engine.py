@@ -8,10 +8,13 @@ Job sets: plan jobs of ``splatplan sweep`` on built-in scenes, run to a fixed RR
 * ``tabletop``: the Panda on the built-in tabletop, n_sigma 1, random free joint-space pairs;
 * ``mbm`` (``--mbm N``): the ``eval mbm`` tasks (:func:`splatplan.eval.mbm.mbm_task`, our planner)
   on the first N problems of each shared MotionBenchMaker family (``--mbm-splats`` splats per
-  scene, ``--mbm-time-limit``); each worker builds its robot once and its scenes once per problem.
-  These jobs end at a solution or the time limit, so a search the limit cuts short may differ
-  between the runs (``same_rows`` then says NO and ``differing`` names the tasks).
-  ``--mbm-only`` skips the built-in sets.
+  scene); each worker builds its robot once and its scenes once per problem. The searches run to
+  an iteration budget (``--mbm-max-iters``, default 100, about the 10 s limit on a quiet machine;
+  0 = the wall-clock ``--mbm-time-limit``, where a search the limit cuts short may differ between
+  the runs), so every row is the same serial and distributed (``same_rows``). Serial runs twice:
+  with every core in each collision call (as a user runs it: the speedup) and with the workers'
+  per-task threads, cores / workers (the engine's own efficiency). ``--mbm-only`` skips the
+  built-in sets.
 
 Measured:
 
@@ -45,6 +48,7 @@ import os
 import statistics
 import sys
 import time
+import warnings
 from dataclasses import replace
 from pathlib import Path
 
@@ -104,47 +108,87 @@ def run_set(name: str, spec, base: Path, out: Path, workers: int) -> dict:
     }
 
 
-def run_mbm_set(n_per_family: int, n_splats: int, time_limit: float, out: Path, workers: int, margin_m: float | None = None) -> dict:
-    """The MBM job set: serial, then on ``workers`` local workers (same tasks, same seeds)."""
+def _serial_threads(n: int | None):
+    """Set this process's collision-call threads (SPLATPLAN_CPU_THREADS) for a serial run; returns the old value."""
+    old = os.environ.get("SPLATPLAN_CPU_THREADS")
+    if n is None:
+        os.environ.pop("SPLATPLAN_CPU_THREADS", None)
+    else:
+        os.environ["SPLATPLAN_CPU_THREADS"] = str(int(n))
+    return old
+
+
+def run_mbm_set(n_per_family: int, n_splats: int, time_limit: float, out: Path, workers: int, margin_m: float | None = None,
+                max_iters: int | None = None, n_sigma: float | None = None) -> dict:  # fmt: skip
+    """The MBM job set: serial with every core in each collision call (as a user runs it), serial with
+    cores / workers threads (the same per-task threads as a worker: the engine's own efficiency),
+    then on ``workers`` local workers (cores / workers threads each); same tasks, same seeds."""
     from dataclasses import asdict
 
-    from splatplan.eval.engine import Task, run_tasks
-    from splatplan.eval.mbm import MBMConfig, comparable, list_tasks, make_context, mbm_task, settings_hash, task_key
+    from splatplan.eval.engine import EngineConfig, Task, run_tasks
+    from splatplan.eval.mbm import MBMConfig, check_inputs, comparable, list_tasks, make_context, mbm_task, settings_hash, task_key
 
-    cfg = MBMConfig(n_per_family=n_per_family, n_splats=n_splats, time_limit=time_limit, margin_m=margin_m).validate()
+    kw = {} if n_sigma is None else {"n_sigma": n_sigma}
+    cfg = MBMConfig(n_per_family=n_per_family, n_splats=n_splats, time_limit=time_limit, margin_m=margin_m, max_iters=max_iters, **kw).validate()
     sig = settings_hash(cfg)
-    tasks = [Task(task_key(t, cfg, sig), asdict(t)) for t in list_tasks(cfg)]
     factory = functools.partial(make_context, cfg)
-    ser = run_tasks(tasks, mbm_task, factory, None, out / "mbm_serial.jsonl", progress=False)
-    dk = run_tasks(tasks, mbm_task, factory, {"kind": "dask", "workers": workers}, out / "mbm_dask.jsonl", progress=False)
+    tasks = [Task(task_key(t, cfg, sig), asdict(t)) for t in check_inputs(list_tasks(cfg), factory().robot)]
+    engine = EngineConfig("dask", workers=workers)
+    per_worker = engine.worker_threads()
+    cores = len(os.sched_getaffinity(0))
+    old = _serial_threads(None)
+    try:
+        ser = run_tasks(tasks, mbm_task, factory, None, out / "mbm_serial.jsonl", progress=False)
+        _serial_threads(per_worker)
+        ser1 = run_tasks(tasks, mbm_task, factory, None, out / "mbm_serial_per_worker_threads.jsonl", progress=False)
+    finally:
+        _serial_threads(None if old is None else int(old))
+    dk = run_tasks(tasks, mbm_task, factory, engine, out / "mbm_dask.jsonl", progress=False)
     task_s = [r["seconds"] for r in ser.records.values()]
     first = {}
     for r in dk.records.values():  # the first task of each worker includes the robot load
         first.setdefault(r["worker"], []).append(r["seconds"])
     differing = [k for k in ser.rows if comparable(ser.rows[k]) != comparable(dk.rows.get(k, {}))]
+    differing1 = [k for k in ser.rows if comparable(ser.rows[k]) != comparable(ser1.rows.get(k, {}))]
+    rows = list(ser.rows.values())
     return {
-        "job_set": f"mbm ({n_per_family}/family, {n_splats:,} splats, margin {'derived' if margin_m is None else format(margin_m, 'g') + ' m'})",
+        "job_set": f"mbm ({n_per_family}/family, {n_splats:,} splats, n_sigma {cfg.n_sigma:g}, margin {'derived' if margin_m is None else format(margin_m, 'g') + ' m'}, "
+                   + (f"{max_iters} iterations per search)" if max_iters else f"{time_limit:g} s per search)"),
         "n_tasks": len(tasks),
         "serial_s": ser.run_s,
+        "serial_threads": cores,
+        "serial_per_worker_threads_s": ser1.run_s,
+        "worker_threads": per_worker,
         "dask_s": dk.run_s,
         "cluster_start_s": dk.cluster_start_s,
         "dask_wall_incl_start_and_shutdown_s": dk.wall_s,
         "speedup": ser.run_s / dk.run_s,
+        "speedup_same_threads": ser1.run_s / dk.run_s,
+        "engine_efficiency_same_threads": ser1.run_s / (workers * dk.run_s),
         "speedup_incl_start": ser.run_s / dk.wall_s,
         "task_s_median": statistics.median(task_s),
         "task_s_sum": float(sum(task_s)),
+        "task_s_sum_per_worker_threads": float(sum(r["seconds"] or 0.0 for r in ser1.records.values())),
         "first_task_s_per_worker": {k: max(v) for k, v in first.items()},
         "dask_task_s_sum": float(sum(r["seconds"] or 0.0 for r in dk.records.values())),
         # worker-seconds not spent inside a task, per task: scheduling, transfer, idle tail
         "overhead_per_task_derived_s": (workers * dk.run_s - sum(r["seconds"] or 0.0 for r in dk.records.values())) / max(1, len(tasks)),
-        "same_rows": not differing and not ser.errors and not dk.errors,
-        "differing": differing,
-        "errors": {**ser.errors, **dk.errors},
-        "n_both_free": int(sum(bool(r.get("start_free") and r.get("goal_free")) for r in ser.rows.values())),
-        "n_solved": int(sum(bool(r.get("solved")) for r in ser.rows.values())),
-        "hit_time_limit": int(sum(r.get("time_s") is not None and r["time_s"] >= 0.95 * time_limit for r in ser.rows.values())),
+        "same_rows": not differing and not differing1 and not ser.errors and not dk.errors and not ser1.errors,
+        "differing": differing + [k + " (serial, per-worker threads)" for k in differing1],
+        "errors": {**ser.errors, **ser1.errors, **dk.errors},
+        "n_both_free": int(sum(bool(r.get("start_free") and r.get("goal_free")) for r in rows)),
+        "n_solved": int(sum(bool(r.get("solved")) for r in rows)),
+        "hit_time_limit": int(sum(r.get("time_s") is not None and r["time_s"] >= 0.95 * time_limit for r in rows)),
+        "non_planning_s_per_problem": _non_planning(ser.records),
         "engine": dk.engine,
     }
+
+
+def _non_planning(records: dict) -> dict:
+    """Per-task seconds outside the planner call (scene sampling, margin, checker, endpoint and path
+    exact clearance): task seconds minus the row's planning time_s; median and mean."""
+    v = [r["seconds"] - (r["row"].get("time_s") or 0.0) for r in records.values() if r.get("ok")]
+    return {"median": statistics.median(v), "mean": statistics.fmean(v)} if v else {}
 
 
 def overhead(workers: int, n: int) -> dict:
@@ -152,7 +196,9 @@ def overhead(workers: int, n: int) -> dict:
 
     from splatplan.eval.engine import Task, _dask_task
 
-    cluster = LocalCluster(host="127.0.0.1", processes=True, n_workers=workers, threads_per_worker=1, dashboard_address=None, silence_logs=50)
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message="Port .* is already in use")
+        cluster = LocalCluster(host="127.0.0.1", processes=True, n_workers=workers, threads_per_worker=1, dashboard_address=None, silence_logs=50)
     client = Client(cluster)
     try:
         warm = client.gather([client.submit(_dask_task, noop, no_context, {"i": i}, pure=False) for i in range(2 * workers)])
@@ -190,7 +236,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--mbm", type=int, default=None, metavar="N", help="add the MBM job set: the first N problems of each shared MBM family")
     ap.add_argument("--mbm-splats", type=int, default=100_000, help="splats per MBM scene")
     ap.add_argument("--mbm-time-limit", type=float, default=10.0, help="planning time limit per MBM problem (s)")
-    ap.add_argument("--mbm-margin", type=float, default=None, help="MBM planning margin (m); default derived from the splat spacing (few goals free with the coarse model: little planning)")
+    ap.add_argument("--mbm-margin", type=float, default=None, help="MBM planning margin (m); default derived from the splats and n_sigma")
+    ap.add_argument("--mbm-max-iters", type=int, default=100, help="iteration budget per MBM search (reproducible rows; 0 = the wall-clock --mbm-time-limit)")
+    ap.add_argument("--mbm-n-sigma", type=float, default=None, help="MBM n_sigma (default: MBMConfig's)")
     ap.add_argument("--mbm-only", action="store_true", help="run only the MBM job set (with --mbm)")
     ap.add_argument("--out", default=str(Path(__file__).resolve().parent / "results" / "engine.json"))
     args = ap.parse_args(argv)
@@ -217,7 +265,7 @@ def main(argv: list[str] | None = None) -> int:
     rows = []
     try:
         if args.mbm is not None:
-            rows.append(run_mbm_set(args.mbm, args.mbm_splats, args.mbm_time_limit, work, args.workers, args.mbm_margin))
+            rows.append(run_mbm_set(args.mbm, args.mbm_splats, args.mbm_time_limit, work, args.workers, args.mbm_margin, args.mbm_max_iters or None, args.mbm_n_sigma))
             print(f"mbm: {rows[-1]['serial_s']:.1f} s serial, {rows[-1]['dask_s']:.1f} s on {args.workers} workers", file=sys.stderr)
         for name, spec in sets.items():
             rows.append(run_set(name, spec.validate(), Path("."), work, args.workers))
@@ -252,6 +300,11 @@ def main(argv: list[str] | None = None) -> int:
             f"{r['task_s_median']:.2f} | {'yes' if r['same_rows'] else 'NO'} | {m['8']:.1f} | {m['32']:.1f} |"
         )
     for r in rows:
+        if "serial_per_worker_threads_s" in r:
+            lines.append(f"\n{r['job_set']}: serial with {r['serial_threads']} threads per collision call (as a user runs it) {r['serial_s']:.1f} s -> "
+                         f"{args.workers} workers x {r['worker_threads']} thread(s) {r['dask_s']:.1f} s: **{r['speedup']:.2f}x**; serial with {r['worker_threads']} thread(s) "
+                         f"(the same per-task threads as a worker) {r['serial_per_worker_threads_s']:.1f} s: {r['speedup_same_threads']:.2f}x, engine efficiency "
+                         f"{100 * r['engine_efficiency_same_threads']:.0f}%; non-planning seconds per problem (serial): median {r['non_planning_s_per_problem'].get('median', float('nan')):.2f}")  # fmt: skip
         if "differing" in r:
             lines.append(f"\n{r['job_set']}: {r['n_solved']}/{r['n_both_free']} solved serially (of the problems with both endpoints free; {r['n_tasks']} tasks), {r['hit_time_limit']} at the time limit; "
                          f"worker time outside tasks per task {r['overhead_per_task_derived_s']:.2f} s (scheduling, transfer, idle tail); "

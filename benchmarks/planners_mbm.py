@@ -35,12 +35,11 @@ DEFAULT_MBM = ROOT.parent / "shared" / "data" / "mbm"
 
 
 def run(args) -> dict:
-    from splatplan.eval.mbm import MBMConfig, _prepare, list_tasks
+    from splatplan.eval.mbm import MBMConfig, _prepare, check_inputs, list_tasks
     from splatplan.planners import RRTConfig, plan
     from splatplan.planners.robot_links import LinkGeometry, robot_collides
     from splatplan.planners.rrt import EdgeChecker
     from splatplan.robots import load_robot
-    from splatplan.scenes.moveit import load_moveit_request
 
     cfg = MBMConfig(problems=args.problems, families=tuple(args.families.split(",")), n_per_family=args.n_per_family, n_splats=args.n_splats,
                     margin_m=args.margin_m, check_margin=False, time_limit=args.time_limit)  # fmt: skip
@@ -51,11 +50,11 @@ def run(args) -> dict:
     kw.update({"edge_stages": args.edge_stages} if "edge_stages" in RRTConfig.__dataclass_fields__ else {})  # (older versions: one call)
     rcfg = RRTConfig(time_limit_s=args.time_limit, edge_resolution=res, **kw)
     rows = []
-    for task in list_tasks(cfg):
+    for task in check_inputs(list_tasks(cfg), robot):
         t0 = time.perf_counter()
-        prep = _prepare(task.scene, cfg, robot)
+        prep = _prepare(task, cfg, robot)
         t_prep = time.perf_counter() - t0
-        q0, q1 = load_moveit_request(task.request, robot)
+        q0, q1 = np.asarray(task.q_start), np.asarray(task.q_goal)
         hit = np.asarray(robot_collides(prep.checker, plan_robot, np.stack([q0, q1]))).any(axis=-1)
         row = {"family": task.family, "index": task.index, "both_free": bool(not hit.any()), "prep_s": t_prep}
         if row["both_free"]:

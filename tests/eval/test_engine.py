@@ -60,7 +60,8 @@ def test_serial_and_dask_same_rows_context_once_per_worker(tmp_path):
     for r in dk.rows.values():
         per_pid.setdefault(r["ctx_pid"], set()).add(r["ctx_built"])
     assert all(len(v) == 1 for v in per_pid.values()) and len(per_pid) <= 2
-    assert {r["threads"] for r in dk.rows.values()} == {1}  # Warp's CPU launches: one thread per worker
+    cores = len(os.sched_getaffinity(0))
+    assert {r["threads"] for r in dk.rows.values()} == {max(1, cores // 2)}  # collision calls: cores / workers threads each
     recs = load_results(tmp_path / "dask.jsonl")
     assert sorted(recs) == sorted(f"t{i}" for i in range(12))
 
@@ -117,6 +118,17 @@ def test_killed_worker_loses_nothing(tmp_path):
     assert values(res) == values(ser)
     pids = {r["ctx_pid"] for r in res.rows.values()}
     assert len(pids) >= 2  # the restarted worker (a new process) took over
+
+
+def test_worker_threads():
+    """Local workers split the cores between them (no oversubscription); an explicit count wins."""
+    cores = len(os.sched_getaffinity(0))
+    assert EngineConfig("dask", workers=2).validate().worker_threads() == max(1, cores // 2)
+    assert EngineConfig("dask", workers=4 * cores).validate().worker_threads() == 1
+    assert EngineConfig("dask", workers=2, threads_per_worker=3).validate().worker_threads() == 3
+    for bad in (0, 1.5, True):
+        with pytest.raises(SplatplanError, match="threads_per_worker"):
+            EngineConfig("dask", workers=2, threads_per_worker=bad).validate()
 
 
 def test_bad_engines():

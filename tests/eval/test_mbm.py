@@ -12,7 +12,8 @@ import pytest
 
 from splatplan.cli import main
 from splatplan.errors import SplatplanError
-from splatplan.eval.mbm import MBMConfig, dense_path, derived_margin, exact_clearance, summarise
+from splatplan.eval.mbm import (MBMConfig, MBMContext, MBMTask, check_inputs, covering_radius, dense_path, derived_margin, exact_clearance,
+                                path_min_clearance, solve_problem, summarise)
 from splatplan.robots import load_robot
 from splatplan.scenes.builtin.primitives import AnalyticScene, make_box, make_cylinder
 
@@ -82,6 +83,52 @@ def test_derived_margin():
     m, h, r = derived_margin(robot, means, 3.0)
     assert r == pytest.approx(0.25 * robot.min_semi_axis) and m == pytest.approx(3.0 * h + 0.5 * r)
     assert 0 < h < 0.2
+    # above n_sigma 0 the estimate of rho shrinks by n_sigma x the median middle std, down to the floor
+    scales = np.tile([0.6 * h, 0.5 * h, 0.01 * h], (2000, 1))  # middle std 0.5 h
+    m1, h1, _ = derived_margin(robot, means, 3.0, n_sigma=2.0, scales=scales, floor_factor=0.5)
+    assert h1 == h and m1 == pytest.approx(2.0 * h + 0.5 * r)
+    m9, _, _ = derived_margin(robot, means, 3.0, n_sigma=9.0, scales=scales, floor_factor=0.5)
+    assert m9 == pytest.approx(0.5 * h + 0.5 * r)
+
+
+def _toy_scene():
+    return AnalyticScene(np.stack([make_box([0.5, 0, 0.2], [0.1, 0.3, 0.2]), make_box([0, 0, -0.05], [1, 1, 0.05])]), [], {},
+                         make_cylinder([0.3, 0.3, 0.5], 0.04, 0.1)[None])  # fmt: skip
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_path_min_clearance_matches_every_configuration(seed):
+    """The branch and bound over a dense path gives the min of the per-configuration clearances."""
+    robot = load_robot("panda")
+    scene = _toy_scene()
+    rng = np.random.default_rng(seed)
+    lo, hi = robot.joint_limits[:, 0], robot.joint_limits[:, 1]
+    mid = lo + (0.3 + 0.4 * rng.random(7)) * (hi - lo)
+    path = np.stack([mid, mid + 0.15 * (rng.random(7) - 0.5) * (hi - lo), mid + 0.15 * (rng.random(7) - 0.5) * (hi - lo)])
+    dense = dense_path(robot, path)
+    ref = exact_clearance(scene, robot, dense).min()
+    assert path_min_clearance(scene, robot, dense) == pytest.approx(ref, abs=1e-9)
+    assert path_min_clearance(scene, robot, dense, first=1, stride=3) == pytest.approx(ref, abs=1e-9)
+
+
+def test_covering_radius_against_brute_force():
+    """rho(n_sigma): the max over surface samples of the distance to the nearest splat n_sigma-ellipsoid,
+    checked against an all-splats computation; it shrinks as n_sigma grows."""
+    from splatplan.scenes.builtin.primitives import _project_ellipsoid, _sample_faces, splats_from_scene
+    from splatplan.scenes.splats import quat_to_rotmat
+
+    scene = AnalyticScene(make_box([0, 0, 0], [0.1, 0.08, 0.05])[None], [], {})
+    splats = splats_from_scene(scene, 150, seed=3)
+    spacing = float(splats.info["base_spacing"])
+    rhos = [covering_radius(scene, splats, spacing, n_sigma=n, seed=0, oversample=1.0, k=len(splats)) for n in (0.0, 1.0, 2.0)]
+    assert rhos[0] > rhos[1] > rhos[2] >= 0
+    x = _sample_faces(scene, np.full(1, spacing), np.ones((1, 6), bool), np.random.default_rng(0), curved_spacing=spacing)["p"]
+    mu, rot = splats.means.astype(np.float64), quat_to_rotmat(splats.quats.astype(np.float64)).reshape(-1, 3, 3)
+    assert rhos[0] == pytest.approx(np.linalg.norm(x[:, None] - mu[None], axis=2).min(axis=1).max())
+    u = np.einsum("nji,pnj->pni", rot, x[:, None] - mu[None]).reshape(-1, 3)  # every (sample, splat) pair
+    semi = np.broadcast_to(1.0 * np.maximum(splats.scales.astype(np.float64), 1e-12), (len(x), len(mu), 3)).reshape(-1, 3)
+    brute = np.linalg.norm(u - _project_ellipsoid(u, semi), axis=1).reshape(len(x), -1).min(axis=1).max()
+    assert rhos[1] == pytest.approx(brute, rel=1e-6)
 
 
 def test_summarise_counts():
@@ -90,6 +137,8 @@ def test_summarise_counts():
     s = summarise([row, {**row, "goal_free": False, "solved": False}])
     assert s["valid_endpoints"] == 2 and s["free_endpoints"] == 3 and s["problems_both_free"] == 1
     assert s["solved"] == 1 and s["negative_clearance_paths"] == 1 and s["worst_exact_clearance_m"] == -0.001
+    assert s["solved_late"] is None  # a wall-clock run: nothing is late
+    assert summarise([row], time_limit=0.5)["solved_late"] == 1 and summarise([row], time_limit=2.0)["solved_late"] == 0
 
 
 SCENE_YAML = """world:
@@ -124,3 +173,41 @@ def test_eval_mbm_bad_requests_exit_2(tmp_path, capsys, goal, msg):
                "--out", str(tmp_path / "o")])  # fmt: skip
     err = capsys.readouterr().err
     assert rc == 2 and msg in err and err.count("\n") == 1, err
+
+
+def test_tasks_carry_the_parsed_problem(tmp_path):
+    """check_inputs parses every YAML once; a worker solving the task from what it carries gives the
+    same row as one reading the files, and with an iteration budget a rerun gives the same row."""
+    fam = tmp_path / "problems" / "toy_panda"
+    fam.mkdir(parents=True)
+    (fam / "scene0001.yaml").write_text(SCENE_YAML)
+    cons = ", ".join(f"{{joint_name: panda_joint{i}, position: {v}}}" for i, v in enumerate([0.3, -0.5, 0, -2.0, 0, 1.571, 0.785], 1))
+    (fam / "request0001.yaml").write_text(START + f"goal_constraints: [{{joint_constraints: [{cons}]}}]\n")
+    cfg = MBMConfig(problems=str(tmp_path / "problems"), families=("toy",), robot="panda", n_splats=5000, margin_m=0.0, max_iters=50).validate()
+    robot = load_robot("panda")
+    bare = MBMTask("toy", 1, str(fam / "scene0001.yaml"), str(fam / "request0001.yaml"))
+    (task,) = check_inputs([bare], robot)
+    assert task.objects is not None and len(task.q_start) == len(task.q_goal) == 7
+    json.dumps(task.objects)  # plain data: ships to a worker as is
+    (fam / "scene0001.yaml").unlink()  # the worker never reads the files
+    (fam / "request0001.yaml").unlink()
+    row = solve_problem(task, MBMContext(cfg, robot))
+    again = solve_problem(task, MBMContext(cfg, robot))
+    assert row["start_free"] and row["goal_free"] and row["timed_out"] is False
+    drop = ("time_s", "wall_s", "time_split", "message")
+    same = [json.dumps({k: v for k, v in r.items() if k not in drop}, sort_keys=True) for r in (row, again)]  # NaN-safe
+    assert same[0] == same[1]
+
+
+def test_ball_clearance_needs_no_solve():
+    """A ball (a sphere model's link) apart from the primitives has clearance d_c - radius exactly:
+    the shortcut agrees with the solver, per configuration and along a path."""
+    robot = load_robot("sphere:0.05")
+    scene = _toy_scene()
+    rng = np.random.default_rng(4)
+    q = np.array([-0.6, -0.6, 0.0]) + rng.random((40, 3)) * np.array([1.6, 1.6, 1.0])  # centres, some inside
+    c, quat, a = robot.ellipsoids(q)
+    ref = scene.ellipsoid_clearance(c, quat, a).min(axis=1)
+    np.testing.assert_allclose(exact_clearance(scene, robot, q), ref, atol=1e-7)
+    path = np.linspace([0.9, 0.9, 0.6], [0.8, -0.9, 0.7], 50)
+    assert path_min_clearance(scene, robot, path) == pytest.approx(scene.ellipsoid_clearance(*robot.ellipsoids(path)).min(), abs=1e-7)

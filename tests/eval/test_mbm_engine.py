@@ -19,10 +19,10 @@ MBM = REPO / ".." / "shared" / "data" / "mbm"
 needs_mbm = pytest.mark.skipif(not (MBM / "problems").is_dir(), reason=f"{MBM} not present")
 
 #: the first problem of two families (both free at margin 0 with 10k splats; ours solves them in
-#: 2 and ~250 nodes); a generous time limit so that a contended machine does not cut a search short
-#: (a search the limit stops is the one thing a seed cannot reproduce)
+#: 2 and ~250 nodes), our searches to an iteration budget (--max-iters: no wall-clock limit, so
+#: every row, node counts included, is the same on any machine and any worker)
 QUICK = ["eval", "mbm", "--quick", "--families", "table_pick,bookshelf_small", "--n-splats", "10000", "--time-limit", "10",
-         "--margin-m", "0", "--check-margin", "false"]  # fmt: skip
+         "--margin-m", "0", "--check-margin", "false", "--max-iters", "400"]  # fmt: skip
 
 
 def _has_ompl() -> bool:
@@ -58,6 +58,7 @@ def test_mbm_serial_vs_workers_resume_and_ompl_rows(tmp_path, capsys):
     dist = _run(capsys, tmp_path / "dask", "--planners", planners, "--workers", "2")
     assert dist["engine"]["kind"] == "dask" and dist["engine"]["workers"] == 2 and dist["engine"]["scheduler"].startswith("tcp://127.0.0.1:")
     assert [comparable(r) for r in dist["rows"]] == [comparable(r) for r in serial["rows"]]
+    assert not any(r["timed_out"] for r in dist["rows"] if r["seeded"])  # n_nodes compared too
     ours = [r for r in dist["rows"] if r["planner"] == "auto"]
     assert ours and all(comparable(r) is not None and r["seeded"] for r in ours)
     md = (tmp_path / "dask" / "mbm.md").read_text()

@@ -6,8 +6,9 @@ task of the run needs (the scene, its checker, the robot). :func:`run_tasks` run
 
 * **serial** (``{"kind": "serial"}``, the default): in this process, the context built once;
 * **dask** (``{"kind": "dask", "workers": N}``): on a ``distributed.LocalCluster`` of N worker
-  processes, one thread each, listening on loopback only (127.0.0.1, no dashboard); or
-  (``{"kind": "dask", "scheduler": "tcp://HOST:PORT"}``) on an existing cluster.
+  processes, one task at a time each (its collision calls on cores / N threads), listening on
+  loopback only (127.0.0.1, no dashboard); or (``{"kind": "dask", "scheduler": "tcp://HOST:PORT"}``)
+  on an existing cluster.
 
 Guarantees:
 
@@ -29,9 +30,11 @@ Guarantees:
   recorded as failed with ``KilledWorker``).
 * **Same results as serial**: the engine never seeds anything; each task must seed its own RNG from
   its spec (never from worker state), so where a task runs does not change its row.
-* **No oversubscription**: worker processes get ``SPLATPLAN_CPU_THREADS=1`` (Warp's CPU launches
-  then use one thread, see :func:`splatplan._warp.cpu_threads`) and Dask's defaults of one BLAS/OMP
-  thread.
+* **No oversubscription**: local worker processes get ``SPLATPLAN_CPU_THREADS`` = cores / workers
+  (at least 1; :attr:`EngineConfig.threads_per_worker` overrides it): the thread pools of the
+  checker and the FK split each collision call over that many threads (see
+  :func:`splatplan._warp.cpu_threads`), so N workers use the cores a serial run uses; Dask's
+  defaults of one BLAS/OMP thread. An external worker without the variable gets 1.
 
 Wiring a study (see ``eval/conservatism.py``: ``make_context``, ``conservatism_task``)::
 
@@ -59,6 +62,7 @@ import threading
 import time
 import traceback
 import uuid
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Iterable
@@ -91,6 +95,8 @@ class EngineConfig:
     workers: int | None = None
     #: address of an existing Dask scheduler, e.g. tcp://10.0.0.5:8786 (dask; None = a local cluster)
     scheduler: str | None = None
+    #: threads of each local worker's collision calls (SPLATPLAN_CPU_THREADS); None = cores / workers
+    threads_per_worker: int | None = None
 
     def validate(self) -> "EngineConfig":
         if self.kind not in ("serial", "dask"):
@@ -109,7 +115,20 @@ class EngineConfig:
             raise SplatplanError(f"--workers must be an integer >= 1, got {self.workers!r}")
         if self.scheduler is not None:
             _parse_address(self.scheduler)
+        t = self.threads_per_worker
+        if t is not None and (isinstance(t, bool) or not isinstance(t, int) or t < 1):
+            raise SplatplanError(f"threads_per_worker must be an integer >= 1, got {t!r}")
         return self
+
+    def worker_threads(self) -> int:
+        """Threads per local worker: ``threads_per_worker``, else this machine's cores / workers (>= 1)."""
+        if self.threads_per_worker is not None:
+            return int(self.threads_per_worker)
+        try:
+            cores = len(os.sched_getaffinity(0))
+        except AttributeError:  # pragma: no cover - non-Linux
+            cores = os.cpu_count() or 1
+        return max(1, cores // max(1, int(self.workers or 1)))
 
     def as_dict(self) -> dict:
         """The engine as the outputs record it (before the run: the requested values)."""
@@ -404,9 +423,12 @@ def _dask_client(engine: EngineConfig):
             raise SplatplanError(f"cannot connect to the Dask scheduler at {engine.scheduler}: {exc}") from None
         n = len(client.scheduler_info().get("workers", {}))
         return client, None, {"kind": "dask", "workers": n, "scheduler": engine.scheduler}
-    # the local cluster: loopback only, no dashboard, one thread per worker process; workers are
-    # told to run Warp's CPU launches on one thread (no oversubscription of the cores)
-    with _workers_ignore_sigint():
+    # the local cluster: loopback only, no dashboard, one task thread per worker process; workers
+    # split their collision calls over cores / workers threads (no oversubscription of the cores)
+    with _workers_ignore_sigint(), warnings.catch_warnings():
+        # the scheduler's HTTP routes (health, metrics; no dashboard) bind 127.0.0.1:8787, or another
+        # port when that one is taken (another cluster on this machine): not the user's business
+        warnings.filterwarnings("ignore", message="Port .* is already in use")
         cluster = LocalCluster(
             host="127.0.0.1",
             processes=True,
@@ -414,7 +436,7 @@ def _dask_client(engine: EngineConfig):
             threads_per_worker=1,
             dashboard_address=None,
             silence_logs=50,  # CRITICAL only: keep the workers' chatter off the user's terminal
-            env={"SPLATPLAN_CPU_THREADS": "1", "SPLATPLAN_NO_TQDM": "1"},
+            env={"SPLATPLAN_CPU_THREADS": str(engine.worker_threads()), "SPLATPLAN_NO_TQDM": "1"},
         )
     client = Client(cluster)
     return client, cluster, {"kind": "dask", "workers": int(engine.workers), "scheduler": cluster.scheduler_address}

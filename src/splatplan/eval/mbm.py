@@ -17,22 +17,45 @@ floaters then filtered as :func:`~splatplan.scenes.load.load_scene` does), and t
   each sample checked against the exact primitives with the robot's own (un-inflated) ellipsoids;
   negative = the path cuts the real geometry.
 
-**The safety margin (why n_sigma 0 needs one).** At n_sigma = 0 a link collides only when a splat
-*mean* lies inside it, so an ellipsoid can slip between means and cut the surface. Let rho be the
-covering radius of the surface by the means (every surface point has a mean within rho) and r the
+**The safety margin, at every n_sigma.** A link can slip between splats and cut the surface; a
+margin that covers the gaps makes that impossible. Let ``E_i(n) = {mu_i + R_i diag(s_i) u : |u| <=
+n}`` be splat i's n-sigma ellipsoid (its mean at n = 0), ``rho(n)`` the covering radius of the
+exposed surface by their union (every surface point lies within rho(n) of some E_i(n)), and r the
 edge resolution (no ellipsoid point moves more than r between consecutive checked configurations;
 the benchmark asks the planner for r = a quarter of the robot's own smallest semi-axis).
-If the planner checks the robot grown by ``m >= rho + r / 2`` (each ellipsoid replaced by one that
-contains its Minkowski sum with a ball of radius m, :meth:`Robot.inflated`) and finds no mean inside
-at every checked configuration, then no configuration along the edge has a surface point inside
-the real robot: such a point x is within r/2 of the same ellipsoid at the nearest checked
-configuration, and its nearest mean is within rho of x, so within rho + r/2 = m of that ellipsoid,
-i.e. inside the grown one. (A robot cannot get inside a solid without crossing its surface along a
-continuous path from a valid start.) n_sigma > 0 only adds conservatism (the metric is monotone in
-n_sigma). The default margin estimates rho from the splats alone, as a user without ground truth
-would: ``margin_spacing_factor`` x the median nearest-neighbour distance of the splat means; the
-benchmark measures the true rho from the ground truth (``rho_measured_m``, max over dense surface
-samples of the distance to the nearest mean) and reports whether ``m >= rho + r / 2`` held.
+
+*Claim:* if the planner checks, at n_sigma = n, the robot grown by ``m >= rho(n) + r / 2`` (each
+ellipsoid replaced by one containing its Minkowski sum with a ball of radius m,
+:meth:`Robot.inflated`) and every checked configuration is free, then no configuration along the
+edge has a surface point inside the real robot's ellipsoids.
+
+1. *The checker is conservative for E_i(n).* ``s2(p) = (p - c)^T A (p - c)`` is convex, so for
+   ``p = mu + R diag(s) u``, ``|u| <= n``: ``s2(p) >= s2(mu) + g . (p - mu) >= s2 - n sigma`` (g the
+   gradient at mu; Cauchy-Schwarz gives ``|g . R diag(s) u| <= n |diag(s) R^T g| = n sigma``). A
+   point of E_i(n) inside the link (s2(p) < 1) therefore makes ``s2~ = max(0, s2 - n sigma) < 1``:
+   the splat is counted. Free means no point of any E_i(n) inside any (grown) link.
+2. A surface point x inside a link at a configuration between two checked ones is within r/2 of
+   the same link at the nearer checked configuration (the motion bound is linear along an edge);
+   some point p of some E_i(n) lies within rho(n) of x, hence within rho(n) + r/2 <= m of that
+   link: inside the grown link (x is interior, so strictly), which the checker would have counted.
+3. A robot cannot get into a solid without a surface point inside it along a continuous path from
+   a valid start, so the path's exact clearance stays >= 0.
+
+Nothing is exempted at the endpoints: they are checked with the same grown model (``start_free``,
+``goal_free``). rho(n) needs the ground truth; the derived margin estimates it from the splats
+alone, as a user would: ``max(margin_spacing_factor h - n s_t, margin_floor_factor h) + r/2`` with
+h the median nearest-neighbour distance of the means and s_t the median middle std (a splat's
+smaller tangential std: its n-sigma ellipsoid reaches at least n s_t along the surface, closing the
+gaps between means; the floor covers the means' offsets along the normal, which flat splats do
+not). With ``check_margin`` the benchmark measures rho(n) (:func:`covering_radius`,
+``rho_measured_m``) and reports whether ``m >= rho(n) + r / 2`` held (``bound_holds``).
+
+**Why the default n_sigma is 0.** The margin shrinks with n, but the checker's own reach grows
+faster: the linearisation ``s2 - n sigma`` reaches about ``sqrt(a^2 + (n s_t)^2) - a`` beyond a
+link of semi-axis a towards a splat beside it, which for the largest splats (s_t ~ 1.5x the sample
+spacing) and the Panda's thinnest links is more than the margin saves: fewer endpoints are free at
+n_sigma 1, 2, 3 than at 0 (README, MotionBenchMaker). n_sigma 0 with the derived margin is the
+least conservative setting that keeps the guarantee.
 
 **Planners.** ``MBMConfig.planners`` lists the planners compared: ``auto`` (ours: RRT-Connect for
 the arm), ``rrt``, ``rrtconnect``, or ``ompl:NAME`` (any OMPL geometric planner through
@@ -100,7 +123,8 @@ class MBMConfig:
     families: tuple[str, ...] = ("table_pick", "box", "bookshelf_small")
     #: problems per family (the first N by index); none = all
     n_per_family: int | None = bounded(None, ge=1)
-    #: metric conservatism of the planner's collision checks (0 = splat means; see the margin)
+    #: metric conservatism of the planner's collision checks (0 = splat means, the default: with the
+    #: derived margin the least conservative safe setting; see the module docstring)
     n_sigma: float = bounded(0.0, ge=0)
     #: splats per scene (the built-in real-capture look)
     n_splats: int = bounded(100_000, ge=1000)
@@ -109,14 +133,22 @@ class MBMConfig:
     #: robot URDF (or a built-in name, e.g. panda); none = <repo>/../shared/data/mbm/panda/panda.urdf
     robot: str | None = None
     #: planning margin (m) added around every ellipsoid (Robot.inflated); none = derived per scene
-    #: from the splat spacing (see margin_spacing_factor); 0 = plan with the robot's own model
+    #: from the splats and n_sigma (see margin_spacing_factor); 0 = plan with the robot's own model
     margin_m: float | None = bounded(None, ge=0)
-    #: derived margin = this x the median nearest-neighbour distance of the splat means + r/2
-    #: (the sampler's covering radius measured 2.3-2.6x that distance: 3 keeps the bound with room)
+    #: derived margin = max(this x h - n_sigma x s_t, margin_floor_factor x h) + r/2, h = median
+    #: nearest-neighbour distance of the splat means, s_t = median middle std of the splats (the
+    #: sampler's covering radius measured 2.3-2.6 h at n_sigma 0: 3 keeps the bound with room)
     margin_spacing_factor: float = bounded(3.0, ge=0)
-    #: measure the true covering radius rho from the ground truth (diagnostic: did m >= rho + r/2
-    #: hold? a few seconds per scene)
-    check_margin: bool = True
+    #: the derived margin's estimate of the covering radius never drops below this x h, whatever
+    #: n_sigma (the splats' offsets along the surface normal are not covered by their tangential extent)
+    margin_floor_factor: float = bounded(0.5, ge=0)
+    #: measure the true covering radius rho(n_sigma) from the ground truth (diagnostic: did
+    #: m >= rho + r/2 hold? ~1 s per scene at n_sigma 0, tens of seconds above; off by default)
+    check_margin: bool = False
+    #: iteration budget of our planners' searches (reproducible benchmark mode: the search and
+    #: shortcut then run without a wall-clock limit, so no row depends on the machine's speed; the
+    #: summary counts solutions slower than time_limit as solved_late); none = time_limit ends the search
+    max_iters: int | None = bounded(None, ge=1)
     #: scene sampling and planner seed (an integer >= 0)
     seed: int = bounded(0, ge=0)
     #: planners to compare, each on the same checker, time limit and margin: auto / rrt / rrtconnect
@@ -179,13 +211,20 @@ def check_planners(names) -> tuple[str, ...]:
 
 @dataclass(frozen=True)
 class MBMTask:
-    """One (problem, planner): what a worker needs to solve it (plain data, picklable)."""
+    """One (problem, planner): what a worker needs to solve it (plain data, picklable, JSON-able).
+
+    ``objects`` (the parsed scene, :meth:`AnalyticScene.to_json`) and ``q_start`` / ``q_goal`` come
+    from :func:`check_inputs`, which parses every YAML once before the run, so the workers never
+    parse them again; without them (a task built by hand) the worker reads the files."""
 
     family: str
     index: int
     scene: str  # path of sceneNNNN.yaml
     request: str  # path of requestNNNN.yaml
     planner: str = "auto"  # a name of MBMConfig.planners
+    objects: dict | None = None  # the parsed scene (AnalyticScene.to_json), or None
+    q_start: tuple[float, ...] | None = None  # (dof,) from the request, or None
+    q_goal: tuple[float, ...] | None = None  # (dof,)
 
 
 @dataclass
@@ -198,11 +237,13 @@ class MBMContext:
     scenes: OrderedDict = field(default_factory=OrderedDict)  # scene path -> _Prepared (LRU)
     max_scenes: int = 2
 
-    def prepared(self, scene_path: str) -> "_Prepared":
-        """The prepared scene of ``scene_path`` (built on first use; deterministic in the config)."""
+    def prepared(self, task: "MBMTask") -> "_Prepared":
+        """The prepared scene of ``task`` (built on first use, keyed by its scene file; deterministic
+        in the config)."""
+        scene_path = task.scene
         p = self.scenes.get(scene_path)
         if p is None:
-            p = _prepare(scene_path, self.config, self.robot)
+            p = _prepare(task, self.config, self.robot)
             self.scenes[scene_path] = p
             while len(self.scenes) > self.max_scenes:
                 _, old = self.scenes.popitem(last=False)
@@ -268,19 +309,24 @@ def list_tasks(config: MBMConfig) -> list[MBMTask]:
     return tasks
 
 
-def check_inputs(tasks: list[MBMTask], robot) -> None:
-    """Parse every problem's scene and request (no sampling) so that bad input stops the run with
-    one line before any work: YAML that does not parse, an unknown primitive or a mesh, a scene
-    with no objects, joints the robot does not have, a goal outside the joint limits."""
+def check_inputs(tasks: list[MBMTask], robot) -> list[MBMTask]:
+    """Parse every problem's scene and request once (no sampling), so that bad input stops the run
+    with one line before any work (YAML that does not parse, an unknown primitive or a mesh, a
+    scene with no objects, joints the robot does not have, a goal outside the joint limits), and
+    return the tasks carrying the parsed scene and joint configurations (the workers parse nothing)."""
+    from dataclasses import replace
+
     from ..scenes.moveit import load_moveit_request, load_moveit_scene
 
-    seen = set()
+    parsed: dict[tuple[str, str], tuple] = {}
+    out = []
     for t in tasks:
-        if t.scene in seen:
-            continue
-        seen.add(t.scene)
-        load_moveit_scene(t.scene)
-        load_moveit_request(t.request, robot)
+        if (t.scene, t.request) not in parsed:  # a problem's planners share one parse
+            q0, q1 = load_moveit_request(t.request, robot)
+            parsed[t.scene, t.request] = (load_moveit_scene(t.scene).to_json(), tuple(map(float, q0)), tuple(map(float, q1)))
+        objects, q0, q1 = parsed[t.scene, t.request]
+        out.append(replace(t, objects=objects, q_start=q0, q_goal=q1))
+    return out
 
 
 def make_context(config: MBMConfig) -> MBMContext:
@@ -328,9 +374,18 @@ def exact_clearance(scene, robot, q: np.ndarray) -> np.ndarray:
     ub = np.where(d_c < 0, d_c, np.maximum(d_c - a_min, 0.0)).min(axis=1, keepdims=True)  # (N, 1)
     cand = d_c - a_max <= ub + 1e-12  # (N, E)
     out = np.full((n, e), np.inf)
-    ci, ei = np.nonzero(cand)
+    known = cand & _ball_apart(d_c, a_min, a_max)
+    out[known] = (d_c - a_max)[known]
+    ci, ei = np.nonzero(cand & ~known)
     out[ci, ei] = scene.ellipsoid_clearance(c[ci, ei], quat[ci, ei], a[ei])
     return out.min(axis=1)
+
+
+def _ball_apart(d_c: np.ndarray, a_min: np.ndarray, a_max: np.ndarray) -> np.ndarray:
+    """(N, E) bool: the ellipsoid is a ball (equal semi-axes, e.g. a sphere model) no closer to the
+    primitives than its radius, so its clearance is exactly ``d_c - radius`` (the distance to a
+    closed set is 1-Lipschitz and falls at rate 1 towards the nearest point): no solve needed."""
+    return (a_max - a_min <= 1e-12 * a_max) & (d_c >= a_max)
 
 
 def dense_path(robot, path: np.ndarray, fraction: float = 0.25) -> np.ndarray:
@@ -346,32 +401,120 @@ def dense_path(robot, path: np.ndarray, fraction: float = 0.25) -> np.ndarray:
     return np.concatenate([p[:1], pts])
 
 
-def covering_radius(scene, means: np.ndarray, spacing: float, seed: int = 0, oversample: float = 3.0) -> float:
-    """Measured covering radius (m) of the exposed surface of ``scene`` by the points ``means``
-    (N, 3): max over dense surface samples (a grid ``oversample`` times finer than ``spacing``) of
-    the distance to the nearest mean (underestimates the true max by at most the sample spacing)."""
+def path_min_clearance(scene, robot, q: np.ndarray, first: int = 32, stride: int = 8) -> float:
+    """min over the configurations q (N, dof) of :func:`exact_clearance` (m), solving only the
+    (configuration, ellipsoid) pairs that can hold the minimum. Two bounds prune the pairs:
+
+    * the centre's SDF d_c: ``d_c - a_max <= clearance <= ub`` (ub = d_c inside, max(d_c - a_min,
+      0) outside);
+    * along the path, an ellipsoid's clearance is 1-Lipschitz in its motion: between samples j and
+      k no point moves more than ``M_jk`` = the motion bound of the path between them (``|dq| @
+      Robot.motion_bound``, summed), so clearance_j >= clearance_k - M_jk.
+
+    Solved, in three vectorised calls: the ``first`` pairs of smallest ub (where the minimum almost
+    always is); then of the pairs whose lower bound reaches the best value, every ``stride``-th
+    sample per ellipsoid; then the rest whose bound (from d_c and from the nearest solved samples of
+    the same ellipsoid) still reaches it. Equal to ``exact_clearance(...).min()`` (every pair is
+    solved by the same :meth:`AnalyticScene.ellipsoid_clearance`; tested)."""
+    q = np.atleast_2d(np.asarray(q, dtype=np.float64))
+    c, quat, a = robot.ellipsoids(q)  # (N, E, 3), (N, E, 4), (E, 3)
+    n, e = c.shape[:2]
+    d_c = scene.sdf(c.reshape(-1, 3)).reshape(n, e)  # (N, E)
+    a_max, a_min = a.max(axis=1), a.min(axis=1)  # (E,)
+    ub = np.where(d_c < 0, d_c, np.maximum(d_c - a_min, 0.0))  # (N, E)
+    lb = d_c - a_max  # (N, E)
+    cum = np.concatenate([[0.0], np.cumsum(np.abs(np.diff(q, axis=0)) @ np.asarray(robot.motion_bound, dtype=np.float64))])  # (N,)
+    val = np.full((n, e), np.nan)  # solved clearances
+    ball = _ball_apart(d_c, a_min, a_max)
+    val[ball] = lb[ball]  # exact: d_c - radius
+
+    def solve(mask: np.ndarray) -> float:
+        ci, ei = np.nonzero(mask & np.isnan(val))
+        if len(ci):
+            val[ci, ei] = scene.ellipsoid_clearance(c[ci, ei], quat[ci, ei], a[ei])
+        return float(np.nanmin(val)) if np.any(~np.isnan(val)) else np.inf
+
+    top = np.zeros(n * e, bool)
+    top[np.argsort(ub, axis=None, kind="stable")[:first]] = True
+    best = solve(top.reshape(n, e))
+    coarse = (lb <= best + 1e-12) & (np.arange(n)[:, None] % stride == 0)
+    best = solve(coarse)
+    low = lb.copy()
+    for k in range(e):  # the bound from the nearest solved samples of the same ellipsoid, on either side
+        js = np.nonzero(~np.isnan(val[:, k]))[0]
+        if not len(js):
+            continue
+        pos = np.searchsorted(js, np.arange(n))
+        left, right = js[np.clip(pos - 1, 0, len(js) - 1)], js[np.clip(pos, 0, len(js) - 1)]
+        for nb in (left, right):
+            low[:, k] = np.maximum(low[:, k], val[nb, k] - np.abs(cum - cum[nb]))
+    return solve(low <= best + 1e-12)
+
+
+def covering_radius(scene, splats, spacing: float, n_sigma: float = 0.0, seed: int = 0, oversample: float = 3.0, k: int = 8, chunk: int = 65536) -> float:
+    """Measured covering radius rho(n_sigma) (m) of the exposed surface of ``scene`` by the splats:
+    max over dense surface samples (a grid ``oversample`` times finer than ``spacing``) of the
+    Euclidean distance to the nearest splat's n_sigma-ellipsoid (``{mu + R diag(s) u, |u| <=
+    n_sigma}``; at n_sigma 0 the mean itself). The nearest ellipsoid is searched among the ``k``
+    nearest means (an upper bound of the min over all splats, so of rho: the safe side when
+    checking ``m >= rho + r/2``); the samples underestimate the max by at most their spacing.
+    Above n_sigma 0, branch and bound: samples in decreasing order of a cheap upper bound (the
+    point of the nearest ellipsoids on the segment to their centre), exact distances (Newton
+    projection) until no bound can beat the best."""
     from scipy.spatial import cKDTree
 
-    from ..scenes.builtin.primitives import _sample_faces
+    from ..scenes.builtin.primitives import _project_ellipsoid, _sample_faces
+    from ..scenes.splats import quat_to_rotmat
 
     rng = np.random.default_rng(seed)
     nb = len(scene.boxes)
     h = spacing / oversample
-    smp = _sample_faces(scene, np.full(nb, h), np.ones((nb, 6), bool), rng, curved_spacing=h)["p"]
-    d, _ = cKDTree(means).query(smp, k=1)
-    return float(d.max())
+    x = _sample_faces(scene, np.full(nb, h), np.ones((nb, 6), bool), rng, curved_spacing=h)["p"]  # (S, 3) world
+    mu = np.asarray(splats.means, dtype=np.float64)
+    d, idx = cKDTree(mu).query(x, k=1 if n_sigma == 0 else k)
+    if n_sigma == 0:
+        return float(d.max())
+    rot = quat_to_rotmat(np.asarray(splats.quats, dtype=np.float64)).reshape(-1, 3, 3)  # splat -> world
+    semi = n_sigma * np.maximum(np.asarray(splats.scales, dtype=np.float64), 1e-12)  # (N, 3); 2DGS disks: ~0 thick
+    ub = np.empty(len(x))
+    for s in range(0, len(x), chunk):  # cheap bound: |x - mu| (1 - 1 / m)+, m = x's Mahalanobis radius in units of n_sigma; min over the k
+        sl = slice(s, s + chunk)
+        u = np.einsum("pkji,pkj->pki", rot[idx[sl]], x[sl, None, :] - mu[idx[sl]])  # (P, k, 3) splat frames
+        maha = np.linalg.norm(u / semi[idx[sl]], axis=2)  # in units of the n_sigma-ellipsoid
+        ub[sl] = (d[sl] * np.clip(1.0 - 1.0 / np.maximum(maha, 1e-300), 0.0, None)).min(axis=1)
+    order = np.argsort(-ub)
+    best = 0.0
+    for s in range(0, len(order), 4096):
+        sel = order[s : s + 4096]
+        if ub[sel[0]] <= best:
+            break
+        u = np.einsum("pkji,pkj->pki", rot[idx[sel]], x[sel, None, :] - mu[idx[sel]]).reshape(-1, 3)
+        proj = _project_ellipsoid(u, semi[idx[sel]].reshape(-1, 3))
+        best = max(best, float(np.linalg.norm(u - proj, axis=1).reshape(len(sel), -1).min(axis=1).max()))
+    return best
 
 
-def derived_margin(robot, means: np.ndarray, factor: float, fraction: float = 0.25) -> tuple[float, float, float]:
-    """(margin m, spacing estimate h (median nearest-neighbour distance of the means), edge
-    resolution r): ``m = factor * h + r / 2`` with ``r = fraction x`` the robot's own smallest
-    semi-axis (the resolution the benchmark asks the planner for, whatever the inflation)."""
+def derived_margin(robot, means: np.ndarray, factor: float, fraction: float = 0.25, *, n_sigma: float = 0.0,
+                   scales: np.ndarray | None = None, floor_factor: float = 0.5) -> tuple[float, float, float]:  # fmt: skip
+    """(margin m, spacing estimate h, edge resolution r), from the splats alone:
+    ``m = max(factor h - n_sigma s_t, floor_factor h) + r / 2``, h = the median nearest-neighbour
+    distance of the means (N, 3) (over ~20k of them, evenly strided), s_t = the median middle std
+    of ``scales`` (N, 3) (a surface splat's smaller tangential std; 0 without scales), r =
+    ``fraction x`` the robot's own smallest semi-axis (the resolution the benchmark asks the
+    planner for, whatever the inflation).
+    ``factor h`` estimates the covering radius of the surface by the means, rho(0); each splat's
+    n_sigma-ellipsoid reaches at least n_sigma s_t from its mean along the surface, which closes
+    the gaps between means, so rho(n_sigma) shrinks by about that much, down to the floor (the
+    offsets of the means along the normal, which the flat splats do not cover)."""
     from scipy.spatial import cKDTree
 
-    d, _ = cKDTree(means).query(means, k=2)
+    means = np.asarray(means)
+    probe = means[:: max(1, len(means) // 20_000)]  # ~20k evenly strided means: the median to < 1% at a tenth of the cost
+    d, _ = cKDTree(means).query(probe, k=2)
     h = float(np.median(d[:, 1]))
+    s_t = float(np.median(np.sort(np.asarray(scales, dtype=np.float64), axis=1)[:, 1])) if scales is not None and n_sigma > 0 else 0.0
     r = fraction * robot.min_semi_axis
-    return factor * h + 0.5 * r, h, r
+    return max(factor * h - n_sigma * s_t, floor_factor * h) + 0.5 * r, h, r
 
 
 # ---------------------------------------------------------------------------------------------
@@ -379,10 +522,11 @@ def derived_margin(robot, means: np.ndarray, factor: float, fraction: float = 0.
 # ---------------------------------------------------------------------------------------------
 
 
-def _plan(checker, start, goal, robot, time_limit: float, seed: int, edge_resolution: float, planner: str = "auto"):
+def _plan(checker, start, goal, robot, time_limit: float, seed: int, edge_resolution: float, planner: str = "auto", max_iters: int | None = None):
     """Call the public planner with the time limit (whatever its keyword for it) and the edge
     resolution the margin was derived with (that of the un-inflated robot: the inflated one's
-    default would be coarser and need a larger margin)."""
+    default would be coarser and need a larger margin). With ``max_iters`` our planners run to that
+    iteration budget without a wall-clock limit (reproducible); OMPL's keep the time limit."""
     from ..planners import RRTConfig, plan
 
     params = inspect.signature(plan).parameters
@@ -391,27 +535,35 @@ def _plan(checker, start, goal, robot, time_limit: float, seed: int, edge_resolu
         kw["refine"] = False
     if planner != "auto" or "planner" in params:
         kw["planner"] = planner
-    cfg = RRTConfig(time_limit_s=time_limit, edge_resolution=edge_resolution)
-    if "time_limit" in params:
+    ours = not planner.startswith("ompl:")
+    if max_iters is not None and ours:
+        cfg = RRTConfig(time_limit_s=None, max_iters=int(max_iters), edge_resolution=edge_resolution)
+    else:
+        cfg = RRTConfig(time_limit_s=time_limit, edge_resolution=edge_resolution)
+    if "time_limit" in params and (max_iters is None or not ours):
         kw["time_limit"] = time_limit
     kw["rrt_config"] = cfg
     return plan(checker, start, goal, **kw)
 
 
-def _prepare(scene_path: str, cfg: MBMConfig, robot) -> _Prepared:
-    """Sample the scene into splats, derive the margin, measure rho, build the checker."""
+def _prepare(task: "MBMTask", cfg: MBMConfig, robot) -> _Prepared:
+    """Sample the task's scene into splats (from the parsed scene it carries, else its file), derive
+    the margin, measure rho when asked, build the checker."""
     from ..metric import CollisionChecker
     from ..scenes.filters import filter_floaters
     from ..scenes.moveit import build_moveit
+    from ..scenes.builtin.primitives import AnalyticScene
 
-    splats, scene = build_moveit(scene_path, n_splats=cfg.n_splats, seed=cfg.seed)
+    src = AnalyticScene.from_json(task.objects) if task.objects is not None else task.scene
+    splats, scene = build_moveit(src, n_splats=cfg.n_splats, seed=cfg.seed)
     base_spacing = float(splats.info["base_spacing"])
     splats, _ = filter_floaters(splats)
     if cfg.margin_m is None:
-        margin, h_nn, res = derived_margin(robot, splats.means, cfg.margin_spacing_factor)
+        margin, h_nn, res = derived_margin(robot, splats.means, cfg.margin_spacing_factor, n_sigma=cfg.n_sigma, scales=splats.scales,
+                                           floor_factor=cfg.margin_floor_factor)  # fmt: skip
     else:
         margin, h_nn, res = float(cfg.margin_m), float("nan"), 0.25 * robot.min_semi_axis
-    rho = covering_radius(scene, splats.means, base_spacing, seed=cfg.seed) if cfg.check_margin else float("nan")
+    rho = covering_radius(scene, splats, base_spacing, n_sigma=cfg.n_sigma, seed=cfg.seed) if cfg.check_margin else float("nan")
     checker = CollisionChecker(splats, n_sigma=cfg.n_sigma, device="cpu")
     return _Prepared(splats, scene, checker, margin, h_nn, res, rho)
 
@@ -426,13 +578,16 @@ def solve_problem(task: MBMTask, ctx: MBMContext) -> dict:
     t0 = time.perf_counter()
     ours = not task.planner.startswith("ompl:")
     row: dict = {"family": task.family, "index": task.index, "planner": task.planner, "seeded": ours}
-    prep = ctx.prepared(task.scene)
+    prep = ctx.prepared(task)
     scene, checker, margin, res, rho = prep.scene, prep.checker, prep.margin, prep.resolution, prep.rho
     plan_robot = robot.inflated(margin) if margin > 0 else robot
     row.update(margin_m=margin, spacing_nn_m=prep.spacing_nn, rho_measured_m=rho, edge_resolution_m=res,
                bound_holds=bool(margin >= rho + 0.5 * res - 1e-12) if cfg.check_margin else None)  # fmt: skip
     if task.request not in prep.endpoints:  # the same for every planner of the problem
-        q0, q1 = load_moveit_request(task.request, robot)
+        if task.q_start is not None and task.q_goal is not None:
+            q0, q1 = np.asarray(task.q_start, dtype=np.float64), np.asarray(task.q_goal, dtype=np.float64)
+        else:
+            q0, q1 = load_moveit_request(task.request, robot)
         ends = np.stack([q0, q1])
         hit = np.asarray(robot_collides(checker, plan_robot, ends)).any(axis=-1)
         hit_own = np.asarray(robot_collides(checker, robot, ends)).any(axis=-1) if plan_robot is not robot else hit
@@ -442,10 +597,10 @@ def solve_problem(task: MBMTask, ctx: MBMContext) -> dict:
     row.update(start_free=bool(not hit[0]), goal_free=bool(not hit[1]), start_free_unmargined=bool(not hit_own[0]), goal_free_unmargined=bool(not hit_own[1]))
     row.update(solved=False, time_s=None, n_nodes=None, path_length=None, path=None, min_exact_clearance_m=None, message="", timed_out=False)
     if row["start_free"] and row["goal_free"]:
-        res_p = _plan(checker, q0, q1, plan_robot, cfg.time_limit, cfg.seed + task.index, res, task.planner)
+        res_p = _plan(checker, q0, q1, plan_robot, cfg.time_limit, cfg.seed + task.index, res, task.planner, cfg.max_iters)
         row.update(solved=bool(res_p.success), time_s=float(res_p.time_s), n_nodes=int(res_p.n_nodes), message=str(getattr(res_p, "message", "")))
         # the search ran out of its wall-clock budget: how far it got (n_nodes) depends on the machine
-        row["timed_out"] = bool(not res_p.success and res_p.time_s >= 0.99 * cfg.time_limit)
+        row["timed_out"] = bool(not res_p.success and res_p.time_s >= 0.99 * cfg.time_limit) if (cfg.max_iters is None or not ours) else False
         times = (res_p.info or {}).get("time_split") or (res_p.info or {}).get("times")
         if times is not None:
             row["time_split"] = {k: float(v) for k, v in dict(times).items()}
@@ -457,7 +612,7 @@ def solve_problem(task: MBMTask, ctx: MBMContext) -> dict:
 
                 length = path_length(path, plan_robot.motion_bound)
             row.update(path_length=float(length), path=path.round(6).tolist())
-            row["min_exact_clearance_m"] = float(exact_clearance(scene, robot, dense_path(robot, path)).min())
+            row["min_exact_clearance_m"] = path_min_clearance(scene, robot, dense_path(robot, path))
     else:
         row["message"] = "endpoint in collision for the planning model against the splats"
     row["wall_s"] = time.perf_counter() - t0
@@ -504,8 +659,9 @@ def _any_rho(rows: list[dict]) -> bool:
     return any(np.isfinite(_rho(r)) for r in rows)
 
 
-def summarise(rows: list[dict]) -> dict:
-    """Valid / free endpoints, solved / free, median / p95 time, worst clearance (for a list of rows)."""
+def summarise(rows: list[dict], time_limit: float | None = None) -> dict:
+    """Valid / free endpoints, solved / free, median / p95 time, worst clearance (for a list of
+    rows); with ``time_limit`` (the iteration-budget mode), also how many solutions took longer."""
     n = len(rows)
     both_free = [r for r in rows if r["start_free"] and r["goal_free"]]
     solved = [r for r in both_free if r["solved"]]
@@ -526,6 +682,7 @@ def summarise(rows: list[dict]) -> dict:
         "p95_time_s": _pct(t, 95),
         "worst_exact_clearance_m": float(clear.min()) if len(clear) else None,
         "negative_clearance_paths": int(np.sum(clear < 0)),
+        "solved_late": None if time_limit is None else int(np.sum(t > time_limit)),
         "margin_m_median": _pct(np.array([r["margin_m"] for r in rows]), 50),
         "rho_measured_m_max": float(np.nanmax([_rho(r) for r in rows])) if rows and _any_rho(rows) else None,
         "bound_holds": int(sum(bool(r["bound_holds"]) for r in rows)),
@@ -546,9 +703,10 @@ def run_mbm(config: MBMConfig | None = None, out_dir=None, *, engine=None, progr
 
     cfg = (config or MBMConfig()).validate()
     t0 = time.perf_counter()
-    problems = list_tasks(cfg)
     robot = make_context(cfg).robot  # the fit is cached: cheap
-    check_inputs(problems, robot)  # bad input: one line before any work (not a failed task per problem)
+    # every YAML parsed once, here: bad input is one line before any work (not a failed task per
+    # problem), and the tasks carry the parsed scenes and configurations to the workers
+    problems = check_inputs(list_tasks(cfg), robot)
     sig = settings_hash(cfg)
     tasks = [Task(task_key(t, cfg, sig), asdict(t)) for t in problems]
     out_path = Path(out_dir) / "mbm.results.jsonl" if out_dir is not None else None
@@ -562,8 +720,9 @@ def run_mbm(config: MBMConfig | None = None, out_dir=None, *, engine=None, progr
     by_planner = {}
     for p in cfg.planners:
         rp = [r for r in rows if r.get("planner", "auto") == p]
-        by_planner[p] = {fam: summarise([r for r in rp if r["family"] == fam]) for fam in cfg.families}
-        by_planner[p]["overall"] = summarise(rp)
+        late = cfg.time_limit if cfg.max_iters is not None else None
+        by_planner[p] = {fam: summarise([r for r in rp if r["family"] == fam], late) for fam in cfg.families}
+        by_planner[p]["overall"] = summarise(rp, late)
     setup = {
         "robot": str(cfg.robot_path()), "robot_name": robot.name, "n_ellipsoids": robot.n_ellipsoids,
         "problems": str(cfg.problems_dir()), "device": "cpu",
@@ -602,13 +761,20 @@ def _fmt(v, spec: str, scale: float = 1.0, none: str = "-") -> str:
     return none if v is None else format(v * scale, spec)
 
 
+def _margin_text(cfg: MBMConfig) -> str:
+    if cfg.margin_m is not None:
+        return format(cfg.margin_m, "g") + " m"
+    f, fl = format(cfg.margin_spacing_factor, "g"), format(cfg.margin_floor_factor, "g")
+    return f"derived (max({f} h - {cfg.n_sigma:g} s_t, {fl} h) + r/2)" if cfg.n_sigma > 0 else f"derived ({f} x NN spacing h + r/2)"
+
+
 def report(result: MBMResult) -> str:
     """Markdown: one row per family and overall, then the published numbers and what differs."""
     cfg = result.config
     lines = [
         f"MBM on splats: {cfg.n_splats:,} splats per scene, n_sigma {cfg.n_sigma:g}, "
-        f"margin {'derived (' + format(cfg.margin_spacing_factor, 'g') + ' x NN spacing + r/2)' if cfg.margin_m is None else format(cfg.margin_m, 'g') + ' m'}, "
-        f"time limit {cfg.time_limit:g} s, robot {Path(result.setup.get('robot', '?')).name} ({result.setup.get('n_ellipsoids')} ellipsoids), "
+        f"margin {_margin_text(cfg)}, "
+        f"time limit {cfg.time_limit:g} s{'' if cfg.max_iters is None else f' (searches run to {cfg.max_iters:,} iterations, no wall-clock limit)'}, robot {Path(result.setup.get('robot', '?')).name} ({result.setup.get('n_ellipsoids')} ellipsoids), "
         f"planner {cfg.planners[0]} (table below: every planner), engine {_engine_text(result.setup.get('engine'))}",
         "",
         "| family | problems | valid endpoints | free endpoints (own model) | both free | solved / free | median time (s) | p95 time (s) | worst exact clearance (mm) | paths < 0 | margin (mm) | rho max (mm) |",
@@ -625,6 +791,10 @@ def report(result: MBMResult) -> str:
             f"{_fmt(s['median_time_s'], '.3g')} | {_fmt(s['p95_time_s'], '.3g')} | {_fmt(s['worst_exact_clearance_m'], '+.2f', 1e3)} | "
             f"{s['negative_clearance_paths']} | {_fmt(s['margin_m_median'], '.1f', 1e3)} | {_fmt(s['rho_measured_m_max'], '.1f', 1e3)} |"
         )
+    late = result.summary.get("overall", {}).get("solved_late")
+    if late is not None:
+        lines += ["", (f"Searches ran to {cfg.max_iters:,} iterations with no wall-clock limit (reproducible anywhere): "
+                       f"{late} of the solutions took longer than the {cfg.time_limit:g} s time limit on this machine.")]  # fmt: skip
     if result.summary_by_planner:
         lines += ["", "Planners (same splats, checker, margin, edge resolution and time limit; ours seeded, OMPL's not):", "",
                   "| planner | family | solved / free | median time (s) | p95 time (s) | worst exact clearance (mm) | paths < 0 |",

@@ -246,15 +246,16 @@ def load_moveit_request(path: str | Path, robot) -> tuple[np.ndarray, np.ndarray
 DEFAULT_N_SPLATS = 100_000
 
 
-def build_moveit(path: str | Path, n_splats: int = DEFAULT_N_SPLATS, seed: int = 0):
+def build_moveit(path: str | Path | AnalyticScene, n_splats: int = DEFAULT_N_SPLATS, seed: int = 0):
     """Splats (the built-in real-capture look, :func:`~.builtin.primitives.splats_from_scene`) and
-    the exact ground truth of a MoveIt planning scene.
+    the exact ground truth of a MoveIt planning scene (a YAML path, or the scene already parsed by
+    :func:`load_moveit_scene`: the same splats for the same seed).
 
     Colours: one base colour per object, drawn from ``seed``. Returns (Splats, AnalyticScene).
     """
     from .builtin.primitives import splats_from_scene
 
-    scene = load_moveit_scene(path)
+    scene = path if isinstance(path, AnalyticScene) else load_moveit_scene(path)
     rng = np.random.default_rng([int(seed), 19])
     colors = 0.25 + 0.6 * rng.random((len(scene), 3))
     splats = splats_from_scene(scene, int(n_splats), colors=colors, seed=rng)

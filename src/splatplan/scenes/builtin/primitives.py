@@ -246,7 +246,11 @@ def _project_ellipsoid(y: np.ndarray, a: np.ndarray, n_newton: int = 30) -> np.n
         den = a2 + t[:, None]
         f = np.sum(ay2 / den**2, axis=1) - 1.0
         df = -2.0 * np.sum(ay2 / den**3, axis=1)
-        t = np.maximum(t - f / np.minimum(df, -1e-300), 0.0)
+        t_new = np.maximum(t - f / np.minimum(df, -1e-300), 0.0)
+        done = np.all(np.abs(t_new - t) <= 1e-15 * (a2.max(axis=1) + t))  # converged to rounding (x moves < 1e-15 relative)
+        t = t_new
+        if done:
+            break
     x = a2 * y / (a2 + t[:, None])
     return np.where(inside[:, None], y, x)
 
