@@ -40,7 +40,7 @@ from .urdf import UrdfModel, read_srdf, read_urdf, share_dir
 DATA = Path(__file__).parent / "data"
 KNOWN = ("panda", "go2", "sphere:R", "ellipsoid:A,B,C")
 #: Collision models of the built-in Panda: name -> YAML in ``data/``.
-PANDA_MODELS = {"coarse": "panda.yaml", "cover": "panda_cover.yaml"}
+PANDA_MODELS = {"coarse": "panda.yaml", "cover": "panda_cover.yaml", "tight": "panda_tight.yaml"}
 #: The model plain ``load_robot("panda")`` uses.
 DEFAULT_MODEL = "coarse"
 #: Range of the built-in Panda's finger opening (m per finger, panda_finger_joint1).
@@ -83,7 +83,7 @@ def load_robot(
     srdf: str | Path | None = None,
     model: str | None = None,
     finger_opening: float | None = None,
-    fit_method: str = "split",
+    fit_method: str = "opt",
 ) -> Robot:
     """A :class:`Robot` from a built-in name or a URDF path (see the module docstring).
 
@@ -269,6 +269,10 @@ def build_robot(
         from .fit_cache import cached_fit
 
         ells, cache_file = cached_fit(model, "cover", per_link, from_visual)
+    elif fit_method == "opt":
+        from .fit_cache import cached_fit
+
+        ells, cache_file = cached_fit(model, "opt", per_link, from_visual)
     else:
         ells = fit_model(model, per_link=per_link, from_visual=from_visual)
     return Robot(

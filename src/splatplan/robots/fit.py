@@ -282,7 +282,11 @@ def fit_link(link: str, geoms: list[Geom], k: int = 1, method: str = "split", co
             m = _polytope(g, link)
             vol += _mesh_volume(m) if g.kind == "mesh" else float(np.prod(g.size))
             polys.append(m)
-    if polys and method == "cover":
+    if polys and method == "opt":
+        from .fit_opt import OptConfig, fit_link_opt
+
+        ells += fit_link_opt(polys, config or OptConfig())[0]
+    elif polys and method == "cover":
         from .fit_cover import FitConfig, fit_link_cover
 
         ells += fit_link_cover(polys, config or FitConfig())[0]
@@ -299,7 +303,7 @@ def link_points(geoms: list[Geom], link: str) -> np.ndarray:
 
 
 #: Fitting methods of :func:`fit_model`.
-METHODS = ("cover", "split")
+METHODS = ("opt", "cover", "split")
 
 
 def fit_model(
