@@ -46,14 +46,13 @@ volume are measured and reported per link, never guaranteed.
 
 from __future__ import annotations
 
-import math
 import time
 from dataclasses import dataclass
 
 import numpy as np
 
 from .._config import bounded, check_config
-from .fit import CONTAIN_EPS, mahalanobis
+from .fit import CONTAIN_EPS
 from .fit_cover import certify, inside_any, sample_solids, simplices_of, solids_of, sphere_points
 
 #: Version of the optimising fitter: part of the fit cache key (bump when results change).
@@ -178,7 +177,12 @@ def _init(pts: np.ndarray, k: int, rng: np.random.Generator) -> tuple[np.ndarray
 
 def optimise(targets, band, cell, sdf_grid, lo, pitch, k, cfg: OptConfig, rng, limit) -> list:
     """One restart: k ellipsoids [(c, R, s), ...] in the frame of ``targets`` (normalised units)."""
-    import torch
+    try:
+        import torch
+    except ImportError:
+        from ..errors import SplatplanError
+
+        raise SplatplanError("fit method 'opt' needs torch (pip install 'splatplan[fit]'); or fit with method 'split' / 'cover'") from None
 
     threads = torch.get_num_threads()
     torch.set_num_threads(1)  # tiny tensors: one thread is fastest; restored below
@@ -234,7 +238,7 @@ def _optimise(torch, targets, band, cell, sdf_grid, lo, pitch, k, cfg, rng, limi
     a_np = a.detach().numpy()
     out = []
     for j in range(k):
-        u, sv, vt = np.linalg.svd(a_np[j])  # A = U S V^T: |A (x - c)| = |S V^T (x - c)|
+        _, sv, vt = np.linalg.svd(a_np[j])  # A = U S V^T: |A (x - c)| = |S V^T (x - c)|
         r = vt.T
         if np.linalg.det(r) < 0:
             r[:, 2] *= -1.0
