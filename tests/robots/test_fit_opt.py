@@ -122,3 +122,30 @@ def test_shipped_tight_model_meets_the_issue_targets():
     assert robot.n_ellipsoids <= 40
     for link, m in _measure(robot).items():
         assert m.reach_m <= 0.015 and m.volume_ratio <= 1.3, (link, m)
+
+
+def test_cli_fit_method_opt(tmp_path, capsys):
+    """`robot fit --method opt` with its --opt-* flags writes a YAML that contains every mesh vertex."""
+    from splatplan.cli import main
+    from splatplan.robots import load_robot
+    from splatplan.robots.fit import _polytope
+    from splatplan.robots.urdf import read_urdf
+
+    from .conftest import write_tree
+
+    urdf = write_tree(tmp_path)
+    out = tmp_path / "opt.yaml"
+    argv = ["robot", "fit", str(urdf), "--out", str(out), "--no-png", "--method", "opt", "--opt-steps", "30",
+            "--opt-n-points", "200", "--opt-min-per-link", "1", "--opt-max-per-link", "1", "--opt-pitch", "0.004"]  # fmt: skip
+    assert main(argv) == 0
+    assert "wrote" in capsys.readouterr().out
+    robot = load_robot(urdf, ellipsoids=out)
+    model = read_urdf(urdf)
+    for link in ("base", "l4", "l5"):
+        li = robot.link_names.index(link)
+        sel = np.flatnonzero(robot.ellipsoid_link == li)
+        ells = [(robot.ellipsoid_local[e, :3, 3], robot.ellipsoid_local[e, :3, :3], robot.semi_axes[e]) for e in sel]
+        verts = np.concatenate([np.asarray(_polytope(g, link).vertices) for g in model.collisions[link] if g.kind in ("mesh", "box")])
+        assert _inside(verts, ells).all(), link
+    assert main(argv[:-2] + ["--opt-min-per-link", "4"]) == 2  # min > max: one line, exit 2
+    assert "min_per_link" in capsys.readouterr().err
