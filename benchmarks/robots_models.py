@@ -1,4 +1,4 @@
-"""What a Panda collision model costs and how well it fits: coarse (one ellipsoid per link) vs cover.
+"""What a Panda collision model costs and how well it fits: coarse (one ellipsoid per link) vs tight vs cover.
 
 Per model: the ellipsoid count; the fit measured per link (``robots.fit_measure``: worst surface
 coverage, largest union volume ratio, largest reach beyond the mesh); and the metric's cost per
@@ -8,7 +8,7 @@ a numpy array (so the timing includes the host transfer). Warm-up first, then th
 runs. configs/s is wall-clock: under load (shared machine) the ratio between the models is the
 number to read; the MPPI rate of the arm studies scales with the same per-configuration cost.
 
-    python benchmarks/robots_models.py [--models coarse,cover] [--batch 4096] [--repeats 5]
+    python benchmarks/robots_models.py [--models coarse,tight,cover] [--batch 4096] [--repeats 5]
                                        [--samples 5000] [--out benchmarks/results/robots_models.json]
 """
 
@@ -26,7 +26,7 @@ import numpy as np
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--models", default="coarse,cover")
+    ap.add_argument("--models", default="coarse,tight,cover")
     ap.add_argument("--batch", type=int, default=4096)
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--samples", type=int, default=5000, help="Monte Carlo samples per link for the fit measurement (0: skip)")

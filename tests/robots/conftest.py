@@ -84,7 +84,7 @@ def tree_urdf(tmp_path_factory) -> Path:
 def tree_robot(tree_urdf):
     from splatplan.robots import load_robot
 
-    return load_robot(tree_urdf)
+    return load_robot(tree_urdf, fit_method="split")  # kinematics under test here, not the (slower) default fit
 
 
 @pytest.fixture(scope="session")

@@ -141,7 +141,7 @@ def test_builtin_panda_models_and_finger_opening():
         assert cover.n_ellipsoids > 11 and cover.dof == 7
 
 
-@pytest.mark.parametrize("model", ["coarse", "cover"])
+@pytest.mark.parametrize("model", ["coarse", "cover", "tight"])
 def test_shipped_panda_models_contain_random_interior_points(model):
     """Every Panda link mesh (example-robot-data): random points inside it and on its surface lie in the model."""
     import trimesh

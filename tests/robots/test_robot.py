@@ -120,7 +120,7 @@ def test_unknown_and_bad_specs(tmp_path):
     with pytest.raises(SplatplanError, match="no link has collision geometry"):
         load_robot(p)
     p.write_text('<robot name="r"><link name="a"><collision><geometry><box size="1 1 1"/></geometry></collision></link></robot>')
-    static = load_robot(p)  # zero dof: a rigid object
+    static = load_robot(p, fit_method="split")  # zero dof: a rigid object
     assert static.dof == 0 and static.fk(np.zeros((2, 0)))[0].shape == (2, 1, 3)
     with pytest.raises(SplatplanError, match="unknown or non-movable joints"):
         load_robot("panda", active=["nope"])
@@ -131,18 +131,18 @@ def test_missing_mesh_and_links_without_geometry(tmp_path):
     with pytest.raises(SplatplanError, match=r"link 'l4': mesh file .*part.stl not found"):
         load_robot(p)
     p = write_tree(tmp_path)
-    r = load_robot(p)
+    r = load_robot(p, fit_method="split")
     assert r.skipped_links == ["l6"] and "l6" not in {r.link_names[l] for l in r.ellipsoid_link}
 
 
 def test_options(tree_urdf):
-    r = load_robot(tree_urdf, active=["j1", "j3"], fixed={"j2": 0.1}, base="planar")
+    r = load_robot(tree_urdf, active=["j1", "j3"], fixed={"j2": 0.1}, base="planar", fit_method="split")
     assert r.joint_names == ["x", "y", "yaw", "j1", "j3"]
     q = np.zeros(5)
     q[:3] = [1.0, -2.0, 0.5]
     poses = r.link_poses(q)
     np.testing.assert_allclose(poses[0, :3, 3], [1.0, -2.0, 0.0])
-    r3 = load_robot(tree_urdf, base="translation", base_pose=np.diag([1.0, 1.0, 1.0, 1.0]))
+    r3 = load_robot(tree_urdf, base="translation", base_pose=np.diag([1.0, 1.0, 1.0, 1.0]), fit_method="split")
     assert r3.joint_names[:3] == ["x", "y", "z"]
     with pytest.raises(SplatplanError, match="base_pose"):
         load_robot(tree_urdf, base_pose=np.ones((4, 4)))

@@ -1,14 +1,15 @@
 """`splatplan robot info|fit`: inspect a robot, fit collision ellipsoids to a URDF's link meshes.
 
-* ``splatplan robot info NAME|URDF [--json] [--model coarse|cover] [--finger-opening M]
+* ``splatplan robot info NAME|URDF [--json] [--model tight|coarse|cover] [--finger-opening M]
   [--meshes-from REF.urdf] [--no-measure]``: links, ellipsoids, joint limits, motion bounds, and
   per link the model's fit measured against the collision meshes (``robots.fit_measure``: count,
   coverage of surface / interior samples, union volume ratio with its Monte Carlo standard error,
   farthest reach beyond the mesh). ``--meshes-from`` measures against another URDF's meshes
   (e.g. VAMP's ``panda_spherized.urdf`` against ``panda.urdf``).
-* ``splatplan robot fit URDF|NAME --out ELLIPSOIDS.yaml [--method cover|split] [--per-link K]
-  [--from-visual]``: fits the tight union (``cover``, default, ``robots.fit_cover``) or enclosing
-  ellipsoids (``split``: every mesh vertex and box corner inside, see ``robots.fit``), writes the
+* ``splatplan robot fit URDF|NAME --out ELLIPSOIDS.yaml [--method split|opt|cover] [--per-link K]
+  [--from-visual]``: fits enclosing ellipsoids (``split``, default: every mesh vertex and box
+  corner inside, see ``robots.fit``), the tight and safe union (``opt``, ``robots.fit_opt``) or the
+  greedy union (``cover``, ``robots.fit_cover``), writes the
   YAML (load it with ``load_robot(URDF, ellipsoids=YAML)`` or name it ``<urdf stem>.ellipsoids.yaml``
   beside the URDF) and a PNG of the ellipsoids over the geometry next to it (``--no-png`` skips it).
 
@@ -37,7 +38,7 @@ def _robot_args(p) -> None:
     p.add_argument("--ellipsoids", default=None, help="YAML with the collision ellipsoids (default: built-in / sidecar / fitted)")
     p.add_argument("--per-link", type=PER_LINK, default=1, help="ellipsoids per link when fitting (k >= 1; slabs along the principal axis)")
     p.add_argument("--from-visual", action="store_true", help="fit links without collision geometry to their visual meshes")
-    p.add_argument("--model", default=None, choices=("coarse", "cover"), help="built-in panda only: collision model, coarse or cover")
+    p.add_argument("--model", default=None, choices=("tight", "coarse", "cover"), help="built-in panda only: collision model (default tight when shipped, see README)")
     p.add_argument("--finger-opening", type=float_arg(ge=0, le=0.04), default=None, help="built-in panda only: each finger's distance from the centre line (m, 0..0.04)")
 
 
@@ -127,8 +128,11 @@ def cmd_fit(args) -> int:
     from ..robots.fit_cover import FitConfig
     from ._common import config_from_args
 
+    from ..robots.fit_opt import OptConfig
+
     method = "split" if args.per_link > 1 else args.method
-    cfg = config_from_args(args, FitConfig, prefix="fit_").validate() if method == "cover" else None
+    cfg = {"cover": lambda: config_from_args(args, FitConfig, prefix="fit_").validate(),
+           "opt": lambda: config_from_args(args, OptConfig, prefix="opt_").validate()}.get(method, lambda: None)()  # fmt: skip
     ells = fit_model(model, per_link=args.per_link, from_visual=args.from_visual, method=method, config=cfg)
     _note_skipped(ells.skipped)
     save_yaml(ells, out, robot=model.name, urdf=str(src),
@@ -164,8 +168,9 @@ def register(sub, eval_sub) -> None:
     pf = add_command(rs, "fit", cmd_fit, "fit enclosing ellipsoids to a URDF's link meshes -> YAML (+ PNG)")
     pf.add_argument("urdf", metavar="URDF", help="a .urdf path (or a built-in: panda, go2)")
     pf.add_argument("--out", required=True, help="output ELLIPSOIDS.yaml (a PNG of the fit is written next to it)")
-    pf.add_argument("--method", choices=("split", "cover"), default="split", help="split (default): enclosing ellipsoids, K per link; cover: a "
-                    "tight union containing the meshes (slow: minutes per link; work in progress, see README)")  # fmt: skip
+    pf.add_argument("--method", choices=("split", "opt", "cover"), default="split", help="split (default): enclosing ellipsoids, K per link; opt: a few "
+                    "optimised ellipsoids per link, certified to contain the meshes (tight and safe; ~1 CPU-minute per link); cover: "
+                    "the older greedy union (looser, more ellipsoids)")  # fmt: skip
     pf.add_argument("--per-link", type=PER_LINK, default=1, help="split: ellipsoids per link (k >= 1; slabs along the principal axis)")
     pf.add_argument("--from-visual", action="store_true", help="fit links without collision geometry to their visual meshes")
     pf.add_argument("--no-png", action="store_true", help="skip the PNG")
@@ -173,3 +178,6 @@ def register(sub, eval_sub) -> None:
     from ._common import add_config_args
 
     add_config_args(pf, FitConfig, prefix="fit_", group="cover fitter (--method cover)")
+    from ..robots.fit_opt import OptConfig
+
+    add_config_args(pf, OptConfig, prefix="opt_", group="optimising fitter (--method opt)")

@@ -6,10 +6,12 @@ Built-ins:
   are fixed joints: ``finger_opening`` (m, each finger's distance from the hand's centre line,
   the value of ``panda_finger_joint1``, in [0, 0.04]; default the SRDF "default" state, 0.001 m)
   sets them (``fixed={"panda_finger_joint1": x}`` does the same); the finger ellipsoids move with
-  the fingers. Collision models (``model=``): ``"coarse"`` (``data/panda.yaml``: one enclosing
-  ellipsoid per link, ``splatplan robot fit panda --method split``) and ``"cover"``
-  (``data/panda_cover.yaml``: the union fitted by ``splatplan robot fit panda``, see
-  :mod:`splatplan.robots.fit_cover`). ``DEFAULT_MODEL`` says which one plain ``"panda"`` loads.
+  the fingers. Collision models (``model=``): ``"tight"`` (``data/panda_tight.yaml``: a few
+  optimised ellipsoids per link, certified to contain the meshes, ``splatplan robot fit panda
+  --method opt``, see :mod:`splatplan.robots.fit_opt`), ``"coarse"`` (``data/panda.yaml``: one
+  enclosing ellipsoid per link, ``--method split``) and ``"cover"`` (``data/panda_cover.yaml``:
+  the greedy union of :mod:`splatplan.robots.fit_cover`). ``DEFAULT_MODEL`` says which one plain
+  ``"panda"`` loads.
 * ``go2``: Unitree Go2 as a planar base, dofs (x [m], y [m], yaw [rad]); the 12 leg joints are
   fixed at the SRDF "standing" state; the body is raised so that the lowest point of any
   ellipsoid (the feet's) is at z = 0. Ellipsoids: ``data/go2.yaml``.
@@ -20,9 +22,11 @@ Built-ins:
 A path to a ``.urdf`` loads that robot: every movable non-mimic joint is a dof (or ``active=``),
 the base is fixed (or ``base="planar"`` / ``"translation"``), ellipsoids come from ``ellipsoids=``
 (YAML), else a sidecar ``<urdf stem>.ellipsoids.yaml``, else they are fitted at load time
-(``fit_method``: ``"split"``, default, milliseconds; or ``"cover"``, seconds per link, whose fit is
-cached by :mod:`splatplan.robots.fit_cache`: keyed by the mesh files' content, the method, its
-version and parameters, so the second load reads the cache).
+(``fit_method``: ``"opt"``, default, the tight and safe fit of :mod:`splatplan.robots.fit_opt`,
+about a CPU-minute per link; ``"cover"``; or ``"split"``, milliseconds, enclosing ellipsoids).
+``opt`` and ``cover`` fits are cached by :mod:`splatplan.robots.fit_cache` (keyed by the mesh
+files' content, the method, its version and parameters), and the MotionBenchMaker Panda's ``opt``
+fit ships with the package, so loading it never fits.
 """
 
 from __future__ import annotations
@@ -52,7 +56,7 @@ ROBOT_NAME_HELP = (
 #: units (Stonehenge's gates are sized for it). Give it to a planner as ``load_robot(DEFAULT_POINT_ROBOT)``.
 DEFAULT_POINT_ROBOT = "sphere:0.015"
 #: Collision models of the built-in Panda: name -> YAML in ``data/``.
-PANDA_MODELS = {"coarse": "panda.yaml", "cover": "panda_cover.yaml"}
+PANDA_MODELS = {"coarse": "panda.yaml", "cover": "panda_cover.yaml", "tight": "panda_tight.yaml"}
 #: The model plain ``load_robot("panda")`` uses.
 DEFAULT_MODEL = "coarse"
 #: Range of the built-in Panda's finger opening (m per finger, panda_finger_joint1).
@@ -151,7 +155,7 @@ def load_robot(
     srdf: str | Path | None = None,
     model: str | None = None,
     finger_opening: float | None = None,
-    fit_method: str = "split",
+    fit_method: str = "opt",
 ) -> Robot:
     """A :class:`Robot` from a built-in name or a URDF path (see the module docstring).
 
@@ -169,10 +173,11 @@ def load_robot(
         per_link: ellipsoids per link when fitting at load time.
         from_visual: fit links without collision geometry to their visual meshes.
         srdf: SRDF with disabled collision pairs / group states (default: ``<urdf stem>.srdf`` beside it).
-        model: built-in Panda only: "coarse" or "cover" (default ``DEFAULT_MODEL``).
+        model: built-in Panda only: "tight", "coarse" or "cover" (default ``DEFAULT_MODEL``).
         finger_opening: built-in Panda only: each finger's distance from the centre line (m, [0, 0.04]).
-        fit_method: "split" (enclosing ellipsoids, ``per_link`` each) or "cover" (the union of
-            :mod:`splatplan.robots.fit_cover`, cached) when a URDF is fitted at load time.
+        fit_method: "opt" (default: tight and safe, :mod:`splatplan.robots.fit_opt`, cached),
+            "cover" (:mod:`splatplan.robots.fit_cover`, cached) or "split" (enclosing
+            ellipsoids, ``per_link`` each) when a URDF is fitted at load time.
     """
     if isinstance(spec, Robot):
         return spec
@@ -345,6 +350,10 @@ def build_robot(
         from .fit_cache import cached_fit
 
         ells, cache_file = cached_fit(model, "cover", per_link, from_visual)
+    elif fit_method == "opt":
+        from .fit_cache import cached_fit
+
+        ells, cache_file = cached_fit(model, "opt", per_link, from_visual)
     else:
         ells = fit_model(model, per_link=per_link, from_visual=from_visual)
     return Robot(

@@ -17,11 +17,14 @@ Per link:
   Mahalanobis radius over its points (times 1 + 1e-9), so each point it must contain lies inside
   exactly, whatever the tolerance. ``tests/robots`` re-checks the shipped YAML files.
 
-Two methods (``fit_model(method=...)``):
+Three methods (``fit_model(method=...)``; the default is ``"split"``):
 
-* ``"cover"`` (default): per link, a union of ellipsoids that provably contains the link's meshes
-  and boxes and is kept close to them (:mod:`splatplan.robots.fit_cover`); its fit quality is
-  measured by :mod:`splatplan.robots.fit_measure`.
+* ``"opt"``: per link, a few ellipsoids optimised together (gradient descent on the volume outside
+  the mesh, a coverage hinge and a reach hinge) and then certified to contain the link's meshes
+  and boxes (:mod:`splatplan.robots.fit_opt`); ``load_robot`` fits URDFs this way by default.
+* ``"cover"``: per link, a greedy union of candidate ellipsoids, certified the same way
+  (:mod:`splatplan.robots.fit_cover`). The fit quality of any model is measured by
+  :mod:`splatplan.robots.fit_measure`.
 * ``"split"``: the enclosing ellipsoids described below (k per link; k = 1 is the coarse model).
 
 The volume ratio of a link is (volume of the union of its ellipsoids; Monte Carlo when there are
@@ -267,8 +270,9 @@ def fit_link(link: str, geoms: list[Geom], k: int = 1, method: str = "split", co
     """Ellipsoids [(c, R, s), ...] in the link frame for one link's geometry + its geometry volume.
 
     Spheres, cylinders and capsules always get their analytic enclosing ellipsoid; meshes and boxes
-    get ``k`` split ellipsoids (``method="split"``) or the tight cover (``method="cover"``,
-    :func:`~splatplan.robots.fit_cover.fit_link_cover` with ``config``)."""
+    get ``k`` split ellipsoids (``method="split"``), the optimised union (``method="opt"``,
+    :func:`~splatplan.robots.fit_opt.fit_link_opt`) or the greedy cover (``method="cover"``,
+    :func:`~splatplan.robots.fit_cover.fit_link_cover`), each with ``config``)."""
     import trimesh
 
     ells, vol, polys = [], 0.0, []
@@ -282,7 +286,11 @@ def fit_link(link: str, geoms: list[Geom], k: int = 1, method: str = "split", co
             m = _polytope(g, link)
             vol += _mesh_volume(m) if g.kind == "mesh" else float(np.prod(g.size))
             polys.append(m)
-    if polys and method == "cover":
+    if polys and method == "opt":
+        from .fit_opt import OptConfig, fit_link_opt
+
+        ells += fit_link_opt(polys, config or OptConfig())[0]
+    elif polys and method == "cover":
         from .fit_cover import FitConfig, fit_link_cover
 
         ells += fit_link_cover(polys, config or FitConfig())[0]
@@ -299,7 +307,7 @@ def link_points(geoms: list[Geom], link: str) -> np.ndarray:
 
 
 #: Fitting methods of :func:`fit_model`.
-METHODS = ("cover", "split")
+METHODS = ("opt", "cover", "split")
 
 
 def fit_model(
@@ -315,8 +323,10 @@ def fit_model(
     Args:
         per_link: k ellipsoids for each link's polytopes (int, or {link: k} with default 1);
             ``method="split"`` only.
-        method: "split" (k enclosing ellipsoids per link) or "cover" (the tight union, see
-            :mod:`splatplan.robots.fit_cover`; ``config`` is its :class:`FitConfig`).
+        method: "split" (k enclosing ellipsoids per link), "opt" (optimised and certified, see
+            :mod:`splatplan.robots.fit_opt`; ``config`` is its :class:`OptConfig`) or "cover"
+            (the greedy union, see :mod:`splatplan.robots.fit_cover`; ``config`` is its
+            :class:`FitConfig`).
         from_visual: fit links that have no collision geometry to their visual geometry.
         links: restrict to these links (default: all).
     Links with no usable geometry are listed in ``skipped``.

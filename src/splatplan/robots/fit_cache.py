@@ -4,6 +4,9 @@ Key: SHA-256 over the fit method and its version, the fit parameters, and per li
 collision element (kind, origin, size) with the content hash of its mesh file. Value: the
 ellipsoid YAML (:func:`~splatplan.robots.fit.save_yaml`), written atomically.
 
+Shipped fits (``robots/data/fits/<key>.yaml``, same key) are read first: the MotionBenchMaker
+Panda's tight fit ships there, so loading it never fits.
+
 Location: ``$SPLATPLAN_FIT_CACHE`` if set, else ``<repo>/build/robot-fits`` in a source checkout
 (beside the Warp kernel cache), else ``~/.cache/splatplan/robot-fits``. Nothing is ever written
 next to the user's URDF.
@@ -19,7 +22,15 @@ from pathlib import Path
 
 from .fit import EllipsoidSet, fit_model, load_yaml, save_yaml
 from .fit_cover import COVER_VERSION, FitConfig
+from .fit_opt import OPT_VERSION, OptConfig
 from .urdf import UrdfModel
+
+#: Fits shipped with the package (same keys and format as the cache): read before the cache, so
+#: a URDF whose fit was made once here (the MotionBenchMaker Panda) loads without fitting.
+SHIPPED = Path(__file__).parent / "data" / "fits"
+
+#: Each fitting method's version and config class (part of the key).
+_METHOD = {"cover": (COVER_VERSION, FitConfig), "opt": (OPT_VERSION, OptConfig)}
 
 
 def cache_dir() -> Path:
@@ -39,7 +50,7 @@ def _file_hash(path) -> str:
         return "missing"
 
 
-def fit_key(model: UrdfModel, method: str, per_link, from_visual: bool, config: FitConfig | None) -> str:
+def fit_key(model: UrdfModel, method: str, per_link, from_visual: bool, config=None) -> str:
     """Hex digest identifying a fit (see the module docstring)."""
     links = {}
     for link in model.kin.link_names:
@@ -50,18 +61,22 @@ def fit_key(model: UrdfModel, method: str, per_link, from_visual: bool, config: 
         ]
     doc = {
         "method": method,
-        "version": COVER_VERSION if method == "cover" else 1,
+        "version": _METHOD[method][0] if method in _METHOD else 1,
         "per_link": per_link,
         "from_visual": bool(from_visual),
-        "config": asdict(config or FitConfig()) if method == "cover" else None,
+        "config": asdict(config or _METHOD[method][1]()) if method in _METHOD else None,
         "links": links,
     }
     return hashlib.sha256(json.dumps(doc, sort_keys=True).encode()).hexdigest()
 
 
-def cached_fit(model: UrdfModel, method: str = "cover", per_link=1, from_visual: bool = False, config: FitConfig | None = None) -> tuple[EllipsoidSet, Path]:
-    """The fit of ``model`` from the cache, or fitted now and stored; returns (ellipsoids, cache file)."""
+def cached_fit(model: UrdfModel, method: str = "opt", per_link=1, from_visual: bool = False, config=None) -> tuple[EllipsoidSet, Path]:
+    """The fit of ``model`` shipped with the package, else from the cache, else fitted now and stored
+    in the cache; returns (ellipsoids, the file read or written)."""
     key = fit_key(model, method, per_link, from_visual, config)
+    shipped = SHIPPED / f"{key[:32]}.yaml"
+    if shipped.is_file():
+        return load_yaml(shipped, model.kin.link_names), shipped
     path = cache_dir() / f"{key[:32]}.yaml"
     if path.is_file():
         try:

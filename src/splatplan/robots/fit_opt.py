@@ -1,0 +1,305 @@
+"""Tight and safe link models by optimisation: a few ellipsoids per link, placed by gradient descent.
+
+The greedy cover (:mod:`splatplan.robots.fit_cover`) picks from fixed candidates and leaves gaps
+that its certificate then closes with centimetres of growth. Here k ellipsoids per link (k small,
+3..6 by default) move freely and are optimised together (torch, CPU):
+
+1. **Targets.** The link's solids (:func:`~splatplan.robots.fit_cover.solids_of`), normalised to
+   unit size: target points are surface samples, interior samples, the vertices and the edge midpoints. An occupancy
+   grid (pitch ``OptConfig.pitch``) gives a signed distance field (Euclidean distance transforms of
+   the outside and the inside; > 0 outside), read by trilinear interpolation.
+2. **Objective.** Ellipsoid j is ``|A_j (x - c_j)|^2 <= 1`` (A_j any invertible 3x3 matrix).
+   Minimised by Adam:
+
+   * the union's volume outside the solid: the grid cells outside the solid within the reach
+     band, each counted with a smooth indicator ``sigmoid((1 - min_j r_j(x)) / tau)`` (tau anneals);
+   * a hinge on coverage, with a weight that grows: every target point must have
+     ``min_j r_j(x) <= 1 - OptConfig.margin``. The surface is sampled densely (gaps between
+     samples are what the certificate would have to repair by growing an ellipsoid); each step
+     uses a fixed random subset plus the active set, every target beyond radius 0.8 (near the
+     union's boundary or outside it), refreshed every 25 steps;
+   * a hinge on reach: points on every ellipsoid's surface (a Fibonacci lattice mapped by
+     ``c_j + A_j^-1 u``) must lie within ``OptConfig.reach - pitch`` of the solid (field value),
+     with a weight that grows too.
+
+   Adam, learning rate decaying 10x; the band is subsampled each step (4,000 cells).
+
+   Initialisation: k-means of the target points; each cluster's covariance ellipsoid (a uniform
+   solid ellipsoid has covariance s^2 / 5 per axis); ``OptConfig.restarts`` seeds, the best
+   certified result (reach first, then volume) is kept.
+3. **Certificate** (unchanged, :func:`~splatplan.robots.fit_cover.certify`): every solid is split
+   into tetrahedra from a centre point; each must lie in ONE ellipsoid (its 4 vertices inside
+   suffice, by convexity), otherwise it is bisected, and at the depth limit the ellipsoid needing
+   the least uniform scale-up grows to hold it. The optimised union already contains every target
+   point with the margin, so the repairs are small; the reach and the volume are then measured
+   by Monte Carlo with exact distances (:mod:`splatplan.robots.fit_measure`), not trusted from
+   the objective.
+4. **Count per link.** k starts at ``OptConfig.min_per_link`` and grows by one while the measured
+   fit misses ``OptConfig.volume_ratio`` or ``OptConfig.reach``, up to ``OptConfig.max_per_link``;
+   the first k that meets both wins (else the best volume ratio among those within reach, else the
+   smallest reach).
+
+**Guarantee.** Containment is the certificate's (see :mod:`splatplan.robots.fit_cover`): exact for
+star-shaped solids (all Panda links), up to float rounding covered by ``CONTAIN_EPS``. Reach and
+volume are measured and reported per link, never guaranteed.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from .._config import bounded, check_config
+from .fit import CONTAIN_EPS
+from .fit_cover import certify, inside_any, sample_solids, simplices_of, solids_of, sphere_points
+
+#: Version of the optimising fitter: part of the fit cache key (bump when results change).
+OPT_VERSION = 1
+
+#: Surface samples for the coverage term's active set, per target point (dense: gaps between
+#: samples are what the certificate must repair by growing ellipsoids).
+SURFACE_DENSITY_FACTOR = 8
+
+
+
+
+@dataclass(frozen=True)
+class OptConfig:
+    """Knobs of the optimising fitter (lengths in metres)."""
+
+    #: Largest distance the model may reach beyond the link's solid (target; measured after the fit).
+    reach: float = bounded(0.015, gt=0, le=1.0)
+    #: Target union volume / solid volume per link: k grows until the measured fit meets it (and reach).
+    volume_ratio: float = bounded(1.3, gt=1.0, le=100.0)
+    #: Fewest ellipsoids per link (k starts here).
+    min_per_link: int = bounded(3, ge=1, le=32)
+    #: Most ellipsoids per link (k stops here even when the targets are missed).
+    max_per_link: int = bounded(6, ge=1, le=32)
+    #: Target points per link (surface + interior samples).
+    n_points: int = bounded(2000, ge=100, le=100_000)
+    #: Adam steps per restart.
+    steps: int = bounded(1000, ge=10, le=20_000)
+    #: Restarts per k (different k-means seeds); the best certified fit is kept.
+    restarts: int = bounded(1, ge=1, le=32)
+    #: Coverage margin: every target point must reach min_j |A_j (x - c_j)|^2 <= 1 - margin.
+    margin: float = bounded(0.01, ge=0, lt=0.5)
+    #: Grid pitch of the signed distance field (0: extent / 110, clipped to [0.5, 3] mm).
+    pitch: float = bounded(0.0, ge=0, le=0.1)
+    #: Longest-edge bisections per tetrahedron in the certificate before an ellipsoid grows.
+    max_depth: int = bounded(14, ge=0, le=30)
+    #: Seed of every random choice (the fit is deterministic for a given seed and torch build).
+    seed: int = bounded(0, ge=0, le=2**32 - 1)
+
+    def validate(self) -> "OptConfig":
+        check_config(self)
+        if self.min_per_link > self.max_per_link:
+            from ..errors import SplatplanError
+
+            raise SplatplanError(f"fit min_per_link ({self.min_per_link}) must be <= max_per_link ({self.max_per_link})")
+        return self
+
+
+class SignedField:
+    """Signed distance to a union of solids on a grid (> 0 outside, < 0 inside; error ~ one pitch)."""
+
+    def __init__(self, solids: list, pitch: float, margin: float):
+        from scipy.ndimage import distance_transform_edt
+
+        lo = np.min([m.bounds[0] for m in solids], axis=0) - margin
+        hi = np.max([m.bounds[1] for m in solids], axis=0) + margin
+        self.lo, self.pitch = lo, pitch
+        self.shape = np.maximum(np.ceil((hi - lo) / pitch).astype(int), 2)
+        axes = [lo[i] + pitch * (np.arange(self.shape[i]) + 0.5) for i in range(3)]
+        g = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)  # (G, 3) voxel centres
+        occ = inside_any(solids, g).reshape(tuple(self.shape))
+        # centre-to-centre distances overshoot the surface by about half a pitch on either side
+        out, inn = distance_transform_edt(~occ, sampling=pitch), distance_transform_edt(occ, sampling=pitch)
+        self.sdf = np.where(occ, 0.5 * pitch - inn, out - 0.5 * pitch)  # (X, Y, Z) m, > 0 outside
+        self.centres, self.occ = g, occ.reshape(-1)
+
+
+def field_at(grid, lo, pitch: float, pts):
+    """Trilinear lookup of a voxel-centre grid (X, Y, Z) (torch) at points (N, 3) (torch, same frame as
+    ``lo``, the grid's lower corner), differentiable in the points. Beyond the outermost voxel
+    centres the value at the nearest one plus the distance to it (a distance field stays 1-Lipschitz)."""
+    import torch
+
+    shape = torch.tensor(grid.shape, dtype=pts.dtype)
+    idx = (pts - lo) / pitch - 0.5  # (N, 3) voxel-centre coordinates
+    inside = torch.minimum(torch.maximum(idx, torch.zeros_like(idx)), shape - 1.0)
+    off = torch.linalg.norm(idx - inside, dim=-1) * pitch  # distance beyond the outermost centres
+    g = 2.0 * inside / (shape - 1.0) - 1.0  # grid_sample's [-1, 1]; its x indexes the last axis
+    v = torch.nn.functional.grid_sample(grid[None, None], g.flip(-1).reshape(1, 1, 1, -1, 3), align_corners=True)
+    return v.reshape(-1) + off
+
+
+def _field_at_numpy(grid: np.ndarray, lo: np.ndarray, pitch: float, pts: np.ndarray) -> np.ndarray:
+    """Slow reference of :func:`field_at` (scipy's trilinear interpolator)."""
+    from scipy.interpolate import RegularGridInterpolator
+
+    axes = [lo[i] + pitch * (np.arange(grid.shape[i]) + 0.5) for i in range(3)]
+    hi = np.array([a[-1] for a in axes])
+    clamped = np.clip(pts, lo + 0.5 * pitch, hi)
+    return RegularGridInterpolator(axes, grid)(clamped) + np.linalg.norm(pts - clamped, axis=1)
+
+
+def _kmeans(pts: np.ndarray, k: int, rng: np.random.Generator, iters: int = 30) -> np.ndarray:
+    """(N,) cluster labels of k-means (k-means++ seeding)."""
+    c = [pts[rng.integers(len(pts))]]
+    for _ in range(k - 1):
+        d = np.min(((pts[:, None] - np.array(c)[None]) ** 2).sum(-1), axis=1)
+        c.append(pts[rng.choice(len(pts), p=d / d.sum())])
+    c = np.array(c)
+    for _ in range(iters):
+        lab = np.argmin(((pts[:, None] - c[None]) ** 2).sum(-1), axis=1)
+        c = np.array([pts[lab == j].mean(axis=0) if (lab == j).any() else c[j] for j in range(k)])
+    return lab
+
+
+def _init(pts: np.ndarray, k: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """Centres (k, 3) and matrices A (k, 3, 3) from the covariance of k-means clusters."""
+    lab = _kmeans(pts, k, rng)
+    cs, As = [], []
+    for j in range(k):
+        p = pts[lab == j]
+        if len(p) < 4:
+            p = pts[rng.choice(len(pts), 16)]
+        c = p.mean(axis=0)
+        cov = np.cov((p - c).T) + 1e-6 * np.eye(3)
+        lam, vec = np.linalg.eigh(cov)
+        s = np.sqrt(5.0 * lam)  # a uniform solid ellipsoid: variance s^2 / 5 per axis
+        cs.append(c)
+        As.append(np.diag(1.0 / s) @ vec.T)
+    return np.array(cs), np.array(As)
+
+
+def optimise(targets, band, cell, sdf_grid, lo, pitch, k, cfg: OptConfig, rng, limit) -> list:
+    """One restart: k ellipsoids [(c, R, s), ...] in the frame of ``targets`` (normalised units)."""
+    try:
+        import torch
+    except ImportError:
+        from ..errors import SplatplanError
+
+        raise SplatplanError("fit method 'opt' needs torch (pip install 'splatplan[fit]'); or fit with method 'split' / 'cover'") from None
+
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)  # tiny tensors: one thread is fastest; restored below
+    try:
+        return _optimise(torch, targets, band, cell, sdf_grid, lo, pitch, k, cfg, rng, limit)
+    finally:
+        torch.set_num_threads(threads)
+
+
+def _optimise(torch, targets, band, cell, sdf_grid, lo, pitch, k, cfg, rng, limit) -> list:
+    c0, a0 = _init(targets, k, rng)
+    dt = torch.float64
+    c = torch.tensor(c0, dtype=dt, requires_grad=True)
+    a = torch.tensor(a0, dtype=dt, requires_grad=True)
+    tg_all = torch.tensor(targets, dtype=dt)
+    base = torch.tensor(rng.choice(len(targets), min(len(targets), 1500), replace=False))
+    tg = tg_all[base]
+    bd_all = torch.tensor(band, dtype=dt)
+    dirs = torch.tensor(sphere_points(120), dtype=dt)  # (U, 3)
+    grid = torch.tensor(sdf_grid, dtype=dt)
+    lo_t = torch.tensor(lo, dtype=dt)
+    opt = torch.optim.Adam([c, a], lr=0.01)
+    n = cfg.steps
+    gen = torch.Generator().manual_seed(int(rng.integers(2**31)))
+    n_b = min(len(band), 4000)
+    cell = cell * len(band) / n_b  # each sampled band point stands for this much volume
+    for it in range(n):
+        frac = it / max(n - 1, 1)
+        tau = 0.2 * (1.0 - frac) + 0.02
+        w_cov = 10.0 * 10.0 ** (5.0 * frac)
+        w_reach = 100.0 * 10.0 ** (3.0 * frac)
+        for gr in opt.param_groups:
+            gr["lr"] = 0.01 * (1.0 - 0.9 * frac)
+        bd = bd_all[torch.randint(len(bd_all), (n_b,), generator=gen)]
+        if it % 25 == 0 and it > 0:  # active set: the base sample + every target near or outside the union
+            with torch.no_grad():
+                r_all = (torch.einsum("kij,nkj->nki", a, tg_all[:, None, :] - c[None]) ** 2).sum(-1).min(dim=1).values
+                near = torch.nonzero(r_all > 0.8).reshape(-1)
+                tg = tg_all[torch.unique(torch.cat([base, near]))]
+        opt.zero_grad()
+        rt = (torch.einsum("kij,nkj->nki", a, tg[:, None, :] - c[None]) ** 2).sum(-1)  # (N, k)
+        cov = torch.relu(rt.min(dim=1).values - (1.0 - cfg.margin)).sum() / len(base) * 30.0  # coverage hinge
+        rb = (torch.einsum("kij,nkj->nki", a, bd[:, None, :] - c[None]) ** 2).sum(-1)
+        vol = torch.sigmoid((1.0 - rb.min(dim=1).values) / tau).sum() * cell
+        ainv = torch.linalg.inv(a)  # (k, 3, 3)
+        surf = c[:, None, :] + torch.einsum("kij,uj->kui", ainv, dirs)  # (k, U, 3)
+        d = field_at(grid, lo_t, pitch, surf.reshape(-1, 3))  # (k U,)
+        reach = (torch.relu(d - limit) ** 2).mean() / pitch**2
+        loss = vol + w_cov * cov + w_reach * reach
+        loss.backward()
+        opt.step()
+    c_np = c.detach().numpy()
+    a_np = a.detach().numpy()
+    out = []
+    for j in range(k):
+        _, sv, vt = np.linalg.svd(a_np[j])  # A = U S V^T: |A (x - c)| = |S V^T (x - c)|
+        r = vt.T
+        if np.linalg.det(r) < 0:
+            r[:, 2] *= -1.0
+        out.append((c_np[j], r, 1.0 / sv))
+    return out
+
+
+def fit_link_opt(polys: list, cfg: OptConfig | None = None, k: int | None = None) -> tuple[list, dict]:
+    """Ellipsoids [(c, R, s), ...] (link frame) certified to contain a link's mesh/box elements + stats.
+
+    ``k`` fixes the count; by default it grows from ``min_per_link`` as the module docstring says.
+    """
+    from .fit_measure import measure_link
+
+    cfg = (cfg or OptConfig()).validate()
+    solids = solids_of(polys)
+    volume = float(sum(m.volume for m in solids))
+    lo_b = np.min([m.bounds[0] for m in solids], axis=0)
+    hi_b = np.max([m.bounds[1] for m in solids], axis=0)
+    extent = float(np.max(hi_b - lo_b))
+    pitch = cfg.pitch or float(np.clip(extent / 110.0, 5e-4, 3e-3))
+    t0 = time.time()
+    field = SignedField(solids, pitch, cfg.reach + 4 * pitch)
+    rng = np.random.default_rng(cfg.seed)
+    surf, interior = sample_solids(solids, cfg.n_points, rng)
+    dense, _ = sample_solids(solids, 2 * SURFACE_DENSITY_FACTOR * cfg.n_points, rng)  # the surface, densely (active set)
+    verts = np.concatenate([np.asarray(m.vertices) for m in solids])
+    edges = np.concatenate([np.asarray(m.vertices)[m.edges_unique].mean(axis=1) for m in solids])
+    targets = np.concatenate([surf, interior, verts, edges, dense])
+    mu, S = 0.5 * (lo_b + hi_b), extent
+    band = field.centres[(~field.occ) & (field.sdf.reshape(-1) <= cfg.reach + pitch)]
+    simp = [simplices_of(m) for m in solids]
+    solid_cert = all(full for _, full in simp)
+    simp = [sp for sp, _ in simp]
+    limit = cfg.reach - pitch  # the field's error is about half a pitch; the certificate adds a little
+    t1 = time.time()
+    tried = []
+    ks = [k] if k else list(range(cfg.min_per_link, cfg.max_per_link + 1))
+    for kk in ks:
+        best = None
+        for r in range(cfg.restarts):
+            sub = np.random.default_rng([cfg.seed, kk, r])
+            e = optimise((targets - mu) / S, (band - mu) / S, (pitch / S) ** 3 / (volume / S**3), field.sdf / S,
+                         (field.lo - mu) / S, pitch / S, kk, cfg, sub, limit / S)
+            e = [(mu + S * c, rot, S * s) for c, rot, s in e]
+            grow = 1.0
+            for sp in simp:
+                e, st = certify(e, sp, cfg.max_depth)
+                grow = max(grow, st["max_scale"])
+            e = [(c, rot, s * (1.0 + CONTAIN_EPS)) for c, rot, s in e]
+            m = measure_link(e, polys, n_samples=4000, n_surface=400, seed=1)
+            score = (max(m.reach_m - cfg.reach, 0.0) * 100.0, m.volume_ratio)
+            if best is None or score < best[0]:
+                best = (score, e, m, grow)
+        tried.append((kk, best[1], best[2], best[3]))
+        if best[2].reach_m <= cfg.reach and best[2].volume_ratio <= cfg.volume_ratio:
+            break
+    ok = [t for t in tried if t[2].reach_m <= cfg.reach]
+    pick = min(ok, key=lambda t: t[2].volume_ratio) if ok else min(tried, key=lambda t: t[2].reach_m)
+    stats = {"k": pick[0], "t_setup": t1 - t0, "t_opt": time.time() - t1, "pitch": pitch,
+             "certificate": "solid" if solid_cert else "surface",
+             # per k tried: (k, measured volume ratio, measured reach m, largest certificate scale-up)
+             "tried": [(t[0], t[2].volume_ratio, t[2].reach_m, t[3]) for t in tried]}
+    return pick[1], stats

@@ -1,0 +1,151 @@
+"""The optimising fitter (robots/fit_opt.py): its field lookup against the numpy reference, the
+certified containment of a fitted link, and the shipped tight Panda models (built-in and MBM)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from splatplan.robots import fit_opt as fo
+from splatplan.robots.fit import mahalanobis
+
+MBM = Path(__file__).resolve().parents[2] / ".." / "shared" / "data" / "mbm" / "panda"
+
+
+def _inside(pts, ells):
+    ok = np.zeros(len(pts), dtype=bool)
+    for e in ells:
+        ok |= mahalanobis(pts, *e) <= 1.0
+    return ok
+
+
+def test_field_lookup_matches_the_numpy_reference():
+    """Trilinear lookup (torch grid_sample) = scipy's interpolator, inside the grid and beyond it."""
+    import torch
+
+    rng = np.random.default_rng(0)
+    grid = rng.normal(size=(7, 9, 5))
+    lo, pitch = np.array([-0.1, 0.2, 0.05]), 0.03
+    pts = lo + rng.uniform(-0.1, 1.1, size=(500, 3)) * pitch * np.array(grid.shape)
+    got = fo.field_at(torch.tensor(grid), torch.tensor(lo), pitch, torch.tensor(pts)).numpy()
+    np.testing.assert_allclose(got, fo._field_at_numpy(grid, lo, pitch, pts), atol=1e-10)
+
+
+def test_signed_field_of_a_box():
+    import trimesh
+
+    box = trimesh.creation.box(extents=[0.1, 0.06, 0.04])
+    f = fo.SignedField([box], 0.002, 0.02)
+    pts = np.random.default_rng(1).uniform(-1.0, 1.0, size=(400, 3)) * np.array([0.065, 0.045, 0.035])  # inside the grid
+    exact = -trimesh.proximity.signed_distance(box, pts)  # > 0 outside
+    approx = fo._field_at_numpy(f.sdf, f.lo, f.pitch, pts)
+    assert np.abs(approx - exact).max() < 1.5 * f.pitch
+    far = np.array([[0.2, 0.0, 0.0]])  # beyond the grid: never less than the true distance
+    assert fo._field_at_numpy(f.sdf, f.lo, f.pitch, far)[0] >= 0.15 - 1.5 * f.pitch
+
+
+def test_fit_link_opt_contains_random_interior_and_surface_points():
+    import trimesh
+
+    solid = trimesh.creation.cylinder(radius=0.04, height=0.2, sections=16)
+    cfg = fo.OptConfig(n_points=400, steps=120, min_per_link=2, max_per_link=3)
+    ells, stats = fo.fit_link_opt([solid], cfg)
+    assert 2 <= len(ells) <= 3 and stats["k"] == len(ells)
+    rng = np.random.default_rng(1)
+    pts = rng.uniform(solid.bounds[0], solid.bounds[1], size=(20000, 3))
+    pts = pts[solid.contains(pts)]
+    surf, _ = trimesh.sample.sample_surface(solid, 5000, seed=2)
+    assert _inside(pts, ells).all() and _inside(np.asarray(surf), ells).all()
+    assert _inside(np.asarray(solid.vertices), ells).all()
+
+
+def test_opt_config_is_validated():
+    from splatplan.errors import SplatplanError
+
+    with pytest.raises(SplatplanError, match="min_per_link"):
+        fo.OptConfig(min_per_link=4, max_per_link=3).validate()
+    with pytest.raises(SplatplanError, match="reach"):
+        fo.OptConfig(reach=0.0).validate()
+
+
+def _measure(robot, reference=None):
+    from splatplan.robots.fit_measure import measure_robot
+
+    return {k: v for k, v in measure_robot(robot, reference, n_samples=3000, n_surface=300).items() if v is not None}
+
+
+def _contains_random_points(robot, urdf):
+    """Random points inside every link's solid and on its surface lie in the link's ellipsoids."""
+    import trimesh
+
+    from splatplan.robots.fit import _polytope
+    from splatplan.robots.fit_cover import solids_of
+    from splatplan.robots.urdf import read_urdf
+
+    ref = read_urdf(urdf)
+    rng = np.random.default_rng(5)
+    for li in sorted(set(robot.ellipsoid_link.tolist())):
+        link = robot.link_names[li]
+        sel = np.flatnonzero(robot.ellipsoid_link == li)
+        ells = [(robot.ellipsoid_local[e, :3, 3], robot.ellipsoid_local[e, :3, :3], robot.semi_axes[e]) for e in sel]
+        for poly in solids_of([_polytope(g, link) for g in ref.collisions[link] if g.kind in ("mesh", "box")]):
+            pts = rng.uniform(poly.bounds[0], poly.bounds[1], size=(4000, 3))
+            pts = pts[poly.contains(pts)]
+            surf, _ = trimesh.sample.sample_surface(poly, 1000, seed=6)
+            assert _inside(pts, ells).all() and _inside(np.asarray(surf), ells).all(), link
+
+
+@pytest.mark.skipif(not (MBM / "panda.urdf").is_file(), reason="MBM data not present")
+def test_mbm_panda_loads_the_shipped_tight_fit():
+    """The MBM Panda fitted at load with the default method reads the shipped fit (no fitting) and
+    contains random points of every link mesh."""
+    from splatplan.robots import load_robot
+    from splatplan.robots.fit_cache import SHIPPED, cached_fit
+    from splatplan.robots.urdf import read_urdf
+
+    _, path = cached_fit(read_urdf(MBM / "panda.urdf"), "opt")
+    assert path.parent == SHIPPED
+    robot = load_robot(MBM / "panda.urdf")
+    assert robot.n_ellipsoids > 11
+    _contains_random_points(robot, MBM / "panda.urdf")
+
+
+@pytest.mark.xfail(strict=True, reason="issue 19: the tight model is certified safe but misses 1.3x volume per link, 40 ellipsoids and 1.5 cm reach on some links (see README)")
+def test_shipped_tight_model_meets_the_issue_targets():
+    """Issue 19: every link contains its mesh, reaches at most 1.5 cm beyond it and totals at most
+    1.3x its volume, with at most 40 ellipsoids for the Panda (built-in, example-robot-data meshes)."""
+    from splatplan.robots import load_robot
+
+    robot = load_robot("panda", model="tight")
+    assert robot.n_ellipsoids <= 40
+    for link, m in _measure(robot).items():
+        assert m.reach_m <= 0.015 and m.volume_ratio <= 1.3, (link, m)
+
+
+def test_cli_fit_method_opt(tmp_path, capsys):
+    """`robot fit --method opt` with its --opt-* flags writes a YAML that contains every mesh vertex."""
+    from splatplan.cli import main
+    from splatplan.robots import load_robot
+    from splatplan.robots.fit import _polytope
+    from splatplan.robots.urdf import read_urdf
+
+    from .conftest import write_tree
+
+    urdf = write_tree(tmp_path)
+    out = tmp_path / "opt.yaml"
+    argv = ["robot", "fit", str(urdf), "--out", str(out), "--no-png", "--method", "opt", "--opt-steps", "30",
+            "--opt-n-points", "200", "--opt-min-per-link", "1", "--opt-max-per-link", "1", "--opt-pitch", "0.004"]  # fmt: skip
+    assert main(argv) == 0
+    assert "wrote" in capsys.readouterr().out
+    robot = load_robot(urdf, ellipsoids=out)
+    model = read_urdf(urdf)
+    for link in ("base", "l4", "l5"):
+        li = robot.link_names.index(link)
+        sel = np.flatnonzero(robot.ellipsoid_link == li)
+        ells = [(robot.ellipsoid_local[e, :3, 3], robot.ellipsoid_local[e, :3, :3], robot.semi_axes[e]) for e in sel]
+        verts = np.concatenate([np.asarray(_polytope(g, link).vertices) for g in model.collisions[link] if g.kind in ("mesh", "box")])
+        assert _inside(verts, ells).all(), link
+    assert main(argv[:-2] + ["--opt-min-per-link", "4"]) == 2  # min > max: one line, exit 2
+    assert "min_per_link" in capsys.readouterr().err
