@@ -155,7 +155,7 @@ def load_robot(
     srdf: str | Path | None = None,
     model: str | None = None,
     finger_opening: float | None = None,
-    fit_method: str = "opt",
+    fit_method: str | None = None,
 ) -> Robot:
     """A :class:`Robot` from a built-in name or a URDF path (see the module docstring).
 
@@ -175,7 +175,7 @@ def load_robot(
         srdf: SRDF with disabled collision pairs / group states (default: ``<urdf stem>.srdf`` beside it).
         model: built-in Panda only: "tight", "coarse" or "cover" (default ``DEFAULT_MODEL``).
         finger_opening: built-in Panda only: each finger's distance from the centre line (m, [0, 0.04]).
-        fit_method: "opt" (default: tight and safe, :mod:`splatplan.robots.fit_opt`, cached),
+        fit_method: None = "opt" (default: tight and safe, :mod:`splatplan.robots.fit_opt`, cached),
             "cover" (:mod:`splatplan.robots.fit_cover`, cached) or "split" (enclosing
             ellipsoids, ``per_link`` each) when a URDF is fitted at load time.
     """
@@ -185,10 +185,11 @@ def load_robot(
     text = parsed.text
     if parsed.is_point:
         urdf_only = [k for k, v in (("active", active), ("fixed", fixed), ("ellipsoids", ellipsoids), ("per_link", per_link != 1), ("from_visual", from_visual),
-                                    ("srdf", srdf), ("model", model), ("finger_opening", finger_opening), ("fit_method", fit_method != "split")) if v]  # fmt: skip
+                                    ("srdf", srdf), ("model", model), ("finger_opening", finger_opening), ("fit_method", fit_method is not None)) if v]  # fmt: skip
         if urdf_only:
             raise SplatplanError(f"robot {text!r}: {', '.join(urdf_only)} apply to URDF robots, not to a point robot (give base= and base_pose= only)")
         return _point_robot(parsed, base, base_pose)
+    fit_method = "opt" if fit_method is None else fit_method
     if fit_method not in METHODS:
         raise SplatplanError(f"unknown fit method {fit_method!r}: use one of {', '.join(METHODS)}")
     if (model is not None or finger_opening is not None) and text != "panda":

@@ -337,6 +337,10 @@ def fit_model(
         if int(k) < 1:
             raise SplatplanError(f"--per-link must be >= 1, got {k}")
         require_work(int(k), MAX_PER_LINK, f"fitting {k} ellipsoids per link", "--per-link")
+    for link in model.kin.link_names:  # every mesh file is there before any (slow) fit starts
+        for g in model.collisions.get(link, []) or (model.visuals.get(link, []) if from_visual else []):
+            if g.kind == "mesh" and (links is None or link in links) and (g.mesh is None or not Path(g.mesh).is_file()):
+                _polytope(g, link)  # raises the one-line "mesh file ... not found"
     names, cs, rs, ss, report, skipped = [], [], [], [], {}, []
     for link in model.kin.link_names:
         if links is not None and link not in links:
