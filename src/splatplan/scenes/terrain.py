@@ -62,14 +62,22 @@ def fitted_floor_z(splats: Splats) -> float:
 
 def terrain_mask(splats: Splats, floor_z: float, step_height: float, n_sigma: float = 1.0, max_tilt_deg: float = 30.0) -> np.ndarray:
     """(N,) bool: the terrain splats (module docstring). ``n_sigma`` is the checker's."""
-    from .align import splat_normals
-
     z = splats.means[:, 2].astype(np.float64)
     top_band = floor_z + step_height
     sz = np.sqrt(np.maximum(splats.covariances()[:, 2, 2], 0.0))
+    return floor_surface_mask(splats, floor_z, step_height, max_tilt_deg) | ((z < top_band) & (z + n_sigma * sz < top_band))
+
+
+def floor_surface_mask(splats: Splats, floor_z: float, step_height: float, max_tilt_deg: float = 30.0) -> np.ndarray:
+    """(N,) bool: the terrain splats at **every** n_sigma: the floor-like ones (flat, normal within
+    ``max_tilt_deg`` of +z) with their mean below ``floor_z + step_height``. The other splats of the
+    step band (upright or round ones whose n_sigma extent may reach above it) are obstacles at a
+    large enough n_sigma, so the floater rule of ``scene align --drop-floaters`` tests them too."""
+    from .align import splat_normals
+
+    z = splats.means[:, 2].astype(np.float64)
     normals, flat = splat_normals(splats)
-    floor_like = flat & (np.abs(normals[:, 2]) >= np.cos(np.radians(max_tilt_deg)))
-    return (z < top_band) & (floor_like | (z + n_sigma * sz < top_band))
+    return (z < floor_z + step_height) & flat & (np.abs(normals[:, 2]) >= np.cos(np.radians(max_tilt_deg)))
 
 
 @dataclass

@@ -301,6 +301,7 @@ class _BasePlanner:
         for t in range(t_len):
             psi = np.arctan2(v_world[:, t, 1], v_world[:, t, 0])
             wz = np.clip(np.angle(np.exp(1j * (psi - yaw))) / cfg.dt, -cfg.primitive_turn_rate, cfg.primitive_turn_rate)
+            wz = np.where(np.hypot(v_world[:, t, 0], v_world[:, t, 1]) > 1e-9, wz, 0.0)  # stopped: keep the heading
             c, s_ = np.cos(yaw), np.sin(yaw)
             u[:, t, 0] = c * v_world[:, t, 0] + s_ * v_world[:, t, 1]
             u[:, t, 1] = -s_ * v_world[:, t, 0] + c * v_world[:, t, 1]
@@ -327,15 +328,27 @@ class _BasePlanner:
         vw = [np.repeat(v[:, None], t_len, axis=1)]  # straight
         if geo:  # the same drives following the field's descent from their switch points, and two pure followers
             return self._drive_knots(x, np.concatenate(vw + self._followers(x, v, t_len)))
+        vw[0][0] = self._to_target(x[:2], tgt, 0, vw[0][:1])[0]  # the drive along the bearing stops at the target
         for frac in (0.25, 0.5, 0.75):
             j = max(1, int(round(frac * t_len)))
-            d = tgt - (x[:2] + v * j * cfg.dt)  # (m, 2) from the predicted switch points
-            w = cfg.primitive_speed * d / np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-9)
-            k = np.empty((m, t_len, 2))
-            k[:, :j] = v[:, None]
-            k[:, j:] = w[:, None]
-            vw.append(k)
+            k = np.repeat(v[:, None], t_len, axis=1)
+            vw.append(self._to_target(x[:2], tgt, j, k))
         return self._drive_knots(x, np.concatenate(vw))
+
+    def _to_target(self, xy: np.ndarray, tgt: np.ndarray, j: int, vel: np.ndarray) -> np.ndarray:
+        """(P, T, 2) world velocities ``vel`` whose steps from ``j`` on are replaced by a drive to
+        ``tgt`` at ``primitive_speed`` that **stops at it** (the last step covers the rest of the
+        distance, then 0): a drive that overshot the goal would run into the far wall of a small room
+        within the horizon and lose to standing still."""
+        cfg = self.cfg
+        out = vel.copy()
+        p = xy + out[:, :j].sum(axis=1) * cfg.dt  # (P, 2) world, the switch points
+        for t in range(j, out.shape[1]):
+            d = tgt - p  # (P, 2)
+            n = np.linalg.norm(d, axis=1, keepdims=True)
+            out[:, t] = d / np.maximum(n, 1e-9) * np.minimum(cfg.primitive_speed, n / cfg.dt)
+            p = p + out[:, t] * cfg.dt
+        return out
 
     def _followers(self, x: np.ndarray, v: np.ndarray, t_len: int) -> list[np.ndarray]:
         """Memory mode: (m, T, 2) world velocities of the drives ``v`` (m, 2) switching after 1/4,
