@@ -63,8 +63,11 @@ one, so the kitchen is unreachable; at 0.75 the free bands of the centre are 16,
 exact boxes by 2-3 cm in tight spots, which the metric at 0.5 did not see. The exact clearance
 to the boxes is what the studies report.
 
-With ``route`` (a path, e.g. from :func:`plan_route`), the goal cost follows the route's
-waypoints instead and the recovery and the memory are off (``--route`` in the CLI).
+With ``route`` (a path, e.g. from :func:`plan_route`), the goal cost follows the route instead
+(:class:`RouteTracker`: the point ``route_lookahead_m`` ahead of the base's progress along it,
+and the heading term faces the route's yaw there, the heading the RRT found free) and the recovery
+and the memory are off (``--route`` in the CLI, and by default there when the straight line to the
+goal is blocked).
 """
 
 from __future__ import annotations
@@ -80,7 +83,7 @@ from ..errors import SplatplanError
 from ._common import TaskResult, base_terrain, check_start, load_task_scene, trajectory_clearance
 from .memory import ObstacleMemory, _geodesic_field_reference, _line_of_sight_reference, geodesic_field, line_of_sight  # noqa: F401  (re-exported)
 
-__all__ = ["FOOT_CLEARANCE", "START", "BaseConfig", "ObstacleMemory", "geodesic_field", "line_of_sight", "load_go2", "plan_route", "run_base"]
+__all__ = ["FOOT_CLEARANCE", "START", "BaseConfig", "ObstacleMemory", "RouteTracker", "geodesic_field", "line_of_sight", "load_go2", "plan_route", "run_base"]
 
 #: The Go2's feet ellipsoids are lifted this far (m) above the floor (as in a trot's swing phase), so
 #: the floor itself is not a collision.
@@ -176,6 +179,10 @@ class BaseConfig:
     collision_s2_cap: float = bounded(2.0, ge=1)
     #: query the collision cost on every stride-th step of the horizon
     collision_stride: int = bounded(1, ge=1)
+    #: with a route: the goal term tracks the route's point this far (m, arc length) ahead of the
+    #: base's progress along it, and the heading term its heading there (the route's yaw is one the
+    #: RRT found free: in a narrow passage only a few headings are)
+    route_lookahead_m: float = bounded(0.4, gt=0)
     #: success: final distance to the goal below this (m)
     goal_tol: float = bounded(0.2, gt=0)
     #: height of the floor (m; 0 after `scene align`), auto = fitted from the scene, none = no terrain:
@@ -252,6 +259,42 @@ def plan_route(
     return np.asarray(res.path)
 
 
+class RouteTracker:
+    """Where the base heads along a route: the point ``lookahead`` (m of arc length) ahead of its
+    progress, and the route's yaw there. Progress is the nearest point of the route (resampled every
+    2 cm) within ``2 lookahead`` past the last progress and never goes back, so a route that
+    doubles back on itself is followed in order."""
+
+    def __init__(self, route: np.ndarray, lookahead: float, step: float = 0.02) -> None:
+        r = np.asarray(route, np.float64)  # (P, 2) or (P, 3) x, y[, yaw]
+        if r.ndim != 2 or r.shape[1] < 2 or len(r) < 1:
+            raise SplatplanError(f"a route must be (P, 2) or (P, 3) waypoints, got shape {r.shape}")
+        yawed = r.shape[1] >= 3  # else each segment faces along itself
+        r = np.c_[r[:, :2], np.unwrap(r[:, 2]) if yawed else np.zeros(len(r))]
+        pts = [r[:1]]
+        for a, b in zip(r[:-1], r[1:]):
+            if not yawed:
+                a, b = a.copy(), b.copy()
+                a[2] = b[2] = np.arctan2(b[1] - a[1], b[0] - a[0])
+            n = max(1, int(np.ceil(np.linalg.norm(b[:2] - a[:2]) / step)))
+            pts.append(a + (b - a) * (np.arange(1, n + 1)[:, None] / n))
+        if not yawed and len(pts) > 1:
+            pts[0] = pts[0].copy()
+            pts[0][0, 2] = pts[1][0, 2]
+        self.dense = np.concatenate(pts)  # (M, 3) x, y, yaw (unwrapped)
+        self.arc = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(self.dense[:, :2], axis=0), axis=1))]  # (M,) m
+        self.lookahead = float(lookahead)
+        self.s = 0.0  # progress (m of arc length)
+
+    def target(self, xy: np.ndarray) -> tuple[np.ndarray, float]:
+        """(target xy (2,), route yaw there) for the base at ``xy``; advances the progress."""
+        win = np.flatnonzero((self.arc >= self.s) & (self.arc <= self.s + 2.0 * self.lookahead))
+        i = int(win[np.argmin(np.linalg.norm(self.dense[win, :2] - xy, axis=1))])
+        self.s = float(self.arc[i])
+        j = min(int(np.searchsorted(self.arc, self.s + self.lookahead)), len(self.arc) - 1)
+        return self.dense[j, :2].copy(), float(self.dense[j, 2])
+
+
 def _free_yaw(robot, checker, xy) -> float | None:
     """A yaw at which the base at ``xy`` is collision-free (None if every one of 16 collides)."""
     yaws = np.linspace(-np.pi, np.pi, 16, endpoint=False)
@@ -278,6 +321,7 @@ class _BasePlanner:
         self.goal = np.asarray(goal, np.float64)
         self.recovery = bool(recovery)
         self.memory = memory  # ObstacleMemory: geodesic goal distance and heading (None: straight line)
+        self.heading_ref: float | None = None  # route tracking: the yaw to face (rad), instead of the bearing to the goal
         self.mode = "goal"
         self.best = np.inf  # best distance to the goal reached so far (m)
         self.best_step = 0
@@ -293,13 +337,13 @@ class _BasePlanner:
     def _drive_knots(self, x: np.ndarray, v_world: np.ndarray) -> np.ndarray:
         """(P, T, 2) world-frame velocities per control step -> (P, n_knots, 3) body-frame knots
         (least-squares fit of the controls) that also turn the base towards its direction of
-        travel at up to ``primitive_turn_rate``."""
+        travel (tracking a route: towards the route's heading) at up to ``primitive_turn_rate``."""
         cfg = self.cfg
         p, t_len, _ = v_world.shape
         u = np.zeros((p, t_len, 3))
         yaw = np.full(p, float(x[2]))
         for t in range(t_len):
-            psi = np.arctan2(v_world[:, t, 1], v_world[:, t, 0])
+            psi = np.arctan2(v_world[:, t, 1], v_world[:, t, 0]) if self.heading_ref is None else np.full(p, self.heading_ref)  # route: its heading
             wz = np.clip(np.angle(np.exp(1j * (psi - yaw))) / cfg.dt, -cfg.primitive_turn_rate, cfg.primitive_turn_rate)
             wz = np.where(np.hypot(v_world[:, t, 0], v_world[:, t, 1]) > 1e-9, wz, 0.0)  # stopped: keep the heading
             c, s_ = np.cos(yaw), np.sin(yaw)
@@ -337,16 +381,20 @@ class _BasePlanner:
 
     def _to_target(self, xy: np.ndarray, tgt: np.ndarray, j: int, vel: np.ndarray) -> np.ndarray:
         """(P, T, 2) world velocities ``vel`` whose steps from ``j`` on are replaced by a drive to
-        ``tgt`` at ``primitive_speed`` that **stops at it** (the last step covers the rest of the
-        distance, then 0): a drive that overshot the goal would run into the far wall of a small room
-        within the horizon and lose to standing still."""
+        ``tgt`` that **stops at it**: a drive that overshot the goal would run into the far wall of
+        a small room within the horizon and lose to standing still. The speed is
+        ``primitive_speed``, or less where the target is nearer than that covers in half the
+        remaining horizon (a short drive stretched over several steps: the knots' B-spline cannot
+        hold a one-step pulse)."""
         cfg = self.cfg
         out = vel.copy()
         p = xy + out[:, :j].sum(axis=1) * cfg.dt  # (P, 2) world, the switch points
+        half = max(1, (out.shape[1] - j) // 2) * cfg.dt  # s
+        speed = np.minimum(cfg.primitive_speed, np.linalg.norm(tgt - p, axis=1, keepdims=True) / half)  # (P, 1) m/s
         for t in range(j, out.shape[1]):
             d = tgt - p  # (P, 2)
             n = np.linalg.norm(d, axis=1, keepdims=True)
-            out[:, t] = d / np.maximum(n, 1e-9) * np.minimum(cfg.primitive_speed, n / cfg.dt)
+            out[:, t] = d / np.maximum(n, 1e-9) * np.minimum(speed, n / cfg.dt)
             p = p + out[:, t] * cfg.dt
         return out
 
@@ -391,7 +439,9 @@ class _BasePlanner:
         dist = np.linalg.norm(states[..., :2] - self.goal, axis=-1)  # (K, T) m, straight line
         gd = dist if self.memory is None else self.memory.distance(states[..., :2])  # (K, T) m, geodesic on the memory
         goal = cfg.w_goal * (gd.sum(axis=1) + cfg.terminal_factor * gd[:, -1] + cfg.min_factor * gd.min(axis=1))
-        if cfg.w_heading > 0:
+        if cfg.w_heading > 0 and self.heading_ref is not None:  # route tracking: the route's heading, all the way
+            goal = goal + cfg.w_heading * (1.0 - np.cos(states[..., 2] - self.heading_ref)).sum(axis=1)
+        elif cfg.w_heading > 0:
             if self.memory is None:
                 bearing = np.arctan2(self.goal[1] - states[..., 1], self.goal[0] - states[..., 0])
             else:  # face along the geodesic
@@ -532,6 +582,7 @@ def run_base(
                                 occlusion=cfg.sensor_occlusion, sensor_height=cfg.sensor_height_m)  # fmt: skip
     planner = _BasePlanner(dyn, cfg, vmax, collision_cost, g, recovery=collision and cfg.recovery and route is None, memory=memory)
     wps = None if route is None else np.asarray(route, np.float64)[:, :2]
+    track = None if route is None else RouteTracker(route, cfg.route_lookahead_m)
     states = [x.copy()]
     t0 = time.perf_counter()
     n_steps = 0
@@ -541,10 +592,8 @@ def run_base(
             progress(step, dist)
         if dist < 0.5 * cfg.goal_tol:
             break
-        if wps is not None:  # track the first waypoint more than 1 m ahead along the route
-            i = int(np.argmin(np.linalg.norm(wps - x[:2], axis=1)))
-            ahead = [j for j in range(i, len(wps)) if np.linalg.norm(wps[j] - x[:2]) > 1.0]
-            planner.goal = wps[ahead[0]] if ahead else g
+        if track is not None:  # the route's point route_lookahead_m ahead of the base's progress, and its heading
+            planner.goal, planner.heading_ref = track.target(x[:2])
         u = planner.step(x)
         x = dyn.rollout(x, u[None, None, :], cfg.dt)[0, 0]
         states.append(x.copy())
