@@ -26,6 +26,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -94,21 +95,26 @@ def main(argv=None) -> int:
     if not Path(args.scene).is_file():
         print(f"skipped: {args.scene} is not present")
         return 0
-    from splatplan.scenes.align import AlignConfig, align_scene
+    t0 = time.perf_counter()
+    tmp = Path(tempfile.mkdtemp(prefix="real_go2_"))
+    try:
+        return _run(args, tmp, t0)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
+def _run(args, tmp: Path, t0: float) -> int:
+    from splatplan.scenes.align import AlignConfig, align_scene, robust_box
     from splatplan.scenes.load import load_scene, save_scene
     from splatplan.tasks._common import base_terrain, load_task_scene
     from splatplan.tasks.base import BaseConfig, load_go2
 
-    t0 = time.perf_counter()
-    tmp = Path(tempfile.mkdtemp(prefix="real_go2_"))
     aligned, res = align_scene(load_scene(args.scene, filter_floaters=False), AlignConfig(drop_floaters=True))
     room = tmp / "room.ply"
     save_scene(aligned, room)
     cfg = BaseConfig()
     robot = load_go2()
     ts = load_task_scene(str(room), n_sigma=cfg.n_sigma, terrain=base_terrain(cfg))
-    from splatplan.scenes.align import robust_box
-
     lo, hi, _ = robust_box(aligned.means, 1.0, 0.0)
     t_map = time.perf_counter()
     xs, ys, yaws, free = free_map(robot, ts.checker, lo, hi, args.cell)
