@@ -82,3 +82,19 @@ def test_drop_floaters_tests_upright_faint_splats_on_the_floor():
     kept = {tuple(np.round(m, 6)) for m in out.means}
     assert not any(tuple(np.round(m, 6)) in kept for m in lone)
     assert res.n_floaters <= 2 + 0.01 * len(s)  # the floor's surface is not tested
+
+
+def test_faint_splats_of_the_step_band_are_floor_haze():
+    s, parts = floor_room()
+    op = s.opacities.copy()
+    blobs = np.arange(len(s))[parts["blobs"]]
+    op[blobs[:500]] = 0.05  # faint haze
+    hazy = Splats(s.means, s.quats, s.scales, op, s.colors)
+    m0 = terrain_mask(hazy, 0.0, 0.05, n_sigma=5.0)  # at n_sigma 5 the round blobs reach above the band
+    m = terrain_mask(hazy, 0.0, 0.05, n_sigma=5.0, faint_below=0.1)
+    assert not m0[blobs].any() and np.array_equal(m[blobs], np.arange(len(blobs)) < 500)
+    box = np.arange(len(s))[parts["box"]]
+    assert not (m & ~m0)[box].any()  # opaque obstacles are never haze
+    _, rep = remove_terrain(hazy, TerrainConfig(floor_z=0.0, step_height=0.05), n_sigma=5.0)
+    _, rep0 = remove_terrain(hazy, TerrainConfig(floor_z=0.0, step_height=0.05, faint_below=0.0), n_sigma=5.0)
+    assert rep.n_terrain - rep0.n_terrain == 500
