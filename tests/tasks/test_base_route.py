@@ -111,3 +111,22 @@ def test_real_go2_goal_rule_on_a_synthetic_map():
     assert len(goals) == 3 and not comp[0, 0]
     assert np.all(np.linalg.norm(goals - start[:2], axis=1) >= 0.5)
     assert {round(goals[0][0], 2), round(goals[1][0], 2)} == {round(xs[2], 2), round(xs[17], 2)}  # the strip's two ends first
+
+
+def test_safe_step_halves_or_holds_a_colliding_motion(corridor):
+    from splatplan.planners.dynamics import PlanarBase
+    from splatplan.tasks._common import densify
+    from splatplan.tasks.base import safe_step
+
+    robot, _, closed = corridor  # the wall across the corridor at x = 1: the base touches it from x ~ 0.57 on
+    dyn = PlanarBase(robot)
+    free = ~np.asarray(closed.collides_robot(robot, np.array([[0.42, 0, 0], [0.52, 0, 0], [0.55, 0, 0], [0.6, 0, 0], [0.62, 0, 0]]))).any(-1)
+    assert free.tolist() == [True, True, True, False, False]
+    x = np.array([0.42, 0.0, 0.0])
+    u, x1 = safe_step(robot, closed, dyn, x, np.array([0.4, 0.0, 0.0]), 0.2)  # 8 cm: free
+    np.testing.assert_allclose(u, [0.4, 0, 0])
+    u, x1 = safe_step(robot, closed, dyn, x, np.array([1.0, 0.0, 0.0]), 0.2)  # 20 cm: into the wall; 10 cm: free
+    np.testing.assert_allclose(u, [0.5, 0, 0])
+    assert not np.asarray(closed.collides_robot(robot, densify(robot, np.stack([x, x1])))).any()
+    u, x1 = safe_step(robot, closed, dyn, np.array([0.55, 0.0, 0.0]), np.array([1.0, 0.0, 0.0]), 0.2)  # even 5 cm collides: hold
+    assert x1 is None and not u.any()
