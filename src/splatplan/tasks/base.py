@@ -617,9 +617,10 @@ def run_base(
         u = planner.step(x)
         if collision and cfg.safe_step:
             u, x_next = safe_step(robot, ts.checker, dyn, x, u, cfg.dt)
-            if x_next is None:
+            if x_next is None:  # held: the nominal ran into it, plan afresh from standing still
                 n_held += 1
                 x_next = x.copy()
+                planner.knots[:] = 0.0
             x = x_next
         else:
             x = dyn.rollout(x, u[None, None, :], cfg.dt)[0, 0]
