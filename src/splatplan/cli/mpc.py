@@ -74,7 +74,9 @@ def cmd_mpc(args) -> int:
         start = default if args.start is None else _floats(args.start, 3, "--start", "X,Y,YAW")
         ts = load_task_scene(scene, n_sigma=cfg.n_sigma, device=args.device, terrain=base_terrain(cfg))
         route = None
-        want = args.route or (not args.no_route and collision and straight_line_blocked(robot, ts.checker, start, g))
+        lo, hi = ts.splats.bounds()
+        inside = bool(np.all(g >= lo[:2]) and np.all(g <= hi[:2]))  # else run_base says so
+        want = inside and (args.route or (not args.no_route and collision and straight_line_blocked(robot, ts.checker, start, g)))
         if want:
             if not args.route:
                 print(f"the straight line from {start[:2].round(2).tolist()} to {g.round(2).tolist()} is blocked facing the goal: planning an SE(2) route first (--no-route: goal only)")
