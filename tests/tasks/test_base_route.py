@@ -133,3 +133,40 @@ def test_safe_step_halves_or_holds_a_colliding_motion(corridor):
     assert not np.asarray(closed.collides_robot(robot, densify(robot, np.stack([x, x1])))).any()
     u, x1 = safe_step(robot, closed, dyn, np.array([0.55, 0.0, 0.0]), np.array([1.0, 0.0, 0.0]), 0.2)  # even 5 cm collides: hold
     assert x1 is None and not u.any()
+
+
+def test_heading_ref_replaces_the_face_the_goal_term_and_steers_the_drives(corridor):
+    """Route tracking: the goal term's heading part is w_heading sum_t (1 - cos(yaw_t - heading_ref)),
+    also next to the goal (no cutoff), and every structured drive turns towards heading_ref; a
+    drive with zero velocity keeps its heading."""
+    from splatplan.planners import MPPI, MPPIConfig, PlanarBase
+    from splatplan.planners.drive import DriveGoalCost, StructuredDrives
+
+    robot, _, _ = corridor
+    goal = np.array([1.0, 0.0])
+    rng = np.random.default_rng(1)
+    states = np.concatenate([rng.uniform(-1, 2, (5, 7, 2)), rng.uniform(-np.pi, np.pi, (5, 7, 1))], axis=-1)  # (K, T, 3)
+    states[0, :, :2] = goal + 0.01  # at the goal: the bearing term would be cut off there
+    cost = DriveGoalCost(goal, w_heading=0.7)
+    plain, dist = cost.goal_cost(states)
+    cost.heading_ref = 0.4
+    ref, _ = cost.goal_cost(states)
+    gd = dist.sum(axis=1) + 5.0 * dist[:, -1] + 5.0 * dist.min(axis=1)
+    np.testing.assert_allclose(ref, gd + 0.7 * (1.0 - np.cos(states[..., 2] - 0.4)).sum(axis=1), rtol=1e-12)
+    assert not np.allclose(ref, plain)
+
+    vmax = tuple(np.asarray(robot.velocity_limits))
+    drives = StructuredDrives(cost, n_directions=8)
+    mppi = MPPI(PlanarBase(robot), None, MPPIConfig(n_samples=64, horizon=20, n_knots=6, dt=0.2, n_iters=1, clamped_spline=False, u_min=tuple(-v for v in vmax), u_max=vmax),
+                costs=[cost], sampler=drives)  # fmt: skip
+    drives.bind(mppi.spline.basis, mppi.config.dt)
+    x = np.array([0.0, 0.0, -1.0])
+    ev = mppi.evaluate(x, mppi.clip(drives.primitives(x)))
+    err = np.abs(np.angle(np.exp(1j * (ev.states[:, -1, 2] - 0.4))))  # (P,) from 1.4 rad off: every drive turns to heading_ref
+    assert err.max() < 0.35, err.max()  # (the ridge fit of the knots rounds the turn)
+    assert np.ptp(ev.states[:, -1, 2]) < 0.05  # whatever its direction of travel
+    cost.heading_ref = None
+    ev = mppi.evaluate(x, mppi.clip(drives.primitives(x)))
+    assert np.ptp(ev.states[:, -1, 2]) > 1.0  # without it: each towards its own direction of travel
+    still = drives._drive_knots(x, np.zeros((1, 20, 2)))  # a stopped drive: no turn at all
+    np.testing.assert_allclose(still, 0.0, atol=1e-12)
