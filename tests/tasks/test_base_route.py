@@ -170,3 +170,29 @@ def test_heading_ref_replaces_the_face_the_goal_term_and_steers_the_drives(corri
     assert np.ptp(ev.states[:, -1, 2]) > 1.0  # without it: each towards its own direction of travel
     still = drives._drive_knots(x, np.zeros((1, 20, 2)))  # a stopped drive: no turn at all
     np.testing.assert_allclose(still, 0.0, atol=1e-12)
+
+
+def test_run_base_holds_a_colliding_step_and_restarts_mppi(corridor, monkeypatch):
+    """With the collision cost weighted 0 the nominal drives into the wall across the corridor:
+    safe_step holds the base before it (positive clearance), counts the held steps and restarts
+    MPPI from standing still through its public reset(); without safe_step it drives through."""
+    from splatplan.planners import MPPI
+    from splatplan.tasks._common import TaskScene
+    from splatplan.tasks.base import BaseConfig, run_base
+
+    robot, _, closed = corridor
+    ts = TaskScene("corridor", closed.scene, closed, None)
+    resets = []
+    orig = MPPI.reset
+
+    def reset(self, *args, **kwargs):
+        resets.append((args, kwargs))
+        orig(self, *args, **kwargs)
+
+    monkeypatch.setattr(MPPI, "reset", reset)
+    cfg = BaseConfig(max_steps=15, w_collision=0.0, w_hit=0.0)
+    r = run_base(robot, ts, (2.0, 0.0), start=(0.3, 0.0, 0.0), config=cfg, device="cpu")
+    assert r.extra["n_held_steps"] > 0 and len(resets) == r.extra["n_held_steps"] and r.min_clearance_m > 0
+    assert r.trajectory[-1, 0] < 0.6  # stopped before the wall at x = 1 (the body reaches ~0.43 m ahead)
+    r = run_base(robot, ts, (2.0, 0.0), start=(0.3, 0.0, 0.0), config=replace(cfg, safe_step=False), device="cpu")
+    assert r.extra["n_held_steps"] == 0 and r.min_clearance_m < 0
