@@ -53,3 +53,48 @@ def test_fitted_floor_and_ground_robot_start():
     assert not hit[0] and hit[1]
     with pytest.raises(SplatplanError):
         TerrainConfig(step_height=float("nan")).validate()
+
+
+def test_floor_surface_mask_is_terrain_at_every_n_sigma():
+    from splatplan.scenes.terrain import floor_surface_mask
+
+    s, parts = floor_room()
+    surf = floor_surface_mask(s, floor_z=0.0, step_height=0.05)
+    assert surf[parts["floor"]].all() and not surf[parts["blobs"]].any()  # round blobs are not floor-like
+    for n_sigma in (0.0, 1.0, 3.0, 100.0):
+        m = terrain_mask(s, 0.0, 0.05, n_sigma=n_sigma)
+        assert m[surf].all()  # the floor's surface is terrain at any n_sigma
+    assert not terrain_mask(s, 0.0, 0.05, n_sigma=100.0)[parts["blobs"]].any()
+
+
+def test_drop_floaters_tests_upright_faint_splats_on_the_floor():
+    """A faint upright splat standing alone on the floor (a floater the capture left in the step
+    band) blocks a ground robot at n_sigma 1; align's floater rule drops it, the floor stays."""
+    from splatplan.scenes.align import AlignConfig, align_scene
+
+    s, parts = floor_room()
+    lone = np.array([[0.0, 0.5, 0.03], [-1.0, 1.5, 0.03]])  # 3 cm up, far from the strip and the box
+    upright = rotmat_to_quat(np.array([[1.0, 0, 0], [0, 0, 1.0], [0, -1.0, 0]]))  # normal along y
+    both = Splats(np.r_[s.means, lone], np.r_[s.quats, np.tile(upright, (2, 1))], np.r_[s.scales, np.tile([0.04, 0.04, 0.0005], (2, 1))],
+                  np.r_[s.opacities, [0.03, 0.03]], np.r_[s.colors, np.zeros((2, 3))])  # fmt: skip
+    assert not terrain_mask(both, 0.0, 0.05, n_sigma=1.0)[-2:].any()  # obstacles at n_sigma 1
+    out, res = align_scene(both, AlignConfig(up="+z", floor=0.0, drop_floaters=True))
+    kept = {tuple(np.round(m, 6)) for m in out.means}
+    assert not any(tuple(np.round(m, 6)) in kept for m in lone)
+    assert res.n_floaters <= 2 + 0.01 * len(s)  # the floor's surface is not tested
+
+
+def test_faint_splats_of_the_step_band_are_floor_haze():
+    s, parts = floor_room()
+    op = s.opacities.copy()
+    blobs = np.arange(len(s))[parts["blobs"]]
+    op[blobs[:500]] = 0.05  # faint haze
+    hazy = Splats(s.means, s.quats, s.scales, op, s.colors)
+    m0 = terrain_mask(hazy, 0.0, 0.05, n_sigma=5.0)  # at n_sigma 5 the round blobs reach above the band
+    m = terrain_mask(hazy, 0.0, 0.05, n_sigma=5.0, faint_below=0.1)
+    assert not m0[blobs].any() and np.array_equal(m[blobs], np.arange(len(blobs)) < 500)
+    box = np.arange(len(s))[parts["box"]]
+    assert not (m & ~m0)[box].any()  # opaque obstacles are never haze
+    _, rep = remove_terrain(hazy, TerrainConfig(floor_z=0.0, step_height=0.05), n_sigma=5.0)
+    _, rep0 = remove_terrain(hazy, TerrainConfig(floor_z=0.0, step_height=0.05, faint_below=0.0), n_sigma=5.0)
+    assert rep.n_terrain - rep0.n_terrain == 500

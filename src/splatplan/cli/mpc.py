@@ -22,6 +22,22 @@ def _floats(text: str, n: int, what: str, form: str) -> np.ndarray:
     return v
 
 
+def straight_line_blocked(robot, checker, start, goal_xy, step_m: float = 0.05, n_yaws: int = 1) -> bool:
+    """Whether the planar base collides somewhere on the straight segment from ``start`` (x, y, yaw) to
+    ``goal_xy`` at each of ``n_yaws`` fixed headings (the bearing to the goal, which the goal term
+    faces, and its turns by 2 pi / n_yaws; positions every ``step_m``): then MPPI, given only the
+    goal, would have to find a detour or a sequence of turns by itself, and `mpc` plans a route first."""
+    start = np.asarray(start, np.float64)
+    g = np.asarray(goal_xy, np.float64)
+    n = max(2, int(np.ceil(np.linalg.norm(g - start[:2]) / step_m)) + 1)
+    xy = start[:2] + (g - start[:2]) * np.linspace(0.0, 1.0, n)[:, None]  # (n, 2)
+    bearing = float(np.arctan2(g[1] - start[1], g[0] - start[0]))
+    yaws = bearing + 2 * np.pi * np.arange(n_yaws) / n_yaws  # (Y,)
+    q = np.concatenate([np.c_[xy, np.full(n, y)] for y in yaws])  # (Y n, 3)
+    hit = np.asarray(checker.collides_robot(robot, q)).any(axis=-1).reshape(n_yaws, n)
+    return bool(hit.any(axis=1).all())
+
+
 def cmd_mpc(args) -> int:
     from ..tasks._common import base_terrain, load_task_scene
     from ..tasks.plot import plot_run
@@ -59,7 +75,12 @@ def cmd_mpc(args) -> int:
         start = default if args.start is None else _floats(args.start, 3, "--start", "X,Y,YAW")
         ts = load_task_scene(scene, n_sigma=cfg.n_sigma, device=args.device, terrain=base_terrain(cfg))
         route = None
-        if args.route:
+        lo, hi = ts.splats.bounds()
+        inside = bool(np.all(g >= lo[:2]) and np.all(g <= hi[:2]))  # else run_base says so
+        want = inside and (args.route or (not args.no_route and collision and straight_line_blocked(robot, ts.checker, start, g)))
+        if want:
+            if not args.route:
+                print(f"the straight line from {start[:2].round(2).tolist()} to {g.round(2).tolist()} is blocked facing the goal: planning an SE(2) route first (--no-route: goal only)")
             route = plan_route(robot, ts.checker, start, g, time_budget_s=args.route_time, seed=args.seed)
             if route is None:
                 print(f"no SE(2) route from {start[:2].round(2).tolist()} to {g.round(2).tolist()} within {args.route_time:g} s (try a larger --route-time)")
@@ -109,7 +130,8 @@ def register(sub, eval_sub) -> None:
     s.add_argument("--start", default=None, help="start configuration: 7 joint values (panda, default home) or X,Y,YAW (go2; default -2.3,-0.6,0 in the living room of apartment, the base study's start, else 0,0,0)")
     s.add_argument("--base-pose", default=None, help=BASE_POSE_HELP)
     s.add_argument("--no-collision", action="store_true", help="switch the collision cost off (the baseline); every output says so")
-    s.add_argument("--route", action="store_true", help="go2: plan a global RRT route on SE(2) first and track it (default: goal only)")
+    s.add_argument("--route", action="store_true", help="go2: plan a global RRT route on SE(2) first and track it (default: only when the straight line to the goal is blocked, facing the goal)")
+    s.add_argument("--no-route", action="store_true", help="go2: never plan a route (the goal only, even when the straight line is blocked)")
     s.add_argument("--route-time", type=float_arg(gt=0), default=60.0, help="go2 --route: RRT time budget in seconds (default 60)")
     s.add_argument("--out", required=True, help="output folder (result.json, motion.png)")
     s.add_argument("--seed", type=SEED, default=0, help="noise seed")

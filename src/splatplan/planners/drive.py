@@ -19,7 +19,14 @@ frame (:class:`~splatplan.planners.dynamics.PlanarBase`), knots of a B-spline ov
   to the bearing to the goal after 1/4, 1/2 and 3/4 of the horizon (knots fitted by ridge least
   squares), all turning the base towards their direction of travel (``turn_rate``). They let MPPI
   see "along the wall, then through the doorway". With a field, the drives switch to following its
-  descent (streamlines) instead, plus two pure followers.
+  descent (streamlines) instead, plus two pure followers. The drive along the bearing and the
+  switching drives **stop at the goal** (:meth:`StructuredDrives._to_target`): in a small room a
+  drive that ran on at full speed met the far wall within the horizon and lost to standing still.
+* **Route tracking** (:class:`RouteTracker`): a driver that follows a route (e.g. from the RRT)
+  sets the goal term's ``goal`` to the route's point ``lookahead`` ahead of the base's progress
+  and ``heading_ref`` to the route's heading there; the heading term then faces ``heading_ref``
+  (no cutoff near the goal) and the drives turn towards it instead of their direction of travel
+  (in a narrow passage only the few headings the RRT found free fit).
 * **Stagnation recovery** (``recovery``): when the distance to the goal has not improved by
   ``stuck_progress_m`` for ``stuck_steps`` steps (and the base is more than ``min_distance_m``
   from the goal), the base sidesteps: it sweeps perpendicular to the bearing to the goal, first to
@@ -36,10 +43,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..errors import SplatplanError
 from .costs import Cost, CostValue, Rollout
 from .mppi import MPPI, Evaluation, SamplingStrategy
 
-__all__ = ["DriveGoalCost", "StructuredDrives"]
+__all__ = ["DriveGoalCost", "RouteTracker", "StructuredDrives"]
 
 
 class DriveGoalCost(Cost):
@@ -47,7 +55,9 @@ class DriveGoalCost(Cost):
     recovery sweep), and the values "goal_distance" (K, T) (straight line, m) and "goal_cost" (K,).
 
     Attributes a driver may set between steps: ``goal`` (2,) (e.g. the next waypoint of a route),
-    ``sweep`` = (heading rad, origin (2,)) during a recovery sweep, None otherwise.
+    ``heading_ref`` (rad; route tracking: the heading term faces it, ``w_heading sum_t (1 -
+    cos(yaw_t - heading_ref))`` all the way, instead of the bearing to the goal; None = the
+    bearing), ``sweep`` = (heading rad, origin (2,)) during a recovery sweep, None otherwise.
     """
 
     name = "goal"
@@ -60,13 +70,16 @@ class DriveGoalCost(Cost):
         #: a geodesic goal-distance field (``distance(xy)``, ``heading(xy)``; an ObstacleMemory), or None = straight line
         self.field = field
         self.sweep: tuple[float, np.ndarray] | None = None
+        self.heading_ref: float | None = None  # route tracking: the yaw to face (rad), instead of the bearing to the goal
 
     def goal_cost(self, states: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(K,) goal-mode cost and (K, T) straight-line distances of states (K, T, 3)."""
         dist = np.linalg.norm(states[..., :2] - self.goal, axis=-1)  # (K, T) m, straight line
         gd = dist if self.field is None else self.field.distance(states[..., :2])  # (K, T) m, geodesic on the field
         goal = self.w_goal * (gd.sum(axis=1) + self.terminal_factor * gd[:, -1] + self.min_factor * gd.min(axis=1))
-        if self.w_heading > 0:
+        if self.w_heading > 0 and self.heading_ref is not None:  # route tracking: the route's heading, all the way
+            goal = goal + self.w_heading * (1.0 - np.cos(states[..., 2] - self.heading_ref)).sum(axis=1)
+        elif self.w_heading > 0:
             if self.field is None:
                 bearing = np.arctan2(self.goal[1] - states[..., 1], self.goal[0] - states[..., 0])
             else:  # face along the geodesic
@@ -130,13 +143,16 @@ class StructuredDrives(SamplingStrategy):
     def _drive_knots(self, x: np.ndarray, v_world: np.ndarray) -> np.ndarray:
         """(P, T, 2) world-frame velocities per control step -> (P, n_knots, 3) body-frame knots
         (least-squares fit of the controls) that also turn the base towards its direction of
-        travel at up to ``turn_rate``."""
+        travel (the goal term's ``heading_ref`` when set: a tracked route's heading) at up to
+        ``turn_rate``; a stopped drive (zero velocity) keeps its heading."""
         p, t_len, _ = v_world.shape
         u = np.zeros((p, t_len, 3))
         yaw = np.full(p, float(x[2]))
+        ref = self.goal_cost.heading_ref
         for t in range(t_len):
-            psi = np.arctan2(v_world[:, t, 1], v_world[:, t, 0])
+            psi = np.arctan2(v_world[:, t, 1], v_world[:, t, 0]) if ref is None else np.full(p, float(ref))
             wz = np.clip(np.angle(np.exp(1j * (psi - yaw))) / self.dt, -self.turn_rate, self.turn_rate)
+            wz = np.where(np.hypot(v_world[:, t, 0], v_world[:, t, 1]) > 1e-9, wz, 0.0)  # stopped: keep the heading
             c, s_ = np.cos(yaw), np.sin(yaw)
             u[:, t, 0] = c * v_world[:, t, 0] + s_ * v_world[:, t, 1]
             u[:, t, 1] = -s_ * v_world[:, t, 0] + c * v_world[:, t, 1]
@@ -147,8 +163,10 @@ class StructuredDrives(SamplingStrategy):
     def primitives(self, x: np.ndarray) -> np.ndarray:
         """(P, n_knots, 3) structured samples: straight drives in ``n_directions`` world
         directions (one is the bearing to the target: the goal, or the sweep's direction), and
-        the same drives switching to the bearing to the target (from the predicted switch point)
-        after 1/4, 1/2 and 3/4 of the horizon; all turn the base towards their direction of travel."""
+        the same drives switching to the target (from the predicted switch point) after 1/4, 1/2
+        and 3/4 of the horizon; the drive along the bearing and the switching ones stop at the
+        target (:meth:`_to_target`). All turn the base towards their direction of travel. With a
+        field (memory mode) the drives follow its descent instead (:meth:`_followers`)."""
         m, t_len = self.n_directions, self.horizon
         if m <= 0:
             return np.zeros((0, self.n_knots, 3))
@@ -163,15 +181,29 @@ class StructuredDrives(SamplingStrategy):
         vw = [np.repeat(v[:, None], t_len, axis=1)]  # straight
         if geo:  # the same drives following the field's descent from their switch points, and two pure followers
             return self._drive_knots(x, np.concatenate(vw + self._followers(x, v, t_len)))
+        vw[0][0] = self._to_target(x[:2], tgt, 0, vw[0][:1])[0]  # the drive along the bearing stops at the target
         for frac in (0.25, 0.5, 0.75):
             j = max(1, int(round(frac * t_len)))
-            d = tgt - (x[:2] + v * j * self.dt)  # (m, 2) from the predicted switch points
-            w = self.speed * d / np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-9)
-            k = np.empty((m, t_len, 2))
-            k[:, :j] = v[:, None]
-            k[:, j:] = w[:, None]
-            vw.append(k)
+            vw.append(self._to_target(x[:2], tgt, j, np.repeat(v[:, None], t_len, axis=1)))
         return self._drive_knots(x, np.concatenate(vw))
+
+    def _to_target(self, xy: np.ndarray, tgt: np.ndarray, j: int, vel: np.ndarray) -> np.ndarray:
+        """(P, T, 2) world velocities ``vel`` whose steps from ``j`` on are replaced by a drive to
+        ``tgt`` (2,) that **stops at it**: a drive that overshot the goal would run into the far wall
+        of a small room within the horizon and lose to standing still. The speed is ``speed``, or
+        less where the target is nearer than that covers in half the remaining horizon
+        (``min(speed, distance / (half the remaining horizon))``: a short drive stretched over
+        several steps, since the knots' B-spline cannot hold a one-step pulse)."""
+        out = np.array(vel, np.float64, copy=True)  # (P, T, 2) world, m/s
+        p = xy + out[:, :j].sum(axis=1) * self.dt  # (P, 2) world, the switch points
+        half = max(1, (out.shape[1] - j) // 2) * self.dt  # s
+        speed = np.minimum(self.speed, np.linalg.norm(tgt - p, axis=1, keepdims=True) / half)  # (P, 1) m/s
+        for t in range(j, out.shape[1]):
+            d = tgt - p  # (P, 2)
+            n = np.linalg.norm(d, axis=1, keepdims=True)
+            out[:, t] = d / np.maximum(n, 1e-9) * np.minimum(speed, n / self.dt)  # the last step lands on the target
+            p = p + out[:, t] * self.dt
+        return out
 
     def _followers(self, x: np.ndarray, v: np.ndarray, t_len: int) -> list[np.ndarray]:
         """Field mode: (m, T, 2) world velocities of the drives ``v`` (m, 2) switching after 1/4,
@@ -259,3 +291,47 @@ class StructuredDrives(SamplingStrategy):
         if self.mode == "goal":  # what goal mode can see: the closest approach of a collision-free rollout
             self.seen = min(self.seen, float(dmin[free].min()) if free.any() else np.inf)
         return chosen
+
+
+class RouteTracker:
+    """Where a base heads along a route: the point ``lookahead`` (m of arc length) ahead of its
+    progress, and the route's yaw there (the heading term faces it: :attr:`DriveGoalCost.heading_ref`).
+    Progress is the nearest point of the route (resampled every ``step`` m) within ``2 lookahead``
+    past the last progress (so it advances at most ``2 lookahead`` per call) and never goes back,
+    so a route that doubles back on itself is followed in order.
+
+    Args:
+        route: (P, 2) or (P, 3) waypoints x, y[, yaw] (world, m, rad); without yaws each segment
+            faces along itself.
+        lookahead: arc length (m) of the target ahead of the progress.
+        step: resampling step (m).
+    """
+
+    def __init__(self, route: np.ndarray, lookahead: float, step: float = 0.02) -> None:
+        r = np.asarray(route, np.float64)  # (P, 2) or (P, 3) x, y[, yaw]
+        if r.ndim != 2 or r.shape[1] < 2 or len(r) < 1:
+            raise SplatplanError(f"a route must be (P, 2) or (P, 3) waypoints, got shape {r.shape}")
+        yawed = r.shape[1] >= 3  # else each segment faces along itself
+        r = np.c_[r[:, :2], np.unwrap(r[:, 2]) if yawed else np.zeros(len(r))]
+        pts = [r[:1]]
+        for a, b in zip(r[:-1], r[1:]):
+            if not yawed:
+                a, b = a.copy(), b.copy()
+                a[2] = b[2] = np.arctan2(b[1] - a[1], b[0] - a[0])
+            n = max(1, int(np.ceil(np.linalg.norm(b[:2] - a[:2]) / step)))
+            pts.append(a + (b - a) * (np.arange(1, n + 1)[:, None] / n))
+        if not yawed and len(pts) > 1:
+            pts[0] = pts[0].copy()
+            pts[0][0, 2] = pts[1][0, 2]
+        self.dense = np.concatenate(pts)  # (M, 3) x, y, yaw (unwrapped)
+        self.arc = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(self.dense[:, :2], axis=0), axis=1))]  # (M,) m
+        self.lookahead = float(lookahead)
+        self.s = 0.0  # progress (m of arc length)
+
+    def target(self, xy: np.ndarray) -> tuple[np.ndarray, float]:
+        """(target xy (2,), route yaw there (rad)) for the base at ``xy`` (2,); advances the progress."""
+        win = np.flatnonzero((self.arc >= self.s) & (self.arc <= self.s + 2.0 * self.lookahead))
+        i = int(win[np.argmin(np.linalg.norm(self.dense[win, :2] - np.asarray(xy, np.float64)[:2], axis=1))])
+        self.s = float(self.arc[i])
+        j = min(int(np.searchsorted(self.arc, self.s + self.lookahead)), len(self.arc) - 1)
+        return self.dense[j, :2].copy(), float(self.dense[j, 2])

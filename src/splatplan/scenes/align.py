@@ -75,7 +75,8 @@ class AlignConfig:
     #: none keeps every splat)
     crop: tuple[float, ...] | None = None
     #: drop faint isolated splats, floaters in free space (opacity < 0.3 and mean 8-NN distance above
-    #: 3x the scene's median, the floor's splats left out; scenes/filters.py isolated_mask); the count is reported
+    #: 3x the scene's median; the floor's flat splats left out, scenes/terrain.py floor_surface_mask; scenes/filters.py
+    #: isolated_mask); the count is reported
     drop_floaters: bool = False
     #: auto up: the capture convention that breaks ties between perpendicular bounding planes
     up_hint: str = bounded("-y", choices=("+x", "-x", "+y", "-y", "+z", "-z", "x", "y", "z"))
@@ -401,9 +402,11 @@ def align_scene(splats: Splats, config: AlignConfig | None = None) -> tuple[Spla
     n_floaters = 0
     if cfg.drop_floaters:
         from .filters import isolated_mask
-        from .terrain import terrain_mask
+        from .terrain import floor_surface_mask
 
-        floor = terrain_mask(out, 0.0, 0.05 * s, n_sigma=0.0) if cfg.floor != "none" else np.zeros(len(out), bool)
+        # the floor's surface is left out of the test (its own splats and their neighbours), the rest of
+        # the step band is not: a faint upright splat standing alone on the floor blocks a ground robot
+        floor = floor_surface_mask(out, 0.0, 0.05 * s) if cfg.floor != "none" else np.zeros(len(out), bool)
         iso = isolated_mask(out.means, out.opacities, candidates=~floor)
         n_floaters = int(iso.sum())
         out = out.subset(~iso)

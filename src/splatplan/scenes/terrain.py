@@ -6,9 +6,11 @@ few centimetres thick (stds of ~4 cm on phone captures), so at any n_sigma its f
 collision scene drops them (the metric and its kernels are untouched: a scene-level selection).
 
 A splat is terrain when its mean lies below ``floor_z + step_height`` **and** it is floor-like:
-either flat with a near-vertical normal (within 30 degrees of +z: a piece of the floor's surface)
+either flat with a near-vertical normal (within 30 degrees of +z: a piece of the floor's surface),
 or wholly inside the step band (its n_sigma extent along z, ``mean_z + n_sigma * sqrt(Sigma_zz)``,
-below ``floor_z + step_height``).
+below ``floor_z + step_height``), or faint (opacity below ``faint_below``, 0.1: the haze of
+upright and round splats a capture leaves on its floor; on the bathroom capture one of opacity
+0.02, 4 cm tall, ended a Go2 run at a negative clearance).
 
 ``floor_z`` is the aligned floor (z = 0 after ``splatplan scene align``), fitted from the scene
 (:func:`~splatplan.scenes.align.guess_up` with up = +z) when not given.
@@ -16,7 +18,7 @@ below ``floor_z + step_height``).
 What it can miss (by design): an obstacle lower than the step height (a threshold strip, a
 cable, a flat book) is terrain too, so the robot may walk over it; a sloped or stepped floor
 keeps its higher parts as obstacles (one floor height per scene); a floater lying flat on the
-floor is dropped with the floor.
+floor is dropped with the floor; so is a faint object lower than the step height.
 """
 
 from __future__ import annotations
@@ -41,6 +43,9 @@ class TerrainConfig:
     step_height: float = bounded(0.05, ge=0)
     #: a flat splat is floor-like when its normal lies within this angle of +z (degrees)
     max_tilt_deg: float = bounded(30.0, ge=0, le=90)
+    #: a splat of the step band fainter than this (activated opacity) is floor haze, terrain whatever
+    #: its shape (0 = off)
+    faint_below: float = bounded(0.1, ge=0, le=1)
 
     def validate(self) -> "TerrainConfig":
         check_config(self)  # declared ranges and finiteness
@@ -60,16 +65,25 @@ def fitted_floor_z(splats: Splats) -> float:
     return float(guess_up(splats, AlignConfig(up="+z", floor="auto")).floor_height)
 
 
-def terrain_mask(splats: Splats, floor_z: float, step_height: float, n_sigma: float = 1.0, max_tilt_deg: float = 30.0) -> np.ndarray:
+def terrain_mask(splats: Splats, floor_z: float, step_height: float, n_sigma: float = 1.0, max_tilt_deg: float = 30.0, faint_below: float = 0.0) -> np.ndarray:
     """(N,) bool: the terrain splats (module docstring). ``n_sigma`` is the checker's."""
-    from .align import splat_normals
-
     z = splats.means[:, 2].astype(np.float64)
     top_band = floor_z + step_height
     sz = np.sqrt(np.maximum(splats.covariances()[:, 2, 2], 0.0))
+    band = z < top_band
+    return floor_surface_mask(splats, floor_z, step_height, max_tilt_deg) | (band & (z + n_sigma * sz < top_band)) | (band & (splats.opacities < faint_below))
+
+
+def floor_surface_mask(splats: Splats, floor_z: float, step_height: float, max_tilt_deg: float = 30.0) -> np.ndarray:
+    """(N,) bool: the terrain splats at **every** n_sigma: the floor-like ones (flat, normal within
+    ``max_tilt_deg`` of +z) with their mean below ``floor_z + step_height``. The other splats of the
+    step band (upright or round ones whose n_sigma extent may reach above it) are obstacles at a
+    large enough n_sigma, so the floater rule of ``scene align --drop-floaters`` tests them too."""
+    from .align import splat_normals
+
+    z = splats.means[:, 2].astype(np.float64)
     normals, flat = splat_normals(splats)
-    floor_like = flat & (np.abs(normals[:, 2]) >= np.cos(np.radians(max_tilt_deg)))
-    return (z < top_band) & (floor_like | (z + n_sigma * sz < top_band))
+    return (z < floor_z + step_height) & flat & (np.abs(normals[:, 2]) >= np.cos(np.radians(max_tilt_deg)))
 
 
 @dataclass
@@ -89,7 +103,7 @@ def remove_terrain(splats: Splats, config: TerrainConfig | None = None, n_sigma:
     cfg = (config or TerrainConfig()).validate()
     fitted = cfg.floor_z is None
     fz = fitted_floor_z(splats) if fitted else float(cfg.floor_z)
-    mask = terrain_mask(splats, fz, cfg.step_height, n_sigma, cfg.max_tilt_deg)
+    mask = terrain_mask(splats, fz, cfg.step_height, n_sigma, cfg.max_tilt_deg, cfg.faint_below)
     out = splats.subset(~mask)
     out.info["terrain"] = {"floor_z": fz, "step_height": cfg.step_height, "n_terrain": int(mask.sum())}
     return out, TerrainReport(fz, cfg.step_height, fitted, int(mask.sum()))

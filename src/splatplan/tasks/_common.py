@@ -112,6 +112,25 @@ def densify(robot, states: np.ndarray, step_m: float = 0.01) -> np.ndarray:
     return np.concatenate(out)
 
 
+def safe_step(robot, checker, dyn, x: np.ndarray, u: np.ndarray, dt: float, step_m: float = 0.01) -> tuple[np.ndarray, np.ndarray | None]:
+    """The executed motion of one control period, checked before it is driven: (control, next
+    state) of the first of ``u``, ``u / 2``, ``u / 4`` (du,) whose motion over ``dt`` (s) from the
+    state ``x`` (dx,) under the dynamics ``dyn`` is collision-free by the metric at every
+    configuration of :func:`densify` (``step_m`` of ellipsoid motion: the reported clearance's
+    sampling); (zeros, None) when all three collide, and the caller holds the robot still.
+    MPPI's rollouts are checked only at their control steps, so at speed a thin obstacle can
+    fall between two of them."""
+    x = np.asarray(x, np.float64)
+    u = np.asarray(u, np.float64)
+    for f in (1.0, 0.5, 0.25):
+        uf = u * f
+        x1 = dyn.rollout(x, uf[None, None, :], dt)[0, 0]  # (dx,)
+        q = densify(robot, np.stack([x, x1]), step_m)
+        if not np.asarray(checker.collides_robot(robot, q)).any():
+            return uf, x1
+    return np.zeros_like(u), None
+
+
 def trajectory_clearance(robot, scene: TaskScene, states: np.ndarray) -> tuple[float, str, np.ndarray]:
     """Smallest clearance (m) of any robot ellipsoid over the densified trajectory.
 

@@ -38,8 +38,15 @@ one, so the kitchen is unreachable; at 0.75 the free bands of the centre are 16,
 exact boxes by 2-3 cm in tight spots, which the metric at 0.5 did not see. The exact clearance
 to the boxes is what the studies report.
 
-With ``route`` (a path, e.g. from :func:`plan_route`), the goal term follows the route's
-waypoints instead and the recovery and the memory are off (``--route`` in the CLI).
+With ``route`` (a path, e.g. from :func:`plan_route`), the goal term follows the route instead
+(:class:`~splatplan.planners.drive.RouteTracker`: the point ``route_lookahead_m`` ahead of the
+base's progress along it, and the heading term faces the route's yaw there, the heading the RRT
+found free) and the recovery and the memory are off (``--route`` in the CLI, and by default there
+when the straight line to the goal is blocked).
+
+With ``safe_step`` (on) each executed control period is checked densified before it is driven
+(:func:`~splatplan.tasks._common.safe_step`): a colliding one is halved twice, else the base holds
+still and MPPI restarts from standing still (``extra["n_held_steps"]``).
 """
 
 from __future__ import annotations
@@ -52,7 +59,7 @@ import numpy as np
 from .._config import NESTED_SKIP, bounded, check_config
 from ..errors import SplatplanError
 from ..planners.mppi import MPPIConfig
-from ._common import TaskResult, base_terrain, check_start, load_task_scene, trajectory_clearance
+from ._common import TaskResult, base_terrain, check_start, load_task_scene, safe_step, trajectory_clearance
 
 __all__ = ["FOOT_CLEARANCE", "START", "BaseConfig", "load_go2", "plan_route", "run_base"]
 
@@ -145,6 +152,15 @@ class BaseConfig:
     collision_s2_cap: float = bounded(2.0, ge=1)
     #: query the collision cost on every stride-th step of the horizon
     collision_stride: int = bounded(1, ge=1)
+    #: with a route: the goal term tracks the route's point this far (m, arc length) ahead of the
+    #: base's progress along it, and the heading term its heading there (the route's yaw is one the
+    #: RRT found free: in a narrow passage only a few headings are)
+    route_lookahead_m: float = bounded(0.4, gt=0)
+    #: check each executed control period's motion (densified to 1 cm of ellipsoid motion, as the
+    #: reported clearance is) before driving it; a colliding one is halved (twice), else the base holds
+    #: still for that period. The rollouts are checked only at their 0.2 s steps, so at speed a
+    #: thin obstacle (a leg's 4 cm against 16 cm a step) can fall between two of them
+    safe_step: bool = True
     #: success: final distance to the goal below this (m)
     goal_tol: float = bounded(0.2, gt=0)
     #: height of the floor (m; 0 after `scene align`), auto = fitted from the scene, none = no terrain:
@@ -244,12 +260,13 @@ def run_base(
         start: (3,) start (x, y, yaw); default (0, 0, 0) (the CLI uses :data:`START` on the apartment).
         config: :class:`BaseConfig`.
         collision: include the collision cost.
-        route: optional (P, 2+) waypoints; the goal cost then tracks the next waypoint ahead.
+        route: optional (P, 2) or (P, 3) waypoints (x, y[, yaw]); the goal term then tracks the
+            route (:class:`~splatplan.planners.drive.RouteTracker`, ``route_lookahead_m`` ahead).
         device: metric device.
         progress: optional callable(step, distance) per MPC step.
     """
     from ..planners import MPPI, CollisionCost, ControlEffortCost, PlanarBase
-    from ..planners.drive import DriveGoalCost, StructuredDrives
+    from ..planners.drive import DriveGoalCost, RouteTracker, StructuredDrives
     from ..planners.memory import ObstacleMemory
 
     cfg = (config or BaseConfig()).validate()
@@ -284,23 +301,30 @@ def run_base(
                               exit_margin_m=cfg.detour_exit_margin_m, first_sweep=cfg.first_sweep)  # fmt: skip
     mppi = MPPI(dyn, None, replace(cfg.mppi, u_min=tuple(-vmax), u_max=tuple(vmax)), costs=costs, sampler=drives)
     wps = None if route is None else np.asarray(route, np.float64)[:, :2]
+    track = None if route is None else RouteTracker(route, cfg.route_lookahead_m)
     states = [x.copy()]
     t0 = time.perf_counter()
-    n_steps = 0
+    n_steps = n_held = 0
     for step in range(cfg.max_steps):
         dist = float(np.linalg.norm(x[:2] - g))
         if progress is not None:
             progress(step, dist)
         if dist < 0.5 * cfg.goal_tol:
             break
-        if wps is not None:  # track the first waypoint more than 1 m ahead along the route
-            i = int(np.argmin(np.linalg.norm(wps - x[:2], axis=1)))
-            ahead = [j for j in range(i, len(wps)) if np.linalg.norm(wps[j] - x[:2]) > 1.0]
-            goal_cost.goal = wps[ahead[0]] if ahead else g
+        if track is not None:  # the route's point route_lookahead_m ahead of the base's progress, and its heading
+            goal_cost.goal, goal_cost.heading_ref = track.target(x[:2])
         if memory is not None:
             memory.sense(x[:2])
         u, _ = mppi.step(x)
-        x = dyn.rollout(x, u[None, None, :], cfg.mppi.dt)[0, 0]
+        if collision and cfg.safe_step:
+            u, x_next = safe_step(robot, ts.checker, dyn, x, u, cfg.mppi.dt)
+            if x_next is None:  # held: the nominal ran into it, plan afresh from standing still
+                n_held += 1
+                x_next = x.copy()
+                mppi.reset()
+            x = x_next
+        else:
+            x = dyn.rollout(x, u[None, None, :], cfg.mppi.dt)[0, 0]
         states.append(x.copy())
         n_steps += 1
     elapsed = time.perf_counter() - t0
@@ -319,7 +343,7 @@ def run_base(
         clearance_source=source,
         message="" if success else ("in collision" if clearance <= 0 else "goal not reached within max_steps"),
         goal={"position": g.tolist()},
-        extra={"robot": robot.name, "scene": ts.name, "n_steps": n_steps, "time_to_goal_s": n_steps * cfg.mppi.dt, "route": None if wps is None else wps.round(4).tolist(), "n_splats": len(ts.splats), "events": drives.events,
+        extra={"robot": robot.name, "scene": ts.name, "n_steps": n_steps, "n_held_steps": n_held, "time_to_goal_s": n_steps * cfg.mppi.dt, "route": None if wps is None else wps.round(4).tolist(), "n_splats": len(ts.splats), "events": drives.events,
                "memory": None if memory is None else {**memory.stats, "cell_m": memory.cell, "sensor_radius_m": memory.radius, "n_yaws": len(memory.yaws), "shape": list(memory.shape),
                                                         "occlusion": memory.occlusion, "sensor_height_m": memory.sensor_height}},
         maps={} if memory is None else {"memory_blocked": memory.blocked.copy(), "memory_sensed": memory.sensed.copy(), "memory_origin": memory.origin.copy(), "memory_cell": memory.cell},
