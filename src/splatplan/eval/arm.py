@@ -20,16 +20,16 @@ passes over the wall by itself (1 of 5 targets penetrated), which tests little.
 
 from __future__ import annotations
 
-import json
 import time
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
-from .._config import NESTED_SKIP, bounded, check_config
+from .._config import NESTED_SKIP, bounded
 from ..tasks.arm import ArmConfig
-from ._common import config_rows, write_atomic
+from ._common import config_rows
+from ._study import StudyResult, TaskStudyConfig, seeded_task, write_outputs
 
 #: Start configuration of the study (rad): gripper down, tool centre at (0.34, 0, 0.06) m in front of
 #: the front wall (IK of that pose; 4.5 cm exact clearance of the moving links).
@@ -86,7 +86,7 @@ def _study_task() -> "ArmConfig":
 
 
 @dataclass
-class ArmStudyConfig:
+class ArmStudyConfig(TaskStudyConfig):
     """Knobs of the arm study (defaults = the full run; :meth:`quick_config` = the smoke version)."""
 
     #: targets behind the wall (each run with and without the collision cost)
@@ -97,10 +97,6 @@ class ArmStudyConfig:
     throughput: bool = True
     #: target and noise seed (an integer >= 0)
     seed: int = bounded(0, ge=0)
-    #: metric device: auto (CUDA when present, else CPU) | cpu | cuda | cuda:N
-    device: str = "auto"
-    #: the smoke-test settings of :meth:`quick_config` (recorded in the JSON)
-    quick: bool = False
 
     @classmethod
     def quick_config(cls) -> "ArmStudyConfig":
@@ -108,25 +104,14 @@ class ArmStudyConfig:
         t = _study_task()
         return cls(n_targets=1, task=replace(t, mppi=replace(t.mppi, n_samples=32, horizon=12), max_steps=25, collision_stride=3), throughput=False, quick=True)
 
-    def validate(self) -> "ArmStudyConfig":
-        check_config(self)
-        self.task.validate()
-        return self
-
 
 @dataclass
-class ArmStudyResult:
+class ArmStudyResult(StudyResult):
     """What the arm study measured: ``data`` is the content of ``arm.json``."""
-
-    data: dict
 
     @property
     def rows(self) -> list[dict]:
         return self.data["rows"]
-
-    def to_json(self) -> dict:
-        """The content of ``arm.json``."""
-        return self.data
 
 
 def run(config: ArmStudyConfig | None = None, engine=None) -> ArmStudyResult:
@@ -136,7 +121,7 @@ def run(config: ArmStudyConfig | None = None, engine=None) -> ArmStudyResult:
     from ..tasks.arm import run_arm
 
     cfg = (config or ArmStudyConfig()).validate()
-    seed, device, task = cfg.seed, cfg.device, replace(cfg.task, mppi=replace(cfg.task.mppi, seed=cfg.seed))
+    seed, device, task = cfg.seed, cfg.device, seeded_task(cfg)
     t0 = time.perf_counter()
     targets = pick_targets(cfg.n_targets, seed=seed)
     ts = load_task_scene("tabletop", n_sigma=task.n_sigma, device=device)
@@ -176,15 +161,4 @@ def markdown(result: ArmStudyResult) -> str:
 
 def report(result: ArmStudyResult, out_dir) -> list[Path]:
     """Write ``arm.json`` and ``arm.md`` into ``out_dir`` (an existing folder); returns their paths."""
-    out_dir = Path(out_dir)
-    write_atomic(out_dir / "arm.json", json.dumps(result.to_json(), indent=1) + "\n")
-    write_atomic(out_dir / "arm.md", markdown(result))
-    return [out_dir / "arm.json", out_dir / "arm.md"]
-
-
-def run_arm_study(config: ArmStudyConfig | None = None, out_dir=None) -> dict:
-    """:func:`run`, then :func:`report` into ``out_dir`` when given; returns the JSON dict."""
-    res = run(config)
-    if out_dir is not None:
-        report(res, out_dir)
-    return res.to_json()
+    return write_outputs(out_dir, "arm", result.to_json(), markdown(result), indent=1)
