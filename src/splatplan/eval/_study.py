@@ -54,10 +54,12 @@ class StudyConfig:
 @dataclass
 class TaskStudyConfig(StudyConfig):
     """Base of a study that runs a task: its subclass declares ``task`` (the task's config dataclass,
-    which has a ``validate()``); :meth:`check` validates it."""
+    which has a ``validate()``); :meth:`check` validates it (nothing on the bare base)."""
 
     def check(self) -> None:
-        self.task.validate()
+        task = getattr(self, "task", None)
+        if task is not None:
+            task.validate()
 
 
 @dataclass
@@ -70,9 +72,9 @@ class ImageGoalStudyConfig(TaskStudyConfig):
     encoder_weights: str | None = None
 
 
-def seeded_task(cfg):
-    """``cfg.task`` with its MPPI noise seed set to the study's ``cfg.seed``."""
-    return replace(cfg.task, mppi=replace(cfg.task.mppi, seed=cfg.seed))
+def seeded_task(task, seed: int):
+    """A task config (with an ``mppi`` field) with its MPPI noise seed set to ``seed``."""
+    return replace(task, mppi=replace(task.mppi, seed=seed))
 
 
 @dataclass

@@ -121,7 +121,7 @@ def run(config: ArmStudyConfig | None = None, engine=None) -> ArmStudyResult:
     from ..tasks.arm import run_arm
 
     cfg = (config or ArmStudyConfig()).validate()
-    seed, device, task = cfg.seed, cfg.device, seeded_task(cfg)
+    seed, device, task = cfg.seed, cfg.device, seeded_task(cfg.task, cfg.seed)
     t0 = time.perf_counter()
     targets = pick_targets(cfg.n_targets, seed=seed)
     ts = load_task_scene("tabletop", n_sigma=task.n_sigma, device=device)

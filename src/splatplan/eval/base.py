@@ -111,7 +111,7 @@ def run(config: BaseStudyConfig | None = None, engine=None) -> BaseStudyResult:
     from ..tasks.base import load_go2, run_base
 
     cfg = (config or BaseStudyConfig()).validate()
-    seed, device, task = cfg.seed, cfg.device, seeded_task(cfg)
+    seed, device, task = cfg.seed, cfg.device, seeded_task(cfg.task, cfg.seed)
     t0 = time.perf_counter()
     goals = pick_goals(cfg.n_goals, seed=seed)
     robot = load_go2()
