@@ -53,7 +53,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from .._config import NESTED_SKIP, bounded, check_config
+from .._config import NESTED_SKIP, bounded, check_config, check_order
 from ..errors import SplatplanError
 from ..planners.goal_refiner import GoalRefiner
 from ..planners.mppi import MPPI, MPPIConfig
@@ -178,8 +178,7 @@ class ReachConfig:
         """Check every field's declared range (:mod:`splatplan._config`) and the cross-field rules; returns self."""
         check_config(self)
         self.mppi.validate()
-        if self.refine_sigma_min > self.refine_sigma:
-            raise SplatplanError(f"ReachConfig.refine_sigma_min must be <= refine_sigma, got {self.refine_sigma_min} > {self.refine_sigma}")
+        check_order(self, "refine_sigma_min", "refine_sigma")
         return self
 
 
