@@ -355,6 +355,20 @@ def row_x_span(c: wp.vec3, e1: wp.vec3, e2: wp.vec3, s_cut: float, cb: wp.vec3, 
 
 
 @wp.func
+def row_runs(x0s: int, xa: int, xb: int, dim: int):
+    """Cells xs + xa .. xs + xb of a row whose first cell wraps to x0s: (x0 < dim, x1 = x0 + xb - xa,
+    the number of contiguous runs: 2 when x1 >= dim wraps past dim - 1, else 1); see :func:`run_cells`."""
+    x0 = x0s + xa
+    if x0 >= dim:
+        x0 -= dim
+    x1 = x0 + xb - xa
+    n_run = int(1)
+    if x1 >= dim:
+        n_run = 2
+    return x0, x1, n_run
+
+
+@wp.func
 def run_cells(run: int, x0: int, x1: int, dim: int):
     """Wrapped cells (a0, a1) of the contiguous run ``run`` of a row's unwrapped-order cells x0 .. x1
     (x0 < dim): run 0 is x0 .. min(x1, dim - 1), run 1 (when x1 >= dim) wraps to 0 .. x1 - dim."""
@@ -509,13 +523,7 @@ def metric_full_kernel(
                     xb = wp.min(xb, x_cell(xh, inv_w, 1.0) - xs)
                     if xb < xa:
                         continue
-                x0 = x0s + xa
-                if x0 >= dim[0]:
-                    x0 -= dim[0]
-                x1 = x0 + xb - xa  # cells x0..x1 of a row, wrapping past dim[0] - 1 into a second run
-                n_run = 1
-                if x1 >= dim[0]:
-                    n_run = 2
+                x0, x1, n_run = row_runs(x0s, xa, xb, dim[0])  # cells x0..x1 of a row, wrapping past dim[0] - 1 into a second run
                 for run in range(n_run):
                     a0, a1 = run_cells(run, x0, x1, dim[0])
                     for i in range(splats.cell_start[row + a0] + lane, splats.cell_start[row + a1 + 1], lp.lanes):
@@ -667,13 +675,7 @@ def metric_collide_kernel(
                         xb = wp.min(xb, x_cell(xh, inv_w, 1.0) - xs)
                         if xb < xa:
                             continue
-                x0 = x0s + xa
-                if x0 >= dim[0]:
-                    x0 -= dim[0]
-                x1 = x0 + xb - xa
-                n_run = 1
-                if x1 >= dim[0]:
-                    n_run = 2
+                x0, x1, n_run = row_runs(x0s, xa, xb, dim[0])
                 for run in range(n_run):
                     a0, a1 = run_cells(run, x0, x1, dim[0])
                     for i in range(splats.cell_start[row + a0], splats.cell_start[row + a1 + 1]):
