@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import json
 import re
-from dataclasses import asdict, dataclass, replace
+from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
@@ -70,11 +70,6 @@ class ImageGoalStudyConfig(TaskStudyConfig):
     encoder: str = bounded("thumbnail", choices=ENCODER_NAMES)
     #: encoder weights (DINOv2: a Hugging Face folder; efficientnet-lite0: an optional .pth); None = the default
     encoder_weights: str | None = None
-
-
-def seeded_task(task, seed: int):
-    """A task config (with an ``mppi`` field) with its MPPI noise seed set to ``seed``."""
-    return replace(task, mppi=replace(task.mppi, seed=seed))
 
 
 @dataclass

@@ -29,9 +29,10 @@ from pathlib import Path
 import numpy as np
 
 from .._config import NESTED_SKIP, bounded
+from ..tasks._common import replace_mppi
 from ..tasks.base import START, BaseConfig  # START: (-2.3, -0.6, yaw 0) in the living room
 from ._common import config_rows, mean_std
-from ._study import StudyResult, TaskStudyConfig, seeded_task, write_outputs
+from ._study import StudyResult, TaskStudyConfig, write_outputs
 
 #: The rows: config name -> (collision cost, memory, what the row is).
 CONFIGS = {
@@ -111,7 +112,7 @@ def run(config: BaseStudyConfig | None = None, engine=None) -> BaseStudyResult:
     from ..tasks.base import load_go2, run_base
 
     cfg = (config or BaseStudyConfig()).validate()
-    seed, device, task = cfg.seed, cfg.device, seeded_task(cfg.task, cfg.seed)
+    seed, device, task = cfg.seed, cfg.device, replace_mppi(cfg.task, seed=cfg.seed)
     t0 = time.perf_counter()
     goals = pick_goals(cfg.n_goals, seed=seed)
     robot = load_go2()
@@ -119,7 +120,7 @@ def run(config: BaseStudyConfig | None = None, engine=None) -> BaseStudyResult:
     trials = []
     for i, g in enumerate(goals):
         for name, (collision, memory, _) in CONFIGS.items():
-            r = run_base(robot, ts, g, start=START, config=replace(task, mppi=replace(task.mppi, seed=seed + i), memory=memory), collision=collision, device=device)
+            r = run_base(robot, ts, g, start=START, config=replace(replace_mppi(task, seed=seed + i), memory=memory), collision=collision, device=device)
             trials.append(_trial(i, g, name, r))
             print(f"  goal {i} {g.round(2).tolist()} {name:22s}: distance {r.final_position_error_m:.2f} m, clearance {r.min_clearance_m * 100:+.1f} cm, "
                   f"{'reached' if r.success else 'not reached'}, {r.extra['n_steps']} steps, {r.steps_per_s:.2f} steps/s", flush=True)  # fmt: skip

@@ -22,6 +22,7 @@ import numpy as np
 
 from .._config import bounded
 from ..errors import SplatplanError
+from ..tasks._common import replace_mppi
 from ..tasks.reach import ReachConfig
 from ._study import ImageGoalStudyConfig, StudyResult, write_outputs
 
@@ -31,7 +32,7 @@ PAPER = {"without_collision": (-0.021, 0.0147, 3.48), "with_collision": (0.017, 
 
 def quick_task_config(cfg):
     """Smaller task settings for ``--quick`` (< 2 min on 2 busy cores)."""
-    return replace(cfg, mppi=replace(cfg.mppi, n_samples=16, horizon=24, n_knots=6, dt=0.1), plan_iters=20, plan_start_iters=10, plan_start_refine=5, refine_plan_iters=10, image_size=32, n_views=4)
+    return replace(replace_mppi(cfg, n_samples=16, horizon=24, n_knots=6, dt=0.1), plan_iters=20, plan_start_iters=10, plan_start_refine=5, refine_plan_iters=10, image_size=32, n_views=4)
 
 
 def goal_figure(robot, scene, goal, target, runs: dict):

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -26,6 +26,11 @@ class TaskScene:
     splats: object
     checker: object
     analytic: object | None
+
+
+def replace_mppi(cfg, /, **changes):
+    """``cfg`` (a task config embedding ``mppi: MPPIConfig``) with the MPPIConfig fields ``changes`` changed."""
+    return replace(cfg, mppi=replace(cfg.mppi, **changes))
 
 
 def load_filtered_scene(scene, n_splats: int | None = None, seed: int = 0):
