@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .._config import check_config
 from ..errors import SplatplanError
 
 
@@ -26,6 +27,25 @@ class TaskScene:
     splats: object
     checker: object
     analytic: object | None
+
+
+@dataclass
+class TaskConfig:
+    """Base of the task configs: a subclass embeds ``mppi: MPPIConfig``; :meth:`validate` checks
+    every field's declared range (:mod:`splatplan._config`), the embedded MPPIConfig, then the
+    task's cross-field rules (:meth:`check`)."""
+
+    def validate(self):
+        """Raise SplatplanError naming the field when a value is not allowed; returns self."""
+        check_config(self)
+        mppi = getattr(self, "mppi", None)  # (none on the bare base)
+        if mppi is not None:
+            mppi.validate()
+        self.check()
+        return self
+
+    def check(self) -> None:
+        """The task's cross-field rules (raise SplatplanError); none by default."""
 
 
 def replace_mppi(cfg, /, **changes):
