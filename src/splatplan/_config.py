@@ -146,3 +146,10 @@ def check_config(cfg, name: str | None = None):
         if msg:
             raise SplatplanError(f"{cls_name}.{f.name} {msg}")
     return cfg
+
+
+def check_order(cfg, low: str, high: str) -> None:
+    """The cross-field rule ``cfg.<low> <= cfg.<high>``: raises :class:`SplatplanError` naming both."""
+    a, b = getattr(cfg, low), getattr(cfg, high)
+    if a > b:
+        raise SplatplanError(f"{type(cfg).__name__}.{low} must be <= {high}, got {a} > {b}")

@@ -48,19 +48,18 @@ def register(sub, eval_sub) -> None:
     from ..eval.navigate import NavigateStudyConfig
     from ..eval.reach import ReachStudyConfig
 
-    e = eval_sub.add_parser("reach", help="E5 visual reaching (paper Table IV): wrist-camera image goals, with / without the collision cost",
-                            description="E5 visual reaching: the Panda reaches 5 goal images in the tabletop with MPPI and the terminal image cost.")  # fmt: skip
-    e.add_argument("--out", required=True, help="output folder (created)")
-    e.add_argument("--quick", action="store_true", help="1 goal and small settings (< 2 min); flags still override them")
-    add_config_args(e, ReachStudyConfig, skip=("quick",), group="study options (ReachStudyConfig)")
-    e.set_defaults(func=cmd_eval_study, study="reach", cls=ReachStudyConfig)
-
-    n = eval_sub.add_parser("navigate", help="E6 image-goal navigation: 10 held-out target images in the apartment",
-                            description="E6 image-goal navigation: exploration tree, view retrieval, MPPI drive, 10 held-out targets.")  # fmt: skip
-    n.add_argument("--out", required=True, help="output folder (created)")
-    n.add_argument("--quick", action="store_true", help="3 targets and a small tree (< 2 min); flags still override them")
-    add_config_args(n, NavigateStudyConfig, skip=("quick",), group="study options (NavigateStudyConfig)")
-    n.set_defaults(func=cmd_eval_study, study="navigate", cls=NavigateStudyConfig)
+    studies = (
+        ("reach", ReachStudyConfig, "E5 visual reaching (paper Table IV): wrist-camera image goals, with / without the collision cost",
+         "E5 visual reaching: the Panda reaches 5 goal images in the tabletop with MPPI and the terminal image cost.", "1 goal and small settings"),
+        ("navigate", NavigateStudyConfig, "E6 image-goal navigation: 10 held-out target images in the apartment",
+         "E6 image-goal navigation: exploration tree, view retrieval, MPPI drive, 10 held-out targets.", "3 targets and a small tree"),
+    )  # fmt: skip
+    for name, cls, help_, description, quick in studies:
+        e = eval_sub.add_parser(name, help=help_, description=description)
+        e.add_argument("--out", required=True, help="output folder (created)")
+        e.add_argument("--quick", action="store_true", help=f"{quick} (< 2 min); flags still override them")
+        add_config_args(e, cls, skip=("quick",), group=f"study options ({cls.__name__})")
+        e.set_defaults(func=cmd_eval_study, study=name, cls=cls)
 
 
 def cmd_eval_study(args) -> int:

@@ -20,16 +20,17 @@ passes over the wall by itself (1 of 5 targets penetrated), which tests little.
 
 from __future__ import annotations
 
-import json
 import time
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
-from .._config import NESTED_SKIP, bounded, check_config
+from .._config import NESTED_SKIP, bounded
+from ..tasks._common import replace_mppi
 from ..tasks.arm import ArmConfig
-from ._common import config_rows, write_atomic
+from ._common import config_rows
+from ._study import StudyResult, TaskStudyConfig, write_outputs
 
 #: Start configuration of the study (rad): gripper down, tool centre at (0.34, 0, 0.06) m in front of
 #: the front wall (IK of that pose; 4.5 cm exact clearance of the moving links).
@@ -72,7 +73,7 @@ def arm_throughput(n_samples: int = 256, horizon: int = 32, n_steps: int = 3, de
 
     ts = load_task_scene("tabletop", device=device, n_splats=n_splats)
     base = ArmConfig()
-    cfg = replace(base, mppi=replace(base.mppi, n_samples=n_samples, horizon=horizon), collision_stride=1, max_steps=1, stop_tol=0.0)
+    cfg = replace(replace_mppi(base, n_samples=n_samples, horizon=horizon), collision_stride=1, max_steps=1, stop_tol=0.0)
     run_arm("panda", ts, [0.64, 0.0, 0.0], down_quat(), config=cfg, check_goal=False, device=device)  # warm-up (kernels, grids)
     r = run_arm("panda", ts, [0.64, 0.0, 0.0], down_quat(), config=replace(cfg, max_steps=n_steps), check_goal=False, device=device)
     return {"n_samples": n_samples, "horizon": horizon, "n_splats": len(ts.splats), "n_ellipsoids": 11, "collision_stride": 1,
@@ -86,7 +87,7 @@ def _study_task() -> "ArmConfig":
 
 
 @dataclass
-class ArmStudyConfig:
+class ArmStudyConfig(TaskStudyConfig):
     """Knobs of the arm study (defaults = the full run; :meth:`quick_config` = the smoke version)."""
 
     #: targets behind the wall (each run with and without the collision cost)
@@ -97,36 +98,21 @@ class ArmStudyConfig:
     throughput: bool = True
     #: target and noise seed (an integer >= 0)
     seed: int = bounded(0, ge=0)
-    #: metric device: auto (CUDA when present, else CPU) | cpu | cuda | cuda:N
-    device: str = "auto"
-    #: the smoke-test settings of :meth:`quick_config` (recorded in the JSON)
-    quick: bool = False
 
     @classmethod
     def quick_config(cls) -> "ArmStudyConfig":
         """1 target, K = 32, T = 12, 25 steps, collision stride 3, no throughput row (< 1 min)."""
         t = _study_task()
-        return cls(n_targets=1, task=replace(t, mppi=replace(t.mppi, n_samples=32, horizon=12), max_steps=25, collision_stride=3), throughput=False, quick=True)
-
-    def validate(self) -> "ArmStudyConfig":
-        check_config(self)
-        self.task.validate()
-        return self
+        return cls(n_targets=1, task=replace(replace_mppi(t, n_samples=32, horizon=12), max_steps=25, collision_stride=3), throughput=False, quick=True)
 
 
 @dataclass
-class ArmStudyResult:
+class ArmStudyResult(StudyResult):
     """What the arm study measured: ``data`` is the content of ``arm.json``."""
-
-    data: dict
 
     @property
     def rows(self) -> list[dict]:
         return self.data["rows"]
-
-    def to_json(self) -> dict:
-        """The content of ``arm.json``."""
-        return self.data
 
 
 def run(config: ArmStudyConfig | None = None, engine=None) -> ArmStudyResult:
@@ -136,14 +122,14 @@ def run(config: ArmStudyConfig | None = None, engine=None) -> ArmStudyResult:
     from ..tasks.arm import run_arm
 
     cfg = (config or ArmStudyConfig()).validate()
-    seed, device, task = cfg.seed, cfg.device, replace(cfg.task, mppi=replace(cfg.task.mppi, seed=cfg.seed))
+    seed, device, task = cfg.seed, cfg.device, replace_mppi(cfg.task, seed=cfg.seed)
     t0 = time.perf_counter()
     targets = pick_targets(cfg.n_targets, seed=seed)
     ts = load_task_scene("tabletop", n_sigma=task.n_sigma, device=device)
     trials = []
     for i, (p, quat) in enumerate(targets):
         for collision in (True, False):
-            r = run_arm("panda", ts, p, quat, config=replace(task, mppi=replace(task.mppi, seed=seed + i)), collision=collision, q0=np.asarray(START_Q), device=device)
+            r = run_arm("panda", ts, p, quat, config=replace_mppi(task, seed=seed + i), collision=collision, q0=np.asarray(START_Q), device=device)
             trials.append({
                 "target": i, "config": "with_collision" if collision else "without_collision", "goal_position": p.round(4).tolist(),
                 "goal_quat_wxyz": quat.round(4).tolist(), "success": r.success, "min_clearance_m": r.min_clearance_m, "min_clearance_moving_links_m": r.extra["min_clearance_moving_links_m"],
@@ -176,15 +162,4 @@ def markdown(result: ArmStudyResult) -> str:
 
 def report(result: ArmStudyResult, out_dir) -> list[Path]:
     """Write ``arm.json`` and ``arm.md`` into ``out_dir`` (an existing folder); returns their paths."""
-    out_dir = Path(out_dir)
-    write_atomic(out_dir / "arm.json", json.dumps(result.to_json(), indent=1) + "\n")
-    write_atomic(out_dir / "arm.md", markdown(result))
-    return [out_dir / "arm.json", out_dir / "arm.md"]
-
-
-def run_arm_study(config: ArmStudyConfig | None = None, out_dir=None) -> dict:
-    """:func:`run`, then :func:`report` into ``out_dir`` when given; returns the JSON dict."""
-    res = run(config)
-    if out_dir is not None:
-        report(res, out_dir)
-    return res.to_json()
+    return write_outputs(out_dir, "arm", result.to_json(), markdown(result), indent=1)

@@ -22,16 +22,17 @@ goal; ``rows_meaning`` says what each row is, ``memory_cost`` the time spent sen
 
 from __future__ import annotations
 
-import json
 import time
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
-from .._config import NESTED_SKIP, bounded, check_config
+from .._config import NESTED_SKIP, bounded
+from ..tasks._common import replace_mppi
 from ..tasks.base import START, BaseConfig  # START: (-2.3, -0.6, yaw 0) in the living room
-from ._common import config_rows, mean_std, write_atomic
+from ._common import config_rows, mean_std
+from ._study import StudyResult, TaskStudyConfig, write_outputs
 
 #: The rows: config name -> (collision cost, memory, what the row is).
 CONFIGS = {
@@ -70,7 +71,7 @@ def _study_task() -> BaseConfig:
 
 
 @dataclass
-class BaseStudyConfig:
+class BaseStudyConfig(TaskStudyConfig):
     """Knobs of the base study (defaults = the full run; :meth:`quick_config` = the smoke version)."""
 
     #: goals, alternating bedroom / kitchen (each run in every row of CONFIGS)
@@ -79,31 +80,16 @@ class BaseStudyConfig:
     task: BaseConfig = field(default_factory=_study_task, metadata={NESTED_SKIP: ("mppi.seed", "memory")})
     #: goal and noise seed (an integer >= 0)
     seed: int = bounded(0, ge=0)
-    #: metric device: auto (CUDA when present, else CPU) | cpu | cuda | cuda:N
-    device: str = "auto"
-    #: the smoke-test settings of :meth:`quick_config` (recorded in the JSON)
-    quick: bool = False
 
     @classmethod
     def quick_config(cls) -> "BaseStudyConfig":
         """1 goal, 130 MPC steps (< 2 min on 2 cores)."""
         return cls(n_goals=1, task=replace(_study_task(), max_steps=130), quick=True)
 
-    def validate(self) -> "BaseStudyConfig":
-        check_config(self)
-        self.task.validate()
-        return self
-
 
 @dataclass
-class BaseStudyResult:
+class BaseStudyResult(StudyResult):
     """What the base study measured: ``data`` is the content of ``base.json``."""
-
-    data: dict
-
-    def to_json(self) -> dict:
-        """The content of ``base.json``."""
-        return self.data
 
 
 def _trial(i: int, g: np.ndarray, name: str, r) -> dict:
@@ -126,7 +112,7 @@ def run(config: BaseStudyConfig | None = None, engine=None) -> BaseStudyResult:
     from ..tasks.base import load_go2, run_base
 
     cfg = (config or BaseStudyConfig()).validate()
-    seed, device, task = cfg.seed, cfg.device, replace(cfg.task, mppi=replace(cfg.task.mppi, seed=cfg.seed))
+    seed, device, task = cfg.seed, cfg.device, replace_mppi(cfg.task, seed=cfg.seed)
     t0 = time.perf_counter()
     goals = pick_goals(cfg.n_goals, seed=seed)
     robot = load_go2()
@@ -134,7 +120,7 @@ def run(config: BaseStudyConfig | None = None, engine=None) -> BaseStudyResult:
     trials = []
     for i, g in enumerate(goals):
         for name, (collision, memory, _) in CONFIGS.items():
-            r = run_base(robot, ts, g, start=START, config=replace(task, mppi=replace(task.mppi, seed=seed + i), memory=memory), collision=collision, device=device)
+            r = run_base(robot, ts, g, start=START, config=replace(replace_mppi(task, seed=seed + i), memory=memory), collision=collision, device=device)
             trials.append(_trial(i, g, name, r))
             print(f"  goal {i} {g.round(2).tolist()} {name:22s}: distance {r.final_position_error_m:.2f} m, clearance {r.min_clearance_m * 100:+.1f} cm, "
                   f"{'reached' if r.success else 'not reached'}, {r.extra['n_steps']} steps, {r.steps_per_s:.2f} steps/s", flush=True)  # fmt: skip
@@ -175,15 +161,4 @@ def markdown(result: BaseStudyResult) -> str:
 
 def report(result: BaseStudyResult, out_dir) -> list[Path]:
     """Write ``base.json`` and ``base.md`` into ``out_dir`` (an existing folder); returns their paths."""
-    out_dir = Path(out_dir)
-    write_atomic(out_dir / "base.json", json.dumps(result.to_json(), indent=1) + "\n")
-    write_atomic(out_dir / "base.md", markdown(result))
-    return [out_dir / "base.json", out_dir / "base.md"]
-
-
-def run_base_study(config: BaseStudyConfig | None = None, out_dir=None) -> dict:
-    """:func:`run`, then :func:`report` into ``out_dir`` when given; returns the JSON dict."""
-    res = run(config)
-    if out_dir is not None:
-        report(res, out_dir)
-    return res.to_json()
+    return write_outputs(out_dir, "base", result.to_json(), markdown(result), indent=1)

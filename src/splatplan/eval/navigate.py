@@ -18,18 +18,16 @@ the analytic geometry (floor excluded, see :mod:`splatplan.tasks.navigate`) over
 
 from __future__ import annotations
 
-import json
 import time
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
-from .._config import bounded, check_config
+from .._config import bounded
 from .._files import atomic_path
-from ..encoders import ENCODER_NAMES
 from ..tasks.navigate import NavigateConfig
-from ._common import write_atomic
+from ._study import ImageGoalStudyConfig, StudyResult, write_outputs
 
 #: Target landmarks (box labels of the apartment; "table" = the coffee table, the first table box),
 #: in order of preference: the first 10 with a valid held-out pose are used.
@@ -188,46 +186,28 @@ def markdown(result: dict) -> str:
 
 
 @dataclass
-class NavigateStudyConfig:
+class NavigateStudyConfig(ImageGoalStudyConfig):
     """Knobs of study E6 (defaults = the full run; :meth:`quick_config` = the smoke version)."""
 
     #: held-out targets (one per landmark of LANDMARKS with a valid pose, in order)
     n_targets: int = bounded(10, ge=1)
     #: the navigation task's settings (tree, view index, drive)
     task: NavigateConfig = field(default_factory=NavigateConfig)
-    #: image encoder (thumbnail: weight-free, not learned)
-    encoder: str = bounded("thumbnail", choices=ENCODER_NAMES)
-    #: encoder weights (DINOv2: a Hugging Face folder; efficientnet-lite0: an optional .pth); None = the default
-    encoder_weights: str | None = None
-    #: metric / renderer / encoder device: auto (CUDA when present, else CPU) | cpu | cuda | cuda:N
-    device: str = "auto"
-    #: the smoke-test settings of :meth:`quick_config` (recorded in the JSON)
-    quick: bool = False
 
     @classmethod
     def quick_config(cls) -> "NavigateStudyConfig":
         """3 targets, a 500-node tree, 12 headings, 32 px views (< 2 min on 2 busy cores)."""
         return cls(n_targets=3, task=quick_task_config(NavigateConfig()), quick=True)
 
-    def validate(self) -> "NavigateStudyConfig":
-        check_config(self)
-        self.task.validate()
-        return self
-
 
 @dataclass
-class NavigateStudyResult:
+class NavigateStudyResult(StudyResult):
     """What E6 measured: ``data`` is ``navigate.json``; the rest feeds the figures."""
 
-    data: dict
     #: figure only: (analytic scene, (nodes, parents), start, targets)
     tree: tuple = field(default=(), repr=False)
     #: figure only: per trial, the arguments of :func:`trial_figure`
     trials: list = field(default_factory=list, repr=False)
-
-    def to_json(self) -> dict:
-        """The content of ``navigate.json``."""
-        return self.data
 
 
 def _trial(t: dict, m, err: float, yerr: float, drive) -> dict:
@@ -300,9 +280,6 @@ def run(config: NavigateStudyConfig | None = None, engine=None, *, progress: boo
 def report(result: NavigateStudyResult, out_dir) -> list[Path]:
     """Write ``navigate.json``, ``navigate.md``, ``navigate_tree.png`` and ``navigate_trial<i>.png``
     into ``out_dir`` (an existing folder); returns their paths."""
-    out = Path(out_dir)
-    write_atomic(out / "navigate.json", json.dumps(result.to_json(), indent=1))
-    write_atomic(out / "navigate.md", markdown(result.to_json()))
-    written = [out / "navigate.json", out / "navigate.md", _save(tree_figure(*result.tree), out / "navigate_tree.png")]
-    written += [_save(trial_figure(*args), out / f"navigate_trial{i}.png") for i, args in enumerate(result.trials)]
-    return written
+    figures = [("navigate_tree.png", tree_figure(*result.tree), 100)]
+    figures += ((f"navigate_trial{i}.png", trial_figure(*args), 100) for i, args in enumerate(result.trials))
+    return write_outputs(out_dir, "navigate", result.to_json(), markdown(result.to_json()), figures, indent=1)

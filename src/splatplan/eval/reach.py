@@ -14,19 +14,17 @@ executed (densified) trajectory. Success: translation < ``position_tol`` (5 cm),
 
 from __future__ import annotations
 
-import json
 import time
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
-from .._config import bounded, check_config
-from .._files import atomic_path
-from ..encoders import ENCODER_NAMES
+from .._config import bounded
 from ..errors import SplatplanError
+from ..tasks._common import replace_mppi
 from ..tasks.reach import ReachConfig
-from ._common import write_atomic
+from ._study import ImageGoalStudyConfig, StudyResult, write_outputs
 
 #: Paper Table IV: config -> (clearance m, translation error m, rotation error deg).
 PAPER = {"without_collision": (-0.021, 0.0147, 3.48), "with_collision": (0.017, 0.031, 5.69)}
@@ -34,7 +32,7 @@ PAPER = {"without_collision": (-0.021, 0.0147, 3.48), "with_collision": (0.017, 
 
 def quick_task_config(cfg):
     """Smaller task settings for ``--quick`` (< 2 min on 2 busy cores)."""
-    return replace(cfg, mppi=replace(cfg.mppi, n_samples=16, horizon=24, n_knots=6, dt=0.1), plan_iters=20, plan_start_iters=10, plan_start_refine=5, refine_plan_iters=10, image_size=32, n_views=4)
+    return replace(replace_mppi(cfg, n_samples=16, horizon=24, n_knots=6, dt=0.1), plan_iters=20, plan_start_iters=10, plan_start_refine=5, refine_plan_iters=10, image_size=32, n_views=4)
 
 
 def goal_figure(robot, scene, goal, target, runs: dict):
@@ -130,44 +128,26 @@ def markdown(result: dict) -> str:
 
 
 @dataclass
-class ReachStudyConfig:
+class ReachStudyConfig(ImageGoalStudyConfig):
     """Knobs of study E5 (defaults = the full run; :meth:`quick_config` = the smoke version)."""
 
     #: goal images (reachable, collision-free configurations near the start)
     n_goals: int = bounded(5, ge=1)
     #: the reach task's settings
     task: ReachConfig = field(default_factory=ReachConfig)
-    #: image encoder (thumbnail: weight-free, not learned)
-    encoder: str = bounded("thumbnail", choices=ENCODER_NAMES)
-    #: encoder weights (DINOv2: a Hugging Face folder; efficientnet-lite0: an optional .pth); None = the default
-    encoder_weights: str | None = None
-    #: metric / renderer / encoder device: auto (CUDA when present, else CPU) | cpu | cuda | cuda:N
-    device: str = "auto"
-    #: the smoke-test settings of :meth:`quick_config` (recorded in the JSON)
-    quick: bool = False
 
     @classmethod
     def quick_config(cls) -> "ReachStudyConfig":
         """1 goal, K = 16, T = 24, 32 px images (< 2 min on 2 busy cores)."""
         return cls(n_goals=1, task=quick_task_config(ReachConfig()), quick=True)
 
-    def validate(self) -> "ReachStudyConfig":
-        check_config(self)
-        self.task.validate()
-        return self
-
 
 @dataclass
-class ReachStudyResult:
+class ReachStudyResult(StudyResult):
     """What E5 measured: ``data`` is ``reach.json``; ``figures`` feed the per-goal PNGs."""
 
-    data: dict
     #: figure only: per goal (robot, task scene, goal, target image, {config: ReachResult})
     figures: list = field(default_factory=list, repr=False)
-
-    def to_json(self) -> dict:
-        """The content of ``reach.json``."""
-        return self.data
 
 
 def run(config: ReachStudyConfig | None = None, engine=None, *, progress: bool = False) -> ReachStudyResult:
@@ -228,12 +208,5 @@ def run(config: ReachStudyConfig | None = None, engine=None, *, progress: bool =
 
 def report(result: ReachStudyResult, out_dir) -> list[Path]:
     """Write ``reach.json``, ``reach.md`` and ``reach_goal<i>.png`` into ``out_dir`` (an existing folder)."""
-    out = Path(out_dir)
-    write_atomic(out / "reach.json", json.dumps(result.to_json(), indent=1))
-    write_atomic(out / "reach.md", markdown(result.to_json()))
-    written = [out / "reach.json", out / "reach.md"]
-    for gi, fig_args in enumerate(result.figures):
-        with atomic_path(out / f"reach_goal{gi}.png") as tmp:
-            goal_figure(*fig_args).savefig(tmp, format="png", dpi=100)
-        written.append(out / f"reach_goal{gi}.png")
-    return written
+    figures = ((f"reach_goal{gi}.png", goal_figure(*fig_args), 100) for gi, fig_args in enumerate(result.figures))
+    return write_outputs(out_dir, "reach", result.to_json(), markdown(result.to_json()), figures, indent=1)

@@ -144,20 +144,7 @@ class CollisionChecker:
             validate: device inputs only: raise on non-finite input (one device sync). Without
                 it, invalid queries read in_collision = True with NaN distances.
         """
-        with _torch_stream(centers):
-            prep = self._prepare(centers, quats, rots, semi_axes)
-            if prep is None:
-                return self._reference(centers, quats, rots, semi_axes, full=True)
-            kind, shape, b, links, amin, amax, keep = prep
-            if b == 0:
-                return QueryResult(**{k: self._empty(kind, shape, _DTYPES[k]) for k in _FIELDS})
-            ws = self._workspace(out, b)
-            if kind != "numpy":
-                ws.reset_bad()
-            self._impl.query(links, b, amin, amax, self.config, ws.outputs(), ws.scratch())
-            self._raise_bad(ws, kind, validate)
-        del keep
-        return QueryResult(**{k: convert_out(getattr(ws, k), b, shape, kind, False) for k in _FIELDS})
+        return self._run(centers, quats, rots, semi_axes, out, validate, full=True)
 
     def collides(self, centers, quats, semi_axes, *, rots=None, out=None, validate=False):
         """Boolean collision state only (n_colliding > k_collide); stops at the (k+1)-th hit.
@@ -165,19 +152,30 @@ class CollisionChecker:
         Much cheaper than :meth:`query` for RRT edge checks. Shape: the batch shape; type: the
         input's (arguments as in :meth:`query`).
         """
+        return self._run(centers, quats, rots, semi_axes, out, validate, full=False)
+
+    def _run(self, centers, quats, rots, semi_axes, out, validate: bool, full: bool):
+        """:meth:`query` (``full``: a QueryResult) or :meth:`collides` (the in_collision array): the
+        numpy reference for what the kernels do not take, the empty batch, or the kernel into a
+        workspace; the inputs stay referenced (``keep``) until the kernel is done."""
         with _torch_stream(centers):
             prep = self._prepare(centers, quats, rots, semi_axes)
             if prep is None:
-                return self._reference(centers, quats, rots, semi_axes, full=False)
+                return self._reference(centers, quats, rots, semi_axes, full=full)
             kind, shape, b, links, amin, amax, keep = prep
             if b == 0:
-                return self._empty(kind, shape, bool)
+                return QueryResult(**{k: self._empty(kind, shape, _DTYPES[k]) for k in _FIELDS}) if full else self._empty(kind, shape, bool)
             ws = self._workspace(out, b)
             if kind != "numpy":
                 ws.reset_bad()
-            self._impl.collides(links, b, amin, amax, self.config, ws.in_collision, ws.bad, ws.scratch())
+            if full:
+                self._impl.query(links, b, amin, amax, self.config, ws.outputs(), ws.scratch())
+            else:
+                self._impl.collides(links, b, amin, amax, self.config, ws.in_collision, ws.bad, ws.scratch())
             self._raise_bad(ws, kind, validate)
         del keep
+        if full:
+            return QueryResult(**{k: convert_out(getattr(ws, k), b, shape, kind, False) for k in _FIELDS})
         return convert_out(ws.in_collision, b, shape, kind, False)
 
     # ------------------------------------------------------------------ robots

@@ -355,6 +355,32 @@ def row_x_span(c: wp.vec3, e1: wp.vec3, e2: wp.vec3, s_cut: float, cb: wp.vec3, 
 
 
 @wp.func
+def clipped_row(c: wp.vec3, e1: wp.vec3, e2: wp.vec3, s_cut: float, rb: float, yy: int, zz: int, inv_w: float, xs: int, xa: int, xb: int, ball_only: bool):
+    """ROW_CLIP: cells xs + xa .. xs + xb of the unwrapped row (yy, zz) narrowed to the x span that
+    can hold a splat of the link's s2 <= s_cut ellipsoid within the query ball (centre c, radius
+    rb); returns (xa, xb), with xb < xa when no cell of the row can."""
+    y0, y1, z0, z1 = row_bounds(yy, zz, inv_w)
+    xl, xh = row_x_span(c, e1, e2, s_cut, c, rb, y0, y1, z0, z1, ball_only)
+    if xl > xh:
+        return xa, xa - 1
+    return wp.max(xa, x_cell(xl, inv_w, -1.0) - xs), wp.min(xb, x_cell(xh, inv_w, 1.0) - xs)
+
+
+@wp.func
+def row_runs(x0s: int, xa: int, xb: int, dim: int):
+    """Cells xs + xa .. xs + xb of a row whose first cell wraps to x0s: (x0 < dim, x1 = x0 + xb - xa,
+    the number of contiguous runs: 2 when x1 >= dim wraps past dim - 1, else 1); see :func:`run_cells`."""
+    x0 = x0s + xa
+    if x0 >= dim:
+        x0 -= dim
+    x1 = x0 + xb - xa
+    n_run = int(1)
+    if x1 >= dim:
+        n_run = 2
+    return x0, x1, n_run
+
+
+@wp.func
 def run_cells(run: int, x0: int, x1: int, dim: int):
     """Wrapped cells (a0, a1) of the contiguous run ``run`` of a row's unwrapped-order cells x0 .. x1
     (x0 < dim): run 0 is x0 .. min(x1, dim - 1), run 1 (when x1 >= dim) wraps to 0 .. x1 - dim."""
@@ -501,21 +527,10 @@ def metric_full_kernel(
                 xa = int(0)  # cells xs + xa .. xs + xb of this row (unwrapped)
                 xb = nx - 1
                 if clip and n_in > ROW_CLIP_MIN:
-                    y0, y1, z0, z1 = row_bounds(ys + iy, zs + iz, inv_w)
-                    xl, xh = row_x_span(c, e1, e2, s2_cut, c, rho, y0, y1, z0, z1, sphere)
-                    if xl > xh:
-                        continue
-                    xa = wp.max(xa, x_cell(xl, inv_w, -1.0) - xs)
-                    xb = wp.min(xb, x_cell(xh, inv_w, 1.0) - xs)
+                    xa, xb = clipped_row(c, e1, e2, s2_cut, rho, ys + iy, zs + iz, inv_w, xs, xa, xb, sphere)
                     if xb < xa:
                         continue
-                x0 = x0s + xa
-                if x0 >= dim[0]:
-                    x0 -= dim[0]
-                x1 = x0 + xb - xa  # cells x0..x1 of a row, wrapping past dim[0] - 1 into a second run
-                n_run = 1
-                if x1 >= dim[0]:
-                    n_run = 2
+                x0, x1, n_run = row_runs(x0s, xa, xb, dim[0])  # cells x0..x1 of a row, wrapping past dim[0] - 1 into a second run
                 for run in range(n_run):
                     a0, a1 = run_cells(run, x0, x1, dim[0])
                     for i in range(splats.cell_start[row + a0] + lane, splats.cell_start[row + a1 + 1], lp.lanes):
@@ -659,21 +674,10 @@ def metric_collide_kernel(
                     if run_count(splats.cell_start, row, x0s, nx, dim[0]) <= ROW_CLIP_MIN:
                         xa = 0  # (a short row is scanned whole)
                     else:
-                        y0, y1, z0, z1 = row_bounds(ys + iy, zs + iz, inv_w)
-                        xl, xh = row_x_span(c, e1, e2, s2_cut, c, rho, y0, y1, z0, z1, sphere)
-                        if xl > xh:
-                            continue
-                        xa = wp.max(xa, x_cell(xl, inv_w, -1.0) - xs)
-                        xb = wp.min(xb, x_cell(xh, inv_w, 1.0) - xs)
+                        xa, xb = clipped_row(c, e1, e2, s2_cut, rho, ys + iy, zs + iz, inv_w, xs, xa, xb, sphere)
                         if xb < xa:
                             continue
-                x0 = x0s + xa
-                if x0 >= dim[0]:
-                    x0 -= dim[0]
-                x1 = x0 + xb - xa
-                n_run = 1
-                if x1 >= dim[0]:
-                    n_run = 2
+                x0, x1, n_run = row_runs(x0s, xa, xb, dim[0])
                 for run in range(n_run):
                     a0, a1 = run_cells(run, x0, x1, dim[0])
                     for i in range(splats.cell_start[row + a0], splats.cell_start[row + a1 + 1]):

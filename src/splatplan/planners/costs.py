@@ -495,31 +495,33 @@ class JointLimitCost(Cost):
 
 
 class StateCost(Cost):
-    """Wraps a callable on the whole state trajectory: states (K, T, dx) -> (K,) or (K, T) (summed)."""
+    """Wraps a callable on the whole state trajectory: states (K, T, dx) -> (K,) or (K, T) (summed).
+    ``name`` defaults to the class's (``task``)."""
 
     name = "task"
 
-    def __init__(self, fn: Callable[[np.ndarray], np.ndarray], weight: float = 1.0, name: str = "task") -> None:
+    def __init__(self, fn: Callable[[np.ndarray], np.ndarray], weight: float = 1.0, name: str | None = None) -> None:
         self.fn = fn
         self.weight = float(weight)
-        self.name = name
+        self.name = type(self).name if name is None else name
+
+    def states(self, rollout: Rollout) -> np.ndarray:
+        """What ``fn`` sees: the whole state trajectory (K, T, dx)."""
+        return rollout.states
 
     def __call__(self, rollout: Rollout) -> np.ndarray:
-        return self.weight * reduce_time(self.fn(rollout.states), rollout.k, f"{self.name}_cost")
+        return self.weight * reduce_time(self.fn(self.states(rollout)), rollout.k, f"{self.name}_cost")
 
 
-class TerminalCost(Cost):
-    """Wraps a callable on the terminal states: (K, dx) -> (K,) (e.g. the image cost)."""
+class TerminalCost(StateCost):
+    """Wraps a callable on the terminal states: (K, dx) -> (K,) (e.g. the image cost); ``name``
+    defaults to ``terminal``."""
 
     name = "terminal"
 
-    def __init__(self, fn: Callable[[np.ndarray], np.ndarray], weight: float = 1.0, name: str = "terminal") -> None:
-        self.fn = fn
-        self.weight = float(weight)
-        self.name = name
-
-    def __call__(self, rollout: Rollout) -> np.ndarray:
-        return self.weight * reduce_time(self.fn(rollout.states[:, -1]), rollout.k, f"{self.name}_cost")
+    def states(self, rollout: Rollout) -> np.ndarray:
+        """What ``fn`` sees: the terminal states (K, dx)."""
+        return rollout.states[:, -1]
 
 
 class UntilGoalCost(Cost):

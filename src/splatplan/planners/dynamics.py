@@ -58,8 +58,31 @@ def _check_rollout_args(x0, controls, state_dim: int, control_dim: int) -> tuple
     return x0, u
 
 
+def _integrate(x0: np.ndarray, u: np.ndarray, step) -> np.ndarray:
+    """(K, T, dx) states of a sequential model, vectorised over K: ``x = step(x, u_t)`` from ``x0``
+    (dx,) over the controls ``u`` (K, T, du); ``step`` may update ``x`` (K, dx) in place."""
+    k, t_len, _ = u.shape
+    out = np.empty((k, t_len, x0.shape[-1]))
+    x = np.broadcast_to(x0, (k, x0.shape[-1])).copy()
+    for t in range(t_len):
+        x = step(x, u[:, t])
+        out[:, t] = x
+    return out
+
+
+class _LinkPoses:
+    """``link_poses``: the robot's ellipsoids when the model has a ``robot``, else the model's own
+    geometry (``_own_link_poses``)."""
+
+    def link_poses(self, states: np.ndarray):
+        s = np.asarray(states, dtype=np.float64)
+        if self.robot is not None:
+            return self.robot.ellipsoids(s)
+        return self._own_link_poses(s)
+
+
 @dataclass
-class HolonomicPoint:
+class HolonomicPoint(_LinkPoses):
     """A sphere (or axis-aligned ellipsoid) moving with commanded world-frame velocity.
 
     State x = (x, y, z) position of the centre (scene units, world frame); control u = (vx, vy, vz)
@@ -84,10 +107,7 @@ class HolonomicPoint:
         x0, u = _check_rollout_args(x0, controls, 3, 3)
         return x0 + np.cumsum(u * dt, axis=1)  # (K, T, 3)
 
-    def link_poses(self, states: np.ndarray):
-        s = np.asarray(states, dtype=np.float64)
-        if self.robot is not None:
-            return self.robot.ellipsoids(s)
+    def _own_link_poses(self, s: np.ndarray):
         return s[..., None, :3], None, np.asarray(self.semi_axes, dtype=np.float64).reshape(1, 3)
 
 
@@ -101,7 +121,7 @@ def yaw_to_quat(yaw: np.ndarray) -> np.ndarray:
 
 
 @dataclass
-class PlanarBase:
+class PlanarBase(_LinkPoses):
     """A mobile base moving in the plane z = ``height`` with body-frame velocity commands.
 
     State x = (x, y, yaw): base origin in the world frame (scene units, z-up world) and heading
@@ -153,22 +173,18 @@ class PlanarBase:
         if self.robot is not None:
             vmax = np.asarray(self.robot.velocity_limits, dtype=np.float64).reshape(3)
             u = np.clip(u, -vmax, vmax)
-        k, t_len, _ = u.shape
-        out = np.empty((k, t_len, 3))
-        x = np.broadcast_to(x0, (k, 3)).copy()
-        for t in range(t_len):  # sequential in t, vectorised over K
+
+        def step(x, ut):  # x (K, 3) updated in place, ut (K, 3)
             c, s = np.cos(x[:, 2]), np.sin(x[:, 2])
-            vx, vy, wz = u[:, t, 0], u[:, t, 1], u[:, t, 2]
+            vx, vy, wz = ut[:, 0], ut[:, 1], ut[:, 2]
             x[:, 0] += (c * vx - s * vy) * dt
             x[:, 1] += (s * vx + c * vy) * dt
             x[:, 2] += wz * dt
-            out[:, t] = x
-        return out
+            return x
 
-    def link_poses(self, states: np.ndarray):
-        s = np.asarray(states, dtype=np.float64)
-        if self.robot is not None:
-            return self.robot.ellipsoids(s)
+        return _integrate(x0, u, step)
+
+    def _own_link_poses(self, s: np.ndarray):
         yaw = s[..., 2]
         c, sn = np.cos(yaw)[..., None], np.sin(yaw)[..., None]  # (..., 1)
         ox, oy, oz = self.offsets[:, 0], self.offsets[:, 1], self.offsets[:, 2]  # (L,)
@@ -180,7 +196,7 @@ class PlanarBase:
         return centers, quats, self.semi_axes
 
 
-class JointIntegrator:
+class JointIntegrator(_LinkPoses):
     """A joint-space single integrator: state q (n joints, rad or m), control qdot (rad/s or m/s).
 
     ``q_{t+1} = clip(q_t + clip(qdot_t, -v_max, v_max) dt, q_min, q_max)`` (joint position limits
@@ -224,17 +240,8 @@ class JointIntegrator:
             u = np.clip(u, -self.v_max, self.v_max)
         if np.all(np.isinf(self.q_min)) and np.all(np.isinf(self.q_max)):
             return q0 + np.cumsum(u * dt, axis=1)
-        k, t_len, _ = u.shape
-        out = np.empty((k, t_len, self.state_dim))
-        q = np.broadcast_to(q0, (k, self.state_dim)).copy()
-        for t in range(t_len):  # saturation makes the steps sequential
-            q = np.clip(q + u[:, t] * dt, self.q_min, self.q_max)
-            out[:, t] = q
-        return out
+        return _integrate(q0, u, lambda q, ut: np.clip(q + ut * dt, self.q_min, self.q_max))  # saturation makes the steps sequential
 
-    def link_poses(self, states: np.ndarray):
-        s = np.asarray(states, dtype=np.float64)
-        if self.robot is not None:
-            return self.robot.ellipsoids(s)
+    def _own_link_poses(self, s: np.ndarray):
         centers, quats = self.fk(s)
         return np.asarray(centers, dtype=np.float64), None if quats is None else np.asarray(quats, dtype=np.float64), self.semi_axes

@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .._config import bounded, check_config
+from .._config import bounded, check_config, check_order
 from ..errors import SplatplanError
 from .bspline import bspline_basis, fit_bspline, resample_polyline
 from .robot_links import LinkGeometry, as_robot
@@ -73,8 +73,7 @@ class RefineConfig:
     def validate(self) -> "RefineConfig":
         """Check every field's declared range (:mod:`splatplan._config`) and the cross-field rules; returns self."""
         check_config(self)
-        if self.min_knots > self.max_knots:
-            raise SplatplanError(f"RefineConfig.min_knots must be <= max_knots, got {self.min_knots} > {self.max_knots}")
+        check_order(self, "min_knots", "max_knots")
         return self
 
 

@@ -2,11 +2,12 @@
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
+from .._config import check_config
 from ..errors import SplatplanError
 
 
@@ -26,6 +27,30 @@ class TaskScene:
     splats: object
     checker: object
     analytic: object | None
+
+
+@dataclass
+class TaskConfig:
+    """Base of the task configs: a subclass embeds ``mppi: MPPIConfig``; :meth:`validate` checks
+    every field's declared range (:mod:`splatplan._config`), the embedded MPPIConfig, then the
+    task's cross-field rules (:meth:`check`)."""
+
+    def validate(self):
+        """Raise SplatplanError naming the field when a value is not allowed; returns self."""
+        check_config(self)
+        mppi = getattr(self, "mppi", None)  # (none on the bare base)
+        if mppi is not None:
+            mppi.validate()
+        self.check()
+        return self
+
+    def check(self) -> None:
+        """The task's cross-field rules (raise SplatplanError); none by default."""
+
+
+def replace_mppi(cfg, /, **changes):
+    """``cfg`` (a task config embedding ``mppi: MPPIConfig``) with the MPPIConfig fields ``changes`` changed."""
+    return replace(cfg, mppi=replace(cfg.mppi, **changes))
 
 
 def load_filtered_scene(scene, n_splats: int | None = None, seed: int = 0):

@@ -29,12 +29,12 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from .._config import NESTED_SKIP, bounded, check_config
+from .._config import NESTED_SKIP, bounded
 from ..errors import SplatplanError
 from ..planners.dynamics import JointIntegrator
 from ..planners.mppi import MPPIConfig
 from ..robots.ik import rotation_error, solve_ik
-from ._common import TaskResult, TaskScene, check_start, load_task_scene, moving_clearance, trajectory_clearance
+from ._common import TaskConfig, TaskResult, TaskScene, check_start, load_task_scene, moving_clearance, trajectory_clearance
 
 __all__ = ["ArmConfig", "check_reachable", "down_quat", "run_arm"]
 
@@ -46,7 +46,7 @@ def _arm_mppi() -> MPPIConfig:
 
 
 @dataclass
-class ArmConfig:
+class ArmConfig(TaskConfig):
     """Knobs of :func:`run_arm` (MPPI over joint-velocity B-splines)."""
 
     #: MPPI settings (noise_sigma in rad/s; the control bounds come from velocity_scale)
@@ -94,11 +94,6 @@ class ArmConfig:
     #: stop early once the position error is below this (m) and the orientation within tolerance
     stop_tol: float = bounded(0.008, ge=0)
 
-    def validate(self) -> "ArmConfig":
-        """Check every field's declared range (:mod:`splatplan._config`) and the cross-field rules; returns self."""
-        check_config(self)
-        self.mppi.validate()
-        return self
 
 
 def down_quat(yaw: float = 0.0) -> np.ndarray:

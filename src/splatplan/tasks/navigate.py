@@ -34,10 +34,10 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from .._config import NESTED_SKIP, bounded, check_config
+from .._config import NESTED_SKIP, bounded
 from ..errors import SplatplanError
 from ..planners.mppi import MPPIConfig
-from ._common import TaskScene, load_filtered_scene
+from ._common import TaskConfig, TaskScene, load_filtered_scene
 
 __all__ = [
     "NavigateConfig", "NavScene", "ViewIndex", "Match", "DriveResult", "head_camera", "load_nav_scene", "explore",
@@ -52,7 +52,7 @@ def _drive_mppi() -> MPPIConfig:
 
 
 @dataclass
-class NavigateConfig:
+class NavigateConfig(TaskConfig):
     """Knobs of the image-goal navigation (exploration, retrieval, driving)."""
 
     #: splats of a built-in scene (fewer = faster renders); None = the scene's default
@@ -123,13 +123,9 @@ class NavigateConfig:
     #: seed (RRT sampler, MPPI noise)
     seed: int = bounded(0, ge=0)
 
-    def validate(self) -> "NavigateConfig":
-        """Check every field's declared range (:mod:`splatplan._config`) and the cross-field rules; returns self."""
-        check_config(self)
-        self.mppi.validate()
+    def check(self) -> None:
         if not all(lo < hi for lo, hi in zip(self.box_lo, self.box_hi)):
             raise SplatplanError(f"NavigateConfig.box_lo must be < box_hi on both axes, got {self.box_lo} and {self.box_hi}")
-        return self
 
 
 

@@ -53,11 +53,11 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from .._config import NESTED_SKIP, bounded, check_config
+from .._config import NESTED_SKIP, bounded, check_order
 from ..errors import SplatplanError
 from ..planners.goal_refiner import GoalRefiner
 from ..planners.mppi import MPPI, MPPIConfig
-from ._common import TaskScene, check_start, load_task_scene, moving_clearance, trajectory_clearance
+from ._common import TaskConfig, TaskScene, check_start, load_task_scene, moving_clearance, trajectory_clearance
 
 __all__ = ["BEHIND_WALL", "START_CAMERA", "ReachConfig", "ReachResult", "camera_pose_error", "make_reach_goals", "reach_encoder", "reach_start", "run_reach", "wrist_camera"]
 
@@ -68,7 +68,7 @@ def _reach_mppi() -> MPPIConfig:
 
 
 @dataclass
-class ReachConfig:
+class ReachConfig(TaskConfig):
     """Knobs of :func:`run_reach` (MPPI over joint-velocity B-splines with the image cost)."""
 
     #: MPPI settings (noise_sigma in rad/s; the horizon is the executed steps too: a shrinking horizon; the iterations
@@ -174,13 +174,8 @@ class ReachConfig:
     orientation_tol_deg: float = bounded(15.0, gt=0, le=180)
     #: intermediate wrist views kept for the figures
     n_views: int = bounded(6, ge=0)
-    def validate(self) -> "ReachConfig":
-        """Check every field's declared range (:mod:`splatplan._config`) and the cross-field rules; returns self."""
-        check_config(self)
-        self.mppi.validate()
-        if self.refine_sigma_min > self.refine_sigma:
-            raise SplatplanError(f"ReachConfig.refine_sigma_min must be <= refine_sigma, got {self.refine_sigma_min} > {self.refine_sigma}")
-        return self
+    def check(self) -> None:
+        check_order(self, "refine_sigma_min", "refine_sigma")
 
 
 @dataclass
