@@ -59,7 +59,7 @@ import numpy as np
 from .._config import NESTED_SKIP, bounded, check_config
 from ..errors import SplatplanError
 from ..planners.mppi import MPPIConfig
-from ._common import TaskResult, base_terrain, check_start, load_task_scene, safe_step, trajectory_clearance
+from ._common import TaskConfig, TaskResult, base_terrain, check_start, load_task_scene, safe_step, trajectory_clearance
 
 __all__ = ["FOOT_CLEARANCE", "START", "BaseConfig", "load_go2", "plan_route", "run_base"]
 
@@ -89,7 +89,7 @@ def _base_mppi() -> MPPIConfig:
 
 
 @dataclass
-class BaseConfig:
+class BaseConfig(TaskConfig):
     """Knobs of :func:`run_base` (MPPI over body-frame velocity B-splines)."""
 
     #: MPPI settings (noise_sigma: vx m/s, vy m/s, wz rad/s; the control bounds are the robot's velocity limits)
@@ -190,11 +190,6 @@ class BaseConfig:
     #: memory: height of the sensor's scan plane above the floor (m; the Go2's body spans ~0.28-0.52 m,
     #: its legs below; lower obstacles are seen over, as a lidar on the body would)
     sensor_height_m: float = bounded(0.3, ge=0)
-    def validate(self) -> "BaseConfig":
-        """Check every field's declared range (:mod:`splatplan._config`) and the cross-field rules; returns self."""
-        check_config(self)
-        self.mppi.validate()
-        return self
 
 
 def plan_route(
