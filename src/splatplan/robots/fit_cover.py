@@ -144,6 +144,18 @@ def sample_solids(solids: list, n: int, rng: np.random.Generator) -> tuple[np.nd
     return np.concatenate(surf), np.concatenate(vol)
 
 
+def occupancy_grid(solids: list, pitch: float, margin: float, min_cells: int = 1):
+    """Voxels of ``pitch`` over the solids' bounds plus ``margin``: (lo (3,) the grid's corner,
+    shape (3,) cells per axis (>= ``min_cells``), centres (G, 3) voxel centres in C order,
+    occupancy (X, Y, Z) bool: the centre lies in a solid)."""
+    lo = np.min([m.bounds[0] for m in solids], axis=0) - margin
+    hi = np.max([m.bounds[1] for m in solids], axis=0) + margin
+    shape = np.maximum(np.ceil((hi - lo) / pitch).astype(int), int(min_cells))
+    axes = [lo[i] + pitch * (np.arange(shape[i]) + 0.5) for i in range(3)]
+    g = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+    return lo, pitch, shape, g, inside_any(solids, g).reshape(tuple(shape))
+
+
 class OutsideDistance:
     """Distance to the union of solids (0 inside) from an occupancy grid and its distance transform.
 
@@ -154,15 +166,8 @@ class OutsideDistance:
     def __init__(self, solids: list, pitch: float, margin: float):
         from scipy.ndimage import distance_transform_edt
 
-        lo = np.min([m.bounds[0] for m in solids], axis=0) - margin
-        hi = np.max([m.bounds[1] for m in solids], axis=0) + margin
-        self.lo, self.pitch = lo, pitch
-        self.shape = np.maximum(np.ceil((hi - lo) / pitch).astype(int), 1)
-        axes = [lo[i] + pitch * (np.arange(self.shape[i]) + 0.5) for i in range(3)]
-        g = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)  # (G, 3) voxel centres
-        occ = inside_any(solids, g).reshape(tuple(self.shape))
+        self.lo, self.pitch, self.shape, self.centres, occ = occupancy_grid(solids, pitch, margin, min_cells=1)
         self.dist = distance_transform_edt(~occ, sampling=pitch)  # (X, Y, Z) metres
-        self.centres = g
         self.occ = occ.reshape(-1)
 
     def __call__(self, pts: np.ndarray) -> np.ndarray:

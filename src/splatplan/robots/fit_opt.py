@@ -53,7 +53,7 @@ import numpy as np
 
 from .._config import bounded, check_config
 from .fit import CONTAIN_EPS
-from .fit_cover import certify, inside_any, sample_solids, simplices_of, solids_of, sphere_points
+from .fit_cover import certify, occupancy_grid, sample_solids, simplices_of, solids_of, sphere_points
 
 #: Version of the optimising fitter: part of the fit cache key (bump when results change).
 OPT_VERSION = 1
@@ -107,13 +107,7 @@ class SignedField:
     def __init__(self, solids: list, pitch: float, margin: float):
         from scipy.ndimage import distance_transform_edt
 
-        lo = np.min([m.bounds[0] for m in solids], axis=0) - margin
-        hi = np.max([m.bounds[1] for m in solids], axis=0) + margin
-        self.lo, self.pitch = lo, pitch
-        self.shape = np.maximum(np.ceil((hi - lo) / pitch).astype(int), 2)
-        axes = [lo[i] + pitch * (np.arange(self.shape[i]) + 0.5) for i in range(3)]
-        g = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)  # (G, 3) voxel centres
-        occ = inside_any(solids, g).reshape(tuple(self.shape))
+        self.lo, self.pitch, self.shape, g, occ = occupancy_grid(solids, pitch, margin, min_cells=2)  # g (G, 3) voxel centres
         # centre-to-centre distances overshoot the surface by about half a pitch on either side
         out, inn = distance_transform_edt(~occ, sampling=pitch), distance_transform_edt(occ, sampling=pitch)
         self.sdf = np.where(occ, 0.5 * pitch - inn, out - 0.5 * pitch)  # (X, Y, Z) m, > 0 outside

@@ -56,7 +56,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from .._config import NESTED_SKIP, bounded, check_config
+from .._config import NESTED_SKIP, bounded
 from ..errors import SplatplanError
 from ..planners.mppi import MPPIConfig
 from ._common import TaskConfig, TaskResult, base_terrain, check_start, load_task_scene, safe_step, trajectory_clearance
