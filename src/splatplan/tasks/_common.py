@@ -226,6 +226,18 @@ class TaskResult:
     #: (NX, NY) bool, "memory_sensed" (NX, NY) bool, "memory_origin" (2,) world xy of the grid corner, "memory_cell" m)
     maps: dict = field(default_factory=dict)
 
+    @classmethod
+    def of_run(cls, robot, ts, states, error: float, tol: float, elapsed: float, n_steps: int, collision, **fields) -> "TaskResult":
+        """The result of a run whose executed configurations ``states`` (S + 1, dof) end ``error`` (m)
+        from the goal: success = ``error < tol`` with a positive clearance of the whole executed
+        trajectory (:func:`trajectory_clearance`); ``fields``: goal, extra, maps, ..."""
+        traj = np.asarray(states)
+        clearance, source, _ = trajectory_clearance(robot, ts, traj)
+        success = bool(error < tol and clearance > 0)
+        return cls(success=success, trajectory=traj, min_clearance_m=clearance, final_position_error_m=error, time_s=elapsed,
+                   steps_per_s=n_steps / elapsed if elapsed > 0 else float("nan"), collision_cost=bool(collision), clearance_source=source,
+                   message="" if success else ("in collision" if clearance <= 0 else "goal not reached within max_steps"), **fields)  # fmt: skip
+
     def to_json(self) -> dict:
         d = asdict(self)
         d.pop("maps", None)

@@ -34,7 +34,7 @@ from ..errors import SplatplanError
 from ..planners.dynamics import JointIntegrator
 from ..planners.mppi import MPPIConfig
 from ..robots.ik import rotation_error, solve_ik
-from ._common import TaskConfig, TaskResult, TaskScene, check_start, load_task_scene, moving_clearance, trajectory_clearance
+from ._common import TaskConfig, TaskResult, TaskScene, check_start, load_task_scene, moving_clearance
 
 __all__ = ["ArmConfig", "check_reachable", "down_quat", "run_arm"]
 
@@ -234,21 +234,11 @@ def run_arm(
     elapsed = time.perf_counter() - t0
     pe, re = _ee_error(robot, q, li, p_goal, r_goal)
     traj = np.asarray(states)
-    clearance, source, _ = trajectory_clearance(robot, ts, traj)
     clearance_moving = moving_clearance(robot, ts, traj)
-    success = bool(pe < cfg.position_tol and clearance > 0)  # orientation error reported beside it
     ee = robot.link_poses(traj)[:, li, :3, 3]
-    return TaskResult(
-        success=success,
-        trajectory=traj,
-        min_clearance_m=clearance,
-        final_position_error_m=pe,
-        time_s=elapsed,
-        steps_per_s=n_steps / elapsed if elapsed > 0 else float("nan"),
-        collision_cost=bool(collision),
-        clearance_source=source,
+    return TaskResult.of_run(  # success: position error and clearance; the orientation error is reported beside it
+        robot, ts, traj, pe, cfg.position_tol, elapsed, n_steps, collision,
         final_orientation_error_deg=float(np.rad2deg(re)),
-        message="" if success else ("in collision" if clearance <= 0 else "goal not reached within max_steps"),
         goal={"position": p_goal.tolist(), "quat_wxyz": None if quat is None else quat.tolist(), "link": cfg.ee_link},
         extra={"robot": robot.name, "scene": ts.name, "n_steps": n_steps, "ee_trace": ee.round(5).tolist(), "n_splats": len(ts.splats),
                "min_clearance_moving_links_m": clearance_moving},  # fmt: skip

@@ -59,7 +59,7 @@ import numpy as np
 from .._config import NESTED_SKIP, bounded
 from ..errors import SplatplanError
 from ..planners.mppi import MPPIConfig
-from ._common import TaskConfig, TaskResult, base_terrain, check_start, load_task_scene, safe_step, trajectory_clearance
+from ._common import TaskConfig, TaskResult, base_terrain, check_start, load_task_scene, safe_step
 
 __all__ = ["FOOT_CLEARANCE", "START", "BaseConfig", "load_go2", "plan_route", "run_base"]
 
@@ -324,19 +324,8 @@ def run_base(
         n_steps += 1
     elapsed = time.perf_counter() - t0
     dist = float(np.linalg.norm(x[:2] - g))
-    traj = np.asarray(states)
-    clearance, source, _ = trajectory_clearance(robot, ts, traj)
-    success = bool(dist < cfg.goal_tol and clearance > 0)
-    return TaskResult(
-        success=success,
-        trajectory=traj,
-        min_clearance_m=clearance,
-        final_position_error_m=dist,
-        time_s=elapsed,
-        steps_per_s=n_steps / elapsed if elapsed > 0 else float("nan"),
-        collision_cost=bool(collision),
-        clearance_source=source,
-        message="" if success else ("in collision" if clearance <= 0 else "goal not reached within max_steps"),
+    return TaskResult.of_run(
+        robot, ts, states, dist, cfg.goal_tol, elapsed, n_steps, collision,
         goal={"position": g.tolist()},
         extra={"robot": robot.name, "scene": ts.name, "n_steps": n_steps, "n_held_steps": n_held, "time_to_goal_s": n_steps * cfg.mppi.dt, "route": None if wps is None else wps.round(4).tolist(), "n_splats": len(ts.splats), "events": drives.events,
                "memory": None if memory is None else {**memory.stats, "cell_m": memory.cell, "sensor_radius_m": memory.radius, "n_yaws": len(memory.yaws), "shape": list(memory.shape),
