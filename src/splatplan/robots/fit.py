@@ -40,6 +40,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .._progress import progress
 from .._resources import require_work
 from ..errors import SplatplanError
 from .urdf import Geom, UrdfModel
@@ -342,7 +343,8 @@ def fit_model(
             if g.kind == "mesh" and (links is None or link in links) and (g.mesh is None or not Path(g.mesh).is_file()):
                 _polytope(g, link)  # raises the one-line "mesh file ... not found"
     names, cs, rs, ss, report, skipped = [], [], [], [], {}, []
-    for link in model.kin.link_names:
+    bar = {} if method != "split" else {"disable": True}  # (split fits take milliseconds)
+    for link in progress(model.kin.link_names, desc=f"fit ({method})", unit="link", **bar):
         if links is not None and link not in links:
             continue
         geoms, source = model.collisions.get(link, []), "collision"
