@@ -113,19 +113,12 @@ def test_every_plain_flag_is_read():
 
     from splatplan.cli import build_parser
 
+    from .test_cli_fuzz import leaf_parsers
+
     cli_src = "\n".join(p.read_text() for p in (SRC / "cli").glob("*.py"))
 
-    def leaves(p, path=()):
-        subs = [a for a in p._actions if isinstance(a, argparse._SubParsersAction)]
-        if not subs:
-            yield path, p
-            return
-        for a in subs:
-            for name, sp in a.choices.items():
-                yield from leaves(sp, path + (name,))
-
     unread = []
-    for path, p in leaves(build_parser()):
+    for path, p in leaf_parsers(build_parser()):
         for a in p._actions:
             if isinstance(a, (argparse._HelpAction, argparse._VersionAction)) or a.dest.startswith("cfg_"):
                 continue  # config flags: test_every_field_is_read

@@ -62,6 +62,20 @@ TREE_URDF = """<?xml version="1.0"?>
 """
 
 
+#: the MotionBenchMaker Panda beside the repository (tests using it skip when it is absent)
+MBM = Path(__file__).resolve().parents[2] / ".." / "shared" / "data" / "mbm" / "panda"
+
+
+def inside_union(pts: np.ndarray, ells) -> np.ndarray:
+    """(N,) bool: each point lies in at least one ellipsoid (centre, rotation, semi-axes) of ``ells``."""
+    from splatplan.robots.fit import mahalanobis
+
+    ok = np.zeros(len(pts), dtype=bool)
+    for e in ells:
+        ok |= mahalanobis(pts, *e) <= 1.0
+    return ok
+
+
 def write_tree(folder: Path, with_mesh: bool = True) -> Path:
     import trimesh
 

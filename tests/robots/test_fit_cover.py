@@ -3,25 +3,16 @@ the built-in Panda's models and finger opening."""
 
 from __future__ import annotations
 
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from splatplan.errors import SplatplanError
 from splatplan.robots import fit_cover as fc
-from splatplan.robots.fit import mahalanobis, mvee
+from splatplan.robots.fit import mvee
 
-from .conftest import write_tree
+from .conftest import MBM, inside_union as _inside, write_tree
 
-MBM = Path(__file__).resolve().parents[2] / ".." / "shared" / "data" / "mbm" / "panda"
-
-
-def _inside(pts, ells):
-    ok = np.zeros(len(pts), dtype=bool)
-    for e in ells:
-        ok |= mahalanobis(pts, *e) <= 1.0
-    return ok
 
 
 def test_simplices_partition_a_star_shaped_solid():

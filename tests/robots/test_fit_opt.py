@@ -3,22 +3,13 @@ certified containment of a fitted link, and the shipped tight Panda models (buil
 
 from __future__ import annotations
 
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from splatplan.robots import fit_opt as fo
-from splatplan.robots.fit import mahalanobis
+from .conftest import MBM, inside_union as _inside
 
-MBM = Path(__file__).resolve().parents[2] / ".." / "shared" / "data" / "mbm" / "panda"
-
-
-def _inside(pts, ells):
-    ok = np.zeros(len(pts), dtype=bool)
-    for e in ells:
-        ok |= mahalanobis(pts, *e) <= 1.0
-    return ok
 
 
 def test_field_lookup_matches_the_numpy_reference():

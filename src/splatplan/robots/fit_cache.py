@@ -17,6 +17,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import sys
 from dataclasses import asdict
 from pathlib import Path
 
@@ -83,8 +84,6 @@ def cached_fit(model: UrdfModel, method: str = "opt", per_link=1, from_visual: b
             return load_yaml(path, model.kin.link_names), path
         except Exception:  # a damaged entry is refitted and overwritten
             pass
-    import sys
-
     # a first fit takes minutes (about a CPU-minute per link for "opt"): say so once, on stderr
     print(f"splatplan: fitting {model.name}'s {len(model.kin.link_names)} links with method {method!r} "
           f"(once; cached in {path.parent})", file=sys.stderr, flush=True)  # fmt: skip
