@@ -139,6 +139,9 @@ def test_summarise_counts():
     assert s["solved"] == 1 and s["negative_clearance_paths"] == 1 and s["worst_exact_clearance_m"] == -0.001
     assert s["solved_late"] is None  # a wall-clock run: nothing is late
     assert summarise([row], time_limit=0.5)["solved_late"] == 1 and summarise([row], time_limit=2.0)["solved_late"] == 0
+    near = {**row, "goal_free": False, "start_clearance_m": 0.2, "goal_clearance_m": 0.004}  # goal 4 mm from the can, margin 10 mm
+    far = {**near, "goal_clearance_m": 0.03}  # not free for another reason (a splat off the surface)
+    assert summarise([near, far, row])["not_free_below_margin"] == 1
 
 
 SCENE_YAML = """world:
