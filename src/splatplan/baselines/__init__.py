@@ -63,10 +63,13 @@ class BaselineInfo:
 
 
 BASELINES: dict[str, BaselineInfo] = {
-    "splatnav": BaselineInfo("splatnav", SplatNav, splatnav_score, splatnav.collision_score, splatnav.collision_from_score, splatnav.NATIVE_BATCH, -splatnav.THRESHOLD),
-    "safersplat": BaselineInfo("safersplat", SaferSplat, safersplat_score, safersplat.collision_score, safersplat.collision_from_score, safersplat.NATIVE_BATCH, -safersplat.THRESHOLD),
-    "atlasnav": BaselineInfo("atlasnav", AtlasNav, atlasnav_score, atlasnav.collision_score, atlasnav.collision_from_score, atlasnav.NATIVE_BATCH, -atlasnav.THRESHOLD),
-    "splanning": BaselineInfo("splanning", Splanning, splanning_score, splanning.collision_score, splanning.collision_from_score, splanning.NATIVE_BATCH, splanning.DEFAULT_ALPHA),
+    name: BaselineInfo(name, cls, score, mod.collision_score, mod.collision_from_score, cls.native_batch, cls.collision_threshold())
+    for name, mod, cls, score in (
+        ("splatnav", splatnav, SplatNav, splatnav_score),
+        ("safersplat", safersplat, SaferSplat, safersplat_score),
+        ("atlasnav", atlasnav, AtlasNav, atlasnav_score),
+        ("splanning", splanning, Splanning, splanning_score),
+    )
 }
 
 __all__ = [

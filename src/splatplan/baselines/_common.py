@@ -201,10 +201,11 @@ class Baseline:
     """What the four baseline classes share: the scene tensors on one torch device, queries in
     blocks of rows, the oriented score and the native decision.
 
-    A subclass sets ``native_batch`` (queries per evaluation in the original code base) and
+    A subclass sets ``native_batch`` (queries per evaluation in the original code base),
     ``orientation`` (-1 when :meth:`collision_score` negates the native score, +1 when the native
-    score already grows with collision), and implements :meth:`score_torch` (the native score of
-    a [b, 3] block of centres -> [b]) and :meth:`decide` (the native decision).
+    score already grows with collision) and ``threshold`` (the native decision boundary, see
+    :meth:`decide`), and implements :meth:`score_torch` (the native score of a [b, 3] block of
+    centres -> [b]).
 
     Args:
         splats_or_tensors: a Splats, SceneTensors or mapping of arrays (see :func:`as_scene_tensors`).
@@ -214,6 +215,7 @@ class Baseline:
 
     native_batch: int = 1
     orientation: float = -1.0
+    threshold: float = 0.0
 
     def __init__(self, splats_or_tensors: Any, device: str | torch.device, dtype: torch.dtype) -> None:
         self.scene: SceneTensors = as_scene_tensors(splats_or_tensors, device, dtype)
@@ -229,8 +231,18 @@ class Baseline:
     def score_torch(self, centers: torch.Tensor, radius: float) -> torch.Tensor:  # [b, 3] -> [b]
         raise NotImplementedError
 
-    def decide(self, score: np.ndarray) -> np.ndarray:
-        raise NotImplementedError
+    @classmethod
+    def decide(cls, score: np.ndarray, threshold: float | None = None) -> np.ndarray:
+        """The method's own decision from its native scores, bool (B,): collision iff the native
+        score is below ``threshold`` (default the class's) when ``orientation`` is -1, above it when
+        +1; i.e. iff :meth:`collision_score` is above :meth:`collision_threshold`."""
+        score, t = np.asarray(score), cls.threshold if threshold is None else threshold
+        return score < t if cls.orientation < 0 else score > t
+
+    @classmethod
+    def collision_threshold(cls) -> float:
+        """The value of :meth:`collision_score` at the native decision boundary (collision iff above)."""
+        return cls.orientation * cls.threshold
 
     @torch.no_grad()
     def score(self, centers: Any, radius: float, batch: int | None = None) -> np.ndarray:

@@ -47,6 +47,7 @@ class AtlasNav(Baseline):
     """
 
     native_batch = NATIVE_BATCH
+    threshold = THRESHOLD
 
     def __init__(self, splats_or_tensors: Any, device: str | torch.device = "auto", n_std: float = 3.0, max_elems: int | None = None, dtype: torch.dtype = torch.float32) -> None:
         super().__init__(splats_or_tensors, device, dtype)
@@ -71,9 +72,6 @@ class AtlasNav(Baseline):
         dist = diff.square().sum(-1).sqrt()  # [b, N]
         return (dist - self.ball[None] - r).min(dim=-1).values
 
-    def decide(self, score: np.ndarray) -> np.ndarray:
-        return collision_from_score(score)
-
 
 def atlasnav_score(splats_or_tensors: Any, centers: np.ndarray, radius: float, device: str | torch.device = "auto", **method_kw) -> np.ndarray:
     """Native ATLASNav score ``min_i (|p - mu_i| - 3 sigma_i - r)``, float64 (B,); collision iff < 0.
@@ -88,4 +86,4 @@ def collision_score(splats_or_tensors: Any, centers: np.ndarray, radius: float, 
 
 def collision_from_score(score: np.ndarray) -> np.ndarray:
     """Native decision from the native score: collision iff ``score < 0``."""
-    return np.asarray(score) < THRESHOLD
+    return AtlasNav.decide(score)

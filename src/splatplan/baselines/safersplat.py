@@ -99,6 +99,7 @@ class SaferSplat(Baseline):
     """
 
     native_batch = NATIVE_BATCH
+    threshold = THRESHOLD
 
     def __init__(self, splats_or_tensors: Any, device: str | torch.device = "auto", n_steps: int = 25, min_scale: float = MIN_SCALE, dtype: torch.dtype = torch.float32) -> None:
         super().__init__(splats_or_tensors, device, dtype)
@@ -119,9 +120,6 @@ class SaferSplat(Baseline):
         """``min_i h_i`` for a [b, 3] block -> [b] (collision iff < 0; :meth:`collision_score` is ``-min_i h_i``)."""
         return self.barrier_torch(centers, radius).min(dim=-1).values
 
-    def decide(self, score: np.ndarray) -> np.ndarray:
-        return collision_from_score(score)
-
 
 def safersplat_score(splats_or_tensors: Any, centers: np.ndarray, radius: float, device: str | torch.device = "auto", **method_kw) -> np.ndarray:
     """Native SAFER-Splat score ``min_i (phi_i d_i^2 - r^2)`` per centre, float64 (B,); collision iff < 0.
@@ -136,4 +134,4 @@ def collision_score(splats_or_tensors: Any, centers: np.ndarray, radius: float, 
 
 def collision_from_score(score: np.ndarray) -> np.ndarray:
     """Native decision from the native score: collision iff ``min h < 0``."""
-    return np.asarray(score) < THRESHOLD
+    return SaferSplat.decide(score)

@@ -66,6 +66,7 @@ class Splanning(Baseline):
 
     native_batch = NATIVE_BATCH
     orientation = 1.0  # p grows with collision
+    threshold = DEFAULT_ALPHA
 
     def __init__(
         self,
@@ -127,9 +128,6 @@ class Splanning(Baseline):
         """Native score ``p = 1 - exp(-I / (4 pi))`` per centre, float64 (B,); :meth:`collision_score` is ``p`` itself."""
         return -np.expm1(-self.integral(centers, radius, batch) / (4.0 * math.pi))
 
-    def decide(self, score: np.ndarray, alpha: float = DEFAULT_ALPHA) -> np.ndarray:
-        return collision_from_score(score, alpha)
-
     def in_collision(self, centers: np.ndarray, radius: float, batch: int | None = None, alpha: float = DEFAULT_ALPHA) -> np.ndarray:
         """Native classifier: bool (B,), ``p > alpha``."""
         return self.decide(self.score(centers, radius, batch), alpha)
@@ -148,4 +146,4 @@ def collision_score(splats_or_tensors: Any, centers: np.ndarray, radius: float, 
 
 def collision_from_score(score: np.ndarray, alpha: float = DEFAULT_ALPHA) -> np.ndarray:
     """Native decision from the native score: collision iff ``p > alpha``."""
-    return np.asarray(score) > alpha
+    return Splanning.decide(score, alpha)

@@ -80,6 +80,7 @@ class SplatNav(Baseline):
     """
 
     native_batch = NATIVE_BATCH
+    threshold = THRESHOLD
 
     def __init__(self, splats_or_tensors: Any, device: str | torch.device = "auto", level: float = 1.0, n_steps: int = 10, dtype: torch.dtype = torch.float32) -> None:
         super().__init__(splats_or_tensors, device, dtype)
@@ -97,9 +98,6 @@ class SplatNav(Baseline):
         k = max_k_torch(v * v, self.lam, kappa, self.n_steps)  # [b, N]
         return k.min(dim=-1).values
 
-    def decide(self, score: np.ndarray) -> np.ndarray:
-        return collision_from_score(score)
-
 
 def splatnav_score(splats_or_tensors: Any, centers: np.ndarray, radius: float, device: str | torch.device = "auto", **method_kw) -> np.ndarray:
     """Native Splat-Nav score ``min_i max_t K_i`` per centre, float64 (B,); collision iff < 1.
@@ -114,4 +112,4 @@ def collision_score(splats_or_tensors: Any, centers: np.ndarray, radius: float, 
 
 def collision_from_score(score: np.ndarray) -> np.ndarray:
     """Native decision from the native score: collision iff ``score < 1``."""
-    return np.asarray(score) < THRESHOLD
+    return SplatNav.decide(score)

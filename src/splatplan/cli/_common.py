@@ -418,6 +418,11 @@ def add_seed_arg(parser: argparse.ArgumentParser, help: str = "random seed (inte
     parser.add_argument("--seed", type=SEED, default=0, help=help)
 
 
+def add_base_pose_arg(parser: argparse.ArgumentParser, help: str = BASE_POSE_HELP) -> None:
+    """The ``--base-pose`` flag (text, default None; read with :func:`parse_base_pose`)."""
+    parser.add_argument("--base-pose", default=None, help=help)
+
+
 # ---------------------------------------------------------------------------- config dataclasses -> flags
 def field_docs(cls) -> dict[str, str]:
     """The ``#:`` comment above each field of a dataclass (joined when it spans several lines)."""

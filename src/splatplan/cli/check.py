@@ -22,7 +22,7 @@ from .._resources import require_bytes
 from ..errors import SplatplanError
 from ..robots.builtin import ROBOT_NAME_HELP, parse_robot_name
 from ._common import (
-    BASE_POSE_HELP, POSITIVE_INT, _load, add_command, add_config_args, add_device_arg, atomic_path, config_from_args, load_npy,
+    BASE_POSE_HELP, POSITIVE_INT, _load, add_base_pose_arg, add_command, add_config_args, add_device_arg, atomic_path, config_from_args, load_npy,
     load_poses, parse_base_pose, robot_at, signals_deferred,
 )  # fmt: skip
 
@@ -177,7 +177,7 @@ def register(sub, eval_sub) -> None:
     s.add_argument("scene", metavar="SCENE")
     s.add_argument("--robot", required=True, help=f"{ROBOT_NAME_HELP}; a point robot (sphere, ellipsoid) takes --poses or --configs, the others --configs")
     s.add_argument("--poses", help="POSES.npy: (B,3) centres or (B,7) centre + wxyz quaternion, scene frame (single-link robots)")
-    s.add_argument("--base-pose", default=None, help=f"--configs robots: {BASE_POSE_HELP}")
+    add_base_pose_arg(s, help=f"--configs robots: {BASE_POSE_HELP}")
     s.add_argument("--configs", help="Q.npy: (B, dof) joint configurations of --robot (rad or m; panda: 7 arm joints, go2: x, y, yaw)")
     s.add_argument("--out", help="OUT.npz with min_s2, n_colliding, in_collision, softmin, cost: (B,) per pose, or (B, E) per "
                    "ellipsoid plus collision (B,), link_in_collision (B, L), link_min_s2 (B, L), link_names (L,) for --configs")  # fmt: skip

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from ..errors import SplatplanError
-from ._common import SEED, _out_dir, add_command, add_device_arg
+from ._common import _out_dir, add_command, add_device_arg, add_seed_arg
 
 
 def cmd_demo(args) -> int:
@@ -18,5 +18,5 @@ def cmd_demo(args) -> int:
 def register(sub, eval_sub) -> None:
     s = add_command(sub, "demo", cmd_demo, "the main job on the built-in scene: collision field and plans")
     s.add_argument("--out", default="demo_out", help="output folder (default demo_out)")
-    s.add_argument("--seed", type=SEED, default=0, help="scene and planner seed, an integer >= 0 (default 0)")
+    add_seed_arg(s, help="scene and planner seed, an integer >= 0 (default 0)")
     add_device_arg(s)

@@ -8,7 +8,8 @@ import numpy as np
 
 from ..errors import SplatplanError
 from ._common import (
-    BASE_POSE_HELP, SEED, _out_dir, add_config_args, add_device_arg, atomic_path, check_device, config_from_args, float_arg, parse_base_pose, robot_at, write_json,
+    _out_dir, add_base_pose_arg, add_config_args, add_device_arg, add_seed_arg, atomic_path, check_device, config_from_args, float_arg, parse_base_pose, robot_at,
+    write_json,
 )  # fmt: skip
 
 
@@ -128,13 +129,13 @@ def register(sub, eval_sub) -> None:
     s.add_argument("--goal-pose", default=None, help="panda: X,Y,Z,QW,QX,QY,QZ end-effector goal (metres, wxyz world <- panda_hand_tcp)")
     s.add_argument("--goal", default=None, help="go2: X,Y goal of the base (metres); e.g. the final node of an RRT path")
     s.add_argument("--start", default=None, help="start configuration: 7 joint values (panda, default home) or X,Y,YAW (go2; default -2.3,-0.6,0 in the living room of apartment, the base study's start, else 0,0,0)")
-    s.add_argument("--base-pose", default=None, help=BASE_POSE_HELP)
+    add_base_pose_arg(s)
     s.add_argument("--no-collision", action="store_true", help="switch the collision cost off (the baseline); every output says so")
     s.add_argument("--route", action="store_true", help="go2: plan a global RRT route on SE(2) first and track it (default: only when the straight line to the goal is blocked, facing the goal)")
     s.add_argument("--no-route", action="store_true", help="go2: never plan a route (the goal only, even when the straight line is blocked)")
     s.add_argument("--route-time", type=float_arg(gt=0), default=60.0, help="go2 --route: RRT time budget in seconds (default 60)")
     s.add_argument("--out", required=True, help="output folder (result.json, motion.png)")
-    s.add_argument("--seed", type=SEED, default=0, help="noise seed")
+    add_seed_arg(s, help="noise seed")
     add_device_arg(s)
     add_config_args(s, ArmConfig, prefix="arm_", skip=("mppi.seed",), group="panda (ArmConfig) options")
     add_config_args(s, BaseConfig, prefix="base_", skip=("mppi.seed",), group="go2 (BaseConfig) options")

@@ -24,7 +24,7 @@ import numpy as np
 from ..errors import SplatplanError
 from ..robots.builtin import DEFAULT_POINT_ROBOT, ROBOT_NAME_HELP
 from ._common import (
-    BASE_POSE_HELP, SEED, _load, add_command, add_config_args, add_device_arg, add_terrain_args, allow_negative_values, config_from_args, float_arg,
+    _load, add_base_pose_arg, add_command, add_config_args, add_device_arg, add_seed_arg, add_terrain_args, allow_negative_values, config_from_args, float_arg,
     ground_robot_scene, parse_base_pose, robot_at, write_json,
 )  # fmt: skip
 
@@ -187,7 +187,7 @@ def register(sub, eval_sub) -> None:
     s.add_argument("--ee-link", default="panda_hand_tcp", help="the link --goal-pose places (default panda_hand_tcp)")
     s.add_argument("--box", nargs=2, metavar=("LO", "HI"), help="sampling box corners, comma lists of the robot's dofs (default: "
                    "robust scene bounds padded by the robot size, joint limits for joints; lo == hi freezes a coordinate)")  # fmt: skip
-    s.add_argument("--base-pose", default=None, help=BASE_POSE_HELP)
+    add_base_pose_arg(s)
     s.add_argument("--up", default=None, help=argparse.SUPPRESS)  # removed: say how to align instead
     s.add_argument("--planar", action="store_true", help="plan at a fixed height z: point robots keep z at "
                    "--height (default the start's); go2 stands on the plane z = --height")  # fmt: skip
@@ -198,7 +198,7 @@ def register(sub, eval_sub) -> None:
     s.add_argument("--time-limit", type=float_arg(gt=0), default=None, help="wall-clock budget of the whole call in seconds: search, shortcut and "
                    "--refine share it (default 10; same as --rrt-time-limit-s)")  # fmt: skip
     s.add_argument("--refine", action="store_true", help="zeroth-order refinement of the RRT path")
-    s.add_argument("--seed", type=SEED, default=0, help="random seed (integer >= 0; default 0)")
+    add_seed_arg(s)
     s.add_argument("--force", action="store_true", help="overwrite an existing --out even when no path is found")
     add_device_arg(s)
     s.add_argument("--out", required=True, help="PATH.json")

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import SplatplanError
-from ._common import SEED, _Unset, _load, add_command, add_config_args, atomic_dir, config_from_args, float_arg, int_arg, move_into, parse_vec3
+from ._common import _Unset, _load, add_command, add_seed_arg, add_config_args, atomic_dir, config_from_args, float_arg, int_arg, move_into, parse_vec3
 
 
 def cmd_info(args) -> int:
@@ -224,5 +224,5 @@ def register(sub, eval_sub) -> None:
                    "mean 8-NN distance > 3x the median); says how many")  # fmt: skip
     add_config_args(s, AlignConfig, prefix="align_", skip=("up", "floor", "scale", "rotate_z", "translate", "crop", "drop_floaters"), group="align fit options (AlignConfig)")
     s.add_argument("--level", type=int_arg(ge=1, le=5), default=1, help="Gaussian-size level 1..5 (larger, fewer splats)")
-    s.add_argument("--seed", type=SEED, default=0, help="layout and sampling seed, an integer >= 0 (default 0)")
+    add_seed_arg(s, help="layout and sampling seed, an integer >= 0 (default 0)")
     s.add_argument("--n-splats", type=int_arg(ge=1), default=None, help="from-moveit only: total splats (default 100000: ~7-8 mm spacing on a metre-scale workcell)")

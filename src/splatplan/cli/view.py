@@ -10,7 +10,7 @@ import numpy as np
 
 from ..errors import SplatplanError
 from ..robots.builtin import ROBOT_NAME_HELP
-from ._common import BASE_POSE_HELP, _load, add_command, add_config_args, add_terrain_args, config_from_args, ground_robot_scene, parse_base_pose, robot_at
+from ._common import _load, add_base_pose_arg, add_command, add_config_args, add_terrain_args, config_from_args, ground_robot_scene, parse_base_pose, robot_at
 
 
 def _read_plan(path: str) -> np.ndarray:
@@ -94,7 +94,7 @@ def register(sub, eval_sub) -> None:
     s = add_command(sub, "view", cmd_view, "open a browser viewer of a scene, robot, plan, tree or MPC run")
     s.add_argument("scene", metavar="SCENE", help="splat file or a built-in scene file")
     s.add_argument("--robot", help=f"robot: {ROBOT_NAME_HELP} (default: a sphere sized to the scene)")
-    s.add_argument("--base-pose", default=None, help=BASE_POSE_HELP)
+    add_base_pose_arg(s)
     s.add_argument("--plan", help="PATH.json written by 'splatplan plan'")
     s.add_argument("--mpc", help="output folder of 'splatplan mpc' (its result.json trajectory is animated)")
     s.add_argument("--tree", help="TREE.npz with 'nodes' (N, D) and 'parents' (N,)")

@@ -1,18 +1,27 @@
-"""What the box-built scenes (apartment, tabletop) share: a box list with a colour per label, and
-their splat sampling (level-1 look, floaters the default filter drops, per-label density).
+"""What the box-built scenes (apartment, tabletop) share: a box list with a colour per label, their
+splat sampling (level-1 look, floaters the default filter drops, per-label density) and the
+in-memory cache of their layouts and splats (:class:`SceneCache`).
 
 Units and frames are the caller's (metres, z up for both scenes).
 """
 
 from __future__ import annotations
 
+import copy
+import functools
 from dataclasses import replace
+from typing import Callable
 
 import numpy as np
 
 from ...errors import SplatplanError
 from ..splats import Splats
-from .primitives import AnalyticScene, make_box, splats_from_scene
+from .primitives import AnalyticScene, _copy_splats, make_box, splats_from_scene
+
+
+def object_colors(label_colors: dict) -> dict:
+    """The distinct colours of the objects: the entries of ``label_colors`` labelled "object_*"."""
+    return {k: v for k, v in label_colors.items() if k.startswith("object_")}
 
 
 class BoxList:
@@ -86,3 +95,33 @@ def splat_count(n_splats: int | None, default: int) -> int:
     if n < 1:
         raise SplatplanError(f"n_splats must be >= 1, got {n_splats}")
     return n
+
+
+class SceneCache:
+    """The layouts and splats of one box-built scene, cached in memory (the 4 latest seeds, resp.
+    (seed, splat count) pairs); callers get fresh copies.
+
+    Args:
+        build_layout: seed -> the scene's layout (an object with ``scene`` and ``colors``).
+        n_splats: default total splat count (floaters included).
+        seed_tag, floater_region, density, top_only: the scene's arguments of :func:`sample_splats`.
+    """
+
+    def __init__(self, build_layout: Callable[[int], object], n_splats: int, seed_tag: int, floater_region, density: dict, top_only: tuple[str, ...] = ()) -> None:
+        self.n_splats = n_splats
+        self._sample_args = (seed_tag, floater_region, density, top_only)
+        self.cached_layout = functools.lru_cache(maxsize=4)(build_layout)  # shared: never mutate what it returns
+        self._cached_splats = functools.lru_cache(maxsize=4)(self._sample)
+
+    def _sample(self, seed: int, n_splats: int) -> Splats:
+        lay = self.cached_layout(seed)
+        seed_tag, region, density, top_only = self._sample_args
+        return sample_splats(lay.scene, lay.colors, n_splats, seed, seed_tag, region, density=density, top_only=top_only)
+
+    def layout(self, seed: int):
+        """A fresh copy of the layout for ``seed``."""
+        return copy.deepcopy(self.cached_layout(int(seed)))
+
+    def build(self, seed: int, n_splats: int | None) -> tuple[Splats, AnalyticScene]:
+        """Fresh copies of the splats (``n_splats`` counts floaters too; None: the default) and the boxes for ``seed``."""
+        return _copy_splats(self._cached_splats(int(seed), splat_count(n_splats, self.n_splats))), self.layout(seed).scene

@@ -26,15 +26,13 @@ face, walls 1.5x.
 
 from __future__ import annotations
 
-import copy
-import functools
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..splats import Splats
-from ._layout import BoxList, sample_splats, splat_count
-from .primitives import AnalyticScene, _copy_splats, _yaw_quat
+from ._layout import BoxList, SceneCache, object_colors
+from .primitives import AnalyticScene, _yaw_quat
 
 __all__ = ["DOORS", "N_SPLATS", "ROOMS", "WALL_HEIGHT", "ApartmentLayout", "apartment_layout", "build_apartment", "room_of"]
 
@@ -82,7 +80,7 @@ LABEL_COLORS = {
     "object_lime_stool": (0.60, 0.90, 0.10),
 }
 #: The distinct colours of the objects (labels "object_*").
-OBJECT_COLORS = {k: v for k, v in LABEL_COLORS.items() if k.startswith("object_")}
+OBJECT_COLORS = object_colors(LABEL_COLORS)
 
 
 @dataclass(frozen=True)
@@ -189,24 +187,16 @@ def _build_layout(seed: int) -> ApartmentLayout:
     return ApartmentLayout(scene=scene, colors=colors, rooms={k: (np.array(v[0]), np.array(v[1])) for k, v in ROOMS.items()}, doors=doors)
 
 
-@functools.lru_cache(maxsize=4)
-def _layout_cached(seed: int) -> ApartmentLayout:
-    return _build_layout(seed)
+#: the cached layouts and splats; floaters in the region below, splat spacing per label
+_CACHE = SceneCache(_build_layout, N_SPLATS, 1618, (np.array([-3.9, -2.9, 0.05]), np.array([3.9, 2.9, 1.1])), density={"floor": 2.0, "wall": 1.5}, top_only=("floor",))
 
 
 def apartment_layout(seed: int = 0) -> ApartmentLayout:
     """The analytic apartment for a seed (fresh copies; furniture jittered by seed)."""
-    return copy.deepcopy(_layout_cached(int(seed)))
-
-
-@functools.lru_cache(maxsize=4)
-def _build_cached(seed: int, n_splats: int) -> Splats:
-    lay = _layout_cached(seed)
-    region = (np.array([-3.9, -2.9, 0.05]), np.array([3.9, 2.9, 1.1]))
-    return sample_splats(lay.scene, lay.colors, n_splats, seed, 1618, region, density={"floor": 2.0, "wall": 1.5}, top_only=("floor",))
+    return _CACHE.layout(seed)
 
 
 def build_apartment(seed: int = 0, n_splats: int | None = None) -> tuple[Splats, AnalyticScene]:
     """The apartment splats and their boxes, fresh copies (cached in memory): see :func:`._layout.sample_splats`.
     ``seed`` jitters the layout and seeds the sampling; ``n_splats`` counts floaters too (default :data:`N_SPLATS`)."""
-    return _copy_splats(_build_cached(int(seed), splat_count(n_splats, N_SPLATS))), apartment_layout(seed).scene
+    return _CACHE.build(seed, n_splats)

@@ -30,15 +30,13 @@ Splats: ~150k by default (:data:`N_SPLATS`), the table legs sampled at 3x the sp
 
 from __future__ import annotations
 
-import copy
-import functools
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..splats import Splats
-from ._layout import BoxList, sample_splats, splat_count
-from .primitives import AnalyticScene, _copy_splats, _yaw_quat
+from ._layout import BoxList, SceneCache, object_colors
+from .primitives import AnalyticScene, _yaw_quat
 
 __all__ = ["N_SPLATS", "TABLE_TOP", "TARGET_REGION", "TabletopLayout", "build_tabletop", "tabletop_layout"]
 
@@ -68,7 +66,7 @@ LABEL_COLORS = {
     "object_orange": (0.98, 0.50, 0.05),
 }
 #: The distinct colours of the objects (labels "object_*").
-OBJECT_COLORS = {k: v for k, v in LABEL_COLORS.items() if k.startswith("object_")}
+OBJECT_COLORS = object_colors(LABEL_COLORS)
 
 
 @dataclass(frozen=True)
@@ -133,25 +131,17 @@ def _build_layout(seed: int) -> TabletopLayout:
     return TabletopLayout(scene=scene, colors=colors, target_region=TARGET_REGION, front_wall_top=front_h + TABLE_TOP)
 
 
-@functools.lru_cache(maxsize=4)
-def _layout_cached(seed: int) -> TabletopLayout:
-    return _build_layout(seed)
+#: the cached layouts and splats; floaters in the region below, splat spacing per label
+_CACHE = SceneCache(_build_layout, N_SPLATS, 2718, (np.array([-0.2, -0.7, TABLE_TOP + 0.02]), np.array([0.95, 0.7, 0.8])), density={"table_leg": 3.0, "table": 1.5})
 
 
 def tabletop_layout(seed: int = 0) -> TabletopLayout:
     """The analytic tabletop for a seed (fresh copies; small object/wall jitter by seed)."""
-    return copy.deepcopy(_layout_cached(int(seed)))
-
-
-@functools.lru_cache(maxsize=4)
-def _build_cached(seed: int, n_splats: int) -> Splats:
-    lay = _layout_cached(seed)
-    region = (np.array([-0.2, -0.7, TABLE_TOP + 0.02]), np.array([0.95, 0.7, 0.8]))
-    return sample_splats(lay.scene, lay.colors, n_splats, seed, 2718, region, density={"table_leg": 3.0, "table": 1.5})
+    return _CACHE.layout(seed)
 
 
 def build_tabletop(seed: int = 0, n_splats: int | None = None) -> tuple[Splats, AnalyticScene]:
     """The tabletop splats and their boxes, fresh copies (cached in memory): see :func:`._layout.sample_splats`.
     ``seed`` jitters the layout and seeds the sampling; ``n_splats`` counts floaters too (default :data:`N_SPLATS`)."""
-    return _copy_splats(_build_cached(int(seed), splat_count(n_splats, N_SPLATS))), tabletop_layout(seed).scene
+    return _CACHE.build(seed, n_splats)
 
