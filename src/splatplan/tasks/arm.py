@@ -32,6 +32,7 @@ import numpy as np
 from .._config import NESTED_SKIP, bounded
 from ..errors import SplatplanError
 from ..planners.dynamics import JointIntegrator
+from ..planners.costs import StridedCollisionTerms
 from ..planners.mppi import MPPIConfig
 from ..robots.ik import rotation_error, solve_ik
 from ._common import TaskConfig, TaskResult, TaskScene, check_start, load_task_scene, moving_clearance
@@ -46,7 +47,7 @@ def _arm_mppi() -> MPPIConfig:
 
 
 @dataclass
-class ArmConfig(TaskConfig):
+class ArmConfig(TaskConfig, StridedCollisionTerms, n_sigma=1.0, w_collision=2.0, w_hit=20.0, collision_s2_cap=1.4, collision_stride=2):
     """Knobs of :func:`run_arm` (MPPI over joint-velocity B-splines)."""
 
     #: MPPI settings (noise_sigma in rad/s; the control bounds come from velocity_scale)
@@ -65,10 +66,6 @@ class ArmConfig(TaskConfig):
     w_orientation: float = bounded(1.0, ge=0)
     #: extra weight of the last step of the goal cost (x the per-step weight)
     terminal_factor: float = bounded(4.0, ge=0)
-    #: weight of the summed CollisionSplatting cost (every ellipsoid, every step)
-    w_collision: float = bounded(2.0, ge=0)
-    #: cost per (step, ellipsoid) in collision
-    w_hit: float = bounded(20.0, ge=0)
     #: cost per step with a self-collision (0 = off)
     w_self_collision: float = bounded(0.0, ge=0)
     #: weight of the joint-limit penalty
@@ -79,12 +76,6 @@ class ArmConfig(TaskConfig):
     #: the IK solution of the goal pose nearest to the start, among the collision-free ones when the
     #: collision cost is on (the no-collision baseline uses no scene information at all)
     w_posture: float = bounded(1.0, ge=0)
-    #: conservatism of the metric (n_sigma)
-    n_sigma: float = bounded(1.0, ge=0)
-    #: neighbourhood of the rollouts' collision cost (checker s2_cap for MPPI queries)
-    collision_s2_cap: float = bounded(1.4, ge=1)
-    #: query the collision cost on every stride-th step of the horizon (1 = every step)
-    collision_stride: int = bounded(2, ge=1)
     #: end-effector link
     ee_link: str = "panda_hand_tcp"
     #: success: final position error below this (m) with a positive clearance throughout
@@ -153,7 +144,7 @@ def _posture_reference(robot, ts: TaskScene, p_goal, quat, q: np.ndarray, cfg: A
 
 def _arm_costs(robot, ts: TaskScene, p_goal, quat, q_ref: np.ndarray, cfg: ArmConfig, collision: bool) -> list:
     """The cost list of :func:`run_arm` (see the module docstring)."""
-    from ..planners.costs import CollisionCost, ControlEffortCost, GoalPoseCost, JointLimitCost, StateCost, fk_device
+    from ..planners.costs import ControlEffortCost, GoalPoseCost, JointLimitCost, StateCost, fk_device
 
     costs = [
         GoalPoseCost(robot, position=p_goal, quat=quat, link=cfg.ee_link, position_weight=cfg.w_position, orientation_weight=cfg.w_orientation, terminal_factor=cfg.terminal_factor,
@@ -164,7 +155,7 @@ def _arm_costs(robot, ts: TaskScene, p_goal, quat, q_ref: np.ndarray, cfg: ArmCo
     if cfg.w_posture > 0:
         costs.append(StateCost(lambda s: np.sum((s - q_ref) ** 2, axis=-1), weight=cfg.w_posture, name="posture"))
     if collision:
-        costs.insert(0, CollisionCost(ts.checker, robot, weight=cfg.w_collision, hit_weight=cfg.w_hit, s2_cap=cfg.collision_s2_cap, self_collision_weight=cfg.w_self_collision, time_stride=cfg.collision_stride))
+        costs.insert(0, cfg.collision_cost(ts.checker, robot, self_collision_weight=cfg.w_self_collision))
     return costs
 
 

@@ -58,6 +58,7 @@ import numpy as np
 
 from .._config import NESTED_SKIP, bounded
 from ..errors import SplatplanError
+from ..planners.costs import StridedCollisionTerms
 from ..planners.mppi import MPPIConfig
 from ._common import TaskConfig, TaskResult, base_terrain, check_start, load_task_scene, safe_step
 
@@ -89,7 +90,9 @@ def _base_mppi() -> MPPIConfig:
 
 
 @dataclass
-class BaseConfig(TaskConfig):
+class BaseConfig(TaskConfig, StridedCollisionTerms, n_sigma=0.75, w_collision=2.0, w_hit=10.0, collision_s2_cap=2.0, collision_stride=1):
+    # n_sigma 0.75: see the module docstring. w_hit kept small: a large one makes every sample that grazes a
+    # door post lose to standing still, and the base never threads a doorway
     """Knobs of :func:`run_base` (MPPI over body-frame velocity B-splines)."""
 
     #: MPPI settings (noise_sigma: vx m/s, vy m/s, wz rad/s; the control bounds are the robot's velocity limits)
@@ -139,19 +142,8 @@ class BaseConfig(TaskConfig):
     #: weight of facing the goal: sum_t (1 - cos(yaw_t - bearing to the goal)) (a walking robot
     #: moves best forward; 0 = off)
     w_heading: float = bounded(0.5, ge=0)
-    #: weight of the summed CollisionSplatting cost
-    w_collision: float = bounded(2.0, ge=0)
-    #: cost per (step, ellipsoid) in collision (kept small: a large one makes every sample that
-    #: grazes a door post lose to standing still, and the base never threads a doorway)
-    w_hit: float = bounded(10.0, ge=0)
     #: weight of the control effort
     w_control: float = bounded(0.02, ge=0)
-    #: conservatism of the metric (n_sigma)
-    n_sigma: float = bounded(0.75, ge=0)
-    #: neighbourhood of the rollouts' collision cost (checker s2_cap for MPPI queries)
-    collision_s2_cap: float = bounded(2.0, ge=1)
-    #: query the collision cost on every stride-th step of the horizon
-    collision_stride: int = bounded(1, ge=1)
     #: with a route: the goal term tracks the route's point this far (m, arc length) ahead of the
     #: base's progress along it, and the heading term its heading there (the route's yaw is one the
     #: RRT found free: in a narrow passage only a few headings are)
@@ -260,7 +252,7 @@ def run_base(
         device: metric device.
         progress: optional callable(step, distance) per MPC step.
     """
-    from ..planners import MPPI, CollisionCost, ControlEffortCost, PlanarBase
+    from ..planners import MPPI, ControlEffortCost, PlanarBase
     from ..planners.drive import DriveGoalCost, RouteTracker, StructuredDrives
     from ..planners.memory import ObstacleMemory
 
@@ -290,7 +282,7 @@ def run_base(
     goal_cost = DriveGoalCost(g, w_goal=cfg.w_goal, terminal_factor=cfg.terminal_factor, min_factor=cfg.min_factor, w_heading=cfg.w_heading, w_sweep=cfg.w_sweep, w_align=cfg.w_align, field=memory)
     costs = [ControlEffortCost(cfg.w_control, {2: cfg.w_yaw_rate}), goal_cost]
     if collision:
-        costs.insert(0, CollisionCost(ts.checker, robot, weight=cfg.w_collision, hit_weight=cfg.w_hit, s2_cap=cfg.collision_s2_cap, time_stride=cfg.collision_stride))
+        costs.insert(0, cfg.collision_cost(ts.checker, robot))
     drives = StructuredDrives(goal_cost, n_directions=cfg.n_directions, speed=cfg.primitive_speed, turn_rate=cfg.primitive_turn_rate, recovery=collision and cfg.recovery and route is None,
                               stuck_steps=cfg.stuck_steps, min_distance_m=cfg.recovery_min_distance_m, stuck_progress_m=cfg.stuck_progress_m, detour_length_m=cfg.detour_length_m,
                               exit_margin_m=cfg.detour_exit_margin_m, first_sweep=cfg.first_sweep)  # fmt: skip

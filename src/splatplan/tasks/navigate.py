@@ -36,6 +36,7 @@ import numpy as np
 
 from .._config import NESTED_SKIP, bounded
 from ..errors import SplatplanError
+from ..planners.costs import CollisionTerms
 from ..planners.mppi import MPPIConfig
 from ._common import TaskConfig, TaskScene, load_filtered_scene
 
@@ -52,14 +53,13 @@ def _drive_mppi() -> MPPIConfig:
 
 
 @dataclass
-class NavigateConfig(TaskConfig):
+class NavigateConfig(TaskConfig, CollisionTerms, n_sigma=0.5, w_collision=5.0, w_hit=20.0, collision_s2_cap=2.0):
+    # n_sigma 0.5: at 1 the apartment's large level-1 splats leave only 11% of random Go2 poses free against 39% by
+    # the exact geometry (0.5: 28%, 0.5% missed); the drive's collision cost uses drive_n_sigma
     """Knobs of the image-goal navigation (exploration, retrieval, driving)."""
 
     #: splats of a built-in scene (fewer = faster renders); None = the scene's default
     n_splats: int | None = bounded(80_000, ge=1)
-    #: conservatism of the metric (n_sigma). 0.5: at 1 the apartment's large level-1 splats leave
-    #: only 11% of random Go2 poses free against 39% by the exact geometry (0.5: 28%, 0.5% missed)
-    n_sigma: float = bounded(0.5, ge=0)
     #: rendered image side (pixels, square)
     image_size: int = bounded(64, ge=1)
     #: horizontal field of view of the head camera (degrees)
@@ -99,10 +99,6 @@ class NavigateConfig(TaskConfig):
     mppi: MPPIConfig = field(default_factory=_drive_mppi, metadata={NESTED_SKIP: ("seed",)})
     #: weight of the distance to the (carrot) goal, per metre per step
     w_goal: float = bounded(2.0, ge=0)
-    #: weight of the summed CollisionSplatting cost
-    w_collision: float = bounded(5.0, ge=0)
-    #: cost per (step, ellipsoid) in collision
-    w_hit: float = bounded(20.0, ge=0)
     #: weight of the heading term sum_t wrap(yaw_t - tree_yaw)^2 (the tree's edges were checked at
     #: that heading; 0 = free heading)
     w_yaw: float = bounded(1.0, ge=0)
@@ -110,8 +106,6 @@ class NavigateConfig(TaskConfig):
     w_control: float = bounded(0.01, ge=0)
     #: conservatism (n_sigma) of the drive's collision cost (1.0 closes the 0.9 m doorway for the Go2)
     drive_n_sigma: float = bounded(0.5, ge=0)
-    #: neighbourhood of the rollouts' collision cost (s2_cap)
-    collision_s2_cap: float = bounded(2.0, ge=1)
     #: follow the tree's branch to the retrieved node (False = only the node position)
     follow_tree: bool = True
     #: carrot distance ahead along the branch (m)
@@ -342,7 +336,7 @@ def drive_to(robot, nav: NavScene, goal_xy, cfg: NavigateConfig, *, start=None, 
         branch: (P, 2+) tree path ending at the goal, followed with a carrot when ``cfg.follow_tree``.
     """
     from ..planners import MPPI
-    from ..planners.costs import CollisionCost, ControlEffortCost, GoalPoseCost, StateCost
+    from ..planners.costs import ControlEffortCost, GoalPoseCost, StateCost
     from ..planners.dynamics import PlanarBase
     from ._common import check_start, trajectory_clearance
 
@@ -356,7 +350,7 @@ def drive_to(robot, nav: NavScene, goal_xy, cfg: NavigateConfig, *, start=None, 
     goal_cost = GoalPoseCost(None, position=goal, state_dims=(0, 1), position_weight=cfg.w_goal, terminal_factor=2.0)
     drive_checker = nav.task.checker.with_config(n_sigma=cfg.drive_n_sigma)
     costs = [
-        CollisionCost(drive_checker, robot, weight=cfg.w_collision, hit_weight=cfg.w_hit, s2_cap=cfg.collision_s2_cap),
+        cfg.collision_cost(drive_checker, robot),
         goal_cost,
         ControlEffortCost(cfg.w_control),
     ]

@@ -56,6 +56,7 @@ import numpy as np
 from .._config import NESTED_SKIP, bounded, check_order
 from ..errors import SplatplanError
 from ..planners.goal_refiner import GoalRefiner
+from ..planners.costs import StridedCollisionTerms
 from ..planners.mppi import MPPI, MPPIConfig
 from ._common import TaskConfig, TaskScene, check_start, load_task_scene, moving_clearance, trajectory_clearance
 
@@ -68,7 +69,7 @@ def _reach_mppi() -> MPPIConfig:
 
 
 @dataclass
-class ReachConfig(TaskConfig):
+class ReachConfig(TaskConfig, StridedCollisionTerms, n_sigma=1.0, w_collision=0.1, w_hit=10.0, collision_s2_cap=1.3, collision_stride=2):
     """Knobs of :func:`run_reach` (MPPI over joint-velocity B-splines with the image cost)."""
 
     #: MPPI settings (noise_sigma in rad/s; the horizon is the executed steps too: a shrinking horizon; the iterations
@@ -150,20 +151,10 @@ class ReachConfig(TaskConfig):
     w_global: float = bounded(1.0, ge=0)
     #: weight of the mean patch-token distance inside the image cost (0 = off; needs tokens)
     w_patch: float = bounded(0.0, ge=0)
-    #: weight of the summed CollisionSplatting cost (with the collision cost only)
-    w_collision: float = bounded(0.1, ge=0)
-    #: cost per (step, ellipsoid) in collision (with the collision cost only)
-    w_hit: float = bounded(10.0, ge=0)
     #: weight of the control effort sum |qdot|^2 dt
     w_control: float = bounded(0.01, ge=0)
     #: weight of the joint-limit penalty
     w_limits: float = bounded(100.0, ge=0)
-    #: conservatism of the metric (n_sigma)
-    n_sigma: float = bounded(1.0, ge=0)
-    #: neighbourhood of the rollouts' collision cost (checker s2_cap for MPPI queries)
-    collision_s2_cap: float = bounded(1.3, ge=1)
-    #: evaluate the collision cost on every n-th rollout step (1 = every step)
-    collision_stride: int = bounded(2, ge=1)
     #: splats of a built-in scene (fewer = faster renders; the clearance uses the exact geometry)
     n_splats: int = bounded(60_000, ge=1)
     #: link carrying the wrist camera (camera axes = link axes, OpenCV: looks along link z)
@@ -478,7 +469,7 @@ class _ReachRun:
     iterations in ``iters``; ``start_costs`` are the multi-start costs."""
 
     def __init__(self, robot, ts: TaskScene, renderer, camera, encoder, target: np.ndarray, cfg: ReachConfig, collision: bool) -> None:
-        from ..planners.costs import CollisionCost, ControlEffortCost, JointLimitCost, UntilGoalCost
+        from ..planners.costs import ControlEffortCost, JointLimitCost, UntilGoalCost
         from ..planners.dynamics import JointIntegrator
         from ..planners.image_cost import ImageCost
 
@@ -489,7 +480,7 @@ class _ReachRun:
                                     w_empty=cfg.w_empty, log_eps=cfg.image_log_eps, normalize=cfg.normalize_features)  # fmt: skip
         path_costs = [ControlEffortCost(cfg.w_control), JointLimitCost(robot, weight=cfg.w_limits, margin=0.05)]
         if collision:
-            path_costs.insert(0, CollisionCost(ts.checker, robot, weight=cfg.w_collision, hit_weight=cfg.w_hit, s2_cap=cfg.collision_s2_cap, time_stride=cfg.collision_stride))
+            path_costs.insert(0, cfg.collision_cost(ts.checker, robot))
         mcfg = replace(cfg.mppi, u_min=tuple(-self.vmax), u_max=tuple(self.vmax), report_nominal=True)  # the nominal's raw image cost anneals the noise
         self.mppi = MPPI(self.dyn, None, mcfg, costs=[UntilGoalCost(path_costs), self.image_cost])
         self.refiner = self._new_refiner()
