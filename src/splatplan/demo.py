@@ -194,7 +194,9 @@ def run_reach_demo(out: Path, device: str = "auto") -> dict:
     from .render import SplatRenderer
     from .robots import load_robot
     from .tasks._common import load_task_scene
-    from .tasks.reach import ReachConfig, make_reach_goals, reach_encoder, reach_start, run_reach, wrist_camera
+    from .planners.reach_goals import make_reach_goals, reach_start
+    from .render.cameras import wrist_camera
+    from .tasks.reach import ReachConfig, reach_encoder, run_reach
     from ._warp import resolve_device
 
     t0 = time.perf_counter()

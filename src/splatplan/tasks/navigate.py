@@ -7,7 +7,7 @@ image was taken from, and drives there.
 2. **Index**: the head camera's view at every node (thinned to one per ``index_spacing_m``), at
    ``n_headings`` evenly spaced headings, is rendered (batched) and encoded (:func:`build_view_index`).
 3. **Retrieve**: the node and heading whose embedding is closest to the target image's
-   (squared distance, the image cost of the paper) (:func:`retrieve`). A match whose best cost is
+   (squared distance, the image cost of the paper) (:func:`~splatplan.encoders.view_index.retrieve`). A match whose best cost is
    not clearly below the typical cost (``best / median > weak_ratio``) is reported as **weak** and
    the robot does not drive unless asked to.
 4. **Drive**: base MPPI with the collision cost (every body and leg ellipsoid) drives to the
@@ -40,10 +40,7 @@ from ..planners.costs import CollisionTerms
 from ..planners.mppi import MPPIConfig
 from ._common import TaskConfig, TaskScene, load_filtered_scene
 
-__all__ = [
-    "NavigateConfig", "NavScene", "ViewIndex", "Match", "DriveResult", "head_camera", "load_nav_scene", "explore",
-    "build_view_index", "retrieve", "drive_to", "tree_branch", "wrap_angle", "nav_robot", "thin_nodes",
-]  # fmt: skip
+__all__ = ["NavigateConfig", "NavScene", "DriveResult", "head_camera", "load_nav_scene", "explore", "build_view_index", "drive_to", "nav_robot"]
 
 
 def _drive_mppi() -> MPPIConfig:
@@ -136,19 +133,20 @@ def nav_robot(robot=None):
     return load_robot(robot)
 
 
-def wrap_angle(a):
-    """Angles wrapped to (-pi, pi]."""
-    return (np.asarray(a, np.float64) + np.pi) % (2 * np.pi) - np.pi
-
-
 def head_camera(robot, cfg: NavigateConfig):
-    """The Go2's head camera: on link ``base``, looking along the body's +x, image up = +z."""
-    from ..render import MountedCamera, intrinsics_from_fov, mount_offset
+    """The Go2's head camera of ``cfg`` (:func:`splatplan.render.cameras.head_camera` on link ``base``)."""
+    from ..render.cameras import head_camera as mounted_head_camera
 
-    cam = MountedCamera("base", mount_offset(tuple(cfg.camera_offset), forward=(1.0, 0.0, 0.0), up=(0.0, 0.0, 1.0)),
-                        intrinsics_from_fov(cfg.fov_deg, cfg.image_size, cfg.image_size), cfg.image_size, cfg.image_size)  # fmt: skip
-    cam._link_index(robot)
-    return cam
+    return mounted_head_camera(robot, cfg.image_size, cfg.fov_deg, cfg.camera_offset)
+
+
+def build_view_index(robot, nav: NavScene, nodes: np.ndarray, encoder, renderer, cfg: NavigateConfig):
+    """The :class:`~splatplan.encoders.view_index.ViewIndex` of the tree's ``nodes`` (N, 3) under
+    ``cfg`` (:func:`~splatplan.encoders.view_index.index_views` with the head camera)."""
+    from ..encoders.view_index import index_views
+
+    cfg.validate()
+    return index_views(robot, head_camera(robot, cfg), nodes, encoder, renderer, n_headings=cfg.n_headings, spacing=cfg.index_spacing_m, batch=cfg.render_batch, background=cfg.background)
 
 
 @dataclass
@@ -199,120 +197,6 @@ def explore(robot, nav: NavScene, cfg: NavigateConfig):
     return RRT(nav.task.checker, rcfg, robot=robot).plan(start, None)
 
 
-def thin_nodes(nodes: np.ndarray, spacing: float) -> np.ndarray:
-    """Indices of nodes kept by greedy thinning in order: a node is kept when it is at least
-    ``spacing`` (m, in x, y) from every node kept before it."""
-    nodes = np.asarray(nodes, np.float64)
-    if spacing <= 0 or len(nodes) == 0:
-        return np.arange(len(nodes))
-    kept = [0]
-    for i in range(1, len(nodes)):
-        if np.min(np.linalg.norm(nodes[kept, :2] - nodes[i, :2], axis=1)) >= spacing:
-            kept.append(i)
-    return np.asarray(kept)
-
-
-@dataclass
-class ViewIndex:
-    """Encoded views of the tree: row i = node ``node[i]`` at heading ``yaw[i]``."""
-
-    poses: np.ndarray  # (M, 3) x, y, yaw of each view
-    node: np.ndarray  # (M,) tree node index
-    embeddings: object  # (M, D) encoder output (numpy or torch)
-    encoder: object
-    render_s: float = 0.0
-    encode_s: float = 0.0
-
-
-def build_view_index(robot, nav: NavScene, nodes: np.ndarray, encoder, renderer, cfg: NavigateConfig) -> ViewIndex:
-    """Render and encode the views of the tree's nodes (thinned to ``cfg.index_spacing_m``) at
-    ``cfg.n_headings`` headings (batched). ``ViewIndex.node`` indexes ``nodes``."""
-    cfg.validate()
-    nodes = np.asarray(nodes, np.float64).reshape(-1, 3)
-    keep = thin_nodes(nodes, cfg.index_spacing_m)
-    cam = head_camera(robot, cfg)
-    yaws = 2 * np.pi * np.arange(cfg.n_headings) / cfg.n_headings
-    poses = np.concatenate([np.repeat(nodes[keep, :2], len(yaws), axis=0), np.tile(yaws, len(keep))[:, None]], axis=1)  # (M, 3)
-    poses[:, 2] = wrap_angle(poses[:, 2])
-    node = np.repeat(keep, len(yaws))
-    embs, t_r, t_e = [], 0.0, 0.0
-    for i in range(0, len(poses), cfg.render_batch):
-        t0 = time.perf_counter()
-        rgb = cam.render(renderer, robot, poses[i : i + cfg.render_batch], background=(cfg.background,) * 3).rgb
-        t1 = time.perf_counter()
-        embs.append(np.asarray(encoder.encode(rgb)))
-        t_r, t_e = t_r + t1 - t0, t_e + time.perf_counter() - t1
-    emb = np.concatenate(embs) if embs else np.zeros((0, encoder.dim), np.float32)
-    return ViewIndex(poses, node, emb, encoder, t_r, t_e)
-
-
-@dataclass
-class Match:
-    """The retrieved view: pose (x, y, yaw), its node, the cost (squared embedding distance),
-    the median cost over all views, and whether the match is weak."""
-
-    index: int
-    node: int
-    pose: np.ndarray
-    cost: float
-    median_cost: float
-    ratio: float
-    weak: bool
-    costs: np.ndarray = field(repr=False, default=None)
-
-    def to_json(self) -> dict:
-        return {"node": int(self.node), "pose": self.pose.round(4).tolist(), "cost": round(self.cost, 6), "median_cost": round(self.median_cost, 6),
-                "ratio": round(self.ratio, 4), "weak": bool(self.weak)}  # fmt: skip
-
-
-def retrieve(index: ViewIndex, target_image, weak_ratio: float = 0.5) -> Match:
-    """The view whose embedding is closest to the target image's (any image size: the encoder
-    resizes it; RGB in [0, 1])."""
-    img = np.asarray(target_image, np.float32)
-    if img.ndim != 3 or img.shape[-1] != 3:
-        raise SplatplanError(f"target image must be (H, W, 3) RGB, got shape {img.shape}")
-    if len(index.poses) == 0:
-        raise SplatplanError("the view index is empty: the exploration tree has no nodes")
-    e_t = np.asarray(index.encoder.encode(img[None]))  # (1, D)
-    costs = np.sum((np.asarray(index.embeddings, np.float64) - e_t.astype(np.float64)) ** 2, axis=1)  # (M,)
-    i = int(np.argmin(costs))
-    med = float(np.median(costs))
-    ratio = float(costs[i] / med) if med > 0 else 1.0
-    return Match(i, int(index.node[i]), index.poses[i].copy(), float(costs[i]), med, ratio, bool(ratio > weak_ratio), costs)
-
-
-def tree_branch(nodes: np.ndarray, parents: np.ndarray, i: int) -> np.ndarray:
-    """(P, 3) tree nodes from the root to node i."""
-    idx = []
-    while i >= 0:
-        idx.append(int(i))
-        i = int(parents[i])
-    return np.asarray(nodes)[idx[::-1]]
-
-
-def _carrot(path_xy: np.ndarray, p: np.ndarray, lookahead: float, progress: int) -> tuple[np.ndarray, int]:
-    """Point ``lookahead`` ahead along the polyline from the closest point at or after segment ``progress``."""
-    if len(path_xy) == 1:
-        return path_xy[0], 0
-    a, b = path_xy[:-1], path_xy[1:]
-    ab = b - a
-    t = np.clip(np.einsum("ij,ij->i", p - a, ab) / np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-12), 0, 1)
-    d = np.linalg.norm(a + t[:, None] * ab - p, axis=1)
-    d[:progress] = np.inf
-    j = int(np.argmin(d))
-    rem = lookahead
-    pt = a[j] + t[j] * ab[j]
-    k = j
-    while k < len(ab):
-        seg = np.linalg.norm(b[k] - pt)
-        if seg >= rem:
-            return pt + (b[k] - pt) * (rem / max(seg, 1e-12)), j
-        rem -= seg
-        pt = b[k]
-        k += 1
-    return path_xy[-1], j
-
-
 @dataclass
 class DriveResult:
     """One drive: executed states (S + 1, 3), reached flag, final distance to the goal (m),
@@ -338,6 +222,7 @@ def drive_to(robot, nav: NavScene, goal_xy, cfg: NavigateConfig, *, start=None, 
     from ..planners import MPPI
     from ..planners.costs import ControlEffortCost, GoalPoseCost, StateCost
     from ..planners.dynamics import PlanarBase
+    from ..planners.route import carrot, wrap_angle
     from ._common import check_start, trajectory_clearance
 
     goal = np.asarray(goal_xy, np.float64).reshape(-1)[:2]
@@ -369,8 +254,8 @@ def drive_to(robot, nav: NavScene, goal_xy, cfg: NavigateConfig, *, start=None, 
         if dist < cfg.goal_tol_m:
             reached = True
             break
-        carrot, prog = _carrot(path, x[:2], cfg.lookahead_m, prog) if cfg.follow_tree else (goal, 0)
-        goal_cost.position = np.asarray(carrot, np.float64)
+        target, prog = carrot(path, x[:2], cfg.lookahead_m, prog) if cfg.follow_tree else (goal, 0)
+        goal_cost.position = np.asarray(target, np.float64)
         u, _ = mppi.step(x)
         x = dyn.rollout(x, u[None, None, :], cfg.mppi.dt)[0, 0]
         x[2] = float(wrap_angle(x[2]))
