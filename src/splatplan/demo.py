@@ -231,7 +231,8 @@ def run_robot_demo(out: Path, device: str = "auto") -> dict:
     from ._warp import resolve_device
     from .robots import load_robot
     from .tasks._common import base_terrain, load_task_scene, replace_mppi
-    from .tasks.arm import ArmConfig, down_quat, run_arm
+    from .robots.ik import down_quat
+    from .tasks.arm import ArmConfig, run_arm
     from .tasks.base import BaseConfig, load_go2, run_base
     from .tasks.plot import plot_run
 

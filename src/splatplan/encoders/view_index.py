@@ -13,10 +13,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .._config import ConfigTerms, bounded
 from ..errors import SplatplanError
 from ..planners.route import wrap_angle
 
-__all__ = ["Match", "ViewIndex", "index_views", "retrieve", "thin_nodes"]
+__all__ = ["Match", "ViewIndex", "ViewIndexTerms", "index_views", "retrieve", "thin_nodes"]
 
 
 def thin_nodes(nodes: np.ndarray, spacing: float) -> np.ndarray:
@@ -100,3 +101,36 @@ def retrieve(index: ViewIndex, target_image, weak_ratio: float = 0.5) -> Match:
     med = float(np.median(costs))
     ratio = float(costs[i] / med) if med > 0 else 1.0
     return Match(i, int(index.node[i]), index.poses[i].copy(), float(costs[i]), med, ratio, bool(ratio > weak_ratio), costs)
+
+
+@dataclass
+class ViewIndexTerms(ConfigTerms):
+    """The head camera's and the view index's fields of a navigation config (flat in it:
+    ``--n-headings``), and the camera and index they make."""
+
+    #: rendered image side (pixels, square)
+    image_size: int = bounded(64, ge=1)
+    #: horizontal field of view of the head camera (degrees)
+    fov_deg: float = bounded(90.0, gt=0, lt=180)
+    #: head camera position in the base frame (x forward, y left, z up), metres
+    camera_offset: tuple[float, float, float] = (0.30, 0.0, 0.05)
+    #: render background grey level
+    background: float = bounded(0.5, ge=0, le=1)
+    #: index only nodes at least this far (m) from every node indexed before them (greedy thinning
+    #: in tree order); 0 = every node
+    index_spacing_m: float = bounded(0.15, gt=0)
+    #: headings rendered per node (evenly spaced over 360 degrees)
+    n_headings: int = bounded(24, ge=1)
+    #: renders per batch when indexing
+    render_batch: int = bounded(256, ge=1)
+
+    def head_camera(self, robot):
+        """The head camera on the base link of ``robot`` (:func:`splatplan.render.cameras.head_camera`)."""
+        from ..render.cameras import head_camera
+
+        return head_camera(robot, self.image_size, self.fov_deg, self.camera_offset)
+
+    def index_views(self, robot, nodes: np.ndarray, encoder, renderer) -> ViewIndex:
+        """:func:`index_views` of ``nodes`` (N, 3) with these settings and :meth:`head_camera`."""
+        return index_views(robot, self.head_camera(robot), nodes, encoder, renderer, n_headings=self.n_headings, spacing=self.index_spacing_m, batch=self.render_batch,
+                           background=self.background)  # fmt: skip

@@ -19,7 +19,7 @@ Warm start by shifting the knots one control period (MPPI's own); the knots are 
 B-spline so that the applied first control is set by knots that shape the whole rollout; the
 knot noise shrinks near the goal (``noise_anneal_m``). The collision cost may query every
 ``collision_stride``-th step of the horizon. The goal pose is checked for reachability by IK
-(:func:`~splatplan.robots.ik.solve_ik`) before any step: an unreachable goal is an error.
+(:func:`~splatplan.robots.ik.check_reachable`) before any step: an unreachable goal is an error.
 """
 
 from __future__ import annotations
@@ -34,10 +34,10 @@ from ..errors import SplatplanError
 from ..planners.dynamics import JointIntegrator
 from ..planners.costs import StridedCollisionTerms
 from ..planners.mppi import MPPIConfig
-from ..robots.ik import rotation_error, solve_ik
+from ..robots.ik import check_reachable, rotation_error
 from ._common import TaskConfig, TaskResult, TaskScene, check_start, load_task_scene, moving_clearance
 
-__all__ = ["ArmConfig", "check_reachable", "down_quat", "run_arm"]
+__all__ = ["ArmConfig", "run_arm"]
 
 
 def _arm_mppi() -> MPPIConfig:
@@ -85,29 +85,6 @@ class ArmConfig(TaskConfig, StridedCollisionTerms, n_sigma=1.0, w_collision=2.0,
     #: stop early once the position error is below this (m) and the orientation within tolerance
     stop_tol: float = bounded(0.008, ge=0)
 
-
-
-def down_quat(yaw: float = 0.0) -> np.ndarray:
-    """wxyz quaternion of a gripper pointing straight down (tool z = world -z), turned by ``yaw``."""
-    return np.array([0.0, np.cos(yaw / 2), np.sin(yaw / 2), 0.0])
-
-
-def check_reachable(robot, position, quat, link: str, tol_m: float = 0.003, tol_deg: float = 2.0, n_seeds: int = 24, seed: int = 0) -> np.ndarray:
-    """IK (damped least squares from ``n_seeds`` starts) for the goal pose; returns the solutions
-    (S, dof) that reach it, best first. Raises "unreachable goal pose" when none does."""
-    p = np.asarray(position, np.float64).reshape(3)
-    base = robot.base_pose[:3, 3]
-    reach = float(robot.info.get("reach_m", 1.2)) if hasattr(robot, "info") else 1.2
-    if np.linalg.norm(p - base) > reach:
-        raise SplatplanError(f"unreachable goal pose: {p.round(3).tolist()} is {np.linalg.norm(p - base):.2f} m from the base of {robot.name} (reach < {reach:.2f} m)")
-    q, pe, re = solve_ik(robot, p, quat, link=link, n_seeds=n_seeds, n_iters=60, seed=seed)
-    ok = (pe < tol_m) & (re < np.deg2rad(tol_deg))
-    if not np.any(ok):
-        raise SplatplanError(
-            f"unreachable goal pose: position {p.round(3).tolist()}, quat {np.round(quat, 3).tolist()}: the closest IK solution "
-            f"({n_seeds} starts) is {pe[0] * 100:.1f} cm / {np.rad2deg(re[0]):.1f} deg away; pick a pose inside the workspace"
-        )
-    return q[ok]
 
 
 def _ee_error(robot, q: np.ndarray, li: int, p_goal: np.ndarray, r_goal: np.ndarray | None) -> tuple[float, float]:

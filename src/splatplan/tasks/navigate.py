@@ -36,6 +36,7 @@ import numpy as np
 
 from .._config import NESTED_SKIP, bounded
 from ..errors import SplatplanError
+from ..encoders.view_index import ViewIndexTerms
 from ..planners.costs import CollisionTerms
 from ..planners.mppi import MPPIConfig
 from ._common import TaskConfig, TaskScene, load_filtered_scene
@@ -50,21 +51,13 @@ def _drive_mppi() -> MPPIConfig:
 
 
 @dataclass
-class NavigateConfig(TaskConfig, CollisionTerms, n_sigma=0.5, w_collision=5.0, w_hit=20.0, collision_s2_cap=2.0):
+class NavigateConfig(TaskConfig, CollisionTerms, ViewIndexTerms, n_sigma=0.5, w_collision=5.0, w_hit=20.0, collision_s2_cap=2.0):
     # n_sigma 0.5: at 1 the apartment's large level-1 splats leave only 11% of random Go2 poses free against 39% by
     # the exact geometry (0.5: 28%, 0.5% missed); the drive's collision cost uses drive_n_sigma
     """Knobs of the image-goal navigation (exploration, retrieval, driving)."""
 
     #: splats of a built-in scene (fewer = faster renders); None = the scene's default
     n_splats: int | None = bounded(80_000, ge=1)
-    #: rendered image side (pixels, square)
-    image_size: int = bounded(64, ge=1)
-    #: horizontal field of view of the head camera (degrees)
-    fov_deg: float = bounded(90.0, gt=0, lt=180)
-    #: head camera position in the base frame (x forward, y left, z up), metres
-    camera_offset: tuple[float, float, float] = (0.30, 0.0, 0.05)
-    #: render background grey level
-    background: float = bounded(0.5, ge=0, le=1)
     #: start pose (x, y, yaw) of the exploration and of every drive
     start: tuple[float, float, float] = (-0.8, 0.3, 0.0)
     #: exploration sampling box lower corner (x, y) (m)
@@ -77,19 +70,12 @@ class NavigateConfig(TaskConfig, CollisionTerms, n_sigma=0.5, w_collision=5.0, w
     #: rendered at every heading anyway, and a frozen yaw passes the doorways in walls x = const
     #: head-on); None = explore the yaw too (much slower: turning counts as motion)
     tree_yaw: float | None = 0.0
-    #: index only nodes at least this far (m) from every node indexed before them (greedy thinning
-    #: in tree order); 0 = every node
-    index_spacing_m: float = bounded(0.15, gt=0)
     #: RRT stride (largest edge, weighted configuration distance)
     tree_stride: float = bounded(0.5, gt=0)
     #: wall-clock cap of the exploration (s)
     tree_time_s: float = bounded(120.0, gt=0)
     #: largest motion of any ellipsoid point between collision checks along a tree edge (m)
     edge_resolution_m: float = bounded(0.06, gt=0)
-    #: headings rendered per node (evenly spaced over 360 degrees)
-    n_headings: int = bounded(24, ge=1)
-    #: renders per batch when indexing
-    render_batch: int = bounded(256, ge=1)
     #: a match is weak when best cost / median cost over all views exceeds this
     weak_ratio: float = bounded(0.5, gt=0, le=1)
     #: the drive's MPPI settings (noise and bounds: vx m/s, vy m/s, wz rad/s; the noise seed is ``seed``)
@@ -134,19 +120,14 @@ def nav_robot(robot=None):
 
 
 def head_camera(robot, cfg: NavigateConfig):
-    """The Go2's head camera of ``cfg`` (:func:`splatplan.render.cameras.head_camera` on link ``base``)."""
-    from ..render.cameras import head_camera as mounted_head_camera
-
-    return mounted_head_camera(robot, cfg.image_size, cfg.fov_deg, cfg.camera_offset)
+    """The Go2's head camera of ``cfg`` (:meth:`~splatplan.encoders.view_index.ViewIndexTerms.head_camera`)."""
+    return cfg.head_camera(robot)
 
 
 def build_view_index(robot, nav: NavScene, nodes: np.ndarray, encoder, renderer, cfg: NavigateConfig):
-    """The :class:`~splatplan.encoders.view_index.ViewIndex` of the tree's ``nodes`` (N, 3) under
-    ``cfg`` (:func:`~splatplan.encoders.view_index.index_views` with the head camera)."""
-    from ..encoders.view_index import index_views
-
+    """The :class:`~splatplan.encoders.view_index.ViewIndex` of the tree's ``nodes`` (N, 3) under ``cfg``."""
     cfg.validate()
-    return index_views(robot, head_camera(robot, cfg), nodes, encoder, renderer, n_headings=cfg.n_headings, spacing=cfg.index_spacing_m, batch=cfg.render_batch, background=cfg.background)
+    return cfg.index_views(robot, nodes, encoder, renderer)
 
 
 @dataclass

@@ -47,6 +47,7 @@ from .._config import NESTED_SKIP, bounded, check_order
 from ..errors import SplatplanError
 from ..planners.costs import StridedCollisionTerms
 from ..planners.goal_time import GoalTimeMPC, GoalTimeSchedule
+from ..planners.image_cost import ImageTerms
 from ..planners.mppi import MPPI, MPPIConfig
 from ..render.cameras import camera_pose_error, wrist_camera
 from ._common import TaskConfig, check_start, load_task_scene, moving_clearance, trajectory_clearance
@@ -60,7 +61,7 @@ def _reach_mppi() -> MPPIConfig:
 
 
 @dataclass
-class ReachConfig(TaskConfig, StridedCollisionTerms, GoalTimeSchedule, n_sigma=1.0, w_collision=0.1, w_hit=10.0, collision_s2_cap=1.3, collision_stride=2):
+class ReachConfig(TaskConfig, StridedCollisionTerms, GoalTimeSchedule, ImageTerms, n_sigma=1.0, w_collision=0.1, w_hit=10.0, collision_s2_cap=1.3, collision_stride=2):
     """Knobs of :func:`run_reach` (MPPI over joint-velocity B-splines with the image cost)."""
 
     #: MPPI settings (noise_sigma in rad/s; the horizon is the executed steps too: a shrinking horizon; the iterations
@@ -72,27 +73,10 @@ class ReachConfig(TaskConfig, StridedCollisionTerms, GoalTimeSchedule, n_sigma=1
     image_size: int = bounded(64, ge=1)
     #: horizontal field of view of the wrist camera (degrees)
     fov_deg: float = bounded(70.0, gt=0, lt=180)
-    #: render background grey level: a mid grey keeps views of empty space from scoring like dark
-    #: image regions (with a black background the weight-free thumbnail rewards looking away)
-    background: float = bounded(0.5, ge=0, le=1)
-    #: weight of the image cost
-    w_image: float = bounded(1.0, ge=0)
     #: side the encoder resizes images to (None = its default: 8 for the reach thumbnail pyramid, 224 for EfficientNet / DINOv2)
     encoder_image_size: int | None = bounded(None, ge=1)
     #: bands of the thumbnail encoder's Laplacian pyramid (1 = the single 16x16 thumbnail)
     thumbnail_levels: int = bounded(2, ge=1)
-    #: image cost scored as log(1 + c / image_log_eps) (0 = the raw distance c): MPPI then weighs
-    #: relative progress, so it keeps converging near the goal where raw differences shrink
-    image_log_eps: float = bounded(0.01, ge=0)
-    #: compare L2-normalised features (cosine distance in [0, 4]): one cost scale for every encoder,
-    #: so the image cost neither swamps nor vanishes beside the collision cost
-    normalize_features: bool = True
-    #: weight of the empty-view term mean(1 - alpha) of the rendered view (0 = image cost only)
-    w_empty: float = bounded(1.0, ge=0)
-    #: weight of the global-embedding distance inside the image cost
-    w_global: float = bounded(1.0, ge=0)
-    #: weight of the mean patch-token distance inside the image cost (0 = off; needs tokens)
-    w_patch: float = bounded(0.0, ge=0)
     #: weight of the control effort sum |qdot|^2 dt
     w_control: float = bounded(0.01, ge=0)
     #: weight of the joint-limit penalty
@@ -107,6 +91,7 @@ class ReachConfig(TaskConfig, StridedCollisionTerms, GoalTimeSchedule, n_sigma=1
     orientation_tol_deg: float = bounded(15.0, gt=0, le=180)
     #: intermediate wrist views kept for the figures
     n_views: int = bounded(6, ge=0)
+
     def check(self) -> None:
         check_order(self, "refine_sigma_min", "refine_sigma")
 
@@ -222,7 +207,6 @@ def run_reach(
     """
     from ..planners.costs import ControlEffortCost, JointLimitCost, UntilGoalCost
     from ..planners.dynamics import JointIntegrator
-    from ..planners.image_cost import ImageCost
     from ..render import SplatRenderer
     from ..robots import load_robot
 
@@ -240,8 +224,7 @@ def run_reach(
     own = renderer is None
     rend = SplatRenderer(ts.splats, device) if own else renderer
     try:
-        image_cost = ImageCost(rend, cam, robot, enc, img, weight=cfg.w_image, w_global=cfg.w_global, w_patch=cfg.w_patch, background=(cfg.background,) * 3,
-                               w_empty=cfg.w_empty, log_eps=cfg.image_log_eps, normalize=cfg.normalize_features)  # fmt: skip
+        image_cost = cfg.image_cost(rend, cam, robot, enc, img)
         path_costs = [ControlEffortCost(cfg.w_control), JointLimitCost(robot, weight=cfg.w_limits, margin=0.05)]
         if collision:
             path_costs.insert(0, cfg.collision_cost(ts.checker, robot))
