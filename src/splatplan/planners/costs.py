@@ -348,6 +348,27 @@ class StridedCollisionTerms(CollisionTerms):
         return super().collision_cost(checker, robot, time_stride=self.collision_stride, **kw)
 
 
+@dataclass
+class JointVelocityTerms(ConfigTerms):
+    """The joint-velocity control fields of an arm task's config (flat in it: ``--arm-w-limits``):
+    the velocity bound, and the control-effort and joint-limit costs."""
+
+    #: joint velocity bound as a fraction of the robot's velocity limits
+    velocity_scale: float = bounded(0.4, gt=0, le=1)
+    #: weight of the control effort sum |qdot|^2 dt
+    w_control: float = bounded(0.01, ge=0)
+    #: weight of the joint-limit penalty
+    w_limits: float = bounded(100.0, ge=0)
+
+    def velocity_bound(self, robot) -> np.ndarray:
+        """(dof,) joint velocity bound (rad/s): ``velocity_scale`` x the robot's velocity limits."""
+        return self.velocity_scale * np.asarray(robot.velocity_limits, np.float64)
+
+    def joint_costs(self, robot) -> list[Cost]:
+        """[:class:`ControlEffortCost`, :class:`JointLimitCost` (5 cm / 0.05 rad margin)] of these weights."""
+        return [ControlEffortCost(self.w_control), JointLimitCost(robot, weight=self.w_limits, margin=0.05)]
+
+
 def _speed_bound(source, geometry: LinkGeometry) -> np.ndarray:
     """(dof,) bound on |dq_j / dt| of the robot configuration under the dynamics ``source``."""
     from .dynamics import HolonomicPoint, JointIntegrator, PlanarBase

@@ -32,7 +32,7 @@ import numpy as np
 from .._config import NESTED_SKIP, bounded
 from ..errors import SplatplanError
 from ..planners.dynamics import JointIntegrator
-from ..planners.costs import StridedCollisionTerms
+from ..planners.costs import JointVelocityTerms, StridedCollisionTerms
 from ..planners.mppi import MPPIConfig
 from ..robots.ik import check_reachable, rotation_error
 from ._common import TaskConfig, TaskResult, TaskScene, check_start, load_task_scene, moving_clearance
@@ -47,7 +47,7 @@ def _arm_mppi() -> MPPIConfig:
 
 
 @dataclass
-class ArmConfig(TaskConfig, StridedCollisionTerms, n_sigma=1.0, w_collision=2.0, w_hit=20.0, collision_s2_cap=1.4, collision_stride=2):
+class ArmConfig(TaskConfig, StridedCollisionTerms, JointVelocityTerms, velocity_scale=0.4, n_sigma=1.0, w_collision=2.0, w_hit=20.0, collision_s2_cap=1.4, collision_stride=2):
     """Knobs of :func:`run_arm` (MPPI over joint-velocity B-splines)."""
 
     #: MPPI settings (noise_sigma in rad/s; the control bounds come from velocity_scale)
@@ -58,8 +58,6 @@ class ArmConfig(TaskConfig, StridedCollisionTerms, n_sigma=1.0, w_collision=2.0,
     noise_floor: float = bounded(0.05, ge=0, le=1)
     #: maximum MPC steps
     max_steps: int = bounded(90, ge=1)
-    #: joint velocity bound as a fraction of the robot's velocity limits
-    velocity_scale: float = bounded(0.4, gt=0, le=1)
     #: weight of the end-effector position error (per metre, per step)
     w_position: float = bounded(4.0, ge=0)
     #: weight of the end-effector orientation error (per radian, per step)
@@ -68,10 +66,6 @@ class ArmConfig(TaskConfig, StridedCollisionTerms, n_sigma=1.0, w_collision=2.0,
     terminal_factor: float = bounded(4.0, ge=0)
     #: cost per step with a self-collision (0 = off)
     w_self_collision: float = bounded(0.0, ge=0)
-    #: weight of the joint-limit penalty
-    w_limits: float = bounded(100.0, ge=0)
-    #: weight of the control effort sum |qdot|^2 dt
-    w_control: float = bounded(0.01, ge=0)
     #: weight of a posture term sum_t |q_t - q_ref|^2 that resolves the arm's redundancy: q_ref is
     #: the IK solution of the goal pose nearest to the start, among the collision-free ones when the
     #: collision cost is on (the no-collision baseline uses no scene information at all)
@@ -121,13 +115,12 @@ def _posture_reference(robot, ts: TaskScene, p_goal, quat, q: np.ndarray, cfg: A
 
 def _arm_costs(robot, ts: TaskScene, p_goal, quat, q_ref: np.ndarray, cfg: ArmConfig, collision: bool) -> list:
     """The cost list of :func:`run_arm` (see the module docstring)."""
-    from ..planners.costs import ControlEffortCost, GoalPoseCost, JointLimitCost, StateCost, fk_device
+    from ..planners.costs import GoalPoseCost, StateCost, fk_device
 
     costs = [
         GoalPoseCost(robot, position=p_goal, quat=quat, link=cfg.ee_link, position_weight=cfg.w_position, orientation_weight=cfg.w_orientation, terminal_factor=cfg.terminal_factor,
                      device=fk_device(ts.checker)),
-        ControlEffortCost(cfg.w_control),
-        JointLimitCost(robot, weight=cfg.w_limits, margin=0.05),
+        *cfg.joint_costs(robot),
     ]  # fmt: skip
     if cfg.w_posture > 0:
         costs.append(StateCost(lambda s: np.sum((s - q_ref) ** 2, axis=-1), weight=cfg.w_posture, name="posture"))
@@ -136,19 +129,8 @@ def _arm_costs(robot, ts: TaskScene, p_goal, quat, q_ref: np.ndarray, cfg: ArmCo
     return costs
 
 
-def run_arm(
-    robot,
-    scene,
-    goal_position,
-    goal_quat=None,
-    *,
-    config: ArmConfig | None = None,
-    collision: bool = True,
-    q0=None,
-    device: str | None = "auto",
-    check_goal: bool = True,
-    progress=None,
-) -> TaskResult:
+def run_arm(robot, scene, goal_position, goal_quat=None, *, config: ArmConfig | None = None, collision: bool = True, q0=None, device: str | None = "auto", check_goal: bool = True,
+            progress=None) -> TaskResult:  # fmt: skip
     """Reach an end-effector pose with MPPI (see the module docstring).
 
     Args:
@@ -180,7 +162,7 @@ def run_arm(
     q_ref = _posture_reference(robot, ts, p_goal, quat, q, cfg, collision) if check_goal else np.asarray(robot.q_default, np.float64)
     check_start(robot, ts.checker, q)
 
-    vmax = cfg.velocity_scale * np.asarray(robot.velocity_limits, np.float64)
+    vmax = cfg.velocity_bound(robot)
     dyn = JointIntegrator(robot, velocity_limits=vmax)
     mppi = MPPI(dyn, None, replace(cfg.mppi, u_min=tuple(-vmax), u_max=tuple(vmax)), costs=_arm_costs(robot, ts, p_goal, quat, q_ref, cfg, collision))
     li = robot.link_names.index(cfg.ee_link)

@@ -45,7 +45,7 @@ import numpy as np
 
 from .._config import NESTED_SKIP, bounded, check_order
 from ..errors import SplatplanError
-from ..planners.costs import StridedCollisionTerms
+from ..planners.costs import JointVelocityTerms, StridedCollisionTerms
 from ..planners.goal_time import GoalTimeMPC, GoalTimeSchedule
 from ..planners.image_cost import ImageTerms
 from ..planners.mppi import MPPI, MPPIConfig
@@ -61,14 +61,12 @@ def _reach_mppi() -> MPPIConfig:
 
 
 @dataclass
-class ReachConfig(TaskConfig, StridedCollisionTerms, GoalTimeSchedule, ImageTerms, n_sigma=1.0, w_collision=0.1, w_hit=10.0, collision_s2_cap=1.3, collision_stride=2):
+class ReachConfig(TaskConfig, StridedCollisionTerms, JointVelocityTerms, GoalTimeSchedule, ImageTerms, velocity_scale=0.6, n_sigma=1.0, w_collision=0.1, w_hit=10.0, collision_s2_cap=1.3, collision_stride=2):
     """Knobs of :func:`run_reach` (MPPI over joint-velocity B-splines with the image cost)."""
 
     #: MPPI settings (noise_sigma in rad/s; the horizon is the executed steps too: a shrinking horizon; the iterations
     #: per step come from the schedule below, the control bounds from velocity_scale)
     mppi: MPPIConfig = field(default_factory=_reach_mppi, metadata={NESTED_SKIP: ("u_min", "u_max", "n_iters", "report_nominal")})
-    #: joint velocity bound as a fraction of the robot's velocity limits
-    velocity_scale: float = bounded(0.6, gt=0, le=1)
     #: rendered image side (pixels, square)
     image_size: int = bounded(64, ge=1)
     #: horizontal field of view of the wrist camera (degrees)
@@ -77,10 +75,6 @@ class ReachConfig(TaskConfig, StridedCollisionTerms, GoalTimeSchedule, ImageTerm
     encoder_image_size: int | None = bounded(None, ge=1)
     #: bands of the thumbnail encoder's Laplacian pyramid (1 = the single 16x16 thumbnail)
     thumbnail_levels: int = bounded(2, ge=1)
-    #: weight of the control effort sum |qdot|^2 dt
-    w_control: float = bounded(0.01, ge=0)
-    #: weight of the joint-limit penalty
-    w_limits: float = bounded(100.0, ge=0)
     #: splats of a built-in scene (fewer = faster renders; the clearance uses the exact geometry)
     n_splats: int = bounded(60_000, ge=1)
     #: link carrying the wrist camera (camera axes = link axes, OpenCV: looks along link z)
@@ -205,7 +199,7 @@ def run_reach(
         device: metric / renderer / encoder device.
         progress: optional callable(step, image_cost).
     """
-    from ..planners.costs import ControlEffortCost, JointLimitCost, UntilGoalCost
+    from ..planners.costs import UntilGoalCost
     from ..planners.dynamics import JointIntegrator
     from ..render import SplatRenderer
     from ..robots import load_robot
@@ -225,10 +219,10 @@ def run_reach(
     rend = SplatRenderer(ts.splats, device) if own else renderer
     try:
         image_cost = cfg.image_cost(rend, cam, robot, enc, img)
-        path_costs = [ControlEffortCost(cfg.w_control), JointLimitCost(robot, weight=cfg.w_limits, margin=0.05)]
+        path_costs = cfg.joint_costs(robot)
         if collision:
             path_costs.insert(0, cfg.collision_cost(ts.checker, robot))
-        vmax = cfg.velocity_scale * np.asarray(robot.velocity_limits, np.float64)
+        vmax = cfg.velocity_bound(robot)
         mcfg = replace(cfg.mppi, u_min=tuple(-vmax), u_max=tuple(vmax), report_nominal=True)  # the nominal's raw image cost anneals the noise
         mppi = MPPI(JointIntegrator(robot, velocity_limits=vmax), None, mcfg, costs=[UntilGoalCost(path_costs), image_cost])
         run = GoalTimeMPC(mppi, cfg, vmax, "image_raw")
