@@ -43,7 +43,9 @@ def bench_reach(device: str, size: int, encoder: str, quick: bool, backend: str 
     from splatplan.render import SplatRenderer
     from splatplan.robots import load_robot
     from splatplan.tasks._common import load_task_scene
-    from splatplan.tasks.reach import ReachConfig, make_reach_goals, reach_encoder, reach_start, run_reach, wrist_camera
+    from splatplan.planners.reach_goals import make_reach_goals, reach_start
+    from splatplan.render.cameras import wrist_camera
+    from splatplan.tasks.reach import ReachConfig, reach_encoder, run_reach
 
     from dataclasses import replace
 

@@ -50,9 +50,12 @@ def test_every_field_is_read(cls):
     users = [t for t in TEXTS.values() if re.search(rf"\b{cls.__name__}\b", t)]
     unread = []
     for f in dataclasses.fields(cls):
+        # a field of a shared group (ConfigTerms: CollisionTerms, ...) may be read where the group is defined
+        owner = next(k for k in reversed(cls.__mro__) if f.name in getattr(k, "__dataclass_fields__", {}))
+        texts = users if owner is cls else users + [t for t in TEXTS.values() if re.search(rf"\b{owner.__name__}\b", t)]
         read = re.compile(rf"\.{f.name}\b|getattr\([^)]*[\"']{f.name}[\"']")
         definition = re.compile(rf"^\s+{f.name}\s*:")
-        if not any(read.search(line) and not definition.match(line) for t in users for line in t.splitlines()):
+        if not any(read.search(line) and not definition.match(line) for t in texts for line in t.splitlines()):
             unread.append(f.name)
     assert not unread, f"{cls.__name__} fields never read: {unread} (wire them or remove them)"
 
@@ -125,3 +128,23 @@ def test_every_plain_flag_is_read():
             if not re.search(rf"args\.{a.dest}\b|getattr\(args, [\"']{a.dest}[\"']", cli_src):
                 unread.append(f"{' '.join(path)} {a.option_strings or a.dest}")
     assert not unread, f"flags nobody reads: {unread}"
+
+
+def test_config_terms_keep_range_and_doc_and_set_the_default():
+    """A task config sets a shared group's defaults as class keywords; the range, the doc and the
+    flat name stay the group's (planners.costs.CollisionTerms in the four task configs)."""
+    from splatplan.cli._common import field_docs
+    from splatplan.planners.costs import CollisionTerms, StridedCollisionTerms
+    from splatplan.tasks.base import BaseConfig
+
+    f = {g.name: g for g in dataclasses.fields(BaseConfig)}
+    assert BaseConfig().n_sigma == 0.75 and CollisionTerms().n_sigma == 1.0
+    assert field_bounds(f["collision_s2_cap"]) == field_bounds({g.name: g for g in dataclasses.fields(StridedCollisionTerms)}["collision_s2_cap"])
+    assert field_docs(BaseConfig)["w_hit"] == field_docs(CollisionTerms)["w_hit"]
+    with pytest.raises(SplatplanError, match=r"BaseConfig\.collision_s2_cap must be >= 1"):
+        BaseConfig(collision_s2_cap=0.5).validate()
+    with pytest.raises(TypeError, match="not a field inherited"):
+
+        @dataclasses.dataclass
+        class Bad(CollisionTerms, w_unknown=1.0):
+            pass

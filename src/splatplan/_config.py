@@ -47,7 +47,7 @@ from dataclasses import dataclass
 
 from .errors import SplatplanError
 
-__all__ = ["NESTED_SKIP", "Bounds", "bounded", "bounds", "check_config", "check_value", "field_bounds"]
+__all__ = ["NESTED_SKIP", "Bounds", "ConfigTerms", "bounded", "bounds", "check_config", "check_value", "field_bounds"]
 
 _KEY = "splatplan.bounds"
 #: ``field(metadata={NESTED_SKIP: ("u_min", ...)})`` on a config embedded in another (e.g. a task's
@@ -108,6 +108,34 @@ def bounds(*, ge=None, gt=None, le=None, lt=None, choices=None, allow_inf: bool 
 def bounded(default, *, ge=None, gt=None, le=None, lt=None, choices=None, allow_inf: bool = False):
     """A dataclass field with a default and a declared range (see the module docstring)."""
     return dataclasses.field(default=default, metadata=bounds(ge=ge, gt=gt, le=le, lt=lt, choices=choices, allow_inf=allow_inf))
+
+
+class ConfigTerms:
+    """Base of a group of config fields that several configs share (a mixin dataclass, e.g. the
+    collision-cost terms of every MPPI task). A config inherits the group and sets its own defaults
+    as class keywords::
+
+        @dataclass
+        class ArmConfig(TaskConfig, CollisionTerms, n_sigma=1.0, w_hit=20.0): ...
+
+    Each field keeps its declared range and its ``#:`` doc (the CLI's help); only the default
+    changes, and the field names (so the CLI flags) are the group's, flat in the config."""
+
+    def __init_subclass__(cls, **defaults) -> None:
+        super().__init_subclass__()
+        if not defaults:
+            return
+        inherited: dict[str, dataclasses.Field] = {}
+        for klass in reversed(cls.__mro__[1:]):
+            inherited.update(getattr(klass, "__dataclass_fields__", {}))
+        own = dict(cls.__dict__.get("__annotations__", {}))
+        for name, value in defaults.items():
+            f = inherited.get(name)
+            if f is None or name in own:
+                raise TypeError(f"{cls.__name__}: {name!r} is not a field inherited from a ConfigTerms group (or it is declared again)")
+            own[name] = f.type
+            setattr(cls, name, dataclasses.field(default=value, metadata=f.metadata))
+        cls.__annotations__ = own  # the @dataclass that follows keeps each field at its inherited place
 
 
 def field_bounds(f: dataclasses.Field) -> Bounds:

@@ -194,7 +194,9 @@ def run_reach_demo(out: Path, device: str = "auto") -> dict:
     from .render import SplatRenderer
     from .robots import load_robot
     from .tasks._common import load_task_scene
-    from .tasks.reach import ReachConfig, make_reach_goals, reach_encoder, reach_start, run_reach, wrist_camera
+    from .planners.reach_goals import make_reach_goals, reach_start
+    from .render.cameras import wrist_camera
+    from .tasks.reach import ReachConfig, reach_encoder, run_reach
     from ._warp import resolve_device
 
     t0 = time.perf_counter()
@@ -229,7 +231,8 @@ def run_robot_demo(out: Path, device: str = "auto") -> dict:
     from ._warp import resolve_device
     from .robots import load_robot
     from .tasks._common import base_terrain, load_task_scene, replace_mppi
-    from .tasks.arm import ArmConfig, down_quat, run_arm
+    from .robots.ik import down_quat
+    from .tasks.arm import ArmConfig, run_arm
     from .tasks.base import BaseConfig, load_go2, run_base
     from .tasks.plot import plot_run
 

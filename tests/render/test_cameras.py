@@ -126,3 +126,33 @@ def test_head_camera_on_the_go2_base():
         np.testing.assert_allclose(c2w[i, :3, 2], fwd, atol=1e-9)  # optical axis = heading
         np.testing.assert_allclose(c2w[i, :3, 1], [0, 0, -1], atol=1e-9)  # image down = world down
         np.testing.assert_allclose(c2w[i, :3, 3], base[i, :3, 3] + 0.3 * fwd + [0, 0, 0.05], atol=1e-9)
+
+
+def test_task_cameras_and_pose_error():
+    """The tasks' cameras: the Panda's wrist camera (identity offset at the TCP), the Go2's head camera
+    (the mount of test_head_camera_on_the_go2_base), a scaled copy, and the camera pose error."""
+    from splatplan.render.cameras import camera_pose_error, head_camera, wrist_camera
+
+    robots = pytest.importorskip("splatplan.robots")
+    try:
+        panda, go2 = robots.load_robot("panda"), robots.load_robot("go2")
+    except Exception as exc:  # pragma: no cover - robot assets missing
+        pytest.skip(f"robots not loadable: {exc}")
+    w = wrist_camera(panda, image_size=32, fov_deg=70.0)
+    assert (w.link_name, w.width, w.height) == ("panda_hand_tcp", 32, 32)
+    np.testing.assert_array_equal(w.offset, np.eye(4))
+    np.testing.assert_allclose(w.K, intrinsics_from_fov(70.0, 32, 32))
+    h = head_camera(go2, image_size=16, fov_deg=90.0, offset=(0.3, 0.0, 0.05))
+    np.testing.assert_allclose(h.offset, mount_offset((0.3, 0.0, 0.05), forward=(1, 0, 0), up=(0, 0, 1)))
+    s = h.scaled(8)
+    assert (s.width, s.height) == (8, 8) and h.scaled(16) is h
+    np.testing.assert_allclose(s.K, intrinsics_from_fov(90.0, 8, 8), rtol=1e-12)
+    with pytest.raises(SplatplanError, match="no link"):
+        wrist_camera(go2)
+    t = np.eye(4)
+    t2 = np.eye(4)
+    t2[:3, 3] = [0.03, 0.0, 0.04]
+    c, sn = np.cos(np.radians(20.0)), np.sin(np.radians(20.0))
+    t2[:3, :3] = [[c, -sn, 0.0], [sn, c, 0.0], [0.0, 0.0, 1.0]]
+    pe, re = camera_pose_error(t2, t)
+    assert pe == pytest.approx(0.05) and re == pytest.approx(20.0)

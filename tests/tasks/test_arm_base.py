@@ -18,7 +18,7 @@ def tabletop_small():
 def test_ik_reaches_a_pose():
     from splatplan.robots import load_robot
     from splatplan.robots.ik import solve_ik
-    from splatplan.tasks.arm import down_quat
+    from splatplan.robots.ik import down_quat
 
     robot = load_robot("panda")
     q, pe, re = solve_ik(robot, [0.5, 0.1, 0.3], down_quat(0.3), link="panda_hand_tcp", n_seeds=8, n_iters=60)
@@ -29,7 +29,7 @@ def test_ik_reaches_a_pose():
 
 def test_unreachable_goal_is_reported_before_running():
     from splatplan.robots import load_robot
-    from splatplan.tasks.arm import check_reachable, down_quat
+    from splatplan.robots.ik import check_reachable, down_quat
 
     robot = load_robot("panda")
     with pytest.raises(SplatplanError, match="unreachable goal pose"):
@@ -41,7 +41,8 @@ def test_unreachable_goal_is_reported_before_running():
 def test_tiny_arm_run_reduces_goal_error(tabletop_small):
     from dataclasses import replace
 
-    from splatplan.tasks.arm import ArmConfig, down_quat, run_arm
+    from splatplan.robots.ik import down_quat
+    from splatplan.tasks.arm import ArmConfig, run_arm
 
     goal = np.array([0.45, 0.0, 0.35])
     cfg = ArmConfig(max_steps=12, collision_stride=4)

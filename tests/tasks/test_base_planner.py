@@ -42,7 +42,7 @@ def test_primitives_drive_in_their_directions(apartment):
 
 
 def test_route_reaches_the_kitchen_quickly(apartment):
-    from splatplan.tasks.base import plan_route
+    from splatplan.planners.route import plan_route
 
     robot, ts = apartment
     route = plan_route(robot, ts.checker, np.array([-2.3, -0.6, 0.0]), (2.985, -1.755), time_budget_s=25.0)

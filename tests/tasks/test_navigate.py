@@ -37,7 +37,8 @@ def test_floor_removed_for_the_metric(nav_setup):
 
 
 def test_retrieval_on_a_tiny_tree(nav_setup):
-    from splatplan.tasks.navigate import build_view_index, head_camera, retrieve
+    from splatplan.encoders.view_index import retrieve
+    from splatplan.tasks.navigate import build_view_index, head_camera
 
     robot, nav, cfg, rend, enc = nav_setup
     index = build_view_index(robot, nav, NODES, enc, rend, cfg)
@@ -66,7 +67,8 @@ def test_retrieval_on_a_tiny_tree(nav_setup):
 
 
 def test_short_drive_and_branch(nav_setup):
-    from splatplan.tasks.navigate import drive_to, tree_branch
+    from splatplan.planners.route import tree_branch
+    from splatplan.tasks.navigate import drive_to
 
     robot, nav, cfg, rend, enc = nav_setup
     parents = np.array([-1, 0, 1])

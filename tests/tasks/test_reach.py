@@ -17,7 +17,8 @@ robots = pytest.importorskip("splatplan.robots")
 def setup():
     from splatplan.encoders import load_encoder
     from splatplan.tasks._common import load_task_scene
-    from splatplan.tasks.reach import reach_start, wrist_camera
+    from splatplan.planners.reach_goals import reach_start
+    from splatplan.render.cameras import wrist_camera
 
     robot = robots.load_robot("panda")
     ts = load_task_scene("tabletop", n_splats=20_000)
@@ -157,15 +158,16 @@ def test_goals_do_not_depend_on_the_image_size(setup):
     """Views are judged at <= 64 px: the 224 px camera is checked through exactly the 64 px camera
     (at full size single edge pixels of a filled view fall under the alpha bar and no goal survived),
     so a 224 px run gets the 64 px goals."""
-    from splatplan.tasks.reach import _scaled_camera, make_reach_goals, wrist_camera
+    from splatplan.planners.reach_goals import make_reach_goals
+    from splatplan.render.cameras import wrist_camera
 
     robot, ts, _, q0, rend, _ = setup
     c64, c224 = wrist_camera(robot, image_size=64), wrist_camera(robot, image_size=224)
-    s = _scaled_camera(c224, 64)
+    s = c224.scaled(64)
     assert (s.width, s.height) == (64, 64) and s.link_name == c64.link_name
     np.testing.assert_allclose(s.K, c64.K, rtol=1e-12)
     np.testing.assert_array_equal(s.offset, c64.offset)
-    assert _scaled_camera(c64, 64) is c64
+    assert c64.scaled(64) is c64
     kw = dict(n=2, q_start=q0, n_behind=1, n_candidates=256, seed=0, min_contrast=0.0)
     g64 = make_reach_goals(robot, ts, rend, c64, **kw)
     g224 = make_reach_goals(robot, ts, rend, c224, **kw)
@@ -175,9 +177,10 @@ def test_goals_do_not_depend_on_the_image_size(setup):
 
 
 def test_study_names_a_goal_shortfall(tmp_path, monkeypatch):
+    import splatplan.planners.reach_goals as reach_goals
     import splatplan.tasks.reach as reach
     from splatplan.eval.reach import ReachStudyConfig, run
 
-    monkeypatch.setattr(reach, "make_reach_goals", lambda *a, **k: [])
+    monkeypatch.setattr(reach_goals, "make_reach_goals", lambda *a, **k: [])
     with pytest.raises(SplatplanError, match="found only 0 of 3 goal configurations"):
         run(ReachStudyConfig(n_goals=3, task=reach.ReachConfig(n_splats=20_000, image_size=16), device="cpu"))

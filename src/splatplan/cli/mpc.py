@@ -63,7 +63,8 @@ def cmd_mpc(args) -> int:
         res = run_arm(robot, ts, gp[:3], gp[3:], config=cfg, collision=collision, q0=q0, device=args.device)
         kind = "arm"
     elif args.robot == "go2":
-        from ..tasks.base import START, BaseConfig, load_go2, plan_route, run_base
+        from ..planners.route import plan_route
+        from ..tasks.base import START, BaseConfig, load_go2, run_base
 
         if args.goal is None:
             raise SplatplanError("--robot go2 needs --goal X,Y (metres)")

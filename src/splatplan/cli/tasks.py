@@ -83,7 +83,9 @@ def cmd_navigate(args) -> int:
     from ..encoders import load_encoder, load_image
     from ..eval.navigate import plot_trial, plot_tree
     from ..render import SplatRenderer
-    from ..tasks.navigate import NavigateConfig, build_view_index, drive_to, explore, head_camera, load_nav_scene, nav_robot, retrieve, tree_branch
+    from ..encoders.view_index import retrieve
+    from ..planners.route import tree_branch
+    from ..tasks.navigate import NavigateConfig, build_view_index, drive_to, explore, head_camera, load_nav_scene, nav_robot
 
     cfg = config_from_args(args, NavigateConfig)
     if not 0 < cfg.weak_ratio <= 1:

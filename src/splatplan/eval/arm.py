@@ -42,7 +42,7 @@ def pick_targets(n: int, seed: int = 0, min_goal_clearance: float = 0.01, max_tr
     from ..robots import load_robot
     from ..scenes.builtin.tabletop import TARGET_REGION, tabletop_layout
     from ..robots.ik import solve_ik
-    from ..tasks.arm import down_quat
+    from ..robots.ik import down_quat
 
     robot = load_robot("panda")
     gt = tabletop_layout(seed).scene
@@ -69,7 +69,8 @@ def arm_throughput(n_samples: int = 256, horizon: int = 32, n_steps: int = 3, de
     of the horizon (stride 1, one iteration per step), on a ``n_splats`` tabletop (warm-up step
     first). The issue's target: >= 5 steps/s at K = 256, T = 32 on a 200k-splat scene (CPU)."""
     from ..tasks._common import load_task_scene
-    from ..tasks.arm import ArmConfig, down_quat, run_arm
+    from ..robots.ik import down_quat
+    from ..tasks.arm import ArmConfig, run_arm
 
     ts = load_task_scene("tabletop", device=device, n_splats=n_splats)
     base = ArmConfig()

@@ -225,7 +225,9 @@ def run(config: NavigateStudyConfig | None = None, engine=None, *, progress: boo
     for the study convention; the trials are serial (one renderer)."""
     from ..encoders import load_encoder
     from ..render import SplatRenderer
-    from ..tasks.navigate import build_view_index, drive_to, explore, head_camera, load_nav_scene, nav_robot, retrieve, tree_branch, wrap_angle
+    from ..encoders.view_index import retrieve
+    from ..planners.route import tree_branch, wrap_angle
+    from ..tasks.navigate import build_view_index, drive_to, explore, head_camera, load_nav_scene, nav_robot
 
     c = (config or NavigateStudyConfig()).validate()
     cfg, device = c.task, c.device

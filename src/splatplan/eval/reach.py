@@ -1,7 +1,7 @@
 """E5 visual reaching study (paper Table IV): the Panda's wrist camera reaches 5 goal images in the
 ``tabletop`` with MPPI and the terminal image cost, with and without the collision cost.
 
-Goals (:func:`splatplan.tasks.reach.make_reach_goals`): random collision-free configurations near
+Goals (:func:`splatplan.planners.reach_goals.make_reach_goals`): random collision-free configurations near
 the start (camera above the bin, looking down), some with the camera behind the bin's front wall;
 the goal image is the wrist view there. Errors: final camera pose vs the goal camera pose.
 Clearance: the smallest exact signed distance of any link ellipsoid to the analytic boxes over the
@@ -156,7 +156,9 @@ def run(config: ReachStudyConfig | None = None, engine=None, *, progress: bool =
     from ..render import SplatRenderer
     from ..robots import load_robot
     from ..tasks._common import load_task_scene
-    from ..tasks.reach import make_reach_goals, reach_encoder, reach_start, run_reach, wrist_camera
+    from ..planners.reach_goals import make_reach_goals, reach_start
+    from ..render.cameras import wrist_camera
+    from ..tasks.reach import reach_encoder, run_reach
 
     c = (config or ReachStudyConfig()).validate()
     cfg, device, n_goals = c.task, c.device, c.n_goals

@@ -17,7 +17,7 @@ from dataclasses import replace
 from ..errors import SplatplanError
 
 from .bspline import UniformBSpline, bspline_basis, bspline_eval, fit_bspline, knot_vector, resample_polyline
-from .costs import CollisionCost, ControlEffortCost, Cost, CostValue, GoalPoseCost, JointLimitCost, Rollout, StateCost, TerminalCost, UntilGoalCost, evaluate_costs, total_cost
+from .costs import CollisionCost, CollisionTerms, ControlEffortCost, Cost, CostValue, GoalPoseCost, JointLimitCost, JointVelocityTerms, Rollout, StateCost, StridedCollisionTerms, TerminalCost, UntilGoalCost, evaluate_costs, total_cost
 from .image_cost import ImageCost
 from .dynamics import Dynamics, HolonomicPoint, JointIntegrator, PlanarBase, yaw_to_quat
 from .metrics import clearance, d_min, densify_path, smoothness
@@ -29,6 +29,8 @@ from .rrt import RRT, EdgeChecker, PlanResult, RRTConfig, RRTSettings, edge_poin
 
 __all__ = [
     "CollisionCost",
+    "CollisionTerms",
+    "StridedCollisionTerms",
     "ControlEffortCost",
     "Cost",
     "CostValue",
@@ -43,6 +45,7 @@ __all__ = [
     "GoalPoseCost",
     "ImageCost",
     "JointLimitCost",
+    "JointVelocityTerms",
     "Rollout",
     "RRTSettings",
     "StateCost",

@@ -27,6 +27,7 @@ from typing import Callable
 
 import numpy as np
 
+from .._config import ConfigTerms, bounded
 from ..errors import SplatplanError
 from ..metric.config import QueryResult
 from ..robots.kinematics import chain_pose, link_chain
@@ -315,6 +316,57 @@ class CollisionCost(Cost):
 
     def __call__(self, rollout: Rollout) -> np.ndarray:
         return np.sum(list(self.terms(rollout).values()), axis=0)
+
+
+@dataclass
+class CollisionTerms(ConfigTerms):
+    """The collision-cost fields of a task config (flat in it: ``--arm-w-hit``); a config sets its
+    own defaults as class keywords (:class:`~splatplan._config.ConfigTerms`)."""
+
+    #: conservatism of the metric (n_sigma)
+    n_sigma: float = bounded(1.0, ge=0)
+    #: weight of the summed CollisionSplatting cost (every ellipsoid, every step)
+    w_collision: float = bounded(2.0, ge=0)
+    #: cost per (step, ellipsoid) in collision
+    w_hit: float = bounded(20.0, ge=0)
+    #: neighbourhood of the rollouts' collision cost (checker s2_cap for MPPI queries)
+    collision_s2_cap: float = bounded(2.0, ge=1)
+
+    def collision_cost(self, checker, robot, **kw) -> CollisionCost:
+        """The :class:`CollisionCost` of these terms on ``checker`` (``kw``: its other arguments)."""
+        return CollisionCost(checker, robot, weight=self.w_collision, hit_weight=self.w_hit, s2_cap=self.collision_s2_cap, **kw)
+
+
+@dataclass
+class StridedCollisionTerms(CollisionTerms):
+    """:class:`CollisionTerms` that query every ``collision_stride``-th step of the horizon."""
+
+    #: query the collision cost on every stride-th step of the horizon (1 = every step)
+    collision_stride: int = bounded(1, ge=1)
+
+    def collision_cost(self, checker, robot, **kw) -> CollisionCost:
+        return super().collision_cost(checker, robot, time_stride=self.collision_stride, **kw)
+
+
+@dataclass
+class JointVelocityTerms(ConfigTerms):
+    """The joint-velocity control fields of an arm task's config (flat in it: ``--arm-w-limits``):
+    the velocity bound, and the control-effort and joint-limit costs."""
+
+    #: joint velocity bound as a fraction of the robot's velocity limits
+    velocity_scale: float = bounded(0.4, gt=0, le=1)
+    #: weight of the control effort sum |qdot|^2 dt
+    w_control: float = bounded(0.01, ge=0)
+    #: weight of the joint-limit penalty
+    w_limits: float = bounded(100.0, ge=0)
+
+    def velocity_bound(self, robot) -> np.ndarray:
+        """(dof,) joint velocity bound (rad/s): ``velocity_scale`` x the robot's velocity limits."""
+        return self.velocity_scale * np.asarray(robot.velocity_limits, np.float64)
+
+    def joint_costs(self, robot) -> list[Cost]:
+        """[:class:`ControlEffortCost`, :class:`JointLimitCost` (5 cm / 0.05 rad margin)] of these weights."""
+        return [ControlEffortCost(self.w_control), JointLimitCost(robot, weight=self.w_limits, margin=0.05)]
 
 
 def _speed_bound(source, geometry: LinkGeometry) -> np.ndarray:

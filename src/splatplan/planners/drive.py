@@ -41,13 +41,16 @@ frame (:class:`~splatplan.planners.dynamics.PlanarBase`), knots of a B-spline ov
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
+from .._config import ConfigTerms, bounded
 from ..errors import SplatplanError
 from .costs import Cost, CostValue, Rollout
 from .mppi import MPPI, Evaluation, SamplingStrategy
 
-__all__ = ["DriveGoalCost", "RouteTracker", "StructuredDrives"]
+__all__ = ["DriveGoalCost", "DriveTerms", "RouteTracker", "StructuredDrives"]
 
 
 class DriveGoalCost(Cost):
@@ -335,3 +338,61 @@ class RouteTracker:
         self.s = float(self.arc[i])
         j = min(int(np.searchsorted(self.arc, self.s + self.lookahead)), len(self.arc) - 1)
         return self.dense[j, :2].copy(), float(self.dense[j, 2])
+
+
+@dataclass
+class DriveTerms(ConfigTerms):
+    """The goal-term and structured-drive fields of a driving task's config (flat in it:
+    ``--base-w-goal``), and the :class:`DriveGoalCost` and :class:`StructuredDrives` they make."""
+
+    #: weight of the distance to the goal (per metre, per step)
+    w_goal: float = bounded(1.0, ge=0)
+    #: extra weight of the last step of the goal cost
+    terminal_factor: float = bounded(5.0, ge=0)
+    #: weight of the smallest distance to the goal along each rollout (min over t; a rollout that
+    #: passes close to the goal, e.g. through a doorway and on, is preferred)
+    min_factor: float = bounded(5.0, ge=0)
+    #: structured samples: straight drives in this many world directions (one is the bearing to
+    #: the goal) and the same drives turning to the goal after 1/4, 1/2, 3/4 of the horizon (0 = off)
+    n_directions: int = bounded(8, ge=0)
+    #: speed of the structured samples (m/s)
+    primitive_speed: float = bounded(0.8, ge=0)
+    #: turn rate (rad/s) of the structured samples towards their direction of travel
+    primitive_turn_rate: float = bounded(1.5, ge=0)
+    #: stagnation recovery: when the distance to the goal has not improved for stuck_steps,
+    #: sidestep perpendicular to the bearing to the goal, back and forth with doubling sweeps,
+    #: until a collision-free rollout gets clearly closer to the goal than ever before (off by
+    #: default: see splatplan.tasks.base)
+    recovery: bool = False
+    #: MPC steps without progress that count as stagnation (goal) or a blocked sweep
+    stuck_steps: int = bounded(10, ge=1)
+    #: no recovery closer than this to the goal (m): the final approach is slow, not stuck
+    recovery_min_distance_m: float = bounded(0.5, ge=0)
+    #: progress (m) that resets the stagnation counter
+    stuck_progress_m: float = bounded(0.05, ge=0)
+    #: length (m) of the first sweep; each reversal sweeps back twice as far
+    detour_length_m: float = bounded(2.0, gt=0)
+    #: a detour ends when a collision-free rollout gets this much closer (m) to the goal than the
+    #: base ever was or any collision-free rollout of goal mode saw before the detour
+    detour_exit_margin_m: float = bounded(0.3, ge=0)
+    #: side of the first sweep: -1 clockwise (right of the bearing to the goal), +1 counterclockwise
+    #: (a fixed convention, like the Bug algorithms' turning direction)
+    first_sweep: int = bounded(-1, choices=(-1, 1))
+    #: sweeps: weight of the progress along the sweep direction (per metre, per step)
+    w_sweep: float = bounded(0.3, ge=0)
+    #: sweeps: weight of facing the sweep direction sum_t (1 - cos(yaw_t - heading)) (walk forward)
+    w_align: float = bounded(1.0, ge=0)
+    #: weight of facing the goal: sum_t (1 - cos(yaw_t - bearing to the goal)) (a walking robot
+    #: moves best forward; 0 = off)
+    w_heading: float = bounded(0.5, ge=0)
+
+    def goal_cost(self, goal, field=None) -> DriveGoalCost:
+        """The :class:`DriveGoalCost` to ``goal`` (2,) (on ``field``, e.g. an ObstacleMemory, when given)."""
+        return DriveGoalCost(goal, w_goal=self.w_goal, terminal_factor=self.terminal_factor, min_factor=self.min_factor, w_heading=self.w_heading, w_sweep=self.w_sweep,
+                             w_align=self.w_align, field=field)  # fmt: skip
+
+    def drives(self, goal_cost: DriveGoalCost, recovery: bool) -> StructuredDrives:
+        """The :class:`StructuredDrives` around ``goal_cost``, with the stagnation recovery when ``recovery``."""
+        return StructuredDrives(goal_cost, n_directions=self.n_directions, speed=self.primitive_speed, turn_rate=self.primitive_turn_rate, recovery=recovery,
+                                stuck_steps=self.stuck_steps, min_distance_m=self.recovery_min_distance_m, stuck_progress_m=self.stuck_progress_m,
+                                detour_length_m=self.detour_length_m, exit_margin_m=self.detour_exit_margin_m, first_sweep=self.first_sweep)  # fmt: skip

@@ -21,12 +21,15 @@ on the GPU between the renderer and the encoder (no host copy of the images).
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
+from .._config import ConfigTerms, bounded
 from ..errors import SplatplanError
 from .costs import Cost, CostValue, Rollout
 
-__all__ = ["ImageCost"]
+__all__ = ["ImageCost", "ImageTerms"]
 
 
 class ImageCost(Cost):
@@ -168,3 +171,32 @@ class ImageCost(Cost):
 
     def __call__(self, rollout: Rollout) -> np.ndarray:
         return self.evaluate(rollout).terms[self.name]
+
+
+@dataclass
+class ImageTerms(ConfigTerms):
+    """The image-cost fields of a task's config (flat in it: ``--task-w-image``) and the
+    :class:`ImageCost` they make."""
+
+    #: render background grey level: a mid grey keeps views of empty space from scoring like dark
+    #: image regions (with a black background the weight-free thumbnail rewards looking away)
+    background: float = bounded(0.5, ge=0, le=1)
+    #: weight of the image cost
+    w_image: float = bounded(1.0, ge=0)
+    #: image cost scored as log(1 + c / image_log_eps) (0 = the raw distance c): MPPI then weighs
+    #: relative progress, so it keeps converging near the goal where raw differences shrink
+    image_log_eps: float = bounded(0.01, ge=0)
+    #: compare L2-normalised features (cosine distance in [0, 4]): one cost scale for every encoder,
+    #: so the image cost neither swamps nor vanishes beside the collision cost
+    normalize_features: bool = True
+    #: weight of the empty-view term mean(1 - alpha) of the rendered view (0 = image cost only)
+    w_empty: float = bounded(1.0, ge=0)
+    #: weight of the global-embedding distance inside the image cost
+    w_global: float = bounded(1.0, ge=0)
+    #: weight of the mean patch-token distance inside the image cost (0 = off; needs tokens)
+    w_patch: float = bounded(0.0, ge=0)
+
+    def image_cost(self, renderer, camera, robot, encoder, target) -> ImageCost:
+        """The :class:`ImageCost` of ``target`` (H, W, 3) seen by ``camera`` on ``robot``."""
+        return ImageCost(renderer, camera, robot, encoder, target, weight=self.w_image, w_global=self.w_global, w_patch=self.w_patch, background=(self.background,) * 3,
+                         w_empty=self.w_empty, log_eps=self.image_log_eps, normalize=self.normalize_features)  # fmt: skip

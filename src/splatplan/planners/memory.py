@@ -2,7 +2,7 @@
 sensed around the base with line of sight, *unknown = free*, and the geodesic distance to the goal
 over it (:func:`geodesic_field`, with its slow heapq reference): the goal-distance field of
 :class:`~splatplan.planners.drive.DriveGoalCost` in the goal-only base MPPI of
-:mod:`splatplan.tasks.base` (``BaseConfig.memory``; :mod:`splatplan.planners.drive` says how).
+:mod:`splatplan.tasks.base` (``BaseConfig.memory``, a field of :class:`MemoryTerms`; :mod:`splatplan.planners.drive` says how).
 
 Frames and units: world frame, metres, z up; grid cell (i, j) along x, y.
 """
@@ -10,13 +10,15 @@ Frames and units: world frame, metres, z up; grid cell (i, j) along x, y.
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass
 
 import numpy as np
 
+from .._config import ConfigTerms, bounded
 from .._resources import require_bytes
 from ..errors import SplatplanError
 
-__all__ = ["ObstacleMemory", "geodesic_field", "line_of_sight"]
+__all__ = ["MemoryTerms", "ObstacleMemory", "geodesic_field", "line_of_sight"]
 
 
 #: bytes per grid cell (centres, states, geodesic field, the finer occlusion grid's share): an estimate
@@ -390,3 +392,38 @@ def _geodesic_field_reference(blocked: np.ndarray, origin, cell: float, goal, co
                     nxt[i, j] = max(nb) + cell
         out = nxt
     return out
+
+
+@dataclass
+class MemoryTerms(ConfigTerms):
+    """The sensed-obstacle memory's fields of a driving task's config (flat in it: ``--base-memory``)."""
+
+    #: sensed-obstacle memory (off by default): a coarse occupancy grid, unknown = free, filled with
+    #: the cells sensed within sensor_radius_m of the base every MPC step; the goal cost then uses
+    #: the geodesic distance to the goal on it instead of the straight line (see planners.memory)
+    memory: bool = False
+    #: memory: sensing radius around the base (m); nothing beyond it is sensed
+    sensor_radius_m: float = bounded(2.5, gt=0)
+    #: memory: grid cell size (m)
+    memory_cell_m: float = bounded(0.1, gt=0)
+    #: memory: a cell is blocked when the base collides there at every one of this many headings
+    memory_yaws: int = bounded(8, ge=1)
+    #: memory: cells closer than this (m) to a blocked cell cost more to cross (an inflation layer,
+    #: as in navigation costmaps: the geodesic keeps to the middle of passages and doorways)
+    memory_inflation_m: float = bounded(0.3, ge=0)
+    #: memory: extra cost factor of a cell next to a blocked one (falls linearly to 0 at memory_inflation_m)
+    memory_inflation_cost: float = bounded(2.0, ge=0)
+    #: memory: line of sight, like a 2D lidar at sensor_height_m: a cell is sensed only once the segment from
+    #: the base to its centre is free of scene surfaces (by the metric) up to one cell before the centre;
+    #: cells out of sight stay unknown (= free) and are tried again every step (False: senses through walls)
+    sensor_occlusion: bool = True
+    #: memory: height of the sensor's scan plane above the floor (m; the Go2's body spans ~0.28-0.52 m,
+    #: its legs below; lower obstacles are seen over, as a lidar on the body would)
+    sensor_height_m: float = bounded(0.3, ge=0)
+
+    def obstacle_memory(self, robot, checker, lo, hi, goal) -> ObstacleMemory | None:
+        """The :class:`ObstacleMemory` of the box ``lo``..``hi`` (world, m) with the goal ``goal`` (2,), or None when ``memory`` is off."""
+        if not self.memory:
+            return None
+        return ObstacleMemory(robot, checker, lo, hi, goal, cell=self.memory_cell_m, radius=self.sensor_radius_m, n_yaws=self.memory_yaws, inflation_m=self.memory_inflation_m,
+                              inflation_cost=self.memory_inflation_cost, occlusion=self.sensor_occlusion, sensor_height=self.sensor_height_m)  # fmt: skip

@@ -15,11 +15,11 @@ import sys
 import types
 
 from .api import render
-from .cameras import Camera, MountedCamera, intrinsics_from_fov, look_at, mount_offset
+from .cameras import Camera, MountedCamera, camera_pose_error, head_camera, intrinsics_from_fov, look_at, mount_offset, wrist_camera
 from .config import RenderResult
 from .renderer import SplatRenderer
 
-__all__ = ["render", "RenderResult", "SplatRenderer", "Camera", "MountedCamera", "look_at", "intrinsics_from_fov", "mount_offset"]
+__all__ = ["render", "RenderResult", "SplatRenderer", "Camera", "MountedCamera", "camera_pose_error", "head_camera", "look_at", "intrinsics_from_fov", "mount_offset", "wrist_camera"]
 
 
 class _CallableModule(types.ModuleType):

@@ -15,7 +15,7 @@ import numpy as np
 
 from ..errors import SplatplanError
 
-__all__ = ["Camera", "MountedCamera", "look_at", "intrinsics_from_fov", "mount_offset", "invert_rigid"]
+__all__ = ["Camera", "MountedCamera", "camera_pose_error", "head_camera", "look_at", "intrinsics_from_fov", "mount_offset", "invert_rigid", "wrist_camera"]
 
 
 def invert_rigid(t: np.ndarray) -> np.ndarray:
@@ -193,6 +193,15 @@ class MountedCamera:
         self.offset = off
         self.K = np.asarray(self.K, dtype=np.float64)
 
+    def scaled(self, width: int) -> "MountedCamera":
+        """This camera at ``width`` pixels wide, same field of view and aspect (itself when already so)."""
+        if self.width == width:
+            return self
+        s = width / self.width
+        k = np.asarray(self.K, np.float64).copy()
+        k[:2] *= s
+        return MountedCamera(self.link_name, self.offset, k, width, max(1, round(self.height * s)))
+
     def _link_index(self, robot) -> int:
         names = list(robot.link_names)
         if self.link_name not in names:
@@ -217,3 +226,26 @@ class MountedCamera:
         with its ``render`` signature). Returns its :class:`RenderResult` (K images)."""
         v = self.viewmats(robot, q).reshape(-1, 4, 4)
         return renderer.render(v, self.Ks((v.shape[0],)), self.width, self.height, **kwargs)
+
+
+def wrist_camera(robot, image_size: int = 64, fov_deg: float = 70.0, link: str = "panda_hand_tcp"):
+    """The wrist camera: a :class:`~splatplan.render.MountedCamera` at ``link`` (identity offset:
+    the camera looks along the link's z axis, image x along link x)."""
+    cam = MountedCamera(link, np.eye(4), intrinsics_from_fov(fov_deg, image_size, image_size), image_size, image_size)
+    cam._link_index(robot)
+    return cam
+
+
+def camera_pose_error(t: np.ndarray, t_goal: np.ndarray) -> tuple[float, float]:
+    """(translation error m, rotation error deg) between camera poses world <- camera (4, 4)."""
+    pe = float(np.linalg.norm(t[:3, 3] - t_goal[:3, 3]))
+    c = 0.5 * (np.trace(t_goal[:3, :3].T @ t[:3, :3]) - 1.0)
+    return pe, float(np.degrees(np.arccos(np.clip(c, -1.0, 1.0))))
+
+
+def head_camera(robot, image_size: int = 64, fov_deg: float = 90.0, offset=(0.30, 0.0, 0.05), link: str = "base"):
+    """A legged robot's head camera: a :class:`MountedCamera` on ``link`` at ``offset`` (m, link
+    frame: x forward, y left, z up), looking along the link's +x, image up = +z."""
+    cam = MountedCamera(link, mount_offset(tuple(offset), forward=(1.0, 0.0, 0.0), up=(0.0, 0.0, 1.0)), intrinsics_from_fov(fov_deg, image_size, image_size), image_size, image_size)
+    cam._link_index(robot)
+    return cam

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..errors import SplatplanError
 from ..scenes.splats import quat_to_rotmat
 
 
@@ -126,3 +127,26 @@ def collision_free_ik(
     if near is not None:
         q = q[np.argsort(np.linalg.norm(q - np.asarray(near, np.float64), axis=1))]
     return q[0]
+
+
+def down_quat(yaw: float = 0.0) -> np.ndarray:
+    """wxyz quaternion of a gripper pointing straight down (tool z = world -z), turned by ``yaw``."""
+    return np.array([0.0, np.cos(yaw / 2), np.sin(yaw / 2), 0.0])
+
+
+def check_reachable(robot, position, quat, link: str, tol_m: float = 0.003, tol_deg: float = 2.0, n_seeds: int = 24, seed: int = 0) -> np.ndarray:
+    """IK (damped least squares from ``n_seeds`` starts) for the goal pose; returns the solutions
+    (S, dof) that reach it, best first. Raises "unreachable goal pose" when none does."""
+    p = np.asarray(position, np.float64).reshape(3)
+    base = robot.base_pose[:3, 3]
+    reach = float(robot.info.get("reach_m", 1.2)) if hasattr(robot, "info") else 1.2
+    if np.linalg.norm(p - base) > reach:
+        raise SplatplanError(f"unreachable goal pose: {p.round(3).tolist()} is {np.linalg.norm(p - base):.2f} m from the base of {robot.name} (reach < {reach:.2f} m)")
+    q, pe, re = solve_ik(robot, p, quat, link=link, n_seeds=n_seeds, n_iters=60, seed=seed)
+    ok = (pe < tol_m) & (re < np.deg2rad(tol_deg))
+    if not np.any(ok):
+        raise SplatplanError(
+            f"unreachable goal pose: position {p.round(3).tolist()}, quat {np.round(quat, 3).tolist()}: the closest IK solution "
+            f"({n_seeds} starts) is {pe[0] * 100:.1f} cm / {np.rad2deg(re[0]):.1f} deg away; pick a pose inside the workspace"
+        )
+    return q[ok]

@@ -1,1 +1,1 @@
-"""Tasks stage: MPPI reaching with a 7-DoF arm (:mod:`.arm`) and quadruped base driving (:mod:`.base`)."""
+"""Tasks stage: recipes on the one MPPI, each a config (``TaskConfig`` + ``MPPIConfig`` + shared field groups), a Robot, a cost list and the MPC loop: arm reaching (:mod:`.arm`), quadruped base driving (:mod:`.base`), visual reaching (:mod:`.reach`), image-goal navigation (:mod:`.navigate`)."""

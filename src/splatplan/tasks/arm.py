@@ -19,7 +19,7 @@ Warm start by shifting the knots one control period (MPPI's own); the knots are 
 B-spline so that the applied first control is set by knots that shape the whole rollout; the
 knot noise shrinks near the goal (``noise_anneal_m``). The collision cost may query every
 ``collision_stride``-th step of the horizon. The goal pose is checked for reachability by IK
-(:func:`~splatplan.robots.ik.solve_ik`) before any step: an unreachable goal is an error.
+(:func:`~splatplan.robots.ik.check_reachable`) before any step: an unreachable goal is an error.
 """
 
 from __future__ import annotations
@@ -32,11 +32,12 @@ import numpy as np
 from .._config import NESTED_SKIP, bounded
 from ..errors import SplatplanError
 from ..planners.dynamics import JointIntegrator
+from ..planners.costs import JointVelocityTerms, StridedCollisionTerms
 from ..planners.mppi import MPPIConfig
-from ..robots.ik import rotation_error, solve_ik
+from ..robots.ik import check_reachable, rotation_error
 from ._common import TaskConfig, TaskResult, TaskScene, check_start, load_task_scene, moving_clearance
 
-__all__ = ["ArmConfig", "check_reachable", "down_quat", "run_arm"]
+__all__ = ["ArmConfig", "run_arm"]
 
 
 def _arm_mppi() -> MPPIConfig:
@@ -46,7 +47,7 @@ def _arm_mppi() -> MPPIConfig:
 
 
 @dataclass
-class ArmConfig(TaskConfig):
+class ArmConfig(TaskConfig, StridedCollisionTerms, JointVelocityTerms, velocity_scale=0.4, n_sigma=1.0, w_collision=2.0, w_hit=20.0, collision_s2_cap=1.4, collision_stride=2):
     """Knobs of :func:`run_arm` (MPPI over joint-velocity B-splines)."""
 
     #: MPPI settings (noise_sigma in rad/s; the control bounds come from velocity_scale)
@@ -57,34 +58,18 @@ class ArmConfig(TaskConfig):
     noise_floor: float = bounded(0.05, ge=0, le=1)
     #: maximum MPC steps
     max_steps: int = bounded(90, ge=1)
-    #: joint velocity bound as a fraction of the robot's velocity limits
-    velocity_scale: float = bounded(0.4, gt=0, le=1)
     #: weight of the end-effector position error (per metre, per step)
     w_position: float = bounded(4.0, ge=0)
     #: weight of the end-effector orientation error (per radian, per step)
     w_orientation: float = bounded(1.0, ge=0)
     #: extra weight of the last step of the goal cost (x the per-step weight)
     terminal_factor: float = bounded(4.0, ge=0)
-    #: weight of the summed CollisionSplatting cost (every ellipsoid, every step)
-    w_collision: float = bounded(2.0, ge=0)
-    #: cost per (step, ellipsoid) in collision
-    w_hit: float = bounded(20.0, ge=0)
     #: cost per step with a self-collision (0 = off)
     w_self_collision: float = bounded(0.0, ge=0)
-    #: weight of the joint-limit penalty
-    w_limits: float = bounded(100.0, ge=0)
-    #: weight of the control effort sum |qdot|^2 dt
-    w_control: float = bounded(0.01, ge=0)
     #: weight of a posture term sum_t |q_t - q_ref|^2 that resolves the arm's redundancy: q_ref is
     #: the IK solution of the goal pose nearest to the start, among the collision-free ones when the
     #: collision cost is on (the no-collision baseline uses no scene information at all)
     w_posture: float = bounded(1.0, ge=0)
-    #: conservatism of the metric (n_sigma)
-    n_sigma: float = bounded(1.0, ge=0)
-    #: neighbourhood of the rollouts' collision cost (checker s2_cap for MPPI queries)
-    collision_s2_cap: float = bounded(1.4, ge=1)
-    #: query the collision cost on every stride-th step of the horizon (1 = every step)
-    collision_stride: int = bounded(2, ge=1)
     #: end-effector link
     ee_link: str = "panda_hand_tcp"
     #: success: final position error below this (m) with a positive clearance throughout
@@ -94,29 +79,6 @@ class ArmConfig(TaskConfig):
     #: stop early once the position error is below this (m) and the orientation within tolerance
     stop_tol: float = bounded(0.008, ge=0)
 
-
-
-def down_quat(yaw: float = 0.0) -> np.ndarray:
-    """wxyz quaternion of a gripper pointing straight down (tool z = world -z), turned by ``yaw``."""
-    return np.array([0.0, np.cos(yaw / 2), np.sin(yaw / 2), 0.0])
-
-
-def check_reachable(robot, position, quat, link: str, tol_m: float = 0.003, tol_deg: float = 2.0, n_seeds: int = 24, seed: int = 0) -> np.ndarray:
-    """IK (damped least squares from ``n_seeds`` starts) for the goal pose; returns the solutions
-    (S, dof) that reach it, best first. Raises "unreachable goal pose" when none does."""
-    p = np.asarray(position, np.float64).reshape(3)
-    base = robot.base_pose[:3, 3]
-    reach = float(robot.info.get("reach_m", 1.2)) if hasattr(robot, "info") else 1.2
-    if np.linalg.norm(p - base) > reach:
-        raise SplatplanError(f"unreachable goal pose: {p.round(3).tolist()} is {np.linalg.norm(p - base):.2f} m from the base of {robot.name} (reach < {reach:.2f} m)")
-    q, pe, re = solve_ik(robot, p, quat, link=link, n_seeds=n_seeds, n_iters=60, seed=seed)
-    ok = (pe < tol_m) & (re < np.deg2rad(tol_deg))
-    if not np.any(ok):
-        raise SplatplanError(
-            f"unreachable goal pose: position {p.round(3).tolist()}, quat {np.round(quat, 3).tolist()}: the closest IK solution "
-            f"({n_seeds} starts) is {pe[0] * 100:.1f} cm / {np.rad2deg(re[0]):.1f} deg away; pick a pose inside the workspace"
-        )
-    return q[ok]
 
 
 def _ee_error(robot, q: np.ndarray, li: int, p_goal: np.ndarray, r_goal: np.ndarray | None) -> tuple[float, float]:
@@ -153,34 +115,22 @@ def _posture_reference(robot, ts: TaskScene, p_goal, quat, q: np.ndarray, cfg: A
 
 def _arm_costs(robot, ts: TaskScene, p_goal, quat, q_ref: np.ndarray, cfg: ArmConfig, collision: bool) -> list:
     """The cost list of :func:`run_arm` (see the module docstring)."""
-    from ..planners.costs import CollisionCost, ControlEffortCost, GoalPoseCost, JointLimitCost, StateCost, fk_device
+    from ..planners.costs import GoalPoseCost, StateCost, fk_device
 
     costs = [
         GoalPoseCost(robot, position=p_goal, quat=quat, link=cfg.ee_link, position_weight=cfg.w_position, orientation_weight=cfg.w_orientation, terminal_factor=cfg.terminal_factor,
                      device=fk_device(ts.checker)),
-        ControlEffortCost(cfg.w_control),
-        JointLimitCost(robot, weight=cfg.w_limits, margin=0.05),
+        *cfg.joint_costs(robot),
     ]  # fmt: skip
     if cfg.w_posture > 0:
         costs.append(StateCost(lambda s: np.sum((s - q_ref) ** 2, axis=-1), weight=cfg.w_posture, name="posture"))
     if collision:
-        costs.insert(0, CollisionCost(ts.checker, robot, weight=cfg.w_collision, hit_weight=cfg.w_hit, s2_cap=cfg.collision_s2_cap, self_collision_weight=cfg.w_self_collision, time_stride=cfg.collision_stride))
+        costs.insert(0, cfg.collision_cost(ts.checker, robot, self_collision_weight=cfg.w_self_collision))
     return costs
 
 
-def run_arm(
-    robot,
-    scene,
-    goal_position,
-    goal_quat=None,
-    *,
-    config: ArmConfig | None = None,
-    collision: bool = True,
-    q0=None,
-    device: str | None = "auto",
-    check_goal: bool = True,
-    progress=None,
-) -> TaskResult:
+def run_arm(robot, scene, goal_position, goal_quat=None, *, config: ArmConfig | None = None, collision: bool = True, q0=None, device: str | None = "auto", check_goal: bool = True,
+            progress=None) -> TaskResult:  # fmt: skip
     """Reach an end-effector pose with MPPI (see the module docstring).
 
     Args:
@@ -212,7 +162,7 @@ def run_arm(
     q_ref = _posture_reference(robot, ts, p_goal, quat, q, cfg, collision) if check_goal else np.asarray(robot.q_default, np.float64)
     check_start(robot, ts.checker, q)
 
-    vmax = cfg.velocity_scale * np.asarray(robot.velocity_limits, np.float64)
+    vmax = cfg.velocity_bound(robot)
     dyn = JointIntegrator(robot, velocity_limits=vmax)
     mppi = MPPI(dyn, None, replace(cfg.mppi, u_min=tuple(-vmax), u_max=tuple(vmax)), costs=_arm_costs(robot, ts, p_goal, quat, q_ref, cfg, collision))
     li = robot.link_names.index(cfg.ee_link)

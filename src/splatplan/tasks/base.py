@@ -38,7 +38,7 @@ one, so the kitchen is unreachable; at 0.75 the free bands of the centre are 16,
 exact boxes by 2-3 cm in tight spots, which the metric at 0.5 did not see. The exact clearance
 to the boxes is what the studies report.
 
-With ``route`` (a path, e.g. from :func:`plan_route`), the goal term follows the route instead
+With ``route`` (a path, e.g. from :func:`~splatplan.planners.route.plan_route`), the goal term follows the route instead
 (:class:`~splatplan.planners.drive.RouteTracker`: the point ``route_lookahead_m`` ahead of the
 base's progress along it, and the heading term faces the route's yaw there, the heading the RRT
 found free) and the recovery and the memory are off (``--route`` in the CLI, and by default there
@@ -58,10 +58,13 @@ import numpy as np
 
 from .._config import NESTED_SKIP, bounded
 from ..errors import SplatplanError
+from ..planners.costs import StridedCollisionTerms
+from ..planners.drive import DriveTerms
+from ..planners.memory import MemoryTerms
 from ..planners.mppi import MPPIConfig
 from ._common import TaskConfig, TaskResult, base_terrain, check_start, load_task_scene, safe_step
 
-__all__ = ["FOOT_CLEARANCE", "START", "BaseConfig", "load_go2", "plan_route", "run_base"]
+__all__ = ["FOOT_CLEARANCE", "START", "BaseConfig", "load_go2", "run_base"]
 
 #: The Go2's feet ellipsoids are lifted this far (m) above the floor (as in a trot's swing phase), so
 #: the floor itself is not a collision.
@@ -89,69 +92,20 @@ def _base_mppi() -> MPPIConfig:
 
 
 @dataclass
-class BaseConfig(TaskConfig):
+class BaseConfig(TaskConfig, StridedCollisionTerms, DriveTerms, MemoryTerms, n_sigma=0.75, w_collision=2.0, w_hit=10.0, collision_s2_cap=2.0, collision_stride=1):
+    # n_sigma 0.75: see the module docstring. w_hit kept small: a large one makes every sample that grazes a
+    # door post lose to standing still, and the base never threads a doorway
     """Knobs of :func:`run_base` (MPPI over body-frame velocity B-splines)."""
 
     #: MPPI settings (noise_sigma: vx m/s, vy m/s, wz rad/s; the control bounds are the robot's velocity limits)
     mppi: MPPIConfig = field(default_factory=_base_mppi, metadata={NESTED_SKIP: ("u_min", "u_max")})
     #: maximum MPC steps
     max_steps: int = bounded(250, ge=1)
-    #: weight of the distance to the goal (per metre, per step)
-    w_goal: float = bounded(1.0, ge=0)
-    #: extra weight of the last step of the goal cost
-    terminal_factor: float = bounded(5.0, ge=0)
-    #: weight of the smallest distance to the goal along each rollout (min over t; a rollout that
-    #: passes close to the goal, e.g. through a doorway and on, is preferred)
-    min_factor: float = bounded(5.0, ge=0)
-    #: structured samples: straight drives in this many world directions (one is the bearing to
-    #: the goal) and the same drives turning to the goal after 1/4, 1/2, 3/4 of the horizon (0 = off)
-    n_directions: int = bounded(8, ge=0)
-    #: speed of the structured samples (m/s)
-    primitive_speed: float = bounded(0.8, ge=0)
-    #: turn rate (rad/s) of the structured samples towards their direction of travel
-    primitive_turn_rate: float = bounded(1.5, ge=0)
-    #: stagnation recovery: when the distance to the goal has not improved for stuck_steps,
-    #: sidestep perpendicular to the bearing to the goal, back and forth with doubling sweeps,
-    #: until a collision-free rollout gets clearly closer to the goal than ever before (off by
-    #: default: see the module docstring)
-    recovery: bool = False
-    #: MPC steps without progress that count as stagnation (goal) or a blocked sweep
-    stuck_steps: int = bounded(10, ge=1)
-    #: no recovery closer than this to the goal (m): the final approach is slow, not stuck
-    recovery_min_distance_m: float = bounded(0.5, ge=0)
-    #: progress (m) that resets the stagnation counter
-    stuck_progress_m: float = bounded(0.05, ge=0)
-    #: length (m) of the first sweep; each reversal sweeps back twice as far
-    detour_length_m: float = bounded(2.0, gt=0)
-    #: a detour ends when a collision-free rollout gets this much closer (m) to the goal than the
-    #: base ever was or any collision-free rollout of goal mode saw before the detour
-    detour_exit_margin_m: float = bounded(0.3, ge=0)
-    #: side of the first sweep: -1 clockwise (right of the bearing to the goal), +1 counterclockwise
-    #: (a fixed convention, like the Bug algorithms' turning direction)
-    first_sweep: int = bounded(-1, choices=(-1, 1))
-    #: sweeps: weight of the progress along the sweep direction (per metre, per step)
-    w_sweep: float = bounded(0.3, ge=0)
-    #: sweeps: weight of facing the sweep direction sum_t (1 - cos(yaw_t - heading)) (walk forward)
-    w_align: float = bounded(1.0, ge=0)
     #: weight of the yaw rate sum_t wz^2 dt (keeps the heading from drifting; the base walks
     #: sideways when it has to)
     w_yaw_rate: float = bounded(0.1, ge=0)
-    #: weight of facing the goal: sum_t (1 - cos(yaw_t - bearing to the goal)) (a walking robot
-    #: moves best forward; 0 = off)
-    w_heading: float = bounded(0.5, ge=0)
-    #: weight of the summed CollisionSplatting cost
-    w_collision: float = bounded(2.0, ge=0)
-    #: cost per (step, ellipsoid) in collision (kept small: a large one makes every sample that
-    #: grazes a door post lose to standing still, and the base never threads a doorway)
-    w_hit: float = bounded(10.0, ge=0)
     #: weight of the control effort
     w_control: float = bounded(0.02, ge=0)
-    #: conservatism of the metric (n_sigma)
-    n_sigma: float = bounded(0.75, ge=0)
-    #: neighbourhood of the rollouts' collision cost (checker s2_cap for MPPI queries)
-    collision_s2_cap: float = bounded(2.0, ge=1)
-    #: query the collision cost on every stride-th step of the horizon
-    collision_stride: int = bounded(1, ge=1)
     #: with a route: the goal term tracks the route's point this far (m, arc length) ahead of the
     #: base's progress along it, and the heading term its heading there (the route's yaw is one the
     #: RRT found free: in a narrow passage only a few headings are)
@@ -168,70 +122,6 @@ class BaseConfig(TaskConfig):
     ground_z: float | str | None = 0.0
     #: the base's step height above the floor (m): the terrain band (an obstacle lower than this is missed)
     ground_band: float = bounded(0.05, ge=0)
-    #: sensed-obstacle memory (off by default): a coarse occupancy grid, unknown = free, filled with
-    #: the cells sensed within sensor_radius_m of the base every MPC step; the goal cost then uses
-    #: the geodesic distance to the goal on it instead of the straight line (see planners.memory)
-    memory: bool = False
-    #: memory: sensing radius around the base (m); nothing beyond it is sensed
-    sensor_radius_m: float = bounded(2.5, gt=0)
-    #: memory: grid cell size (m)
-    memory_cell_m: float = bounded(0.1, gt=0)
-    #: memory: a cell is blocked when the base collides there at every one of this many headings
-    memory_yaws: int = bounded(8, ge=1)
-    #: memory: cells closer than this (m) to a blocked cell cost more to cross (an inflation layer,
-    #: as in navigation costmaps: the geodesic keeps to the middle of passages and doorways)
-    memory_inflation_m: float = bounded(0.3, ge=0)
-    #: memory: extra cost factor of a cell next to a blocked one (falls linearly to 0 at memory_inflation_m)
-    memory_inflation_cost: float = bounded(2.0, ge=0)
-    #: memory: line of sight, like a 2D lidar at sensor_height_m: a cell is sensed only once the segment from
-    #: the base to its centre is free of scene surfaces (by the metric) up to one cell before the centre;
-    #: cells out of sight stay unknown (= free) and are tried again every step (False: senses through walls)
-    sensor_occlusion: bool = True
-    #: memory: height of the sensor's scan plane above the floor (m; the Go2's body spans ~0.28-0.52 m,
-    #: its legs below; lower obstacles are seen over, as a lidar on the body would)
-    sensor_height_m: float = bounded(0.3, ge=0)
-
-
-def plan_route(
-    robot, checker, start, goal_xy, time_budget_s: float = 60.0, seed: int = 0, edge_resolution: float = 0.05, stride: float = 0.4, goal_bias: float = 0.2
-) -> np.ndarray | None:
-    """Global route on the base's SE(2) with the batched RRT: (P, 3) configurations (x, y, yaw),
-    or None when none is found within ``time_budget_s``.
-
-    The goal's yaw is free: the RRT goal is the goal position at the collision-free heading nearest
-    to the bearing from the start. The route is a guide that MPPI tracks with its own collision
-    cost (the executed motion is what the clearance measures), so its edges are checked every
-    ``edge_resolution`` = 5 cm (half a wall's thickness) of ellipsoid motion rather than at the
-    RRT default of a quarter of the Go2's smallest semi-axis (a 1.9 cm foot: 4.8 mm, ~80 checks
-    per edge, which is why the default search did not reach the kitchen in 30 s), with a
-    ``stride`` of 0.4 m and a goal bias of 0.2."""
-    from ..planners import RRT, RRTConfig
-
-    start = np.asarray(start, np.float64)
-    g = np.asarray(goal_xy, np.float64)
-    bearing = float(np.arctan2(g[1] - start[1], g[0] - start[0]))
-    yaws = bearing + np.linspace(-np.pi, np.pi, 24, endpoint=False)
-    yaws = yaws[np.argsort(np.abs(np.angle(np.exp(1j * (yaws - bearing)))))]  # nearest to the bearing first
-    q = np.stack([np.full(len(yaws), g[0]), np.full(len(yaws), g[1]), np.angle(np.exp(1j * yaws))], axis=1)
-    free = ~np.asarray(checker.collides_robot(robot, q)).any(axis=-1)
-    if not free.any():
-        raise SplatplanError(f"goal {g.round(3).tolist()}: the base collides there at every heading; pick a free goal")
-    yaw = float(q[np.argmax(free), 2])
-    lo, hi = checker.scene.bounds()
-    cfg = RRTConfig(box_lo=(float(lo[0]), float(lo[1]), -np.pi), box_hi=(float(hi[0]), float(hi[1]), np.pi), time_limit_s=time_budget_s, seed=seed, goal_tolerance=0.1,
-                    edge_resolution=edge_resolution, stride=stride, goal_bias=goal_bias)  # fmt: skip
-    res = RRT(checker, cfg, robot=robot).plan(start, np.array([g[0], g[1], yaw]))
-    if not res.success:
-        return None
-    return np.asarray(res.path)
-
-
-def _free_yaw(robot, checker, xy) -> float | None:
-    """A yaw at which the base at ``xy`` is collision-free (None if every one of 16 collides)."""
-    yaws = np.linspace(-np.pi, np.pi, 16, endpoint=False)
-    q = np.stack([np.full(16, xy[0]), np.full(16, xy[1]), yaws], axis=1)
-    free = ~np.asarray(checker.collides_robot(robot, q)).any(axis=-1)
-    return float(yaws[np.argmax(free)]) if free.any() else None
 
 
 def run_base(
@@ -260,9 +150,9 @@ def run_base(
         device: metric device.
         progress: optional callable(step, distance) per MPC step.
     """
-    from ..planners import MPPI, CollisionCost, ControlEffortCost, PlanarBase
-    from ..planners.drive import DriveGoalCost, RouteTracker, StructuredDrives
-    from ..planners.memory import ObstacleMemory
+    from ..planners import MPPI, ControlEffortCost, PlanarBase
+    from ..planners.drive import RouteTracker
+    from ..planners.route import free_yaw
 
     cfg = (config or BaseConfig()).validate()
     robot = load_go2() if robot is None or robot == "go2" else robot
@@ -275,25 +165,19 @@ def run_base(
     lo, hi = ts.splats.bounds()
     if np.any(g < lo[:2]) or np.any(g > hi[:2]):
         raise SplatplanError(f"goal {g.round(3).tolist()} lies outside the scene (x, y in {lo[:2].round(2).tolist()} .. {hi[:2].round(2).tolist()})")
-    if _free_yaw(robot, ts.checker, g) is None:
+    if free_yaw(robot, ts.checker, g) is None:
         raise SplatplanError(f"goal {g.round(3).tolist()}: the base collides there at every heading; pick a free goal")
     x = np.zeros(3) if start is None else np.asarray(start, np.float64).reshape(3).copy()
     check_start(robot, ts.checker, x)
 
     vmax = np.asarray(robot.velocity_limits, np.float64)
     dyn = PlanarBase(robot)
-    memory = None
-    if cfg.memory and route is None:
-        memory = ObstacleMemory(robot, ts.checker, lo, hi, g, cell=cfg.memory_cell_m, radius=cfg.sensor_radius_m, n_yaws=cfg.memory_yaws,
-                                inflation_m=cfg.memory_inflation_m, inflation_cost=cfg.memory_inflation_cost,
-                                occlusion=cfg.sensor_occlusion, sensor_height=cfg.sensor_height_m)  # fmt: skip
-    goal_cost = DriveGoalCost(g, w_goal=cfg.w_goal, terminal_factor=cfg.terminal_factor, min_factor=cfg.min_factor, w_heading=cfg.w_heading, w_sweep=cfg.w_sweep, w_align=cfg.w_align, field=memory)
+    memory = cfg.obstacle_memory(robot, ts.checker, lo, hi, g) if route is None else None
+    goal_cost = cfg.goal_cost(g, field=memory)
     costs = [ControlEffortCost(cfg.w_control, {2: cfg.w_yaw_rate}), goal_cost]
     if collision:
-        costs.insert(0, CollisionCost(ts.checker, robot, weight=cfg.w_collision, hit_weight=cfg.w_hit, s2_cap=cfg.collision_s2_cap, time_stride=cfg.collision_stride))
-    drives = StructuredDrives(goal_cost, n_directions=cfg.n_directions, speed=cfg.primitive_speed, turn_rate=cfg.primitive_turn_rate, recovery=collision and cfg.recovery and route is None,
-                              stuck_steps=cfg.stuck_steps, min_distance_m=cfg.recovery_min_distance_m, stuck_progress_m=cfg.stuck_progress_m, detour_length_m=cfg.detour_length_m,
-                              exit_margin_m=cfg.detour_exit_margin_m, first_sweep=cfg.first_sweep)  # fmt: skip
+        costs.insert(0, cfg.collision_cost(ts.checker, robot))
+    drives = cfg.drives(goal_cost, recovery=collision and cfg.recovery and route is None)
     mppi = MPPI(dyn, None, replace(cfg.mppi, u_min=tuple(-vmax), u_max=tuple(vmax)), costs=costs, sampler=drives)
     wps = None if route is None else np.asarray(route, np.float64)[:, :2]
     track = None if route is None else RouteTracker(route, cfg.route_lookahead_m)

@@ -7,7 +7,7 @@ image was taken from, and drives there.
 2. **Index**: the head camera's view at every node (thinned to one per ``index_spacing_m``), at
    ``n_headings`` evenly spaced headings, is rendered (batched) and encoded (:func:`build_view_index`).
 3. **Retrieve**: the node and heading whose embedding is closest to the target image's
-   (squared distance, the image cost of the paper) (:func:`retrieve`). A match whose best cost is
+   (squared distance, the image cost of the paper) (:func:`~splatplan.encoders.view_index.retrieve`). A match whose best cost is
    not clearly below the typical cost (``best / median > weak_ratio``) is reported as **weak** and
    the robot does not drive unless asked to.
 4. **Drive**: base MPPI with the collision cost (every body and leg ellipsoid) drives to the
@@ -36,13 +36,12 @@ import numpy as np
 
 from .._config import NESTED_SKIP, bounded
 from ..errors import SplatplanError
+from ..encoders.view_index import ViewIndexTerms
+from ..planners.costs import CollisionTerms
 from ..planners.mppi import MPPIConfig
 from ._common import TaskConfig, TaskScene, load_filtered_scene
 
-__all__ = [
-    "NavigateConfig", "NavScene", "ViewIndex", "Match", "DriveResult", "head_camera", "load_nav_scene", "explore",
-    "build_view_index", "retrieve", "drive_to", "tree_branch", "wrap_angle", "nav_robot", "thin_nodes",
-]  # fmt: skip
+__all__ = ["NavigateConfig", "NavScene", "DriveResult", "head_camera", "load_nav_scene", "explore", "build_view_index", "drive_to", "nav_robot"]
 
 
 def _drive_mppi() -> MPPIConfig:
@@ -52,22 +51,13 @@ def _drive_mppi() -> MPPIConfig:
 
 
 @dataclass
-class NavigateConfig(TaskConfig):
+class NavigateConfig(TaskConfig, CollisionTerms, ViewIndexTerms, n_sigma=0.5, w_collision=5.0, w_hit=20.0, collision_s2_cap=2.0):
+    # n_sigma 0.5: at 1 the apartment's large level-1 splats leave only 11% of random Go2 poses free against 39% by
+    # the exact geometry (0.5: 28%, 0.5% missed); the drive's collision cost uses drive_n_sigma
     """Knobs of the image-goal navigation (exploration, retrieval, driving)."""
 
     #: splats of a built-in scene (fewer = faster renders); None = the scene's default
     n_splats: int | None = bounded(80_000, ge=1)
-    #: conservatism of the metric (n_sigma). 0.5: at 1 the apartment's large level-1 splats leave
-    #: only 11% of random Go2 poses free against 39% by the exact geometry (0.5: 28%, 0.5% missed)
-    n_sigma: float = bounded(0.5, ge=0)
-    #: rendered image side (pixels, square)
-    image_size: int = bounded(64, ge=1)
-    #: horizontal field of view of the head camera (degrees)
-    fov_deg: float = bounded(90.0, gt=0, lt=180)
-    #: head camera position in the base frame (x forward, y left, z up), metres
-    camera_offset: tuple[float, float, float] = (0.30, 0.0, 0.05)
-    #: render background grey level
-    background: float = bounded(0.5, ge=0, le=1)
     #: start pose (x, y, yaw) of the exploration and of every drive
     start: tuple[float, float, float] = (-0.8, 0.3, 0.0)
     #: exploration sampling box lower corner (x, y) (m)
@@ -80,29 +70,18 @@ class NavigateConfig(TaskConfig):
     #: rendered at every heading anyway, and a frozen yaw passes the doorways in walls x = const
     #: head-on); None = explore the yaw too (much slower: turning counts as motion)
     tree_yaw: float | None = 0.0
-    #: index only nodes at least this far (m) from every node indexed before them (greedy thinning
-    #: in tree order); 0 = every node
-    index_spacing_m: float = bounded(0.15, gt=0)
     #: RRT stride (largest edge, weighted configuration distance)
     tree_stride: float = bounded(0.5, gt=0)
     #: wall-clock cap of the exploration (s)
     tree_time_s: float = bounded(120.0, gt=0)
     #: largest motion of any ellipsoid point between collision checks along a tree edge (m)
     edge_resolution_m: float = bounded(0.06, gt=0)
-    #: headings rendered per node (evenly spaced over 360 degrees)
-    n_headings: int = bounded(24, ge=1)
-    #: renders per batch when indexing
-    render_batch: int = bounded(256, ge=1)
     #: a match is weak when best cost / median cost over all views exceeds this
     weak_ratio: float = bounded(0.5, gt=0, le=1)
     #: the drive's MPPI settings (noise and bounds: vx m/s, vy m/s, wz rad/s; the noise seed is ``seed``)
     mppi: MPPIConfig = field(default_factory=_drive_mppi, metadata={NESTED_SKIP: ("seed",)})
     #: weight of the distance to the (carrot) goal, per metre per step
     w_goal: float = bounded(2.0, ge=0)
-    #: weight of the summed CollisionSplatting cost
-    w_collision: float = bounded(5.0, ge=0)
-    #: cost per (step, ellipsoid) in collision
-    w_hit: float = bounded(20.0, ge=0)
     #: weight of the heading term sum_t wrap(yaw_t - tree_yaw)^2 (the tree's edges were checked at
     #: that heading; 0 = free heading)
     w_yaw: float = bounded(1.0, ge=0)
@@ -110,8 +89,6 @@ class NavigateConfig(TaskConfig):
     w_control: float = bounded(0.01, ge=0)
     #: conservatism (n_sigma) of the drive's collision cost (1.0 closes the 0.9 m doorway for the Go2)
     drive_n_sigma: float = bounded(0.5, ge=0)
-    #: neighbourhood of the rollouts' collision cost (s2_cap)
-    collision_s2_cap: float = bounded(2.0, ge=1)
     #: follow the tree's branch to the retrieved node (False = only the node position)
     follow_tree: bool = True
     #: carrot distance ahead along the branch (m)
@@ -142,19 +119,15 @@ def nav_robot(robot=None):
     return load_robot(robot)
 
 
-def wrap_angle(a):
-    """Angles wrapped to (-pi, pi]."""
-    return (np.asarray(a, np.float64) + np.pi) % (2 * np.pi) - np.pi
-
-
 def head_camera(robot, cfg: NavigateConfig):
-    """The Go2's head camera: on link ``base``, looking along the body's +x, image up = +z."""
-    from ..render import MountedCamera, intrinsics_from_fov, mount_offset
+    """The Go2's head camera of ``cfg`` (:meth:`~splatplan.encoders.view_index.ViewIndexTerms.head_camera`)."""
+    return cfg.head_camera(robot)
 
-    cam = MountedCamera("base", mount_offset(tuple(cfg.camera_offset), forward=(1.0, 0.0, 0.0), up=(0.0, 0.0, 1.0)),
-                        intrinsics_from_fov(cfg.fov_deg, cfg.image_size, cfg.image_size), cfg.image_size, cfg.image_size)  # fmt: skip
-    cam._link_index(robot)
-    return cam
+
+def build_view_index(robot, nav: NavScene, nodes: np.ndarray, encoder, renderer, cfg: NavigateConfig):
+    """The :class:`~splatplan.encoders.view_index.ViewIndex` of the tree's ``nodes`` (N, 3) under ``cfg``."""
+    cfg.validate()
+    return cfg.index_views(robot, nodes, encoder, renderer)
 
 
 @dataclass
@@ -205,120 +178,6 @@ def explore(robot, nav: NavScene, cfg: NavigateConfig):
     return RRT(nav.task.checker, rcfg, robot=robot).plan(start, None)
 
 
-def thin_nodes(nodes: np.ndarray, spacing: float) -> np.ndarray:
-    """Indices of nodes kept by greedy thinning in order: a node is kept when it is at least
-    ``spacing`` (m, in x, y) from every node kept before it."""
-    nodes = np.asarray(nodes, np.float64)
-    if spacing <= 0 or len(nodes) == 0:
-        return np.arange(len(nodes))
-    kept = [0]
-    for i in range(1, len(nodes)):
-        if np.min(np.linalg.norm(nodes[kept, :2] - nodes[i, :2], axis=1)) >= spacing:
-            kept.append(i)
-    return np.asarray(kept)
-
-
-@dataclass
-class ViewIndex:
-    """Encoded views of the tree: row i = node ``node[i]`` at heading ``yaw[i]``."""
-
-    poses: np.ndarray  # (M, 3) x, y, yaw of each view
-    node: np.ndarray  # (M,) tree node index
-    embeddings: object  # (M, D) encoder output (numpy or torch)
-    encoder: object
-    render_s: float = 0.0
-    encode_s: float = 0.0
-
-
-def build_view_index(robot, nav: NavScene, nodes: np.ndarray, encoder, renderer, cfg: NavigateConfig) -> ViewIndex:
-    """Render and encode the views of the tree's nodes (thinned to ``cfg.index_spacing_m``) at
-    ``cfg.n_headings`` headings (batched). ``ViewIndex.node`` indexes ``nodes``."""
-    cfg.validate()
-    nodes = np.asarray(nodes, np.float64).reshape(-1, 3)
-    keep = thin_nodes(nodes, cfg.index_spacing_m)
-    cam = head_camera(robot, cfg)
-    yaws = 2 * np.pi * np.arange(cfg.n_headings) / cfg.n_headings
-    poses = np.concatenate([np.repeat(nodes[keep, :2], len(yaws), axis=0), np.tile(yaws, len(keep))[:, None]], axis=1)  # (M, 3)
-    poses[:, 2] = wrap_angle(poses[:, 2])
-    node = np.repeat(keep, len(yaws))
-    embs, t_r, t_e = [], 0.0, 0.0
-    for i in range(0, len(poses), cfg.render_batch):
-        t0 = time.perf_counter()
-        rgb = cam.render(renderer, robot, poses[i : i + cfg.render_batch], background=(cfg.background,) * 3).rgb
-        t1 = time.perf_counter()
-        embs.append(np.asarray(encoder.encode(rgb)))
-        t_r, t_e = t_r + t1 - t0, t_e + time.perf_counter() - t1
-    emb = np.concatenate(embs) if embs else np.zeros((0, encoder.dim), np.float32)
-    return ViewIndex(poses, node, emb, encoder, t_r, t_e)
-
-
-@dataclass
-class Match:
-    """The retrieved view: pose (x, y, yaw), its node, the cost (squared embedding distance),
-    the median cost over all views, and whether the match is weak."""
-
-    index: int
-    node: int
-    pose: np.ndarray
-    cost: float
-    median_cost: float
-    ratio: float
-    weak: bool
-    costs: np.ndarray = field(repr=False, default=None)
-
-    def to_json(self) -> dict:
-        return {"node": int(self.node), "pose": self.pose.round(4).tolist(), "cost": round(self.cost, 6), "median_cost": round(self.median_cost, 6),
-                "ratio": round(self.ratio, 4), "weak": bool(self.weak)}  # fmt: skip
-
-
-def retrieve(index: ViewIndex, target_image, weak_ratio: float = 0.5) -> Match:
-    """The view whose embedding is closest to the target image's (any image size: the encoder
-    resizes it; RGB in [0, 1])."""
-    img = np.asarray(target_image, np.float32)
-    if img.ndim != 3 or img.shape[-1] != 3:
-        raise SplatplanError(f"target image must be (H, W, 3) RGB, got shape {img.shape}")
-    if len(index.poses) == 0:
-        raise SplatplanError("the view index is empty: the exploration tree has no nodes")
-    e_t = np.asarray(index.encoder.encode(img[None]))  # (1, D)
-    costs = np.sum((np.asarray(index.embeddings, np.float64) - e_t.astype(np.float64)) ** 2, axis=1)  # (M,)
-    i = int(np.argmin(costs))
-    med = float(np.median(costs))
-    ratio = float(costs[i] / med) if med > 0 else 1.0
-    return Match(i, int(index.node[i]), index.poses[i].copy(), float(costs[i]), med, ratio, bool(ratio > weak_ratio), costs)
-
-
-def tree_branch(nodes: np.ndarray, parents: np.ndarray, i: int) -> np.ndarray:
-    """(P, 3) tree nodes from the root to node i."""
-    idx = []
-    while i >= 0:
-        idx.append(int(i))
-        i = int(parents[i])
-    return np.asarray(nodes)[idx[::-1]]
-
-
-def _carrot(path_xy: np.ndarray, p: np.ndarray, lookahead: float, progress: int) -> tuple[np.ndarray, int]:
-    """Point ``lookahead`` ahead along the polyline from the closest point at or after segment ``progress``."""
-    if len(path_xy) == 1:
-        return path_xy[0], 0
-    a, b = path_xy[:-1], path_xy[1:]
-    ab = b - a
-    t = np.clip(np.einsum("ij,ij->i", p - a, ab) / np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-12), 0, 1)
-    d = np.linalg.norm(a + t[:, None] * ab - p, axis=1)
-    d[:progress] = np.inf
-    j = int(np.argmin(d))
-    rem = lookahead
-    pt = a[j] + t[j] * ab[j]
-    k = j
-    while k < len(ab):
-        seg = np.linalg.norm(b[k] - pt)
-        if seg >= rem:
-            return pt + (b[k] - pt) * (rem / max(seg, 1e-12)), j
-        rem -= seg
-        pt = b[k]
-        k += 1
-    return path_xy[-1], j
-
-
 @dataclass
 class DriveResult:
     """One drive: executed states (S + 1, 3), reached flag, final distance to the goal (m),
@@ -342,8 +201,9 @@ def drive_to(robot, nav: NavScene, goal_xy, cfg: NavigateConfig, *, start=None, 
         branch: (P, 2+) tree path ending at the goal, followed with a carrot when ``cfg.follow_tree``.
     """
     from ..planners import MPPI
-    from ..planners.costs import CollisionCost, ControlEffortCost, GoalPoseCost, StateCost
+    from ..planners.costs import ControlEffortCost, GoalPoseCost, StateCost
     from ..planners.dynamics import PlanarBase
+    from ..planners.route import carrot, wrap_angle
     from ._common import check_start, trajectory_clearance
 
     goal = np.asarray(goal_xy, np.float64).reshape(-1)[:2]
@@ -356,7 +216,7 @@ def drive_to(robot, nav: NavScene, goal_xy, cfg: NavigateConfig, *, start=None, 
     goal_cost = GoalPoseCost(None, position=goal, state_dims=(0, 1), position_weight=cfg.w_goal, terminal_factor=2.0)
     drive_checker = nav.task.checker.with_config(n_sigma=cfg.drive_n_sigma)
     costs = [
-        CollisionCost(drive_checker, robot, weight=cfg.w_collision, hit_weight=cfg.w_hit, s2_cap=cfg.collision_s2_cap),
+        cfg.collision_cost(drive_checker, robot),
         goal_cost,
         ControlEffortCost(cfg.w_control),
     ]
@@ -375,8 +235,8 @@ def drive_to(robot, nav: NavScene, goal_xy, cfg: NavigateConfig, *, start=None, 
         if dist < cfg.goal_tol_m:
             reached = True
             break
-        carrot, prog = _carrot(path, x[:2], cfg.lookahead_m, prog) if cfg.follow_tree else (goal, 0)
-        goal_cost.position = np.asarray(carrot, np.float64)
+        target, prog = carrot(path, x[:2], cfg.lookahead_m, prog) if cfg.follow_tree else (goal, 0)
+        goal_cost.position = np.asarray(target, np.float64)
         u, _ = mppi.step(x)
         x = dyn.rollout(x, u[None, None, :], cfg.mppi.dt)[0, 0]
         x[2] = float(wrap_angle(x[2]))

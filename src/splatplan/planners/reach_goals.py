@@ -1,0 +1,109 @@
+"""Goals of the visual reaching studies (paper Sec. IV-A, E5; :mod:`splatplan.tasks.reach`): the
+start view above the tabletop scene's bin and random goal configurations near it whose wrist
+view is informative (:func:`make_reach_goals`), some with the camera behind the bin's front wall.
+
+Units: metres, radians; world frame z up (the tabletop scene's).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import SplatplanError
+
+__all__ = ["BEHIND_WALL", "START_CAMERA", "make_reach_goals", "reach_start"]
+
+
+#: The studies' start view: the wrist camera above the bin, just behind its front wall, looking straight down
+#: (world frame, metres; the rotation of the Panda's default TCP: x along world x, z down).
+START_CAMERA = (np.array([0.56, 0.0, 0.22]), np.array([[1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, -1.0]]))
+#: Camera region counted as "behind the wall": inside the bin (x, y) and below the front wall's top.
+BEHIND_WALL = (np.array([0.46, -0.28, -0.09]), np.array([0.84, 0.28, 0.15]))
+
+
+def reach_start(robot, camera_link: str = "panda_hand_tcp") -> np.ndarray:
+    """The studies' start configuration: IK of :data:`START_CAMERA` nearest ``q_default``."""
+    from ..robots.ik import solve_ik
+    from ..scenes.splats import rotmat_to_quat
+
+    p, r = START_CAMERA
+    q, pe, re = solve_ik(robot, p, rotmat_to_quat(r), link=camera_link, n_seeds=8, n_iters=150, seed=0, q_init=robot.q_default)
+    ok = (pe < 0.002) & (re < np.radians(1.0))
+    if not np.any(ok):
+        raise SplatplanError(f"the reach start view is not reachable by {robot.name} (IK error {pe[0] * 100:.1f} cm)")
+    q = q[ok]
+    return q[int(np.argmin(np.sum((q - robot.q_default) ** 2, axis=1)))]
+
+
+def make_reach_goals(
+    robot, scene, renderer, camera, *, n: int = 5, q_start=None, spread: float = 0.35, n_behind: int = 2, margin_m: float = 0.02,
+    min_move_m: float = 0.05, max_move_m: float = 0.15, max_turn_deg: float = 30.0, n_candidates: int = 1024, seed: int = 0,
+    behind_spread: float = 0.45, behind_max_move_m: float = 0.2, min_contrast: float = 0.12, view_check_px: int = 64,
+) -> list[dict]:
+    """Random reachable, collision-free goal configurations near ``q_start`` whose wrist view is
+    informative, ``n_behind`` of them with the camera behind the bin's front wall (:data:`BEHIND_WALL`).
+
+    Candidates ``q_start + U(-spread, spread)^7`` (clipped to the limits) are kept when every link
+    ellipsoid clears the exact geometry by ``margin_m``, the metric finds no collision, there is no
+    self-collision, the camera moves ``min_move_m``..``max_move_m`` from the start and turns by at
+    most ``max_turn_deg`` (half the candidates use ``behind_spread`` and, behind the wall only,
+    ``behind_max_move_m``: reaching behind the wall takes a longer move), and the view
+    is filled by the scene (alpha > 0.98) with contrast (pixel std > ``min_contrast``: a plain view of
+    floor and wall is ambiguous for any encoder). The view is judged at most ``view_check_px``
+    pixels wide (same field of view, scaled intrinsics): at 224 px single edge pixels of a full
+    view fall below the alpha bar, and goals for large images would not exist. Goals are then picked far apart from each other (greedy farthest point in camera position).
+
+    Returns:
+        [{"name", "q" (7,), "camera_pose" (4, 4) world <- camera, "clearance_m", "behind_wall"}].
+    """
+    rng = np.random.default_rng(seed)
+    q_start = np.asarray(robot.q_default if q_start is None else q_start, np.float64)
+    lim = np.asarray(robot.joint_limits, np.float64)
+    half = n_candidates // 2
+    sp = np.concatenate([np.full(half, spread), np.full(n_candidates - half, behind_spread)])[:, None]
+    q = np.clip(q_start + rng.uniform(-1.0, 1.0, (n_candidates, robot.dof)) * sp, lim[:, 0] + 0.05, lim[:, 1] - 0.05)
+    li = camera._link_index(robot)
+    t_start = robot.link_poses(q_start)[li] @ camera.offset
+    t = robot.link_poses(q)[:, li] @ camera.offset  # (M, 4, 4)
+    move = np.linalg.norm(t[:, :3, 3] - t_start[:3, 3], axis=1)
+    turn = np.degrees(np.arccos(np.clip(0.5 * (np.einsum("ij,kij->k", t_start[:3, :3], t[:, :3, :3]) - 1.0), -1.0, 1.0)))
+    lo_b, hi_b = BEHIND_WALL
+    in_b = np.all((t[:, :3, 3] > lo_b) & (t[:, :3, 3] < hi_b), axis=1)
+    keep = (move > min_move_m) & (move < np.where(in_b, behind_max_move_m, max_move_m)) & (turn < max_turn_deg)
+    q, t = q[keep], t[keep]
+    if scene.analytic is not None and len(q):
+        c, qu, ax = robot.ellipsoids(q)
+        clear = scene.analytic.ellipsoid_clearance(c, qu, ax).min(axis=-1)
+    else:
+        clear = np.full(len(q), np.inf)
+    keep = clear > margin_m
+    if len(q):
+        keep &= ~np.asarray(scene.checker.collides_robot(robot, q)).any(axis=-1) & ~np.asarray(robot.self_collision(q))
+    q, t, clear = q[keep], t[keep], clear[keep]
+    if len(q):
+        check_cam = camera.scaled(min(camera.width, view_check_px))
+        res = check_cam.render(renderer, robot, q)
+        rgb, alpha = np.asarray(res.rgb), np.asarray(res.alpha)
+        keep = (alpha.reshape(len(q), -1).min(axis=1) > 0.98) & (rgb.reshape(len(q), -1).std(axis=1) > min_contrast)
+        q, t, clear = q[keep], t[keep], clear[keep]
+    lo, hi = BEHIND_WALL
+    behind = np.all((t[:, :3, 3] > lo) & (t[:, :3, 3] < hi), axis=1)
+    chosen: list[int] = []
+
+    def pick(pool: np.ndarray, count: int) -> None:  # greedy farthest point in camera position
+        for _ in range(max(count, 0)):
+            cand = [int(i) for i in pool if int(i) not in chosen]
+            if not cand:
+                return
+            if not chosen:
+                chosen.append(cand[int(np.argmax(clear[cand]))])
+            else:
+                d = np.min(np.linalg.norm(t[cand][:, None, :3, 3] - t[chosen][None, :, :3, 3], axis=-1), axis=1)
+                chosen.append(cand[int(np.argmax(d))])
+
+    pick(np.flatnonzero(behind), min(n_behind, n))
+    pick(np.arange(len(q)), n - len(chosen))
+    return [
+        {"name": f"goal{j}" + ("_behind_wall" if behind[i] else ""), "q": q[i], "camera_pose": t[i], "clearance_m": float(clear[i]), "behind_wall": bool(behind[i])}
+        for j, i in enumerate(chosen)
+    ]
