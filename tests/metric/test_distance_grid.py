@@ -123,3 +123,41 @@ def test_collides_robot_same_with_and_without_grid(device, n_sigma):
     np.testing.assert_array_equal(a, b)
     np.testing.assert_array_equal(a[:40], np.asarray(ref.collides_robot(robot, q[:40])))
     assert 0.0 < a.any(-1).mean() < 1.0
+
+
+@pytest.mark.parametrize("device", DEVICES)
+@pytest.mark.parametrize("n_sigma", [0.0, 2.0])
+def test_free_slack_holds(device, n_sigma):
+    """An ellipsoid moved by less than its slack, in any orientation, is free (kernel without the
+    grid and the numpy reference); links that collide or are not proven get 0."""
+    from splatplan.robots import load_robot
+
+    rng = np.random.default_rng(11)
+    n = 4000
+    scene = random_scene(rng, n, scale=0.005)
+    scene.means[:] = rng.uniform(-1.0, 1.0, (n, 3)) * np.array([0.03, 0.5, 0.4]) + np.array([0.55, 0.0, 0.4])
+    on, off, ref = _checkers(scene, n_sigma, device)
+    robot = load_robot("panda").inflated(0.01)
+    lim = robot.joint_limits
+    q = lim[:, 0] + rng.random((300, robot.dof)) * (lim[:, 1] - lim[:, 0])
+    hits, slack = on.collides_robot(robot, q, slack=True)
+    hits, slack = np.asarray(hits), np.asarray(slack)
+    np.testing.assert_array_equal(hits, np.asarray(off.collides_robot(robot, q)))
+    assert slack.shape == hits.shape and slack.dtype == np.float32 and np.all(slack >= 0)
+    assert np.all(slack[hits] == 0) and 0.3 < (slack > 0).mean() < 1.0
+    c, _, ax = robot.ellipsoids(q)  # (B, E, 3) host FK
+    sel = np.nonzero(slack > 0)
+    m = len(sel[0])
+    d = rng.normal(size=(m, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    moved = c[sel] + d * (slack[sel] * rng.uniform(0.0, 1.0, m))[:, None]
+    quats = random_quats(rng, m)
+    axes = np.asarray(ax)[sel[1]]
+    assert not np.asarray(off.collides(moved, quats, axes)).any()
+    assert not np.asarray(ref.collides(moved[:300], quats[:300], axes[:300])).any()
+    # nothing proven without the grid or with the reference backend
+    _, s_off = off.collides_robot(robot, q[:20], slack=True)
+    _, s_ref = ref.collides_robot(robot, q[:5], slack=True)
+    assert not np.asarray(s_off).any() and not np.asarray(s_ref).any()
+    h0, s0 = on.collides_robot(robot, q[:0], slack=True)
+    assert np.asarray(h0).shape == np.asarray(s0).shape == (0, robot.n_ellipsoids)

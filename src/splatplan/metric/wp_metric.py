@@ -316,6 +316,7 @@ class WarpMetric:
         self._pool: ThreadPoolExecutor | None = None
         self._pool_finalizer = None
         self._dgrid: MeanDistanceGrid | None = None  # built on first use (mean_distance_grid)
+        self._no_slack = None  # (1,) placeholder of the collide kernel's slack output
 
     # ------------------------------------------------------------------ resources
     def _executor(self) -> ThreadPoolExecutor:
@@ -536,17 +537,27 @@ class WarpMetric:
         if lanes > 1:
             wp.launch(metric_lanes_combine_kernel, dim=b, inputs=[lp, params, out], device=self.device)
 
-    def collides(self, links: LinkBatch, b: int, a_min: float, a_max: float, cfg: MetricConfig, out_hit, bad, scratch=None, robot_batch: bool = False) -> None:
+    def collides(self, links: LinkBatch, b: int, a_min: float, a_max: float, cfg: MetricConfig, out_hit, bad, scratch=None, robot_batch: bool = False,
+                 slack=None) -> None:  # fmt: skip
         """in_collision of b queries into ``out_hit`` (bool device array of at least b rows);
         ``robot_batch``: the queries are the ellipsoids of robot configurations, in order (not sorted
-        unless ``TierConfig.sort_robot_collides``; grids ``robot_collide_cell_scale`` times coarser)."""
+        unless ``TierConfig.sort_robot_collides``; grids ``robot_collide_cell_scale`` times coarser);
+        ``slack``: a float32 device array of at least b rows for each query's FREE SLACK
+        (:mod:`.wp_metric_kernel`; 0 everywhere without the mean-distance grid)."""
         gs = self.gridset(cfg.n_sigma, 1.0, a_min, a_max, collide=robot_batch)
         if robot_batch and not self.tiers.sort_robot_collides:
             links.use_order = 0  # a robot batch (collides_robot): kept in configuration order
         else:
             self.sort_queries(links, b, *(scratch or self._scratch(b)))
         dgrid = self.mean_distance_grid()
-        self._launch(metric_collide_kernel, b, [links, gs.tiers, dgrid, metric_params(cfg, 0, self.tiers.collide_row_clip), out_hit, bad])
+        if slack is None:
+            if self._no_slack is None:
+                self._no_slack = wp.zeros(1, dtype=wp.float32, device=self.device)
+            slack_arr, want = self._no_slack, 0
+        else:
+            slack_arr, want = slack, 1
+        params = metric_params(cfg, 0, self.tiers.collide_row_clip)
+        self._launch(metric_collide_kernel, b, [links, gs.tiers, dgrid, params, out_hit, bad, slack_arr, want])
 
     def _scratch(self, b: int):
         n = 2 * b if self.tiers.sort_queries and b >= self.tiers.sort_min_batch else 1

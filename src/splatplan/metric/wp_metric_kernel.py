@@ -80,6 +80,13 @@ covers the inflation). A robot edge check is mostly links in free space (MBM Pan
 grown links' checks at tree nodes are farther from every mean than their longest semi-axis), where
 this replaces the cell rows by one read.
 
+FREE SLACK (collision-only kernel, ``want_slack``). A link that exits on the mean-distance bound
+gets ``slack = (d_lb - rho) * DIST_SHRINK``, rho its largest tier radius: every mean is farther than
+rho from every point within ``slack`` of the centre, so the same link (same semi-axes, any
+orientation) with its centre anywhere within ``slack`` of this one's is free too, and the kernel
+would read no splat for it. Other links get 0 (nothing proven). Robot edge checks use it to skip
+check samples that are proven free (:class:`~splatplan.planners.rrt.EdgeChecker`).
+
 Invalid queries (non-finite centre, rotation or semi-axes, a zero quaternion, a semi-axis <= 0)
 are never reported free: their outputs are min_s2 = softmin = cost = NaN, n_colliding = -1,
 in_collision = True, and the smallest invalid query index is written to ``bad[0]``.
@@ -673,6 +680,8 @@ def metric_collide_kernel(
     p: MetricParams,  # p.cap is ignored: the radius is the one for cap = 1
     out_hit: wp.array(dtype=wp.bool),  # (B,) True in collision (or invalid)
     bad: wp.array(dtype=wp.int32),  # (1,)
+    slack: wp.array(dtype=wp.float32),  # (B,) written when want_slack: FREE SLACK (module docstring), else (1,) unused
+    want_slack: int,
 ):
     """Collision-only variant: radius for cap = 1, stops at the (k+1)-th colliding splat; a tier
     whose search radius is below the mean-distance bound at the centre is skipped (no splat of it
@@ -682,6 +691,8 @@ def metric_collide_kernel(
         q = links.order[q]
     c = links.centers[q]
     ax = links.axes[q % links.axes_period]
+    if want_slack != 0:
+        slack[q] = 0.0
     if not link_valid(links, q, c, ax):
         out_hit[q] = True
         wp.atomic_min(bad, 0, q)
@@ -693,8 +704,11 @@ def metric_collide_kernel(
         s_top = float(0.0)
         for j in range(splats.n_tiers):
             s_top = wp.max(s_top, splats.sigma[j])
-        if d_lb > search_radius(p.n_sigma, s_top, a_min, a_max, 1.0):
+        rho_top = search_radius(p.n_sigma, s_top, a_min, a_max, 1.0)
+        if d_lb > rho_top:
             out_hit[q] = False  # beyond every tier's radius (it grows with sigma): no splat is read
+            if want_slack != 0:
+                slack[q] = (d_lb - rho_top) * DIST_SHRINK
             return
     rot = link_rotation(links, q)
     a = link_matrix(rot, ax)
