@@ -299,8 +299,13 @@ class Robot(OwnsThreadPool):
         joint j contributes to the ellipsoids downstream of it only, a revolute joint by the
         ellipsoid's own distance bound from its axis. ``B.max(axis=0) <= motion_bound``; a row of
         zeros is an ellipsoid that no joint moves (a fixed base link). Used by the planners' edge
-        checks to check an ellipsoid that moves little along an edge at fewer of its samples.
+        checks to prove samples free from a checked neighbour. Cached (by the semi-axes: an
+        :meth:`inflated` copy computes its own).
         """
+        key = self.semi_axes.tobytes()
+        hit = self.__dict__.get("_ell_motion_cache")
+        if hit is not None and hit[0] == key:
+            return hit[1].copy()
         kin = self.kin
         sub = self._subtree()
         bound = np.zeros((self.n_ellipsoids, self.dof))
@@ -327,7 +332,8 @@ class Robot(OwnsThreadPool):
             for d in sub[l]:
                 for e in ell_of_link.get(d, []):
                     bound[e, qi_rot] += (1.0 if jt == PLANAR else m) * self._axis_distance_bound(l, d, e, axis, smax[e])
-        return bound
+        self.__dict__["_ell_motion_cache"] = (key, bound)
+        return bound.copy()
 
     def _axis_distance_bound(self, l: int, d: int, e: int, axis: np.ndarray, smax: float) -> float:
         kin = self.kin
