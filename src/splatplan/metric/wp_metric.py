@@ -188,17 +188,20 @@ def mean_distance_bounds(means: np.ndarray, max_voxels: int = 2**21, pad: float 
     """Per-voxel lower bounds on the distance to the nearest of ``means`` (N, 3) (float32 world
     coordinates, as the kernels hold them): the MEAN DISTANCE GRID of :mod:`.wp_metric_kernel`.
 
-    Cubic voxels of side v over the means' bounding box, at most ``max_voxels`` of them; voxel
-    (i, j, k) covers ``origin + v [i, i + 1) x [j, j + 1) x [k, k + 1)``. For a voxel whose centre is
-    D voxels from the centre of the nearest voxel holding a mean (a Euclidean distance transform),
-    every point of the voxel is at least ``(D - sqrt(3)) v`` from every mean (each point lies
-    within ``sqrt(3) v / 2`` of its voxel's centre); stored shrunk by ``1e-4`` relative and
-    ``1e-3 v`` absolute (far above float32 rounding of the voxel lookup), clipped at 0.
+    Cubic voxels of side v over the means' bounding box padded by ``pad`` times its largest side,
+    at most ``max_voxels`` of them; voxel (i, j, k) covers ``origin + v [i, i + 1) x [j, j + 1) x
+    [k, k + 1)``. Two voxels whose indices differ by (di, dj, dk) are at least
+    ``v sqrt(sum max(|d| - 1, 0)^2)`` apart (box to box), which is the Euclidean distance from the
+    first voxel's centre to the nearest centre of the 3x3x3 block around the second: so a Euclidean
+    distance transform to the occupied voxels dilated by one voxel, times v, bounds the distance
+    from every point of a voxel to every mean (at least ``(D - sqrt(3)) v`` for centre distance D);
+    stored shrunk by ``1e-4`` relative and ``1e-3 v`` absolute (far above float32 rounding of the
+    voxel lookup).
 
     Returns:
         lb (nz, ny, nx) float32, origin (3,) float32, v (float), box lo (3,) float32, box hi (3,) float32.
     """
-    from scipy.ndimage import distance_transform_edt
+    from scipy.ndimage import binary_dilation, distance_transform_edt
 
     m = np.asarray(means, dtype=np.float32).astype(np.float64)
     box_lo, box_hi = m.min(axis=0), m.max(axis=0)
@@ -216,8 +219,9 @@ def mean_distance_bounds(means: np.ndarray, max_voxels: int = 2**21, pad: float 
     ijk = np.minimum(np.floor((m - lo) / v).astype(np.int64), dims - 1)  # (N, 3)
     occ = np.zeros((int(dims[2]), int(dims[1]), int(dims[0])), dtype=bool)
     occ[ijk[:, 2], ijk[:, 1], ijk[:, 0]] = True
-    dist = distance_transform_edt(~occ)  # voxels, centre to centre; 0 where occupied
-    lb = (dist - math.sqrt(3.0)) * v * (1.0 - 1e-4) - 1e-3 * v
+    occ = binary_dilation(occ, structure=np.ones((3, 3, 3), dtype=bool))  # voxels touching an occupied one
+    dist = distance_transform_edt(~occ)  # voxels: box-to-box distance to the nearest occupied voxel
+    lb = dist * v * (1.0 - 1e-4) - 1e-3 * v
     lb = np.maximum(lb, 0.0).astype(np.float32)
     return lb, lo.astype(np.float32), v, box_lo.astype(np.float32), box_hi.astype(np.float32)
 

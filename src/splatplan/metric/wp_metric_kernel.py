@@ -69,10 +69,9 @@ lane order (deterministic) and writes the outputs. Counts, flags and min s2~ equ
 results; the softmin and cost sums differ only in float summation order.
 
 MEAN DISTANCE GRID (collision-only kernel). A voxel grid over the means' bounding box stores, per
-voxel, a lower bound on the distance from any point of the voxel to the nearest mean:
-``(D - sqrt(3)) v`` with D the Euclidean distance (in voxels) from the voxel's centre to the nearest
-voxel holding a mean and v the voxel side (the query point and the mean each lie within
-``sqrt(3) v / 2`` of their voxel's centre), shrunk by a margin far above float32 rounding. Outside the
+voxel, a lower bound on the distance from any point of the voxel to the nearest mean: the
+box-to-box distance to the nearest voxel holding a mean (:func:`~.wp_metric.mean_distance_bounds`),
+shrunk by a margin far above float32 rounding. Outside the
 grid the bound is the distance to the means' box. A tier whose search radius rho is below the bound
 at the query's centre has no splat with ``|d| <= rho``, which the kernel would read, so it is skipped
 without reading a cell: the outputs are those of the plain kernel, for every n_sigma (rho already
