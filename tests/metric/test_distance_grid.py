@@ -12,6 +12,7 @@ from scipy.spatial import cKDTree
 from splatplan._warp import wp as _wp
 from splatplan.metric import CollisionChecker, MetricConfig
 from splatplan.metric.wp_metric import TierConfig, mean_distance_bounds
+from splatplan.metric.reference import mean_distance_lb_ref
 from splatplan.metric.wp_metric_kernel import mean_distance_lb_kernel
 
 from .conftest import DEVICES, random_quats, random_scene
@@ -54,6 +55,12 @@ def test_lookup_is_a_lower_bound(device, voxels, pad):
     out = wp.zeros(len(pts), dtype=wp.float32, device=device)
     wp.launch(mean_distance_lb_kernel, dim=len(pts), inputs=[g, wp.array(pts, dtype=wp.vec3, device=device), out], device=device)
     got = out.numpy()
+    # the numpy twin of the lookup: the same values, but for points within float32 rounding of a voxel face
+    ref = mean_distance_lb_ref(lb, origin, v, lo, hi, pts)
+    f = (pts.astype(np.float64) - origin) / v
+    off_face = np.all(np.abs(f - np.round(f)) > 1e-4, axis=1)
+    np.testing.assert_allclose(got[off_face], ref[off_face], rtol=1e-5, atol=1e-7)
+    assert np.all(ref <= true + 1e-7)
     assert np.all(got <= true + 1e-7), float((got - true).max())
     assert np.all(got >= 0)
     if voxels >= 2**18:  # the bound is useful inside the grid: close to the truth away from the means
