@@ -255,3 +255,21 @@ def test_point_robot_as_a_planar_base_matches_the_planar_dynamics_body():
         load_robot("sphere:0.1", base="fixed")
     with pytest.raises(SplatplanError, match="per_link, model apply to URDF robots"):
         load_robot("sphere:0.1", per_link=2, model="cover")
+
+
+@pytest.mark.parametrize("name", ["panda", "go2", "sphere:0.015", "tree"])
+def test_ellipsoid_motion_bounds_property(name, tree_robot):
+    """|x(q1) - x(q2)| <= sum_j B[e, j] |q1_j - q2_j| for every point x of ellipsoid e, B <= motion_bound."""
+    robot = tree_robot if name == "tree" else load_robot(name)
+    b = robot.ellipsoid_motion_bounds()
+    assert b.shape == (robot.n_ellipsoids, robot.dof) and np.all(b >= 0)
+    assert np.all(b.max(axis=0) <= robot.motion_bound + 1e-12)
+    q1 = random_q(robot, 200, seed=5)
+    q2 = np.concatenate([random_q(robot, 100, seed=6), q1[100:] + np.random.default_rng(7).normal(scale=0.05, size=(100, robot.dof))])
+    n_per = 16
+    d = np.linalg.norm(_surface_points(robot, q1, n_per) - _surface_points(robot, q2, n_per), axis=-1)  # (B, E*n_per)
+    d = d.reshape(len(q1), robot.n_ellipsoids, n_per).max(axis=-1)  # (B, E)
+    bound = np.abs(q1 - q2) @ b.T
+    assert np.all(d <= bound + 1e-12)
+    if name == "panda":
+        assert not b[0].any()  # the base link's ellipsoid moves with no joint

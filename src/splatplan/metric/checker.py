@@ -194,15 +194,20 @@ class CollisionChecker:
         with _torch_stream(q):
             return self._robot(robot, q, out, validate, full=True, subset=ellipsoids)
 
-    def collides_robot(self, robot, q, *, ellipsoids=None, out=None, validate=False):
+    def collides_robot(self, robot, q, *, ellipsoids=None, out=None, validate=False, slack=False):
         """(..., E) collision state of every ellipsoid of ``robot`` at ``q`` (see :meth:`query_robot`).
 
         A configuration collides when any of its ellipsoids does: ``collides_robot(...).any(-1)``.
+
+        ``slack=True``: returns (hits, slack), slack (..., E) float32 (same type as hits) a distance
+        (scene units) such that the same ellipsoid, in any orientation, with its centre within
+        ``slack`` of this one's, is free too (FREE SLACK, :mod:`.wp_metric_kernel`); 0 where nothing
+        is proven (a link near splats, the reference backend, or ``collide_distance_grid`` off).
         """
         with _torch_stream(q):
-            return self._robot(robot, q, out, validate, full=False, subset=ellipsoids)
+            return self._robot(robot, q, out, validate, full=False, subset=ellipsoids, slack=slack)
 
-    def _robot(self, robot, q, out, validate, full: bool, subset=None):
+    def _robot(self, robot, q, out, validate, full: bool, subset=None, slack: bool = False):
         kind = array_kind(q)
         sub = None
         if subset is not None:
@@ -217,7 +222,10 @@ class CollisionChecker:
             if sub is not None:
                 c, quat, ax = c[..., sub, :], quat[..., sub, :], ax[sub]
             res = self.query(c, quat, ax) if full else self.collides(c, quat, ax)
-            return _convert_host(res, kind, _device_of(q, self.device))
+            res = _convert_host(res, kind, _device_of(q, self.device))
+            if slack:
+                return res, _from_host(np.zeros(np.shape(host_array(res)), dtype=np.float32), kind, _device_of(q, self.device))
+            return res
         from .._warp import wp as _wp
         from .wp_metric_kernel import LinkBatch
 
@@ -237,6 +245,8 @@ class CollisionChecker:
         if n == 0:
             if full:
                 return QueryResult(**{k: self._empty(kind, oshape, _DTYPES[k]) for k in _FIELDS})
+            if slack:
+                return self._empty(kind, oshape, bool), self._empty(kind, oshape, np.float32)
             return self._empty(kind, oshape, bool)
         ws = self._workspace(out, n)
         ws.reserve_fk(n)
@@ -254,10 +264,13 @@ class CollisionChecker:
         if full:
             self._impl.query(links, n, amin, amax, self.config, ws.outputs(), ws.scratch())
         else:
-            self._impl.collides(links, n, amin, amax, self.config, ws.in_collision, ws.bad, ws.scratch(), robot_batch=True)
+            sl = wp.empty(n, dtype=wp.float32, device=self.device) if slack else None
+            self._impl.collides(links, n, amin, amax, self.config, ws.in_collision, ws.bad, ws.scratch(), robot_batch=True, slack=sl)
         self._raise_bad(ws, kind, validate)
         if full:
             return QueryResult(**{k: convert_out(getattr(ws, k), n, oshape, kind, False) for k in _FIELDS})
+        if slack:
+            return convert_out(ws.in_collision, n, oshape, kind, False), convert_out(sl, n, oshape, kind, False)
         return convert_out(ws.in_collision, n, oshape, kind, False)
 
     def _axes_for(self, robot, subset=None):

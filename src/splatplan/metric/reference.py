@@ -117,3 +117,18 @@ def collision_metric_ref(
         softmin=out["softmin"],
         cost=out["cost"],
     )
+
+
+def mean_distance_lb_ref(lb: np.ndarray, origin: np.ndarray, v: float, box_lo: np.ndarray, box_hi: np.ndarray, pts: np.ndarray) -> np.ndarray:
+    """The numpy twin of the kernels' ``mean_distance_lb`` (MEAN DISTANCE GRID): for points (P, 3), the
+    larger of the distance to the means' box (times 0.999) and the bound stored in the point's voxel
+    of ``lb`` (nz, ny, nx) (0 outside the grid); grid arrays as :func:`~.wp_metric.mean_distance_bounds`
+    returns them."""
+    p = np.asarray(pts, dtype=np.float64)
+    lo, hi = np.asarray(box_lo, dtype=np.float64), np.asarray(box_hi, dtype=np.float64)
+    d = np.linalg.norm(np.maximum(np.maximum(lo - p, p - hi), 0.0), axis=-1) * 0.999
+    dims = np.array(lb.shape[::-1])  # (nx, ny, nz)
+    f = (p - np.asarray(origin, dtype=np.float64)) / v
+    inside = np.all((f >= 0) & (f < dims), axis=-1)
+    ijk = np.clip(np.floor(f).astype(np.int64), 0, dims - 1)
+    return np.maximum(d, np.where(inside, lb[ijk[..., 2], ijk[..., 1], ijk[..., 0]], 0.0))

@@ -68,6 +68,24 @@ busiest query). Each lane writes its partial sums; ``metric_lanes_combine_kernel
 lane order (deterministic) and writes the outputs. Counts, flags and min s2~ equal the one-thread
 results; the softmin and cost sums differ only in float summation order.
 
+MEAN DISTANCE GRID (collision-only kernel). A voxel grid over the means' bounding box stores, per
+voxel, a lower bound on the distance from any point of the voxel to the nearest mean: the
+box-to-box distance to the nearest voxel holding a mean (:func:`~.wp_metric.mean_distance_bounds`),
+shrunk by a margin far above float32 rounding. Outside the
+grid the bound is the distance to the means' box. A tier whose search radius rho is below the bound
+at the query's centre has no splat with ``|d| <= rho``, which the kernel would read, so it is skipped
+without reading a cell: the outputs are those of the plain kernel, for every n_sigma (rho already
+covers the inflation). A robot edge check is mostly links in free space (MBM Panda: ~98% of the
+grown links' checks at tree nodes are farther from every mean than their longest semi-axis), where
+this replaces the cell rows by one read.
+
+FREE SLACK (collision-only kernel, ``want_slack``). A link that exits on the mean-distance bound
+gets ``slack = (d_lb - rho) * DIST_SHRINK``, rho its largest tier radius: every mean is farther than
+rho from every point within ``slack`` of the centre, so the same link (same semi-axes, any
+orientation) with its centre anywhere within ``slack`` of this one's is free too, and the kernel
+would read no splat for it. Other links get 0 (nothing proven). Robot edge checks use it to skip
+check samples that are proven free (:class:`~splatplan.planners.rrt.EdgeChecker`).
+
 Invalid queries (non-finite centre, rotation or semi-axes, a zero quaternion, a semi-axis <= 0)
 are never reported free: their outputs are min_s2 = softmin = cost = NaN, n_colliding = -1,
 in_collision = True, and the smallest invalid query index is written to ``bad[0]``.
@@ -94,6 +112,9 @@ ROW_CLIP_MAX_RATIO = wp.constant(50.0)
 #: tube's smallest level q shrunk by 2%, which is larger than 2 (a_max / a_min)^2 ulps for ratio <= 50.
 ROW_S_GROW = wp.constant(1.02)
 ROW_Q_SHRINK = wp.constant(0.98)
+#: The mean-distance bound outside the grid (distance to the means' box) is shrunk by this against
+#: float32 rounding (the per-voxel bounds carry their own margin, see :mod:`.wp_metric`).
+DIST_SHRINK = wp.constant(0.999)
 #: Rows holding at most this many splats are scanned whole (clipping costs more than it saves).
 ROW_CLIP_MIN = wp.constant(8)
 
@@ -141,6 +162,48 @@ class SplatTiers:
     offset: wp.array(dtype=wp.int32)  # (T + 1,) tier j = [offset[j], offset[j + 1])
     sigma: wp.array(dtype=wp.float32)  # (T,) largest std in the tier
     n_tiers: int
+
+
+@wp.struct
+class MeanDistanceGrid:
+    """A lower bound on the distance from a point to the nearest splat mean (MEAN DISTANCE GRID in
+    the module docstring); ``use == 0``: none (the bound is 0 everywhere)."""
+
+    lb: wp.array(dtype=wp.float32)  # (nx * ny * nz,) per voxel: <= the distance from any point of the voxel to any mean
+    origin: wp.vec3  # the grid's lower corner (world frame)
+    inv_v: float  # 1 / voxel side
+    dims: wp.vec3i  # voxels per axis (x fastest)
+    box_lo: wp.vec3  # the bounding box of every mean (the bound outside the grid: distance to it)
+    box_hi: wp.vec3
+    use: int
+
+
+@wp.func
+def mean_distance_lb(g: MeanDistanceGrid, c: wp.vec3):
+    """A lower bound (>= 0) on the distance from ``c`` to every splat mean: the larger of the
+    distance to the means' bounding box and the voxel's stored bound (0 when ``g.use == 0``)."""
+    if g.use == 0:
+        return float(0.0)
+    dx = wp.max(wp.max(g.box_lo[0] - c[0], c[0] - g.box_hi[0]), 0.0)
+    dy = wp.max(wp.max(g.box_lo[1] - c[1], c[1] - g.box_hi[1]), 0.0)
+    dz = wp.max(wp.max(g.box_lo[2] - c[2], c[2] - g.box_hi[2]), 0.0)
+    d = wp.sqrt(dx * dx + dy * dy + dz * dz) * DIST_SHRINK
+    fx = (c[0] - g.origin[0]) * g.inv_v
+    fy = (c[1] - g.origin[1]) * g.inv_v
+    fz = (c[2] - g.origin[2]) * g.inv_v
+    if fx >= 0.0 and fy >= 0.0 and fz >= 0.0 and fx < float(g.dims[0]) and fy < float(g.dims[1]) and fz < float(g.dims[2]):
+        ix = wp.min(int(fx), g.dims[0] - 1)
+        iy = wp.min(int(fy), g.dims[1] - 1)
+        iz = wp.min(int(fz), g.dims[2] - 1)
+        d = wp.max(d, g.lb[(iz * g.dims[1] + iy) * g.dims[0] + ix])
+    return d
+
+
+@wp.kernel
+def mean_distance_lb_kernel(g: MeanDistanceGrid, pts: wp.array(dtype=wp.vec3), out: wp.array(dtype=wp.float32)):
+    """out[i] = :func:`mean_distance_lb` at pts[i] (tests, diagnostics)."""
+    i = wp.tid()
+    out[i] = mean_distance_lb(g, pts[i])
 
 
 @wp.struct
@@ -612,24 +675,42 @@ def metric_collide_kernel(
     offset: int,
     links: LinkBatch,
     splats: SplatTiers,
+    dgrid: MeanDistanceGrid,  # use == 0: no tier skipped
     p: MetricParams,  # p.cap is ignored: the radius is the one for cap = 1
     out_hit: wp.array(dtype=wp.bool),  # (B,) True in collision (or invalid)
     bad: wp.array(dtype=wp.int32),  # (1,)
+    slack: wp.array(dtype=wp.float32),  # (B,) written when want_slack: FREE SLACK (module docstring), else (1,) unused
+    want_slack: int,
 ):
-    """Collision-only variant: radius for cap = 1, stops at the (k+1)-th colliding splat."""
+    """Collision-only variant: radius for cap = 1, stops at the (k+1)-th colliding splat; a tier
+    whose search radius is below the mean-distance bound at the centre is skipped (no splat of it
+    is within the radius: the outputs are unchanged)."""
     q = wp.tid() + offset
     if links.use_order != 0:
         q = links.order[q]
     c = links.centers[q]
     ax = links.axes[q % links.axes_period]
+    if want_slack != 0:
+        slack[q] = 0.0
     if not link_valid(links, q, c, ax):
         out_hit[q] = True
         wp.atomic_min(bad, 0, q)
         return
-    rot = link_rotation(links, q)
-    a = link_matrix(rot, ax)
     a_min = wp.min(ax)
     a_max = wp.max(ax)
+    d_lb = mean_distance_lb(dgrid, c)
+    if dgrid.use != 0:
+        s_top = float(0.0)
+        for j in range(splats.n_tiers):
+            s_top = wp.max(s_top, splats.sigma[j])
+        rho_top = search_radius(p.n_sigma, s_top, a_min, a_max, 1.0)
+        if d_lb > rho_top:
+            out_hit[q] = False  # beyond every tier's radius (it grows with sigma): no splat is read
+            if want_slack != 0:
+                slack[q] = (d_lb - rho_top) * DIST_SHRINK
+            return
+    rot = link_rotation(links, q)
+    a = link_matrix(rot, ax)
     ncol = int(0)
     sphere = a_min == a_max
     inv_r2 = 1.0 / (a_min * a_min)
@@ -640,6 +721,8 @@ def metric_collide_kernel(
         if ncol > k_collide:
             break
         rho = search_radius(p.n_sigma, splats.sigma[j], a_min, a_max, 1.0)
+        if d_lb > rho:
+            continue  # every mean is farther than the radius (MEAN DISTANCE GRID)
         rho2 = rho * rho
         s2_cut = rho2 / (a_max * a_max)
         inv_w = splats.inv_w[j]

@@ -57,6 +57,17 @@ def robot_collides(checker, robot, q: np.ndarray) -> np.ndarray:
     return checker.collides(*robot.ellipsoids(q))
 
 
+def robot_collides_slack(checker, robot, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(..., dof) -> (hits (..., E) bool, slack (..., E) float): ellipsoid e of configuration q is in
+    collision, and a distance its centre may move (its orientation anyhow) with it staying free
+    (the checker's FREE SLACK; zeros from a checker without it: nothing proven)."""
+    if hasattr(checker, "collides_robot") and getattr(checker, "backend", None) == "warp":
+        hit, slack = checker.collides_robot(robot, q, slack=True)
+        return np.asarray(hit), np.asarray(slack)
+    hit = robot_collides(checker, robot, q)
+    return hit, np.zeros(hit.shape, dtype=np.float32)
+
+
 def robot_query(checker, robot, q: np.ndarray):
     """(..., dof) configurations -> :class:`~splatplan.metric.QueryResult` with fields (..., E)."""
     if hasattr(checker, "query_robot"):
@@ -111,6 +122,14 @@ class LinkGeometry:
         self.min_semi_axis = float(robot.min_semi_axis)
         self.max_semi_axis = float(ax.max())
         self.sphere = self.translation and ax.shape[0] == 1 and bool(np.allclose(ax, ax[0, 0]))
+        #: (E, D) per-ellipsoid motion bounds (:meth:`Robot.ellipsoid_motion_bounds`) or None (then
+        #: ``motion`` bounds every ellipsoid: translating robots, robots without them)
+        self.ellipsoid_bounds = None
+        fn = getattr(robot, "ellipsoid_motion_bounds", None)
+        if not self.translation and fn is not None:
+            b = np.asarray(fn(), dtype=np.float64)
+            if b.shape == (int(robot.n_ellipsoids), self.dof) and np.all(np.isfinite(b)) and np.all(b >= 0):
+                self.ellipsoid_bounds = b
         if self.translation:  # fast path: centres = q + offset, fixed orientations (no FK on the host)
             q0 = np.asarray(robot.q_default, dtype=np.float64)
             c0, quat0, _ = robot.ellipsoids(q0[None])
@@ -131,6 +150,15 @@ class LinkGeometry:
         if self.translation:
             return np.linalg.norm(dq, axis=-1)
         return np.abs(dq) @ self.weights
+
+    def ellipsoid_motion(self, dq: np.ndarray) -> np.ndarray:
+        """(..., D) configuration differences -> (..., E) bound on the displacement of any point of
+        each ellipsoid along the straight segment (scene units; <= :meth:`motion`)."""
+        dq = np.abs(np.asarray(dq, dtype=np.float64))
+        if self.ellipsoid_bounds is None:
+            m = self.motion(dq)
+            return np.repeat(m[..., None], int(self.robot.n_ellipsoids), axis=-1)
+        return dq @ self.ellipsoid_bounds.T
 
     def distance_scale(self) -> np.ndarray:
         """(D,) multipliers that turn configurations into the metric space of the RRT."""
@@ -159,6 +187,14 @@ class LinkGeometry:
         hit = np.asarray(hit)
         self.n_queries += hit.size
         return hit.any(axis=-1)
+
+    def collides_slack(self, checker, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(..., D) -> (any ellipsoid in collision (...,) bool, slack (..., E) float): each
+        ellipsoid's FREE SLACK (see :func:`robot_collides_slack`): the ellipsoid is free wherever
+        its centre lies within that distance of this one's."""
+        hit, slack = robot_collides_slack(checker, self.robot, np.asarray(q, dtype=np.float64))
+        self.n_queries += hit.size
+        return hit.any(axis=-1), slack
 
     def query(self, checker, q: np.ndarray):
         """(..., D) -> QueryResult with fields (..., L)."""

@@ -116,6 +116,10 @@ class RRTConfig:
     #: batched calls per edge check, coarse to fine (samples at every 4^(s-1)-th, ..., 4th, every
     #: index); checks stop at an edge's first hit; 1 = every sample in one call (same answers)
     edge_stages: int = bounded(4, ge=1, le=8)
+    #: skip edge check samples that a checked neighbour proves free (the checker's free slack: a
+    #: configuration far from every splat stays free while no ellipsoid centre moves more than its
+    #: distance to the splats minus the link's reach); the same answers with fewer checks
+    edge_slack: bool = True
 
     def validate(self) -> "RRTConfig":
         check_config(self)  # each field's declared range (splatplan._config); cross-field rules below
@@ -301,12 +305,23 @@ class EdgeChecker:
         inflate: check inner samples with the semi-axes grown by half the sample spacing (valid
             for translating spheres only; see the module docstring).
         stages: batched calls per check, coarse to fine (1 = every sample in one call).
+        slack: skip samples proven free (below; robots on a Warp checker; not with ``inflate``).
+
+    **Free slack (``slack``).** With the checker's mean-distance grid, an ellipsoid far from every
+    splat mean comes back with a slack: its centre may move that far, its orientation anyhow, with
+    it staying free (:meth:`CollisionChecker.collides_robot`). At a checked free configuration,
+    each ellipsoid's slack divided by the bound on its displacement from one sample to the next
+    (its own motion bound, :meth:`Robot.ellipsoid_motion_bounds`, over the edge, divided by n)
+    is how many samples on either side it stays free (all of them for an ellipsoid that the
+    edge does not move, such as a fixed base); the smallest over the ellipsoids is how many
+    samples are free as well: they are not checked. The answers are those of checking them (the
+    checker would call each of them free), with fewer checks in free space.
     """
 
     #: stride ratio between consecutive stages of the coarse-to-fine check
     STAGE_FACTOR = 4
 
-    def __init__(self, checker, geometry: LinkGeometry, resolution: float, inflate: bool = False, stages: int = 1) -> None:
+    def __init__(self, checker, geometry: LinkGeometry, resolution: float, inflate: bool = False, stages: int = 1, slack: bool = False) -> None:
         self.checker = checker
         self.geometry = geometry
         self.resolution = float(resolution)
@@ -314,6 +329,9 @@ class EdgeChecker:
         if int(stages) < 1:
             raise SplatplanError(f"EdgeChecker stages must be >= 1, got {stages}")
         self.stages = int(stages)
+        #: skip check samples that a checked one proves free (FREE SLACK of the checker: the same
+        #: answers, fewer checks); robots checked with ``collides_robot`` only
+        self.use_slack = bool(slack)
         #: wall-clock seconds spent in collision checks (statistics)
         self.time_s = 0.0
 
@@ -361,7 +379,11 @@ class EdgeChecker:
             margin[loc == n[idx]] = 0.0  # the end point with the true size
         exact = np.ones(len(a), dtype=bool) if exact is None else np.asarray(exact, dtype=bool).reshape(len(a))
         hit_at = n + 1  # (E,) 1-based index of the first hit found so far (n + 1: none)
-        todo = np.ones(idx.size, dtype=bool)  # (P,) samples not checked yet
+        todo = np.ones(idx.size, dtype=bool)  # (P,) samples not checked (nor proven free) yet
+        use_slack = self.use_slack and margin is None
+        if use_slack:  # bound on each ellipsoid's displacement from one sample to the next, per edge
+            step = self.geometry.ellipsoid_motion(b - a) / n[:, None]  # (E_edges, E)
+            last = (first + n - 1)[idx]  # (P,) global index of the edge's last sample
         for j in range(self.stages):
             stride = self.STAGE_FACTOR ** (self.stages - 1 - j)
             sel = todo & (loc < hit_at[idx]) & (exact | (hit_at > n))[idx]
@@ -370,7 +392,11 @@ class EdgeChecker:
             s = np.nonzero(sel)[0]
             if s.size == 0:
                 continue
-            hit = self.configs_collide(pts[s]) if margin is None else self.configs_collide(pts[s], margin[s])  # (S,)
+            if use_slack:
+                hit, slack = self.geometry.collides_slack(self.checker, pts[s])  # (S,), (S, E)
+                _prove_free(todo, s, hit, slack, step[idx[s]], first[idx[s]], last[s])
+            else:
+                hit = self.configs_collide(pts[s]) if margin is None else self.configs_collide(pts[s], margin[s])  # (S,)
             todo[s] = False
             h = s[hit]
             np.minimum.at(hit_at, idx[h], loc[h])
@@ -383,6 +409,28 @@ class EdgeChecker:
         if len(p) == 1:
             return not bool(self.configs_collide(p).any())
         return bool(self.edges_free(p[:-1], p[1:]).all()) and not bool(self.configs_collide(p[:1]).any())
+
+
+def _prove_free(todo: np.ndarray, s: np.ndarray, hit: np.ndarray, slack: np.ndarray, step: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> None:
+    """Clear ``todo`` (P,) for the samples proven free by the checked samples ``s`` (S,).
+
+    Sample s, free (``hit`` False), with each ellipsoid's FREE SLACK ``slack`` (S, E) (the
+    ellipsoid is free wherever its centre lies within it of its centre at s) and ``step`` (S, E)
+    bounding each ellipsoid's displacement from one sample of the edge to the next, proves free
+    the samples of its edge (global indices ``lo``..``hi``) within ``min_e floor(slack_e / step_e)``
+    of it; an ellipsoid that does not move along the edge (step 0) is free at all of them."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ke = np.where(step > 0, np.floor(slack / np.where(step > 0, step, 1.0)), np.inf)  # (S, E)
+    k = np.where(hit, 0.0, ke.min(axis=1) if ke.shape[1] else np.inf)
+    k = np.minimum(k, float(len(todo)))
+    ok = k >= 1
+    if not ok.any():
+        return
+    s, k, lo, hi = s[ok], k[ok].astype(np.int64), lo[ok], hi[ok]
+    diff = np.zeros(len(todo) + 1, dtype=np.int64)
+    np.add.at(diff, np.maximum(s - k, lo), 1)
+    np.add.at(diff, np.minimum(s + k, hi) + 1, -1)
+    todo &= np.cumsum(diff[:-1]) == 0
 
 
 def check_endpoint(checker, geometry: LinkGeometry, x: np.ndarray, what: str) -> None:
@@ -632,7 +680,8 @@ class RRT:
         start = np.asarray(start, dtype=np.float64).reshape(-1)
         goal = None if goal is None else np.asarray(goal, dtype=np.float64).reshape(-1)
         geom = self.geometry
-        edges = EdgeChecker(self.checker, geom, st.edge_resolution, inflate=self.inflate_edges, stages=self.config.edge_stages)
+        edges = EdgeChecker(self.checker, geom, st.edge_resolution, inflate=self.inflate_edges, stages=self.config.edge_stages,
+                            slack=self.config.edge_slack)  # fmt: skip
         q0 = geom.n_queries
         check_endpoint(self.checker, geom, start, "start")
         if goal is not None:

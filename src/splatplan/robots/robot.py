@@ -292,6 +292,49 @@ class Robot(OwnsThreadPool):
             bound[qi_rot] += (1.0 if jt == PLANAR else m) * rho
         return bound
 
+    def ellipsoid_motion_bounds(self) -> np.ndarray:
+        """(E, dof) B with |x(q1) - x(q2)| <= sum_j B[e, j] |q1_j - q2_j| for every point x of ellipsoid e.
+
+        The per-ellipsoid form of :attr:`motion_bound` (same argument, see :meth:`_motion_bound`):
+        joint j contributes to the ellipsoids downstream of it only, a revolute joint by the
+        ellipsoid's own distance bound from its axis. ``B.max(axis=0) <= motion_bound``; a row of
+        zeros is an ellipsoid that no joint moves (a fixed base link). Used by the planners' edge
+        checks to prove samples free from a checked neighbour. Cached (by the semi-axes: an
+        :meth:`inflated` copy computes its own).
+        """
+        key = self.semi_axes.tobytes()
+        hit = self.__dict__.get("_ell_motion_cache")
+        if hit is not None and hit[0] == key:
+            return hit[1].copy()
+        kin = self.kin
+        sub = self._subtree()
+        bound = np.zeros((self.n_ellipsoids, self.dof))
+        ell_of_link: dict[int, list[int]] = {}
+        for e, l in enumerate(self.ellipsoid_link):
+            ell_of_link.setdefault(int(l), []).append(e)
+        smax = self.semi_axes.max(axis=1)
+        for l in range(kin.n_links):
+            jt = int(kin.jtype[l])
+            if jt == FIXED:
+                continue
+            qi, m = int(kin.qidx[l]), abs(float(kin.mult[l]))
+            down = [e for d in sub[l] for e in ell_of_link.get(d, [])]
+            if jt in (PRISMATIC, TRANSLATION):
+                for e in down:
+                    bound[e, qi : qi + (3 if jt == TRANSLATION else 1)] += m if jt == PRISMATIC else 1.0
+                continue
+            if jt == PLANAR:
+                qi_rot, axis = qi + 2, np.array([0.0, 0.0, 1.0])
+                for e in down:
+                    bound[e, qi : qi + 2] += 1.0
+            else:
+                qi_rot, axis = qi, kin.axis[l]
+            for d in sub[l]:
+                for e in ell_of_link.get(d, []):
+                    bound[e, qi_rot] += (1.0 if jt == PLANAR else m) * self._axis_distance_bound(l, d, e, axis, smax[e])
+        self.__dict__["_ell_motion_cache"] = (key, bound)
+        return bound.copy()
+
     def _axis_distance_bound(self, l: int, d: int, e: int, axis: np.ndarray, smax: float) -> float:
         kin = self.kin
         path = []  # links from d up to (excluding) l
