@@ -47,7 +47,7 @@ from .robot import Robot
 from .urdf import UrdfModel, read_srdf, read_urdf, share_dir
 
 DATA = Path(__file__).parent / "data"
-KNOWN = ("panda", "panda:MODEL", "go2", "sphere:R", "ellipsoid:A,B,C")
+KNOWN = ("panda", "go2", "sphere:R", "ellipsoid:A,B,C")
 #: What a robot name may be: the one help text of :func:`load_robot` and of every ``--robot`` flag.
 ROBOT_NAME_HELP = (
     "panda (7 joint angles, rad; the tight collision model, panda:coarse = one ellipsoid per link, panda:cover) | "
