@@ -10,7 +10,8 @@ all timed queries of that batch size, i.e. everything CollisionSplatting adds ab
 ``rows``: numpy inputs (the host adapter: validation, float32 conversion, copy to the device).
 ``device_rows``: the same queries as a ``wp.array`` already on the checker's device, results into
 a preallocated workspace (no host work per call beyond the launch).
-``robot_rows``: the Panda (7 DoF, all 11 collision ellipsoids, semi-axes 0.018-0.24 m) through
+``robot_rows``: the Panda (7 DoF, every collision ellipsoid of its default model: the tight model's
+53 since issue 19; the committed results are the coarse model's 11, semi-axes 0.018-0.24 m) through
 ``query_robot`` / ``collides_robot`` (Warp FK -> metric on the device) at random joint
 configurations within the limits, robot base at the scene origin on the ground (so its base
 ellipsoid always touches ground splats): configurations/s and ellipsoid checks/s, q passed as

@@ -18,7 +18,15 @@ BOXES = [((-0.3, -0.3, -0.02), (0.6, 0.3, 0.0)), ((0.25, -0.15, 0.45), (0.4, 0.1
 
 @pytest.fixture(scope="module")
 def panda():
-    return load_robot("panda")
+    # the coarse model: one ellipsoid on link0, which reaches down to the table top of BOXES (the
+    # tight model's link0 ellipsoids are several and hug the base)
+    return load_robot("panda", model="coarse")
+
+
+def test_static_mask_of_the_default_tight_model():
+    tight = load_robot("panda")
+    names = [tight.link_names[l] for l in tight.ellipsoid_link[tight.static_ellipsoids]]
+    assert set(names) == {"panda_link0"} and len(names) == int(np.sum(tight.ellipsoid_link == tight.link_names.index("panda_link0"))) > 1
 
 
 @pytest.fixture(scope="module")

@@ -30,9 +30,11 @@ def test_robots_models_script(tmp_path, capsys):
     finally:
         sys.path.remove(str(BENCH))
     out = tmp_path / "models.json"
-    assert robots_models.main(["--models", "coarse", "--batch", "64", "--repeats", "1", "--samples", "500", "--n-splats", "3000", "--out", str(out)]) == 0
+    assert robots_models.main(["--models", "coarse", "--batch", "64", "--repeats", "1", "--samples", "500", "--n-splats", "3000",
+                               "--mppi-steps", "1", "--mppi-splats", "20000", "--out", str(out)]) == 0  # fmt: skip
     res = json.loads(out.read_text())
     (row,) = res["rows"]
     assert row["model"] == "coarse" and row["n_ellipsoids"] == 11 and row["collides_robot_configs_per_s"] > 0
+    assert row["collides_robot_configs_per_cpu_s"] > 0 and row["mpc_steps_per_s"] > 0 and row["mpc_steps_per_cpu_s"] > 0
     assert row["min_coverage_surface"] == 1.0 and row["max_reach_m"] > 0
     assert "| coarse | 11 |" in capsys.readouterr().out

@@ -184,7 +184,7 @@ def test_cli_info_measures_the_model(capsys):
     assert main(["robot", "info", "panda", "--json", "--samples", "1000", "--finger-opening", "0.04"]) == 0
     d = json.loads(capsys.readouterr().out)
     hand = d["model_fit"]["links"]["panda_hand"]
-    assert hand["n"] == 1 and hand["coverage_surface"] == 1.0 and hand["volume_ratio"] > 1.0 and hand["reach_m"] > 0.0
+    assert hand["n"] == 3 and hand["coverage_surface"] == 1.0  # the default tight model: 3 ellipsoids on the hand (coarse: 1) and hand["volume_ratio"] > 1.0 and hand["reach_m"] > 0.0
     assert main(["robot", "info", "panda", "--no-measure", "--json"]) == 0
     assert "model_fit" not in json.loads(capsys.readouterr().out)
 

@@ -23,7 +23,8 @@ def _surface_points(robot, q, n_per=64, seed=0):
 
 
 def test_builtins_basic(panda, go2):
-    assert panda.dof == 7 and panda.joint_names[0] == "panda_joint1" and panda.n_ellipsoids == 11
+    assert panda.dof == 7 and panda.joint_names[0] == "panda_joint1" and panda.n_ellipsoids == 53  # the tight model (DEFAULT_MODEL, data/panda_tight.yaml)
+    assert load_robot("panda:coarse").n_ellipsoids == load_robot("panda", model="coarse").n_ellipsoids == 11  # the named coarse option: one per link
     assert go2.dof == 3 and go2.joint_names == ["x", "y", "yaw"]
     s = load_robot("sphere:0.015")
     assert s.dof == 3 and s.n_ellipsoids == 1 and s.min_semi_axis == pytest.approx(0.015)
@@ -101,9 +102,11 @@ def test_self_collision(panda):
 def test_unknown_and_bad_specs(tmp_path):
     with pytest.raises(SplatplanError, match="panda, go2, sphere:R"):
         load_robot("ur5")
-    for spec, msg in [("sphere:x", "numbers"), ("sphere:0", "> 0"), ("ellipsoid:1,2", "not understood"), ("sphere:nan", "finite")]:
+    for spec, msg in [("sphere:x", "numbers"), ("sphere:0", "> 0"), ("ellipsoid:1,2", "not understood"), ("sphere:nan", "finite"), ("panda:fine", "unknown Panda model 'fine'")]:
         with pytest.raises(SplatplanError, match=msg):
             load_robot(spec)
+    with pytest.raises(SplatplanError, match="names model 'coarse' but model='tight'"):
+        load_robot("panda:coarse", model="tight")
     with pytest.raises(SplatplanError, match="does not exist"):
         load_robot(tmp_path / "missing.urdf")
     p = tmp_path / "broken.urdf"

@@ -7,6 +7,7 @@ from dataclasses import replace
 import numpy as np
 
 from ..errors import SplatplanError
+from ..robots.builtin import DEFAULT_MODEL, PANDA_MODELS
 from ._common import (
     _out_dir, add_base_pose_arg, add_config_args, add_device_arg, add_seed_arg, atomic_path, check_device, config_from_args, float_arg, parse_base_pose, robot_at,
     write_json,
@@ -46,7 +47,7 @@ def cmd_mpc(args) -> int:
     out = _out_dir(args.out)
     collision = not args.no_collision
     tag = "" if collision else " [--no-collision: collision cost OFF]"
-    if args.robot == "panda":
+    if args.robot.partition(":")[0] == "panda":
         from ..tasks.arm import ArmConfig, run_arm
 
         if args.goal_pose is None:
@@ -56,7 +57,7 @@ def cmd_mpc(args) -> int:
             raise SplatplanError(f"--goal-pose {args.goal_pose!r}: the quaternion QW,QX,QY,QZ is zero")
         cfg = config_from_args(args, ArmConfig, "arm_")
         cfg = replace(cfg, mppi=replace(cfg.mppi, seed=args.seed))
-        robot = robot_at("panda", parse_base_pose(args.base_pose))
+        robot = robot_at(args.robot, parse_base_pose(args.base_pose))
         scene = args.scene or "tabletop"
         q0 = None if args.start is None else _floats(args.start, robot.dof, "--start", f"with {robot.dof} joint values")
         ts = load_task_scene(scene, n_sigma=cfg.n_sigma, device=args.device)  # once: the run and the figure share it
@@ -125,7 +126,8 @@ def register(sub, eval_sub) -> None:
     from ..tasks.base import BaseConfig
 
     s = sub.add_parser("mpc", help="MPPI with the collision cost: Panda reaching (tabletop) or Go2 driving (apartment)")
-    s.add_argument("--robot", required=True, choices=("panda", "go2"), help="panda (7-DoF arm) or go2 (planar base)")
+    s.add_argument("--robot", required=True, choices=("panda", *(f"panda:{m}" for m in PANDA_MODELS), "go2"),
+                   help=f"panda (7-DoF arm, the {DEFAULT_MODEL} collision model; panda:coarse = one ellipsoid per link) or go2 (planar base)")
     s.add_argument("--scene", default=None, help="built-in scene name or a splat file (default tabletop for panda, apartment for go2); files without a .gt.json get a metric clearance")
     s.add_argument("--goal-pose", default=None, help="panda: X,Y,Z,QW,QX,QY,QZ end-effector goal (metres, wxyz world <- panda_hand_tcp)")
     s.add_argument("--goal", default=None, help="go2: X,Y goal of the base (metres); e.g. the final node of an RRT path")

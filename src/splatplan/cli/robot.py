@@ -1,6 +1,6 @@
 """`splatplan robot info|fit`: inspect a robot, fit collision ellipsoids to a URDF's link meshes.
 
-* ``splatplan robot info NAME|URDF [--json] [--model tight|coarse|cover] [--finger-opening M]
+* ``splatplan robot info NAME|URDF [--json] [--model tight|coarse|cover (default tight)] [--finger-opening M]
   [--meshes-from REF.urdf] [--no-measure]``: links, ellipsoids, joint limits, motion bounds, and
   per link the model's fit measured against the collision meshes (``robots.fit_measure``: count,
   coverage of surface / interior samples, union volume ratio with its Monte Carlo standard error,
@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import SplatplanError
-from ..robots.builtin import ROBOT_NAME_HELP
+from ..robots.builtin import DEFAULT_MODEL, PANDA_MODELS, ROBOT_NAME_HELP
 from ..robots.fit import MAX_PER_LINK
 from ._common import add_command, float_arg, int_arg
 
@@ -38,7 +38,7 @@ def _robot_args(p) -> None:
     p.add_argument("--ellipsoids", default=None, help="YAML with the collision ellipsoids (default: built-in / sidecar / fitted)")
     p.add_argument("--per-link", type=PER_LINK, default=1, help="ellipsoids per link when fitting (k >= 1; slabs along the principal axis)")
     p.add_argument("--from-visual", action="store_true", help="fit links without collision geometry to their visual meshes")
-    p.add_argument("--model", default=None, choices=("tight", "coarse", "cover"), help="built-in panda only: collision model (default tight when shipped, see README)")
+    p.add_argument("--model", default=None, choices=tuple(PANDA_MODELS), help=f"built-in panda only: collision model (default {DEFAULT_MODEL}; coarse = one ellipsoid per link; same as NAME panda:MODEL)")
     p.add_argument("--finger-opening", type=float_arg(ge=0, le=0.04), default=None, help="built-in panda only: each finger's distance from the centre line (m, 0..0.04)")
 
 

@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from .._config import NESTED_SKIP, bounded
+from ..robots.builtin import DEFAULT_MODEL, PANDA_MODELS
 from ..tasks._common import replace_mppi
 from ..tasks.arm import ArmConfig
 from ._common import config_rows
@@ -37,14 +38,15 @@ from ._study import StudyResult, TaskStudyConfig, write_outputs
 START_Q = (0.0, 0.1053, 0.0, -2.8923, 0.0, 2.9976, 0.7854)
 
 
-def pick_targets(n: int, seed: int = 0, min_goal_clearance: float = 0.01, max_tries: int = 40) -> list[tuple[np.ndarray, np.ndarray]]:
-    """``n`` (position (3,), wxyz quat (4,)) targets behind the wall with a collision-free IK goal."""
+def pick_targets(n: int, seed: int = 0, min_goal_clearance: float = 0.01, max_tries: int = 40, robot="panda") -> list[tuple[np.ndarray, np.ndarray]]:
+    """``n`` (position (3,), wxyz quat (4,)) targets behind the wall with a collision-free IK goal
+    (the goal clearance of ``robot``'s ellipsoids, a Robot or a name)."""
     from ..robots import load_robot
     from ..scenes.builtin.tabletop import TARGET_REGION, tabletop_layout
     from ..robots.ik import solve_ik
     from ..robots.ik import down_quat
 
-    robot = load_robot("panda")
+    robot = load_robot(robot)
     gt = tabletop_layout(seed).scene
     rng = np.random.default_rng([seed, 77])
     lo, hi = TARGET_REGION
@@ -64,20 +66,23 @@ def pick_targets(n: int, seed: int = 0, min_goal_clearance: float = 0.01, max_tr
     return out
 
 
-def arm_throughput(n_samples: int = 256, horizon: int = 32, n_steps: int = 3, device: str | None = "auto", n_splats: int = 200_000) -> dict:
-    """MPC steps/s of the Panda under MPPI with the collision cost on every ellipsoid at every step
-    of the horizon (stride 1, one iteration per step), on a ``n_splats`` tabletop (warm-up step
-    first). The issue's target: >= 5 steps/s at K = 256, T = 32 on a 200k-splat scene (CPU)."""
+def arm_throughput(n_samples: int = 256, horizon: int = 32, n_steps: int = 3, device: str | None = "auto", n_splats: int = 200_000, robot="panda") -> dict:
+    """MPC steps/s of the Panda (``robot``: a Robot or a name) under MPPI with the collision cost on
+    every ellipsoid at every step of the horizon (stride 1, one iteration per step), on a
+    ``n_splats`` tabletop (warm-up step first). The issue's target: >= 5 steps/s at K = 256, T = 32
+    on a 200k-splat scene (CPU)."""
+    from ..robots import load_robot
     from ..tasks._common import load_task_scene
     from ..robots.ik import down_quat
     from ..tasks.arm import ArmConfig, run_arm
 
+    robot = load_robot(robot)
     ts = load_task_scene("tabletop", device=device, n_splats=n_splats)
     base = ArmConfig()
     cfg = replace(replace_mppi(base, n_samples=n_samples, horizon=horizon), collision_stride=1, max_steps=1, stop_tol=0.0)
-    run_arm("panda", ts, [0.64, 0.0, 0.0], down_quat(), config=cfg, check_goal=False, device=device)  # warm-up (kernels, grids)
-    r = run_arm("panda", ts, [0.64, 0.0, 0.0], down_quat(), config=replace(cfg, max_steps=n_steps), check_goal=False, device=device)
-    return {"n_samples": n_samples, "horizon": horizon, "n_splats": len(ts.splats), "n_ellipsoids": 11, "collision_stride": 1,
+    run_arm(robot, ts, [0.64, 0.0, 0.0], down_quat(), config=cfg, check_goal=False, device=device)  # warm-up (kernels, grids)
+    r = run_arm(robot, ts, [0.64, 0.0, 0.0], down_quat(), config=replace(cfg, max_steps=n_steps), check_goal=False, device=device)
+    return {"n_samples": n_samples, "horizon": horizon, "n_splats": len(ts.splats), "n_ellipsoids": robot.n_ellipsoids, "collision_stride": 1,
             "steps_per_s": r.steps_per_s, "device": str(ts.checker.device)}  # fmt: skip
 
 
@@ -99,6 +104,8 @@ class ArmStudyConfig(TaskStudyConfig):
     throughput: bool = True
     #: target and noise seed (an integer >= 0)
     seed: int = bounded(0, ge=0)
+    #: the built-in Panda's collision model (tight: certified, several ellipsoids per link; coarse: one per link)
+    robot_model: str = bounded(DEFAULT_MODEL, choices=tuple(PANDA_MODELS))
 
     @classmethod
     def quick_config(cls) -> "ArmStudyConfig":
@@ -119,18 +126,20 @@ class ArmStudyResult(StudyResult):
 def run(config: ArmStudyConfig | None = None, engine=None) -> ArmStudyResult:
     """Run the arm study (module docstring); writes nothing (see :func:`report`). ``engine`` is
     accepted for the study convention; the runs are serial."""
+    from ..robots import load_robot
     from ..tasks._common import load_task_scene
     from ..tasks.arm import run_arm
 
     cfg = (config or ArmStudyConfig()).validate()
     seed, device, task = cfg.seed, cfg.device, replace_mppi(cfg.task, seed=cfg.seed)
     t0 = time.perf_counter()
-    targets = pick_targets(cfg.n_targets, seed=seed)
+    robot = load_robot("panda", model=cfg.robot_model)
+    targets = pick_targets(cfg.n_targets, seed=seed, robot=robot)
     ts = load_task_scene("tabletop", n_sigma=task.n_sigma, device=device)
     trials = []
     for i, (p, quat) in enumerate(targets):
         for collision in (True, False):
-            r = run_arm("panda", ts, p, quat, config=replace_mppi(task, seed=seed + i), collision=collision, q0=np.asarray(START_Q), device=device)
+            r = run_arm(robot, ts, p, quat, config=replace_mppi(task, seed=seed + i), collision=collision, q0=np.asarray(START_Q), device=device)
             trials.append({
                 "target": i, "config": "with_collision" if collision else "without_collision", "goal_position": p.round(4).tolist(),
                 "goal_quat_wxyz": quat.round(4).tolist(), "success": r.success, "min_clearance_m": r.min_clearance_m, "min_clearance_moving_links_m": r.extra["min_clearance_moving_links_m"],
@@ -140,11 +149,11 @@ def run(config: ArmStudyConfig | None = None, engine=None) -> ArmStudyResult:
             print(f"  target {i} {'with   ' if collision else 'without'} collision cost: error {r.final_position_error_m * 100:.2f} cm, "
                   f"{r.final_orientation_error_deg:.1f} deg, clearance {r.min_clearance_m * 100:+.2f} cm, {r.steps_per_s:.2f} steps/s", flush=True)  # fmt: skip
     rows = config_rows(trials, ("min_clearance_m", "min_clearance_moving_links_m", "final_error_m", "final_orientation_error_deg"))
-    throughput = arm_throughput(device=device) if cfg.throughput else None
+    throughput = arm_throughput(device=device, robot=robot) if cfg.throughput else None
     return ArmStudyResult({
         "throughput": throughput,
-        "study": "arm", "quick": bool(cfg.quick), "seed": int(seed), "robot": "panda", "scene": "tabletop",
-        "n_splats": len(ts.splats), "config": asdict(task), "time_s": time.perf_counter() - t0,
+        "study": "arm", "quick": bool(cfg.quick), "seed": int(seed), "robot": "panda", "robot_model": cfg.robot_model,
+        "n_ellipsoids": robot.n_ellipsoids, "scene": "tabletop", "n_splats": len(ts.splats), "config": asdict(task), "time_s": time.perf_counter() - t0,
         "clearance": "exact signed distance from every Panda ellipsoid (incl. the fixed base link, 2.2 cm above the table) to the boxes, over the executed trajectory densified to <= 1 cm motion",
         "start_q": list(START_Q),
         "success": "final end-effector position error < 2 cm and positive clearance throughout",

@@ -22,6 +22,7 @@ import numpy as np
 
 from .._config import bounded
 from ..errors import SplatplanError
+from ..robots.builtin import DEFAULT_MODEL, PANDA_MODELS
 from ..tasks._common import replace_mppi
 from ..tasks.reach import ReachConfig
 from ._study import ImageGoalStudyConfig, StudyResult, write_outputs
@@ -135,6 +136,8 @@ class ReachStudyConfig(ImageGoalStudyConfig):
     n_goals: int = bounded(5, ge=1)
     #: the reach task's settings
     task: ReachConfig = field(default_factory=ReachConfig)
+    #: the built-in Panda's collision model (tight: certified, several ellipsoids per link; coarse: one per link)
+    robot_model: str = bounded(DEFAULT_MODEL, choices=tuple(PANDA_MODELS))
 
     @classmethod
     def quick_config(cls) -> "ReachStudyConfig":
@@ -163,7 +166,7 @@ def run(config: ReachStudyConfig | None = None, engine=None, *, progress: bool =
     c = (config or ReachStudyConfig()).validate()
     cfg, device, n_goals = c.task, c.device, c.n_goals
     t0 = time.perf_counter()
-    robot = load_robot("panda")
+    robot = load_robot("panda", model=c.robot_model)
     ts = load_task_scene("tabletop", n_sigma=cfg.n_sigma, device=device, n_splats=cfg.n_splats)
     enc = reach_encoder(c.encoder, c.encoder_weights, device, cfg)
     cam = wrist_camera(robot, cfg.image_size, cfg.fov_deg, cfg.camera_link)
@@ -197,6 +200,8 @@ def run(config: ReachStudyConfig | None = None, engine=None, *, progress: bool =
         "n_goals": len(goals),
         "quick": bool(c.quick),
         "device": device,
+        "robot_model": c.robot_model,
+        "n_ellipsoids": robot.n_ellipsoids,
         "start_q": q0.round(5).tolist(),
         "config": asdict(cfg),
         "goals": goals_json,

@@ -10,8 +10,9 @@ Built-ins:
   optimised ellipsoids per link, certified to contain the meshes, ``splatplan robot fit panda
   --method opt``, see :mod:`splatplan.robots.fit_opt`), ``"coarse"`` (``data/panda.yaml``: one
   enclosing ellipsoid per link, ``--method split``) and ``"cover"`` (``data/panda_cover.yaml``:
-  the greedy union of :mod:`splatplan.robots.fit_cover`). ``DEFAULT_MODEL`` says which one plain
-  ``"panda"`` loads.
+  the greedy union of :mod:`splatplan.robots.fit_cover`). ``DEFAULT_MODEL`` (``"tight"``) says
+  which one plain ``"panda"`` loads; the name ``"panda:coarse"`` (or ``panda:cover``,
+  ``panda:tight``) picks one wherever a robot name is taken (``--robot panda:coarse``).
 * ``go2``: Unitree Go2 as a planar base, dofs (x [m], y [m], yaw [rad]); the 12 leg joints are
   fixed at the SRDF "standing" state; the body is raised so that the lowest point of any
   ellipsoid (the feet's) is at z = 0. Ellipsoids: ``data/go2.yaml``.
@@ -49,7 +50,8 @@ DATA = Path(__file__).parent / "data"
 KNOWN = ("panda", "go2", "sphere:R", "ellipsoid:A,B,C")
 #: What a robot name may be: the one help text of :func:`load_robot` and of every ``--robot`` flag.
 ROBOT_NAME_HELP = (
-    "panda (7 joint angles, rad) | go2 (planar base: x, y, yaw) | sphere:R | ellipsoid:A,B,C "
+    "panda (7 joint angles, rad; the tight collision model, panda:coarse = one ellipsoid per link, panda:cover) | "
+    "go2 (planar base: x, y, yaw) | sphere:R | ellipsoid:A,B,C "
     "(a point robot: one axis-aligned link with these semi-axes, scene units; dofs x, y, z) | PATH.urdf"
 )
 #: The point robot of the studies, the demo and ``splatplan plan``: a sphere of radius 0.015 scene
@@ -57,8 +59,9 @@ ROBOT_NAME_HELP = (
 DEFAULT_POINT_ROBOT = "sphere:0.015"
 #: Collision models of the built-in Panda: name -> YAML in ``data/``.
 PANDA_MODELS = {"coarse": "panda.yaml", "cover": "panda_cover.yaml", "tight": "panda_tight.yaml"}
-#: The model plain ``load_robot("panda")`` uses.
-DEFAULT_MODEL = "coarse"
+#: The model plain ``load_robot("panda")`` (and ``--robot panda``) uses: the tight, certified one
+#: (issue #19); ``model="coarse"`` keeps the one-ellipsoid-per-link model.
+DEFAULT_MODEL = "tight"
 #: Range of the built-in Panda's finger opening (m per finger, panda_finger_joint1).
 FINGER_RANGE = (0.0, 0.04)
 #: Default base speeds for planar / translation bases (m/s, rad/s); documented, not from a datasheet.
@@ -79,6 +82,8 @@ class RobotName:
     text: str
     #: point robots: the link's semi-axes (a, b, c) along x, y, z (scene units); None otherwise
     semi_axes: tuple[float, float, float] | None = None
+    #: "panda:MODEL": the built-in Panda's collision model (:data:`PANDA_MODELS`); None = not named
+    model: str | None = None
 
     @property
     def is_point(self) -> bool:
@@ -87,17 +92,23 @@ class RobotName:
 
 
 def parse_robot_name(spec: str | Path) -> RobotName:
-    """The one parser of robot names (:data:`ROBOT_NAME_HELP`): "panda", "go2", "sphere:R",
-    "ellipsoid:A,B,C" or a path. Point-robot sizes are checked here (finite, > 0); whether a path
-    is a URDF file is left to :func:`load_robot`.
+    """The one parser of robot names (:data:`ROBOT_NAME_HELP`): "panda", "panda:MODEL" (a
+    collision model of :data:`PANDA_MODELS`, e.g. "panda:coarse"), "go2", "sphere:R",
+    "ellipsoid:A,B,C" or a path. Point-robot sizes and Panda model names are checked here (finite,
+    > 0); whether a path is a URDF file is left to :func:`load_robot`.
 
     Raises:
-        SplatplanError: a malformed "sphere:..." / "ellipsoid:..." (one line naming the form).
+        SplatplanError: a malformed "sphere:..." / "ellipsoid:..." or an unknown "panda:MODEL"
+            (one line naming the form).
     """
     text = str(spec).strip()
     kind, sep, rest = text.partition(":")
     if text in ("panda", "go2"):
         return RobotName(text, text)
+    if sep and kind == "panda" and not Path(text).is_file():
+        if rest not in PANDA_MODELS:
+            raise SplatplanError(f"robot {text!r}: unknown Panda model {rest!r}: use panda:{' | panda:'.join(PANDA_MODELS)} (plain panda = {DEFAULT_MODEL})")
+        return RobotName("panda", text, model=rest)
     if not (sep and kind in ("sphere", "ellipsoid")):
         return RobotName("path", text)
     try:
@@ -173,7 +184,8 @@ def load_robot(
         per_link: ellipsoids per link when fitting at load time.
         from_visual: fit links without collision geometry to their visual meshes.
         srdf: SRDF with disabled collision pairs / group states (default: ``<urdf stem>.srdf`` beside it).
-        model: built-in Panda only: "tight", "coarse" or "cover" (default ``DEFAULT_MODEL``).
+        model: built-in Panda only: "tight", "coarse" or "cover" (default: the name's
+            ``panda:MODEL``, else ``DEFAULT_MODEL``, "tight").
         finger_opening: built-in Panda only: each finger's distance from the centre line (m, [0, 0.04]).
         fit_method: None = "opt" (default: tight and safe, :mod:`splatplan.robots.fit_opt`, cached),
             "cover" (:mod:`splatplan.robots.fit_cover`, cached) or "split" (enclosing
@@ -183,6 +195,10 @@ def load_robot(
         return spec
     parsed = parse_robot_name(spec)
     text = parsed.text
+    if parsed.model is not None:  # "panda:MODEL"
+        if model is not None and model != parsed.model:
+            raise SplatplanError(f"robot {text!r} names model {parsed.model!r} but model={model!r} was given: give one of them")
+        text, model = "panda", parsed.model
     if parsed.is_point:
         urdf_only = [k for k, v in (("active", active), ("fixed", fixed), ("ellipsoids", ellipsoids), ("per_link", per_link != 1), ("from_visual", from_visual),
                                     ("srdf", srdf), ("model", model), ("finger_opening", finger_opening), ("fit_method", fit_method is not None)) if v]  # fmt: skip
