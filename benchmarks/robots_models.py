@@ -106,7 +106,8 @@ def mppi_rate(robot, n_steps: int, n_samples: int = 256, horizon: int = 32, n_sp
     from dataclasses import replace
 
     from splatplan.tasks._common import load_task_scene, replace_mppi
-    from splatplan.tasks.arm import ArmConfig, down_quat, run_arm
+    from splatplan.robots.ik import down_quat
+    from splatplan.tasks.arm import ArmConfig, run_arm
 
     ts = load_task_scene("tabletop", device="cpu", n_splats=n_splats)
     cfg = replace(replace_mppi(ArmConfig(), n_samples=n_samples, horizon=horizon), collision_stride=1, max_steps=1, stop_tol=0.0)
