@@ -24,7 +24,10 @@ Measured:
 * **per-task overhead** (scheduling + data transfer): ``--overhead-tasks`` no-op tasks on the
   running 2-worker cluster (wall / count: the scheduler's round trip per task, pipelined over both
   workers), and the extra time per MB of a task returning a 1 MB array;
-* the per-worker context build (scene load + checker) from the first task of each worker.
+* the per-worker context build (scene load + checker) from the first task of each worker;
+* for MBM, **the machine's ceiling**: the same tasks split round-robin over 2 plain processes (no
+  engine, contexts built before the clock starts); its speedup over serial bounds what any
+  2-process engine can reach on this machine (the cores share caches and memory bandwidth).
 
 Model (stated, not measured on a cluster): with W workers in total (N machines x c workers), n
 tasks of mean duration t, per-task overhead o (the scheduler handles tasks one after another) and
@@ -144,6 +147,7 @@ def run_mbm_set(n_per_family: int, n_splats: int, time_limit: float, out: Path, 
     finally:
         _serial_threads(None if old is None else int(old))
     dk = run_tasks(tasks, mbm_task, factory, engine, out / "mbm_dask.jsonl", progress=False)
+    ceiling = machine_ceiling(tasks, factory, workers, per_worker)
     task_s = [r["seconds"] for r in ser.records.values()]
     first = {}
     for r in dk.records.values():  # the first task of each worker includes the robot load
@@ -166,6 +170,9 @@ def run_mbm_set(n_per_family: int, n_splats: int, time_limit: float, out: Path, 
         "speedup_same_threads": ser1.run_s / dk.run_s,
         "engine_efficiency_same_threads": ser1.run_s / (workers * dk.run_s),
         "speedup_incl_start": ser.run_s / dk.wall_s,
+        **ceiling,
+        # the best speedup any engine of this many processes gets on this machine for these tasks
+        "ceiling_speedup": ser.run_s / ceiling["ceiling_s"],
         "task_s_median": statistics.median(task_s),
         "task_s_sum": float(sum(task_s)),
         "task_s_sum_per_worker_threads": float(sum(r["seconds"] or 0.0 for r in ser1.records.values())),
@@ -182,6 +189,39 @@ def run_mbm_set(n_per_family: int, n_splats: int, time_limit: float, out: Path, 
         "non_planning_s_per_problem": _non_planning(ser.records),
         "engine": dk.engine,
     }
+
+
+def _ceiling_part(factory, specs: list, threads: int, barrier, results) -> None:
+    """One plain process of the machine-ceiling run: build the context, wait for the others, then
+    run ``specs`` one after another (no engine at all)."""
+    os.environ["SPLATPLAN_CPU_THREADS"] = str(int(threads))
+    from splatplan.eval.mbm import mbm_task
+
+    ctx = factory()
+    barrier.wait()
+    t0 = time.perf_counter()
+    for spec in specs:
+        mbm_task(spec, ctx)
+    results.put(time.perf_counter() - t0)
+
+
+def machine_ceiling(tasks: list, factory, workers: int, threads: int) -> dict:
+    """What any engine of ``workers`` processes could do here at best: the tasks split round-robin
+    over that many plain processes started together (contexts built before the clock starts, no
+    scheduler, no transfer); the wall time is the slowest part. On a machine whose cores share caches
+    and memory bandwidth, each process runs slower next to the others than alone, and this shows it."""
+    import multiprocessing as mp
+
+    ctx = mp.get_context("spawn")
+    barrier, results = ctx.Barrier(workers + 1), ctx.Queue()
+    procs = [ctx.Process(target=_ceiling_part, args=(factory, [t.spec for t in tasks[i::workers]], threads, barrier, results)) for i in range(workers)]
+    for p in procs:
+        p.start()
+    barrier.wait()
+    parts = sorted(results.get() for _ in procs)
+    for p in procs:
+        p.join()
+    return {"ceiling_s": parts[-1], "ceiling_parts_s": parts}
 
 
 def _non_planning(records: dict) -> dict:
@@ -304,7 +344,8 @@ def main(argv: list[str] | None = None) -> int:
             lines.append(f"\n{r['job_set']}: serial with {r['serial_threads']} threads per collision call (as a user runs it) {r['serial_s']:.1f} s -> "
                          f"{args.workers} workers x {r['worker_threads']} thread(s) {r['dask_s']:.1f} s: **{r['speedup']:.2f}x**; serial with {r['worker_threads']} thread(s) "
                          f"(the same per-task threads as a worker) {r['serial_per_worker_threads_s']:.1f} s: {r['speedup_same_threads']:.2f}x, engine efficiency "
-                         f"{100 * r['engine_efficiency_same_threads']:.0f}%; non-planning seconds per problem (serial): median {r['non_planning_s_per_problem'].get('median', float('nan')):.2f}")  # fmt: skip
+                         f"{100 * r['engine_efficiency_same_threads']:.0f}%; the same tasks split over {args.workers} plain processes (no engine; the machine's ceiling) "
+                         f"{r['ceiling_s']:.1f} s: {r['ceiling_speedup']:.2f}x at best; non-planning seconds per problem (serial): median {r['non_planning_s_per_problem'].get('median', float('nan')):.2f}")  # fmt: skip
         if "differing" in r:
             lines.append(f"\n{r['job_set']}: {r['n_solved']}/{r['n_both_free']} solved serially (of the problems with both endpoints free; {r['n_tasks']} tasks), {r['hit_time_limit']} at the time limit; "
                          f"worker time outside tasks per task {r['overhead_per_task_derived_s']:.2f} s (scheduling, transfer, idle tail); "
