@@ -7,9 +7,12 @@ Every subcommand module imports from here; nothing here imports a heavy library 
 from __future__ import annotations
 
 import argparse
+import ast
 import dataclasses
+import functools
 import inspect
 import json
+import linecache
 import os
 import re
 import shutil
@@ -424,16 +427,46 @@ def add_base_pose_arg(parser: argparse.ArgumentParser, help: str = BASE_POSE_HEL
 
 
 # ---------------------------------------------------------------------------- config dataclasses -> flags
+@functools.lru_cache(maxsize=None)
+def _class_spans(filename: str) -> tuple[list[str], dict[str, tuple[int, int]]]:
+    """A source file's lines and the (first, last) line of every class in it, by qualified name:
+    parsed once per file (``inspect.getsource`` parses the whole module again for every class)."""
+    lines = linecache.getlines(filename)
+    spans: dict[str, tuple[int, int]] = {}
+
+    def visit(node, prefix: str) -> None:
+        for child in ast.iter_child_nodes(node):
+            if isinstance(child, ast.ClassDef):
+                name = prefix + child.name
+                spans[name] = (child.lineno, child.end_lineno or child.lineno)
+                visit(child, name + ".")
+            elif isinstance(child, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                visit(child, prefix + child.name + ".<locals>.")
+
+    visit(ast.parse("".join(lines)), "")
+    return lines, spans
+
+
+def _class_source(klass) -> list[str]:
+    """The source lines of a class (empty when it has none, e.g. made at run time)."""
+    try:
+        filename = inspect.getsourcefile(klass)
+    except TypeError:
+        return []
+    if not filename:
+        return []
+    lines, spans = _class_spans(filename)
+    first, last = spans.get(klass.__qualname__, (0, -1))
+    return [line.rstrip("\n") for line in lines[first - 1 : last]]
+
+
 def field_docs(cls) -> dict[str, str]:
     """The ``#:`` comment above each field of a dataclass (joined when it spans several lines)."""
     docs: dict[str, str] = {}
     for klass in reversed(getattr(cls, "__mro__", (cls,))):
         if not dataclasses.is_dataclass(klass):
             continue
-        try:
-            lines = inspect.getsource(klass).splitlines()
-        except (OSError, TypeError):
-            continue
+        lines = _class_source(klass)
         pending: list[str] = []
         for line in lines:
             s = line.strip()

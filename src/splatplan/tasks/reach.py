@@ -49,7 +49,6 @@ from ..planners.costs import JointVelocityTerms, StridedCollisionTerms
 from ..planners.goal_time import GoalTimeMPC, GoalTimeSchedule
 from ..planners.image_cost import ImageTerms
 from ..planners.mppi import MPPI, MPPIConfig
-from ..render.cameras import camera_pose_error, wrist_camera
 from ._common import TaskConfig, check_start, load_task_scene, moving_clearance, trajectory_clearance
 
 __all__ = ["ReachConfig", "ReachResult", "reach_encoder", "run_reach"]
@@ -202,6 +201,7 @@ def run_reach(
     from ..planners.costs import UntilGoalCost
     from ..planners.dynamics import JointIntegrator
     from ..render import SplatRenderer
+    from ..render.cameras import camera_pose_error, wrist_camera  # the renderer (Warp) loads on use, not with the config
     from ..robots import load_robot
 
     cfg = (config or ReachConfig()).validate()
