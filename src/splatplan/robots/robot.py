@@ -268,10 +268,7 @@ class Robot(OwnsThreadPool):
         kin = self.kin
         sub = self._subtree()
         bound = np.zeros(self.dof)
-        ell_of_link: dict[int, list[int]] = {}
-        for e, l in enumerate(self.ellipsoid_link):
-            ell_of_link.setdefault(int(l), []).append(e)
-        smax = self.semi_axes.max(axis=1)
+        ell_of_link, smax = self._ellipsoids_of_link(), self.semi_axes.max(axis=1)
         for l in range(kin.n_links):
             jt = int(kin.jtype[l])
             if jt == FIXED:
@@ -309,10 +306,7 @@ class Robot(OwnsThreadPool):
         kin = self.kin
         sub = self._subtree()
         bound = np.zeros((self.n_ellipsoids, self.dof))
-        ell_of_link: dict[int, list[int]] = {}
-        for e, l in enumerate(self.ellipsoid_link):
-            ell_of_link.setdefault(int(l), []).append(e)
-        smax = self.semi_axes.max(axis=1)
+        ell_of_link, smax = self._ellipsoids_of_link(), self.semi_axes.max(axis=1)
         for l in range(kin.n_links):
             jt = int(kin.jtype[l])
             if jt == FIXED:
@@ -334,6 +328,13 @@ class Robot(OwnsThreadPool):
                     bound[e, qi_rot] += (1.0 if jt == PLANAR else m) * self._axis_distance_bound(l, d, e, axis, smax[e])
         self.__dict__["_ell_motion_cache"] = (key, bound)
         return bound.copy()
+
+    def _ellipsoids_of_link(self) -> dict[int, list[int]]:
+        """Link index -> the indices of the ellipsoids it carries (the motion bounds' bookkeeping)."""
+        out: dict[int, list[int]] = {}
+        for e, l in enumerate(self.ellipsoid_link):
+            out.setdefault(int(l), []).append(e)
+        return out
 
     def _axis_distance_bound(self, l: int, d: int, e: int, axis: np.ndarray, smax: float) -> float:
         kin = self.kin
