@@ -4,6 +4,9 @@
 
 Each round runs ``splatplan mpc`` for the Panda (tabletop, 60 steps) and the Go2 (apartment, 40
 steps) from each tree's ``src/`` with this interpreter, and reads ``steps_per_s`` from result.json.
+The after tree also runs ``panda_like``: the built-in Panda as the before tree had it when that
+tree predates the tight default (``--after-panda-like``, default the coarse one-per-link model at
+collision stride 2), so a code change is compared apart from a model change.
 Prints a table and writes ``benchmarks/results/mpc_rates.json``.
 """
 
@@ -23,9 +26,9 @@ RUNS = {
 }
 
 
-def run_once(tree: Path, robot: str, out: Path) -> dict:
+def run_once(tree: Path, args: list[str], out: Path) -> dict:
     env = {**os.environ, "PYTHONPATH": str(tree / "src")}
-    subprocess.run([sys.executable, "-m", "splatplan.cli", "mpc", *RUNS[robot], "--out", str(out)], env=env, check=False, capture_output=True, timeout=900)
+    subprocess.run([sys.executable, "-m", "splatplan.cli", "mpc", *args, "--out", str(out)], env=env, check=False, capture_output=True, timeout=900)
     d = json.loads((out / "result.json").read_text())
     return {"steps_per_s": d["steps_per_s"], "success": d["success"], "min_clearance_m": d["min_clearance_m"], "n_steps": d["extra"]["n_steps"]}
 
@@ -35,24 +38,31 @@ def main() -> int:
     ap.add_argument("--before", required=True, type=Path, help="checkout of the old code")
     ap.add_argument("--after", default=Path("."), type=Path, help="checkout of the new code (default: here)")
     ap.add_argument("--rounds", type=int, default=2)
+    ap.add_argument("--after-panda-like", default="--robot panda:coarse --arm-collision-stride 2",
+                    help="extra arguments of the after tree's panda_like run ('' = no such run)")
     ap.add_argument("--out", type=Path, default=Path("benchmarks/results/mpc_rates.json"))
     args = ap.parse_args()
+    runs = {("before", k): v for k, v in RUNS.items()} | {("after", k): v for k, v in RUNS.items()}
+    if args.after_panda_like:
+        runs[("after", "panda_like")] = [*RUNS["panda"], *args.after_panda_like.split()]  # later flags win
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         for r in range(args.rounds):
-            for label, tree in (("before", args.before), ("after", args.after)):
-                for robot in RUNS:
-                    res = run_once(tree.resolve(), robot, Path(tmp) / f"{label}_{robot}_{r}")
-                    rows.append({"round": r, "tree": label, "robot": robot, **res})
+            for (label, robot), run_args in runs.items():
+                tree = args.before if label == "before" else args.after
+                res = run_once(tree.resolve(), run_args, Path(tmp) / f"{label}_{robot}_{r}")
+                rows.append({"round": r, "tree": label, "robot": robot, "args": run_args, **res})
     print("| robot | tree | MPC steps/s (each round) | success | min clearance (m) | steps |")
     print("|---|---|---|---|---|---|")
-    for robot in RUNS:
+    for robot in (*RUNS, "panda_like"):
         for label in ("before", "after"):
             rs = [x for x in rows if x["robot"] == robot and x["tree"] == label]
+            if not rs:
+                continue
             rates = ", ".join(format(x["steps_per_s"], ".1f") for x in rs)
             print(f"| {robot} | {label} | {rates} | {rs[0]['success']} | {rs[0]['min_clearance_m']:.4f} | {rs[0]['n_steps']} |")
     args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps({"before": str(args.before), "after": str(args.after), "load_avg": os.getloadavg(), "rows": rows}, indent=1) + "\n")
+    args.out.write_text(json.dumps({"before": str(args.before), "after": str(args.after), "after_panda_like": args.after_panda_like, "load_avg": os.getloadavg(), "rows": rows}, indent=1) + "\n")
     return 0
 
 
