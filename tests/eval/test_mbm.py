@@ -214,3 +214,29 @@ def test_ball_clearance_needs_no_solve():
     np.testing.assert_allclose(exact_clearance(scene, robot, q), ref, atol=1e-7)
     path = np.linspace([0.9, 0.9, 0.6], [0.8, -0.9, 0.7], 50)
     assert path_min_clearance(scene, robot, path) == pytest.approx(scene.ellipsoid_clearance(*robot.ellipsoids(path)).min(), abs=1e-7)
+
+
+def test_isolated_filter_drops_only_the_samplers_floaters():
+    """MBMConfig.drop_isolated: on a dense MoveIt-style scene the isolated-splat rule drops floaters
+    only (the sampler appends them last), most of those the paper's size rule keeps, and never a
+    surface splat; the prepared scene is the filtered one and says how many it dropped."""
+    from splatplan.eval.mbm import _prepare
+    from splatplan.scenes.filters import filter_floaters, isolated_mask
+    from splatplan.scenes.moveit import build_moveit
+
+    scene = _toy_scene()
+    splats, _ = build_moveit(scene, n_splats=200_000, seed=3)
+    n_float = int(splats.info["n_floaters"])
+    is_floater = np.arange(len(splats)) >= len(splats) - n_float
+    kept, _ = filter_floaters(splats)
+    kept_floater = np.isin(kept.means.view("V12").ravel(), splats.means[is_floater].view("V12").ravel())
+    iso = isolated_mask(kept.means, kept.opacities)
+    assert kept_floater.sum() >= 5  # the size rule leaves some for this test to be about
+    assert not (iso & ~kept_floater).any()  # no surface splat dropped
+    assert iso[kept_floater].mean() >= 0.8
+    task = MBMTask("toy", 1, "", "", objects=scene.to_json())
+    robot = load_robot("panda")
+    prep = _prepare(task, MBMConfig(n_splats=200_000, seed=3), robot)
+    assert prep.n_isolated == int(iso.sum()) and len(prep.splats) == len(kept) - prep.n_isolated
+    off = _prepare(task, MBMConfig(n_splats=200_000, seed=3, drop_isolated=False), robot)
+    assert off.n_isolated == 0 and len(off.splats) == len(kept)

@@ -3,7 +3,8 @@
 For every problem (``<family>_panda/sceneNNNN.yaml`` + ``requestNNNN.yaml``, MoveIt YAML; see
 ``../shared/data/mbm/README.md``) the exact scene (boxes, cylinders, spheres) is sampled into
 ``n_splats`` splats with the built-in real-capture look (:func:`~splatplan.scenes.moveit.build_moveit`,
-floaters then filtered as :func:`~splatplan.scenes.load.load_scene` does), and the robot plans with
+floaters then filtered as :func:`~splatplan.scenes.load.load_scene` does and, with ``drop_isolated``,
+the faint isolated ones that rule keeps), and the robot plans with
 :func:`splatplan.planners.plan` against the splats. Each row records:
 
 * ``start_valid`` / ``goal_valid``: the robot's own ellipsoids are free against the exact primitives
@@ -126,8 +127,18 @@ class MBMConfig:
     #: metric conservatism of the planner's collision checks (0 = splat means, the default: with the
     #: derived margin the least conservative safe setting; see the module docstring)
     n_sigma: float = bounded(0.0, ge=0)
-    #: splats per scene (the built-in real-capture look)
-    n_splats: int = bounded(100_000, ge=1000)
+    #: splats per scene (the built-in real-capture look). The safety margin is ~3.4x the splats'
+    #: median spacing h ~ 1/sqrt(n_splats): on the MBM workcells 100k splats give h ~ 5 mm and a
+    #: ~16 mm margin, more than the ~1 cm between a grasp pose's fingers and its object, so most
+    #: grasp goals cannot be called free; 500k (h ~ 2.2 mm, margin ~7.7 mm; a real capture of such a
+    #: cell has 0.3-3M) resolves them. Larger cells need more splats for the same margin
+    n_splats: int = bounded(500_000, ge=1000)
+    #: after the paper's floater filter, also drop the faint isolated splats it keeps
+    #: (:func:`~splatplan.scenes.filters.isolated_mask`: opacity < 0.3 and a mean 8-NN distance above
+    #: 3x the scene's median; surfaces are dense and opaque splats are never dropped, so the margin's
+    #: covering argument is untouched). Real captures and the sampler's look both carry such floaters
+    #: in free space, and the denser the scene, the more of them stand in a robot's way
+    drop_isolated: bool = True
     #: planning time limit per problem (s)
     time_limit: float = bounded(10.0, gt=0)
     #: robot URDF (or a built-in name, e.g. panda); none = <repo>/../shared/data/mbm/panda/panda.urdf
@@ -263,6 +274,7 @@ class _Prepared:
     spacing_nn: float  # median NN distance of the means (m; nan with a fixed margin)
     resolution: float  # edge resolution r (m)
     rho: float  # measured covering radius (m; nan when not checked)
+    n_isolated: int  # faint isolated splats dropped (MBMConfig.drop_isolated)
     endpoints: dict = field(default_factory=dict)  # request path -> (q0, q1, exact clearance (2,), hit (2,), hit_own (2,))
 
 
@@ -550,7 +562,7 @@ def _prepare(task: "MBMTask", cfg: MBMConfig, robot) -> _Prepared:
     """Sample the task's scene into splats (from the parsed scene it carries, else its file), derive
     the margin, measure rho when asked, build the checker."""
     from ..metric import CollisionChecker
-    from ..scenes.filters import filter_floaters
+    from ..scenes.filters import filter_floaters, isolated_mask
     from ..scenes.moveit import build_moveit
     from ..scenes.builtin.primitives import AnalyticScene
 
@@ -558,6 +570,12 @@ def _prepare(task: "MBMTask", cfg: MBMConfig, robot) -> _Prepared:
     splats, scene = build_moveit(src, n_splats=cfg.n_splats, seed=cfg.seed)
     base_spacing = float(splats.info["base_spacing"])
     splats, _ = filter_floaters(splats)
+    n_isolated = 0
+    if cfg.drop_isolated:
+        iso = isolated_mask(splats.means, splats.opacities)
+        n_isolated = int(iso.sum())
+        if n_isolated:
+            splats = splats.subset(~iso)
     if cfg.margin_m is None:
         margin, h_nn, res = derived_margin(robot, splats.means, cfg.margin_spacing_factor, n_sigma=cfg.n_sigma, scales=splats.scales,
                                            floor_factor=cfg.margin_floor_factor)  # fmt: skip
@@ -565,7 +583,7 @@ def _prepare(task: "MBMTask", cfg: MBMConfig, robot) -> _Prepared:
         margin, h_nn, res = float(cfg.margin_m), float("nan"), 0.25 * robot.min_semi_axis
     rho = covering_radius(scene, splats, base_spacing, n_sigma=cfg.n_sigma, seed=cfg.seed) if cfg.check_margin else float("nan")
     checker = CollisionChecker(splats, n_sigma=cfg.n_sigma, device="cpu")
-    return _Prepared(splats, scene, checker, margin, h_nn, res, rho)
+    return _Prepared(splats, scene, checker, margin, h_nn, res, rho, n_isolated)
 
 
 def solve_problem(task: MBMTask, ctx: MBMContext) -> dict:
@@ -581,7 +599,7 @@ def solve_problem(task: MBMTask, ctx: MBMContext) -> dict:
     prep = ctx.prepared(task)
     scene, checker, margin, res, rho = prep.scene, prep.checker, prep.margin, prep.resolution, prep.rho
     plan_robot = robot.inflated(margin) if margin > 0 else robot
-    row.update(margin_m=margin, spacing_nn_m=prep.spacing_nn, rho_measured_m=rho, edge_resolution_m=res,
+    row.update(margin_m=margin, spacing_nn_m=prep.spacing_nn, n_isolated_dropped=prep.n_isolated, rho_measured_m=rho, edge_resolution_m=res,
                bound_holds=bool(margin >= rho + 0.5 * res - 1e-12) if cfg.check_margin else None)  # fmt: skip
     if task.request not in prep.endpoints:  # the same for every planner of the problem
         if task.q_start is not None and task.q_goal is not None:
@@ -786,7 +804,7 @@ def report(result: MBMResult) -> str:
     """Markdown: one row per family and overall, then the published numbers and what differs."""
     cfg = result.config
     lines = [
-        f"MBM on splats: {cfg.n_splats:,} splats per scene, n_sigma {cfg.n_sigma:g}, "
+        f"MBM on splats: {cfg.n_splats:,} splats per scene (floaters: the paper's rule{', then isolated faint splats' if cfg.drop_isolated else ''}), n_sigma {cfg.n_sigma:g}, "
         f"margin {_margin_text(cfg)}, "
         f"time limit {cfg.time_limit:g} s{'' if cfg.max_iters is None else f' (searches run to {cfg.max_iters:,} iterations, no wall-clock limit)'}, robot {Path(result.setup.get('robot', '?')).name} ({result.setup.get('n_ellipsoids')} ellipsoids), "
         f"planner {cfg.planners[0]} (table below: every planner), engine {_engine_text(result.setup.get('engine'))}",
