@@ -265,28 +265,12 @@ class Robot(OwnsThreadPool):
         (mimic) sums |multiplier| x bound over them. Integrating the point's speed along the
         straight segment q1 -> q2 gives the stated inequality for any pair of configurations.
         """
-        kin = self.kin
-        sub = self._subtree()
         bound = np.zeros(self.dof)
-        ell_of_link, smax = self._ellipsoids_of_link(), self.semi_axes.max(axis=1)
-        for l in range(kin.n_links):
-            jt = int(kin.jtype[l])
-            if jt == FIXED:
-                continue
-            qi, m = int(kin.qidx[l]), abs(float(kin.mult[l]))
-            if jt in (PRISMATIC, TRANSLATION):
-                bound[qi : qi + (3 if jt == TRANSLATION else 1)] += m if jt == PRISMATIC else 1.0
-                continue
-            if jt == PLANAR:
-                bound[qi : qi + 2] += 1.0
-                qi_rot, axis = qi + 2, np.array([0.0, 0.0, 1.0])
-            else:
-                qi_rot, axis = qi, kin.axis[l]
-            rho = 0.0
-            for d in sub[l]:
-                for e in ell_of_link.get(d, []):
-                    rho = max(rho, self._axis_distance_bound(l, d, e, axis, smax[e]))
-            bound[qi_rot] += (1.0 if jt == PLANAR else m) * rho
+        for lin, rot, rho in self._joint_motion_terms():
+            for sl, c in lin:
+                bound[sl] += c
+            if rot is not None:
+                bound[rot[0]] += rot[1] * max(rho.values(), default=0.0)
         return bound
 
     def ellipsoid_motion_bounds(self) -> np.ndarray:
@@ -303,31 +287,40 @@ class Robot(OwnsThreadPool):
         hit = self.__dict__.get("_ell_motion_cache")
         if hit is not None and hit[0] == key:
             return hit[1].copy()
+        bound = np.zeros((self.n_ellipsoids, self.dof))
+        for lin, rot, rho in self._joint_motion_terms():
+            for sl, c in lin:
+                bound[list(rho), sl] += c
+            if rot is not None:
+                for e, r in rho.items():
+                    bound[e, rot[0]] += rot[1] * r
+        self.__dict__["_ell_motion_cache"] = (key, bound)
+        return bound.copy()
+
+    def _joint_motion_terms(self):
+        """Per moving joint, the terms both motion bounds sum (the argument of :meth:`_motion_bound`):
+        yields ``(lin, rot, rho)`` with ``lin`` [(dof slice, coefficient)] of its translations (each
+        moves every downstream point by that much per unit), ``rot`` (dof index, |multiplier|) of its
+        rotation or None, and ``rho`` {downstream ellipsoid: its distance bound from the rotation
+        axis} (0 for a pure translation: the keys are the ellipsoids the joint moves)."""
         kin = self.kin
         sub = self._subtree()
-        bound = np.zeros((self.n_ellipsoids, self.dof))
         ell_of_link, smax = self._ellipsoids_of_link(), self.semi_axes.max(axis=1)
         for l in range(kin.n_links):
             jt = int(kin.jtype[l])
             if jt == FIXED:
                 continue
             qi, m = int(kin.qidx[l]), abs(float(kin.mult[l]))
-            down = [e for d in sub[l] for e in ell_of_link.get(d, [])]
+            down = [(d, e) for d in sub[l] for e in ell_of_link.get(d, [])]
             if jt in (PRISMATIC, TRANSLATION):
-                for e in down:
-                    bound[e, qi : qi + (3 if jt == TRANSLATION else 1)] += m if jt == PRISMATIC else 1.0
+                n_lin = 3 if jt == TRANSLATION else 1
+                yield [(slice(qi, qi + n_lin), m if jt == PRISMATIC else 1.0)], None, {e: 0.0 for _, e in down}
                 continue
             if jt == PLANAR:
-                qi_rot, axis = qi + 2, np.array([0.0, 0.0, 1.0])
-                for e in down:
-                    bound[e, qi : qi + 2] += 1.0
+                lin, qi_rot, factor, axis = [(slice(qi, qi + 2), 1.0)], qi + 2, 1.0, np.array([0.0, 0.0, 1.0])
             else:
-                qi_rot, axis = qi, kin.axis[l]
-            for d in sub[l]:
-                for e in ell_of_link.get(d, []):
-                    bound[e, qi_rot] += (1.0 if jt == PLANAR else m) * self._axis_distance_bound(l, d, e, axis, smax[e])
-        self.__dict__["_ell_motion_cache"] = (key, bound)
-        return bound.copy()
+                lin, qi_rot, factor, axis = [], qi, m, kin.axis[l]
+            yield lin, (qi_rot, factor), {e: self._axis_distance_bound(l, d, e, axis, smax[e]) for d, e in down}
 
     def _ellipsoids_of_link(self) -> dict[int, list[int]]:
         """Link index -> the indices of the ellipsoids it carries (the motion bounds' bookkeeping)."""
