@@ -274,7 +274,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--pairs", type=int, default=None, help="start/goal pairs per job set (default 24 Stonehenge, 12 tabletop)")
     ap.add_argument("--max-iters", type=int, default=None, help="RRT iterations per plan (default 300 Stonehenge, 150 tabletop)")
     ap.add_argument("--mbm", type=int, default=None, metavar="N", help="add the MBM job set: the first N problems of each shared MBM family")
-    ap.add_argument("--mbm-splats", type=int, default=100_000, help="splats per MBM scene")
+    ap.add_argument("--mbm-splats", type=int, default=None, help="splats per MBM scene (default: MBMConfig's)")
     ap.add_argument("--mbm-time-limit", type=float, default=10.0, help="planning time limit per MBM problem (s)")
     ap.add_argument("--mbm-margin", type=float, default=None, help="MBM planning margin (m); default derived from the splats and n_sigma")
     ap.add_argument("--mbm-max-iters", type=int, default=100, help="iteration budget per MBM search (reproducible rows; 0 = the wall-clock --mbm-time-limit)")
@@ -305,7 +305,9 @@ def main(argv: list[str] | None = None) -> int:
     rows = []
     try:
         if args.mbm is not None:
-            rows.append(run_mbm_set(args.mbm, args.mbm_splats, args.mbm_time_limit, work, args.workers, args.mbm_margin, args.mbm_max_iters or None, args.mbm_n_sigma))
+            from splatplan.eval.mbm import MBMConfig
+
+            rows.append(run_mbm_set(args.mbm, args.mbm_splats or MBMConfig().n_splats, args.mbm_time_limit, work, args.workers, args.mbm_margin, args.mbm_max_iters or None, args.mbm_n_sigma))
             print(f"mbm: {rows[-1]['serial_s']:.1f} s serial, {rows[-1]['dask_s']:.1f} s on {args.workers} workers", file=sys.stderr)
         for name, spec in sets.items():
             rows.append(run_set(name, spec.validate(), Path("."), work, args.workers))

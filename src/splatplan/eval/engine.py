@@ -425,7 +425,7 @@ def _dask_client(engine: EngineConfig):
         return client, None, {"kind": "dask", "workers": n, "scheduler": engine.scheduler}
     # the local cluster: loopback only, no dashboard, one task thread per worker process; workers
     # split their collision calls over cores / workers threads (no oversubscription of the cores)
-    with _workers_ignore_sigint(), warnings.catch_warnings():
+    with _workers_ignore_sigint(), _glibc_malloc_defaults(), warnings.catch_warnings():
         # the scheduler's HTTP routes (health, metrics; no dashboard) bind 127.0.0.1:8787, or another
         # port when that one is taken (another cluster on this machine): not the user's business
         warnings.filterwarnings("ignore", message="Port .* is already in use")
@@ -440,6 +440,34 @@ def _dask_client(engine: EngineConfig):
         )
     client = Client(cluster)
     return client, cluster, {"kind": "dask", "workers": int(engine.workers), "scheduler": cluster.scheduler_address}
+
+
+@contextlib.contextmanager
+def _glibc_malloc_defaults():
+    """Spawn the local workers with glibc's own allocator settings, and leave this process's
+    environment as it was.
+
+    Dask's nannies export ``MALLOC_TRIM_THRESHOLD_=65536`` (config
+    ``distributed.nanny.pre-spawn-environ``) before spawning a worker. Setting that variable at
+    all turns off glibc's dynamic mmap threshold, so every large numpy temporary is mmapped and
+    unmapped again. That page-faults: the MBM tasks ran 1.25-1.4x slower in a plain process with
+    only that variable set (benchmarks/engine.py), as slow as in the workers. A user who sets the
+    variable in their own environment or Dask config keeps it. The nannies also write
+    their pre-spawn variables (``OMP_NUM_THREADS=1`` etc.) into ``os.environ`` of the process
+    that starts them, here the user's: those are restored on exit, so only the workers see them."""
+    import dask
+
+    before = dict(os.environ)
+    env = dict(dask.config.get("distributed.nanny.pre-spawn-environ", {}) or {})
+    if "MALLOC_TRIM_THRESHOLD_" not in os.environ and env.get("MALLOC_TRIM_THRESHOLD_") == 65536:
+        env["MALLOC_TRIM_THRESHOLD_"] = None  # None unsets it (distributed.nanny._get_env_variables)
+    try:
+        with dask.config.set({"distributed.nanny.pre-spawn-environ": env}):
+            yield
+    finally:
+        for k in set(os.environ) - set(before):
+            del os.environ[k]
+        os.environ.update(before)
 
 
 @contextlib.contextmanager
