@@ -207,6 +207,14 @@ def test_goals_include_behind_wall_ones_with_the_tight_panda(setup):
         assert not np.asarray(robot.self_collision(q)).any()
     for a, b in zip(goals, again):
         np.testing.assert_array_equal(a["q"], b["q"])
+    # the goals are picked from reach_candidates' survivors: the same sampler, every filter's verdict kept
+    from splatplan.planners.reach_goals import reach_candidates
+
+    with SplatRenderer(ts.splats, "cpu") as rend:
+        cands = reach_candidates(robot, ts, rend, cam, q_start=q0, n_candidates=256, seed=0)
+    kept = cands.q[cands.kept]
+    assert all(any(np.array_equal(g["q"], k) for k in kept) for g in goals)
+    assert cands.counts()[-1][2] == int((cands.kept & cands.behind_wall).sum()) >= 2
 
 
 def test_study_names_a_goal_shortfall(tmp_path, monkeypatch):
