@@ -128,6 +128,8 @@ SECTIONS = {
     "arm": markdown_file("arm.md"),
     "base": markdown_file("base.md"),
     "reach": markdown_file("reach.md"),
+    "reach_behind_wall": markdown_file("reach_behind_wall.md"),
+    "reach_goal_filters": markdown_file("reach_goal_filters.md"),
     "navigate": markdown_file("navigate.md"),
 }
 

@@ -52,3 +52,21 @@ def test_gpu_rates_script_on_cpu(tmp_path, capsys):
     (r,) = res["reach"]
     assert r["image_size"] == 16 and r["mpc_steps_per_s"] > 0
     assert "| Panda MPPI" in capsys.readouterr().out and out.with_suffix(".md").exists()
+
+
+def test_reach_goal_filters_script(tmp_path, capsys):
+    """benchmarks/reach_goal_filters.py: per model, the candidates left after each filter in turn
+    never grow, and the behind-wall ones are a part of them."""
+    import reach_goal_filters
+
+    out = tmp_path / "f.json"
+    assert reach_goal_filters.main(["--models", "tight,coarse", "--n-candidates", "64", "--out", str(out)]) == 0
+    res = json.loads(out.read_text())
+    assert set(res["models"]) == {"tight", "coarse"} and res["models"]["tight"]["n_ellipsoids"] > res["models"]["coarse"]["n_ellipsoids"]
+    for m in res["models"].values():
+        steps = m["after"]
+        assert [s["filter"] for s in steps] == ["move", "turn", "clearance", "metric", "self_collision", "view"]
+        alls, behind = [s["all"] for s in steps], [s["behind_wall"] for s in steps]
+        assert alls == sorted(alls, reverse=True) and behind == sorted(behind, reverse=True) and m["behind_wall"] >= behind[0]
+        assert all(b <= a for a, b in zip(alls, behind)) and alls[0] <= 64
+    assert "| camera in `BEHIND_WALL` |" in capsys.readouterr().out and out.with_suffix(".md").exists()

@@ -176,6 +176,47 @@ def test_goals_do_not_depend_on_the_image_size(setup):
         np.testing.assert_array_equal(a["q"], b["q"])
 
 
+def test_goals_include_behind_wall_ones_with_the_tight_panda(setup):
+    """The study's meaning rests on goals with the camera behind the bin's front wall: with the
+    built-in (tight) Panda, make_reach_goals returns n_behind of them, first, each reachable and
+    collision-free by the same checks as the others, and the same goals for the same seed."""
+    from splatplan.planners.reach_goals import BEHIND_WALL, make_reach_goals
+    from splatplan.render.cameras import wrist_camera
+    from splatplan.tasks._common import load_task_scene
+    from splatplan.tasks.reach import ReachConfig
+
+    robot, _, _, q0, _, _ = setup
+    assert robot.n_ellipsoids > 11  # the tight model, not the coarse one-per-link one
+    cfg = ReachConfig()  # the study's scene and camera (the views are judged at its 64 px)
+    ts = load_task_scene("tabletop", n_sigma=cfg.n_sigma, n_splats=cfg.n_splats)
+    cam = wrist_camera(robot, cfg.image_size, cfg.fov_deg, cfg.camera_link)
+    kw = dict(n=3, q_start=q0, n_behind=2, n_candidates=256, seed=0)
+    with SplatRenderer(ts.splats, "cpu") as rend:
+        goals = make_reach_goals(robot, ts, rend, cam, **kw)
+        again = make_reach_goals(robot, ts, rend, cam, **kw)
+    assert len(goals) == 3
+    assert [g["behind_wall"] for g in goals] == [True, True, False]
+    lo, hi = BEHIND_WALL
+    for g in goals[:2]:
+        p = g["camera_pose"][:3, 3]
+        assert np.all(p > lo) and np.all(p < hi) and g["name"].endswith("_behind_wall")
+        q = g["q"][None]
+        c, qu, ax = robot.ellipsoids(q)
+        assert ts.analytic.ellipsoid_clearance(c, qu, ax).min() > 0.02
+        assert not np.asarray(ts.checker.collides_robot(robot, q)).any()
+        assert not np.asarray(robot.self_collision(q)).any()
+    for a, b in zip(goals, again):
+        np.testing.assert_array_equal(a["q"], b["q"])
+    # the goals are picked from reach_candidates' survivors: the same sampler, every filter's verdict kept
+    from splatplan.planners.reach_goals import reach_candidates
+
+    with SplatRenderer(ts.splats, "cpu") as rend:
+        cands = reach_candidates(robot, ts, rend, cam, q_start=q0, n_candidates=256, seed=0)
+    kept = cands.q[cands.kept]
+    assert all(any(np.array_equal(g["q"], k) for k in kept) for g in goals)
+    assert cands.counts()[-1][2] == int((cands.kept & cands.behind_wall).sum()) >= 2
+
+
 def test_study_names_a_goal_shortfall(tmp_path, monkeypatch):
     import splatplan.planners.reach_goals as reach_goals
     import splatplan.tasks.reach as reach

@@ -7,11 +7,13 @@ Units: metres, radians; world frame z up (the tabletop scene's).
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from ..errors import SplatplanError
 
-__all__ = ["BEHIND_WALL", "START_CAMERA", "make_reach_goals", "reach_start"]
+__all__ = ["BEHIND_WALL", "START_CAMERA", "ReachCandidates", "make_reach_goals", "reach_candidates", "reach_start"]
 
 
 #: The studies' start view: the wrist camera above the bin, just behind its front wall, looking straight down
@@ -35,27 +37,55 @@ def reach_start(robot, camera_link: str = "panda_hand_tcp") -> np.ndarray:
     return q[int(np.argmin(np.sum((q - robot.q_default) ** 2, axis=1)))]
 
 
-def make_reach_goals(
-    robot, scene, renderer, camera, *, n: int = 5, q_start=None, spread: float = 0.35, n_behind: int = 2, margin_m: float = 0.02,
-    min_move_m: float = 0.05, max_move_m: float = 0.15, max_turn_deg: float = 30.0, n_candidates: int = 1024, seed: int = 0,
-    behind_spread: float = 0.45, behind_max_move_m: float = 0.2, min_contrast: float = 0.12, view_check_px: int = 64,
-) -> list[dict]:
-    """Random reachable, collision-free goal configurations near ``q_start`` whose wrist view is
-    informative, ``n_behind`` of them with the camera behind the bin's front wall (:data:`BEHIND_WALL`).
+#: The filters of :func:`reach_candidates`, in the order they are applied.
+FILTERS = ("move", "turn", "clearance", "metric", "self_collision", "view")
 
-    Candidates ``q_start + U(-spread, spread)^7`` (clipped to the limits) are kept when every link
-    ellipsoid clears the exact geometry by ``margin_m``, the metric finds no collision, there is no
-    self-collision, the camera moves ``min_move_m``..``max_move_m`` from the start and turns by at
-    most ``max_turn_deg`` (half the candidates use ``behind_spread`` and, behind the wall only,
-    ``behind_max_move_m``: reaching behind the wall takes a longer move), and the view
-    is filled by the scene (alpha > 0.98) with contrast (pixel std > ``min_contrast``: a plain view of
-    floor and wall is ambiguous for any encoder). The view is judged at most ``view_check_px``
-    pixels wide (same field of view, scaled intrinsics): at 224 px single edge pixels of a full
-    view fall below the alpha bar, and goals for large images would not exist. Goals are then picked far apart from each other (greedy farthest point in camera position).
 
-    Returns:
-        [{"name", "q" (7,), "camera_pose" (4, 4) world <- camera, "clearance_m", "behind_wall"}].
+@dataclass
+class ReachCandidates:
+    """Every random candidate of :func:`make_reach_goals` and what each filter said of it.
+
+    Attributes:
+        q: (M, dof) candidate configurations (rad).
+        camera_pose: (M, 4, 4) world <- camera at each candidate.
+        behind_wall: (M,) bool, camera inside :data:`BEHIND_WALL`.
+        passed: filter name (:data:`FILTERS`) -> (M,) bool; a filter is evaluated only on the
+            candidates that passed the filters before it (False elsewhere), except that the metric
+            and self-collision checks see every candidate that passed move and turn.
+        clearance_m: (M,) smallest exact clearance of any link ellipsoid (+inf without an analytic
+            scene; NaN where not evaluated).
+        alpha_mean / alpha_min / view_std: (M,) of the rendered check view (NaN where not rendered).
     """
+
+    q: np.ndarray
+    camera_pose: np.ndarray
+    behind_wall: np.ndarray
+    passed: dict
+    clearance_m: np.ndarray
+    alpha_mean: np.ndarray
+    alpha_min: np.ndarray
+    view_std: np.ndarray
+
+    @property
+    def kept(self) -> np.ndarray:
+        """(M,) bool: passed every filter."""
+        return np.logical_and.reduce([self.passed[f] for f in FILTERS])
+
+    def counts(self) -> list[tuple[str, int, int]]:
+        """(filter, candidates left, behind-wall candidates left) after each filter in turn."""
+        left, out = np.ones(len(self.q), bool), []
+        for f in FILTERS:
+            left = left & self.passed[f]
+            out.append((f, int(left.sum()), int((left & self.behind_wall).sum())))
+        return out
+
+
+def reach_candidates(
+    robot, scene, renderer, camera, *, q_start=None, spread: float = 0.35, margin_m: float = 0.02, min_move_m: float = 0.05, max_move_m: float = 0.15,
+    max_turn_deg: float = 30.0, n_candidates: int = 1024, seed: int = 0, behind_spread: float = 0.45, behind_max_move_m: float = 0.2,
+    min_contrast: float = 0.12, view_check_px: int = 64,
+) -> ReachCandidates:
+    """The random candidates of :func:`make_reach_goals` (same arguments) and every filter's verdict."""
     rng = np.random.default_rng(seed)
     q_start = np.asarray(robot.q_default if q_start is None else q_start, np.float64)
     lim = np.asarray(robot.joint_limits, np.float64)
@@ -69,25 +99,64 @@ def make_reach_goals(
     turn = np.degrees(np.arccos(np.clip(0.5 * (np.einsum("ij,kij->k", t_start[:3, :3], t[:, :3, :3]) - 1.0), -1.0, 1.0)))
     lo_b, hi_b = BEHIND_WALL
     in_b = np.all((t[:, :3, 3] > lo_b) & (t[:, :3, 3] < hi_b), axis=1)
-    keep = (move > min_move_m) & (move < np.where(in_b, behind_max_move_m, max_move_m)) & (turn < max_turn_deg)
-    q, t = q[keep], t[keep]
-    if scene.analytic is not None and len(q):
-        c, qu, ax = robot.ellipsoids(q)
-        clear = scene.analytic.ellipsoid_clearance(c, qu, ax).min(axis=-1)
-    else:
-        clear = np.full(len(q), np.inf)
-    keep = clear > margin_m
-    if len(q):
-        keep &= ~np.asarray(scene.checker.collides_robot(robot, q)).any(axis=-1) & ~np.asarray(robot.self_collision(q))
-    q, t, clear = q[keep], t[keep], clear[keep]
-    if len(q):
-        check_cam = camera.scaled(min(camera.width, view_check_px))
-        res = check_cam.render(renderer, robot, q)
-        rgb, alpha = np.asarray(res.rgb), np.asarray(res.alpha)
-        keep = (alpha.reshape(len(q), -1).min(axis=1) > 0.98) & (rgb.reshape(len(q), -1).std(axis=1) > min_contrast)
-        q, t, clear = q[keep], t[keep], clear[keep]
-    lo, hi = BEHIND_WALL
-    behind = np.all((t[:, :3, 3] > lo) & (t[:, :3, 3] < hi), axis=1)
+    m = len(q)
+    passed = {f: np.zeros(m, bool) for f in FILTERS}
+    passed["move"] = (move > min_move_m) & (move < np.where(in_b, behind_max_move_m, max_move_m))
+    passed["turn"] = passed["move"] & (turn < max_turn_deg)
+    clear, a_mean, a_min, std = (np.full(m, np.nan) for _ in range(4))
+    idx = np.flatnonzero(passed["turn"])
+    if len(idx):
+        if scene.analytic is not None:
+            c, qu, ax = robot.ellipsoids(q[idx])
+            clear[idx] = scene.analytic.ellipsoid_clearance(c, qu, ax).min(axis=-1)
+        else:
+            clear[idx] = np.inf
+        passed["clearance"][idx] = clear[idx] > margin_m
+        passed["metric"][idx] = ~np.asarray(scene.checker.collides_robot(robot, q[idx])).any(axis=-1)
+        passed["self_collision"][idx] = ~np.asarray(robot.self_collision(q[idx]))
+    idx = np.flatnonzero(passed["clearance"] & passed["metric"] & passed["self_collision"])
+    if len(idx):
+        res = camera.scaled(min(camera.width, view_check_px)).render(renderer, robot, q[idx])
+        rgb, alpha = np.asarray(res.rgb).reshape(len(idx), -1), np.asarray(res.alpha).reshape(len(idx), -1)
+        a_mean[idx], a_min[idx], std[idx] = alpha.mean(axis=1), alpha.min(axis=1), rgb.std(axis=1)
+        passed["view"][idx] = (a_mean[idx] > 0.98) & (std[idx] > min_contrast)
+    return ReachCandidates(q, t, in_b, passed, clear, a_mean, a_min, std)
+
+
+def make_reach_goals(
+    robot, scene, renderer, camera, *, n: int = 5, q_start=None, spread: float = 0.35, n_behind: int = 2, margin_m: float = 0.02,
+    min_move_m: float = 0.05, max_move_m: float = 0.15, max_turn_deg: float = 30.0, n_candidates: int = 1024, seed: int = 0,
+    behind_spread: float = 0.45, behind_max_move_m: float = 0.2, min_contrast: float = 0.12, view_check_px: int = 64,
+) -> list[dict]:
+    """Random reachable, collision-free goal configurations near ``q_start`` whose wrist view is
+    informative, ``n_behind`` of them with the camera behind the bin's front wall (:data:`BEHIND_WALL`).
+
+    Candidates ``q_start + U(-spread, spread)^7`` (clipped to the limits) are kept when every link
+    ellipsoid clears the exact geometry by ``margin_m``, the metric finds no collision, there is no
+    self-collision, the camera moves ``min_move_m``..``max_move_m`` from the start and turns by at
+    most ``max_turn_deg`` (half the candidates use ``behind_spread`` and, behind the wall only,
+    ``behind_max_move_m``: reaching behind the wall takes a longer move), and the view
+    is filled by the scene (mean alpha > 0.98: at most 2 % of the view's colour is background) with
+    contrast (pixel std > ``min_contrast``: a plain view of floor and wall is ambiguous for any
+    encoder). The fill is a mean over the view, not a per-pixel minimum: a close view resolves the
+    gaps between single splats (isolated pixels of alpha 0.8..0.97, the start view has them too),
+    and a per-pixel bar rejected nearly every view from inside the bin, i.e. every behind-wall
+    goal. The view is judged at most ``view_check_px`` pixels wide (same field of view, scaled
+    intrinsics), so that the goals do not depend on the image size. Goals are then picked far apart
+    from each other (greedy farthest point in camera position).
+
+    The candidates and every filter's verdict: :func:`reach_candidates`.
+
+    Returns:
+        [{"name", "q" (7,), "camera_pose" (4, 4) world <- camera, "clearance_m", "behind_wall"}].
+    """
+    cands = reach_candidates(
+        robot, scene, renderer, camera, q_start=q_start, spread=spread, margin_m=margin_m, min_move_m=min_move_m, max_move_m=max_move_m,
+        max_turn_deg=max_turn_deg, n_candidates=n_candidates, seed=seed, behind_spread=behind_spread, behind_max_move_m=behind_max_move_m,
+        min_contrast=min_contrast, view_check_px=view_check_px,
+    )
+    keep = cands.kept
+    q, t, clear, behind = cands.q[keep], cands.camera_pose[keep], cands.clearance_m[keep], cands.behind_wall[keep]
     chosen: list[int] = []
 
     def pick(pool: np.ndarray, count: int) -> None:  # greedy farthest point in camera position
