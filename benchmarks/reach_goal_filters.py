@@ -12,13 +12,13 @@ the same for every model (same seed, same kinematics); the models differ from th
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 
 import numpy as np
 
-from splatplan.planners.reach_goals import reach_candidates, reach_start
+from splatplan.eval._study import write_outputs
+from splatplan.planners.reach_goals import VIEW_MIN_ALPHA, VIEW_MIN_CONTRAST, reach_candidates, reach_start
 from splatplan.render import SplatRenderer
 from splatplan.render.cameras import wrist_camera
 from splatplan.robots import load_robot
@@ -31,7 +31,7 @@ LABELS = {
     "clearance": "exact clearance > 2 cm",
     "metric": "metric finds no collision",
     "self_collision": "no self-collision",
-    "view": "view: mean alpha > 0.98 and pixel std > 0.12",
+    "view": f"view: mean alpha > {VIEW_MIN_ALPHA} and pixel std > {VIEW_MIN_CONTRAST}",
 }
 
 
@@ -50,7 +50,7 @@ def main(argv: list[str] | None = None) -> int:
             cam = wrist_camera(robot, cfg.image_size, cfg.fov_deg, cfg.camera_link)
             c = reach_candidates(robot, ts, rend, cam, q_start=reach_start(robot, cfg.camera_link), n_candidates=a.n_candidates, seed=cfg.mppi.seed)
             rendered = np.isfinite(c.alpha_min)
-            per_pixel = rendered & (np.nan_to_num(c.alpha_min) > 0.98) & (np.nan_to_num(c.view_std) > 0.12)
+            per_pixel = rendered & (np.nan_to_num(c.alpha_min) > VIEW_MIN_ALPHA) & (np.nan_to_num(c.view_std) > VIEW_MIN_CONTRAST)
             res["models"][model] = {
                 "n_ellipsoids": robot.n_ellipsoids,
                 "behind_wall": int(c.behind_wall.sum()),
@@ -64,14 +64,13 @@ def main(argv: list[str] | None = None) -> int:
              "| camera in `BEHIND_WALL` | " + " | ".join(f"- / {res['models'][m]['behind_wall']}" for m in models) + " |"]  # fmt: skip
     for k, f in enumerate(LABELS):
         lines.append(f"| {LABELS[f]} | " + " | ".join(f"{res['models'][m]['after'][k]['all']} / {res['models'][m]['after'][k]['behind_wall']}" for m in models) + " |")
-    lines.append("| view with the earlier per-pixel bar (every pixel alpha > 0.98) | " + " | ".join(
+    lines.append(f"| view with the earlier per-pixel bar (every pixel alpha > {VIEW_MIN_ALPHA}) | " + " | ".join(
         f"{res['models'][m]['view_per_pixel_alpha']['all']} / {res['models'][m]['view_per_pixel_alpha']['behind_wall']}" for m in models) + " |")  # fmt: skip
     md = "\n".join(lines) + "\n"
     a.out.parent.mkdir(parents=True, exist_ok=True)
-    a.out.write_text(json.dumps(res, indent=1) + "\n")
-    a.out.with_suffix(".md").write_text(md)
+    paths = write_outputs(a.out.parent, a.out.stem, res, md, indent=1)
     print(md)
-    print(f"wrote {a.out}, {a.out.with_suffix('.md')}")
+    print("wrote " + ", ".join(str(p) for p in paths))
     return 0
 
 

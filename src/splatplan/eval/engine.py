@@ -459,7 +459,7 @@ def _glibc_malloc_defaults():
 
     before = dict(os.environ)
     env = dict(dask.config.get("distributed.nanny.pre-spawn-environ", {}) or {})
-    if "MALLOC_TRIM_THRESHOLD_" not in os.environ and env.get("MALLOC_TRIM_THRESHOLD_") == 65536:
+    if "MALLOC_TRIM_THRESHOLD_" not in os.environ and str(env.get("MALLOC_TRIM_THRESHOLD_")) == "65536":  # Dask's default, not a user's choice
         env["MALLOC_TRIM_THRESHOLD_"] = None  # None unsets it (distributed.nanny._get_env_variables)
     try:
         with dask.config.set({"distributed.nanny.pre-spawn-environ": env}):

@@ -37,6 +37,11 @@ def reach_start(robot, camera_link: str = "panda_hand_tcp") -> np.ndarray:
     return q[int(np.argmin(np.sum((q - robot.q_default) ** 2, axis=1)))]
 
 
+#: A goal view is filled by the scene when its mean alpha exceeds this (at most 2 % background).
+VIEW_MIN_ALPHA = 0.98
+#: ... and has contrast when its pixel std exceeds this (default ``min_contrast``).
+VIEW_MIN_CONTRAST = 0.12
+
 #: The filters of :func:`reach_candidates`, in the order they are applied.
 FILTERS = ("move", "turn", "clearance", "metric", "self_collision", "view")
 
@@ -83,7 +88,7 @@ class ReachCandidates:
 def reach_candidates(
     robot, scene, renderer, camera, *, q_start=None, spread: float = 0.35, margin_m: float = 0.02, min_move_m: float = 0.05, max_move_m: float = 0.15,
     max_turn_deg: float = 30.0, n_candidates: int = 1024, seed: int = 0, behind_spread: float = 0.45, behind_max_move_m: float = 0.2,
-    min_contrast: float = 0.12, view_check_px: int = 64,
+    min_contrast: float = VIEW_MIN_CONTRAST, view_check_px: int = 64,
 ) -> ReachCandidates:
     """The random candidates of :func:`make_reach_goals` (same arguments) and every filter's verdict."""
     rng = np.random.default_rng(seed)
@@ -119,14 +124,14 @@ def reach_candidates(
         res = camera.scaled(min(camera.width, view_check_px)).render(renderer, robot, q[idx])
         rgb, alpha = np.asarray(res.rgb).reshape(len(idx), -1), np.asarray(res.alpha).reshape(len(idx), -1)
         a_mean[idx], a_min[idx], std[idx] = alpha.mean(axis=1), alpha.min(axis=1), rgb.std(axis=1)
-        passed["view"][idx] = (a_mean[idx] > 0.98) & (std[idx] > min_contrast)
+        passed["view"][idx] = (a_mean[idx] > VIEW_MIN_ALPHA) & (std[idx] > min_contrast)
     return ReachCandidates(q, t, in_b, passed, clear, a_mean, a_min, std)
 
 
 def make_reach_goals(
     robot, scene, renderer, camera, *, n: int = 5, q_start=None, spread: float = 0.35, n_behind: int = 2, margin_m: float = 0.02,
     min_move_m: float = 0.05, max_move_m: float = 0.15, max_turn_deg: float = 30.0, n_candidates: int = 1024, seed: int = 0,
-    behind_spread: float = 0.45, behind_max_move_m: float = 0.2, min_contrast: float = 0.12, view_check_px: int = 64,
+    behind_spread: float = 0.45, behind_max_move_m: float = 0.2, min_contrast: float = VIEW_MIN_CONTRAST, view_check_px: int = 64,
 ) -> list[dict]:
     """Random reachable, collision-free goal configurations near ``q_start`` whose wrist view is
     informative, ``n_behind`` of them with the camera behind the bin's front wall (:data:`BEHIND_WALL`).

@@ -60,8 +60,9 @@ def robot_collides(checker, robot, q: np.ndarray) -> np.ndarray:
 def robot_collides_slack(checker, robot, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(..., dof) -> (hits (..., E) bool, slack (..., E) float): ellipsoid e of configuration q is in
     collision, and a distance its centre may move (its orientation anyhow) with it staying free
-    (the checker's FREE SLACK; zeros from a checker without it: nothing proven)."""
-    if hasattr(checker, "collides_robot") and getattr(checker, "backend", None) == "warp":
+    (the checker's FREE SLACK; zeros from a checker without it: nothing proven, as the
+    CollisionChecker's reference backend returns them too)."""
+    if hasattr(checker, "collides_robot"):
         hit, slack = checker.collides_robot(robot, q, slack=True)
         return np.asarray(hit), np.asarray(slack)
     hit = robot_collides(checker, robot, q)
