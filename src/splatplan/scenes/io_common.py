@@ -16,6 +16,8 @@ exceeds that size instead of filling memory.
 
 from __future__ import annotations
 
+import re
+from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Protocol
 
@@ -32,6 +34,9 @@ BLOCK_ROWS = 1 << 18
 READ_CHUNK = 1 << 22
 #: Natural log of the largest float32: a log-scale above this overflows float32 when activated.
 LOG_FLOAT32_MAX = float(np.log(np.finfo(np.float32).max))
+#: A PLY field of the higher SH bands (INRIA and compressed PLY): ``f_rest_{c*K + j}`` is
+#: coefficient j of colour channel c (**channel-major**), stored as ``sh_rest[:, j, c]``.
+F_REST = re.compile(r"^f_rest_(\d+)$")
 
 
 def sigmoid(x: np.ndarray) -> np.ndarray:
@@ -67,6 +72,25 @@ def sh_dc_to_color(f_dc: np.ndarray) -> np.ndarray:
 def color_to_sh_dc(color: np.ndarray) -> np.ndarray:
     """SH DC coefficient from RGB colour: (color - 0.5) / C0, shape (N, 3)."""
     return (np.asarray(color, dtype=np.float64) - 0.5) / SH_C0
+
+
+def f_rest_layout(names: Iterable[str]) -> tuple[list[int], int | None]:
+    """The sorted indices of the ``f_rest_*`` fields among ``names``, and K, the SH coefficients per
+    channel they hold: 0 when there are none, None when the indices are not exactly 0..3K-1."""
+    idx = sorted(int(m.group(1)) for f in names if (m := F_REST.match(f)))
+    if idx != list(range(len(idx))) or len(idx) % 3:
+        return idx, None
+    return idx, len(idx) // 3
+
+
+def fill_sh_rest(sh_rest: np.ndarray, rows: np.ndarray, decode: Callable[[np.ndarray], np.ndarray] | None = None) -> None:
+    """Fill ``sh_rest`` (M, K, 3) in place from the channel-major ``f_rest_*`` fields of the
+    structured ``rows`` (M,): ``f_rest_{c*K + j}`` -> ``sh_rest[:, j, c]``, each field passed
+    through ``decode`` first when given (a quantised file)."""
+    k = sh_rest.shape[1]
+    for i in range(3 * k):
+        col = rows[f"f_rest_{i}"]  # (M,)
+        sh_rest[:, i % k, i // k] = col if decode is None else decode(col)
 
 
 def scene_error(path: str | Path, problem: str) -> SceneFormatError:

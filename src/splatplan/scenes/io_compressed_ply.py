@@ -26,13 +26,12 @@ Layout (all fields read by name):
 
 from __future__ import annotations
 
-import re
 from pathlib import Path
 
 import numpy as np
 import plyfile
 
-from .io_common import build_splats, exp_std, scene_error
+from .io_common import build_splats, exp_std, f_rest_layout, fill_sh_rest, scene_error
 from .splats import Splats
 
 #: Splats per chunk.
@@ -41,7 +40,6 @@ CHUNK_SIZE = 256
 _CHUNK_REQUIRED = [f"{m}_{a}" for m in ("min", "max") for a in "xyz"] + [f"{m}_scale_{a}" for m in ("min", "max") for a in "xyz"]
 _CHUNK_COLOR = [f"{m}_{c}" for m in ("min", "max") for c in "rgb"]
 _VERTEX_REQUIRED = ["packed_position", "packed_rotation", "packed_scale", "packed_color"]
-_F_REST = re.compile(r"^f_rest_(\d+)$")
 
 
 def unpack_unorm(packed: np.ndarray, shift: int, bits: int) -> np.ndarray:
@@ -114,13 +112,11 @@ def decode_compressed_ply(ply: plyfile.PlyData, path: str | Path, *, drop_invali
     sh_rest = None
     if "sh" in names:
         sh = ply["sh"].data
-        idx = sorted(int(m.group(1)) for f in (sh.dtype.names or ()) if (m := _F_REST.match(f)))
-        if len(sh) != n or not idx or idx != list(range(len(idx))) or len(idx) % 3:
+        idx, k = f_rest_layout(sh.dtype.names or ())
+        if len(sh) != n or not k:
             raise scene_error(path, f"compressed PLY 'sh' element must have {n} rows of f_rest_0..f_rest_{{3K-1}}; found {len(sh)} rows, {len(idx)} f_rest fields")
-        k = len(idx) // 3
         sh_rest = np.empty((n, k, 3), dtype=np.float32)  # (N, K, 3), filled field by field
-        for i in idx:  # channel-major: f_rest_{c*K + j} -> sh_rest[:, j, c]
-            sh_rest[:, i % k, i // k] = (np.asarray(sh[f"f_rest_{i}"], dtype=np.float32) / np.float32(255.0) - np.float32(0.5)) * np.float32(8.0)
+        fill_sh_rest(sh_rest, sh, decode=lambda u: (np.asarray(u, dtype=np.float32) / np.float32(255.0) - np.float32(0.5)) * np.float32(8.0))
 
     return build_splats(
         path,

@@ -17,7 +17,6 @@ Other fields (``nx ny nz``, custom attributes) are ignored.
 from __future__ import annotations
 
 import os
-import re
 import tempfile
 from pathlib import Path
 
@@ -25,10 +24,9 @@ import numpy as np
 import plyfile
 
 from ..errors import SceneFormatError, SplatplanError
-from .io_common import BLOCK_ROWS, LOG_FLOAT32_MAX, build_splats, color_to_sh_dc, exp_std, logit, scene_error, sh_dc_to_color, sigmoid
+from .io_common import BLOCK_ROWS, LOG_FLOAT32_MAX, build_splats, color_to_sh_dc, exp_std, f_rest_layout, fill_sh_rest, logit, scene_error, sh_dc_to_color, sigmoid
 from .splats import Splats
 
-_F_REST = re.compile(r"^f_rest_(\d+)$")
 _REQUIRED = ["x", "y", "z", "f_dc_0", "f_dc_1", "f_dc_2", "opacity", "scale_0", "scale_1", "rot_0", "rot_1", "rot_2", "rot_3"]
 
 
@@ -171,12 +169,9 @@ def decode_gaussian_ply(ply: plyfile.PlyData, path: str | Path, *, drop_invalid:
         raise scene_error(path, f"PLY 'vertex' element lacks required Gaussian-splat field(s) {', '.join(missing)}; expected an INRIA 3DGS or 2DGS export")
     is_2d = "scale_2" not in fields
     n = len(v)
-    rest_idx = sorted(int(m.group(1)) for f in fields if (m := _F_REST.match(f)))
-    k = 0
-    if rest_idx:
-        if rest_idx != list(range(len(rest_idx))) or len(rest_idx) % 3:
-            raise scene_error(path, f"'f_rest_*' fields must be f_rest_0..f_rest_{{3K-1}}; found {len(rest_idx)} with indices {rest_idx[0]}..{rest_idx[-1]}")
-        k = len(rest_idx) // 3
+    rest_idx, k = f_rest_layout(fields)
+    if k is None:
+        raise scene_error(path, f"'f_rest_*' fields must be f_rest_0..f_rest_{{3K-1}}; found {len(rest_idx)} with indices {rest_idx[0]}..{rest_idx[-1]}")
 
     means = np.empty((n, 3), dtype=np.float32)
     quats = np.empty((n, 4), dtype=np.float32)  # wxyz, not normalised
@@ -207,8 +202,8 @@ def decode_gaussian_ply(ply: plyfile.PlyData, path: str | Path, *, drop_invalid:
             opacities[a:b] = sigmoid(rows["opacity"])
             for c in range(3):
                 colors[a:b, c] = sh_dc_to_color(rows[f"f_dc_{c}"])
-            for i in range(3 * k):  # channel-major in the file: f_rest_{c*K + j} -> sh_rest[:, j, c]
-                sh_rest[a:b, i % k, i // k] = rows[f"f_rest_{i}"]
+            if k:
+                fill_sh_rest(sh_rest[a:b], rows)
         rows = mat = None  # release the last block before validating
     return build_splats(
         path,
