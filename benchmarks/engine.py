@@ -121,7 +121,7 @@ def _serial_threads(n: int | None):
     return old
 
 
-def run_mbm_set(n_per_family: int, n_splats: int, time_limit: float, out: Path, workers: int, margin_m: float | None = None,
+def run_mbm_set(n_per_family: int, n_splats: int | None, time_limit: float, out: Path, workers: int, margin_m: float | None = None,
                 max_iters: int | None = None, n_sigma: float | None = None) -> dict:  # fmt: skip
     """The MBM job set: serial with every core in each collision call (as a user runs it), serial with
     cores / workers threads (the same per-task threads as a worker: the engine's own efficiency),
@@ -156,7 +156,7 @@ def run_mbm_set(n_per_family: int, n_splats: int, time_limit: float, out: Path, 
     differing1 = [k for k in ser.rows if comparable(ser.rows[k]) != comparable(ser1.rows.get(k, {}))]
     rows = list(ser.rows.values())
     return {
-        "job_set": f"mbm ({n_per_family}/family, {n_splats:,} splats, n_sigma {cfg.n_sigma:g}, margin {'derived' if margin_m is None else format(margin_m, 'g') + ' m'}, "
+        "job_set": f"mbm ({n_per_family}/family, {f'{n_splats:,} splats' if n_splats else f'{1e3 * cfg.splat_spacing_m:g} mm splat spacing'}, n_sigma {cfg.n_sigma:g}, margin {'derived' if margin_m is None else format(margin_m, 'g') + ' m'}, "
                    + (f"{max_iters} iterations per search)" if max_iters else f"{time_limit:g} s per search)"),
         "n_tasks": len(tasks),
         "serial_s": ser.run_s,
@@ -274,7 +274,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--pairs", type=int, default=None, help="start/goal pairs per job set (default 24 Stonehenge, 12 tabletop)")
     ap.add_argument("--max-iters", type=int, default=None, help="RRT iterations per plan (default 300 Stonehenge, 150 tabletop)")
     ap.add_argument("--mbm", type=int, default=None, metavar="N", help="add the MBM job set: the first N problems of each shared MBM family")
-    ap.add_argument("--mbm-splats", type=int, default=None, help="splats per MBM scene (default: MBMConfig's)")
+    ap.add_argument("--mbm-splats", type=int, default=None, help="a fixed splat count per MBM scene (default: MBMConfig's splat spacing)")
     ap.add_argument("--mbm-time-limit", type=float, default=10.0, help="planning time limit per MBM problem (s)")
     ap.add_argument("--mbm-margin", type=float, default=None, help="MBM planning margin (m); default derived from the splats and n_sigma")
     ap.add_argument("--mbm-max-iters", type=int, default=100, help="iteration budget per MBM search (reproducible rows; 0 = the wall-clock --mbm-time-limit)")
@@ -305,9 +305,7 @@ def main(argv: list[str] | None = None) -> int:
     rows = []
     try:
         if args.mbm is not None:
-            from splatplan.eval.mbm import MBMConfig
-
-            rows.append(run_mbm_set(args.mbm, args.mbm_splats or MBMConfig().n_splats, args.mbm_time_limit, work, args.workers, args.mbm_margin, args.mbm_max_iters or None, args.mbm_n_sigma))
+            rows.append(run_mbm_set(args.mbm, args.mbm_splats, args.mbm_time_limit, work, args.workers, args.mbm_margin, args.mbm_max_iters or None, args.mbm_n_sigma))
             print(f"mbm: {rows[-1]['serial_s']:.1f} s serial, {rows[-1]['dask_s']:.1f} s on {args.workers} workers", file=sys.stderr)
         for name, spec in sets.items():
             rows.append(run_set(name, spec.validate(), Path("."), work, args.workers))

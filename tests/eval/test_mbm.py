@@ -240,3 +240,22 @@ def test_isolated_filter_drops_only_the_samplers_floaters():
     assert prep.n_isolated == int(iso.sum()) and len(prep.splats) == len(kept) - prep.n_isolated
     off = _prepare(task, MBMConfig(n_splats=200_000, seed=3, drop_isolated=False), robot)
     assert off.n_isolated == 0 and len(off.splats) == len(kept)
+
+
+def test_default_density_is_per_area():
+    """MBMConfig samples each scene at splat_spacing_m (a count per area, so an unseen larger cell
+    keeps the density and the margin), unless n_splats fixes the count; the rows say which."""
+    from splatplan.eval.mbm import _prepare
+    from splatplan.scenes.builtin.primitives import n_splats_for_spacing
+
+    scene = _toy_scene()
+    task = MBMTask("toy", 1, "", "", objects=scene.to_json())
+    robot = load_robot("panda")
+    prep = _prepare(task, MBMConfig(splat_spacing_m=0.01, seed=3), robot)
+    assert MBMConfig().n_splats is None
+    assert prep.n_sampled == n_splats_for_spacing(scene, 0.01, seed=3)
+    assert 0.009 <= prep.base_spacing <= 0.01
+    capped = _prepare(task, MBMConfig(splat_spacing_m=0.01, max_splats=2000, seed=3), robot)
+    assert capped.n_sampled == 2000 and capped.base_spacing > 0.01
+    fixed = _prepare(task, MBMConfig(n_splats=3000, seed=3), robot)
+    assert fixed.n_sampled == 3000

@@ -210,3 +210,28 @@ def test_shallow_penetration_is_negative(depth):
         assert val < 0 and val == pytest.approx(-depth, abs=0.3 * depth + 2e-5), val
         val_out = sc.ellipsoid_clearance(c + [2 * depth, 0, 0], rot, a)
         assert val_out == pytest.approx(depth, abs=1e-6)
+
+
+def _scene_scaled(k: float) -> AnalyticScene:
+    """A table with a can and a ball on it, every length times k."""
+    boxes = [make_box((0, 0, 0.4 * k), (0.5 * k, 0.3 * k, 0.02 * k)), make_box((0.3 * k, 0, 0.2 * k), (0.02 * k, 0.02 * k, 0.2 * k))]
+    cyl = make_cylinder((0, 0, 0.47 * k), 0.03 * k, 0.05 * k)
+    sph = make_sphere((-0.2 * k, 0.1 * k, 0.46 * k), 0.04 * k)
+    return AnalyticScene(np.array(boxes), [], {}, cyl[None], sph[None])
+
+
+def test_splat_count_per_area_keeps_the_spacing():
+    """n_splats_for_spacing: the sampler's grid comes out just under the asked spacing, on a small
+    scene and on the same scene twice as large (which gets ~4x the splats)."""
+    from splatplan.scenes.builtin.primitives import n_splats_for_spacing
+
+    counts = []
+    for k in (1.0, 2.0):
+        sc = _scene_scaled(k)
+        n = n_splats_for_spacing(sc, 0.01)
+        h = splats_from_scene(sc, n, seed=1).info["base_spacing"]
+        assert 0.9 * 0.01 <= h <= 0.01, (k, n, h)
+        counts.append(n)
+    assert 3.6 < counts[1] / counts[0] < 4.4
+    with pytest.raises(SplatplanError, match="spacing"):
+        n_splats_for_spacing(_scene_scaled(1.0), float("nan"))

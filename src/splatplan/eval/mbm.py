@@ -2,7 +2,7 @@
 
 For every problem (``<family>_panda/sceneNNNN.yaml`` + ``requestNNNN.yaml``, MoveIt YAML; see
 ``../shared/data/mbm/README.md``) the exact scene (boxes, cylinders, spheres) is sampled into
-``n_splats`` splats with the built-in real-capture look (:func:`~splatplan.scenes.moveit.build_moveit`,
+splats at ``splat_spacing_m`` (a count per surface area; or a fixed ``n_splats``) with the built-in real-capture look (:func:`~splatplan.scenes.moveit.build_moveit`,
 floaters then filtered as :func:`~splatplan.scenes.load.load_scene` does and, with ``drop_isolated``,
 the faint isolated ones that rule keeps), and the robot plans with
 :func:`splatplan.planners.plan` against the splats. Each row records:
@@ -127,12 +127,19 @@ class MBMConfig:
     #: metric conservatism of the planner's collision checks (0 = splat means, the default: with the
     #: derived margin the least conservative safe setting; see the module docstring)
     n_sigma: float = bounded(0.0, ge=0)
-    #: splats per scene (the built-in real-capture look). The safety margin is ~3.4x the splats'
-    #: median spacing h ~ 1/sqrt(n_splats): on the MBM workcells 100k splats give h ~ 5 mm and a
-    #: ~16 mm margin, more than the ~1 cm between a grasp pose's fingers and its object, so most
-    #: grasp goals cannot be called free; 500k (h ~ 2.2 mm, margin ~7.7 mm; a real capture of such a
-    #: cell has 0.3-3M) resolves them. Larger cells need more splats for the same margin
-    n_splats: int = bounded(500_000, ge=1000)
+    #: surface sampling spacing of each scene (m; the built-in real-capture look): a scene gets
+    #: (exposed area / spacing^2) splats (:func:`~splatplan.scenes.builtin.primitives.n_splats_for_spacing`),
+    #: so a large cell is sampled as densely as a small one. The safety margin is ~3.4x the splats'
+    #: median nearest-neighbour spacing h (~0.6x this): 3.5 mm gives h ~ 2.2 mm and a ~7.7 mm margin,
+    #: below the ~1 cm between a grasp pose's fingers and its object (on the MBM workcells, 5.7-6.5
+    #: m^2 of surface: 460-540k splats; a real capture of such a cell has 0.3-3M). At 100k splats
+    #: (h ~ 5 mm, margin ~16 mm) most grasp goals cannot be called free
+    splat_spacing_m: float = bounded(3.5e-3, gt=0, le=1.0)
+    #: a fixed splat count per scene instead (none = from splat_spacing_m)
+    n_splats: int | None = bounded(None, ge=1000)
+    #: most splats per scene from splat_spacing_m (a larger scene is sampled more coarsely; each
+    #: row records its count and spacing, and the derived margin follows the coarser spacing)
+    max_splats: int = bounded(3_000_000, ge=1000)
     #: after the paper's floater filter, also drop the faint isolated splats it keeps
     #: (:func:`~splatplan.scenes.filters.isolated_mask`: opacity < 0.3 and a mean 8-NN distance above
     #: 3x the scene's median; surfaces are dense and opaque splats are never dropped, so the margin's
@@ -275,6 +282,8 @@ class _Prepared:
     resolution: float  # edge resolution r (m)
     rho: float  # measured covering radius (m; nan when not checked)
     n_isolated: int  # faint isolated splats dropped (MBMConfig.drop_isolated)
+    n_sampled: int  # splats sampled (floaters included, before any filter)
+    base_spacing: float  # the sampler's grid spacing (m)
     endpoints: dict = field(default_factory=dict)  # request path -> (q0, q1, exact clearance (2,), hit (2,), hit_own (2,))
 
 
@@ -563,11 +572,12 @@ def _prepare(task: "MBMTask", cfg: MBMConfig, robot) -> _Prepared:
     the margin, measure rho when asked, build the checker."""
     from ..metric import CollisionChecker
     from ..scenes.filters import filter_floaters, isolated_mask
-    from ..scenes.moveit import build_moveit
-    from ..scenes.builtin.primitives import AnalyticScene
+    from ..scenes.builtin.primitives import AnalyticScene, n_splats_for_spacing
+    from ..scenes.moveit import build_moveit, load_moveit_scene
 
-    src = AnalyticScene.from_json(task.objects) if task.objects is not None else task.scene
-    splats, scene = build_moveit(src, n_splats=cfg.n_splats, seed=cfg.seed)
+    src = AnalyticScene.from_json(task.objects) if task.objects is not None else load_moveit_scene(task.scene)
+    n = cfg.n_splats or min(n_splats_for_spacing(src, cfg.splat_spacing_m, seed=cfg.seed), cfg.max_splats)
+    splats, scene = build_moveit(src, n_splats=n, seed=cfg.seed)
     base_spacing = float(splats.info["base_spacing"])
     splats, _ = filter_floaters(splats)
     n_isolated = 0
@@ -583,7 +593,7 @@ def _prepare(task: "MBMTask", cfg: MBMConfig, robot) -> _Prepared:
         margin, h_nn, res = float(cfg.margin_m), float("nan"), 0.25 * robot.min_semi_axis
     rho = covering_radius(scene, splats, base_spacing, n_sigma=cfg.n_sigma, seed=cfg.seed) if cfg.check_margin else float("nan")
     checker = CollisionChecker(splats, n_sigma=cfg.n_sigma, device="cpu")
-    return _Prepared(splats, scene, checker, margin, h_nn, res, rho, n_isolated)
+    return _Prepared(splats, scene, checker, margin, h_nn, res, rho, n_isolated, n, base_spacing)
 
 
 def solve_problem(task: MBMTask, ctx: MBMContext) -> dict:
@@ -599,7 +609,7 @@ def solve_problem(task: MBMTask, ctx: MBMContext) -> dict:
     prep = ctx.prepared(task)
     scene, checker, margin, res, rho = prep.scene, prep.checker, prep.margin, prep.resolution, prep.rho
     plan_robot = robot.inflated(margin) if margin > 0 else robot
-    row.update(margin_m=margin, spacing_nn_m=prep.spacing_nn, n_isolated_dropped=prep.n_isolated, rho_measured_m=rho, edge_resolution_m=res,
+    row.update(n_splats_sampled=prep.n_sampled, sample_spacing_m=prep.base_spacing, margin_m=margin, spacing_nn_m=prep.spacing_nn, n_isolated_dropped=prep.n_isolated, rho_measured_m=rho, edge_resolution_m=res,
                bound_holds=bool(margin >= rho + 0.5 * res - 1e-12) if cfg.check_margin else None)  # fmt: skip
     if task.request not in prep.endpoints:  # the same for every planner of the problem
         if task.q_start is not None and task.q_goal is not None:
@@ -800,11 +810,20 @@ def _margin_text(cfg: MBMConfig) -> str:
     return f"derived (max({f} h - {cfg.n_sigma:g} s_t, {fl} h) + r/2)" if cfg.n_sigma > 0 else f"derived ({f} x NN spacing h + r/2)"
 
 
+def _density_text(rows: list[dict], cfg: MBMConfig) -> str:
+    """How densely the scenes were sampled: the fixed count, or the spacing and the counts it gave."""
+    if cfg.n_splats:
+        return f"{cfg.n_splats:,} splats per scene"
+    n = [r["n_splats_sampled"] for r in rows if r.get("n_splats_sampled")]
+    got = f" ({min(n):,}-{max(n):,} splats per scene)" if n else ""
+    return f"sampled at {1e3 * cfg.splat_spacing_m:g} mm spacing{got}"
+
+
 def report(result: MBMResult) -> str:
     """Markdown: one row per family and overall, then the published numbers and what differs."""
     cfg = result.config
     lines = [
-        f"MBM on splats: {cfg.n_splats:,} splats per scene (floaters: the paper's rule{', then isolated faint splats' if cfg.drop_isolated else ''}), n_sigma {cfg.n_sigma:g}, "
+        f"MBM on splats: {_density_text(result.rows, cfg)} (floaters: the paper's rule{', then isolated faint splats' if cfg.drop_isolated else ''}), n_sigma {cfg.n_sigma:g}, "
         f"margin {_margin_text(cfg)}, "
         f"time limit {cfg.time_limit:g} s{'' if cfg.max_iters is None else f' (searches run to {cfg.max_iters:,} iterations, no wall-clock limit)'}, robot {Path(result.setup.get('robot', '?')).name} ({result.setup.get('n_ellipsoids')} ellipsoids), "
         f"planner {cfg.planners[0]} (table below: every planner), engine {_engine_text(result.setup.get('engine'))}",

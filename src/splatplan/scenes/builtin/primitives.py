@@ -48,7 +48,7 @@ from ..splats import Splats, quat_multiply, quat_to_rotmat
 
 __all__ = [
     "AnalyticScene", "SurfaceSplatConfig", "box_corners", "box_sdf", "cylinder_sdf", "make_box", "make_cylinder", "make_sphere",
-    "sphere_sdf", "splats_from_boxes", "splats_from_scene",
+    "n_splats_for_spacing", "sphere_sdf", "splats_from_boxes", "splats_from_scene",
 ]  # fmt: skip
 
 #: Format tag written into JSON files produced by :meth:`AnalyticScene.to_json`.
@@ -971,23 +971,42 @@ def _box_aabbs(scene: AnalyticScene) -> tuple[np.ndarray, np.ndarray]:
     return scene.boxes[:, :3] - half, scene.boxes[:, :3] + half
 
 
-def _surface_samples(scene: AnalyticScene, n_surf: int, density: np.ndarray, faces: np.ndarray, rng: np.random.Generator):
-    """Surface samples (a :func:`_sample_faces` dict) at the base spacing that gives at least
-    ``n_surf`` of them, and that spacing: a coarse pilot measures the exposed area, then the
-    spacing shrinks until there are enough samples."""
+def _pilot_area(scene: AnalyticScene, n_surf: int, density: np.ndarray, faces: np.ndarray, rng: np.random.Generator) -> float:
+    """The exposed surface area (m^2; each box's faces weighted by 1 / density^2, buried parts
+    left out), from a pilot sample at 3x the spacing that ``n_surf`` samples of the nominal area would have."""
     curved_area = _curved_areas(scene)  # (C + S,)
     dens_all = np.concatenate([density, np.ones(len(curved_area))]) if len(curved_area) else density  # per primitive
-    # Pilot at a coarse spacing: the exposed area per box, in units of the base spacing.
-    total = 0.0
+    total = 0.0  # nominal area: every selected face whole, overlaps counted twice
     for i, box in enumerate(scene.boxes):
         h = box[3:6]
         areas = 4 * np.array([h[1] * h[2], h[1] * h[2], h[0] * h[2], h[0] * h[2], h[0] * h[1], h[0] * h[1]])
         total += float((areas * faces[i]).sum()) / density[i] ** 2
     if len(curved_area):
         total += float(curved_area.sum())
-    h_base = np.sqrt(total / n_surf) * 3.0
-    pilot = _sample_faces(scene, h_base * density, faces, rng, curved_spacing=h_base)
-    weighted = float(np.sum(pilot["h"] ** 2 / dens_all[pilot["face_box"][pilot["frame"]]] ** 2))
+    h_pilot = np.sqrt(total / n_surf) * 3.0
+    pilot = _sample_faces(scene, h_pilot * density, faces, rng, curved_spacing=h_pilot)
+    return float(np.sum(pilot["h"] ** 2 / dens_all[pilot["face_box"][pilot["frame"]]] ** 2))
+
+
+def n_splats_for_spacing(scene: AnalyticScene, spacing: float, config: SurfaceSplatConfig = SurfaceSplatConfig(), seed: int = 0) -> int:
+    """The ``n_splats`` for which :func:`splats_from_scene` samples ``scene`` at just under ``spacing``
+    (m, its base grid spacing ``info["base_spacing"]``; the median nearest-neighbour distance of
+    the splat means comes out ~0.6x that): exposed area / spacing^2 surface splats, plus the
+    floaters. A count per area keeps the density, and so everything derived from it, the same on
+    large and small scenes."""
+    if not (np.isfinite(spacing) and spacing > 0):
+        raise SplatplanError(f"splat spacing must be a positive number of metres, got {spacing}")
+    m = len(scene.boxes)
+    area = _pilot_area(scene, 20_000, np.ones(m), np.ones((m, 6), bool), np.random.default_rng(seed))
+    n_surf = area / spacing**2  # the sampler's grid then comes out at 0.95-0.98x spacing
+    return max(1, int(np.ceil(n_surf / max(1.0 - config.floater_fraction, 1e-9))))
+
+
+def _surface_samples(scene: AnalyticScene, n_surf: int, density: np.ndarray, faces: np.ndarray, rng: np.random.Generator):
+    """Surface samples (a :func:`_sample_faces` dict) at the base spacing that gives at least
+    ``n_surf`` of them, and that spacing: a coarse pilot measures the exposed area, then the
+    spacing shrinks until there are enough samples."""
+    weighted = _pilot_area(scene, n_surf, density, faces, rng)
     h_base = np.sqrt(weighted / n_surf) * 0.98
     for _ in range(5):
         smp = _sample_faces(scene, h_base * density, faces, rng, curved_spacing=h_base)
