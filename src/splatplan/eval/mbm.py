@@ -128,11 +128,11 @@ class MBMConfig:
     #: derived margin the least conservative safe setting; see the module docstring)
     n_sigma: float = bounded(0.0, ge=0)
     #: surface sampling spacing of each scene (m; the built-in real-capture look): a scene gets
-    #: (exposed area / spacing^2) splats (:func:`~splatplan.scenes.builtin.primitives.n_splats_for_spacing`),
-    #: so a large cell is sampled as densely as a small one. The safety margin is ~3.4x the splats'
-    #: median nearest-neighbour spacing h (~0.6x this): 3.5 mm gives h ~ 2.2 mm and a ~7.7 mm margin,
+    #: (exposed area / spacing^2) splats (scenes.builtin.primitives.n_splats_for_spacing), so a
+    #: large cell is sampled as densely as a small one. The safety margin is ~3.4x the splats'
+    #: median nearest-neighbour spacing h (~0.6x this): 3.5 mm gives h ~ 2.2 mm and a ~7.6 mm margin,
     #: below the ~1 cm between a grasp pose's fingers and its object (on the MBM workcells, 5.7-6.5
-    #: m^2 of surface: 460-540k splats; a real capture of such a cell has 0.3-3M). At 100k splats
+    #: m^2 of surface: 480-560k splats; a real capture of such a cell has 0.3-3M). At 100k splats
     #: (h ~ 5 mm, margin ~16 mm) most grasp goals cannot be called free
     splat_spacing_m: float = bounded(3.5e-3, gt=0, le=1.0)
     #: a fixed splat count per scene instead (none = from splat_spacing_m)
