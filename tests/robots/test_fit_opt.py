@@ -103,7 +103,7 @@ def test_mbm_panda_loads_the_shipped_tight_fit():
     _contains_random_points(robot, MBM / "panda.urdf")
 
 
-@pytest.mark.xfail(strict=True, reason="issue 19: the tight model is certified safe but misses 1.3x volume per link, 40 ellipsoids and 1.5 cm reach on some links (see README)")
+@pytest.mark.xfail(strict=True, reason="issue 19: the tight model is certified safe but misses 1.3x volume per link, 40 ellipsoids and 1.5 cm reach on some links (see README, benchmarks/fit_frontier.py)")
 def test_shipped_tight_model_meets_the_issue_targets():
     """Issue 19: every link contains its mesh, reaches at most 1.5 cm beyond it and totals at most
     1.3x its volume, with at most 40 ellipsoids for the Panda (built-in, example-robot-data meshes)."""
