@@ -156,3 +156,25 @@ def test_mbm_files_load():
         q0, q1 = load_moveit_request(d / "request0001.yaml", robot)
         assert q0.shape == q1.shape == (7,)
     assert "cylinder" in load_moveit_scene(MBM / "problems" / "table_pick_panda" / "scene0001.yaml").kinds
+
+
+def test_from_moveit_cli_spacing_is_a_count_per_area(tmp_path, capsys):
+    """--spacing M samples at about M (a count per surface area); with --n-splats, or a spacing that
+    gives too few or too many splats, it is one line and exit 2, and nothing is written."""
+    from splatplan.scenes.builtin.primitives import n_splats_for_spacing
+
+    path = _write(tmp_path, "s.yaml", SCENE)
+    rc = main(["scene", "from-moveit", str(path), "--out", str(tmp_path / "x.ply"), "--spacing", "0.01", "--seed", "3"])
+    assert rc == 0, capsys.readouterr().err
+    gt = AnalyticScene.load(tmp_path / "x.gt.json")
+    assert gt.meta["n_splats"] == n_splats_for_spacing(load_moveit_scene(path), 0.01, seed=3)
+    assert 0.009 <= gt.meta["base_spacing"] <= 0.01
+    capsys.readouterr()
+    for extra, msg in ((["--spacing", "0.01", "--n-splats", "5000"], "not both"), (["--spacing", "5"], "smaller spacing"),
+                       (["--spacing", "1e-6"], "larger --spacing")):  # fmt: skip
+        rc = main(["scene", "from-moveit", str(path), "--out", str(tmp_path / "y.ply"), *extra])
+        err = capsys.readouterr().err
+        assert rc == 2 and msg in err and err.count("\n") == 1, (extra, err)
+        assert not (tmp_path / "y.ply").exists()
+    assert main(["scene", "stonehenge", "--out", str(tmp_path / "z.ply"), "--spacing", "0.01"]) == 2
+    assert "goes with 'splatplan scene from-moveit" in capsys.readouterr().err

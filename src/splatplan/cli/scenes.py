@@ -137,8 +137,9 @@ def cmd_scene(args) -> int:
         return _scene_from_moveit(args)
     if args.name == "align":
         return cmd_align(args)
-    if args.n_splats is not None:
-        raise SplatplanError("--n-splats goes with 'splatplan scene from-moveit SCENE.yaml --out X.ply'")
+    for flag in ("n_splats", "spacing"):
+        if getattr(args, flag) is not None:
+            raise SplatplanError(f"--{flag.replace('_', '-')} goes with 'splatplan scene from-moveit SCENE.yaml --out X.ply'")
     if args.input is not None:
         raise SplatplanError(f"scene {args.name}: unexpected argument {args.input!r} (only 'scene align IN' and 'scene from-moveit SCENE.yaml' take an input)")
     given = [f for f in ("up", "floor", "scale", "rotate_z", "translate", "crop") if getattr(args, f) is not None] + (["drop_floaters"] if args.drop_floaters else [])
@@ -175,20 +176,32 @@ def _check_out_ply(text: str) -> Path:
 
 def _scene_from_moveit(args) -> int:
     """``splatplan scene from-moveit SCENE.yaml --out X.ply``: splats + exact ground truth X.gt.json."""
-    from ..scenes.moveit import DEFAULT_N_SPLATS, load_moveit_scene, write_moveit
+    from .._resources import require_bytes
+    from ..scenes.builtin import SPLAT_BUILD_BYTES
+    from ..scenes.builtin.primitives import n_splats_for_spacing
     from ..scenes.builtin.stonehenge import ground_truth_path
+    from ..scenes.moveit import DEFAULT_N_SPLATS, load_moveit_scene, write_moveit
 
     if args.input is None:
         raise SplatplanError("scene from-moveit needs the planning-scene YAML: splatplan scene from-moveit SCENE.yaml --out X.ply")
-    n = DEFAULT_N_SPLATS if args.n_splats is None else int(args.n_splats)
-    if n < 1000:
-        raise SplatplanError(f"--n-splats must be >= 1000, got {n}")
+    if args.n_splats is not None and args.spacing is not None:
+        raise SplatplanError("give --n-splats or --spacing, not both")
     if not 0 <= args.seed < 2**63:
         raise SplatplanError(f"--seed must be an integer >= 0, got {args.seed}")
     out = _check_out_ply(args.out)
-    load_moveit_scene(args.input)  # reject bad input before any work
+    scene = load_moveit_scene(args.input)  # reject bad input before any work
+    if args.spacing is not None:
+        n = n_splats_for_spacing(scene, float(args.spacing), seed=args.seed)
+        what, lower = f"--spacing {args.spacing:g} m: {n:,} splats for this scene's surface", "the splat count (a larger --spacing)"
+    else:
+        n = DEFAULT_N_SPLATS if args.n_splats is None else int(args.n_splats)
+        what, lower = f"{n:,} splats", "the splat count (--n-splats)"
+    if n < 1000:
+        raise SplatplanError(f"--n-splats must be >= 1000, got {n}" if args.spacing is None else
+                             f"--spacing {args.spacing:g} m gives only {n} splats for this scene (at least 1000): give a smaller spacing")  # fmt: skip
+    require_bytes(float(n) * SPLAT_BUILD_BYTES, what, lower)
     with atomic_dir(out.parent) as tmp:
-        ply, gt = write_moveit(args.input, tmp / out.name, n_splats=n, seed=args.seed)
+        ply, gt = write_moveit(scene, tmp / out.name, n_splats=n, seed=args.seed)
         gt_dest = ground_truth_path(out)
         move_into(gt, gt_dest)
         move_into(ply, out)
@@ -226,3 +239,5 @@ def register(sub, eval_sub) -> None:
     s.add_argument("--level", type=int_arg(ge=1, le=5), default=1, help="Gaussian-size level 1..5 (larger, fewer splats)")
     add_seed_arg(s, help="layout and sampling seed, an integer >= 0 (default 0)")
     s.add_argument("--n-splats", type=int_arg(ge=1), default=None, help="from-moveit only: total splats (default 100000: ~7-8 mm spacing on a metre-scale workcell)")
+    s.add_argument("--spacing", type=float_arg(gt=0), default=None, metavar="M", help="from-moveit only: sample at this surface spacing (m) "
+                   "instead, a count per area (3.5e-3 is eval mbm's default: ~500k splats on an MBM workcell)")  # fmt: skip
