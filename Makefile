@@ -46,7 +46,7 @@ bench: $(STAMP)
 	$(VENV)/bin/splatplan eval base --out benchmarks/results
 	$(VENV)/bin/splatplan eval reach --out benchmarks/results
 	$(VENV)/bin/splatplan eval navigate --out benchmarks/results
-	$(PY) benchmarks/mbm_cpu.py benchmarks/results/mbm/default_500k
+	$(PY) benchmarks/mbm_cpu.py benchmarks/results/mbm/default_spacing
 	$(PY) benchmarks/update_readme.py
 
 clean:

@@ -14,7 +14,7 @@ from .conftest import write_tree
 def test_info_builtin_json(capsys):
     assert main(["robot", "info", "panda", "--json"]) == 0
     d = json.loads(capsys.readouterr().out)
-    assert d["dof"] == 7 and d["n_ellipsoids"] == 53 and len(d["joints"]) == 7  # plain panda: the tight model
+    assert d["dof"] == 7 and d["n_ellipsoids"] == 43 and len(d["joints"]) == 7  # plain panda: the tight model
     assert all(1.0 <= v["volume_ratio"] < 5.0 for v in d["fit"].values())
     for argv in (["panda", "--model", "coarse"], ["panda:coarse"]):  # the coarse model stays available by name
         assert main(["robot", "info", *argv, "--json", "--no-measure"]) == 0

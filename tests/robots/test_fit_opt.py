@@ -140,3 +140,58 @@ def test_cli_fit_method_opt(tmp_path, capsys):
         assert _inside(verts, ells).all(), link
     assert main(argv[:-2] + ["--opt-min-per-link", "4"]) == 2  # min > max: one line, exit 2
     assert "min_per_link" in capsys.readouterr().err
+
+
+def _surrogate_grad(c, a, field_value: float = 1.0):
+    """Gradients (dc, dA) of exposed_volume_surrogate for ellipsoids (c (k, 3), A (k, 3, 3)) with the
+    solid's field held at ``field_value`` everywhere (> 0: no solid in the way)."""
+    import torch
+
+    c = torch.tensor(c, dtype=torch.float64, requires_grad=True)
+    a = torch.tensor(a, dtype=torch.float64, requires_grad=True)
+    dirs = torch.tensor(fo.sphere_points(4000), dtype=torch.float64)
+    x = c[:, None, :] + torch.einsum("kij,uj->kui", torch.linalg.inv(a), dirs)
+    d = torch.full(x.shape[:2], field_value, dtype=torch.float64)
+    fo.exposed_volume_surrogate(torch, c, a, dirs, x, d, 4 * np.pi / len(dirs)).backward()
+    return c.grad.numpy(), a.grad.numpy()
+
+
+def test_exposed_volume_gradient_of_one_ellipsoid_is_the_volume_gradient():
+    """One ellipsoid, nothing else: the surrogate's gradient in A is that of its volume
+    (4/3) pi / |det A|, i.e. -V A^-T; in the centre it is 0; inside the solid it is all 0."""
+    rng = np.random.default_rng(0)
+    a = np.diag([1 / 0.05, 1 / 0.08, 1 / 0.03]) @ np.linalg.qr(rng.normal(size=(3, 3)))[0]
+    gc, ga = _surrogate_grad(np.zeros((1, 3)), a[None])
+    vol = 4 / 3 * np.pi / abs(np.linalg.det(a))
+    np.testing.assert_allclose(ga[0], -vol * np.linalg.inv(a).T, rtol=0.02, atol=0.02 * vol * np.abs(np.linalg.inv(a)).max())
+    assert np.abs(gc).max() < 1e-3 * vol / 0.03
+    gc, ga = _surrogate_grad(np.zeros((1, 3)), a[None], field_value=-1.0)
+    assert not gc.any() and not ga.any()
+
+
+def test_exposed_volume_gradient_of_two_spheres_is_the_lens_formula():
+    """Two unit-radius spheres d apart: the union is 2 (4/3) pi - lens(d), lens(d) = pi (4 + d)(2 - d)^2 / 12,
+    so moving one sphere away grows the union at -lens'(d); the surrogate's gradient in its centre says the same."""
+    d = 1.2
+    gc, _ = _surrogate_grad(np.array([[0.0, 0, 0], [d, 0, 0]]), np.stack([np.eye(3)] * 2))
+    lens_prime = np.pi / 12 * ((2 - d) ** 2 - 2 * (4 + d) * (2 - d))
+    assert gc[1, 0] == pytest.approx(-lens_prime, rel=0.02)
+    assert gc[0, 0] == pytest.approx(lens_prime, rel=0.02)
+    assert np.abs(gc[:, 1:]).max() < 0.02 * abs(lens_prime)  # the lattice's sampling error
+
+
+def test_allocate_shares_the_budget_by_volume_per_ellipsoid():
+    """Each link starts at its fewest ellipsoids within reach; the budget goes where it removes the
+    most excess volume per ellipsoid; a start over the budget is kept as is."""
+    opts = {  # (n, excess m^3, reach m)
+        "a": [(2, 10.0, 0.02), (3, 6.0, 0.014), (4, 5.0, 0.012), (6, 1.0, 0.013)],  # starts at 3 (2 is out of reach)
+        "b": [(2, 4.0, 0.01), (3, 3.5, 0.01), (4, 1.0, 0.01)],
+        "c": [(3, 2.0, 0.03), (4, 3.0, 0.02)],  # never within reach: the smallest reach
+    }
+    pick = fo.allocate(opts, budget=9, reach=0.015)
+    assert pick == {"a": 1, "b": 0, "c": 1}  # 3 + 2 + 4 = 9: nothing fits the budget
+    pick = fo.allocate(opts, budget=11, reach=0.015)
+    assert pick == {"a": 1, "b": 2, "c": 1}  # b: 3 m^3 for 2 ellipsoids beats a's 1 m^3 for 1
+    pick = fo.allocate(opts, budget=14, reach=0.015)
+    assert pick == {"a": 3, "b": 2, "c": 1}
+    assert fo.allocate(opts, budget=3, reach=0.015) == {"a": 1, "b": 0, "c": 1}  # over budget at the start: kept

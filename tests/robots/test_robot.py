@@ -23,7 +23,7 @@ def _surface_points(robot, q, n_per=64, seed=0):
 
 
 def test_builtins_basic(panda, go2):
-    assert panda.dof == 7 and panda.joint_names[0] == "panda_joint1" and panda.n_ellipsoids == 53  # the tight model (DEFAULT_MODEL, data/panda_tight.yaml)
+    assert panda.dof == 7 and panda.joint_names[0] == "panda_joint1" and panda.n_ellipsoids == 43  # the tight model (DEFAULT_MODEL, data/panda_tight.yaml)
     assert load_robot("panda:coarse").n_ellipsoids == load_robot("panda", model="coarse").n_ellipsoids == 11  # the named coarse option: one per link
     assert go2.dof == 3 and go2.joint_names == ["x", "y", "yaw"]
     s = load_robot("sphere:0.015")

@@ -267,13 +267,15 @@ def split_fit(verts: np.ndarray, edges: np.ndarray, k: int) -> list[tuple[np.nda
     return out
 
 
-def fit_link(link: str, geoms: list[Geom], k: int = 1, method: str = "split", config=None) -> tuple[list, float]:
+def fit_link(link: str, geoms: list[Geom], k: int = 1, method: str = "split", config=None, alternatives: list | None = None) -> tuple[list, float]:
     """Ellipsoids [(c, R, s), ...] in the link frame for one link's geometry + its geometry volume.
 
     Spheres, cylinders and capsules always get their analytic enclosing ellipsoid; meshes and boxes
     get ``k`` split ellipsoids (``method="split"``), the optimised union (``method="opt"``,
     :func:`~splatplan.robots.fit_opt.fit_link_opt`) or the greedy cover (``method="cover"``,
-    :func:`~splatplan.robots.fit_cover.fit_link_cover`), each with ``config``)."""
+    :func:`~splatplan.robots.fit_cover.fit_link_cover`), each with ``config``). ``alternatives``
+    (``method="opt"``): a list that receives every count the fitter tried, as (ellipsoids on the
+    link, excess volume m^3, measured reach m, the link's ellipsoids), for a robot-wide budget."""
     import trimesh
 
     ells, vol, polys = [], 0.0, []
@@ -290,7 +292,13 @@ def fit_link(link: str, geoms: list[Geom], k: int = 1, method: str = "split", co
     if polys and method == "opt":
         from .fit_opt import OptConfig, fit_link_opt
 
-        ells += fit_link_opt(polys, config or OptConfig())[0]
+        best, stats = fit_link_opt(polys, config or OptConfig())
+        if alternatives is not None:  # every count tried, whole-link: (n, excess volume m^3, reach m, ellipsoids)
+            from .fit_cover import solids_of
+
+            pv = sum(m.volume for m in solids_of(polys))  # the volume the ratios are measured against
+            alternatives += [(len(ells) + len(e), (ratio - 1.0) * pv, reach, ells + list(e)) for _, e, ratio, reach in stats["candidates"]]
+        ells += best
     elif polys and method == "cover":
         from .fit_cover import FitConfig, fit_link_cover
 
@@ -343,6 +351,8 @@ def fit_model(
             if g.kind == "mesh" and (links is None or link in links) and (g.mesh is None or not Path(g.mesh).is_file()):
                 _polytope(g, link)  # raises the one-line "mesh file ... not found"
     names, cs, rs, ss, report, skipped = [], [], [], [], {}, []
+    budget = method == "opt" and (config is None or config.budget_per_link > 0)
+    fitted, options = {}, {}  # link -> (ells, geometry volume, geoms, source); link -> alternatives
     bar = {} if method != "split" else {"disable": True}  # (split fits take milliseconds)
     for link in progress(model.kin.link_names, desc=f"fit ({method})", unit="link", **bar):
         if links is not None and link not in links:
@@ -354,7 +364,20 @@ def fit_model(
             skipped.append(link)
             continue
         k = per_link if isinstance(per_link, int) else int(per_link.get(link, 1))
-        ells, gvol = fit_link(link, geoms, k, method, config)
+        alt = [] if budget else None
+        ells, gvol = fit_link(link, geoms, k, method, config, alternatives=alt)
+        fitted[link] = (ells, gvol, geoms, source)
+        if alt:
+            options[link] = alt
+    if options:
+        from .fit_opt import OptConfig, allocate
+
+        cfg = config or OptConfig()
+        n_fixed = sum(len(f[0]) for link, f in fitted.items() if link not in options)
+        pick = allocate({link: [a[:3] for a in alt] for link, alt in options.items()}, int(cfg.budget_per_link * len(fitted)) - n_fixed, cfg.reach)
+        for link, i in pick.items():
+            fitted[link] = (options[link][i][3],) + fitted[link][1:]
+    for link, (ells, gvol, geoms, source) in fitted.items():
         evol = union_volume(ells)
         for c, r, s in ells:
             names.append(link)

@@ -11,22 +11,27 @@ that its certificate then closes with centimetres of growth. Here k ellipsoids p
 2. **Objective.** Ellipsoid j is ``|A_j (x - c_j)|^2 <= 1`` (A_j any invertible 3x3 matrix).
    Minimised by Adam:
 
-   * the union's volume outside the solid: the grid cells outside the solid within the reach
-     band, each counted with a smooth indicator ``sigmoid((1 - min_j r_j(x)) / tau)`` (tau anneals);
+   * the union's volume outside the solid, through its exact gradient: each ellipsoid's surface
+     is sampled (``SURFACE_SAMPLES`` points of a Fibonacci lattice mapped by ``c_j + A_j^-1 u``),
+     and a sample that is exposed (outside every other ellipsoid and outside the solid) contributes
+     ``(n . x) dA`` with its outward normal n and area dA held constant
+     (:func:`exposed_volume_surrogate`): the gradient of that sum is the shape derivative of the
+     exposed volume (moving an exposed patch outwards by dt adds dt dA). Version 1 counted sampled
+     grid cells with a sigmoid instead; its gradient came from the few cells near an ellipsoid's
+     boundary and was noisy, and Adam then stalled (``benchmarks/fit_frontier.py``);
    * a hinge on coverage, with a weight that grows: every target point must have
-     ``min_j r_j(x) <= 1 - OptConfig.margin``. The surface is sampled densely (gaps between
-     samples are what the certificate would have to repair by growing an ellipsoid); each step
-     uses a fixed random subset plus the active set, every target beyond radius 0.8 (near the
-     union's boundary or outside it), refreshed every 25 steps;
-   * a hinge on reach: points on every ellipsoid's surface (a Fibonacci lattice mapped by
-     ``c_j + A_j^-1 u``) must lie within ``OptConfig.reach - pitch`` of the solid (field value),
-     with a weight that grows too.
+     ``min_j r_j(x) <= 1 - OptConfig.margin`` (all targets every step; the surface is sampled
+     densely, since gaps between samples are what the certificate would have to repair by growing
+     an ellipsoid);
+   * a hinge on reach: the same surface samples must lie within ``OptConfig.reach - pitch`` of the
+     solid (field value), with a weight that grows too.
 
-   Adam, learning rate decaying 10x; the band is subsampled each step (4,000 cells).
+   Adam, learning rate decaying 10x.
 
-   Initialisation: k-means of the target points; each cluster's covariance ellipsoid (a uniform
-   solid ellipsoid has covariance s^2 / 5 per axis); ``OptConfig.restarts`` seeds, the best
-   certified result (reach first, then volume) is kept.
+   Initialisation: k-means of interior points (``SEED_POINTS``); each cluster's covariance
+   ellipsoid (a uniform solid ellipsoid has covariance s^2 / 5 per axis); ``OptConfig.restarts``
+   seeds, the best certified result (reach first, then volume) is kept. (Clusters of surface
+   points start as flat patches that must grow inwards: with more ellipsoids that fitted worse.)
 3. **Certificate** (unchanged, :func:`~splatplan.robots.fit_cover.certify`): every solid is split
    into tetrahedra from a centre point; each must lie in ONE ellipsoid (its 4 vertices inside
    suffice, by convexity), otherwise it is bisected, and at the depth limit the ellipsoid needing
@@ -34,10 +39,13 @@ that its certificate then closes with centimetres of growth. Here k ellipsoids p
    point with the margin, so the repairs are small; the reach and the volume are then measured
    by Monte Carlo with exact distances (:mod:`splatplan.robots.fit_measure`), not trusted from
    the objective.
-4. **Count per link.** k starts at ``OptConfig.min_per_link`` and grows by one while the measured
-   fit misses ``OptConfig.volume_ratio`` or ``OptConfig.reach``, up to ``OptConfig.max_per_link``;
-   the first k that meets both wins (else the best volume ratio among those within reach, else the
-   smallest reach).
+4. **Count per link.** Every k in [``OptConfig.min_per_link``, ``OptConfig.max_per_link``] is
+   fitted, certified and measured. With a robot-wide budget (``OptConfig.budget_per_link`` x the
+   links, the default) :func:`splatplan.robots.fit.fit_model` shares it between the links
+   (:func:`allocate`: each starts at its fewest ellipsoids within reach, the rest goes where it
+   removes the most volume per ellipsoid). Without one, a link stops at the first k that meets
+   ``OptConfig.volume_ratio`` and ``OptConfig.reach``, else keeps the best volume ratio among the
+   k within reach, else the smallest reach.
 
 **Guarantee.** Containment is the certificate's (see :mod:`splatplan.robots.fit_cover`): exact for
 star-shaped solids (all Panda links), up to float rounding covered by ``CONTAIN_EPS``. Reach and
@@ -56,11 +64,16 @@ from .fit import CONTAIN_EPS
 from .fit_cover import certify, occupancy_grid, sample_solids, simplices_of, solids_of, sphere_points
 
 #: Version of the optimising fitter: part of the fit cache key (bump when results change).
-OPT_VERSION = 1
+OPT_VERSION = 2
 
-#: Surface samples for the coverage term's active set, per target point (dense: gaps between
-#: samples are what the certificate must repair by growing ellipsoids).
+#: Surface samples for the coverage term, per target point (dense: gaps between samples are what
+#: the certificate must repair by growing ellipsoids).
 SURFACE_DENSITY_FACTOR = 8
+#: Interior points the k-means start clusters (a start from surface points gives flat patches on
+#: the surface that must then grow inwards; more ellipsoids then fit worse, not better).
+SEED_POINTS = 4000
+#: Samples on each ellipsoid's surface (Fibonacci lattice): the volume gradient and the reach term.
+SURFACE_SAMPLES = 600
 
 
 
@@ -71,7 +84,8 @@ class OptConfig:
 
     #: Largest distance the model may reach beyond the link's solid (target; measured after the fit).
     reach: float = bounded(0.015, gt=0, le=1.0)
-    #: Target union volume / solid volume per link: k grows until the measured fit meets it (and reach).
+    #: Target union volume / solid volume per link: without a budget, k grows until the measured
+    #: fit meets it (and reach).
     volume_ratio: float = bounded(1.3, gt=1.0, le=100.0)
     #: Fewest ellipsoids per link (k starts here).
     min_per_link: int = bounded(3, ge=1, le=32)
@@ -89,6 +103,12 @@ class OptConfig:
     pitch: float = bounded(0.0, ge=0, le=0.1)
     #: Longest-edge bisections per tetrahedron in the certificate before an ellipsoid grows.
     max_depth: int = bounded(14, ge=0, le=30)
+    #: Robot-wide budget, as the mean ellipsoids per fitted link (the Panda's 11 links: 39); every k
+    #: in [min_per_link, max_per_link] is fitted and measured per link, then the links share the
+    #: budget (:func:`allocate`: each starts at its fewest ellipsoids within reach, the rest goes
+    #: where it removes the most volume per ellipsoid). 0 = no budget: each link keeps its best
+    #: volume within reach
+    budget_per_link: float = bounded(3.6, ge=0, le=32)
     #: Seed of every random choice (the fit is deterministic for a given seed and torch build).
     seed: int = bounded(0, ge=0, le=2**32 - 1)
 
@@ -169,8 +189,10 @@ def _init(pts: np.ndarray, k: int, rng: np.random.Generator) -> tuple[np.ndarray
     return np.array(cs), np.array(As)
 
 
-def optimise(targets, band, cell, sdf_grid, lo, pitch, k, cfg: OptConfig, rng, limit) -> list:
-    """One restart: k ellipsoids [(c, R, s), ...] in the frame of ``targets`` (normalised units)."""
+def optimise(targets, seeds, solid_volume, sdf_grid, lo, pitch, k, cfg: OptConfig, rng, limit) -> list:
+    """One restart: k ellipsoids [(c, R, s), ...] in the frame of ``targets`` (normalised units);
+    ``seeds`` (M, 3) are the interior points the k-means start clusters, ``solid_volume`` the
+    solid's volume in the same units."""
     try:
         import torch
     except ImportError:
@@ -181,49 +203,58 @@ def optimise(targets, band, cell, sdf_grid, lo, pitch, k, cfg: OptConfig, rng, l
     threads = torch.get_num_threads()
     torch.set_num_threads(1)  # tiny tensors: one thread is fastest; restored below
     try:
-        return _optimise(torch, targets, band, cell, sdf_grid, lo, pitch, k, cfg, rng, limit)
+        return _optimise(torch, targets, seeds, solid_volume, sdf_grid, lo, pitch, k, cfg, rng, limit)
     finally:
         torch.set_num_threads(threads)
 
 
-def _optimise(torch, targets, band, cell, sdf_grid, lo, pitch, k, cfg, rng, limit) -> list:
-    c0, a0 = _init(targets, k, rng)
+def exposed_volume_surrogate(torch, c, a, dirs, x, field_d, dirs_area: float):
+    """A function of the ellipsoids whose gradient is that of the union's volume outside the solid.
+
+    ``x`` (k, U, 3) = c_j + A_j^-1 u are the ellipsoids' surface samples for unit vectors ``dirs``
+    (U, 3) (with gradient), ``field_d`` (k, U) their signed distance to the solid (> 0 outside).
+    Returns sum over exposed samples (outside every other ellipsoid and outside the solid) of
+    (n . x) dA, with the outward unit normal n (along A^T u) and the sample's area dA
+    (|det A^-1| |A^T u| times the unit sphere's area per sample, ``dirs_area``) held constant: its
+    gradient is the shape derivative, moving an exposed patch outwards by dt adds dt dA of volume.
+    """
+    k = x.shape[0]
+    with torch.no_grad():
+        nrm = torch.einsum("kji,uj->kui", a, dirs)  # (k, U, 3) A^T u
+        nn = torch.linalg.norm(nrm, dim=-1, keepdim=True)
+        area = torch.abs(torch.linalg.det(torch.linalg.inv(a)))[:, None] * nn[..., 0] * dirs_area  # (k, U)
+        rx = (torch.einsum("iab,jiub->jiua", a, x[:, None, :, :] - c[None, :, None, :]) ** 2).sum(-1)  # (j, i, U): r_i at x_j,u
+        rx = rx.masked_fill(torch.eye(k, dtype=torch.bool)[:, :, None], 2.0)  # its own surface does not hide a sample
+        weight = ((rx.min(dim=1).values > 1.0) & (field_d > 0)) * area  # (k, U)
+        n_hat = nrm / nn
+    return (weight * (n_hat * x).sum(-1)).sum()
+
+
+def _optimise(torch, targets, seeds, solid_volume, sdf_grid, lo, pitch, k, cfg, rng, limit) -> list:
+    c0, a0 = _init(seeds, k, rng)
     dt = torch.float64
     c = torch.tensor(c0, dtype=dt, requires_grad=True)
     a = torch.tensor(a0, dtype=dt, requires_grad=True)
-    tg_all = torch.tensor(targets, dtype=dt)
-    base = torch.tensor(rng.choice(len(targets), min(len(targets), 1500), replace=False))
-    tg = tg_all[base]
-    bd_all = torch.tensor(band, dtype=dt)
-    dirs = torch.tensor(sphere_points(120), dtype=dt)  # (U, 3)
+    tg = torch.tensor(targets, dtype=dt)  # (N, 3) every target, every step
+    dirs = torch.tensor(sphere_points(SURFACE_SAMPLES), dtype=dt)  # (U, 3)
+    dirs_area = 4.0 * np.pi / len(dirs)
     grid = torch.tensor(sdf_grid, dtype=dt)
     lo_t = torch.tensor(lo, dtype=dt)
     opt = torch.optim.Adam([c, a], lr=0.01)
     n = cfg.steps
-    gen = torch.Generator().manual_seed(int(rng.integers(2**31)))
-    n_b = min(len(band), 4000)
-    cell = cell * len(band) / n_b  # each sampled band point stands for this much volume
     for it in range(n):
         frac = it / max(n - 1, 1)
-        tau = 0.2 * (1.0 - frac) + 0.02
         w_cov = 10.0 * 10.0 ** (5.0 * frac)
         w_reach = 100.0 * 10.0 ** (3.0 * frac)
         for gr in opt.param_groups:
             gr["lr"] = 0.01 * (1.0 - 0.9 * frac)
-        bd = bd_all[torch.randint(len(bd_all), (n_b,), generator=gen)]
-        if it % 25 == 0 and it > 0:  # active set: the base sample + every target near or outside the union
-            with torch.no_grad():
-                r_all = (torch.einsum("kij,nkj->nki", a, tg_all[:, None, :] - c[None]) ** 2).sum(-1).min(dim=1).values
-                near = torch.nonzero(r_all > 0.8).reshape(-1)
-                tg = tg_all[torch.unique(torch.cat([base, near]))]
         opt.zero_grad()
-        rt = (torch.einsum("kij,nkj->nki", a, tg[:, None, :] - c[None]) ** 2).sum(-1)  # (N, k)
-        cov = torch.relu(rt.min(dim=1).values - (1.0 - cfg.margin)).sum() / len(base) * 30.0  # coverage hinge
-        rb = (torch.einsum("kij,nkj->nki", a, bd[:, None, :] - c[None]) ** 2).sum(-1)
-        vol = torch.sigmoid((1.0 - rb.min(dim=1).values) / tau).sum() * cell
         ainv = torch.linalg.inv(a)  # (k, 3, 3)
         surf = c[:, None, :] + torch.einsum("kij,uj->kui", ainv, dirs)  # (k, U, 3)
-        d = field_at(grid, lo_t, pitch, surf.reshape(-1, 3))  # (k U,)
+        d = field_at(grid, lo_t, pitch, surf.reshape(-1, 3)).reshape(k, -1)  # (k, U) > 0 outside the solid
+        vol = exposed_volume_surrogate(torch, c, a, dirs, surf, d.detach(), dirs_area) / solid_volume
+        rt = (torch.einsum("kij,nkj->nki", a, tg[:, None, :] - c[None]) ** 2).sum(-1)  # (N, k)
+        cov = torch.relu(rt.min(dim=1).values - (1.0 - cfg.margin)).mean() * 30.0  # coverage hinge
         reach = (torch.relu(d - limit) ** 2).mean() / pitch**2
         loss = vol + w_cov * cov + w_reach * reach
         loss.backward()
@@ -238,6 +269,44 @@ def _optimise(torch, targets, band, cell, sdf_grid, lo, pitch, k, cfg, rng, limi
             r[:, 2] *= -1.0
         out.append((c_np[j], r, 1.0 / sv))
     return out
+
+
+def allocate(options: dict, budget: int, reach: float) -> dict:
+    """Share a robot-wide ellipsoid budget between links.
+
+    Args:
+        options: link -> [(n ellipsoids, excess volume m^3 (model union minus the solid), reach m), ...],
+            one entry per fitted count.
+        budget: most ellipsoids in total.
+        reach: the reach target (m).
+    Returns:
+        link -> index of the chosen entry. Each link starts at its fewest ellipsoids among the
+        entries within ``reach`` (none within: the entry with the smallest reach); while the budget
+        allows, the link whose larger entry (still within reach) removes the most excess volume per
+        added ellipsoid moves up. A start that already exceeds the budget is kept (nothing is
+        dropped to meet it).
+    """
+    good, pick = {}, {}
+    for link, opts in options.items():
+        ok = [i for i, o in enumerate(opts) if o[2] <= reach] or [min(range(len(opts)), key=lambda i: (opts[i][2], opts[i][0]))]
+        good[link] = ok
+        pick[link] = min(ok, key=lambda i: (opts[i][0], opts[i][1]))
+    total = sum(options[link][i][0] for link, i in pick.items())
+    while True:
+        best = None
+        for link, ok in good.items():
+            n0, ex0, _ = options[link][pick[link]]
+            for i in ok:
+                n, ex, _ = options[link][i]
+                if n > n0 and ex < ex0 and total + n - n0 <= budget:
+                    gain = (ex0 - ex) / (n - n0)
+                    if best is None or gain > best[0]:
+                        best = (gain, link, i, n - n0)
+        if best is None:
+            return pick
+        _, link, i, dn = best
+        pick[link] = i
+        total += dn
 
 
 def fit_link_opt(polys: list, cfg: OptConfig | None = None, k: int | None = None) -> tuple[list, dict]:
@@ -258,12 +327,12 @@ def fit_link_opt(polys: list, cfg: OptConfig | None = None, k: int | None = None
     field = SignedField(solids, pitch, cfg.reach + 4 * pitch)
     rng = np.random.default_rng(cfg.seed)
     surf, interior = sample_solids(solids, cfg.n_points, rng)
-    dense, _ = sample_solids(solids, 2 * SURFACE_DENSITY_FACTOR * cfg.n_points, rng)  # the surface, densely (active set)
+    dense, _ = sample_solids(solids, 2 * SURFACE_DENSITY_FACTOR * cfg.n_points, rng)  # the surface, densely
+    _, seeds = sample_solids(solids, 2 * SEED_POINTS, rng)  # interior points for the k-means start
     verts = np.concatenate([np.asarray(m.vertices) for m in solids])
     edges = np.concatenate([np.asarray(m.vertices)[m.edges_unique].mean(axis=1) for m in solids])
     targets = np.concatenate([surf, interior, verts, edges, dense])
     mu, S = 0.5 * (lo_b + hi_b), extent
-    band = field.centres[(~field.occ) & (field.sdf.reshape(-1) <= cfg.reach + pitch)]
     simp = [simplices_of(m) for m in solids]
     solid_cert = all(full for _, full in simp)
     simp = [sp for sp, _ in simp]
@@ -275,8 +344,8 @@ def fit_link_opt(polys: list, cfg: OptConfig | None = None, k: int | None = None
         best = None
         for r in range(cfg.restarts):
             sub = np.random.default_rng([cfg.seed, kk, r])
-            e = optimise((targets - mu) / S, (band - mu) / S, (pitch / S) ** 3 / (volume / S**3), field.sdf / S,
-                         (field.lo - mu) / S, pitch / S, kk, cfg, sub, limit / S)
+            e = optimise((targets - mu) / S, (seeds - mu) / S, volume / S**3, field.sdf / S, (field.lo - mu) / S, pitch / S, kk,
+                         cfg, sub, limit / S)  # fmt: skip
             e = [(mu + S * c, rot, S * s) for c, rot, s in e]
             grow = 1.0
             for sp in simp:
@@ -288,12 +357,14 @@ def fit_link_opt(polys: list, cfg: OptConfig | None = None, k: int | None = None
             if best is None or score < best[0]:
                 best = (score, e, m, grow)
         tried.append((kk, best[1], best[2], best[3]))
-        if best[2].reach_m <= cfg.reach and best[2].volume_ratio <= cfg.volume_ratio:
-            break
+        if best[2].reach_m <= cfg.reach and best[2].volume_ratio <= cfg.volume_ratio and not cfg.budget_per_link:
+            break  # (with a robot budget every k is kept: fit_model chooses across links)
     ok = [t for t in tried if t[2].reach_m <= cfg.reach]
     pick = min(ok, key=lambda t: t[2].volume_ratio) if ok else min(tried, key=lambda t: t[2].reach_m)
     stats = {"k": pick[0], "t_setup": t1 - t0, "t_opt": time.time() - t1, "pitch": pitch,
              "certificate": "solid" if solid_cert else "surface",
              # per k tried: (k, measured volume ratio, measured reach m, largest certificate scale-up)
-             "tried": [(t[0], t[2].volume_ratio, t[2].reach_m, t[3]) for t in tried]}
+             "tried": [(t[0], t[2].volume_ratio, t[2].reach_m, t[3]) for t in tried],
+             # every k tried, for a robot-wide budget (fit_model): (k, ellipsoids, volume ratio, reach m)
+             "candidates": [(t[0], t[1], t[2].volume_ratio, t[2].reach_m) for t in tried]}
     return pick[1], stats
