@@ -329,8 +329,9 @@ class CollisionTerms(ConfigTerms):
     w_collision: float = bounded(2.0, ge=0)
     #: cost per (step, ellipsoid) in collision
     w_hit: float = bounded(20.0, ge=0)
-    #: neighbourhood of the rollouts' collision cost (checker s2_cap for MPPI queries)
-    collision_s2_cap: float = bounded(2.0, ge=1)
+    #: neighbourhood of the rollouts' collision cost (checker s2_cap for MPPI queries; at most 16:
+    #: beyond it a splat's cost is below exp(-60) of its peak, and the search radius grows as sqrt(cap))
+    collision_s2_cap: float = bounded(2.0, ge=1, le=16)
 
     def collision_cost(self, checker, robot, **kw) -> CollisionCost:
         """The :class:`CollisionCost` of these terms on ``checker`` (``kw``: its other arguments)."""

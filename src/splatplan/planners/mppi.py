@@ -155,7 +155,8 @@ class CostWeights:
     #: collision cost's queries). Beyond it a splat's cost d_max exp(-gamma (s2~ - 1)) is below
     #: exp(-gamma (cap - 1)) (1.8% of d_max for the defaults gamma = 4, cap = 2); a smaller cap is a
     #: much smaller search radius. None = the checker's own s2_cap.
-    collision_s2_cap: float | None = bounded(2.0, ge=1)
+    #: (at most 16: beyond, below exp(-60) of d_max, while the search radius and time grow as sqrt(cap))
+    collision_s2_cap: float | None = bounded(2.0, ge=1, le=16)
     #: evaluate the collision cost on every n-th rollout step only (the last always; sums scaled by
     #: n): n times fewer queries, at the risk of stepping over thin obstacles; 1 = every step;
     #: "auto" = the largest n such that no ellipsoid point moves more than collision_max_gap_m
