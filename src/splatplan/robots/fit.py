@@ -294,9 +294,7 @@ def fit_link(link: str, geoms: list[Geom], k: int = 1, method: str = "split", co
 
         best, stats = fit_link_opt(polys, config or OptConfig())
         if alternatives is not None:  # every count tried, whole-link: (n, excess volume m^3, reach m, ellipsoids)
-            from .fit_cover import solids_of
-
-            pv = sum(m.volume for m in solids_of(polys))  # the volume the ratios are measured against
+            pv = stats["solid_volume"]
             alternatives += [(len(ells) + len(e), (ratio - 1.0) * pv, reach, ells + list(e)) for _, e, ratio, reach in stats["candidates"]]
         ells += best
     elif polys and method == "cover":

@@ -127,11 +127,10 @@ class SignedField:
     def __init__(self, solids: list, pitch: float, margin: float):
         from scipy.ndimage import distance_transform_edt
 
-        self.lo, self.pitch, self.shape, g, occ = occupancy_grid(solids, pitch, margin, min_cells=2)  # g (G, 3) voxel centres
+        self.lo, self.pitch, self.shape, _, occ = occupancy_grid(solids, pitch, margin, min_cells=2)
         # centre-to-centre distances overshoot the surface by about half a pitch on either side
         out, inn = distance_transform_edt(~occ, sampling=pitch), distance_transform_edt(occ, sampling=pitch)
         self.sdf = np.where(occ, 0.5 * pitch - inn, out - 0.5 * pitch)  # (X, Y, Z) m, > 0 outside
-        self.centres, self.occ = g, occ.reshape(-1)
 
 
 def field_at(grid, lo, pitch: float, pts):
@@ -366,5 +365,6 @@ def fit_link_opt(polys: list, cfg: OptConfig | None = None, k: int | None = None
              # per k tried: (k, measured volume ratio, measured reach m, largest certificate scale-up)
              "tried": [(t[0], t[2].volume_ratio, t[2].reach_m, t[3]) for t in tried],
              # every k tried, for a robot-wide budget (fit_model): (k, ellipsoids, volume ratio, reach m)
-             "candidates": [(t[0], t[1], t[2].volume_ratio, t[2].reach_m) for t in tried]}
+             "candidates": [(t[0], t[1], t[2].volume_ratio, t[2].reach_m) for t in tried],
+             "solid_volume": volume}  # m^3, what the volume ratios are measured against
     return pick[1], stats
