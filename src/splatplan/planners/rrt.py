@@ -120,6 +120,14 @@ class RRTConfig:
     #: configuration far from every splat stays free while no ellipsoid centre moves more than its
     #: distance to the splats minus the link's reach); the same answers with fewer checks
     edge_slack: bool = True
+    #: RRT-Connect: lazy search: check only the new nodes while the trees grow and the edges of a
+    #: candidate path once the trees meet (removing what collides); the returned path is checked at
+    #: edge_resolution either way. False: every edge checked when it is grown (the eager search)
+    lazy: bool = True
+    #: shortcut: screen each vertex's candidate edges at every this-many-th check sample first and
+    #: check the survivors whole, farthest first (the same path, fewer checks); None: check every
+    #: candidate whole
+    shortcut_screen: int | None = bounded(16, ge=1)
 
     def validate(self) -> "RRTConfig":
         check_config(self)  # each field's declared range (splatplan._config); cross-field rules below
@@ -403,6 +411,30 @@ class EdgeChecker:
         self.time_s += time.perf_counter() - t0
         return np.minimum(hit_at - 1, n), n
 
+    def screen(self, a: np.ndarray, b: np.ndarray, every: int) -> np.ndarray:
+        """(E, D), (E, D) -> bool (E,): no hit among every ``every``-th check sample of each edge
+        (samples k = every, 2 every, ... < n of :meth:`free_prefix`'s grid; the end point is not
+        checked). A subset of the edge's own samples: an edge that :meth:`edges_free` calls free
+        always passes, so screening first changes no answer, only how many checks an edge that
+        collides costs. One batched call."""
+        a = np.asarray(a, dtype=np.float64)
+        b = np.asarray(b, dtype=np.float64)
+        ok = np.ones(len(a), dtype=bool)
+        if len(a) == 0:
+            return ok
+        t0 = time.perf_counter()
+        n = np.maximum(1.0, np.ceil(self.geometry.motion(b - a) / self.resolution - 1e-9)).astype(np.int64)  # (E,) as edge_samples
+        m = np.maximum((n - 1) // int(every), 0)  # (E,) screened samples per edge
+        if m.sum() > 0:
+            require_bytes(float(m.sum()) * (a.shape[-1] + 2) * 8 * 4, f"{int(m.sum()):,} screening checks along {len(a)} edge(s)", "the edge length")
+            idx = np.repeat(np.arange(len(a)), m)  # (S,)
+            k = (np.arange(idx.size) - (np.cumsum(m) - m)[idx] + 1) * int(every)  # (S,) sample index along its edge
+            pts = a[idx] + (k / n[idx])[:, None] * (b - a)[idx]
+            hit = self.configs_collide(pts)
+            ok[np.unique(idx[hit])] = False
+        self.time_s += time.perf_counter() - t0
+        return ok
+
     def path_free(self, path: np.ndarray) -> bool:
         """Whether every point of a polyline (P, D), sampled at ``resolution``, is collision-free."""
         p = np.asarray(path, dtype=np.float64)
@@ -443,7 +475,7 @@ def check_endpoint(checker, geometry: LinkGeometry, x: np.ndarray, what: str) ->
         )
 
 
-def shortcut_path(edges: EdgeChecker, path: np.ndarray, deadline: float | None = None, candidates: str = "all") -> np.ndarray:
+def shortcut_path(edges: EdgeChecker, path: np.ndarray, deadline: float | None = None, candidates: str = "all", screen: int | None = None) -> np.ndarray:
     """Greedy shortcutting: from each kept vertex jump to the farthest vertex reachable by a free
     straight edge (all candidate edges of a vertex checked in one batched call).
 
@@ -451,6 +483,12 @@ def shortcut_path(edges: EdgeChecker, path: np.ndarray, deadline: float | None =
     i + 5, i + 9, ... (offsets 1 + 2^m) and the last one, O(log P) edges per vertex instead of
     O(P): for long paths of many short edges (RRT-Connect's connect runs), where checking every
     long candidate edge costs more than the search.
+
+    ``screen``: first check every ``screen``-th sample of all candidate edges of a vertex in one
+    call (:meth:`EdgeChecker.screen`), then check the survivors whole, farthest first, until one
+    is free. The same path as without it (the farthest free candidate passes the screen, and the
+    ones beyond it fail), with fewer checks: the long free candidates short of the farthest are not
+    checked whole.
 
     The result is collision-free at the checker's resolution whenever the input was (its vertices
     are input vertices, its edges checked ones), never longer than the input, and keeps both
@@ -462,6 +500,8 @@ def shortcut_path(edges: EdgeChecker, path: np.ndarray, deadline: float | None =
         return p.copy()
     if candidates not in ("all", "doubling"):
         raise SplatplanError(f"shortcut candidates must be 'all' or 'doubling', got {candidates!r}")
+    if screen is not None and int(screen) < 1:
+        raise SplatplanError(f"shortcut screen must be >= 1 (or None), got {screen}")
     out = [p[0]]
     i = 0
     while i < len(p) - 1:
@@ -475,7 +515,14 @@ def shortcut_path(edges: EdgeChecker, path: np.ndarray, deadline: float | None =
             cand = np.unique(np.append(i + off[i + off < len(p) - 1], len(p) - 1))
             cand = cand[cand >= i + 2]
         j = i + 1
-        if cand.size:
+        if cand.size and screen is not None:
+            cand = cand[::-1]  # farthest first
+            ok = edges.screen(np.repeat(p[i : i + 1], cand.size, axis=0), p[cand], int(screen))
+            for c in cand[ok].tolist():
+                if edges.edges_free(p[i : i + 1], p[c : c + 1])[0]:
+                    j = c
+                    break
+        elif cand.size:
             free = edges.edges_free(np.repeat(p[i : i + 1], cand.size, axis=0), p[cand])
             if free.any():
                 j = int(cand[np.nonzero(free)[0].max()])
@@ -819,7 +866,7 @@ class RRT:
         c_search = edges.time_s
         t1 = time.perf_counter()
         if self.config.shortcut and len(res.path) > 2:
-            res.path = shortcut_path(edges, res.path, deadline=deadline)
+            res.path = shortcut_path(edges, res.path, deadline=deadline, screen=self.config.shortcut_screen)
             res.length = path_length(res.path, w)
         res.info["n_queries"] = edges.n_queries - q0
         res.time_s = time.perf_counter() - t0

@@ -45,50 +45,10 @@ import math
 import time
 
 import numpy as np
-from scipy.spatial.distance import cdist
-
 from ..errors import PlanningError
 from .rrt import RRT, PlanResult, _Search, path_length, shortcut_path
-
-
-class _Tree:
-    """One tree: (cap, D) node configurations, their metric images and parents, grown in place."""
-
-    def __init__(self, root: np.ndarray, w: np.ndarray, cap: int) -> None:
-        d = root.size
-        self.w = w
-        self.nodes = np.empty((cap, d))  # (cap, D) configurations
-        self.zs = np.empty((cap, d))  # (cap, D) the same in the weighted metric
-        self.parents = np.full(cap, -1, dtype=np.int64)  # (cap,)
-        self.nodes[0], self.zs[0] = root, root * w
-        self.n = 1
-
-    def add(self, q: np.ndarray, parents: np.ndarray) -> np.ndarray:
-        """Append nodes (K, D) with parents (K,); returns their ids (K,)."""
-        k = len(q)
-        if self.n + k > len(self.nodes):
-            cap = max(2 * len(self.nodes), self.n + k)
-            for name, fill in (("nodes", 0.0), ("zs", 0.0), ("parents", -1)):
-                a = getattr(self, name)
-                b = np.full((cap,) + a.shape[1:], fill, dtype=a.dtype)
-                b[: self.n] = a[: self.n]
-                setattr(self, name, b)
-        ids = np.arange(self.n, self.n + k)
-        self.nodes[ids], self.zs[ids], self.parents[ids] = q, q * self.w, parents
-        self.n += k
-        return ids
-
-    def nearest(self, z: np.ndarray) -> np.ndarray:
-        """(N, D) metric points -> (N,) index of the nearest node."""
-        return np.argmin(cdist(z, self.zs[: self.n], "sqeuclidean"), axis=1)
-
-    def trace(self, i: int) -> np.ndarray:
-        """(P, D) configurations from the root to node i."""
-        idx = []
-        while i >= 0:
-            idx.append(i)
-            i = int(self.parents[i])
-        return self.nodes[idx[::-1]].copy()
+from .rrt_lazy import lazy_connect_search
+from .trees import Tree
 
 
 class RRTConnect(RRT):
@@ -117,11 +77,14 @@ class RRTConnect(RRT):
         cfg = self.config
         s = self._setup(start, goal, deadline)
         cap0 = int(min(math.inf if cfg.max_nodes is None else cfg.max_nodes, 4096))
-        trees = [_Tree(s.start, s.w, cap0), _Tree(s.goal, s.w, cap0)]  # 0: from the start, 1: from the goal
+        trees = [Tree(s.start, s.w, cap0), Tree(s.goal, s.w, cap0)]  # 0: from the start, 1: from the goal
         clock = {"sampling": 0.0, "nearest": 0.0}
         info = {"settings": s.st.as_dict(), "edge_resolution": s.st.edge_resolution, "stride": s.st.stride, "planner": self.name}
         if s.edges.edges_free(s.start[None], s.goal[None])[0]:
             return self._result(s, trees, info, clock, np.stack([s.start, s.goal]), "direct edge from start to goal is free", 0)
+        if cfg.lazy:
+            raw, message, it = lazy_connect_search(self, s, trees, info, clock)
+            return self._result(s, trees, info, clock, raw, message, it)
         it = 0
         runs: list[tuple[int, int, int, int]] = []  # connect runs still free, carried to the next iteration
         while (message := s.stop(cfg, it, trees[0].n + trees[1].n, info)) is None:
@@ -148,7 +111,7 @@ class RRTConnect(RRT):
                 return self._result(s, trees, info, clock, raw, f"trees joined after {it} iterations", it)
         return self._result(s, trees, info, clock, None, f"no path found {message}", it)
 
-    def _extend(self, s: _Search, ta: _Tree, clock: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def _extend(self, s: _Search, ta: Tree, clock: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Steer from A's nearest nodes at most ``stride`` towards ``batch_size`` uniform samples:
         (base (M, D), their node ids (M,), new configurations (M, D))."""
         t1 = time.perf_counter()
@@ -168,7 +131,7 @@ class RRTConnect(RRT):
         clock["nearest"] += t3 - t2
         return base, near, new
 
-    def _connect_runs(self, s: _Search, trees: list[_Tree], a_id: int, new: np.ndarray, runs: list, clock: dict):
+    def _connect_runs(self, s: _Search, trees: list[Tree], a_id: int, new: np.ndarray, runs: list, clock: dict):
         """The connect runs of an iteration: from B's nearest nodes towards the ``connect_attempts``
         new nodes closest to B, plus the runs carried on. Returns (todo, c_from (C, D), c_to (C, D),
         frac (C,)): a run is (tree it grows, its front node, tree of the target, target node id or
@@ -191,7 +154,7 @@ class RRTConnect(RRT):
         clock["sampling"] += time.perf_counter() - t5
         return todo, c_from, c_from + (c_tgt - c_from) * frac[:, None], frac
 
-    def _grow_runs(self, s: _Search, trees: list[_Tree], todo: list, new_ids: np.ndarray, kc, nc, frac, c_from, c_to) -> list:
+    def _grow_runs(self, s: _Search, trees: list[Tree], todo: list, new_ids: np.ndarray, kc, nc, frac, c_from, c_to) -> list:
         """Add the free part of each connect run to its tree, one node every stride on the
         check-sample grid (nodes are always checked configurations) and the last free sample;
         returns the runs free so far that go on in the next iteration."""
@@ -213,7 +176,7 @@ class RRTConnect(RRT):
                 runs.append((f, int(ids[-1]), g, tgt))  # free so far: the run goes on next iteration
         return runs
 
-    def _result(self, s: _Search, trees: list[_Tree], info: dict, clock: dict, path: np.ndarray | None, message: str, it: int) -> PlanResult:
+    def _result(self, s: _Search, trees: list[Tree], info: dict, clock: dict, path: np.ndarray | None, message: str, it: int) -> PlanResult:
         """The result (both trees, start tree first), the path shortcut when found, the time split."""
         ta, tb = trees
         d, w, edges, cfg = s.start.size, s.w, s.edges, self.config
@@ -229,19 +192,19 @@ class RRTConnect(RRT):
         c_search, q_before = edges.time_s, edges.n_queries
         if path is not None and cfg.shortcut and len(res.path) > 2:
             dl = None if math.isinf(s.end) else s.end
-            res.path = shortcut_path(edges, res.path, deadline=dl, candidates="doubling")
+            res.path = shortcut_path(edges, res.path, deadline=dl, candidates="doubling", screen=cfg.shortcut_screen)
             if len(res.path) > 3:  # (with 3 vertices the one candidate edge was just checked)
-                res.path = shortcut_path(edges, res.path, deadline=dl)  # every candidate on the few vertices left
+                res.path = shortcut_path(edges, res.path, deadline=dl, screen=cfg.shortcut_screen)  # every candidate on the few vertices left
             res.length = path_length(res.path, w)
         t_now = time.perf_counter()
         res.time_s = t_now - s.t0
-        split = {"sampling": clock["sampling"], "nearest": clock["nearest"], "collision": c_search, "shortcut": t_now - t_short}
+        split = {"sampling": clock["sampling"], "nearest": clock["nearest"], "collision": c_search + clock.get("collision_nodes", 0.0), "shortcut": t_now - t_short}
         split["other"] = max(0.0, res.time_s - sum(split.values()))
         res.info.update(time_split=split, n_queries=edges.n_queries - s.q0, n_queries_shortcut=edges.n_queries - q_before)
         return res
 
 
-def _joined(trees: list[_Tree], todo: list, new_ids: np.ndarray, kc: np.ndarray, nc: np.ndarray, frac: np.ndarray) -> np.ndarray | None:
+def _joined(trees: list[Tree], todo: list, new_ids: np.ndarray, kc: np.ndarray, nc: np.ndarray, frac: np.ndarray) -> np.ndarray | None:
     """The raw path (P, D) start -> goal when a connect run reached its target node whole and free
     (the target of a run towards a new node exists if that node's extension was free), else None."""
     for c, (f, i_from, g, tgt) in enumerate(todo):
