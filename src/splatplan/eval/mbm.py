@@ -11,7 +11,8 @@ the faint isolated ones that rule keeps), and the robot plans with
   (exact clearance > 0);
 * ``start_free`` / ``goal_free``: the *planning* model (the robot inflated by ``margin_m``) is free
   against the splats at ``n_sigma``: the planner can start;
-* ``solved``, ``time_s``, ``n_nodes``, ``path_length`` (the planner's metric), ``path`` (joint
+* ``solved``, ``time_s`` (wall), ``cpu_s`` (this process's CPU seconds, the checker's threads
+  included), ``n_configs`` (configurations collision-checked), ``n_nodes``, ``path_length`` (the planner's metric), ``path`` (joint
   configurations, when solved);
 * ``min_exact_clearance_m``: the path resampled so that no ellipsoid point moves more than a quarter
   of the smallest semi-axis between samples (``Robot.motion_bound``, as the RRT's edge checks),
@@ -623,10 +624,13 @@ def solve_problem(task: MBMTask, ctx: MBMContext) -> dict:
     q0, q1, clear, hit, hit_own = prep.endpoints[task.request]
     row.update(start_valid=bool(clear[0] > 0), goal_valid=bool(clear[1] > 0), start_clearance_m=float(clear[0]), goal_clearance_m=float(clear[1]))
     row.update(start_free=bool(not hit[0]), goal_free=bool(not hit[1]), start_free_unmargined=bool(not hit_own[0]), goal_free_unmargined=bool(not hit_own[1]))
-    row.update(solved=False, time_s=None, n_nodes=None, path_length=None, path=None, min_exact_clearance_m=None, message="", timed_out=False)
+    row.update(solved=False, time_s=None, cpu_s=None, n_configs=None, n_nodes=None, path_length=None, path=None, min_exact_clearance_m=None, message="", timed_out=False)
     if row["start_free"] and row["goal_free"]:
+        cpu0 = time.process_time()
         res_p = _plan(checker, q0, q1, plan_robot, cfg.time_limit, cfg.seed + task.index, res, task.planner, cfg.max_iters)
-        row.update(solved=bool(res_p.success), time_s=float(res_p.time_s), n_nodes=int(res_p.n_nodes), message=str(getattr(res_p, "message", "")))
+        cpu_s = time.process_time() - cpu0  # this process's CPU seconds (the checker's threads included)
+        row.update(solved=bool(res_p.success), time_s=float(res_p.time_s), cpu_s=cpu_s, n_nodes=int(res_p.n_nodes),
+                   n_configs=(res_p.info or {}).get("n_configs"), message=str(getattr(res_p, "message", "")))  # fmt: skip
         # the search ran out of its wall-clock budget: how far it got (n_nodes) depends on the machine
         row["timed_out"] = bool(not res_p.success and res_p.time_s >= 0.99 * cfg.time_limit) if (cfg.max_iters is None or not ours) else False
         times = (res_p.info or {}).get("time_split") or (res_p.info or {}).get("times")
@@ -653,7 +657,7 @@ def mbm_task(spec: dict, ctx: MBMContext) -> dict:
 
 
 #: row fields that are wall-clock measurements (differ run to run; left out of :func:`comparable`)
-TIMING_FIELDS = ("time_s", "wall_s", "time_split", "message")
+TIMING_FIELDS = ("time_s", "cpu_s", "wall_s", "time_split", "message")
 
 
 def comparable(row: dict) -> dict | None:
@@ -708,6 +712,8 @@ def summarise(rows: list[dict], time_limit: float | None = None) -> dict:
         "solved_of_free_frac": len(solved) / len(both_free) if both_free else None,
         "median_time_s": _pct(t, 50),
         "p95_time_s": _pct(t, 95),
+        "median_cpu_s": _pct(np.array([r["cpu_s"] for r in solved if r.get("cpu_s") is not None], dtype=np.float64), 50),
+        "median_configs": _pct(np.array([r["n_configs"] for r in solved if r.get("n_configs") is not None], dtype=np.float64), 50),
         "worst_exact_clearance_m": float(clear.min()) if len(clear) else None,
         "negative_clearance_paths": int(np.sum(clear < 0)),
         "solved_late": None if time_limit is None else int(np.sum(t > time_limit)),

@@ -106,6 +106,8 @@ class LinkGeometry:
         min_semi_axis: smallest ellipsoid semi-axis (scene units).
         max_semi_axis: largest ellipsoid semi-axis (scene units), used to pad sampling boxes.
         n_queries: ellipsoid checks issued so far (statistics).
+        n_configs: configurations checked so far (statistics; a configuration counts once
+            whatever its number of ellipsoids).
     """
 
     def __init__(self, robot) -> None:
@@ -113,6 +115,7 @@ class LinkGeometry:
             raise SplatplanError(f"LinkGeometry needs a Robot, got {type(robot).__name__}")
         self.robot = robot
         self.n_queries = 0
+        self.n_configs = 0
         rng = np.random.default_rng(0)
         self.dof = int(robot.dof)
         self.translation = _is_translation(robot, rng)
@@ -187,6 +190,7 @@ class LinkGeometry:
             hit = checker.collides(c, quat, axes)
         hit = np.asarray(hit)
         self.n_queries += hit.size
+        self.n_configs += hit.size // max(hit.shape[-1], 1) if hit.ndim else 1
         return hit.any(axis=-1)
 
     def collides_slack(self, checker, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -195,6 +199,7 @@ class LinkGeometry:
         its centre lies within that distance of this one's."""
         hit, slack = robot_collides_slack(checker, self.robot, np.asarray(q, dtype=np.float64))
         self.n_queries += hit.size
+        self.n_configs += hit.size // max(hit.shape[-1], 1) if hit.ndim else 1
         return hit.any(axis=-1), slack
 
     def query(self, checker, q: np.ndarray):

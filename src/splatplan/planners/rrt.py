@@ -348,6 +348,11 @@ class EdgeChecker:
         """Ellipsoid checks issued so far."""
         return self.geometry.n_queries
 
+    @property
+    def n_configs(self) -> int:
+        """Configurations checked so far."""
+        return self.geometry.n_configs
+
     def configs_collide(self, configs: np.ndarray, margin: float | np.ndarray = 0.0) -> np.ndarray:
         """(..., D) -> bool (...): any link in collision (semi-axes grown by ``margin``)."""
         return self.geometry.collides(self.checker, configs, margin)
@@ -555,6 +560,7 @@ class _Search:
     span: np.ndarray  # (D,) hi - lo (0 where frozen)
     end: float  # time.perf_counter() value the search stops at (inf: none)
     deadline: float | None  # the caller's deadline
+    c0: int = 0  # the geometry's configuration count when the search began
 
     def sample(self, n: int) -> np.ndarray:
         """(n, D) uniform samples of the sampling box."""
@@ -738,7 +744,7 @@ class RRT:
         if st.time_limit_s is not None:
             end = min(end, t0 + st.time_limit_s)
         return _Search(t0, st, start, goal, geom.distance_scale(), edges, q0, np.random.default_rng(self.config.seed), frozen,
-                       np.where(frozen, 0.0, st.box_hi - st.box_lo), end, deadline)  # fmt: skip
+                       np.where(frozen, 0.0, st.box_hi - st.box_lo), end, deadline, geom.n_configs)  # fmt: skip
 
     # ------------------------------------------------------------------ search
     def plan(self, start, goal=None, deadline: float | None = None) -> PlanResult:
@@ -785,7 +791,7 @@ class RRT:
                 tree_parents=parents[:n].copy(),
                 message=message,
                 path_rrt=None if path is None else path.copy(),
-                info={**info, "n_queries": geom.n_queries - q0, "time_split": _split(time.perf_counter() - t0, clock, edges.time_s, 0.0)},
+                info={**info, "n_queries": geom.n_queries - q0, "n_configs": geom.n_configs - s.c0, "time_split": _split(time.perf_counter() - t0, clock, edges.time_s, 0.0)},
             )
 
         def trace(i: int) -> np.ndarray:
@@ -797,7 +803,7 @@ class RRT:
 
         if goal is not None and np.linalg.norm(goal_z - zs[0]) <= connect_r and edges.edges_free(start[None], goal[None])[0]:
             raw = np.stack([start, goal])
-            return self._finish(result(True, raw, "direct edge from start to goal is free", 0), edges, t0, w, q0, clock, deadline)
+            return self._finish(result(True, raw, "direct edge from start to goal is free", 0), edges, t0, w, q0, clock, deadline, s.c0)
 
         it = 0
         while (message := s.stop(cfg, it, n, info)) is None:
@@ -853,22 +859,23 @@ class RRT:
                         nodes[n], zs[n], parents[n] = goal, goal_z, best
                         cost[n] = cost[best] + float(np.linalg.norm(goal_z - zs[best]))
                         n += 1
-                    return self._finish(result(True, raw, f"goal reached after {it} iterations", it), edges, t0, w, q0, clock, deadline)
+                    return self._finish(result(True, raw, f"goal reached after {it} iterations", it), edges, t0, w, q0, clock, deadline, s.c0)
             if st.goal_tolerance > 0 and np.any(dg <= st.goal_tolerance):
                 best = int(ids[np.argmin(dg)])
-                return self._finish(result(True, trace(best), f"within goal_tolerance after {it} iterations", it), edges, t0, w, q0, clock, deadline)
+                return self._finish(result(True, trace(best), f"within goal_tolerance after {it} iterations", it), edges, t0, w, q0, clock, deadline, s.c0)
 
         if goal is None:
             return result(True, None, f"exploration finished: {message}", it)
         return result(False, None, f"no path found {message}", it)
 
-    def _finish(self, res: PlanResult, edges: EdgeChecker, t0: float, w: np.ndarray, q0: int, clock: dict, deadline: float | None) -> PlanResult:
+    def _finish(self, res: PlanResult, edges: EdgeChecker, t0: float, w: np.ndarray, q0: int, clock: dict, deadline: float | None, c0: int = 0) -> PlanResult:
         c_search = edges.time_s
         t1 = time.perf_counter()
         if self.config.shortcut and len(res.path) > 2:
             res.path = shortcut_path(edges, res.path, deadline=deadline, screen=self.config.shortcut_screen)
             res.length = path_length(res.path, w)
         res.info["n_queries"] = edges.n_queries - q0
+        res.info["n_configs"] = edges.n_configs - c0
         res.time_s = time.perf_counter() - t0
         res.info["time_split"] = _split(res.time_s, clock, c_search, time.perf_counter() - t1)
         return res

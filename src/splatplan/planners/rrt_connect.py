@@ -200,7 +200,7 @@ class RRTConnect(RRT):
         res.time_s = t_now - s.t0
         split = {"sampling": clock["sampling"], "nearest": clock["nearest"], "collision": c_search + clock.get("collision_nodes", 0.0), "shortcut": t_now - t_short}
         split["other"] = max(0.0, res.time_s - sum(split.values()))
-        res.info.update(time_split=split, n_queries=edges.n_queries - s.q0, n_queries_shortcut=edges.n_queries - q_before)
+        res.info.update(time_split=split, n_queries=edges.n_queries - s.q0, n_queries_shortcut=edges.n_queries - q_before, n_configs=edges.n_configs - s.c0)
         return res
 
 
