@@ -207,7 +207,21 @@ class CollisionChecker:
         with _torch_stream(q):
             return self._robot(robot, q, out, validate, full=False, subset=ellipsoids, slack=slack)
 
-    def _robot(self, robot, q, out, validate, full: bool, subset=None, slack: bool = False):
+    def collides_configs(self, robot, q, *, out=None, validate=False, slack=False):
+        """(...,) collision state of whole configurations: True where any ellipsoid of ``robot`` at
+        ``q`` (..., dof) collides; the same answer as ``collides_robot(robot, q).any(-1)``.
+
+        One thread per configuration (GROUP BOUND, :mod:`.wp_metric_kernel`): the ellipsoids of a
+        link are proven free together by one read of the mean-distance grid when the link is far
+        from every splat, and a configuration stops at its first colliding ellipsoid. The cheap
+        check for planners' edge checks. ``slack=True``: returns (hits (...,), slack (..., E)
+        float32), each ellipsoid's FREE SLACK as in :meth:`collides_robot` (0 where nothing is
+        proven; meaningful for the free configurations). Other arguments as in :meth:`collides_robot`.
+        """
+        with _torch_stream(q):
+            return self._robot(robot, q, out, validate, full=False, slack=slack, per_config=True)
+
+    def _robot(self, robot, q, out, validate, full: bool, subset=None, slack: bool = False, per_config: bool = False):
         kind = array_kind(q)
         sub = None
         if subset is not None:
@@ -222,6 +236,8 @@ class CollisionChecker:
             if sub is not None:
                 c, quat, ax = c[..., sub, :], quat[..., sub, :], ax[sub]
             res = self.query(c, quat, ax) if full else self.collides(c, quat, ax)
+            if per_config:
+                res = np.asarray(res).any(axis=-1)
             res = _convert_host(res, kind, _device_of(q, self.device))
             if slack:
                 return res, _from_host(np.zeros(np.shape(host_array(res)), dtype=np.float32), kind, _device_of(q, self.device))
@@ -243,6 +259,9 @@ class CollisionChecker:
         oshape = shape + (e,)
         n = b * e
         if n == 0:
+            if per_config:
+                hits = self._empty(kind, shape, bool)
+                return (hits, self._empty(kind, oshape, np.float32)) if slack else hits
             if full:
                 return QueryResult(**{k: self._empty(kind, oshape, _DTYPES[k]) for k in _FIELDS})
             if slack:
@@ -261,6 +280,12 @@ class CollisionChecker:
         links.rot_mode, links.rot_period, links.axes_period = 2, n, e
         if kind != "numpy":
             ws.reset_bad()
+        if per_config:
+            sl = wp.empty(n, dtype=wp.float32, device=self.device) if slack else None
+            self._impl.collides_configs(links, b, robot_groups(robot), amin, amax, self.config, ws.in_collision, ws.bad, slack=sl)
+            self._raise_bad(ws, kind, validate)
+            hits = convert_out(ws.in_collision, b, shape, kind, False)
+            return (hits, convert_out(sl, n, oshape, kind, False)) if slack else hits
         if full:
             self._impl.query(links, n, amin, amax, self.config, ws.outputs(), ws.scratch())
         else:
@@ -379,6 +404,36 @@ class CollisionChecker:
                 r.softmin.astype(np.float32), r.cost.astype(np.float32),
             ).reshape(h.shape)  # fmt: skip
         return _convert_host(res if full else res.in_collision, kind, dev)
+
+
+def robot_groups(robot) -> tuple[bytes, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The GROUP BOUND's groups of a robot (:mod:`.wp_metric_kernel`): its ellipsoids by the link
+    (rigid body) they belong to, the most distal link first (it moves most, so it hits first).
+
+    Returns (key, first (G + 1,) int32, members (E,) int32, rel (E,) float64: each member's distance
+    from its group's centroid in the link frame (scene units), semi-axes (E, 3) float64); cached on
+    the robot object (by its semi-axes, link map and ellipsoid poses).
+    """
+    ax = np.asarray(robot.semi_axes, dtype=np.float64).reshape(-1, 3)
+    link = np.asarray(getattr(robot, "ellipsoid_link", np.arange(len(ax))), dtype=np.int64).reshape(-1)
+    local = getattr(robot, "ellipsoid_local", None)
+    t = np.zeros((len(ax), 3)) if local is None else np.asarray(local, dtype=np.float64)[:, :3, 3]  # (E, 3) link frame
+    key = ax.tobytes() + link.tobytes() + t.tobytes()
+    hit = robot.__dict__.get("_groups_cache") if hasattr(robot, "__dict__") else None
+    if hit is not None and hit[0] == key:
+        return hit
+    if len(link) != len(ax) or len(t) != len(ax):
+        raise SplatplanError(f"robot {getattr(robot, 'name', '?')!r}: its ellipsoid link map or poses do not match its {len(ax)} ellipsoids")
+    members, first, rel = [], [0], np.zeros(len(ax))
+    for li in sorted(set(link.tolist()), reverse=True):
+        idx = np.nonzero(link == li)[0]
+        rel[idx] = np.linalg.norm(t[idx] - t[idx].mean(axis=0), axis=1)
+        members += idx.tolist()
+        first.append(len(members))
+    out = (key, np.asarray(first, dtype=np.int32), np.asarray(members, dtype=np.int32), rel, ax)
+    if hasattr(robot, "__dict__"):
+        robot.__dict__["_groups_cache"] = out
+    return out
 
 
 def _torch_stream(x):

@@ -44,6 +44,8 @@ from .wp_metric_kernel import (
     metric_full_kernel,
     metric_lanes_combine_kernel,
     morton_keys_kernel,
+    RobotGroups,
+    robot_collide_kernel,
     search_radius,
 )
 
@@ -51,6 +53,12 @@ wp = _wp()
 
 #: CPU launches per worker thread for one batch (dynamic load balancing).
 CHUNKS_PER_THREAD = 8
+#: per-configuration launches (``collides_configs``): batches of fewer configurations run on the calling
+#: thread, larger ones in chunks of at least CONFIG_MIN_STEP (a chunk handed to the pool costs ~10-20 us)
+CONFIG_MIN_SPLIT = 64
+CONFIG_MIN_STEP = 32
+#: relative pad of the GROUP BOUND's radii against float32 rounding (:mod:`.wp_metric_kernel`)
+GROUP_PAD = 1.0 + 1e-4
 
 
 @dataclass
@@ -321,6 +329,7 @@ class WarpMetric:
         self._pool_finalizer = None
         self._dgrid: MeanDistanceGrid | None = None  # built on first use (mean_distance_grid)
         self._no_slack = None  # (1,) placeholder of the collide kernel's slack output
+        self._groups_cache: dict = {}  # (robot groups key, largest std, n_sigma) -> RobotGroups
 
     # ------------------------------------------------------------------ resources
     def _executor(self) -> ThreadPoolExecutor:
@@ -562,6 +571,51 @@ class WarpMetric:
             slack_arr, want = slack, 1
         params = metric_params(cfg, 0, self.tiers.collide_row_clip)
         self._launch(metric_collide_kernel, b, [links, gs.tiers, dgrid, params, out_hit, bad, slack_arr, want])
+
+    def collides_configs(self, links: LinkBatch, b: int, groups, a_min: float, a_max: float, cfg: MetricConfig, out_hit, bad, slack=None) -> None:
+        """Per-configuration collision of b configurations (``robot_collide_kernel``): ``links`` holds
+        their B E ellipsoids configuration-major, ``groups`` the robot's :func:`~.checker.robot_groups`;
+        ``out_hit`` (>= b rows) gets any-ellipsoid-collides, ``slack`` (>= b E rows, optional) each
+        ellipsoid's FREE SLACK. Grids as :meth:`collides` with ``robot_batch``."""
+        gs = self.gridset(cfg.n_sigma, 1.0, a_min, a_max, collide=True)
+        links.use_order = 0
+        dgrid = self.mean_distance_grid()
+        rg = self._robot_groups(groups, gs, cfg.n_sigma)
+        if slack is None:
+            if self._no_slack is None:
+                self._no_slack = wp.zeros(1, dtype=wp.float32, device=self.device)
+            slack_arr, want = self._no_slack, 0
+        else:
+            slack_arr, want = slack, 1
+        params = metric_params(cfg, 0, self.tiers.collide_row_clip)
+        pool = self._executor() if self.device == "cpu" and cpu_threads() > 1 else None
+        # a thread is a whole configuration (tens of ellipsoids): split smaller batches than per-ellipsoid ones
+        launch_split(robot_collide_kernel, b, [0, links, gs.tiers, dgrid, params, rg, out_hit, bad, slack_arr, want], self.device, pool,
+                     min_split=CONFIG_MIN_SPLIT, min_step=CONFIG_MIN_STEP, chunks_per_thread=CHUNKS_PER_THREAD)  # fmt: skip
+
+    def _robot_groups(self, groups, gs: "_GridSet", n_sigma: float) -> RobotGroups:
+        """The kernel's :class:`RobotGroups` for a robot's groups at this grid set and n_sigma
+        (cached): R_g = max over members (|c_e - c_g| + rho_top(e)), padded (GROUP BOUND)."""
+        key, first, members, rel, ax = groups
+        s_top = float(max(gs.sigma)) if len(gs.sigma) else 0.0
+        ck = (key, s_top, float(n_sigma))
+        with self._lock:
+            hit = self._groups_cache.get(ck)
+        if hit is not None:
+            return hit
+        rho = np.array([search_radius(float(n_sigma), s_top, float(a.min()), float(a.max()), 1.0) for a in ax])  # (E,) float64
+        radius = np.array([np.max(rel[members[first[g]:first[g + 1]]] + rho[members[first[g]:first[g + 1]]]) for g in range(len(first) - 1)])
+        rg = RobotGroups()
+        rg.first = wp.array(first, dtype=wp.int32, device=self.device)
+        rg.members = wp.array(members, dtype=wp.int32, device=self.device)
+        rg.radius = wp.array((radius * GROUP_PAD).astype(np.float32), dtype=wp.float32, device=self.device)
+        rg.n_groups = len(first) - 1
+        rg.n_ellipsoids = len(members)
+        with self._lock:
+            if len(self._groups_cache) >= 16:
+                self._groups_cache.clear()
+            self._groups_cache[ck] = rg
+        return rg
 
     def _scratch(self, b: int):
         n = 2 * b if self.tiers.sort_queries and b >= self.tiers.sort_min_batch else 1

@@ -89,6 +89,19 @@ check samples that are proven free (:class:`~splatplan.planners.rrt.EdgeChecker`
 Invalid queries (non-finite centre, rotation or semi-axes, a zero quaternion, a semi-axis <= 0)
 are never reported free: their outputs are min_s2 = softmin = cost = NaN, n_colliding = -1,
 in_collision = True, and the smallest invalid query index is written to ``bad[0]``.
+
+GROUP BOUND (per-configuration kernel). A robot's ellipsoids are grouped by the rigid body (link)
+they belong to; ``robot_collide_kernel`` runs one thread per configuration. The distance to the
+nearest mean, D, is 1-Lipschitz, so at a group's centroid c_g (a fixed point of the link: the mean
+of its ellipsoid centres), D(c_e) >= D(c_g) - |c_e - c_g| for every member e. With
+R_g >= max_e (|c_e - c_g| + rho_top(e)) (rho_top(e): e's search radius for the scene's largest std at
+cap 1; |c_e - c_g| measured in the link frame; padded against float32 rounding), a mean-distance
+bound d_lb(c_g) > R_g gives D(c_e) > rho_top(e) for every member: each of them would skip every tier
+in :func:`link_collides` and read free, so the group is free with one read instead of one per
+member. Its members get the FREE SLACK d_lb(c_g) - R_g (an ellipsoid whose centre moves less than
+that, in any orientation, still has D > rho_top). Other groups test their members one by one, and
+the first colliding member ends the configuration: the answer is "any ellipsoid collides", equal to
+``collides_robot(...).any(-1)`` (the same per-ellipsoid test decides every member that is read).
 """
 
 from __future__ import annotations
@@ -670,32 +683,17 @@ def metric_lanes_combine_kernel(lp: LanePartials, p: MetricParams, out: MetricOu
     write_outputs(out, q, p, best, ncol, n_nb, pivot, acc, c_sum, c_max)
 
 
-@wp.kernel
-def metric_collide_kernel(
-    offset: int,
-    links: LinkBatch,
-    splats: SplatTiers,
-    dgrid: MeanDistanceGrid,  # use == 0: no tier skipped
-    p: MetricParams,  # p.cap is ignored: the radius is the one for cap = 1
-    out_hit: wp.array(dtype=wp.bool),  # (B,) True in collision (or invalid)
-    bad: wp.array(dtype=wp.int32),  # (1,)
-    slack: wp.array(dtype=wp.float32),  # (B,) written when want_slack: FREE SLACK (module docstring), else (1,) unused
-    want_slack: int,
-):
-    """Collision-only variant: radius for cap = 1, stops at the (k+1)-th colliding splat; a tier
-    whose search radius is below the mean-distance bound at the centre is skipped (no splat of it
-    is within the radius: the outputs are unchanged)."""
-    q = wp.tid() + offset
-    if links.use_order != 0:
-        q = links.order[q]
+@wp.func
+def link_collides(links: LinkBatch, q: int, splats: SplatTiers, dgrid: MeanDistanceGrid, p: MetricParams):
+    """The collision-only test of query ellipsoid q: (in collision, FREE SLACK, valid).
+
+    Radius for cap = 1, stops at the (k+1)-th colliding splat; a tier whose search radius is below
+    the mean-distance bound at the centre is skipped (no splat of it is within the radius: the
+    outputs are unchanged). An invalid query reads (True, 0, False)."""
     c = links.centers[q]
     ax = links.axes[q % links.axes_period]
-    if want_slack != 0:
-        slack[q] = 0.0
     if not link_valid(links, q, c, ax):
-        out_hit[q] = True
-        wp.atomic_min(bad, 0, q)
-        return
+        return True, float(0.0), False
     a_min = wp.min(ax)
     a_max = wp.max(ax)
     d_lb = mean_distance_lb(dgrid, c)
@@ -705,10 +703,7 @@ def metric_collide_kernel(
             s_top = wp.max(s_top, splats.sigma[j])
         rho_top = search_radius(p.n_sigma, s_top, a_min, a_max, 1.0)
         if d_lb > rho_top:
-            out_hit[q] = False  # beyond every tier's radius (it grows with sigma): no splat is read
-            if want_slack != 0:
-                slack[q] = (d_lb - rho_top) * DIST_SHRINK
-            return
+            return False, (d_lb - rho_top) * DIST_SHRINK, True  # beyond every tier's radius: no splat is read
     rot = link_rotation(links, q)
     a = link_matrix(rot, ax)
     ncol = int(0)
@@ -773,7 +768,95 @@ def metric_collide_kernel(
                             if ns >= 0.0:
                                 if link_s2(d, dd, a, sphere, inv_r2, splats.mrows, i, ns, s2_cut) < 1.0:
                                     ncol += 1
-    out_hit[q] = ncol > k_collide
+    return ncol > k_collide, float(0.0), True
+
+
+@wp.kernel
+def metric_collide_kernel(
+    offset: int,
+    links: LinkBatch,
+    splats: SplatTiers,
+    dgrid: MeanDistanceGrid,  # use == 0: no tier skipped
+    p: MetricParams,  # p.cap is ignored: the radius is the one for cap = 1
+    out_hit: wp.array(dtype=wp.bool),  # (B,) True in collision (or invalid)
+    bad: wp.array(dtype=wp.int32),  # (1,)
+    slack: wp.array(dtype=wp.float32),  # (B,) written when want_slack: FREE SLACK (module docstring), else (1,) unused
+    want_slack: int,
+):
+    """Collision-only variant (:func:`link_collides`), one thread per query ellipsoid."""
+    q = wp.tid() + offset
+    if links.use_order != 0:
+        q = links.order[q]
+    hit, sl, ok = link_collides(links, q, splats, dgrid, p)
+    out_hit[q] = hit
+    if want_slack != 0:
+        slack[q] = sl
+    if not ok:
+        wp.atomic_min(bad, 0, q)
+
+
+@wp.struct
+class RobotGroups:
+    """The ellipsoids of a robot in groups that move rigidly together (a link's), for
+    :func:`robot_collide_kernel` (GROUP BOUND in the module docstring)."""
+
+    first: wp.array(dtype=wp.int32)  # (G + 1,) group g holds members[first[g]:first[g + 1]]
+    members: wp.array(dtype=wp.int32)  # (E,) ellipsoid indices, group by group, in check order
+    radius: wp.array(dtype=wp.float32)  # (G,) R_g: a group whose centroid's mean-distance bound exceeds it is free
+    n_groups: int
+    n_ellipsoids: int  # E: the ellipsoids of configuration b are queries b E .. b E + E - 1
+
+
+@wp.kernel
+def robot_collide_kernel(
+    offset: int,
+    links: LinkBatch,  # (B E,) the ellipsoids of B configurations, configuration-major
+    splats: SplatTiers,
+    dgrid: MeanDistanceGrid,
+    p: MetricParams,
+    groups: RobotGroups,
+    out_hit: wp.array(dtype=wp.bool),  # (B,) True: some ellipsoid of the configuration collides (or is invalid)
+    bad: wp.array(dtype=wp.int32),  # (1,) smallest invalid configuration
+    slack: wp.array(dtype=wp.float32),  # (B E,) when want_slack: FREE SLACK per ellipsoid (0 where unknown), else (1,)
+    want_slack: int,
+):
+    """One thread per configuration: group by group, a group whose centroid is farther from every
+    mean than R_g is free (one read), else its ellipsoids are tested (:func:`link_collides`); the
+    first colliding ellipsoid ends the configuration (GROUP BOUND in the module docstring)."""
+    b = wp.tid() + offset
+    base = b * groups.n_ellipsoids
+    if want_slack != 0:
+        for e in range(groups.n_ellipsoids):
+            slack[base + e] = 0.0
+    hit = bool(False)
+    for g in range(groups.n_groups):
+        k0 = groups.first[g]
+        k1 = groups.first[g + 1]
+        cg = wp.vec3(0.0, 0.0, 0.0)
+        for k in range(k0, k1):
+            cg = cg + links.centers[base + groups.members[k]]
+        cg = cg / float(k1 - k0)
+        if dgrid.use != 0:
+            d = mean_distance_lb(dgrid, cg)
+            # R_g plus a pad against the float32 rounding of the centroid at its distance from the origin
+            if d > groups.radius[g] + 1.0e-5 * wp.length(cg):  # (a NaN centre fails this test and is caught below)
+                if want_slack != 0:
+                    for k in range(k0, k1):
+                        slack[base + groups.members[k]] = (d - groups.radius[g] - 1.0e-5 * wp.length(cg)) * DIST_SHRINK
+                continue
+        for k in range(k0, k1):
+            q = base + groups.members[k]
+            h, sl, ok = link_collides(links, q, splats, dgrid, p)
+            if want_slack != 0:
+                slack[q] = sl
+            if not ok:
+                wp.atomic_min(bad, 0, b)
+            if h:
+                hit = True
+                break
+        if hit:
+            break
+    out_hit[b] = hit
 
 
 @wp.kernel

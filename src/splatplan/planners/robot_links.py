@@ -57,6 +57,25 @@ def robot_collides(checker, robot, q: np.ndarray) -> np.ndarray:
     return checker.collides(*robot.ellipsoids(q))
 
 
+def configs_collide(checker, robot, q: np.ndarray) -> np.ndarray:
+    """(..., dof) configurations -> (...,) bool: any ellipsoid of configuration q in collision (the
+    checker's per-configuration kernel when it has one: the same answer, cheaper)."""
+    if hasattr(checker, "collides_configs"):
+        return np.asarray(checker.collides_configs(robot, q))
+    return np.asarray(robot_collides(checker, robot, q)).any(axis=-1)
+
+
+def configs_collide_slack(checker, robot, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(..., dof) -> (any ellipsoid in collision (...,) bool, slack (..., E) float): as
+    :func:`robot_collides_slack`, per configuration (the checker's per-configuration kernel when it
+    has one; its slack may differ from the per-ellipsoid one's but holds the same promise)."""
+    if hasattr(checker, "collides_configs"):
+        hit, slack = checker.collides_configs(robot, q, slack=True)
+        return np.asarray(hit), np.asarray(slack)
+    hit, slack = robot_collides_slack(checker, robot, q)
+    return hit.any(axis=-1), slack
+
+
 def robot_collides_slack(checker, robot, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(..., dof) -> (hits (..., E) bool, slack (..., E) float): ellipsoid e of configuration q is in
     collision, and a distance its centre may move (its orientation anyhow) with it staying free
@@ -181,8 +200,12 @@ class LinkGeometry:
         """(..., D) -> (...,) bool: any ellipsoid in collision. ``margin`` (scalar or (...,)) grows
         every semi-axis (used by the sphere edge test)."""
         q = np.asarray(q, dtype=np.float64)
+        e = int(self.robot.n_ellipsoids)
         if np.all(np.asarray(margin) == 0):
-            hit = robot_collides(checker, self.robot, q)  # (..., E)
+            hit = configs_collide(checker, self.robot, q)  # (...,)
+            self.n_queries += hit.size * e
+            self.n_configs += hit.size
+            return hit
         else:
             c, quat, ax = self.ellipsoids(q)  # (..., L, 3)
             m = np.asarray(margin, dtype=np.float64)
@@ -197,10 +220,10 @@ class LinkGeometry:
         """(..., D) -> (any ellipsoid in collision (...,) bool, slack (..., E) float): each
         ellipsoid's FREE SLACK (see :func:`robot_collides_slack`): the ellipsoid is free wherever
         its centre lies within that distance of this one's."""
-        hit, slack = robot_collides_slack(checker, self.robot, np.asarray(q, dtype=np.float64))
-        self.n_queries += hit.size
-        self.n_configs += hit.size // max(hit.shape[-1], 1) if hit.ndim else 1
-        return hit.any(axis=-1), slack
+        hit, slack = configs_collide_slack(checker, self.robot, np.asarray(q, dtype=np.float64))  # (...,), (..., E)
+        self.n_queries += slack.size
+        self.n_configs += hit.size
+        return hit, slack
 
     def query(self, checker, q: np.ndarray):
         """(..., D) -> QueryResult with fields (..., L)."""

@@ -1,0 +1,120 @@
+"""The per-configuration collision kernel (``CollisionChecker.collides_configs``, GROUP BOUND in
+:mod:`splatplan.metric.wp_metric_kernel`): the same answer as ``collides_robot(...).any(-1)`` and as
+the numpy reference, on random and near-surface configurations, for anisotropic splats, 2DGS
+disks and every n_sigma regime, with and without the mean-distance grid; its FREE SLACK holds (an
+ellipsoid moved by less than it, in any orientation, is free); the groups follow the links."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from splatplan.metric import CollisionChecker, MetricConfig
+from splatplan.metric.checker import robot_groups
+from splatplan.metric.wp_metric import TierConfig
+
+from .conftest import DEVICES, random_quats, random_scene
+
+
+def _wall_scene(rng, n: int, disks: bool, scale: float = 0.005):
+    """A slab of splats in front of the Panda (metres, z up)."""
+    scene = random_scene(rng, n, scale=scale, disks=disks)
+    scene.means[:] = rng.uniform(-1.0, 1.0, (n, 3)) * np.array([0.03, 0.5, 0.4]) + np.array([0.55, 0.0, 0.4])
+    return scene
+
+
+def _configs(robot, rng, n_uniform: int, near_of=None, n_near: int = 0):
+    lim = robot.joint_limits
+    q = lim[:, 0] + rng.random((n_uniform, robot.dof)) * (lim[:, 1] - lim[:, 0])
+    if near_of is not None:  # small perturbations of configurations on both sides of the boundary
+        q = np.concatenate([q, near_of[rng.integers(0, len(near_of), n_near)] + rng.normal(scale=0.03, size=(n_near, robot.dof))])
+    return q
+
+
+@pytest.mark.parametrize("device", DEVICES)
+@pytest.mark.parametrize("n_sigma", [0.0, 0.5, 1.0, 3.0])
+@pytest.mark.parametrize("disks", [False, True])
+def test_same_answer_as_per_ellipsoid_kernel_and_reference(device, n_sigma, disks):
+    from splatplan.robots import load_robot
+
+    rng = np.random.default_rng(int(10 * n_sigma) + 7 * disks)
+    scene = _wall_scene(rng, 4000, disks, scale=0.005 / (1.0 + n_sigma))  # (big inflated splats would fill the slab)
+    cfg = MetricConfig(n_sigma=n_sigma)
+    on = CollisionChecker(scene, config=cfg, device=device, tiers=TierConfig(distance_grid_voxels=2**15))
+    off = CollisionChecker(scene, config=cfg, device=device, tiers=TierConfig(collide_distance_grid=False))
+    ref = CollisionChecker(scene, config=cfg, backend="reference")
+    robot = load_robot("panda").inflated(0.01)
+    q = _configs(robot, rng, 300)
+    per_e = np.asarray(on.collides_robot(robot, q))  # (B, E)
+    hit = per_e.any(-1)
+    boundary = q[hit]  # near-surface: perturb colliding configurations
+    q = np.concatenate([q, _configs(robot, rng, 0, boundary, 300)])
+    want = np.asarray(on.collides_robot(robot, q)).any(-1)
+    got = np.asarray(on.collides_configs(robot, q))
+    assert got.shape == (len(q),) and got.dtype == bool
+    np.testing.assert_array_equal(got, want)
+    np.testing.assert_array_equal(np.asarray(off.collides_configs(robot, q)), want)
+    np.testing.assert_array_equal(np.asarray(ref.collides_configs(robot, q[::10])), want[::10])
+    assert 0.1 < want.mean() < 0.9  # both answers occur
+    # batch shapes: (..., dof) -> (...,)
+    np.testing.assert_array_equal(np.asarray(on.collides_configs(robot, q[:60].reshape(3, 20, -1))), want[:60].reshape(3, 20))
+    assert np.asarray(on.collides_configs(robot, q[:0])).shape == (0,)
+
+
+@pytest.mark.parametrize("device", DEVICES)
+@pytest.mark.parametrize("n_sigma", [0.0, 2.0])
+def test_group_slack_holds(device, n_sigma):
+    """Free configurations: an ellipsoid moved by less than its slack, in any orientation, is free
+    (kernel without the grid and the numpy reference); colliding configurations' slack is not used."""
+    from splatplan.robots import load_robot
+
+    rng = np.random.default_rng(3 + int(n_sigma))
+    scene = _wall_scene(rng, 4000, False)
+    cfg = MetricConfig(n_sigma=n_sigma)
+    on = CollisionChecker(scene, config=cfg, device=device, tiers=TierConfig(distance_grid_voxels=2**15))
+    off = CollisionChecker(scene, config=cfg, device=device, tiers=TierConfig(collide_distance_grid=False))
+    ref = CollisionChecker(scene, config=cfg, backend="reference")
+    robot = load_robot("panda").inflated(0.01)
+    q = _configs(robot, rng, 300)
+    hits, slack = on.collides_configs(robot, q, slack=True)
+    hits, slack = np.asarray(hits), np.asarray(slack)
+    assert hits.shape == (300,) and slack.shape == (300, robot.n_ellipsoids) and slack.dtype == np.float32
+    assert np.all(slack >= 0) and 0.3 < (slack[~hits] > 0).mean() <= 1.0
+    c, _, ax = robot.ellipsoids(q)
+    free = np.zeros_like(slack, dtype=bool)
+    free[~hits] = True
+    sel = np.nonzero(free & (slack > 0))
+    m = len(sel[0])
+    d = rng.normal(size=(m, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    moved = c[sel] + d * (slack[sel] * rng.uniform(0.0, 1.0, m))[:, None]
+    quats = random_quats(rng, m)
+    axes = np.asarray(ax)[sel[1]]
+    assert not np.asarray(off.collides(moved, quats, axes)).any()
+    assert not np.asarray(ref.collides(moved[:300], quats[:300], axes[:300])).any()
+    _, s_ref = ref.collides_configs(robot, q[:5], slack=True)
+    assert not np.asarray(s_ref).any()
+
+
+def test_groups_follow_the_links():
+    from splatplan.robots import load_robot
+
+    robot = load_robot("panda")
+    key, first, members, rel, ax = robot_groups(robot)
+    assert sorted(members.tolist()) == list(range(robot.n_ellipsoids)) and first[0] == 0 and first[-1] == robot.n_ellipsoids
+    link = np.asarray(robot.ellipsoid_link)
+    for g in range(len(first) - 1):
+        idx = members[first[g] : first[g + 1]]
+        assert len(set(link[idx].tolist())) == 1  # one rigid body per group
+    assert link[members[0]] == link.max()  # the most distal link first
+    # rel: distances from the group's centroid, checked on the world-frame ellipsoid centres at two poses
+    rng = np.random.default_rng(0)
+    q = robot.joint_limits[:, 0] + rng.random((2, robot.dof)) * np.diff(robot.joint_limits, axis=1)[:, 0]
+    c, _, _ = robot.ellipsoids(q)
+    for g in range(len(first) - 1):
+        idx = members[first[g] : first[g + 1]]
+        for b in range(2):
+            np.testing.assert_allclose(np.linalg.norm(c[b, idx] - c[b, idx].mean(0), axis=1), rel[idx], atol=1e-9)
+    assert robot_groups(robot) is robot_groups(robot)  # cached on the robot
+    grown = robot.inflated(0.01)
+    assert robot_groups(grown)[0] != key
