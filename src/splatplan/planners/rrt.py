@@ -216,7 +216,9 @@ class PlanResult:
         tree_nodes: (n_nodes, D) tree node configurations.
         tree_parents: (n_nodes,) int64 parent index of each node, -1 for the root.
         message: why it stopped, in words.
-        path_rrt: (P0, D) the raw tree path before shortcutting / refinement (goal mode).
+        path_rrt: (P0, D) the search's path before the final shortcut / refinement (goal mode; the
+            raw tree path, except for the lazy RRT-Connect, whose path is shortcut once while it is
+            checked: the tree edges a shortcut jumps over are never checked).
         refined: whether ``path`` is the accepted output of the zeroth-order refinement.
         info: extras: ``settings`` (the :class:`RRTSettings` as a dict), ``n_queries``,
             ``edge_resolution``, ``time_limit_hit``.

@@ -192,7 +192,8 @@ class RRTConnect(RRT):
         c_search, q_before = edges.time_s, edges.n_queries
         if path is not None and cfg.shortcut and len(res.path) > 2:
             dl = None if math.isinf(s.end) else s.end
-            res.path = shortcut_path(edges, res.path, deadline=dl, candidates="doubling", screen=cfg.shortcut_screen)
+            if (info.get("lazy") or {}).get("shortcut") != "doubling":  # (the lazy search's path is shortcut so already)
+                res.path = shortcut_path(edges, res.path, deadline=dl, candidates="doubling", screen=cfg.shortcut_screen)
             if len(res.path) > 3:  # (with 3 vertices the one candidate edge was just checked)
                 res.path = shortcut_path(edges, res.path, deadline=dl, screen=cfg.shortcut_screen)  # every candidate on the few vertices left
             res.length = path_length(res.path, w)

@@ -13,11 +13,15 @@ RRT-Connect) checks those edges only when they could finish a path:
    A run's free nodes join B (up to its first colliding node); a run whose every node is free,
    ending on a free new node, makes a *candidate path* start tree -> joint -> goal tree.
 3. Steps 1 and 2 share **one batched check** per iteration.
-4. **Validation**: the candidate paths' unchecked edges are checked at the edge resolution
-   (:meth:`~.rrt.EdgeChecker.edges_free`, one batched call, each edge stopping at its first hit).
-   Checked edges are remembered; an edge that collides removes its child node and the child's
-   whole subtree from its tree (:meth:`~.trees.Tree.invalidate`). The first candidate whose edges
-   are all free is the path.
+4. **Validation by shortcut**: a candidate path is checked while it is shortcut (the doubling
+   candidates of :func:`~.rrt.shortcut_path`, screened, then checked whole farthest first): from
+   each kept vertex the farthest free candidate edge is taken, and only where no candidate is free
+   is the path's own next edge checked. Tree edges that a shortcut jumps over are never checked.
+   A tree edge that collides removes its child node and the child's whole subtree from its tree
+   (:meth:`~.trees.Tree.invalidate`) and the search goes on; checked tree edges are remembered.
+   The first candidate that passes is the path (already shortcut once; the planner's final
+   shortcut pass tries every candidate on the few vertices left). With ``RRTConfig.shortcut``
+   off, a candidate's unchecked edges are checked as they are (one batched call).
 
 **The guarantee is the eager search's**: every edge of the returned path was checked at the edge
 resolution (no point of any robot ellipsoid moves more than ``edge_resolution`` between two
@@ -50,7 +54,7 @@ def lazy_connect_search(planner, s: _Search, trees: list[Tree], info: dict, cloc
     """
     cfg = planner.config
     w, stride = s.w, float(s.st.stride)
-    stats = {"validations": 0, "edges_checked": 0, "edges_rejected": 0, "nodes_removed": 0}
+    stats = {"validations": 0, "edges_rejected": 0, "nodes_removed": 0, "shortcut": "doubling" if cfg.shortcut else None}
     info["lazy"] = stats
     clock.setdefault("collision_nodes", 0.0)
     it = 0
@@ -98,41 +102,93 @@ def lazy_connect_search(planner, s: _Search, trees: list[Tree], info: dict, cloc
                     candidates.append((int(ids[-1]), int(new_ids[j])))
         clock["sampling"] += time.perf_counter() - t3
         if candidates:
-            path = _validate(s, trees, a_id, candidates, stats)  # 4.
+            path = _validate(s, trees, a_id, candidates, stats, cfg.shortcut_screen, bool(cfg.shortcut))  # 4.
             if path is not None:
                 return path, f"trees joined after {it} iterations ({stats['validations']} candidate path(s) checked)", it
     return None, f"no path found {message}", it
 
 
-def _validate(s: _Search, trees: list[Tree], a_id: int, candidates: list[tuple[int, int]], stats: dict) -> np.ndarray | None:
-    """Check the unchecked edges of the candidate paths (one batched call); remove the subtrees of
-    the colliding ones; the first candidate left whole, as a path (P, D) start -> goal, or None."""
-    stats["validations"] += 1
-    tb_id = 1 - a_id
-    per_cand, todo = [], {}
+def _candidate(trees: list[Tree], a_id: int, ib: int, ia: int) -> tuple[np.ndarray, list[tuple[int, int]]]:
+    """A candidate path start -> goal through the joint (node ``ia`` of A and ``ib`` of B hold the
+    same configuration): its vertices (P, D) and, per edge k (vertex k -> k + 1), the tree edge it
+    is (tree, child node id)."""
+    f, ids_f, g, ids_g = (a_id, trees[a_id].trace_ids(ia), 1 - a_id, trees[1 - a_id].trace_ids(ib))
+    if a_id == 1:  # the start tree is B
+        f, ids_f, g, ids_g = g, ids_g, f, ids_f
+    path = np.vstack([trees[f].nodes[ids_f], trees[g].nodes[ids_g[::-1][1:]]])
+    owners = [(f, int(i)) for i in ids_f[1:]] + [(g, int(i)) for i in ids_g[::-1][:-1]]
+    return path, owners
+
+
+def _shortcut_check(s: _Search, trees: list[Tree], path: np.ndarray, owners: list[tuple[int, int]], screen: int | None) -> tuple[np.ndarray | None, tuple[int, int] | None]:
+    """Shortcut a candidate path while checking it (VALIDATION BY SHORTCUT, module docstring).
+
+    From each kept vertex, the doubling candidates of :func:`~.rrt.shortcut_path` (screened, then
+    checked whole farthest first); where none is free, the path's own next edge is checked (unless
+    already checked). Returns (the shortcut path, every edge checked, None) or (None, the tree edge
+    (tree, child node id) that collides)."""
+    edges = s.edges
+    p = path
+    out = [0]
+    i = 0
+    while i < len(p) - 1:
+        off = 1 + 2 ** np.arange(int(math.log2(max(1, len(p) - 1 - i))) + 1)  # 2, 3, 5, 9, ...
+        cand = np.unique(np.append(i + off[i + off < len(p) - 1], len(p) - 1))
+        cand = cand[cand >= i + 2][::-1]  # farthest first
+        j = i + 1
+        if cand.size:
+            ok = edges.screen(np.repeat(p[i : i + 1], cand.size, axis=0), p[cand], int(screen)) if screen else np.ones(cand.size, dtype=bool)
+            for c in cand[ok].tolist():
+                if edges.edges_free(p[i : i + 1], p[c : c + 1])[0]:
+                    j = c
+                    break
+        if j == i + 1:
+            t, node = owners[i]
+            if not trees[t].verified[node]:
+                if not edges.edges_free(p[i : i + 1], p[i + 1 : i + 2])[0]:
+                    return None, (t, node)
+                trees[t].verified[node] = True
+        out.append(j)
+        i = j
+    return p[out], None
+
+
+def _validate(s: _Search, trees: list[Tree], a_id: int, candidates: list[tuple[int, int]], stats: dict, screen: int | None, shortcut: bool) -> np.ndarray | None:
+    """Check the candidate paths one by one, by shortcutting them (:func:`_shortcut_check`) or, with
+    ``shortcut`` off, edge by edge as they are; a colliding tree edge removes its child's subtree.
+    The first candidate that passes (shortcut or not), or None."""
     for ib, ia in candidates:
-        ids = {a_id: trees[a_id].trace_ids(ia), tb_id: trees[tb_id].trace_ids(ib)}
-        per_cand.append(ids)
-        for t, chain in ids.items():
-            for i in chain[1:].tolist():
-                if not trees[t].verified[i]:
-                    todo[(t, i)] = None
-    keys = list(todo)
-    if keys:
-        a = np.array([trees[t].nodes[trees[t].parents[i]] for t, i in keys])  # (K, D) parents
-        b = np.array([trees[t].nodes[i] for t, i in keys])  # (K, D) children
-        free = s.edges.edges_free(a, b)
-        stats["edges_checked"] += len(keys)
-        for t in (0, 1):
-            sel = np.array([k[0] == t for k in keys])
-            ids = np.array([k[1] for k in keys], dtype=np.int64)
-            trees[t].verified[ids[sel & free]] = True
-            bad = ids[sel & ~free]
-            if bad.size:
-                stats["edges_rejected"] += int(bad.size)
-                stats["nodes_removed"] += trees[t].invalidate(bad)
-    for ids in per_cand:
-        if all(bool(trees[t].valid[chain].all()) for t, chain in ids.items()):
-            fa, fb = trees[a_id].nodes[ids[a_id]], trees[tb_id].nodes[ids[tb_id]]  # root of A -> joint, root of B -> joint
-            return np.vstack([fa, fb[::-1][1:]]) if a_id == 0 else np.vstack([fb, fa[::-1][1:]])
+        if not (trees[1 - a_id].valid[ib] and trees[a_id].valid[ia]):
+            continue  # (a subtree removed by an earlier candidate of this iteration)
+        stats["validations"] += 1
+        path, owners = _candidate(trees, a_id, ib, ia)
+        if not all(trees[t].valid[i] for t, i in owners):
+            continue
+        if shortcut:
+            # a cheap first look: every screen-th sample of the unchecked tree edges (a hit there is a
+            # hit of the edge's own check: the edge collides)
+            todo = [k for k, (t, i) in enumerate(owners) if not trees[t].verified[i]]
+            ok = s.edges.screen(path[todo], path[[k + 1 for k in todo]], int(screen or 16)) if todo else np.ones(0, dtype=bool)
+            bad_edges = [owners[k] for k, f in zip(todo, ok.tolist()) if not f]
+            if bad_edges:
+                for t, i in bad_edges:
+                    stats["edges_rejected"] += 1
+                    stats["nodes_removed"] += trees[t].invalidate(np.array([i]))
+                continue
+            short, bad = _shortcut_check(s, trees, path, owners, screen)
+            if short is not None:
+                return short
+            bad_edges = [bad]
+        else:  # the path as it is: every unchecked edge in one call
+            todo = [k for k, (t, i) in enumerate(owners) if not trees[t].verified[i]]
+            free = s.edges.edges_free(path[todo], path[[k + 1 for k in todo]]) if todo else np.ones(0, dtype=bool)
+            for k, f in zip(todo, free.tolist()):
+                if f:
+                    trees[owners[k][0]].verified[owners[k][1]] = True
+            bad_edges = [owners[k] for k, f in zip(todo, free.tolist()) if not f]
+            if not bad_edges:
+                return path
+        for t, i in bad_edges:
+            stats["edges_rejected"] += 1
+            stats["nodes_removed"] += trees[t].invalidate(np.array([i]))
     return None
