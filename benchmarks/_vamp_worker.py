@@ -18,8 +18,8 @@ Conversions (splatplan's AnalyticScene -> VAMP):
   axes here, per box, to 1e-5);
 * cylinder row ``(c, r, half_height, q_wxyz)``: VAMP has no true cylinder. ``cylinders="vamp"``
   (default) does what VAMP's own MBM evaluation does (``vamp.problem_dict_to_vamp``): a capsule
-  (``Cylinder`` from its two end centres on the cylinder's z axis, radius r: the cylinder plus a
-  hemisphere of radius r on each end) except in family ``box``, where a cuboid of half extents
+  (``Cylinder(center, euler_xyz, r, length)``: the segment between the two end-cap centres, radius
+  r, so the cylinder plus a hemisphere of radius r on each end) except in family ``box``, where a cuboid of half extents
   (r, r, half_height) (the top-down grasp of the can would hit the capsule's cap); "capsule" /
   "cuboid" force one of them everywhere. Both contain the cylinder (over-approximations).
 * sphere row ``(c, r)`` -> ``vamp.Sphere(c, r)``.
@@ -66,6 +66,17 @@ def _cuboid(vamp, center, half, R):
     return cub
 
 
+def _capsule(vamp, center, r, hh, R):
+    # VAMP 0.6.4's Cylinder(endpoint, endpoint, radius) constructor segfaults: use (center, euler, r, length)
+    cap = vamp.Cylinder([float(v) for v in center], _euler_xyz(R), float(r), 2.0 * float(hh))
+    a = np.asarray(center, dtype=np.float64) + hh * R[:, 2]  # VAMP's first end: centre + R z * length / 2
+    v = -2.0 * hh * R[:, 2]  # VAMP's axis vector: from the first end to the second
+    err = max(float(np.abs(np.array([cap.x1, cap.y1, cap.z1]) - a).max()), float(np.abs(np.array([cap.xv, cap.yv, cap.zv]) - v).max()))
+    if err > 1e-5:
+        raise ValueError(f"capsule conversion off by {err:.3g} (VAMP's Cylinder convention changed?)")
+    return cap
+
+
 def build_exact_env(vamp, objects, family, cylinders="vamp"):
     """AnalyticScene.to_json() dict -> (vamp.Environment, counts dict)."""
     env = vamp.Environment()
@@ -84,8 +95,7 @@ def build_exact_env(vamp, objects, family, cylinders="vamp"):
             env.add_cuboid(_cuboid(vamp, c, [r, r, hh], R))
             n["cuboids"] += 1
         else:
-            a, b = c + hh * R[:, 2], c - hh * R[:, 2]
-            env.add_capsule(vamp.Cylinder([float(v) for v in a], [float(v) for v in b], r))
+            env.add_capsule(_capsule(vamp, c, r, hh, R))
             n["capsules"] += 1
     for row in objects.get("spheres", []):
         env.add_sphere(vamp.Sphere([float(v) for v in row[0:3]], float(row[3])))

@@ -246,10 +246,16 @@ class CollisionChecker:
         from .wp_metric_kernel import LinkBatch
 
         wp = _wp()
+        ws = None
         if kind == "numpy":
             qn = robot.check_q(q, check_limits=False)  # (..., dof) float64, validated (shape, NaN)
             shape = tuple(qn.shape[:-1])
-            qw = wp.array(np.ascontiguousarray(qn.reshape(-1, dof), dtype=np.float32), dtype=wp.float32, device=self.device)
+            if out is not None and self.device == "cpu" and qn.size:  # into the workspace's buffer: no allocation
+                ws = self._workspace(out, 1)
+                qw = ws.reserve_q(qn.size // dof, dof)
+                qw.numpy()[:] = qn.reshape(-1, dof)
+            else:
+                qw = wp.array(np.ascontiguousarray(qn.reshape(-1, dof), dtype=np.float32), dtype=wp.float32, device=self.device)
         else:
             if tuple(q.shape[-1:]) != (dof,):
                 raise SplatplanError(f"q must have shape (..., {dof}) for robot {robot.name!r}, got {tuple(q.shape)}")
@@ -269,6 +275,8 @@ class CollisionChecker:
             return self._empty(kind, oshape, bool)
         ws = self._workspace(out, n)
         ws.reserve_fk(n)
+        if per_config and sub is None:  # whole buffers (the kernels read rows < n only): no per-call views
+            return self._configs(robot, qw, ws, b, n, e, shape, kind, validate, slack, out is not None)
         centers, rots = ws.fk_centers[:n], ws.fk_rots[:n]
         if sub is None:  # robots of other types may take no subset (the duck-typed fk_wp of the docs)
             robot.fk_wp(qw, centers, rots)
@@ -281,7 +289,7 @@ class CollisionChecker:
         if kind != "numpy":
             ws.reset_bad()
         if per_config:
-            sl = wp.empty(n, dtype=wp.float32, device=self.device) if slack else None
+            sl = (ws.reserve_slack(n) if out is not None else wp.empty(n, dtype=wp.float32, device=self.device)) if slack else None
             self._impl.collides_configs(links, b, robot_groups(robot), amin, amax, self.config, ws.in_collision, ws.bad, slack=sl)
             self._raise_bad(ws, kind, validate)
             hits = convert_out(ws.in_collision, b, shape, kind, False)
@@ -297,6 +305,33 @@ class CollisionChecker:
         if slack:
             return convert_out(ws.in_collision, n, oshape, kind, False), convert_out(sl, n, oshape, kind, False)
         return convert_out(ws.in_collision, n, oshape, kind, False)
+
+    def _configs(self, robot, qw, ws: MetricWorkspace, b: int, n: int, e: int, shape, kind: str, validate: bool, slack: bool, reuse: bool):
+        """:meth:`collides_configs` after the configuration checks: FK into the workspace, the
+        per-configuration kernel, the outputs (the LinkBatch cached in the workspace)."""
+        from .._warp import wp as _wp
+        from .wp_metric_kernel import LinkBatch
+
+        wp = _wp()
+        robot.fk_wp(qw, ws.fk_centers, ws.fk_rots)
+        axes, amin, amax = self._axes_for(robot)
+        key = ("configs_links", id(ws.fk_centers), id(axes), e)
+        links = ws._cache.get(key)
+        if links is None:
+            links = LinkBatch()
+            links.centers, links.rots, links.axes = ws.fk_centers, ws.fk_rots, axes
+            links.rot_mode, links.rot_period, links.axes_period = 2, int(ws.fk_centers.shape[0]), e
+            ws._cache = {k: v for k, v in ws._cache.items() if k[0] != "configs_links"}
+            ws._cache[key] = (links, axes)  # (axes kept alive with its id)
+        else:
+            links = links[0]
+        if kind != "numpy":
+            ws.reset_bad()
+        sl = (ws.reserve_slack(n) if reuse else wp.empty(n, dtype=wp.float32, device=self.device)) if slack else None
+        self._impl.collides_configs(links, b, robot_groups(robot), amin, amax, self.config, ws.in_collision, ws.bad, slack=sl)
+        self._raise_bad(ws, kind, validate)
+        hits = convert_out(ws.in_collision, b, shape, kind, False)
+        return (hits, convert_out(sl, n, shape + (e,), kind, False)) if slack else hits
 
     def _axes_for(self, robot, subset=None):
         """Robot semi-axes (E,) (or of the ellipsoids ``subset``) on the device plus their

@@ -281,6 +281,9 @@ class MetricWorkspace:
     fk_capacity: int = 0
     fk_centers: object = None  # wp.array(vec3) (fk_capacity,) ellipsoid centres from robot FK
     fk_rots: object = None  # wp.array(mat33) (fk_capacity,)
+    q_capacity: int = 0
+    q: object = None  # wp.array(float32) (q_capacity, dof) host configurations copied to the device (numpy inputs)
+    slack: object = None  # wp.array(float32) (fk_capacity,) per-ellipsoid FREE SLACK of collides_robot / collides_configs
     reallocations: int = 0  # how often buffers were (re)allocated (tests and benchmarks read it)
     _cache: dict = field(default_factory=dict)
 
@@ -314,6 +317,24 @@ class MetricWorkspace:
             self.reallocations += 1
         return self
 
+    def reserve_q(self, b: int, dof: int):
+        """A (b, dof) float32 view of the configuration buffer (grown on demand)."""
+        wp = _wp()
+        if b > self.q_capacity or self.q is None or self.q.shape[1] != dof:
+            cap = max(b, 2 * self.q_capacity if self.q is not None and self.q.shape[1] == dof else b)
+            self.q = wp.empty((cap, dof), dtype=wp.float32, device=self.device)
+            self.q_capacity = cap
+            self.reallocations += 1
+        return self.q if b == self.q_capacity else self.q[:b]
+
+    def reserve_slack(self, n: int):
+        """The slack buffer with at least n rows."""
+        wp = _wp()
+        if self.slack is None or self.slack.shape[0] < n:
+            self.slack = wp.empty(max(n, self.fk_capacity), dtype=wp.float32, device=self.device)
+            self.reallocations += 1
+        return self.slack
+
     def scratch(self) -> tuple:
         """(keys, values) int32 scratch of the query sort."""
         return self.sort_keys, self.sort_values
@@ -342,10 +363,10 @@ class MetricWorkspace:
 
 def convert_out(x, b: int, shape: tuple[int, ...], kind: str, copy: bool):
     """Rows [0, b) of a device buffer as the caller's type, shaped ``shape``."""
-    v = x[:b] if x.shape[0] != b else x
     if kind == "numpy":
-        a = v.numpy()
-        return (a.copy() if copy and v.device.is_cpu else a).reshape(shape)
+        a = x.numpy()[:b]  # (a numpy slice: cheaper than a device view)
+        return (a.copy() if copy and x.device.is_cpu else a).reshape(shape)
+    v = x[:b] if x.shape[0] != b else x
     if kind == "torch":
         return _wp().to_torch(v).reshape(shape)
     return v.reshape(shape) if len(shape) else v

@@ -330,6 +330,7 @@ class WarpMetric:
         self._dgrid: MeanDistanceGrid | None = None  # built on first use (mean_distance_grid)
         self._no_slack = None  # (1,) placeholder of the collide kernel's slack output
         self._groups_cache: dict = {}  # (robot groups key, largest std, n_sigma) -> RobotGroups
+        self._params_cache: dict = {}  # the collide kernels' MetricParams by the config values they are made of
 
     # ------------------------------------------------------------------ resources
     def _executor(self) -> ThreadPoolExecutor:
@@ -587,7 +588,12 @@ class WarpMetric:
             slack_arr, want = self._no_slack, 0
         else:
             slack_arr, want = slack, 1
-        params = metric_params(cfg, 0, self.tiers.collide_row_clip)
+        pk = (cfg.n_sigma, cfg.s2_cap, cfg.softmin_t, cfg.softmin_mode, cfg.cost_d_max, cfg.cost_gamma, cfg.cost_s_min, cfg.cost_reduce,
+              cfg.k_collide, cfg.opacity_min, cfg.opacity_scaled_inflation, self.tiers.collide_row_clip)  # every field metric_params reads
+        params = self._params_cache.get(pk)
+        if params is None:
+            params = metric_params(cfg, 0, self.tiers.collide_row_clip)
+            self._params_cache = {pk: params}  # (one entry: the config in use)
         pool = self._executor() if self.device == "cpu" and cpu_threads() > 1 else None
         # a thread is a whole configuration (tens of ellipsoids): split smaller batches than per-ellipsoid ones
         launch_split(robot_collide_kernel, b, [0, links, gs.tiers, dgrid, params, rg, out_hit, bad, slack_arr, want], self.device, pool,

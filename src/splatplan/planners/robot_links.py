@@ -22,6 +22,8 @@ Configuration metric (what "stride", "edge resolution" and "goal tolerance" are 
 
 from __future__ import annotations
 
+import threading
+
 import numpy as np
 
 from ..errors import SplatplanError
@@ -57,21 +59,22 @@ def robot_collides(checker, robot, q: np.ndarray) -> np.ndarray:
     return checker.collides(*robot.ellipsoids(q))
 
 
-def configs_collide(checker, robot, q: np.ndarray) -> np.ndarray:
+def configs_collide(checker, robot, q: np.ndarray, out=None) -> np.ndarray:
     """(..., dof) configurations -> (...,) bool: any ellipsoid of configuration q in collision (the
-    checker's per-configuration kernel when it has one: the same answer, cheaper)."""
+    checker's per-configuration kernel when it has one: the same answer, cheaper). ``out``: the
+    checker's workspace to reuse (the result is a copy either way)."""
     if hasattr(checker, "collides_configs"):
-        return np.asarray(checker.collides_configs(robot, q))
+        return np.array(checker.collides_configs(robot, q, out=out))
     return np.asarray(robot_collides(checker, robot, q)).any(axis=-1)
 
 
-def configs_collide_slack(checker, robot, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def configs_collide_slack(checker, robot, q: np.ndarray, out=None) -> tuple[np.ndarray, np.ndarray]:
     """(..., dof) -> (any ellipsoid in collision (...,) bool, slack (..., E) float): as
     :func:`robot_collides_slack`, per configuration (the checker's per-configuration kernel when it
     has one; its slack may differ from the per-ellipsoid one's but holds the same promise)."""
     if hasattr(checker, "collides_configs"):
-        hit, slack = checker.collides_configs(robot, q, slack=True)
-        return np.asarray(hit), np.asarray(slack)
+        hit, slack = checker.collides_configs(robot, q, slack=True, out=out)
+        return np.array(hit), np.array(slack)
     hit, slack = robot_collides_slack(checker, robot, q)
     return hit.any(axis=-1), slack
 
@@ -135,6 +138,7 @@ class LinkGeometry:
         self.robot = robot
         self.n_queries = 0
         self.n_configs = 0
+        self._ws: dict = {}  # (id(checker), thread) -> (checker, its MetricWorkspace): buffers reused across checks
         rng = np.random.default_rng(0)
         self.dof = int(robot.dof)
         self.translation = _is_translation(robot, rng)
@@ -159,6 +163,19 @@ class LinkGeometry:
             self._offset = np.asarray(c0[0], dtype=np.float64) - q0  # (E, 3)
             self._quat = np.asarray(quat0[0], dtype=np.float64)  # (E, 4) wxyz
             self._axes = ax
+
+    def _workspace(self, checker):
+        """This thread's reusable output buffers on ``checker`` (None for checkers without them)."""
+        if not hasattr(checker, "workspace"):
+            return None
+        key = (id(checker), threading.get_ident())
+        hit = self._ws.get(key)
+        if hit is None or hit[0] is not checker:
+            if len(self._ws) >= 8:
+                self._ws.clear()
+            hit = (checker, checker.workspace())
+            self._ws[key] = hit
+        return hit[1]
 
     # ------------------------------------------------------------------ metric
     def bind(self, q: np.ndarray) -> None:
@@ -202,7 +219,7 @@ class LinkGeometry:
         q = np.asarray(q, dtype=np.float64)
         e = int(self.robot.n_ellipsoids)
         if np.all(np.asarray(margin) == 0):
-            hit = configs_collide(checker, self.robot, q)  # (...,)
+            hit = configs_collide(checker, self.robot, q, out=self._workspace(checker))  # (...,)
             self.n_queries += hit.size * e
             self.n_configs += hit.size
             return hit
@@ -220,7 +237,7 @@ class LinkGeometry:
         """(..., D) -> (any ellipsoid in collision (...,) bool, slack (..., E) float): each
         ellipsoid's FREE SLACK (see :func:`robot_collides_slack`): the ellipsoid is free wherever
         its centre lies within that distance of this one's."""
-        hit, slack = configs_collide_slack(checker, self.robot, np.asarray(q, dtype=np.float64))  # (...,), (..., E)
+        hit, slack = configs_collide_slack(checker, self.robot, np.asarray(q, dtype=np.float64), out=self._workspace(checker))  # (...,), (..., E)
         self.n_queries += slack.size
         self.n_configs += hit.size
         return hit, slack
