@@ -258,6 +258,8 @@ def solve_vamp(python: str, problems: list[dict], mode: str = "exact", *, point_
 
     Raises RuntimeError when the worker fails as a whole (crash, timeout, unreadable output).
     """
+    if not python:
+        raise ValueError("solve_vamp: no VAMP python (vamp_python() returned None: skip the comparison with its reason)")
     if mode not in ("exact", "capt"):
         raise ValueError(f"mode {mode!r}: use 'exact' or 'capt'")
     if cylinders not in ("vamp", "capsule", "cuboid"):
@@ -278,6 +280,8 @@ def solve_vamp(python: str, problems: list[dict], mode: str = "exact", *, point_
                                   timeout=timeout_s, env=_clean_env(), cwd=tmp)  # fmt: skip
         except subprocess.TimeoutExpired as e:
             raise RuntimeError(f"VAMP worker timed out after {timeout_s} s: {_tail(str(e.stderr or ''), 500)}") from None
+        except OSError as e:
+            raise RuntimeError(f"cannot run the VAMP worker with {python}: {e}") from None
         if proc.returncode != 0 or not out_path.is_file():
             raise RuntimeError(f"VAMP worker failed (rc {proc.returncode}): {_tail(proc.stderr, 800)}")
         try:

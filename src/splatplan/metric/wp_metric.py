@@ -610,11 +610,13 @@ class WarpMetric:
         if hit is not None:
             return hit
         rho = np.array([search_radius(float(n_sigma), s_top, float(a.min()), float(a.max()), 1.0) for a in ax])  # (E,) float64
-        radius = np.array([np.max(rel[members[first[g]:first[g + 1]]] + rho[members[first[g]:first[g + 1]]]) for g in range(len(first) - 1)])
+        reach = (rel + rho)[members]  # (E,) in member order
+        radius = np.array([np.max(reach[first[g]:first[g + 1]]) for g in range(len(first) - 1)])
         rg = RobotGroups()
         rg.first = wp.array(first, dtype=wp.int32, device=self.device)
         rg.members = wp.array(members, dtype=wp.int32, device=self.device)
         rg.radius = wp.array((radius * GROUP_PAD).astype(np.float32), dtype=wp.float32, device=self.device)
+        rg.reach = wp.array((reach * GROUP_PAD).astype(np.float32), dtype=wp.float32, device=self.device)
         rg.n_groups = len(first) - 1
         rg.n_ellipsoids = len(members)
         with self._lock:

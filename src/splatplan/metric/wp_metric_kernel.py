@@ -98,8 +98,8 @@ R_g >= max_e (|c_e - c_g| + rho_top(e)) (rho_top(e): e's search radius for the s
 cap 1; |c_e - c_g| measured in the link frame; padded against float32 rounding), a mean-distance
 bound d_lb(c_g) > R_g gives D(c_e) > rho_top(e) for every member: each of them would skip every tier
 in :func:`link_collides` and read free, so the group is free with one read instead of one per
-member. Its members get the FREE SLACK d_lb(c_g) - R_g (an ellipsoid whose centre moves less than
-that, in any orientation, still has D > rho_top). Other groups test their members one by one, and
+member. Member e gets the FREE SLACK d_lb(c_g) - |c_e - c_g| - rho_top(e) >= d_lb(c_g) - R_g (an
+ellipsoid whose centre moves less than that, in any orientation, still has D > rho_top). Other groups test their members one by one, and
 the first colliding member ends the configuration: the answer is "any ellipsoid collides", equal to
 ``collides_robot(...).any(-1)`` (the same per-ellipsoid test decides every member that is read).
 """
@@ -803,6 +803,7 @@ class RobotGroups:
     first: wp.array(dtype=wp.int32)  # (G + 1,) group g holds members[first[g]:first[g + 1]]
     members: wp.array(dtype=wp.int32)  # (E,) ellipsoid indices, group by group, in check order
     radius: wp.array(dtype=wp.float32)  # (G,) R_g: a group whose centroid's mean-distance bound exceeds it is free
+    reach: wp.array(dtype=wp.float32)  # (E,) per member k (order of members): |c_e - c_g| + rho_top(e) <= R_g, padded
     n_groups: int
     n_ellipsoids: int  # E: the ellipsoids of configuration b are queries b E .. b E + E - 1
 
@@ -840,9 +841,9 @@ def robot_collide_kernel(
             d = mean_distance_lb(dgrid, cg)
             # R_g plus a pad against the float32 rounding of the centroid at its distance from the origin
             if d > groups.radius[g] + 1.0e-5 * wp.length(cg):  # (a NaN centre fails this test and is caught below)
-                if want_slack != 0:
+                if want_slack != 0:  # each member's own reach (<= R_g): its slack is at least the group's
                     for k in range(k0, k1):
-                        slack[base + groups.members[k]] = (d - groups.radius[g] - 1.0e-5 * wp.length(cg)) * DIST_SHRINK
+                        slack[base + groups.members[k]] = (d - groups.reach[k] - 1.0e-5 * wp.length(cg)) * DIST_SHRINK
                 continue
         for k in range(k0, k1):
             q = base + groups.members[k]

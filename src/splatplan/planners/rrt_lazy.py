@@ -46,7 +46,8 @@ def lazy_connect_search(planner, s: _Search, trees: list[Tree], info: dict, cloc
     Args:
         planner: the :class:`~.rrt_connect.RRTConnect` (its config and its extension step).
         s: the search's set-up.
-        info: gets ``lazy`` statistics (candidate validations, edges checked and removed).
+        info: gets ``lazy`` statistics (candidate paths checked, tree edges rejected, nodes removed,
+            configurations checked at the nodes and in the validations).
         clock: seconds by phase; gets ``collision_nodes`` (the node checks).
 
     Returns:
@@ -54,7 +55,8 @@ def lazy_connect_search(planner, s: _Search, trees: list[Tree], info: dict, cloc
     """
     cfg = planner.config
     w, stride = s.w, float(s.st.stride)
-    stats = {"validations": 0, "edges_rejected": 0, "nodes_removed": 0, "shortcut": "doubling" if cfg.shortcut else None}
+    stats = {"validations": 0, "edges_rejected": 0, "nodes_removed": 0, "configs_nodes": 0, "configs_validation": 0,
+             "shortcut": "doubling" if cfg.shortcut else None}  # fmt: skip
     info["lazy"] = stats
     clock.setdefault("collision_nodes", 0.0)
     it = 0
@@ -81,7 +83,9 @@ def lazy_connect_search(planner, s: _Search, trees: list[Tree], info: dict, cloc
         clock["nearest"] += t1 - t0
         clock["sampling"] += time.perf_counter() - t1
         t2 = time.perf_counter()
+        c0 = s.edges.n_configs
         hit = s.edges.configs_collide(np.concatenate([new, *runs]))  # 3. one check: (M + sum K,)
+        stats["configs_nodes"] += s.edges.n_configs - c0
         clock["collision_nodes"] += time.perf_counter() - t2
         t3 = time.perf_counter()
         ext_free = ~hit[:m]
@@ -102,7 +106,9 @@ def lazy_connect_search(planner, s: _Search, trees: list[Tree], info: dict, cloc
                     candidates.append((int(ids[-1]), int(new_ids[j])))
         clock["sampling"] += time.perf_counter() - t3
         if candidates:
+            c0 = s.edges.n_configs
             path = _validate(s, trees, a_id, candidates, stats, cfg.shortcut_screen, bool(cfg.shortcut))  # 4.
+            stats["configs_validation"] += s.edges.n_configs - c0
             if path is not None:
                 return path, f"trees joined after {it} iterations ({stats['validations']} candidate path(s) checked)", it
     return None, f"no path found {message}", it
