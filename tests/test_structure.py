@@ -242,3 +242,15 @@ def test_no_import_cycles():
     assert len(graph) > 100, "the source tree was not found"
     cycles = [c for c in strongly_connected(graph) if len(c) > 1]
     assert not cycles, "import cycles (each strongly connected component of the module graph):\n" + "\n\n".join(_describe(c, graph, where) for c in cycles)
+
+
+def test_scene_stage_does_not_import_robots():
+    """Robots read the scene stage (quaternion maths of ``scenes.splats``), so the scene stage must
+    not read the robot stage: stage-level edges both ways are a cycle between the two packages."""
+    graph, where = import_graph()
+    bad = sorted(
+        f"{a} -> {b} ({'; '.join(where[(a, b)])})"
+        for a in graph if a.startswith("splatplan.scenes")
+        for b in graph[a] if b.startswith("splatplan.robots")
+    )  # fmt: skip
+    assert not bad, "the scene stage imports the robot stage:\n" + "\n".join(bad)
