@@ -13,7 +13,8 @@ from __future__ import annotations
 
 import importlib
 
-__version__ = "0.1.0"
+#: The package version (semantic versioning; the one place it is set: pyproject.toml reads it). See CHANGELOG.md.
+__version__ = "0.2.0"
 
 _LAZY = {
     "Splats": ("splatplan.scenes.splats", "Splats"),

@@ -328,3 +328,23 @@ def test_plot_top_view_smoke(layout):
     n_sections = sum(box_cross_section(b, PLANE_Z) is not None for b in layout.scene.boxes)
     assert len(ax.patches) >= n_sections
     plt.close(fig)
+
+
+def test_gates_are_designed_for_the_studies_sphere(layout):
+    """The scene stage does not import the robot stage: the sphere the gates are sized for is a
+    constant of the scene, and it is the studies' default sphere robot."""
+    from splatplan.scenes.builtin.stonehenge import DESIGN_ROBOT_RADIUS
+
+    assert DESIGN_ROBOT_RADIUS == point_radius()
+    assert layout.robot_radius == point_radius() == layout.scene.meta["robot_radius"]
+
+
+def test_levels_are_importable_from_their_old_home():
+    from splatplan.scenes.builtin import levels, stonehenge
+
+    assert stonehenge.level_config is levels.level_config and stonehenge.default_n_splats is levels.default_n_splats
+    assert stonehenge.N_SPLATS_LEVEL1 == levels.N_SPLATS_LEVEL1 and stonehenge.LEVEL_RATIO == levels.LEVEL_RATIO
+    assert [levels.default_n_splats(lv) for lv in levels.LEVELS] == [default_n_splats(lv) for lv in (1, 2, 3, 4, 5)]
+    with pytest.raises(SplatplanError):
+        levels.splat_count(0, 10)
+    assert levels.splat_count(None, 10) == 10

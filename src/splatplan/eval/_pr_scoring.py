@@ -23,7 +23,7 @@ from ..errors import SplatplanError
 from .._progress import progress
 from ._common import DISPLAY, load_scene_with_gt
 from ._pr_culling import cull_rule, culled_collision_scores, culling_check
-from .pr import PRConfig, variant_settings
+from ._pr_config import PRConfig, variant_settings
 
 #: bytes per grid cell across the study (centres, exact SDF, labels, every method's scores): an estimate
 GRID_BYTES_PER_CELL = 128

@@ -19,38 +19,16 @@ the faint isolated ones that rule keeps), and the robot plans with
   each sample checked against the exact primitives with the robot's own (un-inflated) ellipsoids;
   negative = the path cuts the real geometry.
 
-**The safety margin, at every n_sigma.** A link can slip between splats and cut the surface; a
-margin that covers the gaps makes that impossible. Let ``E_i(n) = {mu_i + R_i diag(s_i) u : |u| <=
-n}`` be splat i's n-sigma ellipsoid (its mean at n = 0), ``rho(n)`` the covering radius of the
-exposed surface by their union (every surface point lies within rho(n) of some E_i(n)), and r the
-edge resolution (no ellipsoid point moves more than r between consecutive checked configurations;
-the benchmark asks the planner for r = a quarter of the robot's own smallest semi-axis).
-
-*Claim:* if the planner checks, at n_sigma = n, the robot grown by ``m >= rho(n) + r / 2`` (each
-ellipsoid replaced by one containing its Minkowski sum with a ball of radius m,
-:meth:`Robot.inflated`) and every checked configuration is free, then no configuration along the
-edge has a surface point inside the real robot's ellipsoids.
-
-1. *The checker is conservative for E_i(n).* ``s2(p) = (p - c)^T A (p - c)`` is convex, so for
-   ``p = mu + R diag(s) u``, ``|u| <= n``: ``s2(p) >= s2(mu) + g . (p - mu) >= s2 - n sigma`` (g the
-   gradient at mu; Cauchy-Schwarz gives ``|g . R diag(s) u| <= n |diag(s) R^T g| = n sigma``). A
-   point of E_i(n) inside the link (s2(p) < 1) therefore makes ``s2~ = max(0, s2 - n sigma) < 1``:
-   the splat is counted. Free means no point of any E_i(n) inside any (grown) link.
-2. A surface point x inside a link at a configuration between two checked ones is within r/2 of
-   the same link at the nearer checked configuration (the motion bound is linear along an edge);
-   some point p of some E_i(n) lies within rho(n) of x, hence within rho(n) + r/2 <= m of that
-   link: inside the grown link (x is interior, so strictly), which the checker would have counted.
-3. A robot cannot get into a solid without a surface point inside it along a continuous path from
-   a valid start, so the path's exact clearance stays >= 0.
-
-Nothing is exempted at the endpoints: they are checked with the same grown model (``start_free``,
-``goal_free``). rho(n) needs the ground truth; the derived margin estimates it from the splats
-alone, as a user would: ``max(margin_spacing_factor h - n s_t, margin_floor_factor h) + r/2`` with
-h the median nearest-neighbour distance of the means and s_t the median middle std (a splat's
-smaller tangential std: its n-sigma ellipsoid reaches at least n s_t along the surface, closing the
-gaps between means; the floor covers the means' offsets along the normal, which flat splats do
-not). With ``check_margin`` the benchmark measures rho(n) (:func:`covering_radius`,
-``rho_measured_m``) and reports whether ``m >= rho(n) + r / 2`` held (``bound_holds``).
+**The safety margin, at every n_sigma.** A link can slip between splats and cut the surface; the
+planner checks the robot grown by a margin ``m >= rho(n) + r / 2`` (rho(n) the covering radius of
+the surface by the splats' n-sigma ellipsoids, r the edge resolution), which makes that
+impossible: the claim, its proof and the estimate of m from the splats alone are in
+:mod:`splatplan.scenes.margin` (:func:`~splatplan.scenes.margin.derived_margin` with
+``margin_spacing_factor`` and ``margin_floor_factor``; the benchmark asks the planner for r = a
+quarter of the robot's own smallest semi-axis). Nothing is exempted at the endpoints: they are
+checked with the same grown model (``start_free``, ``goal_free``). With ``check_margin`` the
+benchmark measures rho(n) (:func:`~splatplan.scenes.margin.covering_radius`, ``rho_measured_m``)
+and reports whether ``m >= rho(n) + r / 2`` held (``bound_holds``).
 
 **Why the default n_sigma is 0.** The margin shrinks with n, but the checker's own reach grows
 faster: the linearisation ``s2 - n sigma`` reaches about ``sqrt(a^2 + (n s_t)^2) - a`` beyond a
@@ -94,6 +72,7 @@ import numpy as np
 
 from .._config import bounded, check_config
 from ..errors import SplatplanError
+from ..scenes.margin import covering_radius, derived_margin  # noqa: F401 (the margin lives in the scene stage; these names stay importable here)
 
 #: the repository root (src/splatplan/eval/mbm.py -> 3 levels up); shared data lives beside it
 _REPO = Path(__file__).resolve().parents[3]
@@ -471,72 +450,6 @@ def path_min_clearance(scene, robot, q: np.ndarray, first: int = 32, stride: int
         for nb in (left, right):
             low[:, k] = np.maximum(low[:, k], val[nb, k] - np.abs(cum - cum[nb]))
     return solve(low <= best + 1e-12)
-
-
-def covering_radius(scene, splats, spacing: float, n_sigma: float = 0.0, seed: int = 0, oversample: float = 3.0, k: int = 8, chunk: int = 65536) -> float:
-    """Measured covering radius rho(n_sigma) (m) of the exposed surface of ``scene`` by the splats:
-    max over dense surface samples (a grid ``oversample`` times finer than ``spacing``) of the
-    Euclidean distance to the nearest splat's n_sigma-ellipsoid (``{mu + R diag(s) u, |u| <=
-    n_sigma}``; at n_sigma 0 the mean itself). The nearest ellipsoid is searched among the ``k``
-    nearest means (an upper bound of the min over all splats, so of rho: the safe side when
-    checking ``m >= rho + r/2``); the samples underestimate the max by at most their spacing.
-    Above n_sigma 0, branch and bound: samples in decreasing order of a cheap upper bound (the
-    point of the nearest ellipsoids on the segment to their centre), exact distances (Newton
-    projection) until no bound can beat the best."""
-    from scipy.spatial import cKDTree
-
-    from ..scenes.builtin.primitives import _project_ellipsoid, _sample_faces
-    from ..scenes.splats import quat_to_rotmat
-
-    rng = np.random.default_rng(seed)
-    nb = len(scene.boxes)
-    h = spacing / oversample
-    x = _sample_faces(scene, np.full(nb, h), np.ones((nb, 6), bool), rng, curved_spacing=h)["p"]  # (S, 3) world
-    mu = np.asarray(splats.means, dtype=np.float64)
-    d, idx = cKDTree(mu).query(x, k=1 if n_sigma == 0 else k)
-    if n_sigma == 0:
-        return float(d.max())
-    rot = quat_to_rotmat(np.asarray(splats.quats, dtype=np.float64)).reshape(-1, 3, 3)  # splat -> world
-    semi = n_sigma * np.maximum(np.asarray(splats.scales, dtype=np.float64), 1e-12)  # (N, 3); 2DGS disks: ~0 thick
-    ub = np.empty(len(x))
-    for s in range(0, len(x), chunk):  # cheap bound: |x - mu| (1 - 1 / m)+, m = x's Mahalanobis radius in units of n_sigma; min over the k
-        sl = slice(s, s + chunk)
-        u = np.einsum("pkji,pkj->pki", rot[idx[sl]], x[sl, None, :] - mu[idx[sl]])  # (P, k, 3) splat frames
-        maha = np.linalg.norm(u / semi[idx[sl]], axis=2)  # in units of the n_sigma-ellipsoid
-        ub[sl] = (d[sl] * np.clip(1.0 - 1.0 / np.maximum(maha, 1e-300), 0.0, None)).min(axis=1)
-    order = np.argsort(-ub)
-    best = 0.0
-    for s in range(0, len(order), 4096):
-        sel = order[s : s + 4096]
-        if ub[sel[0]] <= best:
-            break
-        u = np.einsum("pkji,pkj->pki", rot[idx[sel]], x[sel, None, :] - mu[idx[sel]]).reshape(-1, 3)
-        proj = _project_ellipsoid(u, semi[idx[sel]].reshape(-1, 3))
-        best = max(best, float(np.linalg.norm(u - proj, axis=1).reshape(len(sel), -1).min(axis=1).max()))
-    return best
-
-
-def derived_margin(robot, means: np.ndarray, factor: float, fraction: float = 0.25, *, n_sigma: float = 0.0,
-                   scales: np.ndarray | None = None, floor_factor: float = 0.5) -> tuple[float, float, float]:  # fmt: skip
-    """(margin m, spacing estimate h, edge resolution r), from the splats alone:
-    ``m = max(factor h - n_sigma s_t, floor_factor h) + r / 2``, h = the median nearest-neighbour
-    distance of the means (N, 3) (over ~20k of them, evenly strided), s_t = the median middle std
-    of ``scales`` (N, 3) (a surface splat's smaller tangential std; 0 without scales), r =
-    ``fraction x`` the robot's own smallest semi-axis (the resolution the benchmark asks the
-    planner for, whatever the inflation).
-    ``factor h`` estimates the covering radius of the surface by the means, rho(0); each splat's
-    n_sigma-ellipsoid reaches at least n_sigma s_t from its mean along the surface, which closes
-    the gaps between means, so rho(n_sigma) shrinks by about that much, down to the floor (the
-    offsets of the means along the normal, which the flat splats do not cover)."""
-    from scipy.spatial import cKDTree
-
-    means = np.asarray(means)
-    probe = means[:: max(1, len(means) // 20_000)]  # ~20k evenly strided means: the median to < 1% at a tenth of the cost
-    d, _ = cKDTree(means).query(probe, k=2)
-    h = float(np.median(d[:, 1]))
-    s_t = float(np.median(np.sort(np.asarray(scales, dtype=np.float64), axis=1)[:, 1])) if scales is not None and n_sigma > 0 else 0.0
-    r = fraction * robot.min_semi_axis
-    return max(factor * h - n_sigma * s_t, floor_factor * h) + 0.5 * r, h, r
 
 
 # ---------------------------------------------------------------------------------------------

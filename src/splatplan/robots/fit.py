@@ -43,15 +43,18 @@ import numpy as np
 from .._progress import progress
 from .._resources import require_work
 from ..errors import SplatplanError
+from .ellipsoid import CONTAIN_EPS, ellipsoid_volume, mahalanobis, mvee, union_volume  # noqa: F401 (re-exported)
+from . import fit_cover, fit_opt  # called through the modules: tests replace a fitter with monkeypatch
+from .solids import check_size, mesh_volume, polytope
 from .urdf import Geom, UrdfModel
+
+#: the old private name of :func:`~splatplan.robots.solids.polytope` (benchmarks and tests read it)
+_polytope = polytope
 
 #: Most ellipsoids per link: each is an iterative MVEE fit of one slab (and the volume report is a
 #: Monte Carlo over all of them), so k = 100,000 would run for hours; slabs this thin are already
 #: finer than any link mesh's detail.
 MAX_PER_LINK = 64
-
-#: Relative safety factor applied after the exact containment rescale (float rounding).
-CONTAIN_EPS = 1e-9
 
 
 @dataclass
@@ -71,76 +74,6 @@ class EllipsoidSet:
 
 
 # --------------------------------------------------------------------------- fitting primitives
-
-
-def ellipsoid_volume(semi_axes: np.ndarray) -> np.ndarray:
-    return 4.0 / 3.0 * math.pi * np.prod(np.asarray(semi_axes, dtype=np.float64), axis=-1)
-
-
-def mahalanobis(points: np.ndarray, center: np.ndarray, rot: np.ndarray, semi_axes: np.ndarray) -> np.ndarray:
-    """|diag(1/s) R^T (p - c)| for points (N, 3): <= 1 inside."""
-    local = (np.asarray(points, dtype=np.float64) - center) @ rot  # (N, 3) ellipsoid frame
-    return np.linalg.norm(local / semi_axes, axis=-1)
-
-
-def _hull_vertices(points: np.ndarray) -> np.ndarray:
-    from scipy.spatial import ConvexHull, QhullError
-
-    if len(points) <= 4:
-        return points
-    try:
-        return points[ConvexHull(points).vertices]
-    except (QhullError, ValueError):
-        return points
-
-
-def mvee(points: np.ndarray, tol: float = 1e-3, max_iter: int = 20000) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Minimum-volume enclosing ellipsoid of points (N, 3) by Khachiyan's algorithm.
-
-    Returns (centre (3,), rotation (3, 3) with det +1, semi-axes (3,) descending). The result
-    contains every point (rescaled by the largest Mahalanobis radius); flat or tiny point sets
-    get a thickness of 1e-3 of their extent (at least 1e-6 m).
-    """
-    p = np.unique(np.asarray(points, dtype=np.float64).reshape(-1, 3), axis=0)
-    if len(p) == 0 or not np.all(np.isfinite(p)):
-        raise SplatplanError("cannot fit an ellipsoid to an empty or non-finite point set")
-    mean = p.mean(axis=0)
-    a = p - mean
-    a = np.linalg.qr(a, mode="r") if len(a) >= 3 else np.vstack([a, np.zeros((3 - len(a), 3))])  # (3, 3), same singular values
-    _, sv, vt = np.linalg.svd(a, full_matrices=False)  # vt (3, 3); no (N, N) factor for large N
-    extent = max(float(np.ptp(p, axis=0).max()), 1e-6)
-    pad = max(1e-3 * extent, 1e-6)
-    extra = []
-    for i in range(3):  # give flat / line / point sets a small thickness
-        if sv[i] <= 1e-9 * max(sv[0], 1e-300):
-            extra += [mean + pad * vt[i], mean - pad * vt[i]]
-    if extra:
-        p = np.concatenate([p, np.array(extra)])
-    p = _hull_vertices(p)
-    n, d = p.shape
-    qm = np.vstack([p.T, np.ones(n)])  # (4, N) lifted points
-    u = np.full(n, 1.0 / n)
-    for _ in range(max_iter):
-        x = (qm * u) @ qm.T  # (4, 4)
-        m = np.einsum("in,ij,jn->n", qm, np.linalg.inv(x), qm)
-        j = int(np.argmax(m))
-        mj = m[j]
-        if mj <= (1.0 + tol) * (d + 1):
-            break
-        step = (mj - d - 1.0) / ((d + 1.0) * (mj - 1.0))
-        u *= 1.0 - step
-        u[j] += step
-    c = p.T @ u
-    cov = (p.T * u) @ p - np.outer(c, c)
-    a = np.linalg.inv(cov) / d  # (x - c)^T A (x - c) <= 1 (approximately)
-    lam, vec = np.linalg.eigh(0.5 * (a + a.T))  # ascending eigenvalues -> descending semi-axes
-    lam = np.maximum(lam, 1e-30)
-    s = 1.0 / np.sqrt(lam)
-    if np.linalg.det(vec) < 0:
-        vec[:, 2] *= -1.0
-    r = float(mahalanobis(p, c, vec, s).max())
-    s = s * r * (1.0 + CONTAIN_EPS)
-    return c, vec, s
 
 
 def _cylinder_like(radius: float, half: float, cap: float) -> tuple[float, float]:
@@ -189,57 +122,6 @@ def _primitive_ellipsoid(g: Geom) -> tuple[np.ndarray, np.ndarray, np.ndarray, f
     raise ValueError(g.kind)
 
 
-def union_volume(ells: list, n: int = 200_000, seed: int = 0) -> float:
-    """Volume of the union of ellipsoids [(c, R, s), ...]: exact for one (or disjoint bounding
-    boxes), otherwise Monte Carlo over their joint bounding box (n samples, fixed seed, ~0.5%)."""
-    if len(ells) == 1:
-        return float(ellipsoid_volume(ells[0][2]))
-    half = [np.abs(r) @ s for _, r, s in ells]  # axis-aligned half extents
-    lo = np.min([c - h for (c, _, _), h in zip(ells, half)], axis=0)
-    hi = np.max([c + h for (c, _, _), h in zip(ells, half)], axis=0)
-    pts = np.random.default_rng(seed).uniform(lo, hi, size=(n, 3))
-    inside = np.zeros(n, dtype=bool)
-    for c, r, s in ells:
-        inside |= mahalanobis(pts, c, r, s) <= 1.0
-    return float(inside.mean() * np.prod(hi - lo))
-
-
-def _check_size(g: Geom, link: str) -> None:
-    if not np.all(np.isfinite(g.size)) or np.any(g.size <= 0):
-        raise SplatplanError(f"link {link!r}: {g.kind} with invalid size {g.size.tolist()} (sizes must be finite and > 0)")
-
-
-def _polytope(g: Geom, link: str):
-    """A trimesh in the link frame for a mesh or box element."""
-    import trimesh
-
-    if g.kind == "box":
-        return trimesh.creation.box(extents=g.size, transform=g.origin)
-    if g.mesh is None or not Path(g.mesh).is_file():
-        where = f" (resolved to {g.mesh})" if g.ref and g.ref != str(g.mesh) else ""
-        raise SplatplanError(f"link {link!r}: mesh file {g.ref or g.mesh} not found{where}")
-    try:
-        m = trimesh.load(str(g.mesh), force="mesh")
-    except Exception as exc:
-        raise SplatplanError(f"link {link!r}: mesh file {g.mesh} cannot be read ({exc.__class__.__name__}: {exc})") from None
-    if not isinstance(m, trimesh.Trimesh) or len(m.vertices) == 0:
-        raise SplatplanError(f"link {link!r}: mesh file {g.mesh} holds no triangles")
-    m = m.copy()
-    m.apply_scale(1.0)
-    m.vertices = m.vertices * g.size  # per-axis URDF scale
-    m.apply_transform(g.origin)
-    return m
-
-
-def _mesh_volume(m) -> float:
-    try:
-        if m.is_watertight and m.volume > 0:
-            return float(m.volume)
-        return float(m.convex_hull.volume)
-    except Exception:  # degenerate hull
-        return 0.0
-
-
 def split_fit(verts: np.ndarray, edges: np.ndarray, k: int) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
     """k ellipsoids enclosing a triangle mesh (vertices (N, 3), unique edges (M, 2)): see module doc."""
     if k <= 1 or len(verts) < 8:
@@ -280,27 +162,23 @@ def fit_link(link: str, geoms: list[Geom], k: int = 1, method: str = "split", co
 
     ells, vol, polys = [], 0.0, []
     for g in geoms:
-        _check_size(g, link) if g.kind != "mesh" else None
+        check_size(g, link) if g.kind != "mesh" else None
         if g.kind in ("sphere", "cylinder", "capsule"):
             c, r, s, v = primitive_ellipsoid(g)
             ells.append((c, r, s))
             vol += v
         else:
-            m = _polytope(g, link)
-            vol += _mesh_volume(m) if g.kind == "mesh" else float(np.prod(g.size))
+            m = polytope(g, link)
+            vol += mesh_volume(m) if g.kind == "mesh" else float(np.prod(g.size))
             polys.append(m)
     if polys and method == "opt":
-        from .fit_opt import OptConfig, fit_link_opt
-
-        best, stats = fit_link_opt(polys, config or OptConfig())
+        best, stats = fit_opt.fit_link_opt(polys, config or fit_opt.OptConfig())
         if alternatives is not None:  # every count tried, whole-link: (n, excess volume m^3, reach m, ellipsoids)
             pv = stats["solid_volume"]
             alternatives += [(len(ells) + len(e), (ratio - 1.0) * pv, reach, ells + list(e)) for _, e, ratio, reach in stats["candidates"]]
         ells += best
     elif polys and method == "cover":
-        from .fit_cover import FitConfig, fit_link_cover
-
-        ells += fit_link_cover(polys, config or FitConfig())[0]
+        ells += fit_cover.fit_link_cover(polys, config or fit_cover.FitConfig())[0]
     elif polys:
         merged = trimesh.util.concatenate(polys) if len(polys) > 1 else polys[0]
         ells += split_fit(np.asarray(merged.vertices, dtype=np.float64), np.asarray(merged.edges_unique), k)
@@ -309,7 +187,7 @@ def fit_link(link: str, geoms: list[Geom], k: int = 1, method: str = "split", co
 
 def link_points(geoms: list[Geom], link: str) -> np.ndarray:
     """Every vertex (mesh vertices, box corners) of a link's polytope elements, link frame (N, 3)."""
-    pts = [np.asarray(_polytope(g, link).vertices) for g in geoms if g.kind in ("mesh", "box")]
+    pts = [np.asarray(polytope(g, link).vertices) for g in geoms if g.kind in ("mesh", "box")]
     return np.concatenate(pts) if pts else np.zeros((0, 3))
 
 
@@ -347,7 +225,7 @@ def fit_model(
     for link in model.kin.link_names:  # every mesh file is there before any (slow) fit starts
         for g in model.collisions.get(link, []) or (model.visuals.get(link, []) if from_visual else []):
             if g.kind == "mesh" and (links is None or link in links) and (g.mesh is None or not Path(g.mesh).is_file()):
-                _polytope(g, link)  # raises the one-line "mesh file ... not found"
+                polytope(g, link)  # raises the one-line "mesh file ... not found"
     names, cs, rs, ss, report, skipped = [], [], [], [], {}, []
     budget = method == "opt" and (config is None or config.budget_per_link > 0)
     fitted, options = {}, {}  # link -> (ells, geometry volume, geoms, source); link -> alternatives
@@ -368,11 +246,9 @@ def fit_model(
         if alt:
             options[link] = alt
     if options:
-        from .fit_opt import OptConfig, allocate
-
-        cfg = config or OptConfig()
+        cfg = config or fit_opt.OptConfig()
         n_fixed = sum(len(f[0]) for link, f in fitted.items() if link not in options)
-        pick = allocate({link: [a[:3] for a in alt] for link, alt in options.items()}, int(cfg.budget_per_link * len(fitted)) - n_fixed, cfg.reach)
+        pick = fit_opt.allocate({link: [a[:3] for a in alt] for link, alt in options.items()}, int(cfg.budget_per_link * len(fitted)) - n_fixed, cfg.reach)
         for link, i in pick.items():
             fitted[link] = (options[link][i][3],) + fitted[link][1:]
     for link, (ells, gvol, geoms, source) in fitted.items():

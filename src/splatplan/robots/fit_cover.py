@@ -8,7 +8,7 @@ volume). Here the union does the work:
    Target points: surface samples, interior samples and the vertices.
 2. **Outside distance.** An occupancy grid (pitch ``FitConfig.pitch``) and its Euclidean distance
    transform give, for any point, its distance to the solid (0 inside), to about one pitch.
-3. **Candidates.** Minimum-volume enclosing ellipsoids (:func:`~splatplan.robots.fit.mvee`) of
+3. **Candidates.** Minimum-volume enclosing ellipsoids (:func:`~splatplan.robots.ellipsoid.mvee`) of
    local clusters of target points (k-nearest neighbours of farthest-point seeds at four scales,
    and slabs between pairs of cuts along each principal axis), plus variants stretched along one
    axis or flattened across two (the other axes shrink to the cluster). Each is then shrunk, axis
@@ -45,7 +45,8 @@ import numpy as np
 
 from .._config import bounded, check_config
 from ..errors import SplatplanError
-from .fit import CONTAIN_EPS, mahalanobis, mvee
+from .ellipsoid import CONTAIN_EPS, mahalanobis, mvee, sphere_points, surface_of  # noqa: F401 (re-exported)
+from .solids import inside_any, occupancy_grid, sample_solids, simplices_of, solids_of  # noqa: F401 (re-exported)
 
 #: Version of the cover fitter: part of the fit cache key (bump when results change).
 COVER_VERSION = 1
@@ -96,66 +97,6 @@ class FitConfig:
 # --------------------------------------------------------------------------- solids
 
 
-def solids_of(polys: list) -> list:
-    """Watertight solids (trimesh) from a link's mesh/box elements: merged vertices, else the convex hull."""
-    out = []
-    for m in polys:
-        m = m.copy()
-        m.merge_vertices()
-        m.remove_unreferenced_vertices()
-        if not (m.is_watertight and m.volume > 0):
-            m = m.convex_hull
-        if m.volume < 0:
-            m.invert()
-        out.append(m)
-    return out
-
-
-def inside_any(solids: list, pts: np.ndarray) -> np.ndarray:
-    """(N,) bool: the point lies in at least one solid."""
-    inside = np.zeros(len(pts), dtype=bool)
-    for m in solids:
-        lo, hi = m.bounds
-        box = np.all((pts >= lo) & (pts <= hi), axis=1)
-        if box.any():
-            inside[box] |= m.contains(pts[box])
-    return inside
-
-
-def sample_solids(solids: list, n: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
-    """(surface points (~n/2, 3), interior points (~n/2, 3)) spread over the solids by area / volume."""
-    import trimesh
-
-    areas = np.array([m.area for m in solids])
-    vols = np.array([m.volume for m in solids])
-    surf, vol = [], []
-    for m, a, v in zip(solids, areas, vols):
-        ns = max(8, int(round(0.5 * n * a / areas.sum())))
-        pts, _ = trimesh.sample.sample_surface(m, ns, seed=int(rng.integers(2**31)))
-        surf.append(np.asarray(pts))
-        nv = max(8, int(round(0.5 * n * v / max(vols.sum(), 1e-300))))
-        got, tries = [], 0
-        lo, hi = m.bounds
-        while sum(len(g) for g in got) < nv and tries < 50:
-            cand = rng.uniform(lo, hi, size=(4 * nv, 3))
-            got.append(cand[m.contains(cand)])
-            tries += 1
-        vol.append(np.concatenate(got)[:nv] if got else np.zeros((0, 3)))
-    return np.concatenate(surf), np.concatenate(vol)
-
-
-def occupancy_grid(solids: list, pitch: float, margin: float, min_cells: int = 1):
-    """Voxels of ``pitch`` over the solids' bounds plus ``margin``: (lo (3,) the grid's corner,
-    shape (3,) cells per axis (>= ``min_cells``), centres (G, 3) voxel centres in C order,
-    occupancy (X, Y, Z) bool: the centre lies in a solid)."""
-    lo = np.min([m.bounds[0] for m in solids], axis=0) - margin
-    hi = np.max([m.bounds[1] for m in solids], axis=0) + margin
-    shape = np.maximum(np.ceil((hi - lo) / pitch).astype(int), int(min_cells))
-    axes = [lo[i] + pitch * (np.arange(shape[i]) + 0.5) for i in range(3)]
-    g = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
-    return lo, pitch, shape, g, inside_any(solids, g).reshape(tuple(shape))
-
-
 class OutsideDistance:
     """Distance to the union of solids (0 inside) from an occupancy grid and its distance transform.
 
@@ -177,21 +118,6 @@ class OutsideDistance:
         i = idx[ok]
         out[ok] = self.dist[i[:, 0], i[:, 1], i[:, 2]]
         return out
-
-
-def sphere_points(n: int) -> np.ndarray:
-    """(n, 3) nearly uniform unit vectors (Fibonacci lattice)."""
-    k = np.arange(n) + 0.5
-    z = 1.0 - 2.0 * k / n
-    r = np.sqrt(np.maximum(1.0 - z * z, 0.0))
-    phi = k * math.pi * (3.0 - math.sqrt(5.0))
-    return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=1)
-
-
-def surface_of(e: tuple, dirs: np.ndarray) -> np.ndarray:
-    """Points c + R diag(s) u on an ellipsoid's surface for unit vectors u (N, 3)."""
-    c, r, s = e
-    return c + (dirs * s) @ r.T
 
 
 # --------------------------------------------------------------------------- candidates
@@ -322,22 +248,6 @@ def greedy_cover(cands: list, targets: np.ndarray, waste_pts: np.ndarray, cell_v
 
 
 # --------------------------------------------------------------------------- certificate
-
-
-def simplices_of(solid) -> tuple[np.ndarray, bool]:
-    """(K, m, 3) simplices whose union is the solid (m = 4, True) or its surface (m = 3, False)."""
-    v = np.asarray(solid.vertices, dtype=np.float64)
-    f = np.asarray(solid.faces)
-    tri = v[f]  # (F, 3, 3)
-    n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])  # outward (watertight, positive volume)
-    for c in (np.asarray(solid.center_mass, dtype=np.float64), v.mean(axis=0)):
-        side = np.einsum("fi,fi->f", n, tri[:, 0] - c)  # > 0: c strictly inside the face's half-space
-        area2 = np.linalg.norm(n, axis=1)
-        ok = (side > 1e-9 * area2 * max(float(np.ptp(v, axis=0).max()), 1e-9)) | (area2 < 1e-18)
-        if ok.all() and solid.contains(c[None])[0]:
-            keep = area2 >= 1e-18
-            return np.concatenate([np.broadcast_to(c, (int(keep.sum()), 1, 3)), tri[keep]], axis=1), True
-    return tri, False
 
 
 def _bisect(simp: np.ndarray) -> np.ndarray:

@@ -1,7 +1,7 @@
 """How well a link model (ellipsoids or spheres) fits the link's solid: one Monte Carlo procedure for any model.
 
 Per link, against the link's collision solids (meshes / boxes; a mesh that is not watertight counts
-as its convex hull, see :func:`~splatplan.robots.fit_cover.solids_of`):
+as its convex hull, see :func:`~splatplan.robots.solids.solids_of`):
 
 * ``coverage_surface`` / ``coverage_interior``: fraction of uniform samples on the solids' surface /
   in their interior that lie inside the model (1 = safe on those samples).
@@ -21,8 +21,9 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from ..errors import SplatplanError
-from .fit import mahalanobis
-from .fit_cover import sample_solids, solids_of, sphere_points, surface_of
+from .ellipsoid import mahalanobis, sphere_points, surface_of
+from .solids import polytope, sample_solids, solids_of
+from .urdf import UrdfModel, read_urdf
 
 
 @dataclass
@@ -89,9 +90,6 @@ def measure_robot(robot, reference=None, n_samples: int = 20000, n_surface: int 
     capsules are fitted analytically). Spheres are ellipsoids with equal semi-axes, so a sphere
     model (e.g. VAMP's spherized Panda loaded from its URDF) is measured the same way.
     """
-    from .fit import _polytope
-    from .urdf import UrdfModel, read_urdf
-
     if reference is None:
         reference = robot.info.get("urdf")
         if not reference:
@@ -102,6 +100,6 @@ def measure_robot(robot, reference=None, n_samples: int = 20000, n_surface: int 
         link = robot.link_names[li]
         sel = np.flatnonzero(robot.ellipsoid_link == li)
         ells = [(robot.ellipsoid_local[e, :3, 3], robot.ellipsoid_local[e, :3, :3], robot.semi_axes[e]) for e in sel]
-        polys = [_polytope(g, link) for g in ref.collisions.get(link, []) if g.kind in ("mesh", "box")]
+        polys = [polytope(g, link) for g in ref.collisions.get(link, []) if g.kind in ("mesh", "box")]
         out[link] = measure_link(ells, polys, n_samples, n_surface, seed) if polys else None
     return out

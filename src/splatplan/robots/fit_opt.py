@@ -4,7 +4,7 @@ The greedy cover (:mod:`splatplan.robots.fit_cover`) picks from fixed candidates
 that its certificate then closes with centimetres of growth. Here k ellipsoids per link (k small,
 3..6 by default) move freely and are optimised together (torch, CPU):
 
-1. **Targets.** The link's solids (:func:`~splatplan.robots.fit_cover.solids_of`), normalised to
+1. **Targets.** The link's solids (:func:`~splatplan.robots.solids.solids_of`), normalised to
    unit size: target points are surface samples, interior samples, the vertices and the edge midpoints. An occupancy
    grid (pitch ``OptConfig.pitch``) gives a signed distance field (Euclidean distance transforms of
    the outside and the inside; > 0 outside), read by trilinear interpolation.
@@ -60,8 +60,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._config import bounded, check_config
-from .fit import CONTAIN_EPS
-from .fit_cover import certify, occupancy_grid, sample_solids, simplices_of, solids_of, sphere_points
+from .ellipsoid import CONTAIN_EPS, sphere_points
+from .fit_cover import certify
+from .fit_measure import measure_link
+from .solids import occupancy_grid, sample_solids, simplices_of, solids_of
 
 #: Version of the optimising fitter: part of the fit cache key (bump when results change).
 OPT_VERSION = 2
@@ -313,8 +315,6 @@ def fit_link_opt(polys: list, cfg: OptConfig | None = None, k: int | None = None
 
     ``k`` fixes the count; by default it grows from ``min_per_link`` as the module docstring says.
     """
-    from .fit_measure import measure_link
-
     cfg = (cfg or OptConfig()).validate()
     solids = solids_of(polys)
     volume = float(sum(m.volume for m in solids))

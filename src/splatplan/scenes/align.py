@@ -45,7 +45,9 @@ import numpy as np
 
 from .._config import bounded, check_config
 from ..errors import SplatplanError
-from .splats import Splats, quat_to_rotmat
+from .floor import floor_surface_mask, splat_normals
+from .filters import isolated_mask
+from .splats import Splats
 from .transforms import apply_rigid, scale as scale_scene
 
 #: axis names accepted by ``up`` / ``up_hint`` -> unit vectors
@@ -75,7 +77,7 @@ class AlignConfig:
     #: none keeps every splat)
     crop: tuple[float, ...] | None = None
     #: drop faint isolated splats, floaters in free space (opacity < 0.3 and mean 8-NN distance above
-    #: 3x the scene's median; the floor's flat splats left out, scenes/terrain.py floor_surface_mask; scenes/filters.py
+    #: 3x the scene's median; the floor's flat splats left out, scenes/floor.py floor_surface_mask; scenes/filters.py
     #: isolated_mask); the count is reported
     drop_floaters: bool = False
     #: auto up: the capture convention that breaks ties between perpendicular bounding planes
@@ -232,16 +234,6 @@ def shell_weights(splats: Splats) -> np.ndarray:
     smax = splats.scales.max(axis=1).astype(np.float64)
     ref = max(float(np.median(smax)), 1e-12)
     return splats.opacities.astype(np.float64) / np.maximum(smax, ref) ** 2 + 1e-12
-
-
-def splat_normals(splats: Splats) -> tuple[np.ndarray, np.ndarray]:
-    """(normals (N, 3) world axis of each splat's smallest std, flat (N,) bool: smallest < 0.3x middle)."""
-    s = splats.scales.astype(np.float64)
-    r = quat_to_rotmat(splats.quats)
-    k = np.argmin(s, axis=1)
-    normals = r[np.arange(len(s)), :, k]
-    ss = np.sort(s, axis=1)
-    return normals, ss[:, 0] < 0.3 * ss[:, 1]
 
 
 def fit_planes(means, normals, flat, weights, tol: float, n_planes: int = 6, n_hypotheses: int = 800, seed: int = 0) -> list[Plane]:
@@ -401,9 +393,6 @@ def align_scene(splats: Splats, config: AlignConfig | None = None) -> tuple[Spla
     n_in = len(out)
     n_floaters = 0
     if cfg.drop_floaters:
-        from .filters import isolated_mask
-        from .terrain import floor_surface_mask
-
         # the floor's surface is left out of the test (its own splats and their neighbours), the rest of
         # the step band is not: a faint upright splat standing alone on the floor blocks a ground robot
         floor = floor_surface_mask(out, 0.0, 0.05 * s) if cfg.floor != "none" else np.zeros(len(out), bool)

@@ -29,6 +29,8 @@ import numpy as np
 
 from .._config import bounded, check_config
 from ..errors import SplatplanError
+from .align import AlignConfig, guess_up
+from .floor import floor_surface_mask
 from .splats import Splats
 
 
@@ -60,8 +62,6 @@ class TerrainConfig:
 
 def fitted_floor_z(splats: Splats) -> float:
     """The floor height of a z-up scene: the bounding plane with a +z normal (else the robust bottom)."""
-    from .align import AlignConfig, guess_up
-
     return float(guess_up(splats, AlignConfig(up="+z", floor="auto")).floor_height)
 
 
@@ -72,18 +72,6 @@ def terrain_mask(splats: Splats, floor_z: float, step_height: float, n_sigma: fl
     sz = np.sqrt(np.maximum(splats.covariances()[:, 2, 2], 0.0))
     band = z < top_band
     return floor_surface_mask(splats, floor_z, step_height, max_tilt_deg) | (band & (z + n_sigma * sz < top_band)) | (band & (splats.opacities < faint_below))
-
-
-def floor_surface_mask(splats: Splats, floor_z: float, step_height: float, max_tilt_deg: float = 30.0) -> np.ndarray:
-    """(N,) bool: the terrain splats at **every** n_sigma: the floor-like ones (flat, normal within
-    ``max_tilt_deg`` of +z) with their mean below ``floor_z + step_height``. The other splats of the
-    step band (upright or round ones whose n_sigma extent may reach above it) are obstacles at a
-    large enough n_sigma, so the floater rule of ``scene align --drop-floaters`` tests them too."""
-    from .align import splat_normals
-
-    z = splats.means[:, 2].astype(np.float64)
-    normals, flat = splat_normals(splats)
-    return (z < floor_z + step_height) & flat & (np.abs(normals[:, 2]) >= np.cos(np.radians(max_tilt_deg)))
 
 
 @dataclass

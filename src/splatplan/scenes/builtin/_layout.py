@@ -14,8 +14,8 @@ from typing import Callable
 
 import numpy as np
 
-from ...errors import SplatplanError
 from ..splats import Splats
+from .levels import level_config, splat_count
 from .primitives import AnalyticScene, _copy_splats, make_box, splats_from_scene
 
 
@@ -68,8 +68,6 @@ def sample_splats(
         float32 splats (wxyz, linear stds) in the layout's frame; the last ``info["n_floaters"]``
         are the floaters.
     """
-    from .stonehenge import level_config
-
     dens = np.array([float(density.get(lab, 1.0)) for lab in scene.labels])
     faces = np.ones((len(scene), 6), bool)
     for i, lab in enumerate(scene.labels):
@@ -87,14 +85,6 @@ def sample_splats(
     )
     splats.info.update({"scene": scene.meta["name"], "seed": int(seed), "units": scene.meta["units"]})
     return splats
-
-
-def splat_count(n_splats: int | None, default: int) -> int:
-    """``n_splats`` (``default`` when None) as an int >= 1."""
-    n = default if n_splats is None else int(n_splats)
-    if n < 1:
-        raise SplatplanError(f"n_splats must be >= 1, got {n_splats}")
-    return n
 
 
 class SceneCache:

@@ -3,7 +3,7 @@
 Sized for the Unitree Go2 (body ~0.31 m wide with the legs, standing height ~0.3 m), for the
 quadruped studies (paper Sec. IV, E6). The boxes are the exact ground truth
 (:class:`~splatplan.scenes.builtin.primitives.AnalyticScene`); the splats are sampled on their
-surfaces with the statistics of real captures (:func:`.stonehenge.level_config` level 1).
+surfaces with the statistics of real captures (:func:`.levels.level_config` level 1).
 
 Units and frames
 ----------------

@@ -40,9 +40,8 @@ from pathlib import Path
 import numpy as np
 
 from ...errors import SplatplanError
-from ...robots.builtin import point_radius
-from ._layout import splat_count
-from .primitives import AnalyticScene, SurfaceSplatConfig, _copy_splats, _yaw_quat, box_corners, make_box, splats_from_boxes
+from .levels import LEVEL_RATIO, N_SPLATS_LEVEL1, default_n_splats, level_config, splat_count  # noqa: F401 (re-exported)
+from .primitives import AnalyticScene, _copy_splats, _yaw_quat, box_corners, make_box, splats_from_boxes
 from ..splats import SH_C0, Splats, quat_multiply
 
 __all__ = [
@@ -63,10 +62,9 @@ __all__ = [
 PLANE_Z = 0.06
 #: Depth every stone is sunk into the ground / a lintel into its uprights (buries contact faces).
 SINK = 0.004
-#: Splat count at level 1 (the paper's Stonehenge has ~200k splats).
-N_SPLATS_LEVEL1 = 200_000
-#: Splat count ratio between consecutive levels.
-LEVEL_RATIO = 1.8
+#: Radius of the sphere robot the gates are designed around (scene units): the studies' sphere
+#: :data:`~splatplan.robots.DEFAULT_POINT_ROBOT` (a test checks they agree).
+DESIGN_ROBOT_RADIUS = 0.015
 
 #: Designed ring gates, in order around the ring: (width between the facing inner corners of two
 #: adjacent sarsens, lintel on top?). The last one is the main entrance gap. Actual widths (after
@@ -164,7 +162,7 @@ class StonehengeLayout:
     gate_has_lintel: np.ndarray
     trilithon_gap_widths: np.ndarray
     ring_radius: float
-    robot_radius: float = point_radius()
+    robot_radius: float = DESIGN_ROBOT_RADIUS
     plane_z: float = PLANE_Z
 
 
@@ -312,7 +310,7 @@ def _build_layout(seed: int) -> StonehengeLayout:
             "name": "stonehenge",
             "seed": int(seed),
             "units": "normalised scene units, z up, ground top at z = 0",
-            "robot_radius": point_radius(),
+            "robot_radius": DESIGN_ROBOT_RADIUS,
             "plane_z": PLANE_Z,
             "gate_widths": gate_w.tolist(),
         },
@@ -346,34 +344,6 @@ def stonehenge_layout(seed: int = 0) -> StonehengeLayout:
         gate_has_lintel=lay.gate_has_lintel.copy(),
         trilithon_gap_widths=lay.trilithon_gap_widths.copy(),
     )
-
-
-def level_config(level: int) -> SurfaceSplatConfig:
-    """Splat look for a Gaussian-size level 1..5 (higher: thicker, more anisotropic, noisier).
-
-    The splat *size* follows from the count (spacing ~ 1/sqrt(n)). Level 1 is calibrated to the
-    statistics of real trained captures (the truck, bathroom and banana scans in shared/data):
-    log-std of the largest std ~0.8 with a heavy tail (p99 ~ 7x the median), needle-like in-plane
-    shapes (median middle/largest std ~ 0.3) and normals a few degrees off the surface. Higher
-    levels have larger splats (fewer of them over the same surfaces) with the same shape
-    statistics, slightly thicker and with normals tilted more.
-    """
-    if level not in (1, 2, 3, 4, 5):
-        raise SplatplanError(f"stonehenge level must be 1..5, got {level}")
-    k = level - 1
-    return SurfaceSplatConfig(
-        thickness=0.15 + 0.06 * k,
-        anisotropy=0.6,
-        size_jitter=0.5,
-        normal_noise=0.15 + 0.02 * k,
-        tangential_noise=0.2,
-        tilt_deg=6.0 + 2.0 * k,
-    )
-
-
-def default_n_splats(level: int) -> int:
-    """``round(200_000 / 1.8 ** (level - 1))``."""
-    return int(round(N_SPLATS_LEVEL1 / LEVEL_RATIO ** (level - 1)))
 
 
 @functools.lru_cache(maxsize=6)

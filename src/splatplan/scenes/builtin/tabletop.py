@@ -3,7 +3,7 @@
 Sized for the Franka Panda of ``example-robot-data`` mounted at the world origin on the table top
 (paper Sec. IV, E5: "a box-walled tabletop scene"). The boxes are the exact ground truth
 (:class:`~splatplan.scenes.builtin.primitives.AnalyticScene`); the splats are sampled on their
-surfaces with the statistics of real captures (:func:`.stonehenge.level_config` level 1).
+surfaces with the statistics of real captures (:func:`.levels.level_config` level 1).
 
 Units and frames
 ----------------
