@@ -131,6 +131,8 @@ SECTIONS = {
     "reach_behind_wall": markdown_file("reach_behind_wall.md"),
     "reach_goal_filters": markdown_file("reach_goal_filters.md"),
     "navigate": markdown_file("navigate.md"),
+    "mbm_speed_ns0": markdown_file("mbm_speed/ns0.md"),
+    "mbm_speed_ns1": markdown_file("mbm_speed/ns1.md"),
 }
 
 
