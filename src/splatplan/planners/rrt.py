@@ -474,6 +474,8 @@ def _prove_free(todo: np.ndarray, s: np.ndarray, hit: np.ndarray, slack: np.ndar
 
 def check_endpoint(checker, geometry: LinkGeometry, x: np.ndarray, what: str) -> None:
     """Raise :class:`PlanningError` when configuration ``x`` (D,) is in collision."""
+    if not bool(geometry.collides(checker, np.asarray(x, dtype=np.float64)[None])[0]):
+        return  # (the cheap collision-only check; the full query only to describe a collision)
     why = geometry.describe_collision(checker, x)
     if why is not None:
         raise PlanningError(
