@@ -118,3 +118,31 @@ def test_groups_follow_the_links():
     assert robot_groups(robot) is robot_groups(robot)  # cached on the robot
     grown = robot.inflated(0.01)
     assert robot_groups(grown)[0] != key
+
+
+def test_blockers_name_faint_haze_and_the_remedy():
+    """A start inside faint haze: the blockers are counted, called faint, and the remedy names the
+    opacity filter; with that filter the ellipsoid is free. Inflation only: the remedy names n_sigma."""
+    from splatplan.scenes.splats import Splats
+
+    rng = np.random.default_rng(0)
+    n = 2000
+    means = rng.uniform(-1, 1, (n, 3))
+    means[:, 2] = np.abs(means[:, 2]) + 0.3
+    haze = np.array([[0.0, 0.0, 0.05]]) + rng.normal(scale=0.03, size=(20, 3))
+    m = np.concatenate([means, haze])
+    op = np.concatenate([np.full(n, 0.9), np.full(20, 0.05)])
+    sc = np.concatenate([np.full((n, 3), 0.005), np.full((20, 3), 0.08)])
+    s = Splats(m, np.tile([1.0, 0, 0, 0], (len(m), 1)), sc, op, np.full((len(m), 3), 0.5))
+    ch = CollisionChecker(s, n_sigma=1.0)
+    c, ax = np.array([0.0, 0.0, 0.05]), np.full(3, 0.03)
+    b = ch.blockers(c, None, ax)
+    ref = CollisionChecker(s, n_sigma=1.0, backend="reference").query(c[None], None, ax)
+    assert b.n == int(ref.n_colliding[0]) > 0 and b.n_faint == b.n and set(b.indices.tolist()) <= set(range(n, n + 20))
+    assert "opacity" in b.remedy() and "0.3" in b.remedy() and "faint" in b.summary()
+    assert not bool(np.asarray(CollisionChecker(s, config=MetricConfig(n_sigma=1.0, opacity_min=0.3)).collides(c[None], None, ax))[0])
+    # an opaque splat just outside the sphere, reached by the inflation only
+    s2 = Splats(np.array([[0.0, 0.0, 0.085]]), np.array([[1.0, 0, 0, 0]]), np.full((1, 3), 0.02), np.array([0.9]), np.full((1, 3), 0.5))
+    b2 = CollisionChecker(s2, n_sigma=2.0).blockers(c, None, ax)
+    assert b2.n == 1 and b2.n_inside == 0 and "n_sigma" in b2.remedy()
+    assert CollisionChecker(s2, n_sigma=0.0).blockers(c, None, ax).n == 0

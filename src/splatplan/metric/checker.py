@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import contextlib
 import threading
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -177,6 +177,37 @@ class CollisionChecker:
         if full:
             return QueryResult(**{k: convert_out(getattr(ws, k), b, shape, kind, False) for k in _FIELDS})
         return convert_out(ws.in_collision, b, shape, kind, False)
+
+    def blockers(self, center, quat, semi_axes) -> "Blockers":
+        """What makes one ellipsoid collide: the splats it counts (s2~ < 1), summarised.
+
+        Host numpy over the splats near the ellipsoid (the reference formulas; one query, for error
+        messages and diagnostics, not a hot loop). ``center`` (3,) world frame, ``quat`` (4,) wxyz
+        world <- link or None, ``semi_axes`` (3,) scene units.
+        """
+        from .reference import conservative_s2_ref, link_matrices, splat_inflation_ref
+        from .wp_metric_kernel import search_radius
+
+        sc = self.scene
+        c = np.asarray(center, dtype=np.float64).reshape(3)
+        ax = np.broadcast_to(np.asarray(semi_axes, dtype=np.float64), (3,))
+        sig = np.asarray(sc.scales, dtype=np.float64).max(axis=1)  # (N,)
+        rho = float(search_radius(float(self.config.n_sigma), float(sig.max()), float(ax.min()), float(ax.max()), 1.0))
+        near = np.nonzero(np.sum((np.asarray(sc.means, dtype=np.float64) - c) ** 2, axis=1) <= rho * rho)[0]  # (M,) candidates
+        keep, ns = splat_inflation_ref(sc.opacities, len(sc), self.config)
+        near = near[keep[near]]
+        a = link_matrices(None if quat is None else np.asarray(quat, dtype=np.float64).reshape(1, 4), ax, 1)
+        s2, s2c = conservative_s2_ref(np.asarray(sc.means)[near], np.asarray(sc.quats)[near], np.asarray(sc.scales)[near], c[None], a, ns[near])
+        hit = s2c[0] < 1.0
+        idx = near[hit]
+        op = np.asarray(sc.opacities, dtype=np.float64)[idx]
+        return Blockers(
+            indices=idx, n=int(idx.size), n_inside=int(np.sum(s2[0][hit] < 1.0)), n_faint=int(np.sum(op < FAINT_OPACITY)),
+            opacity=(float(op.min()), float(np.median(op)), float(op.max())) if idx.size else (np.nan,) * 3,
+            max_std=float(sig[idx].max()) if idx.size else np.nan,
+            centroid=np.asarray(sc.means, dtype=np.float64)[idx].mean(axis=0) if idx.size else np.full(3, np.nan),
+            n_sigma=float(self.config.n_sigma),
+        )  # fmt: skip
 
     # ------------------------------------------------------------------ robots
     def query_robot(self, robot, q, *, ellipsoids=None, out=None, validate=False) -> QueryResult:
@@ -439,6 +470,56 @@ class CollisionChecker:
                 r.softmin.astype(np.float32), r.cost.astype(np.float32),
             ).reshape(h.shape)  # fmt: skip
         return _convert_host(res if full else res.in_collision, kind, dev)
+
+
+#: splats fainter than this are "faint" in :class:`Blockers` (haze, floaters; the remedy names
+#: ``MetricConfig.opacity_min``)
+FAINT_OPACITY = 0.3
+
+
+@dataclass
+class Blockers:
+    """The splats one ellipsoid counts as colliding (:meth:`CollisionChecker.blockers`).
+
+    Attributes:
+        indices: (n,) splat indices (s2~ < 1 at the checker's n_sigma, opacity filter applied).
+        n: how many.
+        n_inside: how many have their mean inside the ellipsoid (s2 < 1: colliding at n_sigma 0 too).
+        n_faint: how many have opacity < :data:`FAINT_OPACITY`.
+        opacity: (min, median, max) of their opacities (nan when n = 0).
+        max_std: their largest standard deviation (scene units).
+        centroid: (3,) mean of their means (world frame, scene units).
+        n_sigma: the checker's n_sigma.
+    """
+
+    indices: np.ndarray
+    n: int
+    n_inside: int
+    n_faint: int
+    opacity: tuple[float, float, float]
+    max_std: float
+    centroid: np.ndarray
+    n_sigma: float
+
+    def remedy(self) -> str:
+        """The change that would free the ellipsoid, in words (CLI flag names in parentheses)."""
+        if self.n == 0:
+            return "nothing blocks it"
+        if self.n_faint == self.n:
+            return (f"all are faint (opacity < {FAINT_OPACITY:g}, e.g. haze or floaters): count them as free space with "
+                    f"opacity_min = {FAINT_OPACITY:g} (--opacity-min {FAINT_OPACITY:g}), or drop floaters when loading (scene align --drop-floaters)")
+        if self.n_inside == 0:
+            return f"only the n_sigma inflation reaches the robot (no splat mean is inside it): lower n_sigma (--n-sigma, e.g. 0)"
+        return "splat means lie inside the robot: move the configuration away from them, or shrink the robot"
+
+    def summary(self) -> str:
+        """One clause: how many, how faint and large, where (scene units, world frame)."""
+        if self.n == 0:
+            return "no splat"
+        lo, med, hi = self.opacity
+        c = ", ".join(f"{v:.3f}" for v in self.centroid)
+        return (f"{self.n} splat(s) ({self.n_inside} with the mean inside, {self.n_faint} faint) of opacity {lo:.2f}-{hi:.2f} "
+                f"(median {med:.2f}), std up to {self.max_std:.3g}, around ({c}) (scene units)")
 
 
 def robot_groups(robot) -> tuple[bytes, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:

@@ -249,8 +249,10 @@ class LinkGeometry:
         return res
 
     def describe_collision(self, checker, q: np.ndarray) -> str | None:
-        """None when configuration ``q`` (D,) is free, else a sentence naming the worst link."""
-        res = self.query(checker, np.asarray(q, dtype=np.float64)[None])  # (1, L)
+        """None when configuration ``q`` (D,) is free, else a sentence naming the worst link, what
+        blocks it (how many splats, how faint and large, where) and the remedy that fits."""
+        q = np.asarray(q, dtype=np.float64)
+        res = self.query(checker, q[None])  # (1, L)
         if not bool(np.any(res.in_collision)):
             return None
         j = int(np.argmin(res.min_s2[0]))
@@ -259,7 +261,13 @@ class LinkGeometry:
             li = int(np.asarray(self.robot.ellipsoid_link)[j])
             link = f" (link {self.robot.link_names[li]}, ellipsoid {j})"
         colliding = np.nonzero(np.asarray(res.in_collision[0]))[0]
-        return (
+        text = (
             f"min_s2 = {float(res.min_s2[0, j]):.4g} < 1{link}: {int(res.n_colliding[0, j])} splat(s) inside the robot "
             f"at n_sigma = {checker.n_sigma:g}, {colliding.size} of {res.min_s2.shape[-1]} ellipsoid(s) in collision"
         )
+        if hasattr(checker, "blockers"):
+            c, quat, ax = self.ellipsoids(q[None])
+            b = checker.blockers(np.asarray(c)[0, j], None if quat is None else np.asarray(quat)[0, j], np.asarray(ax).reshape(-1, 3)[j])
+            if b.n:
+                text += f"; at that ellipsoid {b.summary()}: {b.remedy()}"
+        return text
