@@ -364,8 +364,10 @@ class MetricWorkspace:
 def convert_out(x, b: int, shape: tuple[int, ...], kind: str, copy: bool):
     """Rows [0, b) of a device buffer as the caller's type, shaped ``shape``."""
     if kind == "numpy":
-        a = x.numpy()[:b]  # (a numpy slice: cheaper than a device view)
-        return (a.copy() if copy and x.device.is_cpu else a).reshape(shape)
+        if x.device.is_cpu:
+            a = x.numpy()[:b]  # (a numpy slice of the host buffer: cheaper than a device view)
+            return (a.copy() if copy else a).reshape(shape)
+        return (x[:b] if x.shape[0] != b else x).numpy().reshape(shape)  # (copies only the b rows)
     v = x[:b] if x.shape[0] != b else x
     if kind == "torch":
         return _wp().to_torch(v).reshape(shape)
