@@ -259,3 +259,20 @@ def test_default_density_is_per_area():
     assert capped.n_sampled == 2000 and capped.base_spacing > 0.01
     fixed = _prepare(task, MBMConfig(n_splats=3000, seed=3), robot)
     assert fixed.n_sampled == 3000
+
+
+def test_data_location_from_the_environment(tmp_path, monkeypatch):
+    """The MBM data folder: $SPLATPLAN_MBM_DATA when set (an installed package has no checkout
+    beside it); a missing folder is one line naming the flag and the variable."""
+    from splatplan.errors import SplatplanError
+    from splatplan.eval.mbm import MBM_DATA_ENV, mbm_data_dir
+
+    (tmp_path / "problems" / "toy_panda").mkdir(parents=True)
+    monkeypatch.setenv(MBM_DATA_ENV, str(tmp_path))
+    assert mbm_data_dir() == tmp_path
+    assert MBMConfig().problems_dir() == tmp_path / "problems"
+    with pytest.raises(SplatplanError, match=f"--robot URDF or set {MBM_DATA_ENV}"):
+        MBMConfig().robot_path()
+    monkeypatch.setenv(MBM_DATA_ENV, str(tmp_path / "nowhere"))
+    with pytest.raises(SplatplanError, match=f"--problems DIR .* or set {MBM_DATA_ENV}"):
+        MBMConfig().problems_dir()

@@ -61,8 +61,8 @@ from __future__ import annotations
 
 import functools
 import hashlib
-import inspect
 import json
+import os
 import time
 from collections import OrderedDict
 from dataclasses import asdict, dataclass, field
@@ -76,7 +76,17 @@ from ..scenes.margin import covering_radius, derived_margin  # noqa: F401 (the m
 
 #: the repository root (src/splatplan/eval/mbm.py -> 3 levels up); shared data lives beside it
 _REPO = Path(__file__).resolve().parents[3]
-DEFAULT_MBM = _REPO / ".." / "shared" / "data" / "mbm"
+#: environment variable naming the MBM data folder (``problems/`` + ``panda/``) when --problems /
+#: --robot are not given
+MBM_DATA_ENV = "SPLATPLAN_MBM_DATA"
+DEFAULT_MBM = _REPO / ".." / "shared" / "data" / "mbm"  # a source checkout's sibling data folder
+
+
+def mbm_data_dir() -> Path:
+    """The MBM data folder: ``$SPLATPLAN_MBM_DATA``, else the source checkout's ``../shared/data/mbm``
+    (an installed package has none: then give --problems and --robot, or set the variable)."""
+    env = os.environ.get(MBM_DATA_ENV, "").strip()
+    return Path(env) if env else DEFAULT_MBM
 
 #: Published reference numbers (../shared/data/mbm/README.md): same 700 problems, 7 families.
 PUBLISHED = {
@@ -167,9 +177,11 @@ class MBMConfig:
         return self
 
     def problems_dir(self) -> Path:
-        d = Path(self.problems) if self.problems else DEFAULT_MBM / "problems"
+        d = Path(self.problems) if self.problems else mbm_data_dir() / "problems"
         if not d.is_dir():
-            raise SplatplanError(f"MBM problems folder {d} not found: pass --problems DIR (holding <family>_panda/sceneNNNN.yaml + requestNNNN.yaml)")
+            how = "" if self.problems else f" (the default: ${MBM_DATA_ENV}/problems, else the source checkout's ../shared/data/mbm)"
+            raise SplatplanError(f"MBM problems folder {d} not found{how}: pass --problems DIR (holding <family>_panda/sceneNNNN.yaml + "
+                                 f"requestNNNN.yaml) or set {MBM_DATA_ENV}")  # fmt: skip
         return d
 
     def robot_path(self) -> Path | str:
@@ -178,9 +190,9 @@ class MBMConfig:
 
         if self.robot in KNOWN:
             return self.robot
-        p = Path(self.robot) if self.robot else DEFAULT_MBM / "panda" / "panda.urdf"
+        p = Path(self.robot) if self.robot else mbm_data_dir() / "panda" / "panda.urdf"
         if not p.is_file():
-            raise SplatplanError(f"robot URDF {p} not found: pass --robot URDF")
+            raise SplatplanError(f"robot URDF {p} not found: pass --robot URDF" + ("" if self.robot else f" or set {MBM_DATA_ENV}"))
         return p
 
 
@@ -458,27 +470,18 @@ def path_min_clearance(scene, robot, q: np.ndarray, first: int = 32, stride: int
 
 
 def _plan(checker, start, goal, robot, time_limit: float, seed: int, edge_resolution: float, planner: str = "auto", max_iters: int | None = None):
-    """Call the public planner with the time limit (whatever its keyword for it) and the edge
-    resolution the margin was derived with (that of the un-inflated robot: the inflated one's
-    default would be coarser and need a larger margin). With ``max_iters`` our planners run to that
-    iteration budget without a wall-clock limit (reproducible); OMPL's keep the time limit."""
+    """The public planner with the time limit and the edge resolution the margin was derived with
+    (that of the un-inflated robot: the inflated one's default would be coarser and need a larger
+    margin), no refinement. With ``max_iters`` our planners run to that iteration budget without a
+    wall-clock limit (reproducible); OMPL's keep the time limit."""
     from ..planners import RRTConfig, plan
 
-    params = inspect.signature(plan).parameters
-    kw = {"robot": robot, "seed": seed}
-    if "refine" in params:
-        kw["refine"] = False
-    if planner != "auto" or "planner" in params:
-        kw["planner"] = planner
     ours = not planner.startswith("ompl:")
     if max_iters is not None and ours:
         cfg = RRTConfig(time_limit_s=None, max_iters=int(max_iters), edge_resolution=edge_resolution)
     else:
         cfg = RRTConfig(time_limit_s=time_limit, edge_resolution=edge_resolution)
-    if "time_limit" in params and (max_iters is None or not ours):
-        kw["time_limit"] = time_limit
-    kw["rrt_config"] = cfg
-    return plan(checker, start, goal, **kw)
+    return plan(checker, start, goal, robot=robot, seed=seed, refine=False, planner=planner, rrt_config=cfg)
 
 
 def _prepare(task: "MBMTask", cfg: MBMConfig, robot) -> _Prepared:
