@@ -584,7 +584,8 @@ def markdown(res: dict[str, Any]) -> str:
         if "ap" not in v:
             continue
         a = v["ap"]
-        L.append(f"| {k.replace('_', ' ')} | {v['n_queries']:,} | {a['cs_ns0']:.4f} | {a['cs_ns1']:.4f} | {a['cs_ns1_d2']:.4f} | {a['splanning']:.4f} | {a['cs_ns1'] - a['splanning']:+.4f} |")
+        lab = {"above_ground": "above the ground (z > r)", "ground_z_le_r": "at the ground (z <= r)", "lattice_shifted_half_cell": "lattice shifted by half a cell (E1 pad + spacing / 2r)"}.get(k, k.replace("without_free_within_", "without the free queries within ").replace("mm", " mm"))
+        L.append(f"| {lab} | {v['n_queries']:,} | {a['cs_ns0']:.4f} | {a['cs_ns1']:.4f} | {a['cs_ns1_d2']:.4f} | {a['splanning']:.4f} | {a['cs_ns1'] - a['splanning']:+.4f} |")
     L += ["", "Lattice layers near the ground (the ground's top face is z = 0; a sphere collides below z = r):", "", "| z | queries | clearance over the ground | FP at recall 0.95, ours | FP at recall 0.95, SPLANNING |", "|---|---|---|---|---|"]
     for z, v in gr["z_layers"].items():
         L.append(f"| {z} | {v['n']:,} | {v['clearance_over_ground_mm']:.1f} mm | {v['fp_cs_ns1_recall95']:,} | {v['fp_splanning_recall95']:,} |")

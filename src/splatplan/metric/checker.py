@@ -518,8 +518,8 @@ class Blockers:
             return "no splat"
         lo, med, hi = self.opacity
         c = ", ".join(f"{v:.3f}" for v in self.centroid)
-        return (f"{self.n} splat(s) ({self.n_inside} with the mean inside, {self.n_faint} faint) of opacity {lo:.2f}-{hi:.2f} "
-                f"(median {med:.2f}), std up to {self.max_std:.3g}, around ({c}) (scene units)")
+        return (f"{self.n} splat(s) ({self.n_inside} with the mean inside, {self.n_faint} faint) of opacity {lo:.3g}-{hi:.3g} "
+                f"(median {med:.3g}), std up to {self.max_std:.3g}, around ({c}) (scene units)")
 
 
 def robot_groups(robot) -> tuple[bytes, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
