@@ -10,7 +10,9 @@ the faint isolated ones that rule keeps), and the robot plans with
 * ``start_valid`` / ``goal_valid``: the robot's own ellipsoids are free against the exact primitives
   (exact clearance > 0);
 * ``start_free`` / ``goal_free``: the *planning* model (the robot inflated by ``margin_m``) is free
-  against the splats at ``n_sigma``: the planner can start;
+  against the splats at ``n_sigma``: the planner can start; ``start_blocked_by`` /
+  ``goal_blocked_by``: for an endpoint that is not, the link and ellipsoid nearest the exact
+  geometry among those the margin makes collide, and that ellipsoid's exact clearance;
 * ``solved``, ``time_s`` (wall), ``cpu_s`` (this process's CPU seconds, the checker's threads
   included), ``n_configs`` (configurations collision-checked), ``n_nodes``, ``path_length`` (the planner's metric), ``path`` (joint
   configurations, when solved);
@@ -534,10 +536,12 @@ def solve_problem(task: MBMTask, ctx: MBMContext) -> dict:
         else:
             q0, q1 = load_moveit_request(task.request, robot)
         ends = np.stack([q0, q1])
-        hit = np.asarray(robot_collides(checker, plan_robot, ends)).any(axis=-1)
+        hit_e = np.asarray(robot_collides(checker, plan_robot, ends))  # (2, E)
+        hit = hit_e.any(axis=-1)
         hit_own = np.asarray(robot_collides(checker, robot, ends)).any(axis=-1) if plan_robot is not robot else hit
-        prep.endpoints[task.request] = (q0, q1, exact_clearance(scene, robot, ends), hit, hit_own)
-    q0, q1, clear, hit, hit_own = prep.endpoints[task.request]
+        prep.endpoints[task.request] = (q0, q1, exact_clearance(scene, robot, ends), hit, hit_own, _blocking(scene, robot, ends, hit_e))
+    q0, q1, clear, hit, hit_own, block = prep.endpoints[task.request]
+    row.update(start_blocked_by=block[0], goal_blocked_by=block[1])
     row.update(start_valid=bool(clear[0] > 0), goal_valid=bool(clear[1] > 0), start_clearance_m=float(clear[0]), goal_clearance_m=float(clear[1]))
     row.update(start_free=bool(not hit[0]), goal_free=bool(not hit[1]), start_free_unmargined=bool(not hit_own[0]), goal_free_unmargined=bool(not hit_own[1]))
     row.update(solved=False, time_s=None, cpu_s=None, n_configs=None, n_nodes=None, path_length=None, path=None, min_exact_clearance_m=None, message="", timed_out=False)
@@ -565,6 +569,24 @@ def solve_problem(task: MBMTask, ctx: MBMContext) -> dict:
         row["message"] = "endpoint in collision for the planning model against the splats"
     row["wall_s"] = time.perf_counter() - t0
     return row
+
+
+def _blocking(scene, robot, ends: np.ndarray, hit_e: np.ndarray) -> list:
+    """Per endpoint (2, dof): None when free for the planning model, else the link and ellipsoid the
+    margin makes collide that is nearest the exact geometry, with that ellipsoid's own exact
+    clearance (m): what keeps the endpoint from being called free."""
+    out = []
+    names, link = list(robot.link_names), np.asarray(robot.ellipsoid_link)
+    for k in range(len(ends)):
+        idx = np.nonzero(hit_e[k])[0]
+        if not idx.size:
+            out.append(None)
+            continue
+        c, quat, a = robot.ellipsoids(ends[k : k + 1])
+        cl = np.asarray(scene.ellipsoid_clearance(c[0, idx], quat[0, idx], a[idx]), dtype=np.float64)  # (n,)
+        j = int(idx[int(np.argmin(cl))])
+        out.append({"link": names[int(link[j])] if names else str(j), "ellipsoid": j, "exact_clearance_m": float(cl.min())})
+    return out
 
 
 def mbm_task(spec: dict, ctx: MBMContext) -> dict:
@@ -637,7 +659,19 @@ def summarise(rows: list[dict], time_limit: float | None = None) -> dict:
         "rho_measured_m_max": float(np.nanmax([_rho(r) for r in rows])) if rows and _any_rho(rows) else None,
         "bound_holds": int(sum(bool(r["bound_holds"]) for r in rows)),
         "not_free_below_margin": _not_free_below_margin(rows),
+        "blocked_by_link": _blocked_by_link(rows),
     }
+
+
+def _blocked_by_link(rows: list[dict]) -> dict[str, int]:
+    """How many endpoints that are not free each link blocks (``*_blocked_by``)."""
+    out: dict[str, int] = {}
+    for r in rows:
+        for end in ("start", "goal"):
+            b = r.get(f"{end}_blocked_by")
+            if b:
+                out[b["link"]] = out.get(b["link"], 0) + 1
+    return dict(sorted(out.items(), key=lambda kv: -kv[1]))
 
 
 def _not_free_below_margin(rows: list[dict]) -> int:
