@@ -146,3 +146,15 @@ def test_blockers_name_faint_haze_and_the_remedy():
     b2 = CollisionChecker(s2, n_sigma=2.0).blockers(c, None, ax)
     assert b2.n == 1 and b2.n_inside == 0 and "n_sigma" in b2.remedy()
     assert CollisionChecker(s2, n_sigma=0.0).blockers(c, None, ax).n == 0
+
+
+def test_groups_without_link_poses_are_one_per_ellipsoid():
+    """A robot that does not say where its ellipsoids sit in their links gets one group per
+    ellipsoid (a shared group's radius would need those offsets)."""
+
+    class Bare:
+        semi_axes = np.array([[0.1, 0.1, 0.1], [0.05, 0.05, 0.2]])
+        ellipsoid_link = np.array([0, 0])
+
+    _, first, members, rel, _ = robot_groups(Bare())
+    assert len(first) == 3 and sorted(members.tolist()) == [0, 1] and np.all(rel == 0)

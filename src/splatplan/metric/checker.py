@@ -531,9 +531,12 @@ def robot_groups(robot) -> tuple[bytes, np.ndarray, np.ndarray, np.ndarray, np.n
     the robot object (by its semi-axes, link map and ellipsoid poses).
     """
     ax = np.asarray(robot.semi_axes, dtype=np.float64).reshape(-1, 3)
-    link = np.asarray(getattr(robot, "ellipsoid_link", np.arange(len(ax))), dtype=np.int64).reshape(-1)
     local = getattr(robot, "ellipsoid_local", None)
-    t = np.zeros((len(ax), 3)) if local is None else np.asarray(local, dtype=np.float64)[:, :3, 3]  # (E, 3) link frame
+    if local is None or not hasattr(robot, "ellipsoid_link"):  # poses in a link frame unknown: one group per ellipsoid
+        link, t = np.arange(len(ax)), np.zeros((len(ax), 3))
+    else:
+        link = np.asarray(robot.ellipsoid_link, dtype=np.int64).reshape(-1)
+        t = np.asarray(local, dtype=np.float64)[:, :3, 3]  # (E, 3) ellipsoid centres in their link's frame
     key = ax.tobytes() + link.tobytes() + t.tobytes()
     hit = robot.__dict__.get("_groups_cache") if hasattr(robot, "__dict__") else None
     if hit is not None and hit[0] == key:
