@@ -285,3 +285,31 @@ def test_shared_concepts_sit_below_their_users():
         below = _reachable(graph, leaf)
         assert not below & set(users), f"{leaf} imports (directly or not) its users {sorted(below & set(users))}"
         assert any(leaf in graph[u] for u in users), f"no user of {leaf} imports it"
+
+
+def test_no_private_names_imported_across_modules():
+    """A helper another module needs is public in its stage (or moves): no module imports a
+    ``_private`` name from another splatplan module. Private *modules* (``_config``, ``_warp``, ...)
+    are shared helpers of the package and may be imported; the command-line package's own
+    ``cli/_common`` helpers are shared within it."""
+    import splatplan
+
+    root = Path(splatplan.__file__).resolve().parent
+    bad = []
+    for f in sorted(root.rglob("*.py")):
+        rel = f.relative_to(root)
+        parts = list(rel.with_suffix("").parts)
+        pkg = ["splatplan"] + (parts[:-1] if parts[-1] != "__init__" else parts[:-1])
+        for node in ast.walk(ast.parse(f.read_text())):
+            if not isinstance(node, ast.ImportFrom):
+                continue
+            if node.level:
+                base = ".".join(pkg[: len(pkg) - node.level + 1] + ([node.module] if node.module else []))
+            else:
+                base = node.module or ""
+            if not base.startswith("splatplan"):
+                continue
+            if base.startswith("splatplan.cli") and str(rel).startswith("cli"):
+                continue  # the CLI's shared helpers (cli/_common) stay inside the CLI package
+            bad += [f"{rel}: {a.name} from {base}" for a in node.names if a.name.startswith("_") and not a.name.startswith("__")]
+    assert not bad, "private names imported across modules:\n" + "\n".join(bad)

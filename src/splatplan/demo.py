@@ -190,7 +190,7 @@ def run_reach_demo(out: Path, device: str = "auto") -> dict:
     """One short visual-reaching run (E5): the Panda's wrist camera reaches a goal image in the
     tabletop with MPPI, the terminal image cost (the E5 study's weight-free thumbnail pyramid, its
     ``--quick`` settings) and the collision cost -> ``demo_reach.png`` (target image, final image, wrist views, camera path). ~10 s on 2 cores."""
-    from .eval.reach import _plot_goal, quick_task_config
+    from .eval.reach import plot_goal, quick_task_config
     from .render import SplatRenderer
     from .robots import load_robot
     from .tasks._common import load_task_scene
@@ -211,7 +211,7 @@ def run_reach_demo(out: Path, device: str = "auto") -> dict:
         target = np.asarray(cam.render(rend, robot, goal["q"][None], background=(cfg.background,) * 3).rgb[0])
         res = run_reach(robot, ts, target, config=cfg, q0=q0, encoder=reach_encoder("thumbnail", device=dev, config=cfg), goal_camera_pose=goal["camera_pose"], renderer=rend, device=dev)
     path = Path(out) / "demo_reach.png"
-    _plot_goal(path, robot, ts, goal, target, {"with_collision": res})
+    plot_goal(path, robot, ts, goal, target, {"with_collision": res})
     print(f"\nvisual reaching ({goal['name']}, {res.encoder}, {cfg.image_size}x{cfg.image_size} renders, K = {cfg.mppi.n_samples}): camera error "
           f"{100 * res.translation_error_m:.1f} cm / {res.rotation_error_deg:.1f} deg, min clearance {100 * res.min_clearance_m:+.2f} cm (moving links {100 * res.extra['min_clearance_moving_links_m']:+.2f} cm), "
           f"{res.steps_per_s:.2f} MPC steps/s; wrote {path} in {time.perf_counter() - t0:.1f} s")

@@ -114,7 +114,7 @@ def test_path_min_clearance_matches_every_configuration(seed):
 def test_covering_radius_against_brute_force():
     """rho(n_sigma): the max over surface samples of the distance to the nearest splat n_sigma-ellipsoid,
     checked against an all-splats computation; it shrinks as n_sigma grows."""
-    from splatplan.scenes.builtin.primitives import _project_ellipsoid, _sample_faces, splats_from_scene
+    from splatplan.scenes.builtin.primitives import project_to_ellipsoid, sample_faces, splats_from_scene
     from splatplan.scenes.splats import quat_to_rotmat
 
     scene = AnalyticScene(make_box([0, 0, 0], [0.1, 0.08, 0.05])[None], [], {})
@@ -122,12 +122,12 @@ def test_covering_radius_against_brute_force():
     spacing = float(splats.info["base_spacing"])
     rhos = [covering_radius(scene, splats, spacing, n_sigma=n, seed=0, oversample=1.0, k=len(splats)) for n in (0.0, 1.0, 2.0)]
     assert rhos[0] > rhos[1] > rhos[2] >= 0
-    x = _sample_faces(scene, np.full(1, spacing), np.ones((1, 6), bool), np.random.default_rng(0), curved_spacing=spacing)["p"]
+    x = sample_faces(scene, np.full(1, spacing), np.ones((1, 6), bool), np.random.default_rng(0), curved_spacing=spacing)["p"]
     mu, rot = splats.means.astype(np.float64), quat_to_rotmat(splats.quats.astype(np.float64)).reshape(-1, 3, 3)
     assert rhos[0] == pytest.approx(np.linalg.norm(x[:, None] - mu[None], axis=2).min(axis=1).max())
     u = np.einsum("nji,pnj->pni", rot, x[:, None] - mu[None]).reshape(-1, 3)  # every (sample, splat) pair
     semi = np.broadcast_to(1.0 * np.maximum(splats.scales.astype(np.float64), 1e-12), (len(x), len(mu), 3)).reshape(-1, 3)
-    brute = np.linalg.norm(u - _project_ellipsoid(u, semi), axis=1).reshape(len(x), -1).min(axis=1).max()
+    brute = np.linalg.norm(u - project_to_ellipsoid(u, semi), axis=1).reshape(len(x), -1).min(axis=1).max()
     assert rhos[1] == pytest.approx(brute, rel=1e-6)
 
 

@@ -8,7 +8,7 @@ import pytest
 from splatplan.errors import SplatplanError
 from splatplan.scenes.builtin import BUILTIN_SCENES, build_builtin, write_builtin
 from splatplan.scenes.builtin.apartment import DOORS, apartment_layout, room_of
-from splatplan.scenes.builtin.primitives import AnalyticScene, _fibonacci_sphere, make_box
+from splatplan.scenes.builtin.primitives import AnalyticScene, fibonacci_sphere, make_box
 from splatplan.scenes.builtin.tabletop import TABLE_TOP
 from splatplan.scenes.splats import quat_to_rotmat
 
@@ -67,7 +67,7 @@ def test_write_builtin_roundtrip(tmp_path):
 
 
 def _brute_force(scene: AnalyticScene, c, q, a, n=6000):
-    u = np.concatenate([_fibonacci_sphere(n) * s for s in (1.0, 0.8, 0.6, 0.4, 0.2)] + [np.zeros((1, 3))])
+    u = np.concatenate([fibonacci_sphere(n) * s for s in (1.0, 0.8, 0.6, 0.4, 0.2)] + [np.zeros((1, 3))])
     r = quat_to_rotmat(q).reshape(-1, 3, 3)
     return np.array([scene.sdf(c[i] + (u * a[i]) @ r[i].T).min() for i in range(len(c))])
 

@@ -9,7 +9,7 @@ import pytest
 
 from splatplan.errors import SplatplanError
 from splatplan.robots import point_radius
-from splatplan.scenes.builtin.primitives import AnalyticScene, SurfaceSplatConfig, _sample_faces, box_sdf, make_box, splats_from_boxes
+from splatplan.scenes.builtin.primitives import AnalyticScene, SurfaceSplatConfig, sample_faces, box_sdf, make_box, splats_from_boxes
 from splatplan.scenes.splats import quat_to_rotmat, rotmat_to_quat
 from splatplan.scenes.builtin.stonehenge import (
     PLANE_Z,
@@ -98,7 +98,7 @@ def test_union_sdf_exact_outside_vs_dense_surface_samples():
     boxes = np.stack([make_box((0, 0, 0), (0.2, 0.1, 0.1), _random_rotations(rng, 1)[0]), make_box((0.15, 0.05, 0.0), (0.1, 0.15, 0.08), _random_rotations(rng, 1)[0])])
     scene = AnalyticScene(boxes)
     h = 0.004
-    surf = _sample_faces(scene, np.full(2, h), np.ones((2, 6), bool), rng)["p"]  # exposed surface only
+    surf = sample_faces(scene, np.full(2, h), np.ones((2, 6), bool), rng)["p"]  # exposed surface only
     assert np.all(np.abs(scene.sdf(surf)) < 1e-9)
     pts = rng.uniform(-0.5, 0.5, (400, 3))
     d = scene.sdf(pts)

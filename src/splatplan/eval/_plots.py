@@ -17,14 +17,14 @@ def top_view_handles(scene, z: float, *, footprints: bool = True, inflate: float
     from matplotlib.lines import Line2D
     from matplotlib.patches import Patch
 
-    from ..scenes.builtin.stonehenge import _LABEL_COLORS, box_cross_section
+    from ..scenes.builtin.stonehenge import LABEL_COLORS, box_cross_section
 
     kinds = []
     for box, lab in zip(scene.boxes, scene.labels):
         if lab != "ground" and lab not in kinds and box_cross_section(box, z) is not None:
             kinds.append(lab)
     handles = [
-        Patch(fc=_LABEL_COLORS.get(k, "0.4"), ec="k", lw=0.5, alpha=alpha, label=f"stone at z = {z:g}: {k.replace('_', ' ')}")
+        Patch(fc=LABEL_COLORS.get(k, "0.4"), ec="k", lw=0.5, alpha=alpha, label=f"stone at z = {z:g}: {k.replace('_', ' ')}")
         for k in kinds
     ]
     if footprints:

@@ -84,7 +84,7 @@ def goal_figure(robot, scene, goal, target, runs: dict):
     return fig
 
 
-def _plot_goal(path: Path, robot, scene, goal, target, runs: dict) -> None:
+def plot_goal(path: Path, robot, scene, goal, target, runs: dict) -> None:
     """Write :func:`goal_figure` to ``path`` (PNG, 100 dpi)."""
     goal_figure(robot, scene, goal, target, runs).savefig(path, dpi=100)
 

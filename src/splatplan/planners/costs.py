@@ -89,7 +89,7 @@ class _DynamicsLinks:
         return res
 
 
-def _geometry(source) -> LinkGeometry | _DynamicsLinks:
+def link_geometry(source) -> LinkGeometry | _DynamicsLinks:
     """The link geometry of a Robot or of a dynamics model (its ``robot``; its own ``link_poses``
     when it has no Robot), or a geometry given as is."""
     if isinstance(source, (LinkGeometry, _DynamicsLinks)):
@@ -190,7 +190,7 @@ class CollisionCost(Cost):
         static_shortcut: bool = True,
     ) -> None:
         self.checker = checker.with_config(s2_cap=s2_cap) if s2_cap is not None else checker
-        self.geometry = _geometry(robot)
+        self.geometry = link_geometry(robot)
         self.weight = float(weight)
         self.hit_weight = float(hit_weight)
         self.self_collision_weight = float(self_collision_weight)

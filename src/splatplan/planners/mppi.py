@@ -42,7 +42,7 @@ from .._config import bounded, check_config
 from .._resources import require_rollouts
 from ..errors import SplatplanError
 from .bspline import UniformBSpline
-from .costs import CollisionCost, ControlEffortCost, Cost, Rollout, StateCost, TerminalCost, _geometry, evaluate_costs
+from .costs import CollisionCost, ControlEffortCost, Cost, Rollout, StateCost, TerminalCost, evaluate_costs, link_geometry
 from .dynamics import Dynamics
 
 
@@ -372,7 +372,7 @@ class MPPI:
                 auto = stride == "auto"
                 costs.append(
                     CollisionCost(
-                        checker, dynamics if auto else _geometry(dynamics), weight=wts.w_collision, hit_weight=wts.w_hit, s2_cap=wts.collision_s2_cap,
+                        checker, dynamics if auto else link_geometry(dynamics), weight=wts.w_collision, hit_weight=wts.w_hit, s2_cap=wts.collision_s2_cap,
                         time_stride=stride, max_gap_m=wts.collision_max_gap_m,
                         speed_bound=joint_speed_bound(dynamics, cfg.u_min, cfg.u_max) if auto else None,
                     )
@@ -388,7 +388,7 @@ class MPPI:
         self.costs = costs
         cols = [c for c in costs if isinstance(c, CollisionCost)]
         # the nominal's collision report: the collision cost's own checker (its cap), else the checker as given
-        self._report = (cols[0].checker, cols[0].geometry) if cols else ((checker, _geometry(dynamics)) if checker is not None else None)
+        self._report = (cols[0].checker, cols[0].geometry) if cols else ((checker, link_geometry(dynamics)) if checker is not None else None)
         self.sampler = sampler if sampler is not None else GaussianKnots()
         self.du = du
         self.noise_sigma = _per_dim(cfg.noise_sigma, du, "noise_sigma")  # (du,) the configured std

@@ -549,7 +549,7 @@ def robust_scene_box(scene, percentile: float = BOX_PERCENTILE) -> tuple[np.ndar
 
 
 @dataclass
-class _Search:
+class Search:
     """What one search (:meth:`RRT.plan`, :meth:`RRTConnect.plan`) sets up before its first iteration."""
 
     t0: float  # time.perf_counter() when the call began
@@ -730,7 +730,7 @@ class RRT:
         connect = 4.0 * stride if cfg.connect_radius is None else float(cfg.connect_radius)
         return RRTSettings(lo, hi, stride, res, tol, connect, cfg.time_limit_s, derived, notes)
 
-    def _setup(self, start, goal, deadline: float | None) -> _Search:
+    def _setup(self, start, goal, deadline: float | None) -> Search:
         """Settings, edge checker, endpoint checks, sampler and deadline of one search (raises like :meth:`plan`)."""
         t0 = time.perf_counter()
         st = self.settings(start, goal)
@@ -747,7 +747,7 @@ class RRT:
         end = math.inf if deadline is None else float(deadline)
         if st.time_limit_s is not None:
             end = min(end, t0 + st.time_limit_s)
-        return _Search(t0, st, start, goal, geom.distance_scale(), edges, q0, np.random.default_rng(self.config.seed), frozen,
+        return Search(t0, st, start, goal, geom.distance_scale(), edges, q0, np.random.default_rng(self.config.seed), frozen,
                        np.where(frozen, 0.0, st.box_hi - st.box_lo), end, deadline, geom.n_configs)  # fmt: skip
 
     # ------------------------------------------------------------------ search

@@ -46,7 +46,7 @@ import time
 
 import numpy as np
 from ..errors import PlanningError
-from .rrt import RRT, PlanResult, _Search, path_length, shortcut_path
+from .rrt import RRT, PlanResult, Search, path_length, shortcut_path
 from .rrt_lazy import lazy_connect_search
 from .trees import Tree
 
@@ -111,7 +111,7 @@ class RRTConnect(RRT):
                 return self._result(s, trees, info, clock, raw, f"trees joined after {it} iterations", it)
         return self._result(s, trees, info, clock, None, f"no path found {message}", it)
 
-    def _extend(self, s: _Search, ta: Tree, clock: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def _extend(self, s: Search, ta: Tree, clock: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Steer from A's nearest nodes at most ``stride`` towards ``batch_size`` uniform samples:
         (base (M, D), their node ids (M,), new configurations (M, D))."""
         t1 = time.perf_counter()
@@ -131,7 +131,7 @@ class RRTConnect(RRT):
         clock["nearest"] += t3 - t2
         return base, near, new
 
-    def _connect_runs(self, s: _Search, trees: list[Tree], a_id: int, new: np.ndarray, runs: list, clock: dict):
+    def _connect_runs(self, s: Search, trees: list[Tree], a_id: int, new: np.ndarray, runs: list, clock: dict):
         """The connect runs of an iteration: from B's nearest nodes towards the ``connect_attempts``
         new nodes closest to B, plus the runs carried on. Returns (todo, c_from (C, D), c_to (C, D),
         frac (C,)): a run is (tree it grows, its front node, tree of the target, target node id or
@@ -154,7 +154,7 @@ class RRTConnect(RRT):
         clock["sampling"] += time.perf_counter() - t5
         return todo, c_from, c_from + (c_tgt - c_from) * frac[:, None], frac
 
-    def _grow_runs(self, s: _Search, trees: list[Tree], todo: list, new_ids: np.ndarray, kc, nc, frac, c_from, c_to) -> list:
+    def _grow_runs(self, s: Search, trees: list[Tree], todo: list, new_ids: np.ndarray, kc, nc, frac, c_from, c_to) -> list:
         """Add the free part of each connect run to its tree, one node every stride on the
         check-sample grid (nodes are always checked configurations) and the last free sample;
         returns the runs free so far that go on in the next iteration."""
@@ -176,7 +176,7 @@ class RRTConnect(RRT):
                 runs.append((f, int(ids[-1]), g, tgt))  # free so far: the run goes on next iteration
         return runs
 
-    def _result(self, s: _Search, trees: list[Tree], info: dict, clock: dict, path: np.ndarray | None, message: str, it: int) -> PlanResult:
+    def _result(self, s: Search, trees: list[Tree], info: dict, clock: dict, path: np.ndarray | None, message: str, it: int) -> PlanResult:
         """The result (both trees, start tree first), the path shortcut when found, the time split."""
         ta, tb = trees
         d, w, edges, cfg = s.start.size, s.w, s.edges, self.config

@@ -36,11 +36,11 @@ import time
 
 import numpy as np
 
-from .rrt import _Search
+from .rrt import Search
 from .trees import Tree
 
 
-def lazy_connect_search(planner, s: _Search, trees: list[Tree], info: dict, clock: dict) -> tuple[np.ndarray | None, str, int]:
+def lazy_connect_search(planner, s: Search, trees: list[Tree], info: dict, clock: dict) -> tuple[np.ndarray | None, str, int]:
     """Run the lazy search (module docstring) on ``trees`` (0: rooted at the start, 1: at the goal).
 
     Args:
@@ -126,7 +126,7 @@ def _candidate(trees: list[Tree], a_id: int, ib: int, ia: int) -> tuple[np.ndarr
     return path, owners
 
 
-def _shortcut_check(s: _Search, trees: list[Tree], path: np.ndarray, owners: list[tuple[int, int]], screen: int | None) -> tuple[np.ndarray | None, tuple[int, int] | None]:
+def _shortcut_check(s: Search, trees: list[Tree], path: np.ndarray, owners: list[tuple[int, int]], screen: int | None) -> tuple[np.ndarray | None, tuple[int, int] | None]:
     """Shortcut a candidate path while checking it (VALIDATION BY SHORTCUT, module docstring).
 
     From each kept vertex, the doubling candidates of :func:`~.rrt.shortcut_path` (screened, then
@@ -159,7 +159,7 @@ def _shortcut_check(s: _Search, trees: list[Tree], path: np.ndarray, owners: lis
     return p[out], None
 
 
-def _validate(s: _Search, trees: list[Tree], a_id: int, candidates: list[tuple[int, int]], stats: dict, screen: int | None, shortcut: bool) -> np.ndarray | None:
+def _validate(s: Search, trees: list[Tree], a_id: int, candidates: list[tuple[int, int]], stats: dict, screen: int | None, shortcut: bool) -> np.ndarray | None:
     """Check the candidate paths one by one, by shortcutting them (:func:`_shortcut_check`) or, with
     ``shortcut`` off, edge by edge as they are; a colliding tree edge removes its child's subtree.
     The first candidate that passes (shortcut or not), or None."""

@@ -64,7 +64,7 @@ from typing import Protocol
 import numpy as np
 
 from ..errors import SplatplanError
-from .builtin.primitives import AnalyticScene, _project_ellipsoid, _sample_faces
+from .builtin.primitives import AnalyticScene, project_to_ellipsoid, sample_faces
 from .splats import Splats, quat_to_rotmat
 
 __all__ = ["EDGE_FRACTION", "HasMinSemiAxis", "SplatMargin", "covering_radius", "derived_margin", "margin_for", "splat_spacing"]
@@ -209,7 +209,7 @@ def covering_radius(scene: AnalyticScene, splats: Splats, spacing: float, n_sigm
     rng = np.random.default_rng(seed)
     nb = len(scene.boxes)
     h = spacing / oversample
-    x = _sample_faces(scene, np.full(nb, h), np.ones((nb, 6), bool), rng, curved_spacing=h)["p"]  # (S, 3) world
+    x = sample_faces(scene, np.full(nb, h), np.ones((nb, 6), bool), rng, curved_spacing=h)["p"]  # (S, 3) world
     mu = np.asarray(splats.means, dtype=np.float64)
     d, idx = cKDTree(mu).query(x, k=1 if n_sigma == 0 else k)
     if n_sigma == 0:
@@ -229,6 +229,6 @@ def covering_radius(scene: AnalyticScene, splats: Splats, spacing: float, n_sigm
         if ub[sel[0]] <= best:
             break
         u = np.einsum("pkji,pkj->pki", rot[idx[sel]], x[sel, None, :] - mu[idx[sel]]).reshape(-1, 3)
-        proj = _project_ellipsoid(u, semi[idx[sel]].reshape(-1, 3))
+        proj = project_to_ellipsoid(u, semi[idx[sel]].reshape(-1, 3))
         best = max(best, float(np.linalg.norm(u - proj, axis=1).reshape(len(sel), -1).min(axis=1).max()))
     return best

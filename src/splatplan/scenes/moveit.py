@@ -268,11 +268,11 @@ def write_moveit(path: str | Path, out_ply: str | Path, n_splats: int = DEFAULT_
     Returns:
         (ply path, ground-truth JSON path).
     """
-    from .builtin.stonehenge import _save_ply, ground_truth_path
+    from .builtin.stonehenge import ground_truth_path, save_ply
 
     out_ply = Path(out_ply)
     splats, scene = build_moveit(path, n_splats, seed)
-    _save_ply(out_ply, splats)
+    save_ply(out_ply, splats)
     gt = ground_truth_path(out_ply)
     scene.meta.update(n_splats=len(splats), n_floaters=int(splats.info["n_floaters"]), ply=out_ply.name, seed=int(seed),
                       base_spacing=float(splats.info["base_spacing"]))  # fmt: skip

@@ -10,10 +10,10 @@ def _ellipse_outlines(centers, quats, axes, dims, n: int = 96) -> list[np.ndarra
     """2D outlines (convex hulls of projected surface samples) of ellipsoids on the plane ``dims``."""
     from scipy.spatial import ConvexHull
 
-    from ..scenes.builtin.primitives import _fibonacci_sphere
+    from ..scenes.builtin.primitives import fibonacci_sphere
     from ..scenes.splats import quat_to_rotmat
 
-    u = _fibonacci_sphere(n)
+    u = fibonacci_sphere(n)
     out = []
     rots = quat_to_rotmat(np.asarray(quats)).reshape(-1, 3, 3)
     for c, r, a in zip(np.asarray(centers), rots, np.asarray(axes)):

@@ -82,7 +82,7 @@ def write_builtin(name: str, out_ply, seed: int = 0, level: int = 1) -> tuple[Pa
         raise SplatplanError(f"write_builtin writes an INRIA .ply; got {out_ply.name!r} (use a .ply name)")
     splats, scene = build_builtin(name, seed=seed, level=level)
     out_ply.parent.mkdir(parents=True, exist_ok=True)
-    stonehenge._save_ply(out_ply, splats)
+    stonehenge.save_ply(out_ply, splats)
     gt = stonehenge.ground_truth_path(out_ply)
     meta = {**scene.meta, "n_splats": len(splats), "n_floaters": int(splats.info["n_floaters"]), "ply": out_ply.name}
     AnalyticScene(scene.boxes, scene.labels, meta).save(gt)

@@ -16,7 +16,7 @@ import numpy as np
 
 from ..splats import Splats
 from .levels import level_config, splat_count
-from .primitives import AnalyticScene, _copy_splats, make_box, splats_from_scene
+from .primitives import AnalyticScene, copy_splats, make_box, splats_from_scene
 
 
 def object_colors(label_colors: dict) -> dict:
@@ -114,4 +114,4 @@ class SceneCache:
 
     def build(self, seed: int, n_splats: int | None) -> tuple[Splats, AnalyticScene]:
         """Fresh copies of the splats (``n_splats`` counts floaters too; None: the default) and the boxes for ``seed``."""
-        return _copy_splats(self._cached_splats(int(seed), splat_count(n_splats, self.n_splats))), self.layout(seed).scene
+        return copy_splats(self._cached_splats(int(seed), splat_count(n_splats, self.n_splats))), self.layout(seed).scene

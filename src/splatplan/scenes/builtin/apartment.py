@@ -32,7 +32,7 @@ import numpy as np
 
 from ..splats import Splats
 from ._layout import BoxList, SceneCache, object_colors
-from .primitives import AnalyticScene, _yaw_quat
+from .primitives import AnalyticScene, yaw_quat
 
 __all__ = ["DOORS", "N_SPLATS", "ROOMS", "WALL_HEIGHT", "ApartmentLayout", "apartment_layout", "build_apartment", "room_of"]
 
@@ -128,7 +128,7 @@ def _build_layout(seed: int) -> ApartmentLayout:
     add = box_list.add
 
     def block(label: str, x: float, y: float, hx: float, hy: float, h: float, yaw: float = 0.0) -> None:
-        add(label, (x, y, (h - 0.002) / 2), (hx, hy, (h + 0.002) / 2), _yaw_quat(yaw))  # sinks 2 mm
+        add(label, (x, y, (h - 0.002) / 2), (hx, hy, (h + 0.002) / 2), yaw_quat(yaw))  # sinks 2 mm
 
     j = lambda s: rng.uniform(-s, s)  # noqa: E731  small per-seed jitter (m)
     add("floor", (0.0, 0.0, -0.05), (4.2, 3.2, 0.05))
@@ -164,7 +164,7 @@ def _build_layout(seed: int) -> ApartmentLayout:
     block("counter", 3.7, -1.2, 0.30, 0.60, 0.90)
     block("fridge", 3.62, -2.62, 0.33, 0.33, 1.15)
     block("table", 2.0 + j(0.05), -1.4 + j(0.05), 0.50, 0.30, 0.90, j(0.05))  # island
-    add("object_blue_crate", (2.0, -1.4, 0.90 + 0.12 - 0.001), (0.15, 0.12, 0.12), _yaw_quat(rng.uniform(0, np.pi)))
+    add("object_blue_crate", (2.0, -1.4, 0.90 + 0.12 - 0.001), (0.15, 0.12, 0.12), yaw_quat(rng.uniform(0, np.pi)))
     block("object_red_bin", 0.4 + j(0.03), -0.4, 0.15, 0.15, 0.40)
     block("object_lime_stool", 1.1 + j(0.03), -1.4 + j(0.03), 0.16, 0.16, 0.45)
 

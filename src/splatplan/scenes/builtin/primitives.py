@@ -90,12 +90,12 @@ def make_sphere(center, radius: float) -> np.ndarray:  # center (3,) world
     return np.concatenate([np.asarray(center, np.float64).reshape(3), [float(radius)]])
 
 
-def _yaw_quat(yaw: float) -> np.ndarray:
+def yaw_quat(yaw: float) -> np.ndarray:
     """wxyz (4,) rotation by ``yaw`` (rad) about +z."""
     return np.array([np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)])
 
 
-def _copy_splats(s: Splats) -> Splats:
+def copy_splats(s: Splats) -> Splats:
     """Fresh arrays of a cached built-in scene's splats (``info`` copied too)."""
     return replace(
         s,
@@ -218,7 +218,7 @@ def _sdf_dense(
     return out
 
 
-def _fibonacci_sphere(n: int) -> np.ndarray:
+def fibonacci_sphere(n: int) -> np.ndarray:
     """(n, 3) nearly uniform unit vectors (Fibonacci lattice)."""
     i = np.arange(n) + 0.5
     z = 1 - 2 * i / n
@@ -228,10 +228,10 @@ def _fibonacci_sphere(n: int) -> np.ndarray:
 
 
 #: Sample directions of :func:`_ellipsoid_box` in the unit ball: 128 surface, 16 half-radius, centre.
-_BALL_SAMPLES = np.concatenate([_fibonacci_sphere(128), 0.5 * _fibonacci_sphere(16), np.zeros((1, 3))])
+_BALL_SAMPLES = np.concatenate([fibonacci_sphere(128), 0.5 * fibonacci_sphere(16), np.zeros((1, 3))])
 
 
-def _project_ellipsoid(y: np.ndarray, a: np.ndarray, n_newton: int = 30) -> np.ndarray:
+def project_to_ellipsoid(y: np.ndarray, a: np.ndarray, n_newton: int = 30) -> np.ndarray:
     """Closest points (P, 3) of axis-aligned solid ellipsoids (semi-axes a (P, 3)) to points y (P, 3).
 
     Outside points: x_i = a_i^2 y_i / (a_i^2 + t) with t >= 0 the root of
@@ -342,7 +342,7 @@ def _ellipsoid_convex(
         for _ in range(n_ap):
             qb = shape.project(p[act], hs[act])
             y = np.einsum("pji,pj->pi", rs[act], qb - cs[act])  # ellipsoid frame
-            p_new = cs[act] + np.einsum("pij,pj->pi", rs[act], _project_ellipsoid(y, as_[act]))
+            p_new = cs[act] + np.einsum("pij,pj->pi", rs[act], project_to_ellipsoid(y, as_[act]))
             moved = np.max(np.abs(p_new - p[act]), axis=1) >= 1e-12
             p[act] = p_new
             act = act[moved]
@@ -400,7 +400,7 @@ def _ellipsoid_sphere(
     ``n.(s - c) - |diag(a) R^T n|`` with n the unit direction from the projection to s.
     """
     y = np.einsum("pji,pj->pi", rot_e, sph[:, :3] - c)  # (P, 3) sphere centre in the ellipsoid frame
-    x = _project_ellipsoid(y, a, n_newton=80)
+    x = project_to_ellipsoid(y, a, n_newton=80)
     diff = y - x
     dist = np.linalg.norm(diff, axis=1)
     n = diff / np.maximum(dist, 1e-300)[:, None]
@@ -821,7 +821,7 @@ def _face_frames(box: np.ndarray, rot: np.ndarray) -> list[tuple[np.ndarray, np.
     return out
 
 
-def _sample_faces(
+def sample_faces(
     scene: AnalyticScene,
     spacing: np.ndarray,  # (M,) target grid spacing per box
     faces: np.ndarray,  # (M, 6) bool, which faces to sample
@@ -984,7 +984,7 @@ def _pilot_area(scene: AnalyticScene, n_surf: int, density: np.ndarray, faces: n
     if len(curved_area):
         total += float(curved_area.sum())
     h_pilot = np.sqrt(total / n_surf) * 3.0
-    pilot = _sample_faces(scene, h_pilot * density, faces, rng, curved_spacing=h_pilot)
+    pilot = sample_faces(scene, h_pilot * density, faces, rng, curved_spacing=h_pilot)
     return float(np.sum(pilot["h"] ** 2 / dens_all[pilot["face_box"][pilot["frame"]]] ** 2))
 
 
@@ -1003,13 +1003,13 @@ def n_splats_for_spacing(scene: AnalyticScene, spacing: float, config: SurfaceSp
 
 
 def _surface_samples(scene: AnalyticScene, n_surf: int, density: np.ndarray, faces: np.ndarray, rng: np.random.Generator):
-    """Surface samples (a :func:`_sample_faces` dict) at the base spacing that gives at least
+    """Surface samples (a :func:`sample_faces` dict) at the base spacing that gives at least
     ``n_surf`` of them, and that spacing: a coarse pilot measures the exposed area, then the
     spacing shrinks until there are enough samples."""
     weighted = _pilot_area(scene, n_surf, density, faces, rng)
     h_base = np.sqrt(weighted / n_surf) * 0.98
     for _ in range(5):
-        smp = _sample_faces(scene, h_base * density, faces, rng, curved_spacing=h_base)
+        smp = sample_faces(scene, h_base * density, faces, rng, curved_spacing=h_base)
         if len(smp["p"]) >= n_surf:
             break
         h_base *= 0.97 * np.sqrt(len(smp["p"]) / n_surf)

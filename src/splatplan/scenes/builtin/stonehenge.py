@@ -41,7 +41,7 @@ import numpy as np
 
 from ...errors import SplatplanError
 from .levels import LEVEL_RATIO, N_SPLATS_LEVEL1, default_n_splats, level_config, splat_count  # noqa: F401 (re-exported)
-from .primitives import AnalyticScene, _copy_splats, _yaw_quat, box_corners, make_box, splats_from_boxes
+from .primitives import AnalyticScene, copy_splats, yaw_quat, box_corners, make_box, splats_from_boxes
 from ..splats import SH_C0, Splats, quat_multiply
 
 __all__ = [
@@ -218,7 +218,7 @@ def _build_layout(seed: int) -> StonehengeLayout:
         c = (r_c + rad_jit[k]) * np.array([np.cos(phi[k]), np.sin(phi[k])])
         h = heights[k]
         sarsens.append(
-            add("sarsen", (c[0], c[1], (h - SINK) / 2), (_STONE_T / 2, _STONE_W / 2, (h + SINK) / 2), _yaw_quat(phi[k] + yaw_jit[k]))
+            add("sarsen", (c[0], c[1], (h - SINK) / 2), (_STONE_T / 2, _STONE_W / 2, (h + SINK) / 2), yaw_quat(phi[k] + yaw_jit[k]))
         )
     gate_w, gate_c = np.zeros(n), np.zeros((n, 3))
     for k in range(n):
@@ -235,7 +235,7 @@ def _build_layout(seed: int) -> StonehengeLayout:
                 "lintel",
                 (mid_ab[0], mid_ab[1], z0 + _LINTEL_H / 2),
                 (span / 2 + 0.35 * _STONE_W, 0.9 * _STONE_T / 2, _LINTEL_H / 2),
-                _yaw_quat(yaw),
+                yaw_quat(yaw),
             )
 
     # ---------------------------------------------------------------- inner horseshoe of trilithons
@@ -250,14 +250,14 @@ def _build_layout(seed: int) -> StonehengeLayout:
         pair = []
         for s in (-1.0, 1.0):
             c = tri_r * radial + s * (slit / 2 + tri_w / 2) * tang
-            pair.append(add("trilithon", (c[0], c[1], (h - SINK) / 2), (tri_t / 2, tri_w / 2, (h + SINK) / 2), _yaw_quat(ang)))
+            pair.append(add("trilithon", (c[0], c[1], (h - SINK) / 2), (tri_t / 2, tri_w / 2, (h + SINK) / 2), yaw_quat(ang)))
         tri_boxes.append(pair)
         c = tri_r * radial
         add(
             "trilithon_lintel",
             (c[0], c[1], h - SINK + _LINTEL_H / 2),
             (0.9 * tri_t / 2, slit / 2 + tri_w + 0.004, _LINTEL_H / 2),
-            _yaw_quat(ang),
+            yaw_quat(ang),
         )
     tri_gaps = np.array(
         [
@@ -273,35 +273,35 @@ def _build_layout(seed: int) -> StonehengeLayout:
 
     # a fallen sarsen lying between horseshoe and ring (below the planning plane)
     c = polar(0.235, -140.0)
-    add("fallen", (c[0], c[1], 0.012 - SINK), (0.05, 0.02, 0.012 + SINK), _yaw_quat(np.deg2rad(35.0) + rng.uniform(-0.1, 0.1)))
+    add("fallen", (c[0], c[1], 0.012 - SINK), (0.05, 0.02, 0.012 + SINK), yaw_quat(np.deg2rad(35.0) + rng.uniform(-0.1, 0.1)))
     # a fallen lintel tilted against the ground outside the ring (one end up)
     c = polar(0.40, 150.0)
-    q = quat_multiply(_yaw_quat(np.deg2rad(-20.0)), _axis_quat((0, 1, 0), np.deg2rad(-28.0)))
+    q = quat_multiply(yaw_quat(np.deg2rad(-20.0)), _axis_quat((0, 1, 0), np.deg2rad(-28.0)))
     add("fallen", (c[0], c[1], 0.018), (0.05, 0.016, 0.01), q)
     # a leaning upright (tilted ~22 degrees sideways, along the ring) between horseshoe and ring,
     # beside two narrow gates: it cuts the planning plane
     c = polar(0.225, 110.0)
     ang = back + np.deg2rad(110.0)
-    q = quat_multiply(_yaw_quat(ang), _axis_quat((1, 0, 0), np.deg2rad(22.0) + rng.uniform(-0.03, 0.03)))
+    q = quat_multiply(yaw_quat(ang), _axis_quat((1, 0, 0), np.deg2rad(22.0) + rng.uniform(-0.03, 0.03)))
     add("leaning", (c[0], c[1], 0.045), (0.015, 0.022, 0.06), q)
     # a broken stump + a tilted block outside the ring
     c = polar(0.41, -60.0)
-    q = quat_multiply(_yaw_quat(np.deg2rad(10.0)), _axis_quat((1, 0, 0), np.deg2rad(12.0)))
+    q = quat_multiply(yaw_quat(np.deg2rad(10.0)), _axis_quat((1, 0, 0), np.deg2rad(12.0)))
     add("fallen", (c[0], c[1], 0.025), (0.025, 0.03, 0.03), q)
     # the altar stone: a flat slab inside the horseshoe, off centre, below the planning plane
     c = polar(0.075, 10.0)
-    add("altar", (c[0], c[1], 0.008 - SINK), (0.012, 0.04, 0.008 + SINK), _yaw_quat(back + np.deg2rad(10.0)))
+    add("altar", (c[0], c[1], 0.008 - SINK), (0.012, 0.04, 0.008 + SINK), yaw_quat(back + np.deg2rad(10.0)))
     # heel stone (outside the entrance, slightly tilted) and two station stones
     c = 0.43 * np.array([np.cos(_ENTRANCE_ANGLE), np.sin(_ENTRANCE_ANGLE)])
-    q = quat_multiply(_yaw_quat(_ENTRANCE_ANGLE), _axis_quat((0, 1, 0), np.deg2rad(8.0)))
+    q = quat_multiply(yaw_quat(_ENTRANCE_ANGLE), _axis_quat((0, 1, 0), np.deg2rad(8.0)))
     add("heel", (c[0], c[1], 0.045 - SINK), (0.02, 0.025, 0.045 + SINK), q)
     for ang_deg in (-95.0, 95.0):
         c = polar(0.40, ang_deg)
-        add("station", (c[0], c[1], (0.05 - SINK) / 2), (0.012, 0.015, (0.05 + SINK) / 2), _yaw_quat(np.deg2rad(ang_deg)))
+        add("station", (c[0], c[1], (0.05 - SINK) / 2), (0.012, 0.015, (0.05 + SINK) / 2), yaw_quat(np.deg2rad(ang_deg)))
     # small rocks scattered inside and outside the ring
     for r, ang_deg, s in ((0.09, -150.0, 0.01), (0.24, 170.0, 0.008), (0.36, -25.0, 0.012), (0.44, 120.0, 0.01), (0.24, -70.0, 0.009)):
         c = polar(r, ang_deg) + rng.uniform(-0.005, 0.005, 2)
-        add("rock", (c[0], c[1], s - SINK), (s, 0.8 * s, s), _yaw_quat(rng.uniform(0, np.pi)))
+        add("rock", (c[0], c[1], s - SINK), (s, 0.8 * s, s), yaw_quat(rng.uniform(0, np.pi)))
 
     scene = AnalyticScene(
         np.stack(boxes),
@@ -392,7 +392,7 @@ def build_stonehenge(level: int = 1, seed: int = 0, n_splats: int | None = None)
     if lv not in (1, 2, 3, 4, 5):
         raise SplatplanError(f"stonehenge level must be 1..5, got {level}")
     s, sc = _build_cached(lv, int(seed), splat_count(n_splats, default_n_splats(lv)))
-    return _copy_splats(s), sc.copy()
+    return copy_splats(s), sc.copy()
 
 
 # ---------------------------------------------------------------------------------------------
@@ -448,7 +448,7 @@ def write_stonehenge(out_ply, level: int = 1, seed: int = 0) -> tuple[Path, Path
         raise SplatplanError(f"write_stonehenge writes an INRIA .ply; got {out_ply.name!r} (use a .ply name)")
     out_ply.parent.mkdir(parents=True, exist_ok=True)
     splats, scene = build_stonehenge(level=level, seed=seed)
-    _save_ply(out_ply, splats)
+    save_ply(out_ply, splats)
     gt = ground_truth_path(out_ply)
     scene = AnalyticScene(
         scene.boxes,
@@ -459,7 +459,7 @@ def write_stonehenge(out_ply, level: int = 1, seed: int = 0) -> tuple[Path, Path
     return out_ply, gt
 
 
-def _save_ply(path: Path, splats: Splats) -> None:
+def save_ply(path: Path, splats: Splats) -> None:
     """Write with the project's scene writer (:func:`splatplan.scenes.load.save_scene`), falling
     back to the minimal INRIA writer above if the I/O stage is not importable."""
     try:
@@ -474,7 +474,7 @@ def _save_ply(path: Path, splats: Splats) -> None:
 # Plotting
 # ---------------------------------------------------------------------------------------------
 
-_LABEL_COLORS = {
+LABEL_COLORS = {
     "sarsen": "#6b6b6b",
     "lintel": "#8a8a8a",
     "trilithon": "#4d4d4d",
@@ -548,7 +548,7 @@ def plot_top_view(ax, scene: AnalyticScene, z: float = PLANE_Z, *, footprints: b
             ax.add_patch(Polygon(_footprint_hull(box), closed=True, fill=False, ec="0.7", lw=0.5, zorder=1))
         sec = box_cross_section(box, z)
         if sec is not None:
-            ax.add_patch(Polygon(sec, closed=True, fc=_LABEL_COLORS.get(lab, "0.4"), ec="k", lw=0.5, zorder=2))
+            ax.add_patch(Polygon(sec, closed=True, fc=LABEL_COLORS.get(lab, "0.4"), ec="k", lw=0.5, zorder=2))
             if inflate > 0:
                 # Minkowski sum of a convex polygon and a disk, sampled densely.
                 t = np.linspace(0, 2 * np.pi, 24, endpoint=False)

@@ -36,7 +36,7 @@ import numpy as np
 
 from ..splats import Splats
 from ._layout import BoxList, SceneCache, object_colors
-from .primitives import AnalyticScene, _yaw_quat
+from .primitives import AnalyticScene, yaw_quat
 
 __all__ = ["N_SPLATS", "TABLE_TOP", "TARGET_REGION", "TabletopLayout", "build_tabletop", "tabletop_layout"]
 
@@ -106,18 +106,18 @@ def _build_layout(seed: int) -> TabletopLayout:
     for s in (-1.0, 1.0):
         add("wall_bin", ((x0 + x1) / 2, s * y1, (low_h - 0.001) / 2), ((x1 - x0) / 2 - t, t, (low_h + 0.001) / 2))
     # a side wall on the left
-    add("wall_side", (0.30 + j(0.01), 0.42, 0.17 - 0.0005), (0.22, 0.012, 0.17 + 0.0005), _yaw_quat(j(0.03)))
+    add("wall_side", (0.30 + j(0.01), 0.42, 0.17 - 0.0005), (0.22, 0.012, 0.17 + 0.0005), yaw_quat(j(0.03)))
     # a low shelf on the right: two posts and a board
     for x in (0.22, 0.52):
         add("shelf", (x, -0.50, 0.10 - 0.0005), (0.015, 0.12, 0.10 + 0.0005))
     add("shelf", (0.37, -0.50, 0.21), (0.17, 0.13, 0.012))
     # coloured objects
-    add("object_red", (0.78 + j(0.01), -0.21 + j(0.01), 0.025), (0.025, 0.025, 0.0255), _yaw_quat(rng.uniform(0, np.pi)))
-    add("object_yellow", (0.78 + j(0.01), 0.21 + j(0.01), 0.035), (0.03, 0.02, 0.0355), _yaw_quat(rng.uniform(0, np.pi)))
-    add("object_green", (0.20 + j(0.02), 0.25 + j(0.02), 0.04), (0.03, 0.03, 0.0405), _yaw_quat(rng.uniform(0, np.pi)))
-    add("object_blue", (0.28 + j(0.02), -0.28 + j(0.02), 0.03), (0.05, 0.035, 0.0305), _yaw_quat(rng.uniform(0, np.pi)))
-    add("object_purple", (0.37 + j(0.02), -0.50, 0.222 + 0.03 - 0.001), (0.03, 0.03, 0.03), _yaw_quat(rng.uniform(0, np.pi)))
-    add("object_orange", (0.30 + j(0.02), 0.58 + j(0.02), 0.04), (0.035, 0.035, 0.0405), _yaw_quat(rng.uniform(0, np.pi)))
+    add("object_red", (0.78 + j(0.01), -0.21 + j(0.01), 0.025), (0.025, 0.025, 0.0255), yaw_quat(rng.uniform(0, np.pi)))
+    add("object_yellow", (0.78 + j(0.01), 0.21 + j(0.01), 0.035), (0.03, 0.02, 0.0355), yaw_quat(rng.uniform(0, np.pi)))
+    add("object_green", (0.20 + j(0.02), 0.25 + j(0.02), 0.04), (0.03, 0.03, 0.0405), yaw_quat(rng.uniform(0, np.pi)))
+    add("object_blue", (0.28 + j(0.02), -0.28 + j(0.02), 0.03), (0.05, 0.035, 0.0305), yaw_quat(rng.uniform(0, np.pi)))
+    add("object_purple", (0.37 + j(0.02), -0.50, 0.222 + 0.03 - 0.001), (0.03, 0.03, 0.03), yaw_quat(rng.uniform(0, np.pi)))
+    add("object_orange", (0.30 + j(0.02), 0.58 + j(0.02), 0.04), (0.035, 0.035, 0.0405), yaw_quat(rng.uniform(0, np.pi)))
 
     scene, colors = box_list.scene(
         {
