@@ -241,7 +241,7 @@ def table(result: dict) -> str:
     if v.get("skipped"):
         lines += ["", f"VAMP: skipped ({v['skipped']})"]
     elif v:
-        lines += ["", "| VAMP (one core) | solved | median plan | median plan + simplify | p95 | CAPT build | paths < 0 (our exact check) | deeper than 5 mm |",
+        lines += ["", "| VAMP (one core) | solved | median plan | median plan + simplify | p95 | CAPT build | paths < 0 for our certified model | deeper than 5 mm |",
                   "|---|---|---|---|---|---|---|---|"]  # fmt: skip
         for mode in ("exact", "capt"):
             s = v["summary"][mode]
@@ -260,6 +260,10 @@ def table(result: dict) -> str:
                          f"{_f(r.get('us_near_collides_robot'), '.2f', 1, ' us')} | {_f(r.get('us_uniform_collides_configs'), '.2f', 1, ' us')} | "
                          f"{_f(r.get('us_uniform_collides_robot'), '.2f', 1, ' us')} |")  # fmt: skip
         lines += ["", f"(per configuration: single-thread CPU time, the Panda's {pc[0]['n_ellipsoids']} ellipsoids grown by the margin)"]
+    if v and not v.get("skipped"):
+        lines += ["", "VAMP's paths are checked with our certified ellipsoids, which reach up to 1.5 cm beyond the arm's mesh "
+                      "(VAMP's own 59 spheres cover 26-73% of it): a path < 0 there comes closer to the geometry than our model "
+                      "allows, not necessarily through it."]  # fmt: skip
     return "\n".join(lines)
 
 
@@ -272,7 +276,13 @@ def main(argv=None) -> dict:
     ap.add_argument("--no-vamp", action="store_true")
     ap.add_argument("--no-per-config", action="store_true")
     ap.add_argument("--out", default=str(REPO / "benchmarks" / "results" / "mbm_speed" / "default"))
+    ap.add_argument("--from-json", default=None, help="only rewrite OUT.md (and print the table) from an earlier OUT.json")
     args = ap.parse_args(argv)
+    if args.from_json:
+        result = json.loads(Path(args.from_json).read_text())
+        Path(args.out).with_suffix(".md").write_text(table(result) + "\n")
+        print(table(result))
+        return result
     fams = args.families.split(",")
     result: dict = {"date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
                     "machine": f"{platform.machine()}, {os.cpu_count()} cores, {platform.python_version()}", "load_avg_1min": [os.getloadavg()[0]],
