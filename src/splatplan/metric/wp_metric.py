@@ -147,6 +147,30 @@ class TierConfig:
         return check_config(self)
 
 
+_GROUP_RADII: dict = {}  # (groups key, largest std, n_sigma) -> (radius (G,), reach (E,)): shared by every checker
+
+
+def _group_radii(key: bytes, first: np.ndarray, members: np.ndarray, rel: np.ndarray, ax: np.ndarray, s_top: float, n_sigma: float):
+    """GROUP BOUND radii (float64, unpadded): R_g (G,) and each member's reach |c_e - c_g| + rho_top(e)
+    (E,, member order); cached across checkers (a new scene with the same robot and largest std
+    reuses them: :func:`search_radius` evaluated in Python scope costs ~0.1 ms a call)."""
+    ck = (key, s_top, n_sigma)
+    hit = _GROUP_RADII.get(ck)
+    if hit is None:
+        pairs = {}
+        for a in ax:  # one evaluation per distinct (a_min, a_max)
+            k = (float(a.min()), float(a.max()))
+            if k not in pairs:
+                pairs[k] = float(search_radius(n_sigma, s_top, k[0], k[1], 1.0))
+        rho = np.array([pairs[(float(a.min()), float(a.max()))] for a in ax])  # (E,)
+        reach = (rel + rho)[members]
+        hit = (np.array([np.max(reach[first[g] : first[g + 1]]) for g in range(len(first) - 1)]), reach)
+        if len(_GROUP_RADII) >= 64:
+            _GROUP_RADII.clear()
+        _GROUP_RADII[ck] = hit
+    return hit
+
+
 def quantile_tiers(smax: np.ndarray, quantiles: tuple[float, ...]) -> np.ndarray:
     """(N,) tier index per splat: tiers split at quantiles of the largest std (the old scheme)."""
     edges = np.unique(np.quantile(smax, quantiles)) if len(smax) > 1 and len(quantiles) else np.zeros(0)
@@ -610,9 +634,7 @@ class WarpMetric:
             hit = self._groups_cache.get(ck)
         if hit is not None:
             return hit
-        rho = np.array([search_radius(float(n_sigma), s_top, float(a.min()), float(a.max()), 1.0) for a in ax])  # (E,) float64
-        reach = (rel + rho)[members]  # (E,) in member order
-        radius = np.array([np.max(reach[first[g]:first[g + 1]]) for g in range(len(first) - 1)])
+        radius, reach = _group_radii(key, first, members, rel, ax, s_top, float(n_sigma))
         rg = RobotGroups()
         rg.first = wp.array(first, dtype=wp.int32, device=self.device)
         rg.members = wp.array(members, dtype=wp.int32, device=self.device)
