@@ -98,18 +98,37 @@ _FILE_ERRORS = {
 }
 
 
+def _leaf(parser: argparse.ArgumentParser, args: argparse.Namespace) -> argparse.ArgumentParser:
+    """The (sub)command parser that parsed ``args`` (for its flags' help texts)."""
+    p = parser
+    while True:
+        subs = [a for a in p._actions if isinstance(a, argparse._SubParsersAction)]  # noqa: SLF001
+        if not subs:
+            return p
+        name = getattr(args, subs[0].dest, None)
+        if name not in subs[0].choices:
+            return p
+        p = subs[0].choices[name]
+
+
+#: errno values of an OSError without a file name that still mean "the output cannot be written"
+_PATHLESS_ERRNOS = {28, 30, 122}  # ENOSPC, EROFS, EDQUOT
+
+
 def _main(argv: list[str] | None) -> int:
     from ._common import Terminated, UsageError, check_device, cli_signal_handlers
 
     with cli_signal_handlers():  # Ctrl-C / SIGTERM unwind through every finally (no stray temp files)
         try:
             try:
-                args = build_parser().parse_args(argv)  # --help / --version exit through argparse's SystemExit
+                parser = build_parser()
+                args = parser.parse_args(argv)  # --help / --version exit through argparse's SystemExit
             except UsageError as exc:  # already printed as one line
                 return int(exc.code)
-            from ._common import reject_nan_flags
+            from ._common import check_paths, reject_nan_flags
 
             reject_nan_flags(args)
+            check_paths(args, _leaf(parser, args))
             if getattr(args, "device", None) is not None:
                 args.device = check_device(args.device)  # one meaning everywhere: auto -> cuda:0 or cpu
             return int(args.func(args) or 0)
@@ -119,6 +138,16 @@ def _main(argv: list[str] | None) -> int:
         except (FileNotFoundError, IsADirectoryError, PermissionError) as exc:
             msg = next(m for t, m in _FILE_ERRORS.items() if isinstance(exc, t))
             print(f"splatplan: error: {msg.format(exc.filename or exc)}", file=sys.stderr)
+            return 2
+        except OSError as exc:
+            # the one path-error rule: any OSError of a path (a name too long, not a folder, no
+            # space, a read-only file system, ...) is one line naming the path and the reason
+            if exc.filename is None and exc.errno not in _PATHLESS_ERRNOS:
+                raise
+            from .._files import path_error
+
+            what = path_error(exc.filename, exc) if exc.filename is not None else (exc.strerror or str(exc))
+            print(f"splatplan: error: {' '.join(what.split())}", file=sys.stderr)
             return 2
         except KeyboardInterrupt:
             print("splatplan: interrupted", file=sys.stderr)

@@ -95,9 +95,9 @@ def cmd_align(args) -> int:
     if args.rotate_z is not None:
         cfg = replace(cfg, rotate_z=args.rotate_z)
     if args.translate is not None:
-        cfg = replace(cfg, translate=tuple(parse_vec3(args.translate, "--translate")))
+        cfg = replace(cfg, translate=tuple(parse_vec3(args.translate, "--translate", max_abs=1e9)))
     if args.crop is not None:
-        lo, hi = (parse_vec3(c, "--crop") for c in args.crop)
+        lo, hi = (parse_vec3(c, "--crop", max_abs=1e9) for c in args.crop)
         cfg = replace(cfg, crop=tuple(lo) + tuple(hi))
     if args.drop_floaters:
         cfg = replace(cfg, drop_floaters=True)
@@ -229,8 +229,8 @@ def register(sub, eval_sub) -> None:
     g = s.add_argument_group("align options")
     g.add_argument("--up", default=None, help="align: the input's up axis: auto (fitted floor/table plane, default) | +x | -x | +y | -y | +z | -z")
     g.add_argument("--floor", default=None, help="align: auto (fitted, default) | none | Z (floor height along the up axis, input units) -> z = 0")
-    g.add_argument("--scale", type=float_arg(gt=0), default=None, help="align: uniform scale after the rotation (default 1)")
-    g.add_argument("--rotate-z", type=float_arg(), default=None, help="align: rotation about the new z axis, degrees (default 0)")
+    g.add_argument("--scale", type=float_arg(ge=1e-6, le=1e6), default=None, help="align: uniform scale after the rotation (default 1)")
+    g.add_argument("--rotate-z", type=float_arg(ge=-3600, le=3600), default=None, help="align: rotation about the new z axis, degrees (default 0)")
     g.add_argument("--translate", default=None, metavar="X,Y,Z", help="align: translation added last (output units)")
     g.add_argument("--crop", nargs=2, default=None, metavar=("LO", "HI"), help="align: keep splats in the box LO=X,Y,Z .. HI=X,Y,Z (aligned frame); says how many were dropped")
     g.add_argument("--drop-floaters", action="store_true", help="align: drop faint isolated splats (floaters in free space: opacity < 0.3, "
@@ -239,5 +239,5 @@ def register(sub, eval_sub) -> None:
     s.add_argument("--level", type=int_arg(ge=1, le=5), default=1, help="Gaussian-size level 1..5 (larger, fewer splats)")
     add_seed_arg(s, help="layout and sampling seed, an integer >= 0 (default 0)")
     s.add_argument("--n-splats", type=int_arg(ge=1), default=None, help="from-moveit only: total splats (default 100000: ~7-8 mm spacing on a metre-scale workcell)")
-    s.add_argument("--spacing", type=float_arg(gt=0), default=None, metavar="M", help="from-moveit only: sample at this surface spacing (m) "
+    s.add_argument("--spacing", type=float_arg(ge=1e-9, le=1e3), default=None, metavar="M", help="from-moveit only: sample at this surface spacing (m) "
                    "instead, a count per area (3.5e-3 is eval mbm's default: ~500k splats on an MBM workcell)")  # fmt: skip

@@ -21,6 +21,7 @@ import sys
 from dataclasses import asdict
 from pathlib import Path
 
+from ..errors import SplatplanError
 from .fit import EllipsoidSet, fit_model, load_yaml, save_yaml
 from .fit_cover import COVER_VERSION, FitConfig
 from .fit_opt import OPT_VERSION, OptConfig
@@ -45,10 +46,17 @@ def cache_dir() -> Path:
 
 
 def _file_hash(path) -> str:
+    """sha256 of a mesh file: a regular file of bounded size only (``read_urdf`` refused the rest;
+    this never reads a device or a FIFO, which would not end)."""
+    from .._files import read_bounded
+    from .urdf import MAX_MESH_BYTES
+
     try:
-        return hashlib.sha256(Path(path).read_bytes()).hexdigest()
-    except OSError:
-        return "missing"
+        return hashlib.sha256(read_bounded(path, "mesh", "a mesh file", MAX_MESH_BYTES)).hexdigest()
+    except SplatplanError:
+        if not os.path.lexists(path):
+            return "missing"
+        raise
 
 
 def fit_key(model: UrdfModel, method: str, per_link, from_visual: bool, config=None) -> str:

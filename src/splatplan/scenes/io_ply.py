@@ -282,19 +282,28 @@ def atomic_write(path: str | Path, write) -> None:
     Raises:
         SceneFormatError: the directory does not exist or is not writable.
     """
-    path = Path(path)
-    mode = (path.stat().st_mode & 0o777) if path.exists() else 0o644
+    from .._files import output_target, publish
+
+    given = Path(path)
     try:
-        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+        dest, special = output_target(given)
+    except SplatplanError as e:
+        raise scene_error(given, f"cannot write here ({e})") from None
+    path = dest
+    mode = (path.stat().st_mode & 0o777) if path.exists() and not special else 0o644
+    try:
+        fd, tmp = tempfile.mkstemp(dir=tempfile.gettempdir() if special else path.parent, prefix=f".{path.name}.", suffix=".tmp")
     except OSError as e:
-        raise scene_error(path, f"cannot write here ({e.strerror or e})") from None
+        raise scene_error(given, f"cannot write here ({e.strerror or e})") from None
     try:
         with os.fdopen(fd, "wb") as f:
             write(f)
             f.flush()
             os.fsync(f.fileno())
-        os.chmod(tmp, mode)
-        os.replace(tmp, path)
+        try:
+            publish(tmp, given, mode)
+        except SplatplanError as e:
+            raise SceneFormatError(str(e)) from None
     except BaseException as e:
         Path(tmp).unlink(missing_ok=True)
         if isinstance(e, OSError):
