@@ -332,10 +332,18 @@ def remove_created_empty_dirs() -> None:
             pass
 
 
-def _load(path: str, filter_floaters: bool = True):
+def _load(path: str, filter_floaters: bool = True, usable: bool = True):
+    """The scene file ``path``; ``usable``: refuse (one line) splats whose values the metric and the
+    renderer cannot compute with (:func:`splatplan.scenes.sanity.unusable_splats`); ``info`` passes
+    False and warns instead."""
     from ..scenes.load import load_scene
+    from ..scenes.sanity import unusable_splats
 
-    return load_scene(path, filter_floaters=filter_floaters)
+    scene = load_scene(path, filter_floaters=filter_floaters)
+    problem = unusable_splats(scene) if usable else None
+    if problem:
+        raise SplatplanError(f"scene {path}: {problem}")
+    return scene
 
 
 def add_terrain_args(parser: argparse.ArgumentParser) -> None:

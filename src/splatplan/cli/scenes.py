@@ -16,7 +16,7 @@ def cmd_info(args) -> int:
     from ..scenes.filters import filter_floaters
     from ..scenes.sanity import absurd_splats
 
-    s = _load(args.scene, filter_floaters=False)
+    s = _load(args.scene, filter_floaters=False, usable=False)
     lo, hi = s.bounds()
     smax = s.scales.max(1)
     _, rep = filter_floaters(s)
