@@ -123,7 +123,7 @@ def reject_nan_flags(args: argparse.Namespace) -> None:
 
 #: the destinations of flags and positionals that name files or folders (inputs and outputs)
 PATH_DESTS = frozenset({"out", "depth", "scene", "input", "poses", "configs", "images", "encoder_weights", "target_image", "urdf",
-                        "spec", "tree", "plan", "mpc", "viewmat", "ellipsoids", "meshes_from", "up_hint"})
+                        "spec", "tree", "plan", "mpc", "viewmat", "ellipsoids", "meshes_from", "K"})
 #: the output-file flags (written through :func:`atomic_path`); ``--out`` of a command whose help
 #: says "folder" is an output folder instead
 OUTPUT_FILE_DESTS = frozenset({"out", "depth"})
