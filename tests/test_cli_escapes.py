@@ -421,3 +421,62 @@ def test_yaml_structure_extremes(tmp_path, capsys):
         assert_one_line_error(rc, err, name)
         assert name in err
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted(cases)
+
+
+def test_sweep_and_ply_sizes_are_guarded(tmp_path, capsys):
+    """E8 / E9 / E11: sweep specs whose sizes or numbers are absurd, and an unreachable scheduler,
+    are one line naming the key and leave nothing (no results.jsonl, no folder); an ASCII PLY that
+    declares 1e12 vertices is one line, not an allocation."""
+    specs = {
+        "pairs.yaml": ("scenes: [builtin:stonehenge]\njob: plan\npairs: 1000000000\n", "pairs"),
+        "configs.yaml": ("scenes: [builtin:stonehenge]\njob: check\nn_configs: 100000000000\n", "n_configs"),
+        "digits.yaml": ("scenes: [builtin:stonehenge]\njob: check\nn_configs: " + "9" * 400 + "\n", "n_configs"),
+        "deep.yaml": ("scenes: " + "[" * 5000 + "]" * 5000 + "\n", "nested"),
+        "time.yaml": ("scenes: [builtin:stonehenge]\njob: plan\ntime_limit: 1e300\n", "time_limit"),
+    }
+    for name, (text, needle) in specs.items():
+        (tmp_path / name).write_text(text)
+        rc, _, err = run_main(["sweep", str(tmp_path / name), "--out", str(tmp_path / "o")], capsys)
+        assert_one_line_error(rc, err, name)
+        assert needle in err, err
+    (tmp_path / "ok.yaml").write_text("scenes: [builtin:stonehenge]\njob: check\nn_configs: 100\n")
+    pytest.importorskip("distributed")
+    rc, _, err = run_main(["sweep", str(tmp_path / "ok.yaml"), "--out", str(tmp_path / "o"), "--scheduler", "tcp://127.0.0.1:1"], capsys)
+    assert_one_line_error(rc, err, "sweep --scheduler tcp://127.0.0.1:1")
+    assert not (tmp_path / "o").exists(), list((tmp_path / "o").iterdir())
+
+
+def test_ascii_ply_count_beyond_its_size(tmp_path, capsys):
+    p = tmp_path / "big.ply"
+    p.write_text("ply\nformat ascii 1.0\nelement vertex 1000000000000\nproperty float x\nproperty float y\nproperty float z\nend_header\n0 0 0\n")
+    t0 = time.perf_counter()
+    rc, _, err = run_main(["info", str(p)], capsys)
+    assert_one_line_error(rc, err, "info big.ply")
+    assert "1,000,000,000,000" in err and time.perf_counter() - t0 < 10
+
+
+def test_note_lines_do_not_precede_an_error(capsys):
+    """Minor (issue 31): a command that prints a note and is then rejected prints one line only;
+    a command that succeeds keeps its notes, before its output."""
+    import io
+
+    from splatplan.cli import _HeldNotes
+
+    # go2 prints a note on the terrain it removed, then the start is outside the box: one line
+    argv = ["plan", BANANA, "--robot", "go2", "--start", "0,0,0", "--goal", "0.1,0,0", "--box", "1,1,0", "2,2,1",
+            "--out", str(Path(__import__("tempfile").gettempdir()) / "splatplan-31-never.json"), "--time-limit", "1"]  # fmt: skip
+    rc, _, err = run_main(argv, capsys)
+    assert_one_line_error(rc, err, argv)
+
+    buf = io.StringIO()
+    h = _HeldNotes(buf)
+    h.write("note: a\n")
+    h.write("splatplan: error: b\n")
+    h.finish(keep=False)
+    assert buf.getvalue() == "splatplan: error: b\n"
+    buf = io.StringIO()
+    h = _HeldNotes(buf)
+    h.write("note: a\n")
+    h.write("\r 50%|#####")  # a progress bar: written at once, after the note
+    h.finish(keep=True)
+    assert buf.getvalue() == "note: a\n\r 50%|#####"

@@ -115,7 +115,98 @@ def _leaf(parser: argparse.ArgumentParser, args: argparse.Namespace) -> argparse
 _PATHLESS_ERRNOS = {28, 30, 122}  # ENOSPC, EROFS, EDQUOT
 
 
+class _HeldNotes:
+    """stderr while a command runs: ``note:`` lines are held until the next other output (or the
+    end of a run that succeeds), and dropped when the run ends in ``splatplan: error:``, so a
+    rejected command prints exactly one line (issue 31: a note, then the error, was two)."""
+
+    _PREFIXES = ("note:", "splatplan:")
+
+    def __init__(self, target) -> None:
+        self.target, self.held, self.buf = target, [], ""
+
+    def _maybe_prefix(self, b: str) -> bool:
+        return any(b.startswith(p) or p.startswith(b) for p in self._PREFIXES)
+
+    def write(self, s: str) -> int:
+        self.buf += s
+        while self.buf:
+            if "\n" in self.buf:
+                line, self.buf = self.buf.split("\n", 1)
+                self._line(line + "\n")
+            elif not self._maybe_prefix(self.buf):  # a progress bar's partial line: now
+                self._release()
+                self.target.write(self.buf)
+                self.buf = ""
+            else:
+                break
+        return len(s)
+
+    def _line(self, line: str) -> None:
+        if line.startswith("note:"):
+            self.held.append(line)
+            return
+        if line.startswith("splatplan: error:"):
+            self.held.clear()
+        else:
+            self._release()
+        self.target.write(line)
+
+    def _release(self) -> None:
+        for line in self.held:
+            self.target.write(line)
+        self.held.clear()
+
+    def finish(self, keep: bool) -> None:
+        """End of the command: write the held notes (``keep``) or drop them, then any partial line."""
+        if keep:
+            self._release()
+        self.held.clear()
+        if self.buf:
+            self.target.write(self.buf)
+            self.buf = ""
+        self.target.flush()
+
+    def flush(self) -> None:
+        self.target.flush()
+
+    def __getattr__(self, name):  # fileno, isatty, encoding, ...
+        return getattr(self.target, name)
+
+
+class _ReleasingStdout:
+    """stdout while a command runs: the held notes are written before any output, in order."""
+
+    def __init__(self, target, held: _HeldNotes) -> None:
+        self.target, self.notes = target, held
+
+    def write(self, s: str) -> int:
+        if s and self.notes.held:
+            self.notes._release()  # noqa: SLF001
+            self.notes.target.flush()
+        return self.target.write(s)
+
+    def __getattr__(self, name):
+        return getattr(self.target, name)
+
+
 def _main(argv: list[str] | None) -> int:
+    held = _HeldNotes(sys.stderr)
+    out = _ReleasingStdout(sys.stdout, held)
+    sys.stderr, sys.stdout = held, out
+    rc = 2
+    try:
+        rc = _run(argv)
+        return rc
+    finally:
+        if sys.stderr is held:
+            sys.stderr = held.target
+        if sys.stdout is out:
+            sys.stdout = out.target
+        held.finish(keep=rc != 2)
+
+
+def _run(argv: list[str] | None) -> int:
     from ._common import Terminated, UsageError, check_device, cli_signal_handlers
 
     with cli_signal_handlers():  # Ctrl-C / SIGTERM unwind through every finally (no stray temp files)

@@ -9,7 +9,7 @@ import numpy as np
 from ..errors import SplatplanError
 from ..robots.builtin import DEFAULT_MODEL, PANDA_MODELS
 from ._common import (
-    MAX_COORD, _out_dir, add_base_pose_arg, parse_numbers, unit_quaternion, add_config_args, add_device_arg, add_seed_arg, atomic_path, check_device, config_from_args, float_arg, parse_base_pose, robot_at,
+    MAX_COORD, _out_dir, add_base_pose_arg, atomic_dir, move_into, signals_deferred, parse_numbers, unit_quaternion, add_config_args, add_device_arg, add_seed_arg, atomic_path, check_device, config_from_args, float_arg, parse_base_pose, robot_at,
     write_json,
 )  # fmt: skip
 
@@ -99,10 +99,13 @@ def cmd_mpc(args) -> int:
     else:  # argparse choices keep this unreachable
         raise SplatplanError(f"unknown robot {args.robot!r}: panda or go2")
     d = res.to_json()
-    write_json(out / "result.json", d)
     fig = plot_run(robot, ts, res, kind=kind)
-    with atomic_path(out / "motion.png") as tmp:
-        fig.savefig(tmp, format="png", dpi=100)
+    with atomic_dir(out) as tmp:  # result.json and motion.png appear together or not at all
+        write_json(tmp / "result.json", d)
+        fig.savefig(tmp / "motion.png", format="png", dpi=100)
+        with signals_deferred():  # two renames: a signal between them would split the pair
+            move_into(tmp / "result.json", out / "result.json")
+            move_into(tmp / "motion.png", out / "motion.png")
     print(
         f"{robot.name} on {scene}{tag}: {'reached' if res.success else 'NOT reached'}; final position error {res.final_position_error_m * 100:.2f} cm; "
         f"min clearance {res.min_clearance_m * 100:.2f} cm ({res.clearance_source}); {res.steps_per_s:.2f} MPC steps/s over {res.time_s:.1f} s"
