@@ -480,3 +480,35 @@ def test_note_lines_do_not_precede_an_error(capsys):
     h.write("\r 50%|#####")  # a progress bar: written at once, after the note
     h.finish(keep=True)
     assert buf.getvalue() == "note: a\n\r 50%|#####"
+
+
+def test_work_guards_before_work(tmp_path, capsys):
+    """E10: an iteration count or a robot whose work is absurd is refused before the run starts."""
+    t0 = time.perf_counter()
+    rc, _, err = run_main(PANDA + ["--out", str(tmp_path / "m"), "--arm-mppi-n-iters", "100000000"], capsys)
+    assert_one_line_error(rc, err, "mpc --arm-mppi-n-iters 1e8")
+    assert "n_iters" in err and not (tmp_path / "m").exists()
+    links = "".join(f'<link name="l{i}"><collision><geometry><box size="0.1 0.1 0.1"/></geometry></collision></link>' for i in range(1100))
+    joints = "".join(f'<joint name="j{i}" type="fixed"><parent link="l{i}"/><child link="l{i + 1}"/></joint>' for i in range(1099))
+    (tmp_path / "many.urdf").write_text(f'<robot name="m">{links}{joints}</robot>')
+    rc, _, err = run_main(["robot", "info", str(tmp_path / "many.urdf")], capsys)
+    assert_one_line_error(rc, err, "robot info of 1,100 links")
+    assert "--per-link" in err
+    assert time.perf_counter() - t0 < 60
+
+
+def test_robot_info_json_is_valid_with_unlimited_joints(tmp_path, capsys):
+    """E6: a continuous joint's limits are +-inf: --json prints null, never a bare Infinity/NaN."""
+    import json
+
+    text = URDF.format(geom=BOX, xyz="0 0 0.1", lower="-1", vel="1").replace('type="revolute"', 'type="continuous"')
+    (tmp_path / "c.urdf").write_text(text)
+    rc, out, err = run_main(["robot", "info", str(tmp_path / "c.urdf"), "--json", "--per-link", "1"], capsys)
+    if rc != 0:
+        pytest.skip(f"robot info did not run here: {err}")
+
+    def bad(x):
+        raise ValueError(x)
+
+    doc = json.loads(out, parse_constant=bad)
+    assert doc["joints"][0]["lower"] is None

@@ -295,9 +295,31 @@ def move_into(src: Path, dest: str | Path) -> None:
     publish(src, dest)
 
 
+def json_safe(obj):
+    """``obj`` with every non-finite float as None (JSON has no NaN or Infinity: Python's
+    ``json.dumps`` would write bare ``NaN`` / ``Infinity``, which JSON readers refuse); numpy
+    scalars and arrays as plain numbers and lists."""
+    if isinstance(obj, dict):
+        return {k: json_safe(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [json_safe(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return json_safe(obj.tolist())
+    if isinstance(obj, np.generic):
+        obj = obj.item()
+    if isinstance(obj, float) and not np.isfinite(obj):
+        return None
+    return obj
+
+
+def dumps_json(obj, **kw) -> str:
+    """The CLI's one JSON writer: valid JSON always (:func:`json_safe`, then ``allow_nan=False``)."""
+    return json.dumps(json_safe(obj), allow_nan=False, **kw)
+
+
 def write_json(path: str | Path, obj) -> None:
     with atomic_path(path) as tmp:
-        tmp.write_text(json.dumps(obj, indent=2) + "\n")
+        tmp.write_text(dumps_json(obj, indent=2) + "\n")
 
 
 #: Output folders this process created (deepest last); a command that fails removes the empty ones.

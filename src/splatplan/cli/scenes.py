@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import SplatplanError
-from ._common import _Unset, _load, add_command, add_seed_arg, add_config_args, atomic_dir, config_from_args, float_arg, int_arg, move_into, parse_vec3
+from ._common import _Unset, _load, add_command, dumps_json, add_seed_arg, add_config_args, atomic_dir, config_from_args, float_arg, int_arg, move_into, parse_vec3
 
 
 def cmd_info(args) -> int:
@@ -39,7 +39,7 @@ def cmd_info(args) -> int:
     frame = describe_frame(s, AlignConfig(up_hint=args.up_hint or default_up_hint(args.scene)))
     info.update(frame)
     if args.json:
-        print(json.dumps(info))
+        print(dumps_json(info))
         return 0
     print(f"{info['path']}: {info['count']:,} splats ({info['format']}{', 2DGS disks' if s.is_2d else ''})")
     print(f"  bounds of means (file frame, scene units): min {np.round(lo, 4).tolist()}  max {np.round(hi, 4).tolist()}")
@@ -108,7 +108,7 @@ def cmd_align(args) -> int:
     side = sidecar_path(out)
     with atomic_dir(out.parent) as tmp:  # both files appear together or not at all
         save_scene(aligned, tmp / out.name)
-        (tmp / side.name).write_text(json.dumps(doc, indent=2) + "\n")
+        (tmp / side.name).write_text(dumps_json(doc, indent=2) + "\n")
         move_into(tmp / side.name, side)
         move_into(tmp / out.name, out)
     g = res.up

@@ -82,6 +82,9 @@ def fit_key(model: UrdfModel, method: str, per_link, from_visual: bool, config=N
 def cached_fit(model: UrdfModel, method: str = "opt", per_link=1, from_visual: bool = False, config=None) -> tuple[EllipsoidSet, Path]:
     """The fit of ``model`` shipped with the package, else from the cache, else fitted now and stored
     in the cache; returns (ellipsoids, the file read or written)."""
+    from .fit import fit_work_guard
+
+    fit_work_guard(model, per_link, from_visual)  # before a word is printed or a mesh hashed
     key = fit_key(model, method, per_link, from_visual, config)
     shipped = SHIPPED / f"{key[:32]}.yaml"
     if shipped.is_file():
