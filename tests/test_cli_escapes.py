@@ -383,14 +383,22 @@ BAD_URDFS = [
     ("NaN joint limit", dict(lower="nan"), "lower"),
     ("NaN velocity", dict(vel="nan"), "velocity"),
     ("NaN box size", dict(geom='<box size="nan 0.1 0.1"/>'), "size"),
+    ("all-coincident mesh vertices", dict(geom='<mesh filename="coin.stl"/>'), "no extent"),
+    ("NaN mesh vertices", dict(geom='<mesh filename="nanv.stl"/>'), "no volume"),
     ("duplicate link", dict(dup="link"), "'a'"),
     ("duplicate joint", dict(dup="joint"), "'j'"),
 ]
 
 
+def _stl(*verts) -> str:
+    return "solid s\nfacet normal 0 0 1\nouter loop\n" + "".join(f"vertex {v}\n" for v in verts) + "endloop\nendfacet\nendsolid s\n"
+
+
 @pytest.mark.parametrize("what,fields,needle", BAD_URDFS, ids=[b[0] for b in BAD_URDFS])
 def test_invalid_urdf_refused_naming_the_element(what, fields, needle, tmp_path, capsys):
     os.mkfifo(tmp_path / "fifo.stl")
+    (tmp_path / "coin.stl").write_text(_stl("1 1 1", "1 1 1", "1 1 1"))
+    (tmp_path / "nanv.stl").write_text(_stl("nan 0 0", "1 0 0", "0 1 0"))
     fields = dict(fields)
     dup = fields.pop("dup", None)
     text = URDF.format(**{"geom": BOX, "xyz": "0 0 0.1", "lower": "-1", "vel": "1", **fields})

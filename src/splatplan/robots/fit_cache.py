@@ -96,7 +96,7 @@ def cached_fit(model: UrdfModel, method: str = "opt", per_link=1, from_visual: b
         except Exception:  # a damaged entry is refitted and overwritten
             pass
     # a first fit takes minutes (about a CPU-minute per link for "opt"): say so once, on stderr
-    print(f"splatplan: fitting {model.name}'s {len(model.kin.link_names)} links with method {method!r} "
+    print(f"note: fitting {model.name}'s {len(model.kin.link_names)} links with method {method!r} "
           f"(once; cached in {path.parent})", file=sys.stderr, flush=True)  # fmt: skip
     ells = fit_model(model, per_link=per_link, from_visual=from_visual, method=method, config=config)
     path.parent.mkdir(parents=True, exist_ok=True)
