@@ -307,3 +307,75 @@ def test_moveit_field_extremes(tmp_path):
     problems += _outcome_problems("deep nesting", ["scene", "from-moveit"], rc, out, err)
     assert rc == 2
     assert not problems, "\n".join(problems[:10])
+
+
+URDF_BASE = """<robot name="r">
+  <link name="a"><collision><origin xyz="0 0 0" rpy="0 0 0"/><geometry><box size="0.1 0.1 0.1"/></geometry></collision></link>
+  <link name="b"><collision><origin xyz="0 0 0.05" rpy="0 0 0"/><geometry><cylinder radius="0.03" length="0.1"/></geometry></collision></link>
+  <link name="c"><collision><geometry><sphere radius="0.02"/></geometry></collision></link>
+  <link name="d"><collision><geometry><mesh filename="m.stl" scale="1 1 1"/></geometry></collision></link>
+  <joint name="j1" type="revolute"><parent link="a"/><child link="b"/><origin xyz="0 0 0.1" rpy="0 0 0"/><axis xyz="0 0 1"/>
+    <limit lower="-1" upper="1" velocity="1" effort="1"/></joint>
+  <joint name="j2" type="prismatic"><parent link="b"/><child link="c"/><origin xyz="0 0 0.1" rpy="0 0 0"/><axis xyz="1 0 0"/>
+    <limit lower="0" upper="0.1" velocity="1" effort="1"/></joint>
+  <joint name="j3" type="fixed"><parent link="c"/><child link="d"/><origin xyz="0 0 0.05" rpy="0 0 0"/></joint>
+</robot>
+"""
+#: what each number of a URDF attribute gets (E6, E7, E14)
+URDF_EXTREMES = ("nan", "inf", "-inf", "1e300", "-1e300", "0", "1e-300")
+STL = "solid s\n" + "".join(
+    f"facet normal 0 0 1\nouter loop\nvertex {a}\nvertex {b}\nvertex {c}\nendloop\nendfacet\n"
+    for a, b, c in (("0 0 0", "0.05 0 0", "0 0.05 0"), ("0 0 0", "0 0.05 0", "0 0 0.05"), ("0 0 0", "0 0 0.05", "0.05 0 0"),
+                    ("0.05 0 0", "0 0.05 0", "0 0 0.05"))
+) + "endsolid s\n"
+
+
+def _urdf_cases() -> list[tuple[int, int, str]]:
+    """(attribute occurrence, number index in it, value) for every number of every attribute."""
+    import re
+
+    cases = []
+    for i, m in enumerate(re.finditer(r'(xyz|rpy|size|radius|length|scale|lower|upper|velocity|effort)="([^"]*)"', URDF_BASE)):
+        for k in range(len(m.group(2).split())):
+            cases += [(i, k, v) for v in URDF_EXTREMES]
+    return cases
+
+
+def _mutate_urdf(i: int, k: int, value: str) -> str:
+    import re
+
+    ms = list(re.finditer(r'(xyz|rpy|size|radius|length|scale|lower|upper|velocity|effort)="([^"]*)"', URDF_BASE))
+    m = ms[i]
+    nums = m.group(2).split()
+    nums[k] = value
+    return URDF_BASE[: m.start(2)] + " ".join(nums) + URDF_BASE[m.end(2) :]
+
+
+def test_urdf_attribute_extremes(tmp_path):
+    """Every number of every URDF attribute set to each extreme (seeded sample; all with
+    SPLATPLAN_FUZZ_FULL=1), plus duplicate names and a mesh that is a device or a FIFO: `robot
+    fit --method split` gives one line naming the element, or a fit with finite numbers; never
+    a traceback, a warning, or a read of a device."""
+    import random
+
+    (tmp_path / "m.stl").write_text(STL)
+    cases = _urdf_cases()
+    picked = cases if FULL else random.Random(14).sample(cases, 16)
+    texts = [(f"attr{i}[{k}]={v}", _mutate_urdf(i, k, v)) for i, k, v in picked]
+    texts += [("duplicate link", URDF_BASE.replace('<link name="c">', '<link name="a"/><link name="c">')),
+              ("duplicate joint", URDF_BASE.replace('name="j2"', 'name="j1"')),
+              ("mesh /dev/zero", URDF_BASE.replace('filename="m.stl"', 'filename="/dev/zero"'))]
+    os.mkfifo(tmp_path / "f.stl")
+    texts.append(("mesh FIFO", URDF_BASE.replace('filename="m.stl"', 'filename="f.stl"')))
+    problems = []
+    for what, text in texts:
+        (tmp_path / "r.urdf").write_text(text)
+        argv = ["robot", "fit", str(tmp_path / "r.urdf"), "--method", "split", "--out", str(tmp_path / "e.yaml"), "--no-png"]
+        rc, out, err = _run_cli(argv)
+        problems += _outcome_problems(what, argv, rc, out, err)
+        if rc == 0 and "nan" in (tmp_path / "e.yaml").read_text().lower():
+            problems.append(f"{what}: the fit holds NaN")
+        if what.startswith(("duplicate", "mesh")) and rc != 2:
+            problems.append(f"{what}: accepted (exit {rc})")
+        (tmp_path / "e.yaml").unlink(missing_ok=True)
+    assert not problems, "\n".join(problems[:10])

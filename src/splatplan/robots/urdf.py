@@ -149,6 +149,7 @@ def read_urdf(path: str | Path) -> UrdfModel:
         raise SplatplanError(f"URDF {path} does not parse (XML error: {exc})") from None
     if root.tag != "robot":
         raise SplatplanError(f"URDF {path} does not parse: the root element is <{root.tag}>, expected <robot name=...>")
+    _check_attributes(path, root)  # before yourdfpy computes with them (sin(inf) warned)
     caps = _capsules(path)
     source: object = str(path)
     if caps:  # yourdfpy rejects <capsule>: parse it as a sphere placeholder, replaced below
@@ -269,6 +270,34 @@ def read_urdf(path: str | Path) -> UrdfModel:
 #: the largest distance (m) a URDF places anything at, and the largest mesh file it may name
 MAX_URDF_COORD = 1e6
 MAX_MESH_BYTES = 512 * 1024**2
+
+
+#: numeric URDF attributes and their declared range (metres, radians, scale factors, limits)
+_NUMERIC_ATTRS = ("xyz", "rpy", "size", "radius", "length", "scale", "lower", "upper", "velocity", "effort", "multiplier", "offset")
+
+
+def _check_attributes(path: Path, root) -> None:
+    """Every numeric attribute of the URDF (``xyz``, ``rpy``, ``size``, ``radius``, ``scale``,
+    limits, ...) holds finite numbers within +-:data:`MAX_URDF_COORD`; else one line naming the
+    element (its tag and the name of the link or joint it belongs to) and the attribute."""
+    def owner(el_path: list) -> str:
+        named = [e for e in el_path if e.get("name") is not None and e.tag in ("link", "joint")]
+        return f"{named[-1].tag} {named[-1].get('name')!r} " if named else ""
+
+    stack = [(root, [root])]
+    while stack:
+        el, chain = stack.pop()
+        for attr in _NUMERIC_ATTRS:
+            text = el.get(attr)
+            if text is None or el.tag == "axis" and attr != "xyz":
+                continue
+            try:
+                vals = [float(x) for x in text.split()]
+            except ValueError:
+                raise SplatplanError(f"URDF {path}: {owner(chain)}<{el.tag} {attr}=\"{text}\">: expected numbers") from None
+            if not all(math.isfinite(v) and abs(v) <= MAX_URDF_COORD for v in vals):
+                raise SplatplanError(f"URDF {path}: {owner(chain)}<{el.tag} {attr}=\"{text}\">: expected finite numbers within +-{MAX_URDF_COORD:g}")
+        stack.extend((c, chain + [c]) for c in el)
 
 
 def _check_numbers(path: Path, robot, root, jnames, origin, mult, offset) -> None:
