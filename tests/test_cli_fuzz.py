@@ -563,3 +563,65 @@ def test_closed_stdout_every_command(tmp_path):
             bad.append((" ".join(argv), rc, text[-800:]))
         _reset(d)
     assert not bad, bad
+
+
+#: commands a signal test interrupts (a real process each); view serves until stopped (tested in
+#: tests/test_cli_escapes.py), throughput starts worker processes of its own
+SIGNAL_CMDS = sorted(c for c in BASE if c not in PARSE_ONLY and c != ("view",))
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_signal_during_every_long_command(sig, tmp_path):
+    """Issue 31 (E11): SIGINT or SIGTERM at a seeded moment of every command (a real process, its
+    cheap base arguments; a seeded sample of 2, all with SPLATPLAN_FUZZ_FULL=1): exit 130 / 143
+    with one line and no traceback (or it finished first: 0, 1), no temporary file, and an
+    interrupted run leaves no output behind unless it says how to resume."""
+    import subprocess
+    import sys
+
+    from splatplan.viewer.app import free_port
+
+    cmds = SIGNAL_CMDS if FULL else _sample(SIGNAL_CMDS, 2, seed=int(sig))
+    rng = random.Random(int(sig))
+    want = 130 if sig == signal.SIGINT else 143
+    env = {**os.environ, "SPLATPLAN_NO_TQDM": "1", "PYTHONWARNINGS": "error::RuntimeWarning,error::UserWarning"}
+    src = str(Path(__file__).resolve().parents[1] / "src")
+    env["PYTHONPATH"] = src + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
+    bad = []
+    for cmd in cmds:
+        d = tmp_path / "_".join(cmd)
+        hashes = _fixtures(d)
+        pos, opts = BASE[cmd]
+        argv = _fill(list(cmd) + pos + opts, d, free_port())
+        delay = rng.uniform(2.0, 8.0)
+        p = subprocess.Popen([sys.executable, "-m", "splatplan.cli", *argv], cwd=d, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+        try:
+            try:
+                p.wait(timeout=delay)
+            except subprocess.TimeoutExpired:
+                p.send_signal(sig)
+            out, err = p.communicate(timeout=120)
+        finally:
+            if p.poll() is None:
+                p.kill()
+                p.wait()
+        rc = p.returncode
+        probs = []
+        # -sig: the signal came after the command had ended, while the interpreter shut down (Python
+        # restores the default handlers then): a shell reports 128 + sig, and the outputs are complete
+        if rc not in (0, 1, 2, want, -int(sig)):
+            probs.append(f"exit {rc}")
+        if "Traceback" in err or "Warning" in err:
+            probs.append(f"traceback or warning: {err[-600:]!r}")
+        last = ([ln for ln in err.splitlines() if ln.strip()] or [""])[-1]
+        if rc == want and not last.startswith(f"splatplan: {'interrupted' if want == 130 else 'terminated'}"):
+            probs.append(f"no closing line: {err[-300:]!r}")
+        left = sorted(str(q.relative_to(d)) for q in d.rglob("*") if q.relative_to(d).parts[0] not in FIXTURE_NAMES)
+        if rc in (2, want) and left and "resume" not in err:
+            probs.append(f"exit {rc} left {left[:5]}")
+        probs += [f"temporary file left: {q}" for q in d.rglob("*") if _TEMP.match(q.name)]
+        if {q.name: hashlib.sha256(q.read_bytes()).hexdigest() for q in (d / "poses.npy", d / "img.png")} != {k: v for k, v in hashes.items() if k != "banana"}:
+            probs.append("an input file was modified")
+        if probs:
+            bad.append(f"{' '.join(argv[:3])} (signal after {delay:.1f} s): " + "; ".join(probs))
+    assert not bad, "\n".join(bad)

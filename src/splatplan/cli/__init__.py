@@ -65,15 +65,50 @@ def main(argv: list[str] | None = None) -> int:
 
     headless_matplotlib()
     CREATED_DIRS.clear()
+    from ._common import OUT_BEFORE
+
+    OUT_BEFORE.clear()
+    engine = sys.modules.get("splatplan.eval.engine")
+    if engine is not None:
+        engine.RESUMABLE.clear()
     try:
         rc = _main(argv)
         sys.stdout.flush()  # a closed pipe raises here, not at interpreter exit
     except BrokenPipeError:
         rc = _broken_pipe()
-    if rc not in (0, 1):  # 1: ran, with a negative answer (results written); else rejected or failed
+    if rc not in (0, 1, 141):  # 1: ran, with a negative answer (results written); else rejected, failed or interrupted
+        from ._common import remove_new_outputs
+
+        engine = sys.modules.get("splatplan.eval.engine")
+        remove_new_outputs(keep=list(getattr(engine, "RESUMABLE", [])))
         remove_created_empty_dirs()
     CREATED_DIRS.clear()
+    from ._common import OUT_BEFORE
+
+    OUT_BEFORE.clear()
+    if argv is None:  # the process's own entry (console script, python -m): its exit is this rc
+        _exit_on_signal(rc)
     return rc
+
+
+def _exit_on_signal(rc: int) -> None:
+    """After the command has ended (outputs written or removed), a SIGINT / SIGTERM during the
+    interpreter's shutdown (seconds with Warp and torch loaded) exits with the command's code at
+    once, instead of killing the process by the signal (a shell would report 143 for a run that
+    had finished)."""
+    import os
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        return
+
+    def leave(signum, frame):
+        os._exit(rc)
+
+    for s in (signal.SIGINT, signal.SIGTERM):
+        if signal.getsignal(s) is not signal.SIG_IGN:
+            signal.signal(s, leave)
 
 
 def _broken_pipe() -> int:
@@ -96,6 +131,16 @@ _FILE_ERRORS = {
     IsADirectoryError: "{}: is a directory, expected a file",
     PermissionError: "permission denied: {}",
 }
+
+
+def _resume_hint() -> str:
+    """'; the finished tasks are kept in LOG: rerun the same command to resume' when an
+    interrupted run wrote a results log (:data:`splatplan.eval.engine.RESUMABLE`), else ''."""
+    engine = sys.modules.get("splatplan.eval.engine")
+    logs = [p for p in getattr(engine, "RESUMABLE", []) if p.exists()]
+    if not logs:
+        return ""
+    return f"; the finished tasks are kept in {', '.join(map(str, logs))}: rerun the same command to resume"
 
 
 def _leaf(parser: argparse.ArgumentParser, args: argparse.Namespace) -> argparse.ArgumentParser:
@@ -241,10 +286,10 @@ def _run(argv: list[str] | None) -> int:
             print(f"splatplan: error: {' '.join(what.split())}", file=sys.stderr)
             return 2
         except KeyboardInterrupt:
-            print("splatplan: interrupted", file=sys.stderr)
+            print(f"splatplan: interrupted{_resume_hint()}", file=sys.stderr)
             return 130
         except Terminated as exc:
-            print("splatplan: terminated", file=sys.stderr)
+            print(f"splatplan: terminated{_resume_hint()}", file=sys.stderr)
             return int(exc.code)
         except MemoryError:
             print("splatplan: error: out of memory; try a smaller batch or --device cuda", file=sys.stderr)

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import ast
+import contextlib
 import dataclasses
 import functools
 import inspect
@@ -340,7 +341,38 @@ def _out_dir(path: str) -> Path:
     except OSError as exc:
         raise SplatplanError(f"cannot create output folder {d}: {exc.strerror}") from None
     CREATED_DIRS.extend(reversed(new))
+    try:
+        OUT_BEFORE.setdefault(d.resolve(), {e.name for e in d.iterdir()})
+    except OSError:
+        pass
     return d
+
+
+#: Output folders of this process and the names they held before it wrote there: a run that ends
+#: in an error or an interrupt removes what it added (:func:`remove_new_outputs`)
+OUT_BEFORE: dict[Path, set[str]] = {}
+
+
+def remove_new_outputs(keep: list[Path] = ()) -> None:
+    """Remove the entries this run added to its output folders (a rejected or interrupted run
+    leaves nothing: its outputs appear together or not at all), except ``keep`` (resumable results
+    logs, which the closing line names) and their ``.arrays`` folders."""
+    kept = {Path(k).resolve() for k in keep}
+    kept |= {Path(f"{k}.arrays") for k in kept}
+    while OUT_BEFORE:
+        d, before = OUT_BEFORE.popitem()
+        try:
+            entries = list(d.iterdir())
+        except OSError:
+            continue
+        for e in entries:
+            if e.name in before or e.resolve() in kept:
+                continue
+            if e.is_dir() and not e.is_symlink():
+                shutil.rmtree(e, ignore_errors=True)
+            else:
+                with contextlib.suppress(OSError):
+                    e.unlink()
 
 
 def remove_created_empty_dirs() -> None:

@@ -310,6 +310,11 @@ def _dask_task(fn: Callable, factory: Callable, spec: dict) -> dict:
 
 
 # ---------------------------------------------------------------------------- the engine
+#: results logs this process has written to: a run interrupted after some tasks finished keeps
+#: them (a rerun of the same command skips them); the CLI names them in its closing line
+RESUMABLE: list[Path] = []
+
+
 def run_tasks(
     tasks: Iterable[Task],
     fn: Callable[[dict, Any], dict],
@@ -371,6 +376,7 @@ def run_tasks(
         if out_path is not None:
             if not sinks:
                 sinks.append(open(out_path, "a", encoding="utf-8"))  # noqa: SIM115 - closed below
+                RESUMABLE.append(Path(out_path))  # an interrupted CLI run says how to resume
             sinks[0].write(json.dumps(rec, allow_nan=False) + "\n")
             sinks[0].flush()
 
