@@ -520,7 +520,7 @@ def add_engine_args(parser: argparse.ArgumentParser) -> None:
     """``--workers N`` (a local Dask cluster on loopback) and ``--scheduler ADDR`` (an existing one);
     neither: serial, as before. Read back with :func:`engine_from_args`."""
     g = parser.add_argument_group("job engine (default: serial in this process)")
-    g.add_argument("--workers", type=int_arg(ge=1, le=MAX_WORKERS), default=None, metavar="N", help="run the tasks on a local Dask cluster of N worker processes (127.0.0.1 only); needs the 'distributed' extra")
+    g.add_argument("--workers", type=int_arg(le=MAX_WORKERS), default=None, metavar="N", help="run the tasks on a local Dask cluster of N worker processes (127.0.0.1 only); needs the 'distributed' extra")
     g.add_argument("--scheduler", default=None, metavar="ADDR", help="run the tasks on an existing Dask cluster, e.g. tcp://10.0.0.5:8786 (workers must have splatplan installed and the scene files at the same paths)")
 
 

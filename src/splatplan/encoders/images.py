@@ -35,6 +35,8 @@ def load_image(path: str | Path) -> np.ndarray:
 
     from .._files import existing_file
 
+    if Path(path).is_dir():
+        raise SplatplanError(f"image {path} is not a file (a directory)")
     p = existing_file(path, "image", "an image file")  # a FIFO or a device is never opened
     try:
         with warnings.catch_warnings():
