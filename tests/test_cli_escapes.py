@@ -520,3 +520,17 @@ def test_robot_info_json_is_valid_with_unlimited_joints(tmp_path, capsys):
 
     doc = json.loads(out, parse_constant=bad)
     assert doc["joints"][0]["lower"] is None
+
+
+def test_mbm_other_robot_is_refused_before_its_fit(tmp_path, capsys):
+    """E10: `eval mbm --robot other.urdf` names the joints the problems need before any fit."""
+    from splatplan.eval.mbm import DEFAULT_MBM
+
+    if not (DEFAULT_MBM / "problems").is_dir():
+        pytest.skip("the shared MBM problems are absent")
+    (tmp_path / "r.urdf").write_text(URDF.format(geom=BOX, xyz="0 0 0.1", lower="-1", vel="1"))
+    t0 = time.perf_counter()
+    rc, _, err = run_main(["eval", "mbm", "--quick", "--out", str(tmp_path / "o"), "--robot", str(tmp_path / "r.urdf")], capsys)
+    assert_one_line_error(rc, err, "eval mbm --robot r.urdf")
+    assert "panda_joint1" in err and time.perf_counter() - t0 < 30
+    assert not (tmp_path / "o").exists()
