@@ -29,7 +29,9 @@ import os
 import random
 import re
 import signal
+import stat
 import threading
+import warnings
 import time
 from pathlib import Path
 
@@ -48,6 +50,13 @@ BUDGET_S = float(os.environ.get("SPLATPLAN_FUZZ_BUDGET_S", "2.0"))
 GRACE_S = 20.0
 
 NUMBERS = ("-1", "0", "nan", "inf", "1e30")
+#: issue 31: every flag's extremes, and spellings that are not numbers (Python's float() and int()
+#: accept "1_0", "+3" and non-ASCII digits; the CLI must not)
+EXTREMES = ("-inf", "1e-300", "-1e-300", "1e300", "-1e300", "3e38", "99999999999999999999999", "-99999999999999999999999", "1_0", "+3", "\u0663")
+NOT_NUMBERS = ("1_0", "+3", "\u0663", "\u0661\u0660")
+#: issue 31: path edge cases for every path flag: a 300-character name (as the file and as a
+#: folder), a FIFO, a symlink whose target's folder exists, a device node (a copy of /dev/null)
+PATH_EDGES = ("{long}", "{longdir}/x.png", "{fifo}", "{symlink}", "{devnull}")
 _PATHLIKE = re.compile(r"\b(file|folder|path|dir)\b|\.(npy|npz|json|yaml|png|jpg|urdf|ply)\b|PATH|DIR|IMG|FILE", re.I)
 
 #: cheap base arguments per command: (positionals, options). {d} = the case folder, {img}, {poses}
@@ -106,9 +115,9 @@ def enumerate_cases() -> list[tuple[tuple[str, ...], str, str]]:
             name = a.option_strings[-1] if a.option_strings else a.dest
             if not a.option_strings and a.choices is not None:
                 continue  # a nested subcommand name (handled by leaf_parsers)
-            values = list(NUMBERS)
+            values = list(NUMBERS) + list(EXTREMES)
             if _pathlike(a):
-                values += ["{missing}", "{adir}", "/proc/splatplan-fuzz/x.out"]
+                values += ["{missing}", "{adir}", "/proc/splatplan-fuzz/x.out", *PATH_EDGES]
             cases += [(cmd, name, v) for v in values]
     return cases
 
@@ -139,7 +148,8 @@ def build_argv(cmd: tuple[str, ...], name: str, value: str, parser: argparse.Arg
 
 def _fill(argv: list[str], d: Path, port: int) -> list[str]:
     subst = {"{d}": str(d), "{img}": str(d / "img.png"), "{poses}": str(d / "poses.npy"), "{missing}": str(d / "missing" / "x.npy"),
-             "{adir}": str(d / "adir"), "{port}": str(port)}  # fmt: skip
+             "{adir}": str(d / "adir"), "{port}": str(port), "{longdir}": str(d / ("D" * 300)), "{long}": str(d / ("L" * 300)),
+             "{fifo}": str(d / "fifo"), "{symlink}": str(d / "link"), "{devnull}": str(d / "devnull")}  # fmt: skip
     out = []
     for a in argv:
         for k, v in subst.items():
@@ -153,6 +163,16 @@ def _fixtures(d: Path) -> dict[str, str]:
 
     d.mkdir(parents=True, exist_ok=True)
     (d / "adir").mkdir(exist_ok=True)
+    (d / "linked").mkdir(exist_ok=True)
+    if not (d / "fifo").exists():
+        os.mkfifo(d / "fifo")
+    if not (d / "link").is_symlink():
+        (d / "link").symlink_to(d / "linked" / "target")
+    if not (d / "devnull").exists():
+        try:  # a copy of /dev/null (needs root); else a FIFO stands in for the special file
+            os.mknod(d / "devnull", stat.S_IFCHR | 0o666, os.makedev(1, 3))
+        except (PermissionError, AttributeError, OSError):
+            os.mkfifo(d / "devnull")
     np.save(d / "poses.npy", np.zeros((4, 3)))
     Image.fromarray(np.full((16, 16, 3), 128, np.uint8)).save(d / "img.png")
     return {p.name: hashlib.sha256(p.read_bytes()).hexdigest() for p in (d / "poses.npy", d / "img.png")} | {"banana": hashlib.sha256(Path(BANANA).read_bytes()).hexdigest()}
@@ -203,6 +223,18 @@ def warm_imports() -> None:
     _WARM.append(True)
 
 
+@contextlib.contextmanager
+def warnings_as_errors():
+    """Every warning the CLI would print is an error here (issue 31: no warning lines), except
+    the interpreter's own ResourceWarning (Warp's kernel-cache temp folder) and deprecations of
+    third-party libraries, which a user's run never shows."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        for cat in (ResourceWarning, DeprecationWarning, PendingDeprecationWarning):
+            warnings.simplefilter("ignore", cat)
+        yield
+
+
 def run_in_process(argv: list[str], budget_s: float, cwd: Path) -> tuple[int, str, str, bool, float]:
     """(exit code, stdout, stderr, interrupted by the budget, seconds) of ``main(argv)`` run in
     ``cwd`` (a hostile value read as a relative output path, e.g. ``--status-file 0``, lands there)."""
@@ -219,7 +251,7 @@ def run_in_process(argv: list[str], budget_s: float, cwd: Path) -> tuple[int, st
     t0 = time.perf_counter()
     try:
         os.chdir(cwd)
-        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err), warnings_as_errors():
             try:
                 rc = main(argv)
             except SystemExit as exc:
@@ -277,6 +309,14 @@ def check_outcome(argv, rc, out, err, interrupted, secs, d: Path, hashes: dict) 
     for p in d.rglob("*"):
         if _TEMP.match(p.name):
             problems.append(f"temporary file left: {p}")
+    if rc == 2:  # rejected: nothing written or left behind (issue 31)
+        left = sorted(str(p.relative_to(d)) for p in d.rglob("*") if p.relative_to(d).parts[0] not in FIXTURE_NAMES)
+        if left:
+            problems.append(f"exit 2 left {left[:5]}")
+    if not (d / "fifo").exists() or not stat.S_ISFIFO(os.lstat(d / "fifo").st_mode) or not (d / "link").is_symlink():
+        problems.append("a FIFO or a symlink given as a path was replaced")
+    if (d / "devnull").exists() and stat.S_ISREG(os.lstat(d / "devnull").st_mode):
+        problems.append("the device node given as a path was replaced by a regular file")
     now = {p.name: hashlib.sha256(p.read_bytes()).hexdigest() for p in (d / "poses.npy", d / "img.png")}
     now["banana"] = hashlib.sha256(Path(BANANA).read_bytes()).hexdigest() if "banana" in hashes else None
     if now != hashes:
@@ -284,15 +324,23 @@ def check_outcome(argv, rc, out, err, interrupted, secs, d: Path, hashes: dict) 
     return problems
 
 
+#: the fixtures of a case folder (kept between runs)
+FIXTURE_NAMES = ("poses.npy", "img.png", "adir", "linked", "fifo", "link", "devnull")
+
+
 def _reset(d: Path) -> None:
     """Remove everything a run wrote (keep the fixtures)."""
     import shutil
 
     for p in d.iterdir():
-        if p.name not in ("poses.npy", "img.png", "adir"):
+        if p.name not in FIXTURE_NAMES:
+            shutil.rmtree(p, ignore_errors=True) if p.is_dir() and not p.is_symlink() else p.unlink(missing_ok=True)
+    for sub in ("adir", "linked"):
+        for p in (d / sub).iterdir():
             shutil.rmtree(p, ignore_errors=True) if p.is_dir() else p.unlink(missing_ok=True)
-    for p in (d / "adir").iterdir():
-        shutil.rmtree(p, ignore_errors=True) if p.is_dir() else p.unlink(missing_ok=True)
+    if not (d / "devnull").exists() or stat.S_ISREG(os.lstat(d / "devnull").st_mode):
+        (d / "devnull").unlink(missing_ok=True)
+    _fixtures(d)
 
 
 ALL_CASES = enumerate_cases()
@@ -386,6 +434,79 @@ def test_base_arguments_are_valid():
     assert math.isfinite(BUDGET_S)
 
 
+def _is_numeric(a: argparse.Action) -> bool:
+    name = getattr(a.type, "__name__", "")
+    return name in ("int", "float") or (a.metavar in ("INT", "FLOAT", "INT|none", "FLOAT|none"))
+
+
+def test_numeric_flags_refuse_what_is_not_a_number():
+    """Issue 31: '1_0', '+3' and non-ASCII digits are numbers to Python, not to the CLI: every
+    numeric flag of every command refuses them in one line."""
+    parser = build_parser_cached()
+    d = Path("/nonexistent-fuzz")
+    bad, n = [], 0
+    for cmd, p in leaf_parsers(parser):
+        for a in p._actions:
+            if not (a.option_strings and _is_numeric(a)):
+                continue
+            n += 1
+            for value in NOT_NUMBERS:
+                argv = _fill(build_argv(cmd, a.option_strings[-1], value, p), d, 8765)
+                rc, err = parse_only(argv)
+                if rc != 2 or len(err.strip().splitlines()) != 1:
+                    bad.append((" ".join(argv[-2:]), rc, err))
+    assert n > 200, n
+    assert not bad, f"{len(bad)} accepted, e.g. {bad[:5]}"
+
+
+def _path_edge_cases() -> list[tuple[tuple[str, ...], str, str]]:
+    from splatplan.cli._common import PATH_DESTS
+
+    parser = build_parser_cached()
+    leaf = dict(leaf_parsers(parser))
+    out = []
+    for cmd, name, value in ALL_CASES:
+        if value not in PATH_EDGES or cmd in PARSE_ONLY:
+            continue
+        a = next(x for x in leaf[cmd]._actions if (name in x.option_strings if name.startswith("-") else x.dest == name))
+        if a.dest in PATH_DESTS and a.choices is None:
+            out.append((cmd, name, value))
+    return out
+
+
+@pytest.mark.skipif(threading.current_thread() is not threading.main_thread() or not hasattr(signal, "setitimer"), reason="needs SIGALRM in the main thread")
+def test_path_edge_cases_run_cleanly(tmp_path):
+    """Issue 31 (E1, E2, E3 and the FIFO/device 'does not exist'): every path flag of every command
+    given a 300-character name, a FIFO, a symlink or a device node. A long name is refused before
+    any work (all of them run, each must end within 20 s); the others run as a seeded sample (all
+    with SPLATPLAN_FUZZ_FULL=1) under the usual budget: one line, a sane result or a clean
+    interrupt; a FIFO, a symlink or a device given is never replaced, nothing is left on exit 2."""
+    from splatplan.viewer.app import free_port
+
+    warm_imports()
+    cases = _path_edge_cases()
+    long_cases = [c for c in cases if c[2].startswith("{long")]
+    other = [c for c in cases if not c[2].startswith("{long")]
+    assert len(long_cases) > 40, len(long_cases)
+    picked = long_cases + _sample(other, N_SAMPLE, seed=31)
+    d = tmp_path / "case"
+    hashes = _fixtures(d)
+    leaf = dict(leaf_parsers(build_parser_cached()))
+    failures = []
+    for cmd, name, value in picked:
+        argv = _fill(build_argv(cmd, name, value, leaf[cmd]), d, free_port())
+        long = value.startswith("{long")
+        rc, out, err, interrupted, secs = run_in_process(argv, 20.0 if long else BUDGET_S, d)
+        probs = check_outcome(argv, rc, out, err, interrupted, secs, d, hashes)
+        if long and cmd in BASE and not (rc == 2 and "too long" in err):  # (without a base: its own missing arguments)
+            probs.append(f"a 300-character name not refused as too long (exit {rc}): {err[-300:]!r}")
+        if probs:
+            failures.append((" ".join(a if len(a) < 80 else a[:40] + "..." for a in argv), probs))
+        _reset(d)
+    report = "\n".join(f"{a}\n    " + "\n    ".join(p) for a, p in failures[:10])
+    assert not failures, f"{len(failures)} of {len(picked)} runs failed:\n{report}"
+
+
 class _ClosedStdout(io.TextIOBase):
     """A stdout whose reader has gone (``| head`` after its lines): every write is a broken pipe."""
 
@@ -442,3 +563,65 @@ def test_closed_stdout_every_command(tmp_path):
             bad.append((" ".join(argv), rc, text[-800:]))
         _reset(d)
     assert not bad, bad
+
+
+#: commands a signal test interrupts (a real process each); view serves until stopped (tested in
+#: tests/test_cli_escapes.py), throughput starts worker processes of its own
+SIGNAL_CMDS = sorted(c for c in BASE if c not in PARSE_ONLY and c != ("view",))
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_signal_during_every_long_command(sig, tmp_path):
+    """Issue 31 (E11): SIGINT or SIGTERM at a seeded moment of every command (a real process, its
+    cheap base arguments; a seeded sample of 2, all with SPLATPLAN_FUZZ_FULL=1): exit 130 / 143
+    with one line and no traceback (or it finished first: 0, 1), no temporary file, and an
+    interrupted run leaves no output behind unless it says how to resume."""
+    import subprocess
+    import sys
+
+    from splatplan.viewer.app import free_port
+
+    cmds = SIGNAL_CMDS if FULL else _sample(SIGNAL_CMDS, 2, seed=int(sig))
+    rng = random.Random(int(sig))
+    want = 130 if sig == signal.SIGINT else 143
+    env = {**os.environ, "SPLATPLAN_NO_TQDM": "1", "PYTHONWARNINGS": "error::RuntimeWarning,error::UserWarning"}
+    src = str(Path(__file__).resolve().parents[1] / "src")
+    env["PYTHONPATH"] = src + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
+    bad = []
+    for cmd in cmds:
+        d = tmp_path / "_".join(cmd)
+        hashes = _fixtures(d)
+        pos, opts = BASE[cmd]
+        argv = _fill(list(cmd) + pos + opts, d, free_port())
+        delay = rng.uniform(2.0, 8.0)
+        p = subprocess.Popen([sys.executable, "-m", "splatplan.cli", *argv], cwd=d, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+        try:
+            try:
+                p.wait(timeout=delay)
+            except subprocess.TimeoutExpired:
+                p.send_signal(sig)
+            out, err = p.communicate(timeout=120)
+        finally:
+            if p.poll() is None:
+                p.kill()
+                p.wait()
+        rc = p.returncode
+        probs = []
+        # -sig: the signal came after the command had ended, while the interpreter shut down (Python
+        # restores the default handlers then): a shell reports 128 + sig, and the outputs are complete
+        if rc not in (0, 1, 2, want, -int(sig)):
+            probs.append(f"exit {rc}")
+        if "Traceback" in err or "Warning" in err:
+            probs.append(f"traceback or warning: {err[-600:]!r}")
+        last = ([ln for ln in err.splitlines() if ln.strip()] or [""])[-1]
+        if rc == want and not last.startswith(f"splatplan: {'interrupted' if want == 130 else 'terminated'}"):
+            probs.append(f"no closing line: {err[-300:]!r}")
+        left = sorted(str(q.relative_to(d)) for q in d.rglob("*") if q.relative_to(d).parts[0] not in FIXTURE_NAMES)
+        if rc in (2, want) and left and "resume" not in err:
+            probs.append(f"exit {rc} left {left[:5]}")
+        probs += [f"temporary file left: {q}" for q in d.rglob("*") if _TEMP.match(q.name)]
+        if {q.name: hashlib.sha256(q.read_bytes()).hexdigest() for q in (d / "poses.npy", d / "img.png")} != {k: v for k, v in hashes.items() if k != "banana"}:
+            probs.append("an input file was modified")
+        if probs:
+            bad.append(f"{' '.join(argv[:3])} (signal after {delay:.1f} s): " + "; ".join(probs))
+    assert not bad, "\n".join(bad)

@@ -73,7 +73,10 @@ class Bounds:
         return " and ".join(f"{op} {_fmt(v)}" for op, v in ((">=", self.ge), (">", self.gt), ("<=", self.le), ("<", self.lt)) if v is not None)
 
     def problem(self, value) -> str | None:
-        """Why ``value`` (a scalar) is not allowed, or None when it is."""
+        """Why ``value`` (a scalar) is not allowed, or None when it is. A side of the range that
+        the field leaves open is still capped at :data:`MAX_MAGNITUDE` (no count, size, weight or
+        coordinate of the library means anything beyond it; past it float32 and int64 arithmetic
+        overflows)."""
         if value is None:
             return None
         if self.choices is not None:
@@ -89,7 +92,17 @@ class Bounds:
             or (self.le is not None and not value <= self.le)
             or (self.lt is not None and not value < self.lt)
         )
-        return f"must be {rng}, got {value}" if bad else None
+        if bad:
+            return f"must be {rng}, got {value}"
+        hi_open = self.le is None and self.lt is None
+        lo_open = self.ge is None and self.gt is None
+        if not (isinstance(value, float) and math.isinf(value)) and ((hi_open and value > MAX_MAGNITUDE) or (lo_open and value < -MAX_MAGNITUDE)):
+            return f"must be {rng + ' and ' if rng else ''}within +-{MAX_MAGNITUDE:g}, got {value:g}"
+        return None
+
+
+#: the cap of a number whose declared range leaves a side open (see :meth:`Bounds.problem`)
+MAX_MAGNITUDE = 1e12
 
 
 def _fmt(v) -> str:

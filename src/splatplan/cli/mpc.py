@@ -9,18 +9,15 @@ import numpy as np
 from ..errors import SplatplanError
 from ..robots.builtin import DEFAULT_MODEL, PANDA_MODELS
 from ._common import (
-    _out_dir, add_base_pose_arg, add_config_args, add_device_arg, add_seed_arg, atomic_path, check_device, config_from_args, float_arg, parse_base_pose, robot_at,
+    MAX_COORD, _out_dir, add_base_pose_arg, atomic_dir, move_into, signals_deferred, parse_numbers, unit_quaternion, add_config_args, add_device_arg, add_seed_arg, atomic_path, check_device, config_from_args, float_arg, parse_base_pose, robot_at,
     write_json,
 )  # fmt: skip
 
 
 def _floats(text: str, n: int, what: str, form: str) -> np.ndarray:
-    try:
-        v = np.asarray([float(x) for x in text.split(",")], dtype=np.float64)
-    except ValueError:
-        raise SplatplanError(f"{what} {text!r}: expected {n} comma-separated numbers {form}") from None
-    if v.shape != (n,) or not np.all(np.isfinite(v)):
-        raise SplatplanError(f"{what} {text!r}: expected {n} finite comma-separated numbers {form}")
+    v = parse_numbers(text, what, f"{n} numbers {form}", n, None)
+    if np.any(np.abs(v[:3]) > MAX_COORD):
+        raise SplatplanError(f"{what} {text!r}: positions must be within +-{MAX_COORD:g}")
     return v
 
 
@@ -47,14 +44,23 @@ def cmd_mpc(args) -> int:
     out = _out_dir(args.out)
     collision = not args.no_collision
     tag = "" if collision else " [--no-collision: collision cost OFF]"
+    go2_only = {"route": args.route, "no_route": args.no_route, "route_time": args.route_time is not None, "goal": args.goal is not None}
+    if args.robot.partition(":")[0] == "panda":
+        given = [f"--{k.replace('_', '-')}" for k, v in go2_only.items() if v]
+        if given:
+            raise SplatplanError(f"{given[0]} is for --robot go2 only (panda takes --goal-pose)")
+    elif args.goal_pose is not None:
+        raise SplatplanError("--goal-pose is for --robot panda only (go2 takes --goal X,Y)")
+    if args.route and args.no_route:
+        raise SplatplanError("--route and --no-route contradict each other; give one")
+    route_time = 60.0 if args.route_time is None else args.route_time
     if args.robot.partition(":")[0] == "panda":
         from ..tasks.arm import ArmConfig, run_arm
 
         if args.goal_pose is None:
             raise SplatplanError("--robot panda needs --goal-pose X,Y,Z,QW,QX,QY,QZ (metres, wxyz)")
         gp = _floats(args.goal_pose, 7, "--goal-pose", "X,Y,Z,QW,QX,QY,QZ")
-        if np.linalg.norm(gp[3:]) < 1e-8:
-            raise SplatplanError(f"--goal-pose {args.goal_pose!r}: the quaternion QW,QX,QY,QZ is zero")
+        gp[3:] = unit_quaternion(gp[3:], "--goal-pose", args.goal_pose)
         cfg = config_from_args(args, ArmConfig, "arm_")
         cfg = replace(cfg, mppi=replace(cfg.mppi, seed=args.seed))
         robot = robot_at(args.robot, parse_base_pose(args.base_pose))
@@ -84,19 +90,22 @@ def cmd_mpc(args) -> int:
         if want:
             if not args.route:
                 print(f"the straight line from {start[:2].round(2).tolist()} to {g.round(2).tolist()} is blocked facing the goal: planning an SE(2) route first (--no-route: goal only)")
-            route = plan_route(robot, ts.checker, start, g, time_budget_s=args.route_time, seed=args.seed)
+            route = plan_route(robot, ts.checker, start, g, time_budget_s=route_time, seed=args.seed)
             if route is None:
-                print(f"no SE(2) route from {start[:2].round(2).tolist()} to {g.round(2).tolist()} within {args.route_time:g} s (try a larger --route-time)")
+                print(f"no SE(2) route from {start[:2].round(2).tolist()} to {g.round(2).tolist()} within {route_time:g} s (try a larger --route-time)")
                 return 1
         res = run_base(robot, ts, g, start=start, config=cfg, collision=collision, route=route, device=args.device)
         kind = "base"
     else:  # argparse choices keep this unreachable
         raise SplatplanError(f"unknown robot {args.robot!r}: panda or go2")
     d = res.to_json()
-    write_json(out / "result.json", d)
     fig = plot_run(robot, ts, res, kind=kind)
-    with atomic_path(out / "motion.png") as tmp:
-        fig.savefig(tmp, format="png", dpi=100)
+    with atomic_dir(out) as tmp:  # result.json and motion.png appear together or not at all
+        write_json(tmp / "result.json", d)
+        fig.savefig(tmp / "motion.png", format="png", dpi=100)
+        with signals_deferred():  # two renames: a signal between them would split the pair
+            move_into(tmp / "result.json", out / "result.json")
+            move_into(tmp / "motion.png", out / "motion.png")
     print(
         f"{robot.name} on {scene}{tag}: {'reached' if res.success else 'NOT reached'}; final position error {res.final_position_error_m * 100:.2f} cm; "
         f"min clearance {res.min_clearance_m * 100:.2f} cm ({res.clearance_source}); {res.steps_per_s:.2f} MPC steps/s over {res.time_s:.1f} s"
@@ -136,7 +145,7 @@ def register(sub, eval_sub) -> None:
     s.add_argument("--no-collision", action="store_true", help="switch the collision cost off (the baseline); every output says so")
     s.add_argument("--route", action="store_true", help="go2: plan a global RRT route on SE(2) first and track it (default: only when the straight line to the goal is blocked, facing the goal)")
     s.add_argument("--no-route", action="store_true", help="go2: never plan a route (the goal only, even when the straight line is blocked)")
-    s.add_argument("--route-time", type=float_arg(gt=0), default=60.0, help="go2 --route: RRT time budget in seconds (default 60)")
+    s.add_argument("--route-time", type=float_arg(gt=0, le=1e6), default=None, help="go2 --route: RRT time budget in seconds (default 60)")
     s.add_argument("--out", required=True, help="output folder (result.json, motion.png)")
     add_seed_arg(s, help="noise seed")
     add_device_arg(s)

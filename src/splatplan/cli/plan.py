@@ -25,8 +25,12 @@ from ..errors import SplatplanError
 from ..robots.builtin import DEFAULT_POINT_ROBOT, ROBOT_NAME_HELP
 from ._common import (
     _load, add_base_pose_arg, add_command, add_config_args, add_device_arg, add_seed_arg, add_terrain_args, allow_negative_values, config_from_args, float_arg,
-    ground_robot_scene, parse_base_pose, robot_at, write_json,
+    MAX_COORD, ground_robot_scene, parse_base_pose, parse_numbers, robot_at, strict_float, unit_quaternion, write_json,
 )  # fmt: skip
+
+
+#: the link ``--goal-pose`` places unless ``--ee-link`` names another
+DEFAULT_EE_LINK = "panda_hand_tcp"
 
 
 def parse_goal_pose(text: str, robot, link: str) -> np.ndarray:
@@ -35,15 +39,10 @@ def parse_goal_pose(text: str, robot, link: str) -> np.ndarray:
         raise SplatplanError(f"--goal-pose is for arms; {robot.name} takes --goal with its {robot.dof} dofs")
     if link not in robot.link_names:
         raise SplatplanError(f"--ee-link {link!r} is not a link of {robot.name} ({', '.join(robot.link_names[-4:])}, ...)")
-    try:
-        v = np.asarray([float(x) for x in str(text).split(",")], dtype=np.float64)
-    except ValueError:
-        raise SplatplanError(f"--goal-pose {text!r}: expected 7 numbers X,Y,Z,QW,QX,QY,QZ") from None
-    if v.shape != (7,) or not np.all(np.isfinite(v)):
-        raise SplatplanError(f"--goal-pose {text!r}: expected 7 finite numbers X,Y,Z,QW,QX,QY,QZ")
-    if np.linalg.norm(v[3:]) < 1e-9:
-        raise SplatplanError(f"--goal-pose {text!r}: the quaternion QW,QX,QY,QZ is zero")
-    v[3:] /= np.linalg.norm(v[3:])
+    v = parse_numbers(text, "--goal-pose", "7 numbers X,Y,Z,QW,QX,QY,QZ", 7, None)
+    if np.any(np.abs(v[:3]) > MAX_COORD):
+        raise SplatplanError(f"--goal-pose {text!r}: the position X,Y,Z must be within +-{MAX_COORD:g}")
+    v[3:] = unit_quaternion(v[3:], "--goal-pose", text)
     return v
 
 
@@ -51,13 +50,15 @@ def parse_config(text: str, robot, what: str) -> np.ndarray:
     """'a,b,c' -> (dof,) float64 configuration of ``robot`` (a one-line error otherwise)."""
     names = ",".join(robot.joint_names)
     try:
-        v = np.asarray([float(x) for x in str(text).split(",")], dtype=np.float64)
+        v = np.asarray([strict_float(x) for x in str(text).split(",")], dtype=np.float64)
     except ValueError:
         raise SplatplanError(f"{what} {text!r}: expected {robot.dof} comma-separated numbers ({names}) for robot {robot.name}") from None
     if v.shape != (robot.dof,):
         raise SplatplanError(f"{what} {text!r}: robot {robot.name} has {robot.dof} dofs ({names}), got {v.size} number(s)")
     if not np.all(np.isfinite(v)):
         raise SplatplanError(f"{what} {text!r}: values must be finite")
+    if np.any(np.abs(v) > MAX_COORD):
+        raise SplatplanError(f"{what} {text!r}: values must be within +-{MAX_COORD:g}")
     return v
 
 
@@ -90,11 +91,15 @@ def cmd_plan(args) -> int:
         from ..planners.ompl_bridge import _ompl
 
         _ompl()  # the missing extra is named before any work
+    if args.ee_link is not None and args.goal_pose is None:
+        raise SplatplanError("--ee-link names the link that --goal-pose places; give --goal-pose too (or drop --ee-link)")
+    if args.height is not None and not args.planar and args.robot != "go2":
+        raise SplatplanError("--height is the plane of --planar (or go2's floor); give --planar too (or drop --height)")
     robot = _robot_for(args)
     start = parse_config(args.start, robot, "--start")
     if (args.goal is None) == (args.goal_pose is None):
         raise SplatplanError("give exactly one of --goal (a configuration) or --goal-pose X,Y,Z,QW,QX,QY,QZ (an arm's end-effector pose)")
-    goal_pose = None if args.goal_pose is None else parse_goal_pose(args.goal_pose, robot, args.ee_link)
+    goal_pose = None if args.goal_pose is None else parse_goal_pose(args.goal_pose, robot, args.ee_link or DEFAULT_EE_LINK)
     goal = start.copy() if goal_pose is not None else parse_config(args.goal, robot, "--goal")
     rrt_cfg = config_from_args(args, RRTConfig, prefix="rrt_", time_limit_s=args.time_limit, seed=args.seed)
     if args.box is not None:
@@ -129,7 +134,7 @@ def cmd_plan(args) -> int:
     if goal_pose is not None:  # inverse kinematics: the collision-free solution nearest to the start
         from ..robots.ik import collision_free_ik
 
-        goal = collision_free_ik(robot, checker, goal_pose[:3], goal_pose[3:], link=args.ee_link, near=start, seed=args.seed)
+        goal = collision_free_ik(robot, checker, goal_pose[:3], goal_pose[3:], link=args.ee_link or DEFAULT_EE_LINK, near=start, seed=args.seed)
         notes.append(f"--goal-pose: IK goal configuration {np.round(goal, 4).tolist()}")
     ompl = args.planner.strip().lower().startswith("ompl:")
     planner = make_planner("auto" if ompl else args.planner, checker, rrt_cfg, robot=robot)
@@ -184,18 +189,18 @@ def register(sub, eval_sub) -> None:
     s.add_argument("--goal", default=None, help="goal configuration, comma list of the robot's dofs")
     s.add_argument("--goal-pose", default=None, help="arms: X,Y,Z,QW,QX,QY,QZ goal pose of --ee-link (metres, wxyz, world): the goal is the "
                    "collision-free inverse-kinematics solution nearest to the start")  # fmt: skip
-    s.add_argument("--ee-link", default="panda_hand_tcp", help="the link --goal-pose places (default panda_hand_tcp)")
+    s.add_argument("--ee-link", default=None, help=f"the link --goal-pose places (default {DEFAULT_EE_LINK})")
     s.add_argument("--box", nargs=2, metavar=("LO", "HI"), help="sampling box corners, comma lists of the robot's dofs (default: "
                    "robust scene bounds padded by the robot size, joint limits for joints; lo == hi freezes a coordinate)")  # fmt: skip
     add_base_pose_arg(s)
     s.add_argument("--up", default=None, help=argparse.SUPPRESS)  # removed: say how to align instead
     s.add_argument("--planar", action="store_true", help="plan at a fixed height z: point robots keep z at "
                    "--height (default the start's); go2 stands on the plane z = --height")  # fmt: skip
-    s.add_argument("--height", type=float_arg(), default=None, help="plane height z for --planar / go2 (scene units; world z up, see `scene align`)")
+    s.add_argument("--height", type=float_arg(ge=-MAX_COORD, le=MAX_COORD), default=None, help="plane height z for --planar / go2 (scene units; world z up, see `scene align`)")
     s.add_argument("--planner", default="auto", metavar="NAME", help="auto (rrtconnect for robots with 4 or more dofs, else rrt) | rrt "
                    "(goal-biased batched RRT) | rrtconnect (batched bidirectional RRT-Connect) | ompl:NAME, an OMPL geometric planner on "
                    "the same checker (ompl:RRTConnect, ompl:RRTstar, ompl:BITstar, ompl:PRM, ...; needs the 'ompl' extra) (default auto)")  # fmt: skip
-    s.add_argument("--time-limit", type=float_arg(gt=0), default=None, help="wall-clock budget of the whole call in seconds: search, shortcut and "
+    s.add_argument("--time-limit", type=float_arg(gt=0, le=1e6), default=None, help="wall-clock budget of the whole call in seconds: search, shortcut and "
                    "--refine share it (default 10; same as --rrt-time-limit-s)")  # fmt: skip
     s.add_argument("--refine", action="store_true", help="zeroth-order refinement of the RRT path")
     add_seed_arg(s)

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import SplatplanError
-from ._common import add_command, add_device_arg, atomic_path, check_device, float_arg, load_npy, parse_vec3
+from ._common import add_command, add_device_arg, atomic_path, check_device, float_arg, int_arg, load_npy, parse_vec3
 
 _IMAGE_EXT = (".png", ".jpg", ".jpeg")
 
@@ -128,15 +128,15 @@ def register(sub, eval_sub) -> None:
     s.add_argument("--K", help="FILE.json|.npy: 3x3 pixel intrinsics [[fx,0,cx],[0,fy,cy],[0,0,1]], pixel centres at +0.5 (default from --fov)")
     # --fov, --width, --height, --sh-degree: ranges checked by the renderer (its messages), finiteness here
     s.add_argument("--fov", type=float_arg(), default=60.0, help="horizontal field of view in degrees when --K is not given (default 60)")
-    s.add_argument("--width", type=int, default=256, help="image width in pixels (default 256)")
-    s.add_argument("--height", type=int, default=256, help="image height in pixels (default 256)")
+    s.add_argument("--width", type=int_arg(), default=256, help="image width in pixels (default 256)")
+    s.add_argument("--height", type=int_arg(), default=256, help="image height in pixels (default 256)")
     s.add_argument("--out", required=True, help="IMG.png or .jpg (8-bit RGB, background composited)")
     s.add_argument("--depth", help="DEPTH.png (16-bit, depth x --depth-scale) or DEPTH.npy (float32, scene units)")
-    s.add_argument("--depth-scale", type=float_arg(gt=0), default=1000.0, help="PNG depth units per scene unit (default 1000: mm for metric scenes)")
+    s.add_argument("--depth-scale", type=float_arg(ge=1e-6, le=1e6), default=1000.0, help="PNG depth units per scene unit (default 1000: mm for metric scenes)")
     s.add_argument("--background", default="0,0,0", help="background colour R,G,B in [0, 1] (default 0,0,0)")
-    s.add_argument("--near", type=float_arg(ge=0), default=0.01, help="near plane: splats with view depth below it are culled (default 0.01)")
+    s.add_argument("--near", type=float_arg(ge=0, le=1e6), default=0.01, help="near plane: splats with view depth below it are culled (default 0.01)")
     s.add_argument("--far", type=float_arg(gt=0, allow_inf=True), default=1e10, help="far plane (default 1e10)")
-    s.add_argument("--sh-degree", type=int, default=None, help="SH degree to evaluate 0..3 (default: all the scene has)")
+    s.add_argument("--sh-degree", type=int_arg(), default=None, help="SH degree to evaluate 0..3 (default: all the scene has)")
     s.add_argument("--backend", default="auto", choices=["auto", "warp", "gsplat", "reference"], help="renderer (default auto = our Warp kernels)")
     s.add_argument("--keep-floaters", action="store_true", help="do not drop floaters when loading the scene")
     add_device_arg(s)

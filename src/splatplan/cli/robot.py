@@ -28,7 +28,7 @@ import numpy as np
 from ..errors import SplatplanError
 from ..robots.builtin import DEFAULT_MODEL, PANDA_MODELS, ROBOT_NAME_HELP
 from ..robots.fit import MAX_PER_LINK
-from ._common import add_command, float_arg, int_arg
+from ._common import add_command, dumps_json, float_arg, int_arg
 
 #: ``--per-link``: ellipsoids (slabs) per link, 1..MAX_PER_LINK
 PER_LINK = int_arg(ge=1, le=MAX_PER_LINK)
@@ -67,7 +67,7 @@ def cmd_info(args) -> int:
         d["model_fit"] = {"reference": str(args.meshes_from or robot.info.get("urdf")), "samples": args.samples,
                           "links": {k: (v.to_dict() if v is not None else None) for k, v in measure.items()}}  # fmt: skip
     if args.json:
-        print(json.dumps(d))
+        print(dumps_json(d))
         return 0
     print(f"{robot.name}: {robot.dof} dof, {len(robot.link_names)} links, {robot.n_ellipsoids} ellipsoids, "
           f"{len(robot.self_collision_pairs)} self-collision pairs, smallest semi-axis {robot.min_semi_axis:.4g} m")  # fmt: skip

@@ -9,14 +9,14 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import SplatplanError
-from ._common import _Unset, _load, add_command, add_seed_arg, add_config_args, atomic_dir, config_from_args, float_arg, int_arg, move_into, parse_vec3
+from ._common import _Unset, _load, add_command, dumps_json, add_seed_arg, add_config_args, atomic_dir, config_from_args, float_arg, int_arg, move_into, parse_vec3
 
 
 def cmd_info(args) -> int:
     from ..scenes.filters import filter_floaters
     from ..scenes.sanity import absurd_splats
 
-    s = _load(args.scene, filter_floaters=False)
+    s = _load(args.scene, filter_floaters=False, usable=False)
     lo, hi = s.bounds()
     smax = s.scales.max(1)
     _, rep = filter_floaters(s)
@@ -39,7 +39,7 @@ def cmd_info(args) -> int:
     frame = describe_frame(s, AlignConfig(up_hint=args.up_hint or default_up_hint(args.scene)))
     info.update(frame)
     if args.json:
-        print(json.dumps(info))
+        print(dumps_json(info))
         return 0
     print(f"{info['path']}: {info['count']:,} splats ({info['format']}{', 2DGS disks' if s.is_2d else ''})")
     print(f"  bounds of means (file frame, scene units): min {np.round(lo, 4).tolist()}  max {np.round(hi, 4).tolist()}")
@@ -95,9 +95,9 @@ def cmd_align(args) -> int:
     if args.rotate_z is not None:
         cfg = replace(cfg, rotate_z=args.rotate_z)
     if args.translate is not None:
-        cfg = replace(cfg, translate=tuple(parse_vec3(args.translate, "--translate")))
+        cfg = replace(cfg, translate=tuple(parse_vec3(args.translate, "--translate", max_abs=1e9)))
     if args.crop is not None:
-        lo, hi = (parse_vec3(c, "--crop") for c in args.crop)
+        lo, hi = (parse_vec3(c, "--crop", max_abs=1e9) for c in args.crop)
         cfg = replace(cfg, crop=tuple(lo) + tuple(hi))
     if args.drop_floaters:
         cfg = replace(cfg, drop_floaters=True)
@@ -108,7 +108,7 @@ def cmd_align(args) -> int:
     side = sidecar_path(out)
     with atomic_dir(out.parent) as tmp:  # both files appear together or not at all
         save_scene(aligned, tmp / out.name)
-        (tmp / side.name).write_text(json.dumps(doc, indent=2) + "\n")
+        (tmp / side.name).write_text(dumps_json(doc, indent=2) + "\n")
         move_into(tmp / side.name, side)
         move_into(tmp / out.name, out)
     g = res.up
@@ -229,8 +229,8 @@ def register(sub, eval_sub) -> None:
     g = s.add_argument_group("align options")
     g.add_argument("--up", default=None, help="align: the input's up axis: auto (fitted floor/table plane, default) | +x | -x | +y | -y | +z | -z")
     g.add_argument("--floor", default=None, help="align: auto (fitted, default) | none | Z (floor height along the up axis, input units) -> z = 0")
-    g.add_argument("--scale", type=float_arg(gt=0), default=None, help="align: uniform scale after the rotation (default 1)")
-    g.add_argument("--rotate-z", type=float_arg(), default=None, help="align: rotation about the new z axis, degrees (default 0)")
+    g.add_argument("--scale", type=float_arg(ge=1e-6, le=1e6), default=None, help="align: uniform scale after the rotation (default 1)")
+    g.add_argument("--rotate-z", type=float_arg(ge=-3600, le=3600), default=None, help="align: rotation about the new z axis, degrees (default 0)")
     g.add_argument("--translate", default=None, metavar="X,Y,Z", help="align: translation added last (output units)")
     g.add_argument("--crop", nargs=2, default=None, metavar=("LO", "HI"), help="align: keep splats in the box LO=X,Y,Z .. HI=X,Y,Z (aligned frame); says how many were dropped")
     g.add_argument("--drop-floaters", action="store_true", help="align: drop faint isolated splats (floaters in free space: opacity < 0.3, "
@@ -239,5 +239,5 @@ def register(sub, eval_sub) -> None:
     s.add_argument("--level", type=int_arg(ge=1, le=5), default=1, help="Gaussian-size level 1..5 (larger, fewer splats)")
     add_seed_arg(s, help="layout and sampling seed, an integer >= 0 (default 0)")
     s.add_argument("--n-splats", type=int_arg(ge=1), default=None, help="from-moveit only: total splats (default 100000: ~7-8 mm spacing on a metre-scale workcell)")
-    s.add_argument("--spacing", type=float_arg(gt=0), default=None, metavar="M", help="from-moveit only: sample at this surface spacing (m) "
+    s.add_argument("--spacing", type=float_arg(ge=1e-9, le=1e3), default=None, metavar="M", help="from-moveit only: sample at this surface spacing (m) "
                    "instead, a count per area (3.5e-3 is eval mbm's default: ~500k splats on an MBM workcell)")  # fmt: skip

@@ -51,6 +51,12 @@ def _read_tree(path: str):
         raise SplatplanError(f"--tree {path}: expected an .npz with arrays 'nodes' (N, D) and 'parents' (N,) ({exc.__class__.__name__})") from None
     if nodes.ndim != 2 or parents.shape != (len(nodes),):
         raise SplatplanError(f"--tree {path}: 'nodes' (N, D) and 'parents' (N,) expected, got {nodes.shape} and {parents.shape}")
+    if not np.all(np.isfinite(nodes)):
+        raise SplatplanError(f"--tree {path}: 'nodes' contains NaN or Inf")
+    bad = (parents < -1) | (parents >= len(nodes))
+    if bad.any():
+        i = int(np.argmax(bad))
+        raise SplatplanError(f"--tree {path}: parents[{i}] = {int(parents[i])} is not a node index (-1 for a root, else 0..{len(nodes) - 1})")
     return nodes, parents
 
 

@@ -21,6 +21,8 @@ import numpy as np
 from ..errors import SplatplanError
 
 _CONVERT = {"RGB", "L", "1", "P"}
+#: the most pixels an input image may have (the encoders resize to a few hundred pixels a side)
+MAX_IMAGE_PIXELS = 64_000_000
 _ALPHA = {"RGBA", "LA", "PA", "RGBa", "La"}
 
 
@@ -29,13 +31,29 @@ def load_image(path: str | Path) -> np.ndarray:
     from .base import require
 
     Image = require("PIL.Image", what="reading images")
-    p = Path(path)
-    if not p.exists():
-        raise SplatplanError(f"image {p} does not exist")
-    if not p.is_file():
-        raise SplatplanError(f"image {p} is not a file")
+    import warnings
+
+    from .._files import existing_file
+
+    if Path(path).is_dir():
+        raise SplatplanError(f"image {path} is not a file (a directory)")
+    p = existing_file(path, "image", "an image file")  # a FIFO or a device is never opened
     try:
-        with Image.open(p) as im:
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", Image.DecompressionBombWarning)  # checked below, in one line
+            im = Image.open(p)
+    except Image.DecompressionBombWarning:
+        raise SplatplanError(f"image {p} has over {MAX_IMAGE_PIXELS:,} pixels; scale it down first") from None
+    except Image.DecompressionBombError as exc:
+        raise SplatplanError(f"image {p} is too large to read safely ({exc})") from None
+    except (OSError, ValueError, SyntaxError) as exc:  # UnidentifiedImageError is an OSError
+        raise SplatplanError(f"image {p} is not a readable image file ({exc.__class__.__name__}: {str(exc).splitlines()[0] if str(exc) else ''})") from None
+    w, h = im.size
+    if w * h > MAX_IMAGE_PIXELS:  # before decoding: a 144-Mpx PNG would take 0.4 GB as float RGB
+        im.close()
+        raise SplatplanError(f"image {p} has {w}x{h} = {w * h:,} pixels, over the {MAX_IMAGE_PIXELS:,} limit; scale it down first")
+    try:
+        with im:
             im.load()
             mode = im.mode
             if mode == "P" and "transparency" in im.info:

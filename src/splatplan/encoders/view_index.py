@@ -111,7 +111,7 @@ class ViewIndexTerms(ConfigTerms):
     #: rendered image side (pixels, square)
     image_size: int = bounded(64, ge=1)
     #: horizontal field of view of the head camera (degrees)
-    fov_deg: float = bounded(90.0, gt=0, lt=180)
+    fov_deg: float = bounded(90.0, ge=0.01, le=179)
     #: head camera position in the base frame (x forward, y left, z up), metres
     camera_offset: tuple[float, float, float] = (0.30, 0.0, 0.05)
     #: render background grey level

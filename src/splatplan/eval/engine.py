@@ -310,6 +310,11 @@ def _dask_task(fn: Callable, factory: Callable, spec: dict) -> dict:
 
 
 # ---------------------------------------------------------------------------- the engine
+#: results logs this process has written to: a run interrupted after some tasks finished keeps
+#: them (a rerun of the same command skips them); the CLI names them in its closing line
+RESUMABLE: list[Path] = []
+
+
 def run_tasks(
     tasks: Iterable[Task],
     fn: Callable[[dict, Any], dict],
@@ -356,20 +361,24 @@ def run_tasks(
     res = RunResult(n_skipped=len(finished))
     if finished and progress:
         print(f"resuming: {len(finished)} of {len(tasks)} task(s) already finished in {out_path}", file=sys.stderr)
-    sink = open(out_path, "a", encoding="utf-8") if out_path is not None else None  # noqa: SIM115 - closed below
+    sinks: list = []  # the results log, opened at the first result: a run that fails or is
+    # interrupted before any task finishes leaves no empty log behind (issue 31)
 
     def record(task: Task, rec: dict) -> None:
         rec = {"key": task.key, **rec}
         if "row" in rec:
             try:
                 rec["row"] = _encode(rec["row"], arrays_dir, hashlib.sha1(task.key.encode()).hexdigest()[:16])
-                json.dumps(rec["row"], allow_nan=False) if sink is not None else None
+                json.dumps(rec["row"], allow_nan=False) if out_path is not None else None
             except (TypeError, ValueError) as exc:  # a row that JSON cannot hold is the task's error
                 rec = {"key": task.key, "ok": False, "error": f"TypeError: the task's row is not JSON-able: {exc}", "seconds": rec.get("seconds")}
         done[task.key] = rec
-        if sink is not None:
-            sink.write(json.dumps(rec, allow_nan=False) + "\n")
-            sink.flush()
+        if out_path is not None:
+            if not sinks:
+                sinks.append(open(out_path, "a", encoding="utf-8"))  # noqa: SIM115 - closed below
+                RESUMABLE.append(Path(out_path))  # an interrupted CLI run says how to resume
+            sinks[0].write(json.dumps(rec, allow_nan=False) + "\n")
+            sinks[0].flush()
 
     try:
         bar = _progress(total=len(todo), desc=desc, unit="task") if (todo and progress) else None
@@ -389,8 +398,8 @@ def run_tasks(
         if bar is not None:
             bar.close()
     finally:
-        if sink is not None:
-            sink.close()
+        for f in sinks:
+            f.close()
     res.n_run = len(todo)
     for k in keys:
         rec = done.get(k)

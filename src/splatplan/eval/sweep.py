@@ -110,7 +110,47 @@ class SweepSpec:
             raise SplatplanError(f"sweep spec: device must be auto, cpu, cuda or cuda:N, got {self.device!r}")
         if not isinstance(self.n_configs, int) or self.n_configs < 1:
             raise SplatplanError(f"sweep spec: n_configs must be an integer >= 1, got {self.n_configs}")
+        self._check_sizes()
         return self
+
+    def _check_sizes(self) -> None:
+        """The declared ranges of the spec's numbers and the resource guard of its sizes (issue 31:
+        ``pairs: 1e9`` or ``n_configs: 1e11`` were attempted), before any scene is loaded."""
+        from .._resources import require_bytes, require_work
+
+        if not all(v <= 1e3 for v in self.n_sigma):
+            raise SplatplanError(f"sweep spec: n_sigma must be <= 1000, got {self.n_sigma}")
+        if any(s > 2**32 - 1 for s in self.seeds):
+            raise SplatplanError(f"sweep spec: seeds must be <= {2**32 - 1}, got {self.seeds}")
+        if not (math.isfinite(self.time_limit) and self.time_limit <= 1e6):
+            raise SplatplanError(f"sweep spec: time_limit must be a finite number of seconds <= 1e6, got {self.time_limit}")
+        if self.max_iters is not None and self.max_iters > 10**12:
+            raise SplatplanError(f"sweep spec: max_iters must be <= 1e12, got {self.max_iters}")
+        if not isinstance(self.pair_seed, int) or isinstance(self.pair_seed, bool) or not 0 <= self.pair_seed <= 2**32 - 1:
+            raise SplatplanError(f"sweep spec: pair_seed must be an integer in [0, {2**32 - 1}], got {self.pair_seed}")
+        if self.n_splats is not None and (not isinstance(self.n_splats, int) or isinstance(self.n_splats, bool) or not 1 <= self.n_splats <= 10**9):
+            raise SplatplanError(f"sweep spec: n_splats must be an integer in [1, 1e9] or absent, got {self.n_splats}")
+        if isinstance(self.pairs, list):
+            for i, p in enumerate(self.pairs):
+                for k in ("start", "goal"):
+                    v = p[k] if isinstance(p[k], list) else [p[k]]
+                    if not v or not all(isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) and abs(x) <= 1e6 for x in v):
+                        raise SplatplanError(f"sweep spec: pairs[{i}].{k} must be a list of finite numbers within +-1e6, got {p[k]!r}")
+        n_pairs = len(self.pairs) if isinstance(self.pairs, list) else self.pairs
+        cells = float(len(self.scenes)) * len(self.n_sigma) * len(self.seeds) * ((len(self.planners) * n_pairs) if self.job == "plan" else 1)
+        require_work(cells, MAX_SWEEP_CELLS, "the sweep's grid", "scenes, n_sigma, seeds, planners or pairs in the spec")
+        if self.job == "check":
+            require_bytes(float(self.n_configs) * CONFIG_BYTES, f"sweep spec: {self.n_configs:,} random configurations per check job",
+                          "n_configs in the spec")
+        else:  # random pairs are drawn from at most this many candidate configurations per scene
+            require_bytes(float(n_pairs) * PAIR_BYTES, f"sweep spec: {n_pairs:,} start/goal pairs per scene", "pairs in the spec")
+
+
+#: the most cells (tasks) one sweep may hold, and the bytes of one random configuration (the
+#: configurations, their FK and the metric's outputs) and one random pair (its candidates)
+MAX_SWEEP_CELLS = 1e6
+CONFIG_BYTES = 2048
+PAIR_BYTES = 1 << 16
 
 
 def _as_list(v, kind):

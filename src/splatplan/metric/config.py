@@ -22,11 +22,11 @@ class MetricConfig:
     k_collide: int = bounded(0, ge=0)
     #: Softmin temperature t in -(1/t) log sum_{i in N(q)} exp(-t s2~_i). An integer multiple of
     #: cost_gamma (default 2x) lets the kernel reuse the cost's exponential (about 20% faster).
-    softmin_t: float = bounded(8.0, gt=0)
+    softmin_t: float = bounded(8.0, ge=1e-3, le=1e4)  # 1/t and exp(-t s2~) stay finite in float32
     #: MPPI cost per splat d_max * exp(-gamma * max(s2~ - s_min, 0)) ...
     cost_d_max: float = bounded(1.0, ge=0)
     #: ... decay factor gamma ...
-    cost_gamma: float = bounded(4.0, gt=0)
+    cost_gamma: float = bounded(4.0, ge=1e-3, le=1e4)
     #: ... and the minimum allowable scaling distance s_min (1 = the link surface).
     cost_s_min: float = bounded(1.0, ge=0)
     #: How per-splat costs over N(q) are combined: "mean" (the paper) or "sum" or "max".

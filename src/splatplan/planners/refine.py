@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .._config import bounded, check_config, check_order
+from .._resources import require_bytes
 from ..errors import SplatplanError
 from .bspline import bspline_basis, fit_bspline, resample_polyline
 from .robot_links import LinkGeometry, as_robot
@@ -193,6 +194,11 @@ def refine_path(
     u_cost = np.linspace(0.0, 1.0, t_cost)
     t_out = int(max(2, math.ceil(length0 * 1.5 / check_res) + 1))  # output density (refined curves are shorter)
     n_knots = cfg.n_knots or int(np.clip(math.ceil(length0 / knot_spacing) + 3, cfg.min_knots, cfg.max_knots))
+    d = p.shape[1]  # the resource guard, before any array: sampled knots and curves, the two bases, the dense output
+    need = 8.0 * (4.0 * cfg.n_samples * (n_knots + t_cost) * d + float(t_cost + t_out) * 2 * n_knots + 4.0 * t_out * d)
+    require_bytes(need, f"the refinement ({cfg.n_samples:,} samples x {n_knots:,} knots, {t_out:,} checked points)",
+                  "RefineConfig.n_samples, n_knots or max_knots, or raise check_resolution (--refine-n-samples, --refine-n-knots, "
+                  "--refine-max-knots, --refine-check-resolution)")
     try:
         return _attempts(checker, geom, p, cfg, edges, rng, deadline, cost_before, length0, sigma_q, temperature, scales, free_dims, u_cost, t_out, n_knots, wq)
     except _OutOfTime:

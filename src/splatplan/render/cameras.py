@@ -73,6 +73,10 @@ def look_at(eye, target, up=(0.0, 0.0, 1.0)) -> np.ndarray:
     return out
 
 
+#: the narrowest and widest field of view a pinhole camera takes (degrees)
+MIN_FOV_DEG, MAX_FOV_DEG = 0.01, 179.0
+
+
 def intrinsics_from_fov(fov_deg: float, width: int, height: int, axis: str = "horizontal") -> np.ndarray:
     """(3, 3) pinhole intrinsics with square pixels and the principal point at the image centre.
 
@@ -82,8 +86,8 @@ def intrinsics_from_fov(fov_deg: float, width: int, height: int, axis: str = "ho
         axis: "horizontal" (fov spans the width) or "vertical" (spans the height).
     """
     fov = float(fov_deg)
-    if not (np.isfinite(fov) and 0.0 < fov < 180.0):
-        raise SplatplanError(f"field of view must be in (0, 180) degrees, got {fov_deg}")
+    if not (np.isfinite(fov) and MIN_FOV_DEG <= fov <= MAX_FOV_DEG):  # beyond: focal lengths overflow float32
+        raise SplatplanError(f"field of view must be in [{MIN_FOV_DEG:g}, {MAX_FOV_DEG:g}] degrees, got {fov_deg}")
     if int(width) <= 0 or int(height) <= 0:
         raise SplatplanError(f"image size must be positive, got {width}x{height}")
     if axis not in ("horizontal", "vertical"):

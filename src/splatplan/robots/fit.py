@@ -55,6 +55,9 @@ _polytope = polytope
 #: Monte Carlo over all of them), so k = 100,000 would run for hours; slabs this thin are already
 #: finer than any link mesh's detail.
 MAX_PER_LINK = 64
+#: the most ellipsoids one fit makes (all links together): the work guard of a URDF with
+#: thousands of links (the optimised fit takes seconds per link)
+MAX_FIT_ELLIPSOIDS = 1024
 
 
 @dataclass
@@ -195,6 +198,15 @@ def link_points(geoms: list[Geom], link: str) -> np.ndarray:
 METHODS = ("opt", "cover", "split")
 
 
+def fit_work_guard(model, per_link=1, from_visual: bool = False, links=None) -> None:
+    """The work guard of a fit (:data:`MAX_FIT_ELLIPSOIDS` over all links), before it starts."""
+    fit_links = [n for n in model.kin.link_names if (links is None or n in links)
+                 and (model.collisions.get(n) or (model.visuals.get(n) if from_visual else None))]
+    total = sum(int(per_link) if isinstance(per_link, int) else int(per_link.get(n, 1)) for n in fit_links)
+    require_work(float(total), MAX_FIT_ELLIPSOIDS, f"fitting {len(fit_links):,} link(s) with geometry ({total:,} ellipsoids)",
+                 "--per-link or the number of links with geometry (a robot has tens)")
+
+
 def fit_model(
     model: UrdfModel,
     per_link: int | dict[str, int] = 1,
@@ -222,10 +234,11 @@ def fit_model(
         if int(k) < 1:
             raise SplatplanError(f"--per-link must be >= 1, got {k}")
         require_work(int(k), MAX_PER_LINK, f"fitting {k} ellipsoids per link", "--per-link")
+    fit_work_guard(model, per_link, from_visual, links)  # before any (slow) fit starts
     for link in model.kin.link_names:  # every mesh file is there before any (slow) fit starts
         for g in model.collisions.get(link, []) or (model.visuals.get(link, []) if from_visual else []):
-            if g.kind == "mesh" and (links is None or link in links) and (g.mesh is None or not Path(g.mesh).is_file()):
-                polytope(g, link)  # raises the one-line "mesh file ... not found"
+            if g.kind == "mesh" and (links is None or link in links):
+                polytope(g, link)  # a missing, unreadable, NaN or flat mesh: one line now, not after minutes of fitting
     names, cs, rs, ss, report, skipped = [], [], [], [], {}, []
     budget = method == "opt" and (config is None or config.budget_per_link > 0)
     fitted, options = {}, {}  # link -> (ells, geometry volume, geoms, source); link -> alternatives

@@ -21,6 +21,7 @@ import sys
 from dataclasses import asdict
 from pathlib import Path
 
+from ..errors import SplatplanError
 from .fit import EllipsoidSet, fit_model, load_yaml, save_yaml
 from .fit_cover import COVER_VERSION, FitConfig
 from .fit_opt import OPT_VERSION, OptConfig
@@ -45,10 +46,17 @@ def cache_dir() -> Path:
 
 
 def _file_hash(path) -> str:
+    """sha256 of a mesh file: a regular file of bounded size only (``read_urdf`` refused the rest;
+    this never reads a device or a FIFO, which would not end)."""
+    from .._files import read_bounded
+    from .urdf import MAX_MESH_BYTES
+
     try:
-        return hashlib.sha256(Path(path).read_bytes()).hexdigest()
-    except OSError:
-        return "missing"
+        return hashlib.sha256(read_bounded(path, "mesh", "a mesh file", MAX_MESH_BYTES)).hexdigest()
+    except SplatplanError:
+        if not os.path.lexists(path):
+            return "missing"
+        raise
 
 
 def fit_key(model: UrdfModel, method: str, per_link, from_visual: bool, config=None) -> str:
@@ -74,6 +82,9 @@ def fit_key(model: UrdfModel, method: str, per_link, from_visual: bool, config=N
 def cached_fit(model: UrdfModel, method: str = "opt", per_link=1, from_visual: bool = False, config=None) -> tuple[EllipsoidSet, Path]:
     """The fit of ``model`` shipped with the package, else from the cache, else fitted now and stored
     in the cache; returns (ellipsoids, the file read or written)."""
+    from .fit import fit_work_guard
+
+    fit_work_guard(model, per_link, from_visual)  # before a word is printed or a mesh hashed
     key = fit_key(model, method, per_link, from_visual, config)
     shipped = SHIPPED / f"{key[:32]}.yaml"
     if shipped.is_file():
@@ -85,7 +96,7 @@ def cached_fit(model: UrdfModel, method: str = "opt", per_link=1, from_visual: b
         except Exception:  # a damaged entry is refitted and overwritten
             pass
     # a first fit takes minutes (about a CPU-minute per link for "opt"): say so once, on stderr
-    print(f"splatplan: fitting {model.name}'s {len(model.kin.link_names)} links with method {method!r} "
+    print(f"note: fitting {model.name}'s {len(model.kin.link_names)} links with method {method!r} "
           f"(once; cached in {path.parent})", file=sys.stderr, flush=True)  # fmt: skip
     ells = fit_model(model, per_link=per_link, from_visual=from_visual, method=method, config=config)
     path.parent.mkdir(parents=True, exist_ok=True)

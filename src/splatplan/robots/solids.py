@@ -44,6 +44,19 @@ def polytope(g: Geom, link: str):
         raise SplatplanError(f"link {link!r}: mesh file {g.mesh} cannot be read ({exc.__class__.__name__}: {exc})") from None
     if not isinstance(m, trimesh.Trimesh) or len(m.vertices) == 0:
         raise SplatplanError(f"link {link!r}: mesh file {g.mesh} holds no triangles")
+    v = np.asarray(m.vertices, dtype=np.float64)
+    if not np.all(np.isfinite(v)):
+        raise SplatplanError(f"link {link!r}: mesh file {g.mesh} has {int((~np.isfinite(v)).any(axis=1).sum()):,} vertex(es) with NaN or Inf")
+    if np.any(np.abs(v) > 1e6):
+        raise SplatplanError(f"link {link!r}: mesh file {g.mesh} has vertices beyond +-1e6 (largest {np.abs(v).max():.3g}); check its units")
+    vs = v * np.asarray(g.size, dtype=np.float64)
+    extent = np.ptp(vs, axis=0)
+    if float(extent.max()) <= 1e-9:
+        raise SplatplanError(f"link {link!r}: mesh file {g.mesh} has no extent (all its vertices coincide, after scale {np.asarray(g.size).tolist()})")
+    sv = np.linalg.svd(vs - vs.mean(axis=0), compute_uv=False) if len(vs) >= 4 else np.zeros(3)
+    if len(vs) < 4 or sv[-1] <= 1e-9 * sv[0]:  # its convex hull, which every fit measures against, has no volume
+        raise SplatplanError(f"link {link!r}: mesh file {g.mesh} has no volume ({len(vs)} usable vertices, all in one plane or line; "
+                             "NaN vertices are dropped when it is read)")
     m = m.copy()
     m.apply_scale(1.0)
     m.vertices = m.vertices * g.size  # per-axis URDF scale

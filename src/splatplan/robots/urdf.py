@@ -8,6 +8,8 @@ parents (``package://PKG/x`` -> ``<ancestor>/PKG/x`` or ``<ancestor>/x``).
 from __future__ import annotations
 
 import math
+import os
+import stat
 import sys
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
@@ -138,15 +140,16 @@ def read_urdf(path: str | Path) -> UrdfModel:
     """Parse a URDF file into a :class:`UrdfModel` (no meshes are loaded here)."""
     import yourdfpy
 
-    path = Path(path)
-    if not path.is_file():
-        raise SplatplanError(f"URDF {path} does not exist")
+    from .._files import MAX_TEXT_BYTES, existing_file
+
+    path = existing_file(path, "URDF", "a URDF file", max_bytes=MAX_TEXT_BYTES)  # a FIFO or a device is never opened
     try:
         root = ET.parse(path).getroot()  # strict XML check first (yourdfpy silently recovers from broken XML)
     except ET.ParseError as exc:
         raise SplatplanError(f"URDF {path} does not parse (XML error: {exc})") from None
     if root.tag != "robot":
         raise SplatplanError(f"URDF {path} does not parse: the root element is <{root.tag}>, expected <robot name=...>")
+    _check_attributes(path, root)  # before yourdfpy computes with them (sin(inf) warned)
     caps = _capsules(path)
     source: object = str(path)
     if caps:  # yourdfpy rejects <capsule>: parse it as a sphere placeholder, replaced below
@@ -253,10 +256,99 @@ def read_urdf(path: str | Path) -> UrdfModel:
                 vel[k] = float(j.limit.velocity)
         if lower[k] > upper[k]:
             raise SplatplanError(f"URDF {path}: joint {name!r} has lower limit {lower[k]} > upper limit {upper[k]}")
+    _check_numbers(path, robot, root, jnames, origin, mult, offset)
     kin = Kinematics(order, jnames, parent, jtype, axis, origin, qidx, mult, offset)
     coll = {n: _geoms(links[n], "collision", path.parent, caps) for n in order}
     vis = {n: _geoms(links[n], "visual", path.parent, caps) for n in order}
+    for kind, geoms in (("collision", coll), ("visual", vis)):
+        for n, gs in geoms.items():
+            for g in gs:
+                _check_geom(path, n, kind, g)
     return UrdfModel(robot.name or path.stem, path, kin, dof_joints, lower, upper, vel, cont, coll, vis)
+
+
+#: the largest distance (m) a URDF places anything at, and the largest mesh file it may name
+MAX_URDF_COORD = 1e6
+MAX_MESH_BYTES = 512 * 1024**2
+
+
+#: numeric URDF attributes and their declared range (metres, radians, scale factors, limits)
+_NUMERIC_ATTRS = ("xyz", "rpy", "size", "radius", "length", "scale", "lower", "upper", "velocity", "effort", "multiplier", "offset")
+
+
+def _check_attributes(path: Path, root) -> None:
+    """Every numeric attribute of the URDF (``xyz``, ``rpy``, ``size``, ``radius``, ``scale``,
+    limits, ...) holds finite numbers within +-:data:`MAX_URDF_COORD`; else one line naming the
+    element (its tag and the name of the link or joint it belongs to) and the attribute."""
+    def owner(el_path: list) -> str:
+        named = [e for e in el_path if e.get("name") is not None and e.tag in ("link", "joint")]
+        return f"{named[-1].tag} {named[-1].get('name')!r} " if named else ""
+
+    stack = [(root, [root])]
+    while stack:
+        el, chain = stack.pop()
+        for attr in _NUMERIC_ATTRS:
+            text = el.get(attr)
+            if text is None or el.tag == "axis" and attr != "xyz":
+                continue
+            try:
+                vals = [float(x) for x in text.split()]
+            except ValueError:
+                raise SplatplanError(f"URDF {path}: {owner(chain)}<{el.tag} {attr}=\"{text}\">: expected numbers") from None
+            if not all(math.isfinite(v) and abs(v) <= MAX_URDF_COORD for v in vals):
+                raise SplatplanError(f"URDF {path}: {owner(chain)}<{el.tag} {attr}=\"{text}\">: expected finite numbers within +-{MAX_URDF_COORD:g}")
+        stack.extend((c, chain + [c]) for c in el)
+
+
+def _check_numbers(path: Path, robot, root, jnames, origin, mult, offset) -> None:
+    """The URDF's own declared ranges, each refusal naming the element: unique link and joint
+    names, finite joint origins within :data:`MAX_URDF_COORD`, finite limits and mimic factors."""
+    for tag in ("link", "joint"):
+        seen: set[str] = set()
+        for el in root.findall(tag):
+            name = el.get("name")
+            if name in seen:
+                raise SplatplanError(f"URDF {path}: two <{tag}> elements are named {name!r}")
+            seen.add(name)
+    for i, name in enumerate(jnames):
+        if name and not (np.all(np.isfinite(origin[i])) and np.all(np.abs(origin[i][:3, 3]) <= MAX_URDF_COORD)):
+            raise SplatplanError(f"URDF {path}: joint {name!r} has a NaN, infinite or absurd <origin> (positions within +-{MAX_URDF_COORD:g} m)")
+        if name and not (np.isfinite(mult[i]) and np.isfinite(offset[i]) and abs(mult[i]) <= 1e6 and abs(offset[i]) <= 1e6):
+            raise SplatplanError(f"URDF {path}: joint {name!r} has a NaN or absurd <mimic> multiplier or offset")
+    for j in robot.joints:
+        lim = j.limit
+        if lim is None:
+            continue
+        for what in ("lower", "upper", "velocity", "effort"):
+            v = getattr(lim, what, None)
+            if v is not None and not (math.isfinite(float(v)) and abs(float(v)) <= 1e9):
+                raise SplatplanError(f"URDF {path}: joint {j.name!r} has <limit {what}=\"{v}\">; expected a finite number")
+
+
+def _check_geom(path: Path, link: str, kind: str, g: "Geom") -> None:
+    """One geometry of a link: finite origin and sizes, a mesh scale with no zero or NaN factor, a
+    mesh file that is a regular file of at most :data:`MAX_MESH_BYTES` (a device or a FIFO would be
+    read without end when it is hashed for the fit cache)."""
+    where = f"URDF {path}: link {link!r} {kind} {g.kind}"
+    if not (np.all(np.isfinite(g.origin)) and np.all(np.abs(g.origin[:3, 3]) <= MAX_URDF_COORD)):
+        raise SplatplanError(f"{where} has a NaN, infinite or absurd <origin>")
+    size = np.asarray(g.size, dtype=np.float64)
+    if not (np.all(np.isfinite(size)) and np.all(np.abs(size) <= MAX_URDF_COORD)):
+        raise SplatplanError(f"{where} has a NaN, infinite or absurd size {size.tolist()}")
+    if g.kind == "mesh":
+        if np.any(size == 0):
+            raise SplatplanError(f"{where} {g.ref!r} has scale {size.tolist()}: a zero factor flattens the mesh")
+        if g.mesh is not None:
+            from .._files import file_kind
+
+            try:
+                st = os.stat(g.mesh)
+            except OSError:
+                return  # missing: said where the mesh is loaded
+            if not stat.S_ISREG(st.st_mode):
+                raise SplatplanError(f"{where} {g.ref!r} is {file_kind(st.st_mode)}, not a regular mesh file")
+            if st.st_size > MAX_MESH_BYTES:
+                raise SplatplanError(f"{where} {g.ref!r} is {st.st_size:,} bytes, over the {MAX_MESH_BYTES:,}-byte limit of a mesh")
 
 
 @dataclass

@@ -57,6 +57,13 @@ AXES = {
 }  # fmt: skip
 
 
+#: the largest coordinate (input units) of a floor height, a translation or a crop corner: float32
+#: positions lose all sub-unit precision beyond it (and overflow at 3e38)
+MAX_ALIGN_COORD = 1e9
+#: the largest scale factor (and 1 / the smallest) of ``scale align --scale``
+MAX_ALIGN_SCALE = 1e6
+
+
 @dataclass
 class AlignConfig:
     """Options of :func:`align_scene` (the flags of ``splatplan scene align``)."""
@@ -115,16 +122,20 @@ class AlignConfig:
                 raise SplatplanError(f"floor {self.floor!r}: use auto, none or a number") from None
             if not np.isfinite(z):
                 raise SplatplanError(f"floor {self.floor!r} must be finite")
-        if not (np.isfinite(self.scale) and self.scale > 0):
-            raise SplatplanError(f"scale must be a finite number > 0, got {self.scale}")
-        if not np.isfinite(self.rotate_z):
-            raise SplatplanError(f"rotate_z must be finite, got {self.rotate_z}")
+            if abs(z) > MAX_ALIGN_COORD:
+                raise SplatplanError(f"floor {self.floor!r} must be within +-{MAX_ALIGN_COORD:g} (input units)")
+        if not (np.isfinite(self.scale) and 1.0 / MAX_ALIGN_SCALE <= self.scale <= MAX_ALIGN_SCALE):
+            raise SplatplanError(f"scale must be a number in [{1.0 / MAX_ALIGN_SCALE:g}, {MAX_ALIGN_SCALE:g}], got {self.scale}")
+        if not (np.isfinite(self.rotate_z) and abs(self.rotate_z) <= 3600.0):
+            raise SplatplanError(f"rotate_z must be a finite angle within +-3600 degrees, got {self.rotate_z}")
         t = np.asarray(self.translate, np.float64)
         if t.shape != (3,) or not np.all(np.isfinite(t)):
             raise SplatplanError(f"translate must be 3 finite numbers X,Y,Z, got {self.translate}")
+        if np.any(np.abs(t) > MAX_ALIGN_COORD):
+            raise SplatplanError(f"translate must be within +-{MAX_ALIGN_COORD:g}, got {self.translate}")
         if self.crop is not None:
             c = np.asarray(self.crop, np.float64)
-            if c.shape != (6,) or not np.all(np.isfinite(c)) or np.any(c[3:] <= c[:3]):
+            if c.shape != (6,) or not np.all(np.isfinite(c)) or np.any(c[3:] <= c[:3]) or np.any(np.abs(c) > MAX_ALIGN_COORD):
                 raise SplatplanError(f"crop must be 6 finite numbers x0,y0,z0,x1,y1,z1 with LO < HI, got {self.crop}")
         for name, lo, hi in (("box_percentile", 0.0, 25.0), ("box_pad", 0.0, 10.0), ("plane_tol", 1e-6, 0.5), ("max_below", 0.0, 0.5), ("min_plane_mass", 0.0, 1.0)):
             v = getattr(self, name)

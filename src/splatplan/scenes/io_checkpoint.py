@@ -87,6 +87,8 @@ def read_gsplat_checkpoint(path: str | Path, *, drop_invalid: bool = False) -> S
         value = params[key]
         if not isinstance(value, torch.Tensor):
             raise scene_error(path, f"checkpoint entry '{key}' is a {type(value).__name__}, expected a tensor")
+        if value.is_complex() or not (value.is_floating_point() or value.dtype in (torch.int8, torch.uint8, torch.int16, torch.int32, torch.int64)):
+            raise scene_error(path, f"checkpoint entry '{key}' has dtype {str(value.dtype).removeprefix('torch.')}, expected real numbers")
         arrays[key] = value.detach().to(torch.float64).cpu().numpy()
     n = arrays["means"].shape[0] if arrays["means"].ndim >= 1 else -1
     if n == 0:

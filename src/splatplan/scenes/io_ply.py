@@ -44,6 +44,7 @@ def read_plydata(path: str | Path) -> plyfile.PlyData:
             magic = f.read(4)
         if magic not in (b"ply\n", b"ply\r"):
             raise scene_error(path, "not a PLY file (it does not start with 'ply')")
+        _check_header_counts(path)
         # memory-mapped: plyfile's non-mmap binary path parses row by row and is ~1000x slower
         ply = plyfile.PlyData.read(str(path), mmap=True)
     except SceneFormatError:
@@ -56,6 +57,48 @@ def read_plydata(path: str | Path) -> plyfile.PlyData:
         raise scene_error(path, f"cannot read the file ({e.strerror or e})") from None
     _check_no_trailing_bytes(path, ply)
     return ply
+
+
+def _check_header_counts(path: str | Path) -> None:
+    """The declared range of a PLY header's element counts, before any row is read: every row
+    takes at least 2 bytes of an ASCII file (a digit and a separator per property) and its
+    fixed row size of a binary one, so a count the file's size cannot hold (an ASCII PLY declaring
+    1e12 vertices: plyfile would allocate for all of them) is one line naming the element; the
+    arrays of a plausible count go through the resource guard."""
+    from .._resources import require_bytes
+
+    with open(path, "rb") as f:
+        head = f.read(1 << 20)
+    end = head.find(b"end_header")
+    if end < 0:
+        return  # plyfile names the missing end of the header
+    body = os.path.getsize(path) - (head.find(b"\n", end) + 1)
+    ascii_ = b"format ascii" in head[:end]
+    sizes = {"char": 1, "uchar": 1, "int8": 1, "uint8": 1, "short": 2, "ushort": 2, "int16": 2, "uint16": 2,
+             "int": 4, "uint": 4, "int32": 4, "uint32": 4, "float": 4, "float32": 4, "double": 8, "float64": 8}
+    elements: list[list] = []  # [name, count, min row bytes, properties]
+    for line in head[:end].decode("ascii", "replace").splitlines():
+        parts = line.split()
+        if len(parts) == 3 and parts[0] == "element":
+            try:
+                elements.append([parts[1], int(parts[2]), 0, 0])
+            except ValueError:
+                return  # plyfile names the bad count
+        elif parts[:1] == ["property"] and elements:
+            elements[-1][3] += 1
+            kind = parts[2] if len(parts) >= 3 and parts[1] == "list" else (parts[1] if len(parts) >= 2 else "")
+            if kind not in sizes:
+                return  # plyfile names the bad property
+            elements[-1][2] += 2  # an ASCII row holds at least a digit and a separator per property
+    if not ascii_:
+        return  # binary rows are memory-mapped: plyfile's early end-of-file check holds
+    for name, count, row, nprops in elements:
+        if count < 0:
+            raise scene_error(path, f"invalid PLY header: element '{name}' has a negative count {count}")
+        if row and count * row > max(body, 0):
+            raise scene_error(path, f"truncated or corrupt PLY data: the header declares {count:,} '{name}' rows of at least {row} bytes each, more than the file's "
+                                    f"{max(body, 0):,} bytes of data hold (truncated or a corrupt header)")
+        require_bytes(float(count) * max(nprops, 1) * 8.0, f"the {count:,} '{name}' rows of {path}", "the scene's size (split the file)")
 
 
 def _header_length(path: str | Path) -> int | None:
@@ -282,19 +325,28 @@ def atomic_write(path: str | Path, write) -> None:
     Raises:
         SceneFormatError: the directory does not exist or is not writable.
     """
-    path = Path(path)
-    mode = (path.stat().st_mode & 0o777) if path.exists() else 0o644
+    from .._files import output_target, publish
+
+    given = Path(path)
     try:
-        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+        dest, special = output_target(given)
+    except SplatplanError as e:
+        raise scene_error(given, f"cannot write here ({e})") from None
+    path = dest
+    mode = (path.stat().st_mode & 0o777) if path.exists() and not special else 0o644
+    try:
+        fd, tmp = tempfile.mkstemp(dir=tempfile.gettempdir() if special else path.parent, prefix=f".{path.name}.", suffix=".tmp")
     except OSError as e:
-        raise scene_error(path, f"cannot write here ({e.strerror or e})") from None
+        raise scene_error(given, f"cannot write here ({e.strerror or e})") from None
     try:
         with os.fdopen(fd, "wb") as f:
             write(f)
             f.flush()
             os.fsync(f.fileno())
-        os.chmod(tmp, mode)
-        os.replace(tmp, path)
+        try:
+            publish(tmp, given, mode)
+        except SplatplanError as e:
+            raise SceneFormatError(str(e)) from None
     except BaseException as e:
         Path(tmp).unlink(missing_ok=True)
         if isinstance(e, OSError):

@@ -22,8 +22,11 @@ RUB to that convention); see :mod:`splatplan.scenes.transforms` to change it.
 
 from __future__ import annotations
 
+import os
+import stat
 from pathlib import Path
 
+from ..errors import SceneFormatError
 from .filters import filter_floaters as _filter_floaters
 from .io_checkpoint import read_gsplat_checkpoint
 from .io_common import scene_error
@@ -84,10 +87,18 @@ def load_scene(
     """
     path = Path(path)
     ext = path.suffix.lower()
-    if not path.exists():
-        raise scene_error(path, "file not found")
-    if not path.is_file():
-        raise scene_error(path, "not a regular file")
+    from .._files import file_kind, path_error
+
+    try:  # a long name, a device, a FIFO: named, never opened
+        st = os.stat(path)
+    except (FileNotFoundError, NotADirectoryError):
+        raise scene_error(path, "file not found") from None
+    except OSError as exc:
+        raise SceneFormatError(path_error(path, exc)) from None
+    if stat.S_ISDIR(st.st_mode):
+        raise scene_error(path, "a directory, not a regular file")
+    if not stat.S_ISREG(st.st_mode):
+        raise scene_error(path, f"{file_kind(st.st_mode)}, not a regular file")
     if ext not in _READERS:
         raise scene_error(path, f"unknown scene extension '{path.suffix}'; supported: {', '.join(SCENE_EXTENSIONS)}")
     splats = _READERS[ext](path, drop_invalid=drop_invalid)

@@ -63,7 +63,11 @@ def read_yaml(path: str | Path) -> dict:
     return d
 
 
-def _vec(x, keys: str, what: str) -> np.ndarray:
+#: the largest position or size (m) a planning scene may hold (the declared range of every field)
+MAX_MOVEIT_M = 1e6
+
+
+def _vec(x, keys: str, what: str, max_abs: float | None = MAX_MOVEIT_M) -> np.ndarray:
     """A list [a, b, ...] or a mapping {k: v} over ``keys`` -> float64 array in ``keys`` order."""
     if isinstance(x, dict):
         try:
@@ -72,10 +76,12 @@ def _vec(x, keys: str, what: str) -> np.ndarray:
             raise SceneFormatError(f"{what}: missing {exc.args[0]!r}") from None
     try:
         v = np.asarray(x, dtype=np.float64).reshape(-1)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         raise SceneFormatError(f"{what}: expected {len(keys)} numbers ({', '.join(keys)}), got {x!r}") from None
     if v.shape != (len(keys),) or not np.all(np.isfinite(v)):
         raise SceneFormatError(f"{what}: expected {len(keys)} finite numbers ({', '.join(keys)}), got {x!r}")
+    if max_abs is not None and np.any(np.abs(v) > max_abs):
+        raise SceneFormatError(f"{what}: values must be within +-{max_abs:g} m, got {x!r}")
     return v
 
 
@@ -86,7 +92,8 @@ def _pose(p, what: str) -> tuple[np.ndarray, np.ndarray]:
     if not isinstance(p, dict):
         raise SceneFormatError(f"{what}: expected a pose mapping with 'position' and 'orientation'")
     pos = _vec(p.get("position", [0.0, 0.0, 0.0]), "xyz", f"{what} position")
-    xyzw = _vec(p.get("orientation", [0.0, 0.0, 0.0, 1.0]), "xyzw", f"{what} orientation (x, y, z, w)")
+    xyzw = _vec(p.get("orientation", [0.0, 0.0, 0.0, 1.0]), "xyzw", f"{what} orientation (x, y, z, w)", None)
+    xyzw = xyzw / max(float(np.max(np.abs(xyzw))), 1e-300)  # scaled first: the norm of 1e300-sized parts overflows
     n = np.linalg.norm(xyzw)
     if n < 1e-9:
         raise SceneFormatError(f"{what}: zero orientation quaternion")
@@ -131,11 +138,11 @@ def moveit_scene_from_dict(d: dict, source: str = "<dict>") -> AnalyticScene:
                 raise SceneFormatError(f"{source}: object {oid!r}: unknown primitive type {prim.get('type')!r} (supported: box, cylinder, sphere)")
             try:
                 dims = np.asarray(prim.get("dimensions"), dtype=np.float64).reshape(-1)
-            except (TypeError, ValueError):
+            except (TypeError, ValueError, OverflowError):
                 dims = np.zeros(0)
-            if dims.shape != (N_DIMS[kind],) or not np.all(np.isfinite(dims)) or np.any(dims <= 0):
+            if dims.shape != (N_DIMS[kind],) or not np.all(np.isfinite(dims)) or np.any(dims <= 0) or np.any(dims > MAX_MOVEIT_M):
                 raise SceneFormatError(
-                    f"{source}: object {oid!r}: a {kind} needs {N_DIMS[kind]} positive dimensions "
+                    f"{source}: object {oid!r}: a {kind} needs {N_DIMS[kind]} positive dimensions up to {MAX_MOVEIT_M:g} m "
                     f"({ {'box': 'x, y, z sizes', 'sphere': 'radius', 'cylinder': 'height, radius'}[kind]}), got {prim.get('dimensions')!r}"
                 )
             p_pos, p_q = _pose(pose, f"{source}: object {oid!r} primitive pose {i}")

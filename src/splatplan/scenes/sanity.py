@@ -49,3 +49,30 @@ def absurd_splats(splats) -> list[str]:
     if flat.any():
         out.append(f"{int(flat.sum()):,} splat(s) with every std 0 (no extent at all)")
     return out
+
+
+#: the smallest non-zero std (scene units) the collision metric and the renderer take: its square
+#: must stay a normal float32 (1e-30); smaller ones are rounding noise of a broken file
+MIN_STD = 1e-15
+
+
+def unusable_splats(splats) -> str | None:
+    """Why the splats cannot be used for collision checks or rendering (None when they can): a
+    coordinate or a std beyond :data:`MAX_ABS_COORD` (float32 grid and exp arithmetic overflows:
+    ``info`` warns about these, the other commands refuse them in one line), or a non-zero std below
+    :data:`MIN_STD`. The message says how many, the largest, and how to remove them."""
+    if len(splats) == 0:
+        return None
+    m = np.abs(np.asarray(splats.means, np.float64))
+    s = np.asarray(splats.scales, np.float64)
+    far = m.max(axis=1) > MAX_ABS_COORD
+    if far.any():
+        return (f"{int(far.sum()):,} splat(s) with a coordinate beyond {MAX_ABS_COORD:g} (largest {m.max():.3g}); "
+                "crop them away (splatplan scene align --crop ...) or fix the file")
+    big = s.max(axis=1) > MAX_ABS_COORD
+    if big.any():
+        return f"{int(big.sum()):,} splat(s) with a std beyond {MAX_ABS_COORD:g} (largest {s.max():.3g}); fix the file"
+    tiny = (s > 0) & (s < MIN_STD)
+    if tiny.any():
+        return f"{int(tiny.any(axis=1).sum()):,} splat(s) with a std below {MIN_STD:g} (smallest {s[tiny].min():.3g}) but not 0; fix the file"
+    return None

@@ -29,6 +29,11 @@ class TaskScene:
     analytic: object | None
 
 
+#: the most rollout steps (samples x horizon x iterations x MPC steps) one task run may take:
+#: about 2,000x the default runs, hours on a CPU
+MAX_ROLLOUT_STEPS = 1e10
+
+
 @dataclass
 class TaskConfig:
     """Base of the task configs: a subclass embeds ``mppi: MPPIConfig``; :meth:`validate` checks
@@ -41,8 +46,19 @@ class TaskConfig:
         mppi = getattr(self, "mppi", None)  # (none on the bare base)
         if mppi is not None:
             mppi.validate()
+            self._check_work(mppi)
         self.check()
         return self
+
+    def _check_work(self, mppi) -> None:
+        """The work guard of a run, before it starts: rollout steps = n_iters x n_samples x horizon
+        per MPC step, times max_steps (``--arm-mppi-n-iters 100000000`` ran on for minutes)."""
+        from .._resources import require_work
+
+        steps = float(getattr(self, "max_steps", 1) or 1)
+        work = float(mppi.n_iters) * float(mppi.n_samples) * float(mppi.horizon) * steps
+        require_work(work, MAX_ROLLOUT_STEPS, f"{type(self).__name__}: {mppi.n_iters:,} iterations x {mppi.n_samples:,} samples x "
+                     f"{mppi.horizon:,} steps x {int(steps):,} MPC steps of rollouts", "mppi.n_iters, mppi.n_samples, mppi.horizon or max_steps")
 
     def check(self) -> None:
         """The task's cross-field rules (raise SplatplanError); none by default."""

@@ -69,7 +69,7 @@ class ReachConfig(TaskConfig, StridedCollisionTerms, JointVelocityTerms, GoalTim
     #: rendered image side (pixels, square)
     image_size: int = bounded(64, ge=1)
     #: horizontal field of view of the wrist camera (degrees)
-    fov_deg: float = bounded(70.0, gt=0, lt=180)
+    fov_deg: float = bounded(70.0, ge=0.01, le=179)
     #: side the encoder resizes images to (None = its default: 8 for the reach thumbnail pyramid, 224 for EfficientNet / DINOv2)
     encoder_image_size: int | None = bounded(None, ge=1)
     #: bands of the thumbnail encoder's Laplacian pyramid (1 = the single 16x16 thumbnail)
