@@ -18,7 +18,7 @@ from pathlib import Path
 from .errors import SplatplanError
 
 
-def _umask() -> int:
+def current_umask() -> int:
     """The process umask (read by setting and restoring it)."""
     m = os.umask(0o022)
     os.umask(m)
@@ -120,7 +120,7 @@ def publish(tmp: str | Path, path: str | Path, mode: int | None = None) -> None:
         os.unlink(tmp)
         return
     try:
-        os.chmod(tmp, (0o666 & ~_umask()) if mode is None else mode)
+        os.chmod(tmp, (0o666 & ~current_umask()) if mode is None else mode)
         try:
             os.replace(tmp, dest)
         except OSError as exc:
@@ -131,7 +131,7 @@ def publish(tmp: str | Path, path: str | Path, mode: int | None = None) -> None:
             os.close(fd)
             try:
                 shutil.copyfile(tmp, near)
-                os.chmod(near, (0o666 & ~_umask()) if mode is None else mode)
+                os.chmod(near, (0o666 & ~current_umask()) if mode is None else mode)
                 os.replace(near, dest)
             finally:
                 if os.path.exists(near):

@@ -28,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._files import _umask, atomic_path, existing_file, publish  # noqa: F401 - the commands import atomic_path from here
+from .._files import atomic_path, existing_file, publish  # noqa: F401 - the commands import atomic_path from here
 from .._config import NESTED_SKIP, check_config, check_value
 from ..errors import SplatplanError
 

@@ -88,9 +88,9 @@ def cmd_plan(args) -> int:
     if not out.parent.exists():
         raise SplatplanError(f"output folder {out.parent} does not exist")
     if args.planner.strip().lower().startswith("ompl:"):
-        from ..planners.ompl_bridge import _ompl
+        from ..planners.ompl_bridge import require_ompl
 
-        _ompl()  # the missing extra is named before any work
+        require_ompl()  # the missing extra is named before any work
     if args.ee_link is not None and args.goal_pose is None:
         raise SplatplanError("--ee-link names the link that --goal-pose places; give --goal-pose too (or drop --ee-link)")
     if args.height is not None and not args.planar and args.robot != "go2":

@@ -73,7 +73,7 @@ def _silence_stderr_at_exit() -> None:
         pass
 
 
-def _ompl():
+def require_ompl():
     """(ompl.base, ompl.geometric, ompl.util), quiet; or a one-line error naming the extra."""
     global _hook_installed
     try:
@@ -94,7 +94,7 @@ def _ompl():
 def ompl_available() -> bool:
     """Whether the ``ompl`` extra is installed."""
     try:
-        _ompl()
+        require_ompl()
     except SplatplanError:
         return False
     return True
@@ -102,7 +102,7 @@ def ompl_available() -> bool:
 
 def available_planners() -> list[str]:
     """Names of OMPL's geometric planners in this install (e.g. RRTConnect, RRTstar, BITstar, PRM)."""
-    ob, og, _ = _ompl()
+    ob, og, _ = require_ompl()
     return sorted(n for n in dir(og) if not n.startswith("_") and isinstance(getattr(og, n), type) and issubclass(getattr(og, n), ob.Planner))
 
 
@@ -147,7 +147,7 @@ def plan_ompl(
             message lists them).
         PlanningError: start or goal in collision, outside the box; every coordinate frozen.
     """
-    ob, og, _ = _ompl()
+    ob, og, _ = require_ompl()
     planner_name = name[5:] if name.startswith("ompl:") else name
     names = available_planners()
     if planner_name not in names:
