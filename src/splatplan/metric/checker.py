@@ -346,16 +346,16 @@ class CollisionChecker:
         wp = _wp()
         robot.fk_wp(qw, ws.fk_centers, ws.fk_rots)
         axes, amin, amax = self._axes_for(robot)
-        key = ("configs_links", id(ws.fk_centers), id(axes), e)
-        links = ws._cache.get(key)
-        if links is None:
+        hit = ws._cache.get("configs_links")
+        # reuse the struct only while it points at these very buffers (identity, not id(): an id can
+        # be reused by a new array once the old one is freed)
+        if hit is not None and hit[1] is ws.fk_centers and hit[2] is ws.fk_rots and hit[3] is axes and hit[4] == e:
+            links = hit[0]
+        else:
             links = LinkBatch()
             links.centers, links.rots, links.axes = ws.fk_centers, ws.fk_rots, axes
             links.rot_mode, links.rot_period, links.axes_period = 2, int(ws.fk_centers.shape[0]), e
-            ws._cache = {k: v for k, v in ws._cache.items() if k[0] != "configs_links"}
-            ws._cache[key] = (links, axes)  # (axes kept alive with its id)
-        else:
-            links = links[0]
+            ws._cache["configs_links"] = (links, ws.fk_centers, ws.fk_rots, axes, e)  # (the buffers kept alive with it)
         if kind != "numpy":
             ws.reset_bad()
         sl = (ws.reserve_slack(n) if reuse else wp.empty(n, dtype=wp.float32, device=self.device)) if slack else None
