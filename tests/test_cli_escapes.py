@@ -495,7 +495,7 @@ def test_work_guards_before_work(tmp_path, capsys):
     t0 = time.perf_counter()
     rc, _, err = run_main(PANDA + ["--out", str(tmp_path / "m"), "--arm-mppi-n-iters", "100000000"], capsys)
     assert_one_line_error(rc, err, "mpc --arm-mppi-n-iters 1e8")
-    assert "n_iters" in err and not (tmp_path / "m").exists()
+    assert "lower --arm-mppi-n-iters, --arm-mppi-n-samples" in err and not (tmp_path / "m").exists()  # the flags, not the config fields
     links = "".join(f'<link name="l{i}"><collision><geometry><box size="0.1 0.1 0.1"/></geometry></collision></link>' for i in range(1100))
     joints = "".join(f'<joint name="j{i}" type="fixed"><parent link="l{i}"/><child link="l{i + 1}"/></joint>' for i in range(1099))
     (tmp_path / "many.urdf").write_text(f'<robot name="m">{links}{joints}</robot>')

@@ -29,7 +29,14 @@ ROLLOUT_BYTES = 4096
 
 
 class ResourceError(SplatplanError):
-    """A request would need more memory (or work) than allowed; the message names the flag to lower."""
+    """A request would need more memory (or work) than allowed; the message names the flag to lower.
+
+    ``fields``: the config fields to lower (dotted paths within the config that raised it), so the
+    command line can name them as its flags."""
+
+    def __init__(self, message: str, fields: tuple[str, ...] = ()) -> None:
+        super().__init__(message)
+        self.fields = tuple(fields)
 
 
 _SUFFIX = {"": 1, "K": 1024, "M": 1024**2, "G": 1024**3, "T": 1024**4}
@@ -70,11 +77,12 @@ def require_bytes(n_bytes: float, what: str, lower: str, limit: int | None = Non
                             + ("" if limit is not None else " (or raise SPLATPLAN_MAX_MEMORY)"))
 
 
-def require_work(n_units: float, max_units: float, what: str, lower: str) -> None:
+def require_work(n_units: float, max_units: float, what: str, lower: str, fields: tuple[str, ...] = ()) -> None:
     """Raise :class:`ResourceError` when a compute-bound request (``n_units`` of work, e.g. fitted
-    ellipsoids x mesh vertices) exceeds ``max_units``: it would run for hours, not fail."""
+    ellipsoids x mesh vertices) exceeds ``max_units``: it would run for hours, not fail. ``fields``:
+    the config fields ``lower`` names (see :class:`ResourceError`)."""
     if not (math.isfinite(n_units) and n_units <= max_units):
-        raise ResourceError(f"{what} is too large ({n_units:.3g} units of work, limit {max_units:.3g}); lower {lower}")
+        raise ResourceError(f"{what} is too large ({n_units:.3g} units of work, limit {max_units:.3g}); lower {lower}", fields=fields)
 
 
 def require_rollouts(n_samples: int, horizon: int, what: str) -> None:

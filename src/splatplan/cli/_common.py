@@ -30,6 +30,7 @@ import numpy as np
 
 from .._files import atomic_path, existing_file, publish  # noqa: F401 - the commands import atomic_path from here
 from .._config import NESTED_SKIP, check_config, check_value
+from .._resources import ResourceError
 from ..errors import SplatplanError
 
 #: a command-line token starting with a minus and a digit ("-0.3,0,0.06", "-1e-3", "-.5") or a
@@ -735,10 +736,17 @@ def config_from_args(args: argparse.Namespace, cls, prefix: str = "", base=None,
         raise SplatplanError(f"bad {cls.__name__} options: {exc}") from None
     # the flags were checked while parsing; this covers the overrides, the base and cross-field rules
     validate = getattr(cfg, "validate", None)
-    if callable(validate):
-        validate()
-    else:
-        check_config(cfg)
+    try:
+        if callable(validate):
+            validate()
+        else:
+            check_config(cfg)
+    except ResourceError as exc:  # name the flags to lower, not the config fields
+        flags = ["--" + (prefix + f.replace(".", "_")).replace("_", "-") for f in exc.fields if hasattr(args, f"cfg_{prefix}{f.replace('.', '_')}")]
+        if not flags:
+            raise
+        head = str(exc).rsplit("; lower ", 1)[0]
+        raise ResourceError(f"{head}; lower {', '.join(flags[:-1]) + ' or ' + flags[-1] if len(flags) > 1 else flags[0]}") from None
     return cfg
 
 

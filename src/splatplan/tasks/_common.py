@@ -58,7 +58,8 @@ class TaskConfig:
         steps = float(getattr(self, "max_steps", 1) or 1)
         work = float(mppi.n_iters) * float(mppi.n_samples) * float(mppi.horizon) * steps
         require_work(work, MAX_ROLLOUT_STEPS, f"{type(self).__name__}: {mppi.n_iters:,} iterations x {mppi.n_samples:,} samples x "
-                     f"{mppi.horizon:,} steps x {int(steps):,} MPC steps of rollouts", "mppi.n_iters, mppi.n_samples, mppi.horizon or max_steps")
+                     f"{mppi.horizon:,} steps x {int(steps):,} MPC steps of rollouts", "mppi.n_iters, mppi.n_samples, mppi.horizon or max_steps",
+                     fields=("mppi.n_iters", "mppi.n_samples", "mppi.horizon", "max_steps"))
 
     def check(self) -> None:
         """The task's cross-field rules (raise SplatplanError); none by default."""
