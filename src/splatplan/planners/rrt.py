@@ -127,7 +127,7 @@ class RRTConfig:
     #: shortcut: screen each vertex's candidate edges at every this-many-th check sample first and
     #: check the survivors whole, farthest first (the same path, fewer checks); None: check every
     #: candidate whole
-    shortcut_screen: int | None = bounded(16, ge=1)
+    shortcut_screen: int | None = bounded(64, ge=1)
 
     def validate(self) -> "RRTConfig":
         check_config(self)  # each field's declared range (splatplan._config); cross-field rules below

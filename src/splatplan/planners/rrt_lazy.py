@@ -174,7 +174,7 @@ def _validate(s: Search, trees: list[Tree], a_id: int, candidates: list[tuple[in
             # a cheap first look: every screen-th sample of the unchecked tree edges (a hit there is a
             # hit of the edge's own check: the edge collides)
             todo = [k for k, (t, i) in enumerate(owners) if not trees[t].verified[i]]
-            ok = s.edges.screen(path[todo], path[[k + 1 for k in todo]], int(screen or 16)) if todo else np.ones(0, dtype=bool)
+            ok = s.edges.screen(path[todo], path[[k + 1 for k in todo]], int(screen or 64)) if todo else np.ones(0, dtype=bool)
             bad_edges = [owners[k] for k, f in zip(todo, ok.tolist()) if not f]
             if bad_edges:
                 for t, i in bad_edges:
