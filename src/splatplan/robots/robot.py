@@ -130,6 +130,7 @@ class Robot(OwnsThreadPool):
         m = float(margin_m)
         if not (np.isfinite(m) and m >= 0):
             raise SplatplanError(f"robot {self.name}: the inflation margin must be finite and >= 0, got {margin_m}")
+        self.__dict__.setdefault("_axis_geo_cache", {})  # (kinematic bounds, shared with the copy: same kinematics)
         out = copy.copy(self)
         out.__dict__.update(_lock=threading.Lock(), _pool=copy.copy(self._pool), _wp_cache={})
         out.semi_axes = inflate_semi_axes(self.semi_axes, m)
@@ -330,6 +331,19 @@ class Robot(OwnsThreadPool):
         return out
 
     def _axis_distance_bound(self, l: int, d: int, e: int, axis: np.ndarray, smax: float) -> float:
+        """Bound on the distance of ellipsoid e (on link d, below joint l) from l's axis: a part that
+        depends on the kinematics only (cached, shared with :meth:`inflated` copies) + its largest
+        semi-axis ``smax``."""
+        cache = self.__dict__.setdefault("_axis_geo_cache", {})
+        key = (l, d, e, axis.tobytes())
+        geo = cache.get(key)
+        if geo is None:
+            geo = cache[key] = self._axis_distance_geometry(l, d, e, axis)
+        return geo + float(smax)
+
+    def _axis_distance_geometry(self, l: int, d: int, e: int, axis: np.ndarray) -> float:
+        """:meth:`_axis_distance_bound` without the ellipsoid's own size."""
+        smax = 0.0
         kin = self.kin
         path = []  # links from d up to (excluding) l
         k = d
