@@ -219,7 +219,7 @@ def run_reach_demo(out: Path, device: str = "auto") -> dict:
 
 
 def run_robot_demo(out: Path, device: str = "auto") -> dict:
-    """Two short MPPI runs with the collision cost over every robot ellipsoid (issue 8):
+    """Two short MPPI runs with the collision cost over every robot ellipsoid:
     the Panda reaching into the bin behind the front wall of ``tabletop`` -> ``demo_arm.png``, and
     the Go2 walking from the living room of ``apartment`` to a kitchen goal behind the narrow
     (impassable) doorway, given only the goal, with its sensed-obstacle memory (line of sight,

@@ -163,7 +163,7 @@ _PATHLESS_ERRNOS = {28, 30, 122}  # ENOSPC, EROFS, EDQUOT
 class _HeldNotes:
     """stderr while a command runs: ``note:`` lines are held until the next other output (or the
     end of a run that succeeds), and dropped when the run ends in ``splatplan: error:``, so a
-    rejected command prints exactly one line (issue 31: a note, then the error, was two)."""
+    rejected command prints exactly one line (no note line before the error)."""
 
     _PREFIXES = ("note:", "splatplan:")
 

@@ -48,8 +48,8 @@ def cmd_eval(args) -> int:
 
 
 def _mbm_joints_first(cfg) -> None:
-    """Cheap checks before the fit (issue 31, E10: a URDF whose joints the problems do not name was
-    fitted for 87 s before being rejected): a URDF robot's joint names against every problem's
+    """Cheap checks before the fit (a URDF whose joints the problems do not name is
+    rejected before a fit that can take minutes): a URDF robot's joint names against every problem's
     requests, from the URDF alone. Joint limits are checked later against the loaded robot."""
     from pathlib import Path
     from types import SimpleNamespace

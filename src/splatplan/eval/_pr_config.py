@@ -22,7 +22,7 @@ __all__ = ["BASELINE_NAMES", "PRConfig", "VARIANTS", "variant_settings"]
 #: Order of the baselines in tables and plots.
 BASELINE_NAMES = ("splatnav", "safersplat", "atlasnav", "splanning")
 
-#: CollisionSplatting fidelity variants (issue #7): name -> (label, scene, MetricConfig changes).
+#: CollisionSplatting fidelity variants: name -> (label, scene, MetricConfig changes).
 #: scene "default" = the default floater filter (o < 0.1 *and* max std > 5x median), "opacity" =
 #: the paper authors' evaluation filter (every splat with o < eval_opacity_below removed). The
 #: values "$lme_t" and "$opacity_min" are taken from :class:`PRConfig`.

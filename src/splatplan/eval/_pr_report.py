@@ -67,7 +67,7 @@ def pr_figure(curves: dict[str, Curve], title: str, curves_v: dict[str, Curve] |
 
 
 def _variants_markdown(res: dict) -> list[str]:
-    """The fidelity-variants table (issue #7): AP per n_sigma and the decision at n_sigma = 1."""
+    """The fidelity-variants table: AP per n_sigma and the decision at n_sigma = 1."""
     variants = res.get("variants") or {}
     if not variants:
         return []

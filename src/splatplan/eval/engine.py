@@ -362,7 +362,7 @@ def run_tasks(
     if finished and progress:
         print(f"resuming: {len(finished)} of {len(tasks)} task(s) already finished in {out_path}", file=sys.stderr)
     sinks: list = []  # the results log, opened at the first result: a run that fails or is
-    # interrupted before any task finishes leaves no empty log behind (issue 31)
+    # interrupted before any task finishes leaves no empty log behind
 
     def record(task: Task, rec: dict) -> None:
         rec = {"key": task.key, **rec}

@@ -62,7 +62,7 @@ the full one up to float32 summation order (no clamp). ``culling_check`` re-eval
 queries near the boundary (and a few clamped ones) over **all** Gaussians and reports the largest
 deviation. CollisionSplatting runs its own (exact) kernel on every point.
 
-Fidelity variants (issue #7)
+Fidelity variants
 ----------------------------
 CollisionSplatting is also scored, on the same queries, in the variants of :data:`VARIANTS` at every
 n_sigma: (a) today's settings; (b) the paper authors' evaluation filter (every splat with opacity
@@ -273,7 +273,7 @@ def _baseline_rows(ev: _Eval, scored, cfg: PRConfig, names: tuple[str, ...], cur
 
 
 def _variant_rows(ev: _Eval, scored, cfg: PRConfig, n_splats: dict[str, int], curves_v: dict) -> dict[str, dict]:
-    """CollisionSplatting's fidelity variants (issue #7): same grid, labels and evaluation set."""
+    """CollisionSplatting's fidelity variants: same grid, labels and evaluation set."""
     st, variants = ev.st, {}
     for name in cfg.variants:
         label, kind, changes = variant_settings(name, cfg)

@@ -114,8 +114,8 @@ class SweepSpec:
         return self
 
     def _check_sizes(self) -> None:
-        """The declared ranges of the spec's numbers and the resource guard of its sizes (issue 31:
-        ``pairs: 1e9`` or ``n_configs: 1e11`` were attempted), before any scene is loaded."""
+        """The declared ranges of the spec's numbers and the resource guard of its sizes
+        (``pairs: 1e9`` or ``n_configs: 1e11`` must fail at once), before any scene is loaded."""
         from .._resources import require_bytes, require_work
 
         if not all(v <= 1e3 for v in self.n_sigma):

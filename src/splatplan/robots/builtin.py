@@ -59,8 +59,8 @@ ROBOT_NAME_HELP = (
 DEFAULT_POINT_ROBOT = "sphere:0.015"
 #: Collision models of the built-in Panda: name -> YAML in ``data/``.
 PANDA_MODELS = {"coarse": "panda.yaml", "cover": "panda_cover.yaml", "tight": "panda_tight.yaml"}
-#: The model plain ``load_robot("panda")`` (and ``--robot panda``) uses: the tight, certified one
-#: (issue #19); ``model="coarse"`` keeps the one-ellipsoid-per-link model.
+#: The model plain ``load_robot("panda")`` (and ``--robot panda``) uses: the tight, certified one;
+#: ``model="coarse"`` keeps the one-ellipsoid-per-link model.
 DEFAULT_MODEL = "tight"
 #: Range of the built-in Panda's finger opening (m per finger, panda_finger_joint1).
 FINGER_RANGE = (0.0, 0.04)
