@@ -406,7 +406,7 @@ def _ball_apart(d_c: np.ndarray, a_min: np.ndarray, a_max: np.ndarray) -> np.nda
 def dense_path(robot, path: np.ndarray, fraction: float = 0.25) -> np.ndarray:
     """The path (P, dof) resampled so that no ellipsoid point moves more than ``fraction`` x the
     smallest semi-axis between consecutive samples (``Robot.motion_bound``); start included."""
-    from ..planners.rrt import edge_samples
+    from ..planners.edges import edge_samples
 
     p = np.asarray(path, dtype=np.float64)
     if len(p) < 2:
@@ -560,7 +560,7 @@ def solve_problem(task: MBMTask, ctx: MBMContext) -> dict:
             path = np.asarray(res_p.path, dtype=np.float64)
             length = getattr(res_p, "length", None)
             if length is None:
-                from ..planners.rrt import path_length
+                from ..planners.rrt_types import path_length
 
                 length = path_length(path, plan_robot.motion_bound)
             row.update(path_length=float(length), path=path.round(6).tolist())

@@ -25,7 +25,9 @@ from .mppi import MPPI, CostWeights, Evaluation, GaussianKnots, MPPIConfig, MPPI
 from .refine import RefineConfig, RefineResult, refine_path
 from .robot_links import as_robot, robot_collides, robot_query
 from .rrt_connect import RRTConnect
-from .rrt import RRT, EdgeChecker, PlanResult, RRTConfig, RRTSettings, edge_points, edge_samples, path_length, robust_scene_box, shortcut_path
+from .edges import EdgeChecker, edge_points, edge_samples, shortcut_path
+from .rrt import RRT, robust_scene_box
+from .rrt_types import PlanResult, RRTConfig, RRTSettings, path_length
 
 __all__ = [
     "CollisionCost",

@@ -13,7 +13,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from .bspline import resample_polyline
-from .rrt import path_length
+from .rrt_types import path_length
 
 __all__ = ["path_length", "densify_path", "d_min", "smoothness", "clearance", "SMOOTHNESS_POINTS"]
 

@@ -52,7 +52,9 @@ from dataclasses import replace
 import numpy as np
 
 from ..errors import PlanningError, SplatplanError
-from .rrt import RRT, EdgeChecker, PlanResult, RRTConfig, check_endpoint, path_length
+from .edges import EdgeChecker, check_endpoint
+from .rrt import RRT
+from .rrt_types import PlanResult, RRTConfig, path_length
 
 __all__ = ["available_planners", "ompl_available", "plan_ompl"]
 

@@ -30,7 +30,8 @@ from .._resources import require_bytes
 from ..errors import SplatplanError
 from .bspline import bspline_basis, fit_bspline, resample_polyline
 from .robot_links import LinkGeometry, as_robot
-from .rrt import EdgeChecker, path_length
+from .edges import EdgeChecker
+from .rrt_types import path_length
 
 
 @dataclass

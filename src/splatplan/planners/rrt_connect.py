@@ -46,7 +46,9 @@ import time
 
 import numpy as np
 from ..errors import PlanningError
-from .rrt import RRT, PlanResult, Search, path_length, shortcut_path
+from .edges import shortcut_path
+from .rrt import RRT, Search
+from .rrt_types import PlanResult, path_length
 from .rrt_lazy import lazy_connect_search
 from .trees import Tree
 
