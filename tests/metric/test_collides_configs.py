@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from splatplan.metric import CollisionChecker, MetricConfig
-from splatplan.metric.checker import robot_groups
+from splatplan.metric.groups import robot_groups
 from splatplan.metric.wp_metric import TierConfig
 
 from .conftest import DEVICES, random_quats, random_scene

@@ -1,10 +1,11 @@
 """Metric stage: the CollisionSplatting distance (Warp kernel + numpy reference)."""
 
+from .blockers import Blockers
 from .checker import CollisionChecker
 from .config import MetricConfig, QueryResult
 from .interop import MetricWorkspace
 
-__all__ = ["CollisionChecker", "MetricConfig", "MetricWorkspace", "QueryResult", "TierConfig"]
+__all__ = ["Blockers", "CollisionChecker", "MetricConfig", "MetricWorkspace", "QueryResult", "TierConfig"]
 
 
 def __getattr__(name: str):

@@ -23,14 +23,16 @@ from __future__ import annotations
 
 import contextlib
 import threading
-from dataclasses import dataclass, replace
+from dataclasses import replace
 
 import numpy as np
 
 from .._arrays import array_kind, host_array
 from ..errors import SplatplanError
 from ..scenes.splats import Splats
+from .blockers import FAINT_OPACITY, Blockers
 from .config import MetricConfig, QueryResult
+from .groups import robot_groups
 from .interop import (
     MetricWorkspace,
     as_host_queries,
@@ -471,88 +473,6 @@ class CollisionChecker:
             ).reshape(h.shape)  # fmt: skip
         return _convert_host(res if full else res.in_collision, kind, dev)
 
-
-#: splats fainter than this are "faint" in :class:`Blockers` (haze, floaters; the remedy names
-#: ``MetricConfig.opacity_min``)
-FAINT_OPACITY = 0.3
-
-
-@dataclass
-class Blockers:
-    """The splats one ellipsoid counts as colliding (:meth:`CollisionChecker.blockers`).
-
-    Attributes:
-        indices: (n,) splat indices (s2~ < 1 at the checker's n_sigma, opacity filter applied).
-        n: how many.
-        n_inside: how many have their mean inside the ellipsoid (s2 < 1: colliding at n_sigma 0 too).
-        n_faint: how many have opacity < :data:`FAINT_OPACITY`.
-        opacity: (min, median, max) of their opacities (nan when n = 0).
-        max_std: their largest standard deviation (scene units).
-        centroid: (3,) mean of their means (world frame, scene units).
-        n_sigma: the checker's n_sigma.
-    """
-
-    indices: np.ndarray
-    n: int
-    n_inside: int
-    n_faint: int
-    opacity: tuple[float, float, float]
-    max_std: float
-    centroid: np.ndarray
-    n_sigma: float
-
-    def remedy(self) -> str:
-        """The change that would free the ellipsoid, in words (CLI flag names in parentheses)."""
-        if self.n == 0:
-            return "nothing blocks it"
-        if self.n_faint == self.n:
-            return (f"all are faint (opacity < {FAINT_OPACITY:g}, e.g. haze or floaters): count them as free space with "
-                    f"opacity_min = {FAINT_OPACITY:g} (--opacity-min {FAINT_OPACITY:g}), or drop floaters when loading (scene align --drop-floaters)")
-        if self.n_inside == 0:
-            return f"only the n_sigma inflation reaches the robot (no splat mean is inside it): lower n_sigma (--n-sigma, e.g. 0)"
-        return "splat means lie inside the robot: move the configuration away from them, or shrink the robot"
-
-    def summary(self) -> str:
-        """One clause: how many, how faint and large, where (scene units, world frame)."""
-        if self.n == 0:
-            return "no splat"
-        lo, med, hi = self.opacity
-        c = ", ".join(f"{v:.3f}" for v in self.centroid)
-        return (f"{self.n} splat(s) ({self.n_inside} with the mean inside, {self.n_faint} faint) of opacity {lo:.3g}-{hi:.3g} "
-                f"(median {med:.3g}), std up to {self.max_std:.3g}, around ({c}) (scene units)")
-
-
-def robot_groups(robot) -> tuple[bytes, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """The GROUP BOUND's groups of a robot (:mod:`.wp_metric_kernel`): its ellipsoids by the link
-    (rigid body) they belong to, the most distal link first (it moves most, so it hits first).
-
-    Returns (key, first (G + 1,) int32, members (E,) int32, rel (E,) float64: each member's distance
-    from its group's centroid in the link frame (scene units), semi-axes (E, 3) float64); cached on
-    the robot object (by its semi-axes, link map and ellipsoid poses).
-    """
-    ax = np.asarray(robot.semi_axes, dtype=np.float64).reshape(-1, 3)
-    local = getattr(robot, "ellipsoid_local", None)
-    if local is None or not hasattr(robot, "ellipsoid_link"):  # poses in a link frame unknown: one group per ellipsoid
-        link, t = np.arange(len(ax)), np.zeros((len(ax), 3))
-    else:
-        link = np.asarray(robot.ellipsoid_link, dtype=np.int64).reshape(-1)
-        t = np.asarray(local, dtype=np.float64)[:, :3, 3]  # (E, 3) ellipsoid centres in their link's frame
-    key = ax.tobytes() + link.tobytes() + t.tobytes()
-    hit = robot.__dict__.get("_groups_cache") if hasattr(robot, "__dict__") else None
-    if hit is not None and hit[0] == key:
-        return hit
-    if len(link) != len(ax) or len(t) != len(ax):
-        raise SplatplanError(f"robot {getattr(robot, 'name', '?')!r}: its ellipsoid link map or poses do not match its {len(ax)} ellipsoids")
-    members, first, rel = [], [0], np.zeros(len(ax))
-    for li in sorted(set(link.tolist()), reverse=True):
-        idx = np.nonzero(link == li)[0]
-        rel[idx] = np.linalg.norm(t[idx] - t[idx].mean(axis=0), axis=1)
-        members += idx.tolist()
-        first.append(len(members))
-    out = (key, np.asarray(first, dtype=np.int32), np.asarray(members, dtype=np.int32), rel, ax)
-    if hasattr(robot, "__dict__"):
-        robot.__dict__["_groups_cache"] = out
-    return out
 
 
 def _torch_stream(x):
