@@ -20,10 +20,8 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import os
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -67,15 +65,10 @@ def arm_problems(n: int, n_splats: int, n_sigma: float, seed: int = 0):
 
 def exact_clearance(robot, gt, path: np.ndarray) -> float:
     """Smallest exact clearance (m) of the robot's ellipsoids along a path resampled at a quarter
-    of the smallest semi-axis of motion (motion bound)."""
-    res = 0.25 * robot.min_semi_axis
-    qs = [path[:1]]
-    for a, b in zip(path[:-1], path[1:]):
-        n = max(1, math.ceil(float(np.abs(b - a) @ robot.motion_bound) / res))  # motion bound of the arm's joints
-        qs.append(a + (np.arange(1, n + 1) / n)[:, None] * (b - a))
-    q = np.concatenate(qs)
-    c, qq, ax = robot.ellipsoids(q)
-    return float(gt.ellipsoid_clearance(c, qq, ax).min())
+    of the smallest semi-axis of motion (motion bound): the library's one path clearance."""
+    from splatplan.planners.clearance import dense_path, path_min_clearance
+
+    return float(path_min_clearance(gt, robot, dense_path(robot, np.asarray(path, dtype=np.float64))))
 
 
 def main(argv=None) -> int:

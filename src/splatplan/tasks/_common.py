@@ -9,6 +9,7 @@ import numpy as np
 
 from .._config import check_config
 from ..errors import SplatplanError
+from ..planners.clearance import densify_by_motion
 
 
 @dataclass
@@ -143,15 +144,9 @@ def check_start(robot, checker, q0: np.ndarray) -> None:
 
 def densify(robot, states: np.ndarray, step_m: float = 0.01) -> np.ndarray:
     """Configurations along an executed trajectory (S, dof), linearly interpolated so that no
-    ellipsoid point moves more than ``step_m`` between consecutive ones (``robot.motion_bound``)."""
-    states = np.asarray(states, np.float64)
-    out = [states[:1]]
-    mb = np.asarray(robot.motion_bound, np.float64)
-    for a, b in zip(states[:-1], states[1:]):
-        n = max(1, int(np.ceil(float(np.sum(mb * np.abs(b - a))) / step_m)))
-        t = (np.arange(1, n + 1) / n)[:, None]
-        out.append(a + t * (b - a))
-    return np.concatenate(out)
+    ellipsoid point moves more than ``step_m`` between consecutive ones (``robot.motion_bound``):
+    :func:`~splatplan.planners.clearance.densify_by_motion`."""
+    return densify_by_motion(robot, states, step_m)
 
 
 def safe_step(robot, checker, dyn, x: np.ndarray, u: np.ndarray, dt: float, step_m: float = 0.01) -> tuple[np.ndarray, np.ndarray | None]:
