@@ -76,7 +76,7 @@ def test_group_slack_holds(device, n_sigma):
     ref = CollisionChecker(scene, config=cfg, backend="reference")
     robot = load_robot("panda").inflated(0.01)
     q = _configs(robot, rng, 300)
-    hits, slack = on.collides_configs(robot, q, slack=True)
+    hits, slack = on.collides_configs_slack(robot, q)
     hits, slack = np.asarray(hits), np.asarray(slack)
     assert hits.shape == (300,) and slack.shape == (300, robot.n_ellipsoids) and slack.dtype == np.float32
     assert np.all(slack >= 0) and 0.3 < (slack[~hits] > 0).mean() <= 1.0
@@ -92,7 +92,7 @@ def test_group_slack_holds(device, n_sigma):
     axes = np.asarray(ax)[sel[1]]
     assert not np.asarray(off.collides(moved, quats, axes)).any()
     assert not np.asarray(ref.collides(moved[:300], quats[:300], axes[:300])).any()
-    _, s_ref = ref.collides_configs(robot, q[:5], slack=True)
+    _, s_ref = ref.collides_configs_slack(robot, q[:5])
     assert not np.asarray(s_ref).any()
 
 

@@ -147,7 +147,7 @@ def test_free_slack_holds(device, n_sigma):
     robot = load_robot("panda").inflated(0.01)
     lim = robot.joint_limits
     q = lim[:, 0] + rng.random((300, robot.dof)) * (lim[:, 1] - lim[:, 0])
-    hits, slack = on.collides_robot(robot, q, slack=True)
+    hits, slack = on.collides_robot_slack(robot, q)
     hits, slack = np.asarray(hits), np.asarray(slack)
     np.testing.assert_array_equal(hits, np.asarray(off.collides_robot(robot, q)))
     assert slack.shape == hits.shape and slack.dtype == np.float32 and np.all(slack >= 0)
@@ -163,8 +163,26 @@ def test_free_slack_holds(device, n_sigma):
     assert not np.asarray(off.collides(moved, quats, axes)).any()
     assert not np.asarray(ref.collides(moved[:300], quats[:300], axes[:300])).any()
     # nothing proven without the grid or with the reference backend
-    _, s_off = off.collides_robot(robot, q[:20], slack=True)
-    _, s_ref = ref.collides_robot(robot, q[:5], slack=True)
+    _, s_off = off.collides_robot_slack(robot, q[:20])
+    _, s_ref = ref.collides_robot_slack(robot, q[:5])
     assert not np.asarray(s_off).any() and not np.asarray(s_ref).any()
-    h0, s0 = on.collides_robot(robot, q[:0], slack=True)
+    h0, s0 = on.collides_robot_slack(robot, q[:0])
     assert np.asarray(h0).shape == np.asarray(s0).shape == (0, robot.n_ellipsoids)
+
+
+def test_collides_robot_slack_flag_is_deprecated():
+    """``collides_robot(slack=True)`` still answers (hits, slack), with a DeprecationWarning naming
+    :meth:`collides_robot_slack`; the default returns the hits alone."""
+    from splatplan.robots import load_robot
+
+    rng = np.random.default_rng(1)
+    scene = random_scene(rng, 500, scale=0.005)
+    ch = CollisionChecker(scene, n_sigma=0.0)
+    robot = load_robot("panda")
+    q = robot.q_default[None]
+    with pytest.warns(DeprecationWarning, match="collides_robot_slack"):
+        hits, slack = ch.collides_robot(robot, q, slack=True)
+    h2, s2 = ch.collides_robot_slack(robot, q)
+    np.testing.assert_array_equal(hits, h2)
+    np.testing.assert_array_equal(slack, s2)
+    np.testing.assert_array_equal(np.asarray(ch.collides_robot(robot, q)), h2)

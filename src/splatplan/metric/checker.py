@@ -227,32 +227,48 @@ class CollisionChecker:
         with _torch_stream(q):
             return self._robot(robot, q, out, validate, full=True, subset=ellipsoids)
 
-    def collides_robot(self, robot, q, *, ellipsoids=None, out=None, validate=False, slack=False):
+    def collides_robot(self, robot, q, *, ellipsoids=None, out=None, validate=False, slack=None):
         """(..., E) collision state of every ellipsoid of ``robot`` at ``q`` (see :meth:`query_robot`).
 
-        A configuration collides when any of its ellipsoids does: ``collides_robot(...).any(-1)``.
-
-        ``slack=True``: returns (hits, slack), slack (..., E) float32 (same type as hits) a distance
-        (scene units) such that the same ellipsoid, in any orientation, with its centre within
-        ``slack`` of this one's, is free too (FREE SLACK, :mod:`.wp_metric_kernel`); 0 where nothing
-        is proven (a link near splats, the reference backend, or ``collide_distance_grid`` off).
+        A configuration collides when any of its ellipsoids does: ``collides_robot(...).any(-1)``;
+        :meth:`collides_configs` answers that directly, cheaper. With the FREE SLACK:
+        :meth:`collides_robot_slack`. (``slack=True`` is deprecated: it changed the return type.)
         """
-        with _torch_stream(q):
-            return self._robot(robot, q, out, validate, full=False, subset=ellipsoids, slack=slack)
+        if slack is not None:
+            import warnings
 
-    def collides_configs(self, robot, q, *, out=None, validate=False, slack=False):
+            warnings.warn("collides_robot(slack=...) is deprecated and goes in 0.3: use collides_robot_slack(robot, q) for (hits, slack)",
+                          DeprecationWarning, stacklevel=2)  # fmt: skip
+        with _torch_stream(q):
+            return self._robot(robot, q, out, validate, full=False, subset=ellipsoids, slack=bool(slack))
+
+    def collides_robot_slack(self, robot, q, *, ellipsoids=None, out=None, validate=False):
+        """(hits (..., E), slack (..., E) float32, both of the type of ``q``): :meth:`collides_robot`
+        and each ellipsoid's FREE SLACK, a distance (scene units) such that the same ellipsoid, in any
+        orientation, with its centre within ``slack`` of this one's, is free too (:mod:`.wp_metric_kernel`);
+        0 where nothing is proven (a link near splats, the reference backend, or
+        ``collide_distance_grid`` off)."""
+        with _torch_stream(q):
+            return self._robot(robot, q, out, validate, full=False, subset=ellipsoids, slack=True)
+
+    def collides_configs(self, robot, q, *, out=None, validate=False):
         """(...,) collision state of whole configurations: True where any ellipsoid of ``robot`` at
         ``q`` (..., dof) collides; the same answer as ``collides_robot(robot, q).any(-1)``.
 
         One thread per configuration (GROUP BOUND, :mod:`.wp_metric_kernel`): the ellipsoids of a
         link are proven free together by one read of the mean-distance grid when the link is far
         from every splat, and a configuration stops at its first colliding ellipsoid. The cheap
-        check for planners' edge checks. ``slack=True``: returns (hits (...,), slack (..., E)
-        float32), each ellipsoid's FREE SLACK as in :meth:`collides_robot` (0 where nothing is
-        proven; meaningful for the free configurations). Other arguments as in :meth:`collides_robot`.
+        check for planners' edge checks. Other arguments as in :meth:`collides_robot`.
         """
         with _torch_stream(q):
-            return self._robot(robot, q, out, validate, full=False, slack=slack, per_config=True)
+            return self._robot(robot, q, out, validate, full=False, per_config=True)
+
+    def collides_configs_slack(self, robot, q, *, out=None, validate=False):
+        """(hits (...,), slack (..., E) float32): :meth:`collides_configs` and each ellipsoid's FREE
+        SLACK as in :meth:`collides_robot_slack` (0 where nothing is proven; meaningful for the free
+        configurations)."""
+        with _torch_stream(q):
+            return self._robot(robot, q, out, validate, full=False, slack=True, per_config=True)
 
     def _robot(self, robot, q, out, validate, full: bool, subset=None, slack: bool = False, per_config: bool = False):
         kind = array_kind(q)

@@ -72,8 +72,8 @@ def configs_collide_slack(checker, robot, q: np.ndarray, out=None) -> tuple[np.n
     """(..., dof) -> (any ellipsoid in collision (...,) bool, slack (..., E) float): as
     :func:`robot_collides_slack`, per configuration (the checker's per-configuration kernel when it
     has one; its slack may differ from the per-ellipsoid one's but holds the same promise)."""
-    if hasattr(checker, "collides_configs"):
-        hit, slack = checker.collides_configs(robot, q, slack=True, out=out)
+    if hasattr(checker, "collides_configs_slack"):
+        hit, slack = checker.collides_configs_slack(robot, q, out=out)
         return np.array(hit), np.array(slack)
     hit, slack = robot_collides_slack(checker, robot, q)
     return hit.any(axis=-1), slack
@@ -84,8 +84,8 @@ def robot_collides_slack(checker, robot, q: np.ndarray) -> tuple[np.ndarray, np.
     collision, and a distance its centre may move (its orientation anyhow) with it staying free
     (the checker's FREE SLACK; zeros from a checker without it: nothing proven, as the
     CollisionChecker's reference backend returns them too)."""
-    if hasattr(checker, "collides_robot"):
-        hit, slack = checker.collides_robot(robot, q, slack=True)
+    if hasattr(checker, "collides_robot_slack"):
+        hit, slack = checker.collides_robot_slack(robot, q)
         return np.asarray(hit), np.asarray(slack)
     hit = robot_collides(checker, robot, q)
     return hit, np.zeros(hit.shape, dtype=np.float32)
