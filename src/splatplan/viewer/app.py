@@ -21,6 +21,7 @@ import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 
@@ -28,6 +29,10 @@ from .._config import bounded, check_config
 from .._resources import require_bytes
 from ..errors import SplatplanError
 from .geometry import colormap, ellipsoid_mesh, polyline_segments, splat_s2_tilde, tree_segments
+
+if TYPE_CHECKING:
+    from ..robots.robot import Robot
+    from ..scenes.splats import Splats
 
 
 @dataclass
@@ -74,15 +79,12 @@ def free_port(host: str = "127.0.0.1") -> int:
         return int(s.getsockname()[1])
 
 
-def _robot_kind(robot) -> str:
-    """'point' (dof = x, y, z), 'planar' (x, y, yaw) or 'joints' (an arm: sliders)."""
-    kind = getattr(robot, "kind", None)
-    if kind in ("point", "planar", "joints"):
-        return kind
-    if getattr(robot, "is_point", False):
+def _robot_kind(robot: Robot) -> Literal["point", "planar", "joints"]:
+    """How the viewer moves the robot, from what the robot is: 'point' (dofs x, y, z: dragged),
+    'planar' (a planar base whose dofs are x, y, yaw: dragged and turned) or 'joints' (sliders)."""
+    if robot.is_point:
         return "point"
-    name = str(getattr(robot, "name", "")).lower()
-    if "go2" in name or "planar" in name:
+    if robot.base == "planar" and robot.dof == 3:
         return "planar"
     return "joints"
 
@@ -113,7 +115,8 @@ class SplatViewer:
             robot, the scene without its terrain (:func:`splatplan.scenes.terrain.remove_terrain`).
     """
 
-    def __init__(self, scene, robot=None, plan=None, trajectory=None, tree=None, config: ViewerConfig | None = None, collision_scene=None) -> None:
+    def __init__(self, scene: Splats, robot: Robot | None = None, plan=None, trajectory=None, tree=None, config: ViewerConfig | None = None,
+                 collision_scene: Splats | None = None) -> None:
         from ..metric import CollisionChecker
 
         self.config = cfg = (config or ViewerConfig()).validate()
