@@ -357,3 +357,33 @@ def test_name_check_patterns_catch_the_smells():
     fine = ['if robot.walks_on_terrain:', 'if cfg.name == "thumbnail":', 'if args.name == "from-moveit":', 'kind == "planar"']
     assert all(any(p.search(s) for p in pats) for s in smells)
     assert not any(p.search(s) for p in pats for s in fine)
+
+
+#: modules whose public ``robot`` parameters stay unannotated, and why: the scene stage may not import
+#: the robot stage (test above); the FK kernel glue and the fit measure sit below ``robots/robot.py``
+#: (which imports them), so naming the type there would close a cycle; the visual reaching goals and
+#: study are being reworked in their own branch
+_ROBOT_UNANNOTATED = ("scenes/moveit.py", "robots/wp_fk.py", "robots/fit_measure.py", "planners/reach_goals.py", "eval/reach.py")
+
+
+def test_public_robot_parameters_are_annotated():
+    """Every public function or method of ``src/`` that takes a ``robot`` says what it takes
+    (``Robot``, ``Robot | str`` where names are accepted, ``Robot | None``)."""
+    root = SRC / ROOT_PKG
+    bad = []
+    for f in sorted(root.rglob("*.py")):
+        rel = f.relative_to(root).as_posix()
+        if rel in _ROBOT_UNANNOTATED or (f.name.startswith("_") and f.name != "__init__.py"):
+            continue
+
+        def visit(node, owner: str, public: bool) -> None:
+            for ch in ast.iter_child_nodes(node):
+                if isinstance(ch, ast.ClassDef):
+                    visit(ch, ch.name + ".", public and not ch.name.startswith("_"))
+                elif isinstance(ch, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                    pub = public and (not ch.name.startswith("_") or ch.name in ("__init__", "__call__"))
+                    args = ch.args.posonlyargs + ch.args.args + ch.args.kwonlyargs
+                    bad.extend(f"{rel}:{ch.lineno} {owner}{ch.name}" for a in args if pub and a.arg == "robot" and a.annotation is None)
+
+        visit(ast.parse(f.read_text(encoding="utf-8")), "", True)
+    assert not bad, "public functions with an unannotated robot parameter:\n" + "\n".join(bad)

@@ -69,12 +69,16 @@ import time
 from collections import OrderedDict
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .._config import bounded, check_config
 from ..errors import SplatplanError
 from ..scenes.margin import covering_radius, derived_margin  # noqa: F401 (the margin lives in the scene stage; these names stay importable here)
+
+if TYPE_CHECKING:
+    from ..robots.robot import Robot
 
 #: the repository root (src/splatplan/eval/mbm.py -> 3 levels up); shared data lives beside it
 _REPO = Path(__file__).resolve().parents[3]
@@ -324,7 +328,7 @@ def list_tasks(config: MBMConfig) -> list[MBMTask]:
     return tasks
 
 
-def check_inputs(tasks: list[MBMTask], robot) -> list[MBMTask]:
+def check_inputs(tasks: list[MBMTask], robot: Robot) -> list[MBMTask]:
     """Parse every problem's scene and request once (no sampling), so that bad input stops the run
     with one line before any work (YAML that does not parse, an unknown primitive or a mesh, a
     scene with no objects, joints the robot does not have, a goal outside the joint limits), and
@@ -376,7 +380,7 @@ def task_key(task: MBMTask, config: MBMConfig, sig: str) -> str:
 # ---------------------------------------------------------------------------------------------
 
 
-def exact_clearance(scene, robot, q: np.ndarray) -> np.ndarray:
+def exact_clearance(scene, robot: Robot, q: np.ndarray) -> np.ndarray:
     """(N,) exact clearance (m) of configurations q (N, dof): min over the robot's ellipsoids of
     :meth:`AnalyticScene.ellipsoid_clearance`. A global broad phase first (the SDF of each centre
     bounds every ellipsoid's clearance within +-a_max), so only ellipsoids that can hold a
@@ -403,7 +407,7 @@ def _ball_apart(d_c: np.ndarray, a_min: np.ndarray, a_max: np.ndarray) -> np.nda
     return (a_max - a_min <= 1e-12 * a_max) & (d_c >= a_max)
 
 
-def dense_path(robot, path: np.ndarray, fraction: float = 0.25) -> np.ndarray:
+def dense_path(robot: Robot, path: np.ndarray, fraction: float = 0.25) -> np.ndarray:
     """The path (P, dof) resampled so that no ellipsoid point moves more than ``fraction`` x the
     smallest semi-axis between consecutive samples (``Robot.motion_bound``); start included."""
     from ..planners.rrt import edge_samples
@@ -416,7 +420,7 @@ def dense_path(robot, path: np.ndarray, fraction: float = 0.25) -> np.ndarray:
     return np.concatenate([p[:1], pts])
 
 
-def path_min_clearance(scene, robot, q: np.ndarray, first: int = 32, stride: int = 8) -> float:
+def path_min_clearance(scene, robot: Robot, q: np.ndarray, first: int = 32, stride: int = 8) -> float:
     """min over the configurations q (N, dof) of :func:`exact_clearance` (m), solving only the
     (configuration, ellipsoid) pairs that can hold the minimum. Two bounds prune the pairs:
 

@@ -24,6 +24,7 @@ from __future__ import annotations
 import contextlib
 import threading
 from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -44,6 +45,9 @@ from .interop import (
     torch_device_name,
     warp_device_name,
 )
+
+if TYPE_CHECKING:
+    from ..robots.robot import Robot
 
 _FIELDS = ("min_s2", "n_colliding", "in_collision", "softmin", "cost")
 _DTYPES = {"min_s2": np.float32, "n_colliding": np.int32, "in_collision": bool, "softmin": np.float32, "cost": np.float32}
@@ -210,7 +214,7 @@ class CollisionChecker:
         )  # fmt: skip
 
     # ------------------------------------------------------------------ robots
-    def query_robot(self, robot, q, *, ellipsoids=None, out=None, validate=False) -> QueryResult:
+    def query_robot(self, robot: Robot, q, *, ellipsoids=None, out=None, validate=False) -> QueryResult:
         """All five outputs for every collision ellipsoid of ``robot`` at joint configurations ``q``.
 
         ``q`` (..., dof) (numpy, torch or wp float32) -> forward kinematics on the device
@@ -225,7 +229,7 @@ class CollisionChecker:
         with _torch_stream(q):
             return self._robot(robot, q, out, validate, full=True, subset=ellipsoids)
 
-    def collides_robot(self, robot, q, *, ellipsoids=None, out=None, validate=False, slack=False):
+    def collides_robot(self, robot: Robot, q, *, ellipsoids=None, out=None, validate=False, slack=False):
         """(..., E) collision state of every ellipsoid of ``robot`` at ``q`` (see :meth:`query_robot`).
 
         A configuration collides when any of its ellipsoids does: ``collides_robot(...).any(-1)``.
@@ -238,7 +242,7 @@ class CollisionChecker:
         with _torch_stream(q):
             return self._robot(robot, q, out, validate, full=False, subset=ellipsoids, slack=slack)
 
-    def collides_configs(self, robot, q, *, out=None, validate=False, slack=False):
+    def collides_configs(self, robot: Robot, q, *, out=None, validate=False, slack=False):
         """(...,) collision state of whole configurations: True where any ellipsoid of ``robot`` at
         ``q`` (..., dof) collides; the same answer as ``collides_robot(robot, q).any(-1)``.
 
@@ -522,7 +526,7 @@ class Blockers:
                 f"(median {med:.3g}), std up to {self.max_std:.3g}, around ({c}) (scene units)")
 
 
-def robot_groups(robot) -> tuple[bytes, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def robot_groups(robot: Robot) -> tuple[bytes, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The GROUP BOUND's groups of a robot (:mod:`.wp_metric_kernel`): its ellipsoids by the link
     (rigid body) they belong to, the most distal link first (it moves most, so it hits first).
 

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import replace
+from typing import TYPE_CHECKING
 
 from ..errors import SplatplanError
 
@@ -26,6 +27,10 @@ from .refine import RefineConfig, RefineResult, refine_path
 from .robot_links import as_robot, robot_collides, robot_query
 from .rrt_connect import RRTConnect
 from .rrt import RRT, EdgeChecker, PlanResult, RRTConfig, RRTSettings, edge_points, edge_samples, path_length, robust_scene_box, shortcut_path
+
+if TYPE_CHECKING:
+    from ..metric.checker import CollisionChecker
+    from ..robots.robot import Robot
 
 __all__ = [
     "CollisionCost",
@@ -95,7 +100,7 @@ __all__ = [
 PLANNERS = ("auto", "rrt", "rrtconnect")
 
 
-def make_planner(name: str, checker, config: RRTConfig | None = None, *, robot):
+def make_planner(name: str, checker: CollisionChecker, config: RRTConfig | None = None, *, robot: Robot | str):
     """The planner called ``name`` (see :data:`PLANNERS`) for ``robot`` (a Robot or a name for
     :func:`~splatplan.robots.load_robot`) on ``checker``: an object with
     ``plan(start, goal, deadline=None) -> PlanResult`` and ``settings(start, goal)``.
@@ -114,11 +119,11 @@ def make_planner(name: str, checker, config: RRTConfig | None = None, *, robot):
 
 
 def plan(
-    checker,
+    checker: CollisionChecker,
     start,
     goal,
     *,
-    robot,
+    robot: Robot | str,
     refine: bool = True,
     seed: int = 0,
     rrt_config: RRTConfig | None = None,

@@ -50,6 +50,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy.spatial.distance import cdist
@@ -58,6 +59,10 @@ from .._config import bounded, check_config
 from .._resources import require_bytes
 from ..errors import PlanningError, SplatplanError
 from .robot_links import EDGE_FRACTION, LinkGeometry, as_robot
+
+if TYPE_CHECKING:
+    from ..metric.checker import CollisionChecker
+    from ..robots.robot import Robot
 
 #: percentile of the splat means that bounds the default sampling box on each side (robust to outliers)
 BOX_PERCENTILE = 0.5
@@ -331,7 +336,7 @@ class EdgeChecker:
     #: stride ratio between consecutive stages of the coarse-to-fine check
     STAGE_FACTOR = 4
 
-    def __init__(self, checker, geometry: LinkGeometry, resolution: float, inflate: bool = False, stages: int = 1, slack: bool = False) -> None:
+    def __init__(self, checker: CollisionChecker, geometry: LinkGeometry, resolution: float, inflate: bool = False, stages: int = 1, slack: bool = False) -> None:
         self.checker = checker
         self.geometry = geometry
         self.resolution = float(resolution)
@@ -472,7 +477,7 @@ def _prove_free(todo: np.ndarray, s: np.ndarray, hit: np.ndarray, slack: np.ndar
     todo &= np.cumsum(diff[:-1]) == 0
 
 
-def check_endpoint(checker, geometry: LinkGeometry, x: np.ndarray, what: str) -> None:
+def check_endpoint(checker: CollisionChecker, geometry: LinkGeometry, x: np.ndarray, what: str) -> None:
     """Raise :class:`PlanningError` when configuration ``x`` (D,) is in collision."""
     if not bool(geometry.collides(checker, np.asarray(x, dtype=np.float64)[None])[0]):
         return  # (the cheap collision-only check; the full query only to describe a collision)
@@ -598,7 +603,7 @@ class RRT:
     #: the planner's name in :data:`~splatplan.planners.PLANNERS`
     name = "rrt"
 
-    def __init__(self, checker, config: RRTConfig | None = None, *, robot) -> None:
+    def __init__(self, checker: CollisionChecker, config: RRTConfig | None = None, *, robot: Robot | str) -> None:
         self.checker = checker
         self.config = (config or RRTConfig()).validate()
         self.geometry = LinkGeometry(as_robot(robot))

@@ -141,7 +141,7 @@ class SplatViewer:
         for what, arr in (("plan", self.plan), ("trajectory", self.trajectory)):
             if arr is not None and (arr.ndim != 2 or arr.shape[1] != robot.dof):
                 raise SplatplanError(f"{what}: expected shape (P, {robot.dof}) for robot {robot.name}, got {arr.shape}")
-        q0 = np.asarray(getattr(robot, "q_default", np.zeros(robot.dof)), dtype=np.float64).copy()
+        q0 = np.asarray(robot.q_default, dtype=np.float64).copy()
         if self.kind == "point":
             q0 = 0.5 * (self.lo + self.hi)
         elif self.kind == "planar":
@@ -296,7 +296,7 @@ class SplatViewer:
             self._ell_handles.append(h)
         self._urdf = None
         self._urdf_fixed: dict[str, float] = {}
-        info = getattr(self.robot, "info", {}) or {}
+        info = self.robot.info
         if info.get("urdf") and self.kind in ("joints", "planar"):
             try:
                 from viser.extras import ViserUrdf
