@@ -20,7 +20,7 @@ from ..errors import SplatplanError
 from .bspline import UniformBSpline, bspline_basis, bspline_eval, fit_bspline, knot_vector, resample_polyline
 from .costs import CollisionCost, CollisionTerms, ControlEffortCost, Cost, CostValue, GoalPoseCost, JointLimitCost, JointVelocityTerms, Rollout, StateCost, StridedCollisionTerms, TerminalCost, UntilGoalCost, evaluate_costs, total_cost
 from .image_cost import ImageCost
-from .dynamics import Dynamics, HolonomicPoint, JointIntegrator, PlanarBase, yaw_to_quat
+from .dynamics import Dynamics, DynamicsModel, HolonomicPoint, JointIntegrator, PlanarBase, yaw_to_quat
 from .metrics import clearance, d_min, densify_path, smoothness
 from .mppi import MPPI, CostWeights, Evaluation, GaussianKnots, MPPIConfig, MPPIInfo, SamplingStrategy
 from .refine import RefineConfig, RefineResult, refine_path
@@ -46,6 +46,7 @@ __all__ = [
     "UntilGoalCost",
     "evaluate_costs",
     "Dynamics",
+    "DynamicsModel",
     "EdgeChecker",
     "GoalPoseCost",
     "ImageCost",

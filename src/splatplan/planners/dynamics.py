@@ -79,8 +79,10 @@ def _integrate(x0: np.ndarray, u: np.ndarray, step) -> np.ndarray:
     return out
 
 
-def _deprecated(old: str, new: str) -> None:
-    warnings.warn(f"{old} is deprecated since splatplan 0.3.0 and goes in 0.4.0: {new}", DeprecationWarning, stacklevel=4)
+def _deprecated(old: str, new: str, stacklevel: int = 4) -> None:
+    """A DeprecationWarning pointing at the caller's line (``stacklevel``: 4 from a dataclass's
+    ``__post_init__``, 3 from an ``__init__``)."""
+    warnings.warn(f"{old} is deprecated since splatplan 0.3.0 and goes in 0.4.0: {new}", DeprecationWarning, stacklevel=stacklevel)
 
 
 def _check_robot(robot: object, model: str) -> Robot | None:
@@ -282,7 +284,7 @@ class JointIntegrator(DynamicsModel):
             self.semi_axes = np.asarray(robot.semi_axes, dtype=np.float64)
         elif callable(robot):  # deprecated: JointIntegrator(fk, q_min, q_max, semi_axes)
             _deprecated("JointIntegrator(fk, q_min, q_max, semi_axes) with a forward-kinematics callable",
-                        "load the robot (load_robot(PATH.urdf)) and give JointIntegrator(robot)")  # fmt: skip
+                        "load the robot (load_robot(PATH.urdf)) and give JointIntegrator(robot)", stacklevel=3)  # fmt: skip
             if q_min is None or q_max is None or semi_axes is None:
                 raise SplatplanError("JointIntegrator(fk, q_min, q_max, semi_axes): give all four, or a Robot")
             self.robot = None
