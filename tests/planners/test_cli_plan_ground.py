@@ -70,3 +70,23 @@ def test_height_raises_a_walking_urdf_as_it_raises_go2(floor, tmp_path, capsys):
     code = main(argv + ["--robot", f"{urdf}", "--out", str(tmp_path / "f.json")])
     err = capsys.readouterr().err
     assert code == 2 and "--height" in err
+
+
+def test_height_is_the_plane_of_every_planar_base(tmp_path):
+    """``--height`` raises a planar base's floor frame: go2 and a walking URDF keep their standing
+    offset on it, a planar URDF that does not walk has its base origin there."""
+    from argparse import Namespace
+
+    from splatplan.cli.plan import _robot_for
+    from splatplan.robots import load_robot
+
+    urdf = write_ground_robot(tmp_path / "crawler")
+
+    def at(robot: str, height):
+        return _robot_for(Namespace(up=None, base_pose="0.5,0,0", robot=robot, height=height, planar=False))
+
+    assert at(f"{urdf}:planar", 0.2).base_pose[2, 3] == pytest.approx(0.2)
+    walker = load_robot(f"{urdf}:walking")
+    assert at(f"{urdf}:walking", 0.2).base_pose[2, 3] == pytest.approx(walker.base_pose[2, 3] + 0.2)
+    assert at("go2", 0.2).base_pose[2, 3] == pytest.approx(load_robot("go2").base_pose[2, 3] + 0.2)
+    assert at("go2", None).base_pose[2, 3] == pytest.approx(load_robot("go2").base_pose[2, 3])

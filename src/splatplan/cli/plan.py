@@ -24,13 +24,13 @@ import numpy as np
 
 from ..errors import SplatplanError
 from ..robots.builtin import DEFAULT_POINT_ROBOT, ROBOT_NAME_HELP
-
-if TYPE_CHECKING:
-    from ..robots.robot import Robot
 from ._common import (
     _load, add_base_pose_arg, add_command, add_config_args, add_device_arg, add_seed_arg, add_terrain_args, allow_negative_values, config_from_args, float_arg,
     MAX_COORD, ground_robot_scene, parse_base_pose, parse_numbers, robot_at, strict_float, unit_quaternion, write_json,
 )  # fmt: skip
+
+if TYPE_CHECKING:
+    from ..robots.robot import Robot
 
 
 #: the link ``--goal-pose`` places unless ``--ee-link`` names another
@@ -68,8 +68,9 @@ def parse_config(text: str, robot: Robot, what: str) -> np.ndarray:
 
 
 def _robot_for(args) -> Robot:
-    """The robot named by --robot, its base placed by --base-pose; a robot that walks on terrain
-    (go2, ``PATH.urdf:walking``) stands on the floor frame given by --base-pose, raised by --height."""
+    """The robot named by --robot, its base placed by --base-pose; a planar base drives in the plane
+    of the floor frame given by --base-pose raised by --height (a robot that walks on terrain, go2
+    or ``PATH.urdf:walking``, stands on it)."""
     from ..robots import load_robot
 
     if args.up is not None:
@@ -79,10 +80,10 @@ def _robot_for(args) -> Robot:
         )
     pose = parse_base_pose(args.base_pose)
     robot = load_robot(args.robot)
-    if args.height is not None and robot.walks_on_terrain:
+    if args.height is not None and robot.base == "planar":
         pose = (np.eye(4) if pose is None else pose) @ np.array([[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, float(args.height)], [0, 0, 0, 1.0]])
     elif args.height is not None and not args.planar:
-        raise SplatplanError("--height is the plane of --planar (or the floor of a robot that walks on terrain, go2); give --planar too (or drop --height)")
+        raise SplatplanError("--height is the plane of --planar (or of a planar base such as go2); give --planar too (or drop --height)")
     return robot_at(args.robot, pose, robot=robot)
 
 
@@ -201,8 +202,8 @@ def register(sub, eval_sub) -> None:
     add_base_pose_arg(s)
     s.add_argument("--up", default=None, help=argparse.SUPPRESS)  # removed: say how to align instead
     s.add_argument("--planar", action="store_true", help="plan at a fixed height z: point robots keep z at "
-                   "--height (default the start's); a robot that walks on terrain (go2) stands on the plane z = --height")  # fmt: skip
-    s.add_argument("--height", type=float_arg(ge=-MAX_COORD, le=MAX_COORD), default=None, help="plane height z for --planar / a robot that walks on terrain, go2 (scene units; world z up, see `scene align`)")
+                   "--height (default the start's); a planar base (go2) drives in the plane z = --height")  # fmt: skip
+    s.add_argument("--height", type=float_arg(ge=-MAX_COORD, le=MAX_COORD), default=None, help="plane height z for --planar / a planar base such as go2, which stands on it (scene units; world z up, see `scene align`)")
     s.add_argument("--planner", default="auto", metavar="NAME", help="auto (rrtconnect for robots with 4 or more dofs, else rrt) | rrt "
                    "(goal-biased batched RRT) | rrtconnect (batched bidirectional RRT-Connect) | ompl:NAME, an OMPL geometric planner on "
                    "the same checker (ompl:RRTConnect, ompl:RRTstar, ompl:BITstar, ompl:PRM, ...; needs the 'ompl' extra) (default auto)")  # fmt: skip
