@@ -77,6 +77,9 @@ PANDA_MODELS = {"coarse": "panda.yaml", "cover": "panda_cover.yaml", "tight": "p
 #: The model plain ``load_robot("panda")`` (and ``--robot panda``) uses: the tight, certified one
 #: (issue #19); ``model="coarse"`` keeps the one-ellipsoid-per-link model.
 DEFAULT_MODEL = "tight"
+#: The built-in robots whose URDF comes with the package -> the SRDF group state their fixed joints
+#: take ("panda": the fingers; "go2": the 12 leg joints).
+BUILTIN_STATE = {"panda": "default", "go2": "standing"}
 #: Range of the built-in Panda's finger opening (m per finger, panda_finger_joint1).
 FINGER_RANGE = (0.0, 0.04)
 #: Default base speeds for planar / translation bases (m/s, rad/s); documented, not from a datasheet.
@@ -347,12 +350,12 @@ def _builtin(name, active, fixed, base, base_pose, ellipsoids, walks_on_terrain:
     ell = ellipsoids or (DATA / f"{name}.yaml" if (DATA / f"{name}.yaml").is_file() else None)
     if name == "panda":
         active = active or [f"panda_joint{i}" for i in range(1, 8)]
-        return build_robot(model, srdf, active, fixed, base or "fixed", base_pose, ell, 1, False, state="default", name="panda",
+        return build_robot(model, srdf, active, fixed, base or "fixed", base_pose, ell, 1, False, state=BUILTIN_STATE["panda"], name="panda",
                            walks_on_terrain=bool(walks_on_terrain))  # fmt: skip
     # go2: a planar base that walks on terrain (unless told otherwise), standing on the floor
     base = base or "planar"
     walks = base == "planar" if walks_on_terrain is None else bool(walks_on_terrain)
-    return _standing(lambda pose: build_robot(model, srdf, active or [], fixed, base, pose, ell, 1, False, state="standing", name="go2", walks_on_terrain=walks),
+    return _standing(lambda pose: build_robot(model, srdf, active or [], fixed, base, pose, ell, 1, False, state=BUILTIN_STATE["go2"], name="go2", walks_on_terrain=walks),
                      base_pose)  # fmt: skip
 
 
