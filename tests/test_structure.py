@@ -313,3 +313,77 @@ def test_no_private_names_imported_across_modules():
                 continue  # the CLI's shared helpers (cli/_common) stay inside the CLI package
             bad += [f"{rel}: {a.name} from {base}" for a in node.names if a.name.startswith("_") and not a.name.startswith("__")]
     assert not bad, "private names imported across modules:\n" + "\n".join(bad)
+
+
+#: checks that read a robot's name to decide what the robot is (``robot.name == "go2"``,
+#: ``"go2" in name``, ``robot.name.startswith(...)``, ``args.robot != "go2"``): code asks the robot
+#: instead (``robot.base``, ``robot.walks_on_terrain``, ``robot.is_point``)
+_NAME_CHECKS = (
+    r"\bname\s*(==|!=)\s*[\"'](go2|panda)",
+    r"\.name\s+(not\s+)?in\s*[\(\[\{]",
+    r"[\"'](go2|panda|planar)[\"']\s+(not\s+)?in\s+[\w.]*name\b",
+    r"\bname\s*\.\s*(lower\(\)\s*\.\s*)?(startswith|endswith)\(\s*[\"'](go2|panda|sphere|ellipsoid)",
+    r"\bargs\.robot\s*(==|!=)",
+)
+#: the one place that turns a robot's name into a robot (and may compare names)
+_NAME_PARSER = "robots/builtin.py"
+
+
+def test_no_behaviour_keyed_on_a_robots_name():
+    """A robot carries its kind (fixed base, planar base, point; walks on terrain or not): no module
+    of ``src/`` but the name parser decides what a robot is from its name."""
+    import re
+
+    root = SRC / ROOT_PKG
+    pats = [re.compile(p) for p in _NAME_CHECKS]
+    bad = []
+    for f in sorted(root.rglob("*.py")):
+        rel = f.relative_to(root).as_posix()
+        if rel == _NAME_PARSER:
+            continue
+        for i, line in enumerate(f.read_text(encoding="utf-8").splitlines(), 1):
+            code = line.split("#", 1)[0]
+            bad += [f"{rel}:{i}: {line.strip()}" for p in pats if p.search(code)]
+    assert not bad, "behaviour keyed on a robot's name (ask robot.base / robot.walks_on_terrain / robot.is_point):\n" + "\n".join(bad)
+
+
+def test_name_check_patterns_catch_the_smells():
+    """The patterns above catch the forms that were in the tree, and not the checks that are fine."""
+    import re
+
+    pats = [re.compile(p) for p in _NAME_CHECKS]
+    smells = ['if robot.name == "go2":', 'if robot.name == "go2" or name == "go2":', '    if "go2" in name or "planar" in name:',
+              'if args.robot == "go2":', 'elif args.robot != "go2":', 'if robot.name in ("go2", "a1"):', 'robot.name.startswith("sphere")']  # fmt: skip
+    fine = ['if robot.walks_on_terrain:', 'if cfg.name == "thumbnail":', 'if args.name == "from-moveit":', 'kind == "planar"']
+    assert all(any(p.search(s) for p in pats) for s in smells)
+    assert not any(p.search(s) for p in pats for s in fine)
+
+
+#: modules whose public ``robot`` parameters stay unannotated, and why: the scene stage may not import
+#: the robot stage (test above); the FK kernel glue and the fit measure sit below ``robots/robot.py``
+#: (which imports them), so naming the type there would close a cycle; the visual reaching goals and
+#: study are being reworked in their own branch
+_ROBOT_UNANNOTATED = ("scenes/moveit.py", "robots/wp_fk.py", "robots/fit_measure.py", "planners/reach_goals.py", "eval/reach.py")
+
+
+def test_public_robot_parameters_are_annotated():
+    """Every public function or method of ``src/`` that takes a ``robot`` says what it takes
+    (``Robot``, ``Robot | str`` where names are accepted, ``Robot | None``)."""
+    root = SRC / ROOT_PKG
+    bad = []
+    for f in sorted(root.rglob("*.py")):
+        rel = f.relative_to(root).as_posix()
+        if rel in _ROBOT_UNANNOTATED or (f.name.startswith("_") and f.name != "__init__.py"):
+            continue
+
+        def visit(node, owner: str, public: bool) -> None:
+            for ch in ast.iter_child_nodes(node):
+                if isinstance(ch, ast.ClassDef):
+                    visit(ch, ch.name + ".", public and not ch.name.startswith("_"))
+                elif isinstance(ch, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                    pub = public and (not ch.name.startswith("_") or ch.name in ("__init__", "__call__"))
+                    args = ch.args.posonlyargs + ch.args.args + ch.args.kwonlyargs
+                    bad.extend(f"{rel}:{ch.lineno} {owner}{ch.name}" for a in args if pub and a.arg == "robot" and a.annotation is None)
+
+        visit(ast.parse(f.read_text(encoding="utf-8")), "", True)
+    assert not bad, "public functions with an unannotated robot parameter:\n" + "\n".join(bad)

@@ -117,6 +117,7 @@ def test_dynamics_from_a_robot():
     out = base.rollout(np.array([0.0, 0.0, np.pi / 2]), np.array([[[0.5, 0.0, 0.0]] * 10]), 0.1)
     np.testing.assert_allclose(out[0, -1], [0.0, 0.5, np.pi / 2], atol=1e-12)  # ... and world y at yaw 90 deg
     assert base.link_poses(out)[0].shape == (1, 10, go2.n_ellipsoids, 3)
-    assert PlanarBase(0.05).height == 0.05  # the old positional height still works
+    with pytest.warns(DeprecationWarning, match="height="):
+        assert PlanarBase(0.05).height == 0.05  # the old positional height still works, deprecated (0.3.0)
     point = HolonomicPoint(robots.load_robot("sphere:0.02"))
     assert point.link_poses(np.zeros((1, 1, 3)))[2][0, 0] == pytest.approx(0.02)

@@ -62,7 +62,8 @@ def test_joint_integrator_limits_and_fk():
         p2 = np.stack([np.cos(a1) + 0.5 * np.cos(a2), np.sin(a1) + 0.5 * np.sin(a2), 0 * a1], -1)
         return np.stack([p1, p2], axis=-2), None
 
-    dyn = JointIntegrator(fk, q_min=[-1.0, -0.5], q_max=[1.0, 0.5], semi_axes=[[0.5, 0.05, 0.05]] * 2)
+    with pytest.warns(DeprecationWarning, match="JointIntegrator\\(robot\\)"):  # the FK-callable form: deprecated in 0.3.0
+        dyn = JointIntegrator(fk, q_min=[-1.0, -0.5], q_max=[1.0, 0.5], semi_axes=[[0.5, 0.05, 0.05]] * 2)
     assert isinstance(dyn, Dynamics) and dyn.state_dim == 2 and dyn.control_dim == 2
     u = np.ones((2, 20, 2))
     u[1] *= -1
@@ -72,7 +73,60 @@ def test_joint_integrator_limits_and_fk():
     np.testing.assert_allclose(s[0, 2], [0.3, 0.3])
     c, q, a = dyn.link_poses(s)
     assert c.shape == (2, 20, 2, 3) and a.shape == (2, 3)
-    with pytest.raises(SplatplanError):
+    with pytest.raises(SplatplanError), pytest.warns(DeprecationWarning):
         JointIntegrator(fk, q_min=[1.0], q_max=[0.0], semi_axes=[[0.1, 0.1, 0.1]])
     with pytest.raises(SplatplanError):
         dyn.rollout(np.zeros(3), u, 0.1)
+
+
+def test_joint_integrator_limits_from_a_robot(tmp_path):
+    """The limits and link poses of the test above, from a Robot (the form that stays): a 2-joint
+    planar arm loaded from a URDF, its limits overridden as ``q_min`` / ``q_max``."""
+    from splatplan.robots import load_robot
+
+    (tmp_path / "arm.urdf").write_text(
+        """<robot name="arm">
+  <link name="base"/><link name="l1"/><link name="l2"/>
+  <joint name="j1" type="revolute"><parent link="base"/><child link="l1"/><axis xyz="0 0 1"/><limit lower="-2" upper="2" velocity="1" effort="1"/></joint>
+  <joint name="j2" type="revolute"><parent link="l1"/><child link="l2"/><origin xyz="1 0 0"/><axis xyz="0 0 1"/><limit lower="-2" upper="2" velocity="1" effort="1"/></joint>
+</robot>"""
+    )
+    (tmp_path / "arm.ellipsoids.yaml").write_text(
+        "ellipsoids:\n- {link: l1, center: [0.5, 0, 0], semi_axes: [0.5, 0.05, 0.05]}\n- {link: l2, center: [0.5, 0, 0], semi_axes: [0.5, 0.05, 0.05]}\n"
+    )
+    arm = load_robot(tmp_path / "arm.urdf")
+    assert arm.base == "fixed" and arm.dof == 2
+    dyn = JointIntegrator(arm, q_min=[-1.0, -0.5], q_max=[1.0, 0.5], velocity_limits=10.0)
+    u = np.ones((2, 20, 2))
+    u[1] *= -1
+    s = dyn.rollout(np.zeros(2), u, 0.1)
+    np.testing.assert_allclose(s[0, -1], [1.0, 0.5])
+    np.testing.assert_allclose(s[1, -1], [-1.0, -0.5])
+    c, _, a = dyn.link_poses(s)
+    assert c.shape == (2, 20, 2, 3) and a.shape == (2, 3)
+    a1, a2 = s[0, 2, 0], s[0, 2].sum()
+    np.testing.assert_allclose(c[0, 2, 1], [np.cos(a1) + 0.5 * np.cos(a2), np.sin(a1) + 0.5 * np.sin(a2), 0.0], atol=1e-12)
+    np.testing.assert_allclose(dyn.speed_bound(), [10.0, 10.0])
+    with pytest.raises(SplatplanError, match="semi_axes"):
+        JointIntegrator(arm, semi_axes=[[0.1, 0.1, 0.1]] * 2)
+    with pytest.raises(SplatplanError, match="Robot"):
+        JointIntegrator("not a robot")
+
+
+def test_models_check_the_kind_of_robot():
+    from splatplan.robots import load_robot
+
+    sphere, go2 = load_robot("sphere:0.02"), load_robot("go2")
+    assert HolonomicPoint(sphere).robot is sphere and HolonomicPoint(robot=sphere).robot is sphere
+    with pytest.raises(SplatplanError, match="point robot"):
+        HolonomicPoint(go2)
+    with pytest.raises(SplatplanError, match="planar-base"):
+        PlanarBase(sphere)
+    with pytest.raises(SplatplanError, match="planar-base"):
+        PlanarBase(load_robot("ellipsoid:0.03,0.02,0.01"))  # a point (x, y, z), not a planar base
+    assert PlanarBase(load_robot("ellipsoid:0.03,0.02,0.01", base="planar")).robot.base == "planar"
+    with pytest.warns(DeprecationWarning, match="semi_axes="):
+        dyn = HolonomicPoint((0.02, 0.03, 0.04))  # the old positional semi-axes, deprecated (0.3.0)
+    assert dyn.robot is None and dyn.link_poses(np.zeros((1, 3)))[2].tolist() == [[0.02, 0.03, 0.04]]
+    with pytest.raises(SplatplanError, match="does not bound its speed"):
+        HolonomicPoint(sphere).speed_bound()

@@ -25,6 +25,7 @@ import types
 import typing
 from contextlib import contextmanager
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -32,6 +33,9 @@ from .._files import atomic_path, existing_file, publish  # noqa: F401 - the com
 from .._config import NESTED_SKIP, check_config, check_value
 from .._resources import ResourceError
 from ..errors import SplatplanError
+
+if TYPE_CHECKING:
+    from ..robots.robot import Robot
 
 #: a command-line token starting with a minus and a digit ("-0.3,0,0.06", "-1e-3", "-.5") or a
 #: negative axis ("-y"): a value, not an option (argparse's own test accepts only a single plain
@@ -197,7 +201,7 @@ def parse_vec3(text: str, what: str, max_abs: float | None = MAX_COORD) -> np.nd
 
 
 BASE_POSE_HELP = ("X,Y,Z[,QW,QX,QY,QZ]: where the robot's base stands in the scene (metres, wxyz; after `scene align` the "
-                  "world is z-up with the floor at z = 0): an arm's mount, or the floor frame a planar base (go2) drives in "
+                  "world is z-up with the floor at z = 0): an arm's mount, or the floor frame a ground robot (go2) drives in "
                   "(its x, y, yaw are in that frame; its standing height is added); default the origin")
 
 
@@ -222,19 +226,18 @@ def parse_base_pose(text: str | None, what: str = "--base-pose") -> np.ndarray |
     return pose
 
 
-def robot_at(spec: str, base_pose: np.ndarray | None, robot=None):
-    """The robot named ``spec`` (or the given ``robot``, e.g. the Go2 of the tasks) with its base
-    placed by ``--base-pose`` (None: unchanged). A planar base keeps its own standing offset: the
-    pose places its floor frame, ``pose @ default base pose``."""
+def robot_at(spec: str, base_pose: np.ndarray | None, robot: Robot | None = None) -> Robot:
+    """The robot named ``spec`` (or the given ``robot`` of that name, e.g. the Go2 of the tasks) with
+    its base placed by ``--base-pose`` (None: unchanged). A robot that walks on terrain keeps its own
+    standing offset: the pose places its floor frame, ``pose @ default base pose``."""
     from ..robots import load_robot
 
     robot = load_robot(spec) if robot is None else robot
     if base_pose is None:
         return robot
-    name = str(spec)
-    if robot.name == "go2" or name == "go2":
+    if robot.walks_on_terrain:
         pose = base_pose @ robot.base_pose
-        out = load_robot("go2", base_pose=pose)
+        out = load_robot(spec, base_pose=pose)
         out.info.update({k: v for k, v in robot.info.items() if k not in out.info})
         out.info["standing_height_m"] = float(pose[2, 3])
         return out

@@ -3,15 +3,20 @@
 from __future__ import annotations
 
 from dataclasses import replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..errors import SplatplanError
 from ..robots.builtin import DEFAULT_MODEL, PANDA_MODELS
 from ._common import (
-    MAX_COORD, _out_dir, add_base_pose_arg, atomic_dir, move_into, signals_deferred, parse_numbers, unit_quaternion, add_config_args, add_device_arg, add_seed_arg, atomic_path, check_device, config_from_args, float_arg, parse_base_pose, robot_at,
+    MAX_COORD, _out_dir, add_base_pose_arg, atomic_dir, move_into, signals_deferred, parse_numbers, unit_quaternion, add_config_args, add_device_arg, add_seed_arg, check_device, config_from_args, float_arg, parse_base_pose, robot_at,
     write_json,
 )  # fmt: skip
+
+if TYPE_CHECKING:
+    from ..metric.checker import CollisionChecker
+    from ..robots.robot import Robot
 
 
 def _floats(text: str, n: int, what: str, form: str) -> np.ndarray:
@@ -21,7 +26,11 @@ def _floats(text: str, n: int, what: str, form: str) -> np.ndarray:
     return v
 
 
-def straight_line_blocked(robot, checker, start, goal_xy, step_m: float = 0.05, n_yaws: int = 1) -> bool:
+#: the built-in task `mpc` runs for each --robot choice (the name's part before any ":MODEL")
+TASK_OF_ROBOT = {"panda": "arm", "go2": "base"}
+
+
+def straight_line_blocked(robot: Robot, checker: CollisionChecker, start, goal_xy, step_m: float = 0.05, n_yaws: int = 1) -> bool:
     """Whether the planar base collides somewhere on the straight segment from ``start`` (x, y, yaw) to
     ``goal_xy`` at each of ``n_yaws`` fixed headings (the bearing to the goal, which the goal term
     faces, and its turns by 2 pi / n_yaws; positions every ``step_m``): then MPPI, given only the
@@ -44,8 +53,11 @@ def cmd_mpc(args) -> int:
     out = _out_dir(args.out)
     collision = not args.no_collision
     tag = "" if collision else " [--no-collision: collision cost OFF]"
+    task = TASK_OF_ROBOT.get(args.robot.partition(":")[0])
+    if task is None:  # argparse choices keep this unreachable
+        raise SplatplanError(f"unknown robot {args.robot!r}: panda or go2")
     go2_only = {"route": args.route, "no_route": args.no_route, "route_time": args.route_time is not None, "goal": args.goal is not None}
-    if args.robot.partition(":")[0] == "panda":
+    if task == "arm":
         given = [f"--{k.replace('_', '-')}" for k, v in go2_only.items() if v]
         if given:
             raise SplatplanError(f"{given[0]} is for --robot go2 only (panda takes --goal-pose)")
@@ -54,7 +66,7 @@ def cmd_mpc(args) -> int:
     if args.route and args.no_route:
         raise SplatplanError("--route and --no-route contradict each other; give one")
     route_time = 60.0 if args.route_time is None else args.route_time
-    if args.robot.partition(":")[0] == "panda":
+    if task == "arm":
         from ..tasks.arm import ArmConfig, run_arm
 
         if args.goal_pose is None:
@@ -69,7 +81,7 @@ def cmd_mpc(args) -> int:
         ts = load_task_scene(scene, n_sigma=cfg.n_sigma, device=args.device)  # once: the run and the figure share it
         res = run_arm(robot, ts, gp[:3], gp[3:], config=cfg, collision=collision, q0=q0, device=args.device)
         kind = "arm"
-    elif args.robot == "go2":
+    else:  # the base task's Go2
         from ..planners.route import plan_route
         from ..tasks.base import START, BaseConfig, load_go2, run_base
 
@@ -96,8 +108,6 @@ def cmd_mpc(args) -> int:
                 return 1
         res = run_base(robot, ts, g, start=start, config=cfg, collision=collision, route=route, device=args.device)
         kind = "base"
-    else:  # argparse choices keep this unreachable
-        raise SplatplanError(f"unknown robot {args.robot!r}: panda or go2")
     d = res.to_json()
     fig = plot_run(robot, ts, res, kind=kind)
     with atomic_dir(out) as tmp:  # result.json and motion.png appear together or not at all

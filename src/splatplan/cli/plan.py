@@ -18,6 +18,7 @@ import argparse
 import sys
 from dataclasses import replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -28,14 +29,18 @@ from ._common import (
     MAX_COORD, ground_robot_scene, parse_base_pose, parse_numbers, robot_at, strict_float, unit_quaternion, write_json,
 )  # fmt: skip
 
+if TYPE_CHECKING:
+    from ..robots.robot import Robot
+
 
 #: the link ``--goal-pose`` places unless ``--ee-link`` names another
 DEFAULT_EE_LINK = "panda_hand_tcp"
 
 
-def parse_goal_pose(text: str, robot, link: str) -> np.ndarray:
-    """'X,Y,Z,QW,QX,QY,QZ' -> (7,) with a unit quaternion (one-line errors)."""
-    if robot.name == "go2" or robot.is_point:
+def parse_goal_pose(text: str, robot: Robot, link: str) -> np.ndarray:
+    """'X,Y,Z,QW,QX,QY,QZ' -> (7,) with a unit quaternion (one-line errors). For arms: a robot that
+    is only its moving base (go2, a point robot) has no link pose of its own to reach."""
+    if robot.base != "fixed" and robot.dof == 3:
         raise SplatplanError(f"--goal-pose is for arms; {robot.name} takes --goal with its {robot.dof} dofs")
     if link not in robot.link_names:
         raise SplatplanError(f"--ee-link {link!r} is not a link of {robot.name} ({', '.join(robot.link_names[-4:])}, ...)")
@@ -46,7 +51,7 @@ def parse_goal_pose(text: str, robot, link: str) -> np.ndarray:
     return v
 
 
-def parse_config(text: str, robot, what: str) -> np.ndarray:
+def parse_config(text: str, robot: Robot, what: str) -> np.ndarray:
     """'a,b,c' -> (dof,) float64 configuration of ``robot`` (a one-line error otherwise)."""
     names = ",".join(robot.joint_names)
     try:
@@ -62,9 +67,10 @@ def parse_config(text: str, robot, what: str) -> np.ndarray:
     return v
 
 
-def _robot_for(args):
-    """The robot named by --robot, its base placed by --base-pose; a planar base (go2) stands on the
-    floor frame given by --base-pose, raised by --height."""
+def _robot_for(args) -> Robot:
+    """The robot named by --robot, its base placed by --base-pose; a planar base drives in the plane
+    of the floor frame given by --base-pose raised by --height (a robot that walks on terrain, go2
+    or ``PATH.urdf:walking``, stands on it)."""
     from ..robots import load_robot
 
     if args.up is not None:
@@ -73,9 +79,12 @@ def _robot_for(args):
             "z up, floor at z = 0) and plan in it; --base-pose X,Y,Z[,QW,QX,QY,QZ] places the robot"
         )
     pose = parse_base_pose(args.base_pose)
-    if args.height is not None and args.robot == "go2":
+    robot = load_robot(args.robot)
+    if args.height is not None and robot.base == "planar":
         pose = (np.eye(4) if pose is None else pose) @ np.array([[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, float(args.height)], [0, 0, 0, 1.0]])
-    return robot_at(args.robot, pose) if pose is not None else load_robot(args.robot)
+    elif args.height is not None and not args.planar:
+        raise SplatplanError("--height is the plane of --planar (or of a planar base such as go2); give --planar too (or drop --height)")
+    return robot_at(args.robot, pose, robot=robot)
 
 
 def cmd_plan(args) -> int:
@@ -93,8 +102,6 @@ def cmd_plan(args) -> int:
         require_ompl()  # the missing extra is named before any work
     if args.ee_link is not None and args.goal_pose is None:
         raise SplatplanError("--ee-link names the link that --goal-pose places; give --goal-pose too (or drop --ee-link)")
-    if args.height is not None and not args.planar and args.robot != "go2":
-        raise SplatplanError("--height is the plane of --planar (or go2's floor); give --planar too (or drop --height)")
     robot = _robot_for(args)
     start = parse_config(args.start, robot, "--start")
     if (args.goal is None) == (args.goal_pose is None):
@@ -107,8 +114,8 @@ def cmd_plan(args) -> int:
         rrt_cfg = replace(rrt_cfg, box_lo=tuple(lo), box_hi=tuple(hi))
     notes = []
     if args.planar:
-        if robot.name == "go2":
-            notes.append("go2 moves in its base plane already")
+        if robot.base == "planar":
+            notes.append(f"{robot.name} moves in its base plane already")
         elif robot.is_point:
             axis = 2
             h = start[axis] if args.height is None else float(args.height)
@@ -123,12 +130,12 @@ def cmd_plan(args) -> int:
                 lo[axis] = hi[axis] = h
                 rrt_cfg = replace(rrt_cfg, box_lo=tuple(lo), box_hi=tuple(hi))
         else:
-            raise SplatplanError(f"--planar is for point robots (sphere/ellipsoid) and go2, not {robot.name}")
+            raise SplatplanError(f"--planar is for point robots (sphere/ellipsoid) and planar bases (go2), not {robot.name}")
     rrt_cfg.validate()
     ref_cfg = config_from_args(args, RefineConfig, prefix="refine_", seed=args.seed)
     mcfg = config_from_args(args, MetricConfig).validate()
     scene = _load(args.scene)
-    if robot.name == "go2":  # a ground robot: the floor's splats are terrain (scenes/terrain.py)
+    if robot.walks_on_terrain:  # a ground robot: the floor's splats are terrain (scenes/terrain.py)
         scene = ground_robot_scene(scene, args, mcfg.n_sigma)
     checker = CollisionChecker(scene, device=args.device, config=mcfg)
     if goal_pose is not None:  # inverse kinematics: the collision-free solution nearest to the start
@@ -195,8 +202,8 @@ def register(sub, eval_sub) -> None:
     add_base_pose_arg(s)
     s.add_argument("--up", default=None, help=argparse.SUPPRESS)  # removed: say how to align instead
     s.add_argument("--planar", action="store_true", help="plan at a fixed height z: point robots keep z at "
-                   "--height (default the start's); go2 stands on the plane z = --height")  # fmt: skip
-    s.add_argument("--height", type=float_arg(ge=-MAX_COORD, le=MAX_COORD), default=None, help="plane height z for --planar / go2 (scene units; world z up, see `scene align`)")
+                   "--height (default the start's); a planar base (go2) drives in the plane z = --height")  # fmt: skip
+    s.add_argument("--height", type=float_arg(ge=-MAX_COORD, le=MAX_COORD), default=None, help="plane height z for --planar / a planar base such as go2, which stands on it (scene units; world z up, see `scene align`)")
     s.add_argument("--planner", default="auto", metavar="NAME", help="auto (rrtconnect for robots with 4 or more dofs, else rrt) | rrt "
                    "(goal-biased batched RRT) | rrtconnect (batched bidirectional RRT-Connect) | ompl:NAME, an OMPL geometric planner on "
                    "the same checker (ompl:RRTConnect, ompl:RRTstar, ompl:BITstar, ompl:PRM, ...; needs the 'ompl' extra) (default auto)")  # fmt: skip

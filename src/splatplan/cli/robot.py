@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import SplatplanError
-from ..robots.builtin import DEFAULT_MODEL, PANDA_MODELS, ROBOT_NAME_HELP
+from ..robots.builtin import BUILTIN_STATE, DEFAULT_MODEL, PANDA_MODELS, ROBOT_NAME_HELP
 from ..robots.fit import MAX_PER_LINK
 from ._common import add_command, dumps_json, float_arg, int_arg
 
@@ -118,7 +118,7 @@ def cmd_fit(args) -> int:
         raise SplatplanError(f"output folder {out.parent} does not exist")
     src = args.urdf
     srdf = None
-    if src in ("panda", "go2"):
+    if src in BUILTIN_STATE:
         urdf, srdf = builtin_urdf(src)
     else:
         urdf = Path(src)
@@ -145,7 +145,7 @@ def cmd_fit(args) -> int:
         from ._common import atomic_path
 
         sr = srdf if srdf is not None else (urdf.with_suffix(".srdf") if urdf.with_suffix(".srdf").is_file() else None)
-        state = {"panda": "default", "go2": "standing"}.get(src)
+        state = BUILTIN_STATE.get(src)
         robot = build_robot(model, sr, None, None, "fixed", None, out, 1, False, state=state, name=model.name)
         fig = plot_robot_ellipsoids(robot, model, q=robot.q_default, from_visual=args.from_visual)
         png = out.with_suffix(".png")

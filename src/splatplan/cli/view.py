@@ -79,7 +79,7 @@ def cmd_view(args) -> int:
         raise SplatplanError("--base-pose places the robot given with --robot")
     scene = _load(args.scene)
     collision_scene = None
-    if robot is not None and robot.name == "go2":  # a ground robot: the floor's splats are terrain, not obstacles
+    if robot is not None and robot.walks_on_terrain:  # a ground robot: the floor's splats are terrain, not obstacles
         collision_scene = ground_robot_scene(scene, args, cfg.n_sigma)
     viewer = SplatViewer(scene, robot=robot, plan=plan, trajectory=traj, tree=tree, config=cfg, collision_scene=collision_scene)
     viewer.start()

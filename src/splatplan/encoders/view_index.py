@@ -10,12 +10,16 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .._config import ConfigTerms, bounded
 from ..errors import SplatplanError
 from ..planners.route import wrap_angle
+
+if TYPE_CHECKING:
+    from ..robots.robot import Robot
 
 __all__ = ["Match", "ViewIndex", "ViewIndexTerms", "index_views", "retrieve", "thin_nodes"]
 
@@ -45,7 +49,7 @@ class ViewIndex:
     encode_s: float = 0.0
 
 
-def index_views(robot, camera, nodes: np.ndarray, encoder, renderer, *, n_headings: int = 24, spacing: float = 0.15, batch: int = 256, background: float = 0.5) -> ViewIndex:
+def index_views(robot: Robot, camera, nodes: np.ndarray, encoder, renderer, *, n_headings: int = 24, spacing: float = 0.15, batch: int = 256, background: float = 0.5) -> ViewIndex:
     """Render with ``camera`` (a :class:`~splatplan.render.MountedCamera` on the planar base
     ``robot``) and encode the views of ``nodes`` (N, 3) x, y, yaw (thinned to ``spacing`` m by
     :func:`thin_nodes`) at ``n_headings`` evenly spaced headings, ``batch`` renders at a time on a
@@ -124,13 +128,13 @@ class ViewIndexTerms(ConfigTerms):
     #: renders per batch when indexing
     render_batch: int = bounded(256, ge=1)
 
-    def head_camera(self, robot):
+    def head_camera(self, robot: Robot):
         """The head camera on the base link of ``robot`` (:func:`splatplan.render.cameras.head_camera`)."""
         from ..render.cameras import head_camera
 
         return head_camera(robot, self.image_size, self.fov_deg, self.camera_offset)
 
-    def index_views(self, robot, nodes: np.ndarray, encoder, renderer) -> ViewIndex:
+    def index_views(self, robot: Robot, nodes: np.ndarray, encoder, renderer) -> ViewIndex:
         """:func:`index_views` of ``nodes`` (N, 3) with these settings and :meth:`head_camera`."""
         return index_views(robot, self.head_camera(robot), nodes, encoder, renderer, n_headings=self.n_headings, spacing=self.index_spacing_m, batch=self.render_batch,
                            background=self.background)  # fmt: skip

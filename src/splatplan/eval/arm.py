@@ -23,6 +23,7 @@ from __future__ import annotations
 import time
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -33,12 +34,15 @@ from ..tasks.arm import ArmConfig
 from ._common import config_rows
 from ._study import StudyResult, TaskStudyConfig, write_outputs
 
+if TYPE_CHECKING:
+    from ..robots.robot import Robot
+
 #: Start configuration of the study (rad): gripper down, tool centre at (0.34, 0, 0.06) m in front of
 #: the front wall (IK of that pose; 4.5 cm exact clearance of the moving links).
 START_Q = (0.0, 0.1053, 0.0, -2.8923, 0.0, 2.9976, 0.7854)
 
 
-def pick_targets(n: int, seed: int = 0, min_goal_clearance: float = 0.01, max_tries: int = 40, robot="panda") -> list[tuple[np.ndarray, np.ndarray]]:
+def pick_targets(n: int, seed: int = 0, min_goal_clearance: float = 0.01, max_tries: int = 40, robot: Robot | str = "panda") -> list[tuple[np.ndarray, np.ndarray]]:
     """``n`` (position (3,), wxyz quat (4,)) targets behind the wall with a collision-free IK goal
     (the goal clearance of ``robot``'s ellipsoids, a Robot or a name)."""
     from ..robots import load_robot
@@ -66,7 +70,7 @@ def pick_targets(n: int, seed: int = 0, min_goal_clearance: float = 0.01, max_tr
     return out
 
 
-def arm_throughput(n_samples: int = 256, horizon: int = 32, n_steps: int = 3, device: str | None = "auto", n_splats: int = 200_000, robot="panda") -> dict:
+def arm_throughput(n_samples: int = 256, horizon: int = 32, n_steps: int = 3, device: str | None = "auto", n_splats: int = 200_000, robot: Robot | str = "panda") -> dict:
     """MPC steps/s of the Panda (``robot``: a Robot or a name) under MPPI with the collision cost on
     every ellipsoid at every step of the horizon (stride 1, one iteration per step), on a
     ``n_splats`` tabletop (warm-up step first). The issue's target: >= 5 steps/s at K = 256, T = 32

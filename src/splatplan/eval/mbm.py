@@ -69,6 +69,7 @@ import time
 from collections import OrderedDict
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -76,6 +77,9 @@ from .._config import bounded, check_config
 from ..errors import SplatplanError
 from ..planners.clearance import dense_path, exact_clearance, path_min_clearance  # noqa: F401 - (also importable from here)
 from ..scenes.margin import covering_radius, derived_margin  # noqa: F401 (the margin lives in the scene stage; these names stay importable here)
+
+if TYPE_CHECKING:
+    from ..robots.robot import Robot
 
 #: the repository root (src/splatplan/eval/mbm.py -> 3 levels up); shared data lives beside it
 _REPO = Path(__file__).resolve().parents[3]
@@ -325,7 +329,7 @@ def list_tasks(config: MBMConfig) -> list[MBMTask]:
     return tasks
 
 
-def check_inputs(tasks: list[MBMTask], robot) -> list[MBMTask]:
+def check_inputs(tasks: list[MBMTask], robot: Robot) -> list[MBMTask]:
     """Parse every problem's scene and request once (no sampling), so that bad input stops the run
     with one line before any work (YAML that does not parse, an unknown primitive or a mesh, a
     scene with no objects, joints the robot does not have, a goal outside the joint limits), and

@@ -21,6 +21,7 @@ from __future__ import annotations
 import time
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -28,6 +29,9 @@ from .._config import bounded
 from .._files import atomic_path
 from ..tasks.navigate import NavigateConfig
 from ._study import ImageGoalStudyConfig, StudyResult, write_outputs
+
+if TYPE_CHECKING:
+    from ..robots.robot import Robot
 
 #: Target landmarks (box labels of the apartment; "table" = the coffee table, the first table box),
 #: in order of preference: the first 10 with a valid held-out pose are used.
@@ -44,7 +48,7 @@ def quick_task_config(cfg):
     return replace(cfg, tree_nodes=500, index_spacing_m=0.3, n_headings=12, image_size=32, max_steps=150)
 
 
-def target_poses(robot, nav, nodes: np.ndarray, labels=LANDMARKS, n: int = 10, seed: int = 0, margin_m: float = 0.05, min_node_dist_m: float = 0.05, max_node_dist_m: float = 0.4) -> list[dict]:
+def target_poses(robot: Robot, nav, nodes: np.ndarray, labels=LANDMARKS, n: int = 10, seed: int = 0, margin_m: float = 0.05, min_node_dist_m: float = 0.05, max_node_dist_m: float = 0.4) -> list[dict]:
     """One free held-out pose (x, y, yaw) near each landmark (see the module docstring)."""
     rng = np.random.default_rng(seed)
     gt = nav.task.analytic

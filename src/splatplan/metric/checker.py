@@ -24,6 +24,7 @@ from __future__ import annotations
 import contextlib
 import threading
 from dataclasses import replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -46,6 +47,9 @@ from .interop import (
     torch_device_name,
     warp_device_name,
 )
+
+if TYPE_CHECKING:
+    from ..robots.robot import Robot
 
 _FIELDS = ("min_s2", "n_colliding", "in_collision", "softmin", "cost")
 _DTYPES = {"min_s2": np.float32, "n_colliding": np.int32, "in_collision": bool, "softmin": np.float32, "cost": np.float32}
@@ -212,7 +216,7 @@ class CollisionChecker:
         )  # fmt: skip
 
     # ------------------------------------------------------------------ robots
-    def query_robot(self, robot, q, *, ellipsoids=None, out=None, validate=False) -> QueryResult:
+    def query_robot(self, robot: Robot, q, *, ellipsoids=None, out=None, validate=False) -> QueryResult:
         """All five outputs for every collision ellipsoid of ``robot`` at joint configurations ``q``.
 
         ``q`` (..., dof) (numpy, torch or wp float32) -> forward kinematics on the device
@@ -227,7 +231,7 @@ class CollisionChecker:
         with _torch_stream(q):
             return self._robot(robot, q, out, validate, full=True, subset=ellipsoids)
 
-    def collides_robot(self, robot, q, *, ellipsoids=None, out=None, validate=False, slack=None):
+    def collides_robot(self, robot: Robot, q, *, ellipsoids=None, out=None, validate=False, slack=None):
         """(..., E) collision state of every ellipsoid of ``robot`` at ``q`` (see :meth:`query_robot`).
 
         A configuration collides when any of its ellipsoids does: ``collides_robot(...).any(-1)``;
@@ -242,7 +246,7 @@ class CollisionChecker:
         with _torch_stream(q):
             return self._robot(robot, q, out, validate, full=False, subset=ellipsoids, slack=bool(slack))
 
-    def collides_robot_slack(self, robot, q, *, ellipsoids=None, out=None, validate=False):
+    def collides_robot_slack(self, robot: Robot, q, *, ellipsoids=None, out=None, validate=False):
         """(hits (..., E), slack (..., E) float32, both of the type of ``q``): :meth:`collides_robot`
         and each ellipsoid's FREE SLACK, a distance (scene units) such that the same ellipsoid, in any
         orientation, with its centre within ``slack`` of this one's, is free too (:mod:`.wp_metric_kernel`);
@@ -251,7 +255,7 @@ class CollisionChecker:
         with _torch_stream(q):
             return self._robot(robot, q, out, validate, full=False, subset=ellipsoids, slack=True)
 
-    def collides_configs(self, robot, q, *, out=None, validate=False):
+    def collides_configs(self, robot: Robot, q, *, out=None, validate=False):
         """(...,) collision state of whole configurations: True where any ellipsoid of ``robot`` at
         ``q`` (..., dof) collides; the same answer as ``collides_robot(robot, q).any(-1)``.
 
@@ -263,7 +267,7 @@ class CollisionChecker:
         with _torch_stream(q):
             return self._robot(robot, q, out, validate, full=False, per_config=True)
 
-    def collides_configs_slack(self, robot, q, *, out=None, validate=False):
+    def collides_configs_slack(self, robot: Robot, q, *, out=None, validate=False):
         """(hits (...,), slack (..., E) float32): :meth:`collides_configs` and each ellipsoid's FREE
         SLACK as in :meth:`collides_robot_slack` (0 where nothing is proven; meaningful for the free
         configurations)."""

@@ -3,11 +3,16 @@ they belong to, for the per-configuration collision kernel."""
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from ..errors import SplatplanError
 
-def robot_groups(robot) -> tuple[bytes, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+if TYPE_CHECKING:
+    from ..robots.robot import Robot
+
+def robot_groups(robot: Robot) -> tuple[bytes, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The GROUP BOUND's groups of a robot (:mod:`.wp_metric_kernel`): its ellipsoids by the link
     (rigid body) they belong to, the most distal link first (it moves most, so it hits first).
 

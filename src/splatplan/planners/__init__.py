@@ -13,13 +13,14 @@ from __future__ import annotations
 
 import time
 from dataclasses import replace
+from typing import TYPE_CHECKING
 
 from ..errors import SplatplanError
 
 from .bspline import UniformBSpline, bspline_basis, bspline_eval, fit_bspline, knot_vector, resample_polyline
 from .costs import CollisionCost, CollisionTerms, ControlEffortCost, Cost, CostValue, GoalPoseCost, JointLimitCost, JointVelocityTerms, Rollout, StateCost, StridedCollisionTerms, TerminalCost, UntilGoalCost, evaluate_costs, total_cost
 from .image_cost import ImageCost
-from .dynamics import Dynamics, HolonomicPoint, JointIntegrator, PlanarBase, yaw_to_quat
+from .dynamics import Dynamics, DynamicsModel, HolonomicPoint, JointIntegrator, PlanarBase, yaw_to_quat
 from .metrics import clearance, d_min, densify_path, smoothness
 from .mppi import MPPI, CostWeights, Evaluation, GaussianKnots, MPPIConfig, MPPIInfo, SamplingStrategy
 from .refine import RefineConfig, RefineResult, refine_path
@@ -28,6 +29,10 @@ from .rrt_connect import RRTConnect
 from .edges import EdgeChecker, edge_points, edge_samples, shortcut_path
 from .rrt import RRT, robust_scene_box
 from .rrt_types import PlanResult, RRTConfig, RRTSettings, path_length
+
+if TYPE_CHECKING:
+    from ..metric.checker import CollisionChecker
+    from ..robots.robot import Robot
 
 __all__ = [
     "CollisionCost",
@@ -43,6 +48,7 @@ __all__ = [
     "UntilGoalCost",
     "evaluate_costs",
     "Dynamics",
+    "DynamicsModel",
     "EdgeChecker",
     "GoalPoseCost",
     "ImageCost",
@@ -97,7 +103,7 @@ __all__ = [
 PLANNERS = ("auto", "rrt", "rrtconnect")
 
 
-def make_planner(name: str, checker, config: RRTConfig | None = None, *, robot):
+def make_planner(name: str, checker: CollisionChecker, config: RRTConfig | None = None, *, robot: Robot | str):
     """The planner called ``name`` (see :data:`PLANNERS`) for ``robot`` (a Robot or a name for
     :func:`~splatplan.robots.load_robot`) on ``checker``: an object with
     ``plan(start, goal, deadline=None) -> PlanResult`` and ``settings(start, goal)``.
@@ -116,11 +122,11 @@ def make_planner(name: str, checker, config: RRTConfig | None = None, *, robot):
 
 
 def plan(
-    checker,
+    checker: CollisionChecker,
     start,
     goal,
     *,
-    robot,
+    robot: Robot | str,
     refine: bool = True,
     seed: int = 0,
     rrt_config: RRTConfig | None = None,

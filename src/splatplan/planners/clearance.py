@@ -9,14 +9,19 @@ robot a :class:`~splatplan.robots.Robot` (``ellipsoids``, ``motion_bound``, ``mi
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from .edges import edge_samples
 
+if TYPE_CHECKING:
+    from ..robots.robot import Robot
+
 __all__ = ["dense_path", "densify_by_motion", "exact_clearance", "path_min_clearance"]
 
 
-def exact_clearance(scene, robot, q: np.ndarray) -> np.ndarray:
+def exact_clearance(scene, robot: Robot, q: np.ndarray) -> np.ndarray:
     """(N,) exact clearance (m) of configurations q (N, dof): min over the robot's ellipsoids of
     :meth:`AnalyticScene.ellipsoid_clearance`. A global broad phase first (the SDF of each centre
     bounds every ellipsoid's clearance within +-a_max), so only ellipsoids that can hold a
@@ -43,7 +48,7 @@ def _ball_apart(d_c: np.ndarray, a_min: np.ndarray, a_max: np.ndarray) -> np.nda
     return (a_max - a_min <= 1e-12 * a_max) & (d_c >= a_max)
 
 
-def densify_by_motion(robot, path: np.ndarray, step: float) -> np.ndarray:
+def densify_by_motion(robot: Robot, path: np.ndarray, step: float) -> np.ndarray:
     """The path (P, dof) resampled so that no ellipsoid point moves more than ``step`` (scene units)
     between consecutive samples (``Robot.motion_bound``, the bound of the planners' edge checks);
     start included. The one densify of configuration paths: edges, executed trajectories, clearances."""
@@ -55,13 +60,13 @@ def densify_by_motion(robot, path: np.ndarray, step: float) -> np.ndarray:
     return np.concatenate([p[:1], pts])
 
 
-def dense_path(robot, path: np.ndarray, fraction: float = 0.25) -> np.ndarray:
+def dense_path(robot: Robot, path: np.ndarray, fraction: float = 0.25) -> np.ndarray:
     """:func:`densify_by_motion` at ``fraction`` x the robot's smallest semi-axis (the planners'
     default edge resolution)."""
     return densify_by_motion(robot, path, fraction * robot.min_semi_axis)
 
 
-def path_min_clearance(scene, robot, q: np.ndarray, first: int = 32, stride: int = 8) -> float:
+def path_min_clearance(scene, robot: Robot, q: np.ndarray, first: int = 32, stride: int = 8) -> float:
     """min over the configurations q (N, dof) of :func:`exact_clearance` (m), solving only the
     (configuration, ellipsoid) pairs that can hold the minimum. Two bounds prune the pairs:
 

@@ -23,7 +23,7 @@ rollout.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Callable
+from typing import TYPE_CHECKING, Callable
 
 import numpy as np
 
@@ -31,7 +31,12 @@ from .._config import ConfigTerms, bounded
 from ..errors import SplatplanError
 from ..metric.config import QueryResult
 from ..robots.kinematics import chain_pose, link_chain
+from ..robots.robot import Robot
+from .dynamics import Dynamics, DynamicsModel
 from .robot_links import LinkGeometry
+
+if TYPE_CHECKING:
+    from ..metric.checker import CollisionChecker
 
 
 @dataclass
@@ -79,28 +84,26 @@ class _DynamicsLinks:
     weights = None
     dof = None
 
-    def __init__(self, dynamics) -> None:
+    def __init__(self, dynamics: Dynamics) -> None:
         self.dynamics = dynamics
         self.n_queries = 0
 
-    def query(self, checker, q: np.ndarray):
+    def query(self, checker: CollisionChecker, q: np.ndarray) -> QueryResult:
         res = checker.query(*self.dynamics.link_poses(np.asarray(q, dtype=np.float64)))
         self.n_queries += int(np.size(res.min_s2))
         return res
 
 
-def link_geometry(source) -> LinkGeometry | _DynamicsLinks:
+def link_geometry(source: Robot | Dynamics | LinkGeometry) -> LinkGeometry | _DynamicsLinks:
     """The link geometry of a Robot or of a dynamics model (its ``robot``; its own ``link_poses``
     when it has no Robot), or a geometry given as is."""
     if isinstance(source, (LinkGeometry, _DynamicsLinks)):
         return source
-    robot = getattr(source, "robot", None)
-    if robot is not None:
-        return LinkGeometry(robot)
-    if hasattr(source, "ellipsoids") and hasattr(source, "dof"):  # a Robot
+    if isinstance(source, Robot):
         return LinkGeometry(source)
-    if hasattr(source, "link_poses"):
-        return _DynamicsLinks(source)
+    if isinstance(source, Dynamics):
+        robot = getattr(source, "robot", None)  # a model built from a Robot carries it (DynamicsModel.robot)
+        return LinkGeometry(robot) if robot is not None else _DynamicsLinks(source)
     raise SplatplanError(f"cannot get robot geometry from {type(source).__name__}: give a Robot or a dynamics model")
 
 
@@ -178,8 +181,8 @@ class CollisionCost(Cost):
 
     def __init__(
         self,
-        checker,
-        robot,
+        checker: CollisionChecker,
+        robot: Robot | Dynamics | LinkGeometry,
         weight: float = 1.0,
         hit_weight: float = 10.0,
         s2_cap: float | None = 2.0,
@@ -195,10 +198,9 @@ class CollisionCost(Cost):
         self.hit_weight = float(hit_weight)
         self.self_collision_weight = float(self_collision_weight)
         rob = self.geometry.robot
-        mask = getattr(rob, "static_ellipsoids", None)
-        use_static = static_shortcut and mask is not None and bool(np.any(mask)) and hasattr(self.checker, "query_robot") and hasattr(rob, "fk")
+        use_static = static_shortcut and rob is not None and bool(np.any(rob.static_ellipsoids))
         #: (E,) bool static ellipsoids answered from the cache, or None (every ellipsoid queried)
-        self.static = np.asarray(mask, dtype=bool) if use_static else None
+        self.static = np.asarray(rob.static_ellipsoids, dtype=bool) if use_static else None
         self._static_cache: dict = {}
         self.auto_stride = isinstance(time_stride, str)
         if self.auto_stride:
@@ -296,7 +298,7 @@ class CollisionCost(Cost):
     def self_terms(self, rollout: Rollout) -> dict[str, np.ndarray]:
         """{"self_collision": (K,)} when ``self_collision_weight`` > 0, else {}."""
         robot = self.geometry.robot
-        if self.self_collision_weight > 0 and robot is not None and hasattr(robot, "self_collision"):
+        if self.self_collision_weight > 0 and robot is not None:
             return {"self_collision": self.self_collision_weight * np.asarray(robot.self_collision(rollout.states)).reshape(rollout.k, -1).sum(axis=1).astype(np.float64)}
         return {}
 
@@ -333,7 +335,7 @@ class CollisionTerms(ConfigTerms):
     #: beyond it a splat's cost is below exp(-60) of its peak, and the search radius grows as sqrt(cap))
     collision_s2_cap: float = bounded(2.0, ge=1, le=16)
 
-    def collision_cost(self, checker, robot, **kw) -> CollisionCost:
+    def collision_cost(self, checker: CollisionChecker, robot: Robot | Dynamics | LinkGeometry, **kw) -> CollisionCost:
         """The :class:`CollisionCost` of these terms on ``checker`` (``kw``: its other arguments)."""
         return CollisionCost(checker, robot, weight=self.w_collision, hit_weight=self.w_hit, s2_cap=self.collision_s2_cap, **kw)
 
@@ -345,7 +347,7 @@ class StridedCollisionTerms(CollisionTerms):
     #: query the collision cost on every stride-th step of the horizon (1 = every step)
     collision_stride: int = bounded(1, ge=1)
 
-    def collision_cost(self, checker, robot, **kw) -> CollisionCost:
+    def collision_cost(self, checker: CollisionChecker, robot: Robot | Dynamics | LinkGeometry, **kw) -> CollisionCost:
         return super().collision_cost(checker, robot, time_stride=self.collision_stride, **kw)
 
 
@@ -361,34 +363,26 @@ class JointVelocityTerms(ConfigTerms):
     #: weight of the joint-limit penalty
     w_limits: float = bounded(100.0, ge=0)
 
-    def velocity_bound(self, robot) -> np.ndarray:
+    def velocity_bound(self, robot: Robot) -> np.ndarray:
         """(dof,) joint velocity bound (rad/s): ``velocity_scale`` x the robot's velocity limits."""
         return self.velocity_scale * np.asarray(robot.velocity_limits, np.float64)
 
-    def joint_costs(self, robot) -> list[Cost]:
+    def joint_costs(self, robot: Robot) -> list[Cost]:
         """[:class:`ControlEffortCost`, :class:`JointLimitCost` (5 cm / 0.05 rad margin)] of these weights."""
         return [ControlEffortCost(self.w_control), JointLimitCost(robot, weight=self.w_limits, margin=0.05)]
 
 
-def _speed_bound(source, geometry: LinkGeometry) -> np.ndarray:
-    """(dof,) bound on |dq_j / dt| of the robot configuration under the dynamics ``source``."""
-    from .dynamics import HolonomicPoint, JointIntegrator, PlanarBase
-
-    robot = geometry.robot
-    if isinstance(source, JointIntegrator) and source.v_max is not None:
-        return np.asarray(source.v_max, dtype=np.float64).copy()
-    if isinstance(source, PlanarBase) and robot is not None:
-        v = np.asarray(robot.velocity_limits, dtype=np.float64).reshape(3)
-        xy = float(np.hypot(v[0], v[1]))  # body-frame (vx, vy) rotated into the world: |dx|, |dy| <= |v_xy|
-        return np.array([xy, xy, v[2]])
-    if isinstance(source, (HolonomicPoint, PlanarBase)):
-        raise SplatplanError(f"CollisionCost(time_stride='auto'): {type(source).__name__} does not bound its speed; give speed_bound")
-    if robot is None:
+def _speed_bound(source: Robot | Dynamics | LinkGeometry, geometry: LinkGeometry) -> np.ndarray:
+    """(dof,) bound on |dq_j / dt| of the robot configuration: the dynamics model's own
+    (:meth:`DynamicsModel.speed_bound`), else the robot's velocity limits."""
+    if isinstance(source, DynamicsModel):
+        return np.asarray(source.speed_bound(), dtype=np.float64).copy()
+    if geometry.robot is None:
         raise SplatplanError("CollisionCost(time_stride='auto') needs a Robot or speed_bound")
-    return np.asarray(robot.velocity_limits, dtype=np.float64).copy()
+    return np.asarray(geometry.robot.velocity_limits, dtype=np.float64).copy()
 
 
-def fk_device(checker) -> str:
+def fk_device(checker: CollisionChecker) -> str:
     """The FK device of :class:`GoalPoseCost` for a checker: the checker's device (the Warp FK kernel
     there, float32). Panda MPPI, K = 256, T = 32, 2-core CPU: 3.3 ms per step against 14 ms for the
     float64 host chain (controls within 1.3e-5 rad/s of it after 12 steps); ~50x on a GPU at K = 1024."""
@@ -428,7 +422,7 @@ class GoalPoseCost(Cost):
 
     def __init__(
         self,
-        robot=None,
+        robot: Robot | None = None,
         position=(0.0, 0.0, 0.0),
         quat=None,
         link: str | None = None,
@@ -461,8 +455,7 @@ class GoalPoseCost(Cost):
             if name not in names:
                 raise SplatplanError(f"GoalPoseCost: robot {robot.name} has no link {name!r}; links: {', '.join(names)}")
             self.link_index = names.index(name)
-            if hasattr(robot, "kin"):
-                self._chain = link_chain(robot.kin, self.link_index)
+            self._chain = link_chain(robot.kin, self.link_index)
             if self.position.shape != (3,):
                 raise SplatplanError(f"GoalPoseCost: the goal position must be (3,) for a link, got {self.position.shape}")
         elif self.position.shape != (len(self.state_dims),):
@@ -474,7 +467,7 @@ class GoalPoseCost(Cost):
         """Positions (K, T, 3 or len(state_dims)) and rotations (K, T, 3, 3) | None."""
         if self.robot is None:
             return rollout.states[..., list(self.state_dims)], None
-        if self.device is not None and hasattr(self.robot, "fk"):
+        if self.device is not None:
             key = ("link_pose_fk", self.link_index)
             if key not in rollout.cache:
                 c, r = self.robot.fk(rollout.states, device=self.device, links=[self.link_index])  # (K, T, 1, 3), (K, T, 1, 3, 3)
@@ -528,7 +521,7 @@ class JointLimitCost(Cost):
 
     name = "joint_limits"
 
-    def __init__(self, robot=None, weight: float = 100.0, margin: float = 0.0, lower=None, upper=None) -> None:
+    def __init__(self, robot: Robot | None = None, weight: float = 100.0, margin: float = 0.0, lower=None, upper=None) -> None:
         if robot is not None:
             lim = np.asarray(robot.joint_limits, dtype=np.float64)
             lower, upper = lim[:, 0], lim[:, 1]

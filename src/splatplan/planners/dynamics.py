@@ -13,21 +13,30 @@ rollout of horizon T contains x_1 .. x_T (not x_0). All integrators are explicit
 on numpy float64; they are cheap next to the collision query that follows them.
 ``link_poses`` accepts any leading batch shape (the RRT calls it on (N, n_edge_pts, dx)).
 
-Each model can be built from a :class:`~splatplan.robots.Robot` whose configuration is the state
-(``HolonomicPoint(load_robot("sphere:0.015"))``, ``PlanarBase(load_robot("go2"))`` over (x, y, yaw),
-``JointIntegrator(load_robot("panda"))`` over joint angles); its ``robot`` attribute then lets the
-collision cost use the checker's ``query_robot`` (FK on the device) and ``link_poses`` is
-``robot.ellipsoids``. Without a robot the models keep their own simple geometry.
+Each model is built from a :class:`~splatplan.robots.Robot` whose configuration is the state, of
+the kind the model moves (``HolonomicPoint(load_robot("sphere:0.015"))``: a point robot,
+``PlanarBase(load_robot("go2"))``: a planar base over (x, y, yaw), ``JointIntegrator(load_robot("panda"))``:
+any robot, over its dofs); its ``robot`` attribute then lets the collision cost use the checker's
+``query_robot`` (FK on the device) and ``link_poses`` is ``robot.ellipsoids``. ``HolonomicPoint()``
+and ``PlanarBase(height=...)`` without a robot keep their own simple geometry (a sphere, body
+ellipsoids). Deprecated forms (0.3.0, removed in 0.4.0; each warns): ``JointIntegrator(fk, q_min,
+q_max, semi_axes)`` with a forward-kinematics callable, ``HolonomicPoint((a, b, c))`` with the
+semi-axes positionally, ``PlanarBase(0.06)`` with the height positionally.
 """
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, field
-from typing import Protocol, runtime_checkable
+from typing import TYPE_CHECKING, Protocol, runtime_checkable
 
 import numpy as np
 
 from ..errors import SplatplanError
+from ..robots.robot import Robot
+
+if TYPE_CHECKING:
+    from collections.abc import Callable
 
 
 @runtime_checkable
@@ -70,38 +79,75 @@ def _integrate(x0: np.ndarray, u: np.ndarray, step) -> np.ndarray:
     return out
 
 
-class _LinkPoses:
-    """``link_poses``: the robot's ellipsoids when the model has a ``robot``, else the model's own
-    geometry (``_own_link_poses``)."""
+def _deprecated(old: str, new: str, stacklevel: int = 4) -> None:
+    """A DeprecationWarning pointing at the caller's line (``stacklevel``: 4 from a dataclass's
+    ``__post_init__``, 3 from an ``__init__``)."""
+    warnings.warn(f"{old} is deprecated since splatplan 0.3.0 and goes in 0.4.0: {new}", DeprecationWarning, stacklevel=stacklevel)
 
-    def link_poses(self, states: np.ndarray):
+
+def _check_robot(robot: object, model: str) -> Robot | None:
+    """``robot`` as given, after checking that it is a :class:`~splatplan.robots.Robot` (or None)."""
+    if robot is not None and not isinstance(robot, Robot):
+        raise SplatplanError(f"{model}: robot must be a Robot (load_robot(...)), got {type(robot).__name__}")
+    return robot
+
+
+class DynamicsModel:
+    """What the built-in models share: the :class:`~splatplan.robots.Robot` they move (or None, then
+    their own geometry) and the bound on how fast the state can change that the collision cost's
+    ``time_stride="auto"`` needs."""
+
+    #: the Robot whose configuration is the state, or None (the model's own geometry)
+    robot: Robot | None
+
+    def link_poses(self, states: np.ndarray) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
+        """The robot's ellipsoids when the model has a ``robot``, else the model's own geometry
+        (see :class:`Dynamics`)."""
         s = np.asarray(states, dtype=np.float64)
         if self.robot is not None:
             return self.robot.ellipsoids(s)
         return self._own_link_poses(s)
 
+    def _own_link_poses(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def speed_bound(self) -> np.ndarray:
+        """(state_dim,) bound on ``|dx_j / dt|`` under this model's clipping of the controls.
+
+        Raises:
+            SplatplanError: the model does not bound its speed (give the collision cost a
+                ``speed_bound``).
+        """
+        raise SplatplanError(f"CollisionCost(time_stride='auto'): {type(self).__name__} does not bound its speed; give speed_bound")
+
 
 @dataclass
-class HolonomicPoint(_LinkPoses):
-    """A sphere (or axis-aligned ellipsoid) moving with commanded world-frame velocity.
+class HolonomicPoint(DynamicsModel):
+    """A point robot (a sphere or axis-aligned ellipsoid) moving with commanded world-frame velocity.
 
     State x = (x, y, z) position of the centre (scene units, world frame); control u = (vx, vy, vz)
     (scene units / s). ``x_{t+1} = x_t + u_t dt``.
+
+    ``HolonomicPoint(robot)`` with a point :class:`~splatplan.robots.Robot` (``robot.is_point``:
+    ``sphere:R`` / ``ellipsoid:A,B,C``); ``HolonomicPoint(semi_axes=(a, b, c))`` without one.
     """
 
-    #: robot semi-axes (a, b, c) in scene units, world-aligned; a sphere of radius r is (r, r, r)
-    semi_axes: tuple[float, float, float] = (0.015, 0.015, 0.015)
     #: a point Robot (``sphere:R`` / ``ellipsoid:A,B,C``) whose configuration is its centre; when
     #: given, its ellipsoids replace ``semi_axes``
-    robot: object = None
+    robot: Robot | None = None
+    #: semi-axes (a, b, c) in scene units, world-aligned, when there is no robot; a sphere of radius
+    #: r is (r, r, r)
+    semi_axes: tuple[float, float, float] = (0.015, 0.015, 0.015)
     state_dim: int = field(default=3, init=False)
     control_dim: int = field(default=3, init=False)
 
     def __post_init__(self) -> None:
-        if self.robot is None and hasattr(self.semi_axes, "ellipsoids"):  # HolonomicPoint(robot)
-            self.robot, self.semi_axes = self.semi_axes, (0.015, 0.015, 0.015)
-        if self.robot is not None and int(self.robot.dof) != 3:
-            raise SplatplanError(f"HolonomicPoint needs a point robot with 3 dof (x, y, z), {self.robot.name} has {self.robot.dof}")
+        if self.robot is not None and not isinstance(self.robot, Robot):  # HolonomicPoint((a, b, c)): the old positional semi-axes
+            _deprecated("HolonomicPoint(semi_axes) with the semi-axes positionally", "give HolonomicPoint(semi_axes=(a, b, c)) or HolonomicPoint(robot)")
+            self.robot, self.semi_axes = None, self.robot
+        if self.robot is not None and not self.robot.is_point:
+            raise SplatplanError(f"HolonomicPoint needs a point robot (dofs x, y, z: sphere:R, ellipsoid:A,B,C); {self.robot.name} is not one "
+                                 f"(base {self.robot.base!r}, {self.robot.dof} dofs)")  # fmt: skip
 
     def rollout(self, x0: np.ndarray, controls: np.ndarray, dt: float) -> np.ndarray:
         x0, u = _check_rollout_args(x0, controls, 3, 3)
@@ -121,7 +167,7 @@ def yaw_to_quat(yaw: np.ndarray) -> np.ndarray:
 
 
 @dataclass
-class PlanarBase(_LinkPoses):
+class PlanarBase(DynamicsModel):
     """A mobile base moving in the plane z = ``height`` with body-frame velocity commands.
 
     State x = (x, y, yaw): base origin in the world frame (scene units, z-up world) and heading
@@ -148,7 +194,7 @@ class PlanarBase(_LinkPoses):
     """
 
     #: a planar-base Robot over (x, y, yaw) (e.g. go2); None = the ellipsoids below
-    robot: object = None
+    robot: Robot | None = None
     #: height z of the base origin in the world frame (scene units)
     height: float = 0.06
     #: (L, 3) link centres in the body frame (x forward, y left, z up), scene units
@@ -159,10 +205,12 @@ class PlanarBase(_LinkPoses):
     control_dim: int = field(default=3, init=False)
 
     def __post_init__(self) -> None:
-        if isinstance(self.robot, (int, float)):  # PlanarBase(0.06): the height, positionally as before
+        if isinstance(self.robot, (int, float)):  # PlanarBase(0.06): the old positional height
+            _deprecated("PlanarBase(height) with the height positionally", "give PlanarBase(height=h) or PlanarBase(robot)")
             self.robot, self.height = None, float(self.robot)
-        if self.robot is not None and int(self.robot.dof) != 3:
-            raise SplatplanError(f"PlanarBase needs a planar-base robot with 3 dof (x, y, yaw), {self.robot.name} has {self.robot.dof}")
+        _check_robot(self.robot, "PlanarBase")
+        if self.robot is not None and not (self.robot.base == "planar" and self.robot.dof == 3):
+            raise SplatplanError(f"PlanarBase needs a planar-base robot with 3 dof (x, y, yaw), {self.robot.name} has base {self.robot.base!r} and {self.robot.dof} dofs")
         self.offsets = np.asarray(self.offsets, dtype=np.float64).reshape(-1, 3)
         self.semi_axes = np.asarray(self.semi_axes, dtype=np.float64).reshape(-1, 3)
         if self.offsets.shape != self.semi_axes.shape:
@@ -184,6 +232,15 @@ class PlanarBase(_LinkPoses):
 
         return _integrate(x0, u, step)
 
+    def speed_bound(self) -> np.ndarray:
+        """(3,) bound on |dx/dt|, |dy/dt|, |dyaw/dt| from the robot's velocity limits: the body-frame
+        (vx, vy) rotated into the world has |dx|, |dy| <= |(vx, vy)|."""
+        if self.robot is None:
+            return super().speed_bound()
+        v = np.asarray(self.robot.velocity_limits, dtype=np.float64).reshape(3)
+        xy = float(np.hypot(v[0], v[1]))
+        return np.array([xy, xy, v[2]])
+
     def _own_link_poses(self, s: np.ndarray):
         yaw = s[..., 2]
         c, sn = np.cos(yaw)[..., None], np.sin(yaw)[..., None]  # (..., 1)
@@ -196,34 +253,45 @@ class PlanarBase(_LinkPoses):
         return centers, quats, self.semi_axes
 
 
-class JointIntegrator(_LinkPoses):
+class JointIntegrator(DynamicsModel):
     """A joint-space single integrator: state q (n joints, rad or m), control qdot (rad/s or m/s).
 
     ``q_{t+1} = clip(q_t + clip(qdot_t, -v_max, v_max) dt, q_min, q_max)`` (joint position limits
     by saturation, velocity limits by clipping the command).
 
-    ``JointIntegrator(robot)``: limits from ``robot.joint_limits`` / ``robot.velocity_limits`` and
-    link ellipsoids from ``robot.ellipsoids`` (the collision cost then runs FK on the checker's
-    device through ``query_robot``). Legacy form: ``JointIntegrator(fk, q_min, q_max, semi_axes)``
-    with a forward-kinematics callable ``fk(q (..., n)) -> (centers (..., L, 3), quats (..., L, 4)
-    wxyz | None)`` in the scene's world frame and fixed per-link ``semi_axes`` (L, 3).
+    ``JointIntegrator(robot)``: limits from ``robot.joint_limits`` / ``robot.velocity_limits``
+    (``q_min``, ``q_max``, ``velocity_limits`` override them) and link ellipsoids from
+    ``robot.ellipsoids`` (the collision cost then runs FK on the checker's device through
+    ``query_robot``).
+
+    Deprecated (0.3.0, removed in 0.4.0): ``JointIntegrator(fk, q_min, q_max, semi_axes)`` with a
+    forward-kinematics callable ``fk(q (..., n)) -> (centers (..., L, 3), quats (..., L, 4) wxyz |
+    None)`` in the scene's world frame and fixed per-link ``semi_axes`` (L, 3); it warns. Load the
+    robot instead (``load_robot(PATH.urdf)``) and give it.
     """
 
-    def __init__(self, robot_or_fk, q_min=None, q_max=None, semi_axes=None, velocity_limits=None) -> None:
-        if hasattr(robot_or_fk, "ellipsoids") and hasattr(robot_or_fk, "dof"):
-            self.robot = robot_or_fk
-            self.fk = None
-            lim = np.asarray(self.robot.joint_limits, dtype=np.float64).reshape(-1, 2)
+    def __init__(self, robot: Robot, q_min=None, q_max=None, semi_axes=None, velocity_limits=None) -> None:
+        #: the deprecated forward-kinematics callable, or None
+        self.fk: Callable | None = None
+        if isinstance(robot, Robot):
+            if semi_axes is not None:
+                raise SplatplanError("JointIntegrator(robot): the semi-axes are the robot's; give no semi_axes")
+            self.robot = robot
+            lim = np.asarray(robot.joint_limits, dtype=np.float64).reshape(-1, 2)
             q_min = lim[:, 0] if q_min is None else q_min
             q_max = lim[:, 1] if q_max is None else q_max
-            velocity_limits = self.robot.velocity_limits if velocity_limits is None else velocity_limits
-            self.semi_axes = np.asarray(self.robot.semi_axes, dtype=np.float64)
-        else:
+            velocity_limits = robot.velocity_limits if velocity_limits is None else velocity_limits
+            self.semi_axes = np.asarray(robot.semi_axes, dtype=np.float64)
+        elif callable(robot):  # deprecated: JointIntegrator(fk, q_min, q_max, semi_axes)
+            _deprecated("JointIntegrator(fk, q_min, q_max, semi_axes) with a forward-kinematics callable",
+                        "load the robot (load_robot(PATH.urdf)) and give JointIntegrator(robot)", stacklevel=3)  # fmt: skip
             if q_min is None or q_max is None or semi_axes is None:
                 raise SplatplanError("JointIntegrator(fk, q_min, q_max, semi_axes): give all four, or a Robot")
             self.robot = None
-            self.fk = robot_or_fk
+            self.fk = robot
             self.semi_axes = np.asarray(semi_axes, dtype=np.float64).reshape(-1, 3)
+        else:
+            raise SplatplanError(f"JointIntegrator needs a Robot (load_robot(...)), got {type(robot).__name__}")
         self.q_min = np.asarray(q_min, dtype=np.float64).reshape(-1)
         self.q_max = np.asarray(q_max, dtype=np.float64).reshape(-1)
         if self.q_min.shape != self.q_max.shape or np.any(self.q_min > self.q_max):
@@ -242,6 +310,13 @@ class JointIntegrator(_LinkPoses):
             return q0 + np.cumsum(u * dt, axis=1)
         return _integrate(q0, u, lambda q, ut: np.clip(q + ut * dt, self.q_min, self.q_max))  # saturation makes the steps sequential
 
-    def _own_link_poses(self, s: np.ndarray):
+    def speed_bound(self) -> np.ndarray:
+        """(n,) bound on |dq_j/dt|: the velocity clip ``v_max`` (the robot's velocity limits unless
+        ``velocity_limits`` was given)."""
+        if self.v_max is None:
+            raise SplatplanError("CollisionCost(time_stride='auto') needs a Robot or speed_bound")
+        return self.v_max.copy()
+
+    def _own_link_poses(self, s: np.ndarray):  # the deprecated forward-kinematics callable
         centers, quats = self.fk(s)
         return np.asarray(centers, dtype=np.float64), None if quats is None else np.asarray(quats, dtype=np.float64), self.semi_axes

@@ -7,12 +7,16 @@ from __future__ import annotations
 
 import math
 import time
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .._resources import require_bytes
 from ..errors import PlanningError, SplatplanError
 from .robot_links import LinkGeometry
+
+if TYPE_CHECKING:
+    from ..metric.checker import CollisionChecker
 
 def edge_points(a: np.ndarray, b: np.ndarray, resolution: float, include_start: bool = False) -> np.ndarray:
     """Points along E straight edges a[e] -> b[e], spaced at most ``resolution`` apart (Euclidean).
@@ -98,7 +102,7 @@ class EdgeChecker:
     #: stride ratio between consecutive stages of the coarse-to-fine check
     STAGE_FACTOR = 4
 
-    def __init__(self, checker, geometry: LinkGeometry, resolution: float, inflate: bool = False, stages: int = 1, slack: bool = False) -> None:
+    def __init__(self, checker: CollisionChecker, geometry: LinkGeometry, resolution: float, inflate: bool = False, stages: int = 1, slack: bool = False) -> None:
         self.checker = checker
         self.geometry = geometry
         self.resolution = float(resolution)
@@ -239,7 +243,7 @@ def _prove_free(todo: np.ndarray, s: np.ndarray, hit: np.ndarray, slack: np.ndar
     todo &= np.cumsum(diff[:-1]) == 0
 
 
-def check_endpoint(checker, geometry: LinkGeometry, x: np.ndarray, what: str) -> None:
+def check_endpoint(checker: CollisionChecker, geometry: LinkGeometry, x: np.ndarray, what: str) -> None:
     """Raise :class:`PlanningError` when configuration ``x`` (D,) is in collision."""
     if not bool(geometry.collides(checker, np.asarray(x, dtype=np.float64)[None])[0]):
         return  # (the cheap collision-only check; the full query only to describe a collision)

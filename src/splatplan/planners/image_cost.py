@@ -22,12 +22,16 @@ on the GPU between the renderer and the encoder (no host copy of the images).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .._config import ConfigTerms, bounded
 from ..errors import SplatplanError
 from .costs import Cost, CostValue, Rollout
+
+if TYPE_CHECKING:
+    from ..robots.robot import Robot
 
 __all__ = ["ImageCost", "ImageTerms"]
 
@@ -67,7 +71,7 @@ class ImageCost(Cost):
         self,
         renderer,
         camera,
-        robot,
+        robot: Robot,
         encoder,
         target,
         weight: float = 1.0,
@@ -196,7 +200,7 @@ class ImageTerms(ConfigTerms):
     #: weight of the mean patch-token distance inside the image cost (0 = off; needs tokens)
     w_patch: float = bounded(0.0, ge=0)
 
-    def image_cost(self, renderer, camera, robot, encoder, target) -> ImageCost:
+    def image_cost(self, renderer, camera, robot: Robot, encoder, target) -> ImageCost:
         """The :class:`ImageCost` of ``target`` (H, W, 3) seen by ``camera`` on ``robot``."""
         return ImageCost(renderer, camera, robot, encoder, target, weight=self.w_image, w_global=self.w_global, w_patch=self.w_patch, background=(self.background,) * 3,
                          w_empty=self.w_empty, log_eps=self.image_log_eps, normalize=self.normalize_features)  # fmt: skip

@@ -11,12 +11,17 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .._config import ConfigTerms, bounded
 from .._resources import require_bytes
 from ..errors import SplatplanError
+
+if TYPE_CHECKING:
+    from ..metric.checker import CollisionChecker
+    from ..robots.robot import Robot
 
 __all__ = ["MemoryTerms", "ObstacleMemory", "geodesic_field", "line_of_sight"]
 
@@ -66,7 +71,7 @@ class ObstacleMemory:
     """
 
     def __init__(
-        self, robot, checker, lo, hi, goal, cell: float = 0.1, radius: float = 2.5, n_yaws: int = 8, inflation_m: float = 0.3, inflation_cost: float = 2.0,
+        self, robot: Robot, checker: CollisionChecker, lo, hi, goal, cell: float = 0.1, radius: float = 2.5, n_yaws: int = 8, inflation_m: float = 0.3, inflation_cost: float = 2.0,
         occlusion: bool = True, sensor_height: float = 0.3,
     ) -> None:  # fmt: skip
         if cell <= 0 or radius <= 0 or n_yaws < 1 or inflation_m < 0 or inflation_cost < 0 or not np.isfinite(sensor_height):
@@ -421,7 +426,7 @@ class MemoryTerms(ConfigTerms):
     #: its legs below; lower obstacles are seen over, as a lidar on the body would)
     sensor_height_m: float = bounded(0.3, ge=0)
 
-    def obstacle_memory(self, robot, checker, lo, hi, goal) -> ObstacleMemory | None:
+    def obstacle_memory(self, robot: Robot, checker: CollisionChecker, lo, hi, goal) -> ObstacleMemory | None:
         """The :class:`ObstacleMemory` of the box ``lo``..``hi`` (world, m) with the goal ``goal`` (2,), or None when ``memory`` is off."""
         if not self.memory:
             return None

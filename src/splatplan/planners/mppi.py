@@ -34,7 +34,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
-from typing import Callable
+from typing import TYPE_CHECKING, Callable
 
 import numpy as np
 
@@ -43,7 +43,10 @@ from .._resources import require_rollouts
 from ..errors import SplatplanError
 from .bspline import UniformBSpline
 from .costs import CollisionCost, ControlEffortCost, Cost, Rollout, StateCost, TerminalCost, evaluate_costs, link_geometry
-from .dynamics import Dynamics
+from .dynamics import Dynamics, JointIntegrator
+
+if TYPE_CHECKING:
+    from ..metric.checker import CollisionChecker
 
 
 @dataclass
@@ -302,12 +305,10 @@ def mppi_weights(costs: np.ndarray, temperature: float) -> np.ndarray:
     return w / w.sum()
 
 
-def joint_speed_bound(dynamics, u_min, u_max) -> np.ndarray | None:
+def joint_speed_bound(dynamics: Dynamics, u_min, u_max) -> np.ndarray | None:
     """(dof,) bound on |dq/dt| of a :class:`JointIntegrator` whose controls (joint velocities) are
     clipped to [u_min, u_max] (per dim or one for all; the B-spline stays inside the knots' bounds)
     and to its ``v_max``; None for other dynamics (the collision cost then derives its own)."""
-    from .dynamics import JointIntegrator
-
     if not isinstance(dynamics, JointIntegrator):
         return None
     du = int(dynamics.control_dim)
@@ -349,7 +350,7 @@ class MPPI:
     def __init__(
         self,
         dynamics: Dynamics,
-        checker,
+        checker: CollisionChecker,
         config: MPPIConfig | None = None,
         task_cost: Callable[[np.ndarray], np.ndarray] | None = None,
         terminal_cost: Callable[[np.ndarray], np.ndarray] | None = None,

@@ -48,6 +48,7 @@ import sys
 import threading
 import time
 from dataclasses import replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -55,6 +56,10 @@ from ..errors import PlanningError, SplatplanError
 from .edges import EdgeChecker, check_endpoint
 from .rrt import RRT
 from .rrt_types import PlanResult, RRTConfig, path_length
+
+if TYPE_CHECKING:
+    from ..metric.checker import CollisionChecker
+    from ..robots.robot import Robot
 
 __all__ = ["available_planners", "ompl_available", "plan_ompl"]
 
@@ -109,11 +114,11 @@ def available_planners() -> list[str]:
 
 
 def plan_ompl(
-    checker,
+    checker: CollisionChecker,
     start,
     goal,
     *,
-    robot,
+    robot: Robot | str,
     name: str = "RRTConnect",
     time_limit_s: float | None = 10.0,
     rrt_config: RRTConfig | None = None,

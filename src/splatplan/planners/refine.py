@@ -22,6 +22,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -32,6 +33,10 @@ from .bspline import bspline_basis, fit_bspline, resample_polyline
 from .robot_links import LinkGeometry, as_robot
 from .edges import EdgeChecker
 from .rrt_types import path_length
+
+if TYPE_CHECKING:
+    from ..metric.checker import CollisionChecker
+    from ..robots.robot import Robot
 
 
 @dataclass
@@ -139,11 +144,11 @@ def _curve_costs(checker, geom: LinkGeometry, curves: np.ndarray, cfg: RefineCon
 
 
 def refine_path(
-    checker,
+    checker: CollisionChecker,
     path: np.ndarray,
     config: RefineConfig | None = None,
     *,
-    robot,
+    robot: Robot | str,
     deadline: float | None = None,
 ) -> RefineResult:
     """Refine a collision-free polyline into a shorter, smoother, collision-free B-spline curve.

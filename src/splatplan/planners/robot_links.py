@@ -4,17 +4,17 @@ Planners and costs take a :class:`splatplan.robots.Robot` (or a name for
 :func:`~splatplan.robots.load_robot`, e.g. ``"sphere:0.015"``); :class:`LinkGeometry` is their
 private adapter over it (built only from a Robot), not a second robot type.
 
-The two functions :func:`robot_collides` and :func:`robot_query` are the **only** places where a
-planner asks the checker about a robot: they use the checker's device-resident
-``collides_robot`` / ``query_robot`` when it has them, else forward kinematics on the host
-(``robot.ellipsoids(q)``) followed by ``collides`` / ``query``. Switching is one line each.
+The functions :func:`robot_collides`, :func:`configs_collide`, :func:`configs_collide_slack`,
+:func:`robot_collides_slack` and :func:`robot_query` are the **only** places where a planner asks
+the :class:`~splatplan.metric.CollisionChecker` about a robot (its device-resident
+``collides_robot`` / ``collides_configs`` / ``query_robot``, FK on the checker's device).
 
 Configuration metric (what "stride", "edge resolution" and "goal tolerance" are measured in):
 
 * ``motion(dq)`` bounds how far **any point of any ellipsoid** moves when the configuration changes
   by ``dq`` along a straight line in configuration space: ``sum_j motion_bound[j] |dq_j|`` (scene
-  units, from :attr:`Robot.motion_bound`), and exactly ``|dq|`` for a translating robot (a sphere
-  or ellipsoid whose configuration is its centre).
+  units, from :attr:`Robot.motion_bound`), and exactly ``|dq|`` for a point robot
+  (:attr:`Robot.is_point`: a sphere or ellipsoid whose configuration is its centre).
 * distances between configurations (nearest neighbours, stride) are the weighted Euclidean norm
   ``|motion_bound * dq|_2`` (scene units; the plain Euclidean distance for a point robot), which is
   never more than ``motion(dq)`` and never less than ``motion(dq) / sqrt(dof)``.
@@ -23,17 +23,23 @@ Configuration metric (what "stride", "edge resolution" and "goal tolerance" are 
 from __future__ import annotations
 
 import threading
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..errors import SplatplanError
+from ..robots.robot import Robot
+
+if TYPE_CHECKING:
+    from ..metric.checker import CollisionChecker
+    from ..metric.config import QueryResult
 
 #: default fraction of the robot's smallest semi-axis that bounds how far any ellipsoid point moves
 #: between two consecutive collision checks along an edge
 EDGE_FRACTION = 0.25
 
 
-def as_robot(robot):
+def as_robot(robot: Robot | str | None) -> Robot:
     """A :class:`~splatplan.robots.Robot` from a Robot (returned as is) or a name for
     :func:`~splatplan.robots.load_robot` ("panda", "go2", "sphere:0.015", a URDF path).
 
@@ -49,70 +55,42 @@ def as_robot(robot):
         from ..robots import load_robot
 
         return load_robot(robot)
+    if not isinstance(robot, Robot):
+        raise SplatplanError(f"the robot must be a Robot or a name for load_robot, got {type(robot).__name__}")
     return robot
 
 
-def robot_collides(checker, robot, q: np.ndarray) -> np.ndarray:
+def robot_collides(checker: CollisionChecker, robot: Robot, q: np.ndarray) -> np.ndarray:
     """(..., dof) configurations -> (..., E) bool: ellipsoid e of configuration q is in collision."""
-    if hasattr(checker, "collides_robot"):
-        return np.asarray(checker.collides_robot(robot, q))
-    return checker.collides(*robot.ellipsoids(q))
+    return np.asarray(checker.collides_robot(robot, q))
 
 
-def configs_collide(checker, robot, q: np.ndarray, out=None) -> np.ndarray:
+def configs_collide(checker: CollisionChecker, robot: Robot, q: np.ndarray, out=None) -> np.ndarray:
     """(..., dof) configurations -> (...,) bool: any ellipsoid of configuration q in collision (the
-    checker's per-configuration kernel when it has one: the same answer, cheaper). ``out``: the
-    checker's workspace to reuse (the result is a copy either way)."""
-    if hasattr(checker, "collides_configs"):
-        return np.array(checker.collides_configs(robot, q, out=out))
-    return np.asarray(robot_collides(checker, robot, q)).any(axis=-1)
+    checker's per-configuration kernel: the answer of :func:`robot_collides` ``.any(-1)``, cheaper).
+    ``out``: the checker's workspace to reuse (the result is a copy either way)."""
+    return np.array(checker.collides_configs(robot, q, out=out))
 
 
-def configs_collide_slack(checker, robot, q: np.ndarray, out=None) -> tuple[np.ndarray, np.ndarray]:
+def configs_collide_slack(checker: CollisionChecker, robot: Robot, q: np.ndarray, out=None) -> tuple[np.ndarray, np.ndarray]:
     """(..., dof) -> (any ellipsoid in collision (...,) bool, slack (..., E) float): as
-    :func:`robot_collides_slack`, per configuration (the checker's per-configuration kernel when it
-    has one; its slack may differ from the per-ellipsoid one's but holds the same promise)."""
-    if hasattr(checker, "collides_configs_slack"):
-        hit, slack = checker.collides_configs_slack(robot, q, out=out)
-        return np.array(hit), np.array(slack)
-    hit, slack = robot_collides_slack(checker, robot, q)
-    return hit.any(axis=-1), slack
+    :func:`robot_collides_slack`, per configuration (the checker's per-configuration kernel; its
+    slack may differ from the per-ellipsoid one's but holds the same promise)."""
+    hit, slack = checker.collides_configs_slack(robot, q, out=out)
+    return np.array(hit), np.array(slack)
 
 
-def robot_collides_slack(checker, robot, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def robot_collides_slack(checker: CollisionChecker, robot: Robot, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(..., dof) -> (hits (..., E) bool, slack (..., E) float): ellipsoid e of configuration q is in
     collision, and a distance its centre may move (its orientation anyhow) with it staying free
-    (the checker's FREE SLACK; zeros from a checker without it: nothing proven, as the
-    CollisionChecker's reference backend returns them too)."""
-    if hasattr(checker, "collides_robot_slack"):
-        hit, slack = checker.collides_robot_slack(robot, q)
-        return np.asarray(hit), np.asarray(slack)
-    hit = robot_collides(checker, robot, q)
-    return hit, np.zeros(hit.shape, dtype=np.float32)
+    (the checker's FREE SLACK; zeros from its reference backend: nothing proven)."""
+    hit, slack = checker.collides_robot_slack(robot, q)
+    return np.asarray(hit), np.asarray(slack)
 
 
-def robot_query(checker, robot, q: np.ndarray):
+def robot_query(checker: CollisionChecker, robot: Robot, q: np.ndarray) -> QueryResult:
     """(..., dof) configurations -> :class:`~splatplan.metric.QueryResult` with fields (..., E)."""
-    if hasattr(checker, "query_robot"):
-        return checker.query_robot(robot, q)
-    return checker.query(*robot.ellipsoids(q))
-
-
-def _is_translation(robot, rng: np.random.Generator) -> bool:
-    """Whether the configuration is a pure translation of the whole robot (centres = q + const,
-    orientations fixed): a sphere or ellipsoid point robot."""
-    if robot.dof != 3:
-        return False
-    lim = np.asarray(robot.joint_limits, dtype=np.float64)
-    q0 = np.asarray(robot.q_default, dtype=np.float64)
-    lo = np.where(np.isfinite(lim[:, 0]), lim[:, 0], q0 - 1.0)
-    hi = np.where(np.isfinite(lim[:, 1]), lim[:, 1], q0 + 1.0)
-    q = lo + rng.random((4, 3)) * (hi - lo)
-    c, quat, _ = robot.ellipsoids(q)  # (4, E, 3), (4, E, 4)
-    off = c - q[:, None, :]
-    same_off = np.allclose(off, off[:1], atol=1e-9)
-    same_rot = quat is None or np.allclose(np.abs(np.einsum("...i,...i->...", quat, quat[:1])), 1.0, atol=1e-9)
-    return bool(same_off and same_rot)
+    return checker.query_robot(robot, q)
 
 
 class LinkGeometry:
@@ -123,7 +101,8 @@ class LinkGeometry:
         dof: configuration dimension D.
         weights: (D,) per-coordinate weights of the configuration distance (motion_bound; ones for
             translating robots).
-        translation: the configuration is the robot's position (|dq| is the exact displacement).
+        translation: the configuration is the robot's position (a point robot,
+            :attr:`Robot.is_point`: |dq| is the exact displacement).
         sphere: a single translating sphere (edges may use the inflation test, see the RRT).
         min_semi_axis: smallest ellipsoid semi-axis (scene units).
         max_semi_axis: largest ellipsoid semi-axis (scene units), used to pad sampling boxes.
@@ -132,16 +111,15 @@ class LinkGeometry:
             whatever its number of ellipsoids).
     """
 
-    def __init__(self, robot) -> None:
-        if not (hasattr(robot, "ellipsoids") and hasattr(robot, "dof")):
+    def __init__(self, robot: Robot) -> None:
+        if not isinstance(robot, Robot):
             raise SplatplanError(f"LinkGeometry needs a Robot, got {type(robot).__name__}")
         self.robot = robot
         self.n_queries = 0
         self.n_configs = 0
         self._ws: dict = {}  # (id(checker), thread) -> (checker, its MetricWorkspace): buffers reused across checks
-        rng = np.random.default_rng(0)
         self.dof = int(robot.dof)
-        self.translation = _is_translation(robot, rng)
+        self.translation = robot.is_point
         ax = np.asarray(robot.semi_axes, dtype=np.float64)
         self.weights = np.ones(self.dof) if self.translation else np.asarray(robot.motion_bound, dtype=np.float64).reshape(self.dof)
         if not np.all(np.isfinite(self.weights)) or np.any(self.weights < 0):
@@ -152,9 +130,8 @@ class LinkGeometry:
         #: (E, D) per-ellipsoid motion bounds (:meth:`Robot.ellipsoid_motion_bounds`) or None (then
         #: ``motion`` bounds every ellipsoid: translating robots, robots without them)
         self.ellipsoid_bounds = None
-        fn = getattr(robot, "ellipsoid_motion_bounds", None)
-        if not self.translation and fn is not None:
-            b = np.asarray(fn(), dtype=np.float64)
+        if not self.translation:
+            b = np.asarray(robot.ellipsoid_motion_bounds(), dtype=np.float64)
             if b.shape == (int(robot.n_ellipsoids), self.dof) and np.all(np.isfinite(b)) and np.all(b >= 0):
                 self.ellipsoid_bounds = b
         if self.translation:  # fast path: centres = q + offset, fixed orientations (no FK on the host)
@@ -164,10 +141,8 @@ class LinkGeometry:
             self._quat = np.asarray(quat0[0], dtype=np.float64)  # (E, 4) wxyz
             self._axes = ax
 
-    def _workspace(self, checker):
-        """This thread's reusable output buffers on ``checker`` (None for checkers without them)."""
-        if not hasattr(checker, "workspace"):
-            return None
+    def _workspace(self, checker: CollisionChecker):
+        """This thread's reusable output buffers on ``checker``."""
         key = (id(checker), threading.get_ident())
         hit = self._ws.get(key)
         if hit is None or hit[0] is not checker:
@@ -213,7 +188,7 @@ class LinkGeometry:
             return c, np.broadcast_to(self._quat, c.shape[:-1] + (4,)), self._axes
         return self.robot.ellipsoids(q)
 
-    def collides(self, checker, q: np.ndarray, margin: float | np.ndarray = 0.0) -> np.ndarray:
+    def collides(self, checker: CollisionChecker, q: np.ndarray, margin: float | np.ndarray = 0.0) -> np.ndarray:
         """(..., D) -> (...,) bool: any ellipsoid in collision. ``margin`` (scalar or (...,)) grows
         every semi-axis (used by the sphere edge test)."""
         q = np.asarray(q, dtype=np.float64)
@@ -233,7 +208,7 @@ class LinkGeometry:
         self.n_configs += hit.size // max(hit.shape[-1], 1) if hit.ndim else 1
         return hit.any(axis=-1)
 
-    def collides_slack(self, checker, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def collides_slack(self, checker: CollisionChecker, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(..., D) -> (any ellipsoid in collision (...,) bool, slack (..., E) float): each
         ellipsoid's FREE SLACK (see :func:`robot_collides_slack`): the ellipsoid is free wherever
         its centre lies within that distance of this one's."""
@@ -242,13 +217,13 @@ class LinkGeometry:
         self.n_configs += hit.size
         return hit, slack
 
-    def query(self, checker, q: np.ndarray):
+    def query(self, checker: CollisionChecker, q: np.ndarray) -> QueryResult:
         """(..., D) -> QueryResult with fields (..., L)."""
         res = robot_query(checker, self.robot, np.asarray(q, dtype=np.float64))
         self.n_queries += int(np.size(res.min_s2))
         return res
 
-    def describe_collision(self, checker, q: np.ndarray) -> str | None:
+    def describe_collision(self, checker: CollisionChecker, q: np.ndarray) -> str | None:
         """None when configuration ``q`` (D,) is free, else a sentence naming the worst link, what
         blocks it (how many splats, how faint and large, where) and the remedy that fits."""
         q = np.asarray(q, dtype=np.float64)
@@ -265,9 +240,8 @@ class LinkGeometry:
             f"min_s2 = {float(res.min_s2[0, j]):.4g} < 1{link}: {int(res.n_colliding[0, j])} splat(s) inside the robot "
             f"at n_sigma = {checker.n_sigma:g}, {colliding.size} of {res.min_s2.shape[-1]} ellipsoid(s) in collision"
         )
-        if hasattr(checker, "blockers"):
-            c, quat, ax = self.ellipsoids(q[None])
-            b = checker.blockers(np.asarray(c)[0, j], None if quat is None else np.asarray(quat)[0, j], np.asarray(ax).reshape(-1, 3)[j])
-            if b.n:
-                text += f"; at that ellipsoid {b.summary()}: {b.remedy()}"
+        c, quat, ax = self.ellipsoids(q[None])
+        b = checker.blockers(np.asarray(c)[0, j], None if quat is None else np.asarray(quat)[0, j], np.asarray(ax).reshape(-1, 3)[j])
+        if b.n:
+            text += f"; at that ellipsoid {b.summary()}: {b.remedy()}"
         return text

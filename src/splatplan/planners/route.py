@@ -7,8 +7,13 @@ point a driver follows along a route (:func:`carrot`). Used by :mod:`splatplan.t
 from __future__ import annotations
 
 import numpy as np
+from typing import TYPE_CHECKING
 
 from ..errors import SplatplanError
+
+if TYPE_CHECKING:
+    from ..metric.checker import CollisionChecker
+    from ..robots.robot import Robot
 
 __all__ = ["carrot", "free_yaw", "plan_route", "tree_branch", "wrap_angle"]
 
@@ -19,7 +24,7 @@ def wrap_angle(a):
 
 
 def plan_route(
-    robot, checker, start, goal_xy, time_budget_s: float = 60.0, seed: int = 0, edge_resolution: float = 0.05, stride: float = 0.4, goal_bias: float = 0.2
+    robot: Robot, checker: CollisionChecker, start, goal_xy, time_budget_s: float = 60.0, seed: int = 0, edge_resolution: float = 0.05, stride: float = 0.4, goal_bias: float = 0.2
 ) -> np.ndarray | None:
     """Global route on the base's SE(2) with the batched RRT: (P, 3) configurations (x, y, yaw),
     or None when none is found within ``time_budget_s``.
@@ -52,7 +57,7 @@ def plan_route(
     return np.asarray(res.path)
 
 
-def free_yaw(robot, checker, xy) -> float | None:
+def free_yaw(robot: Robot, checker: CollisionChecker, xy) -> float | None:
     """A yaw at which the base at ``xy`` is collision-free (None if every one of 16 collides)."""
     yaws = np.linspace(-np.pi, np.pi, 16, endpoint=False)
     q = np.stack([np.full(16, xy[0]), np.full(16, xy[1]), yaws], axis=1)

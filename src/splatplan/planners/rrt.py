@@ -50,6 +50,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy.spatial.distance import cdist
@@ -61,6 +62,10 @@ from .rrt_types import PlanResult, RRTConfig, RRTSettings, path_length
 
 __all__ = ["RRT", "RRTConfig", "RRTSettings", "PlanResult", "EdgeChecker", "Search", "check_endpoint", "edge_points", "edge_samples",
            "path_length", "robust_scene_box", "shortcut_path", "BOX_PERCENTILE", "STRIDE_FRACTION"]  # fmt: skip
+
+if TYPE_CHECKING:
+    from ..metric.checker import CollisionChecker
+    from ..robots.robot import Robot
 
 #: percentile of the splat means that bounds the default sampling box on each side (robust to outliers)
 BOX_PERCENTILE = 0.5
@@ -127,7 +132,7 @@ class RRT:
     #: the planner's name in :data:`~splatplan.planners.PLANNERS`
     name = "rrt"
 
-    def __init__(self, checker, config: RRTConfig | None = None, *, robot) -> None:
+    def __init__(self, checker: CollisionChecker, config: RRTConfig | None = None, *, robot: Robot | str) -> None:
         self.checker = checker
         self.config = (config or RRTConfig()).validate()
         self.geometry = LinkGeometry(as_robot(robot))

@@ -10,10 +10,14 @@ viewing direction given in the link frame.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..errors import SplatplanError
+
+if TYPE_CHECKING:
+    from ..robots.robot import Robot
 
 __all__ = ["Camera", "MountedCamera", "camera_pose_error", "head_camera", "look_at", "intrinsics_from_fov", "mount_offset", "invert_rigid", "wrist_camera"]
 
@@ -212,12 +216,12 @@ class MountedCamera:
             raise SplatplanError(f"robot {getattr(robot, 'name', '?')!r} has no link {self.link_name!r}; links: {', '.join(names)}")
         return names.index(self.link_name)
 
-    def cam_to_world(self, robot, q) -> np.ndarray:
+    def cam_to_world(self, robot: Robot, q) -> np.ndarray:
         """(..., 4, 4) world <- camera for configurations q (..., dof)."""
         poses = np.asarray(robot.link_poses(q), dtype=np.float64)  # (..., L, 4, 4) world <- link
         return poses[..., self._link_index(robot), :, :] @ self.offset
 
-    def viewmats(self, robot, q) -> np.ndarray:
+    def viewmats(self, robot: Robot, q) -> np.ndarray:
         """(..., 4, 4) world-to-camera matrices for configurations q (..., dof), e.g. (K, dof) rollouts."""
         return invert_rigid(self.cam_to_world(robot, q))
 
@@ -225,14 +229,14 @@ class MountedCamera:
         """(*batch_shape, 3, 3) copies of K."""
         return np.broadcast_to(self.K, tuple(batch_shape) + (3, 3)).copy()
 
-    def render(self, renderer, robot, q, **kwargs):
+    def render(self, renderer, robot: Robot, q, **kwargs):
         """Render the views at configurations q (K, dof) with a :class:`SplatRenderer` (or anything
         with its ``render`` signature). Returns its :class:`RenderResult` (K images)."""
         v = self.viewmats(robot, q).reshape(-1, 4, 4)
         return renderer.render(v, self.Ks((v.shape[0],)), self.width, self.height, **kwargs)
 
 
-def wrist_camera(robot, image_size: int = 64, fov_deg: float = 70.0, link: str = "panda_hand_tcp"):
+def wrist_camera(robot: Robot, image_size: int = 64, fov_deg: float = 70.0, link: str = "panda_hand_tcp"):
     """The wrist camera: a :class:`~splatplan.render.MountedCamera` at ``link`` (identity offset:
     the camera looks along the link's z axis, image x along link x)."""
     cam = MountedCamera(link, np.eye(4), intrinsics_from_fov(fov_deg, image_size, image_size), image_size, image_size)
@@ -247,7 +251,7 @@ def camera_pose_error(t: np.ndarray, t_goal: np.ndarray) -> tuple[float, float]:
     return pe, float(np.degrees(np.arccos(np.clip(c, -1.0, 1.0))))
 
 
-def head_camera(robot, image_size: int = 64, fov_deg: float = 90.0, offset=(0.30, 0.0, 0.05), link: str = "base"):
+def head_camera(robot: Robot, image_size: int = 64, fov_deg: float = 90.0, offset=(0.30, 0.0, 0.05), link: str = "base"):
     """A legged robot's head camera: a :class:`MountedCamera` on ``link`` at ``offset`` (m, link
     frame: x forward, y left, z up), looking along the link's +x, image up = +z."""
     cam = MountedCamera(link, mount_offset(tuple(offset), forward=(1.0, 0.0, 0.0), up=(0.0, 0.0, 1.0)), intrinsics_from_fov(fov_deg, image_size, image_size), image_size, image_size)

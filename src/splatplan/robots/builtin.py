@@ -13,9 +13,10 @@ Built-ins:
   the greedy union of :mod:`splatplan.robots.fit_cover`). ``DEFAULT_MODEL`` (``"tight"``) says
   which one plain ``"panda"`` loads; the name ``"panda:coarse"`` (or ``panda:cover``,
   ``panda:tight``) picks one wherever a robot name is taken (``--robot panda:coarse``).
-* ``go2``: Unitree Go2 as a planar base, dofs (x [m], y [m], yaw [rad]); the 12 leg joints are
-  fixed at the SRDF "standing" state; the body is raised so that the lowest point of any
-  ellipsoid (the feet's) is at z = 0. Ellipsoids: ``data/go2.yaml``.
+* ``go2``: Unitree Go2 as a planar base, dofs (x [m], y [m], yaw [rad]), that walks on terrain
+  (``robot.walks_on_terrain``); the 12 leg joints are fixed at the SRDF "standing" state; the body
+  is raised so that the lowest point of any ellipsoid (the feet's) is at z = 0. Ellipsoids:
+  ``data/go2.yaml``.
 * ``sphere:R`` / ``ellipsoid:A,B,C``: one link ("body"), dofs (x, y, z) translation, axis-aligned;
   with ``base="planar"`` the same body as a planar base, dofs (x, y, yaw), at the height of
   ``base_pose`` (e.g. a ground robot's body for MPPI over SE(2)).
@@ -28,12 +29,23 @@ about a CPU-minute per link; ``"cover"``; or ``"split"``, milliseconds, enclosin
 ``opt`` and ``cover`` fits are cached by :mod:`splatplan.robots.fit_cache` (keyed by the mesh
 files' content, the method, its version and parameters), and the MotionBenchMaker Panda's ``opt``
 fit ships with the package, so loading it never fits.
+
+What kind of robot a name gives (:attr:`Robot.base`, :attr:`Robot.walks_on_terrain`,
+:attr:`Robot.is_point`): ``panda`` a fixed base; ``go2`` a planar base that walks on terrain;
+``sphere:R`` / ``ellipsoid:A,B,C`` a point (a translation base), or a planar body with
+``base="planar"``; a URDF a fixed base unless ``base=`` says otherwise. **A ground robot from a
+URDF**: ``load_robot(path, walks_on_terrain=True)`` (a planar base, ``base="planar"`` implied) or
+the name ``PATH.urdf:walking`` (``--robot PATH.urdf:walking`` on the command line;
+``PATH.urdf:planar`` is a planar base that does not walk): like ``go2`` it stands on the floor
+(raised so that its lowest ellipsoid point is at z = 0 unless ``base_pose`` is given) and the
+command line removes the floor's splats (terrain) from its collision scene.
 """
 
 from __future__ import annotations
 
 import copy
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
@@ -52,8 +64,11 @@ KNOWN = ("panda", "go2", "sphere:R", "ellipsoid:A,B,C")
 ROBOT_NAME_HELP = (
     "panda (7 joint angles, rad; the tight collision model, panda:coarse = one ellipsoid per link, panda:cover) | "
     "go2 (planar base: x, y, yaw) | sphere:R | ellipsoid:A,B,C "
-    "(a point robot: one axis-aligned link with these semi-axes, scene units; dofs x, y, z) | PATH.urdf"
+    "(a point robot: one axis-aligned link with these semi-axes, scene units; dofs x, y, z) | PATH.urdf "
+    "(fixed base; PATH.urdf:planar = a planar base x, y, yaw; PATH.urdf:walking = a planar base that walks on terrain, as go2)"
 )
+#: URDF name suffixes (``PATH.urdf:SUFFIX``) -> (base, walks_on_terrain): see the module docstring.
+URDF_SUFFIXES = {"planar": ("planar", False), "walking": ("planar", True)}
 #: The point robot of the studies, the demo and ``splatplan plan``: a sphere of radius 0.015 scene
 #: units (Stonehenge's gates are sized for it). Give it to a planner as ``load_robot(DEFAULT_POINT_ROBOT)``.
 DEFAULT_POINT_ROBOT = "sphere:0.015"
@@ -62,6 +77,9 @@ PANDA_MODELS = {"coarse": "panda.yaml", "cover": "panda_cover.yaml", "tight": "p
 #: The model plain ``load_robot("panda")`` (and ``--robot panda``) uses: the tight, certified one;
 #: ``model="coarse"`` keeps the one-ellipsoid-per-link model.
 DEFAULT_MODEL = "tight"
+#: The built-in robots whose URDF comes with the package -> the SRDF group state their fixed joints
+#: take ("panda": the fingers; "go2": the 12 leg joints).
+BUILTIN_STATE = {"panda": "default", "go2": "standing"}
 #: Range of the built-in Panda's finger opening (m per finger, panda_finger_joint1).
 FINGER_RANGE = (0.0, 0.04)
 #: Default base speeds for planar / translation bases (m/s, rad/s); documented, not from a datasheet.
@@ -84,6 +102,12 @@ class RobotName:
     semi_axes: tuple[float, float, float] | None = None
     #: "panda:MODEL": the built-in Panda's collision model (:data:`PANDA_MODELS`); None = not named
     model: str | None = None
+    #: paths: the file, without a ``:planar`` / ``:walking`` suffix (:data:`URDF_SUFFIXES`); None otherwise
+    path: str | None = None
+    #: "PATH.urdf:SUFFIX": the base the suffix names ("planar"); None = not named
+    base: str | None = None
+    #: "PATH.urdf:walking": a ground robot that walks on terrain; None = not named
+    walks_on_terrain: bool | None = None
 
     @property
     def is_point(self) -> bool:
@@ -94,8 +118,10 @@ class RobotName:
 def parse_robot_name(spec: str | Path) -> RobotName:
     """The one parser of robot names (:data:`ROBOT_NAME_HELP`): "panda", "panda:MODEL" (a
     collision model of :data:`PANDA_MODELS`, e.g. "panda:coarse"), "go2", "sphere:R",
-    "ellipsoid:A,B,C" or a path. Point-robot sizes and Panda model names are checked here (finite,
-    > 0); whether a path is a URDF file is left to :func:`load_robot`.
+    "ellipsoid:A,B,C" or a path, optionally with a base suffix ``PATH.urdf:planar`` /
+    ``PATH.urdf:walking`` (:data:`URDF_SUFFIXES`; a file whose name itself ends so is read as that
+    file). Point-robot sizes and Panda model names are checked here (finite, > 0); whether a path is
+    a URDF file is left to :func:`load_robot`.
 
     Raises:
         SplatplanError: a malformed "sphere:..." / "ellipsoid:..." or an unknown "panda:MODEL"
@@ -110,7 +136,11 @@ def parse_robot_name(spec: str | Path) -> RobotName:
             raise SplatplanError(f"robot {text!r}: unknown Panda model {rest!r}: use panda:{' | panda:'.join(PANDA_MODELS)} (plain panda = {DEFAULT_MODEL})")
         return RobotName("panda", text, model=rest)
     if not (sep and kind in ("sphere", "ellipsoid")):
-        return RobotName("path", text)
+        head, sep, suffix = text.rpartition(":")
+        if sep and head and suffix in URDF_SUFFIXES and not Path(text).is_file():
+            base, walks = URDF_SUFFIXES[suffix]
+            return RobotName("path", text, path=head, base=base, walks_on_terrain=walks)
+        return RobotName("path", text, path=text)
     try:
         vals = [float(v) for v in rest.split(",")] if rest else []
     except ValueError:
@@ -167,6 +197,7 @@ def load_robot(
     model: str | None = None,
     finger_opening: float | None = None,
     fit_method: str | None = None,
+    walks_on_terrain: bool | None = None,
 ) -> Robot:
     """A :class:`Robot` from a built-in name or a URDF path (see the module docstring).
 
@@ -178,8 +209,10 @@ def load_robot(
             (returned as is).
         active: joints that are dofs (URDF order kept); others are fixed at ``fixed`` / SRDF / 0.
         fixed: joint values for joints that are not dofs.
-        base: "fixed" (default for URDFs), "planar" (x, y, yaw) or "translation" (x, y, z).
-        base_pose: (4, 4) world <- robot base (default: identity; go2: raised to standing height).
+        base: "fixed" (default for URDFs), "planar" (x, y, yaw) or "translation" (x, y, z); a
+            ``PATH.urdf:planar`` / ``:walking`` name says "planar" already.
+        base_pose: (4, 4) world <- robot base (default: identity; a robot that walks on terrain,
+            e.g. go2: raised to its standing height, its lowest ellipsoid point at z = 0).
         ellipsoids: YAML with the collision ellipsoids (skips fitting).
         per_link: ellipsoids per link when fitting at load time.
         from_visual: fit links without collision geometry to their visual meshes.
@@ -190,11 +223,25 @@ def load_robot(
         fit_method: None = "opt" (default: tight and safe, :mod:`splatplan.robots.fit_opt`, cached),
             "cover" (:mod:`splatplan.robots.fit_cover`, cached) or "split" (enclosing
             ellipsoids, ``per_link`` each) when a URDF is fitted at load time.
+        walks_on_terrain: a ground robot (:attr:`Robot.walks_on_terrain`; a planar base: ``base``
+            defaults to "planar" and may not be another): it stands on the floor and the floor's
+            splats are terrain, not obstacles. None = the name's (``go2``, ``PATH.urdf:walking``:
+            True; else False).
     """
     if isinstance(spec, Robot):
         return spec
     parsed = parse_robot_name(spec)
     text = parsed.text
+    if parsed.base is not None:  # "PATH.urdf:planar" / ":walking"
+        if base is not None and base != parsed.base:
+            raise SplatplanError(f"robot {text!r} names base {parsed.base!r} but base={base!r} was given: give one of them")
+        if walks_on_terrain is not None and walks_on_terrain != parsed.walks_on_terrain:
+            raise SplatplanError(f"robot {text!r} says walks_on_terrain={parsed.walks_on_terrain} but walks_on_terrain={walks_on_terrain} was given: give one of them")
+        base, walks_on_terrain = parsed.base, parsed.walks_on_terrain
+    if walks_on_terrain:
+        base = base or "planar"
+        if base != "planar":
+            raise SplatplanError(f"robot {text!r}: a robot that walks on terrain has a planar base (x, y, yaw), not base={base!r}")
     if parsed.model is not None:  # "panda:MODEL"
         if model is not None and model != parsed.model:
             raise SplatplanError(f"robot {text!r} names model {parsed.model!r} but model={model!r} was given: give one of them")
@@ -204,7 +251,7 @@ def load_robot(
                                     ("srdf", srdf), ("model", model), ("finger_opening", finger_opening), ("fit_method", fit_method is not None)) if v]  # fmt: skip
         if urdf_only:
             raise SplatplanError(f"robot {text!r}: {', '.join(urdf_only)} apply to URDF robots, not to a point robot (give base= and base_pose= only)")
-        return _point_robot(parsed, base, base_pose)
+        return _standing(lambda pose: _point_robot(parsed, base, pose, bool(walks_on_terrain)), base_pose)
     fit_method = "opt" if fit_method is None else fit_method
     if fit_method not in METHODS:
         raise SplatplanError(f"unknown fit method {fit_method!r}: use one of {', '.join(METHODS)}")
@@ -221,21 +268,47 @@ def load_robot(
                     raise SplatplanError(f"finger_opening {finger_opening} m is outside [{FINGER_RANGE[0]}, {FINGER_RANGE[1]}] (each finger's distance from the centre line)")
                 fixed = {**(fixed or {}), "panda_finger_joint1": fo}
             ellipsoids = ellipsoids or DATA / PANDA_MODELS[model]
-        if not (active or fixed or base or base_pose is not None or srdf) and (ellipsoids is None or text == "panda" and Path(ellipsoids) == DATA / PANDA_MODELS[model]):
+        if not (active or fixed or base or base_pose is not None or srdf or walks_on_terrain is not None) and (
+            ellipsoids is None or text == "panda" and Path(ellipsoids) == DATA / PANDA_MODELS[model]
+        ):
             return copy.deepcopy(_cached_builtin(text, str(ellipsoids) if ellipsoids else None))  # fresh: never the cached one
-        return _builtin(text, active, fixed, base, base_pose, ellipsoids)
-    p = Path(text).expanduser()
+        return _builtin(text, active, fixed, base, base_pose, ellipsoids, walks_on_terrain)
+    p = Path(parsed.path or text).expanduser()
     if p.suffix.lower() in (".urdf", ".xml") or p.is_file():
         if not p.is_file():
             raise SplatplanError(f"URDF {p} does not exist")
         srdf_path = Path(srdf) if srdf else (p.with_suffix(".srdf") if p.with_suffix(".srdf").is_file() else None)
         ell = ellipsoids or (p.with_name(p.stem + ".ellipsoids.yaml") if p.with_name(p.stem + ".ellipsoids.yaml").is_file() else None)
-        return build_robot(read_urdf(p), srdf_path, active, fixed, base or "fixed", base_pose, ell, per_link, from_visual,
-                           fit_method="split" if per_link > 1 else fit_method)  # fmt: skip
+        model_ = read_urdf(p)
+        return _standing(lambda pose: build_robot(model_, srdf_path, active, fixed, base or "fixed", pose, ell, per_link, from_visual,
+                                                  fit_method="split" if per_link > 1 else fit_method, walks_on_terrain=bool(walks_on_terrain)),
+                         base_pose)  # fmt: skip
     raise SplatplanError(f"unknown robot {text!r}: {_known_msg()}")
 
 
-def _point_robot(name: RobotName, base: str | None, base_pose) -> Robot:
+def standing_height(robot: Robot) -> float:
+    """How far to raise ``robot`` (at its ``q_default``) so that its lowest ellipsoid point is at
+    z = 0 of its base frame: minus the lowest point's z (metres / scene units)."""
+    c, r = robot.ellipsoid_frames(robot.q_default)
+    return -float(np.min(c[:, 2] - np.linalg.norm(r[:, 2, :] * robot.semi_axes, axis=-1)))
+
+
+def _standing(build: Callable[[np.ndarray | None], Robot], base_pose: np.ndarray | None) -> Robot:
+    """``build(base_pose)``; a robot that walks on terrain, given no ``base_pose``, is built again
+    standing on the floor: raised by :func:`standing_height` (recorded as
+    ``info["standing_height_m"]``)."""
+    robot = build(base_pose)
+    if base_pose is not None or not robot.walks_on_terrain:
+        return robot
+    h = standing_height(robot)
+    pose = np.eye(4)
+    pose[2, 3] = h
+    robot = build(pose)
+    robot.info["standing_height_m"] = h
+    return robot
+
+
+def _point_robot(name: RobotName, base: str | None, base_pose, walks_on_terrain: bool = False) -> Robot:
     """One axis-aligned ellipsoid on one link: a translation base (x, y, z; default) or a planar
     base (x, y, yaw) in the frame of ``base_pose`` (world <- base, default identity)."""
     text, kind = name.text, name.kind
@@ -254,7 +327,7 @@ def _point_robot(name: RobotName, base: str | None, base_pose) -> Robot:
                         {"body": {"source": "analytic", "geometry": [kind], "n": 1, "geometry_volume": v, "ellipsoid_volume": v, "volume_ratio": 1.0}})
     lim = np.array([[-np.inf, np.inf]] * 2 + [[-np.inf, np.inf] if base == "translation" else [-math.pi, math.pi]])
     cont = np.array([False, False, base == "planar"])
-    return Robot(text, kin, names, lim, np.array([BASE_SPEED[k] for k in names]), np.zeros(3), ells, continuous=cont)
+    return Robot(text, kin, names, lim, np.array([BASE_SPEED[k] for k in names]), np.zeros(3), ells, continuous=cont, walks_on_terrain=walks_on_terrain)
 
 
 def _check_pose(t) -> np.ndarray:
@@ -268,26 +341,22 @@ def _check_pose(t) -> np.ndarray:
 def _cached_builtin(name: str, ellipsoids: str | None) -> Robot:
     """The parsed built-in (URDF, SRDF, ellipsoids, FK tables): private, never handed out (only
     deep copies of it are, see :func:`load_robot`), so it stays as built."""
-    return _builtin(name, None, None, None, None, ellipsoids)
+    return _builtin(name, None, None, None, None, ellipsoids, None)
 
 
-def _builtin(name, active, fixed, base, base_pose, ellipsoids) -> Robot:
+def _builtin(name, active, fixed, base, base_pose, ellipsoids, walks_on_terrain: bool | None) -> Robot:
     urdf, srdf = builtin_urdf(name)
     model = read_urdf(urdf)
     ell = ellipsoids or (DATA / f"{name}.yaml" if (DATA / f"{name}.yaml").is_file() else None)
     if name == "panda":
         active = active or [f"panda_joint{i}" for i in range(1, 8)]
-        return build_robot(model, srdf, active, fixed, base or "fixed", base_pose, ell, 1, False, state="default", name="panda")
-    robot = build_robot(model, srdf, active or [], fixed, base or "planar", base_pose, ell, 1, False, state="standing", name="go2")
-    if base_pose is None and (base or "planar") == "planar":
-        # Raise the body so the lowest ellipsoid point (the feet) touches z = 0.
-        c, r = robot.ellipsoid_frames(robot.q_default)
-        low = float(np.min(c[:, 2] - np.linalg.norm(r[:, 2, :] * robot.semi_axes, axis=-1)))
-        pose = np.eye(4)
-        pose[2, 3] = -low
-        robot = build_robot(model, srdf, active or [], fixed, "planar", pose, ell, 1, False, state="standing", name="go2")
-        robot.info["standing_height_m"] = -low
-    return robot
+        return build_robot(model, srdf, active, fixed, base or "fixed", base_pose, ell, 1, False, state=BUILTIN_STATE["panda"], name="panda",
+                           walks_on_terrain=bool(walks_on_terrain))  # fmt: skip
+    # go2: a planar base that walks on terrain (unless told otherwise), standing on the floor
+    base = base or "planar"
+    walks = base == "planar" if walks_on_terrain is None else bool(walks_on_terrain)
+    return _standing(lambda pose: build_robot(model, srdf, active or [], fixed, base, pose, ell, 1, False, state=BUILTIN_STATE["go2"], name="go2", walks_on_terrain=walks),
+                     base_pose)  # fmt: skip
 
 
 def build_robot(
@@ -303,8 +372,10 @@ def build_robot(
     state: str | None = None,
     name: str | None = None,
     fit_method: str = "split",
+    walks_on_terrain: bool = False,
 ) -> Robot:
-    """Assemble a Robot from a parsed URDF: choose dofs, bake the others, attach ellipsoids."""
+    """Assemble a Robot from a parsed URDF: choose dofs, bake the others, attach ellipsoids
+    (``walks_on_terrain``: :attr:`Robot.walks_on_terrain`, a planar base only)."""
     sr = read_srdf(srdf) if srdf is not None and Path(srdf).is_file() else None
     kin = model.kin
     dof_joints = model.dof_joints
@@ -384,4 +455,5 @@ def build_robot(
         continuous=cont,
         disabled_pairs=sr.disabled_pairs if sr else set(),
         info={"urdf": str(model.path), **({"srdf": str(srdf)} if sr else {})},
+        walks_on_terrain=walks_on_terrain,
     )

@@ -7,9 +7,13 @@ is reported before any MPPI step) and to find collision-free goal configurations
 from __future__ import annotations
 
 import numpy as np
+from typing import TYPE_CHECKING
 
 from ..errors import SplatplanError
 from ..scenes.splats import quat_to_rotmat
+
+if TYPE_CHECKING:
+    from ..robots.robot import Robot
 
 
 def rotation_error(r: np.ndarray, r_goal: np.ndarray) -> np.ndarray:
@@ -33,7 +37,7 @@ def rotation_error(r: np.ndarray, r_goal: np.ndarray) -> np.ndarray:
 
 
 def solve_ik(
-    robot,
+    robot: Robot,
     position,  # (3,) world
     quat=None,  # (4,) wxyz world <- link, or None (position only)
     *,
@@ -92,7 +96,7 @@ def solve_ik(
 
 
 def collision_free_ik(
-    robot,
+    robot: Robot,
     checker,
     position,  # (3,) world
     quat,  # (4,) wxyz world <- link
@@ -134,12 +138,12 @@ def down_quat(yaw: float = 0.0) -> np.ndarray:
     return np.array([0.0, np.cos(yaw / 2), np.sin(yaw / 2), 0.0])
 
 
-def check_reachable(robot, position, quat, link: str, tol_m: float = 0.003, tol_deg: float = 2.0, n_seeds: int = 24, seed: int = 0) -> np.ndarray:
+def check_reachable(robot: Robot, position, quat, link: str, tol_m: float = 0.003, tol_deg: float = 2.0, n_seeds: int = 24, seed: int = 0) -> np.ndarray:
     """IK (damped least squares from ``n_seeds`` starts) for the goal pose; returns the solutions
     (S, dof) that reach it, best first. Raises "unreachable goal pose" when none does."""
     p = np.asarray(position, np.float64).reshape(3)
     base = robot.base_pose[:3, 3]
-    reach = float(robot.info.get("reach_m", 1.2)) if hasattr(robot, "info") else 1.2
+    reach = float(robot.info.get("reach_m", 1.2))
     if np.linalg.norm(p - base) > reach:
         raise SplatplanError(f"unreachable goal pose: {p.round(3).tolist()} is {np.linalg.norm(p - base):.2f} m from the base of {robot.name} (reach < {reach:.2f} m)")
     q, pe, re = solve_ik(robot, p, quat, link=link, n_seeds=n_seeds, n_iters=60, seed=seed)

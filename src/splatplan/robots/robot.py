@@ -7,6 +7,18 @@ semi-axes) and ``ellipsoids(q)`` returns it in the world frame.
 Configurations ``q`` have shape (..., dof). FK and collision queries accept any q that is finite;
 joint limits are checked only by :meth:`Robot.check_q` (``clip=True`` clips instead of raising),
 which the CLI applies to user-supplied configurations.
+
+What kind of robot it is, the robot says itself (code asks these, never the robot's name):
+
+* :attr:`Robot.base` - how its root link moves: ``"fixed"`` (an arm on its mount), ``"planar"``
+  (the first three dofs are x, y, yaw in the floor frame of ``base_pose``) or ``"translation"``
+  (the first three dofs are x, y, z). It is read from the kinematics (the root joint), so it cannot
+  disagree with them.
+* :attr:`Robot.is_point` - a free-flying rigid body: a translation base and no other dof (the
+  ``sphere:R`` / ``ellipsoid:A,B,C`` robots), so its configuration is its position.
+* :attr:`Robot.walks_on_terrain` - a ground robot (planar base only): it stands on the floor, whose
+  splats are terrain to walk on rather than obstacles (``scenes/terrain.py``). Set by
+  :func:`~splatplan.robots.load_robot` (``go2``; a URDF with ``walks_on_terrain=True``).
 """
 
 from __future__ import annotations
@@ -14,6 +26,7 @@ from __future__ import annotations
 import copy
 import threading
 from concurrent.futures import ThreadPoolExecutor
+from typing import Literal
 
 import numpy as np
 
@@ -21,6 +34,10 @@ from .._warp import LazyThreadPool, OwnsThreadPool
 from ..errors import SplatplanError
 from .fit import EllipsoidSet
 from .kinematics import FIXED, PLANAR, PRISMATIC, TRANSLATION, Kinematics, link_poses_ref, rigid_groups
+
+#: How a robot's root link moves (:attr:`Robot.base`); the same words as ``load_robot(base=...)``.
+BaseKind = Literal["fixed", "planar", "translation"]
+_BASE_OF_JOINT: dict[int, BaseKind] = {FIXED: "fixed", PLANAR: "planar", TRANSLATION: "translation"}
 
 
 class Robot(OwnsThreadPool):
@@ -45,6 +62,9 @@ class Robot(OwnsThreadPool):
         static_ellipsoids: (E,) bool, True for ellipsoids on static links (e.g. Panda's link0).
         fit_report: link -> {source, n, geometry_volume, ellipsoid_volume, volume_ratio}.
         self_collision_pairs: (P, 2) int ellipsoid pairs checked by :meth:`self_collision`.
+        walks_on_terrain: a ground robot (planar base): the floor's splats are terrain it walks
+            on, not obstacles (see the module docstring; :attr:`base` and :attr:`is_point` say
+            the rest of what kind of robot it is).
     """
 
     def __init__(
@@ -59,11 +79,15 @@ class Robot(OwnsThreadPool):
         continuous: np.ndarray | None = None,
         disabled_pairs: set[frozenset[str]] | None = None,
         info: dict | None = None,
+        walks_on_terrain: bool = False,
     ):
         self.name = name
         self.kin = kin
         self.dof = len(joint_names)
         kin.validate(self.dof)
+        self.walks_on_terrain = bool(walks_on_terrain)
+        if self.walks_on_terrain and self.base != "planar":
+            raise SplatplanError(f"robot {name}: only a planar base (x, y, yaw) walks on terrain; this one's base is {self.base!r}")
         self.joint_names = list(joint_names)
         self.link_names = list(kin.link_names)
         self.joint_limits = np.asarray(joint_limits, dtype=np.float64).reshape(self.dof, 2)
@@ -112,10 +136,20 @@ class Robot(OwnsThreadPool):
         return float(self.semi_axes.min())
 
     @property
+    def base(self) -> BaseKind:
+        """How the root link moves: "fixed", "planar" (dofs 0-2 are x, y, yaw) or "translation"
+        (dofs 0-2 are x, y, z); read from the root joint of the kinematics."""
+        jt = int(self.kin.jtype[0])
+        if jt not in _BASE_OF_JOINT:  # pragma: no cover - Kinematics.validate admits no other root joint
+            raise SplatplanError(f"robot {self.name}: its root joint is neither fixed, planar nor a translation")
+        return _BASE_OF_JOINT[jt]
+
+    @property
     def is_point(self) -> bool:
-        """A point robot: one rigid link whose configuration is its position (x, y, z), e.g.
-        ``load_robot("sphere:R")`` / ``"ellipsoid:A,B,C"`` (decided by the kinematics, not the name)."""
-        return self.dof == 3 and self.kin.n_links == 1 and int(self.kin.jtype[0]) == TRANSLATION
+        """A point robot: a rigid body whose configuration is its position (x, y, z): a translation
+        base and no other dof, e.g. ``load_robot("sphere:R")`` / ``"ellipsoid:A,B,C"`` (decided by
+        the kinematics, not the name)."""
+        return self.base == "translation" and self.dof == 3
 
     def __repr__(self) -> str:
         return f"Robot({self.name!r}, dof={self.dof}, links={len(self.link_names)}, ellipsoids={self.n_ellipsoids})"
@@ -240,6 +274,7 @@ class Robot(OwnsThreadPool):
         return state
 
     def __setstate__(self, state: dict) -> None:
+        state.setdefault("walks_on_terrain", False)
         self.__dict__.update(state)
         self._lock = threading.Lock()
 
@@ -422,6 +457,8 @@ class Robot(OwnsThreadPool):
         return {
             "name": self.name,
             "dof": self.dof,
+            "base": self.base,
+            "walks_on_terrain": self.walks_on_terrain,
             "joints": [
                 {"name": n, "lower": float(lo), "upper": float(hi), "velocity": float(v), "continuous": bool(c), "default": float(d), "motion_bound_m": float(mb)}
                 for n, (lo, hi), v, c, d, mb in zip(self.joint_names, self.joint_limits, self.velocity_limits, self.continuous, self.q_default, self.motion_bound)

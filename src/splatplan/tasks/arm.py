@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -36,6 +37,9 @@ from ..planners.costs import JointVelocityTerms, StridedCollisionTerms
 from ..planners.mppi import MPPIConfig
 from ..robots.ik import check_reachable, rotation_error
 from ._common import TaskConfig, TaskResult, TaskScene, check_start, load_task_scene, moving_clearance
+
+if TYPE_CHECKING:
+    from ..robots.robot import Robot
 
 __all__ = ["ArmConfig", "run_arm"]
 
@@ -134,7 +138,7 @@ def _arm_costs(robot, ts: TaskScene, p_goal, quat, q_ref: np.ndarray, cfg: ArmCo
     return costs
 
 
-def run_arm(robot, scene, goal_position, goal_quat=None, *, config: ArmConfig | None = None, collision: bool = True, q0=None, device: str | None = "auto", check_goal: bool = True,
+def run_arm(robot: Robot | str, scene, goal_position, goal_quat=None, *, config: ArmConfig | None = None, collision: bool = True, q0=None, device: str | None = "auto", check_goal: bool = True,
             progress=None) -> TaskResult:  # fmt: skip
     """Reach an end-effector pose with MPPI (see the module docstring).
 

@@ -53,6 +53,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -63,6 +64,9 @@ from ..planners.drive import DriveTerms
 from ..planners.memory import MemoryTerms
 from ..planners.mppi import MPPIConfig
 from ._common import TaskConfig, TaskResult, base_terrain, check_start, load_task_scene, safe_step
+
+if TYPE_CHECKING:
+    from ..robots.robot import Robot
 
 __all__ = ["FOOT_CLEARANCE", "START", "BaseConfig", "load_go2", "run_base"]
 
@@ -125,7 +129,7 @@ class BaseConfig(TaskConfig, StridedCollisionTerms, DriveTerms, MemoryTerms, n_s
 
 
 def run_base(
-    robot,
+    robot: Robot | str | None,
     scene,
     goal_xy,
     *,

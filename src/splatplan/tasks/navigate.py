@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -40,6 +41,9 @@ from ..encoders.view_index import ViewIndexTerms
 from ..planners.costs import CollisionTerms
 from ..planners.mppi import MPPIConfig
 from ._common import TaskConfig, TaskScene, load_filtered_scene
+
+if TYPE_CHECKING:
+    from ..robots.robot import Robot
 
 __all__ = ["NavigateConfig", "NavScene", "DriveResult", "head_camera", "load_nav_scene", "explore", "build_view_index", "drive_to", "nav_robot"]
 
@@ -106,7 +110,7 @@ class NavigateConfig(TaskConfig, CollisionTerms, ViewIndexTerms, n_sigma=0.5, w_
 
 
 
-def nav_robot(robot=None):
+def nav_robot(robot: Robot | str | None = None):
     """The Go2 of the navigation task (:func:`splatplan.tasks.base.load_go2`) unless one is given."""
     if robot is not None and not isinstance(robot, str):
         return robot
@@ -119,12 +123,12 @@ def nav_robot(robot=None):
     return load_robot(robot)
 
 
-def head_camera(robot, cfg: NavigateConfig):
+def head_camera(robot: Robot, cfg: NavigateConfig):
     """The Go2's head camera of ``cfg`` (:meth:`~splatplan.encoders.view_index.ViewIndexTerms.head_camera`)."""
     return cfg.head_camera(robot)
 
 
-def build_view_index(robot, nav: NavScene, nodes: np.ndarray, encoder, renderer, cfg: NavigateConfig):
+def build_view_index(robot: Robot, nav: NavScene, nodes: np.ndarray, encoder, renderer, cfg: NavigateConfig):
     """The :class:`~splatplan.encoders.view_index.ViewIndex` of the tree's ``nodes`` (N, 3) under ``cfg``."""
     cfg.validate()
     return cfg.index_views(robot, nodes, encoder, renderer)
@@ -161,7 +165,7 @@ def load_nav_scene(scene="apartment", cfg: NavigateConfig | None = None, device:
     return NavScene(splats, TaskScene(name, metric_splats, checker, gt))
 
 
-def explore(robot, nav: NavScene, cfg: NavigateConfig):
+def explore(robot: Robot, nav: NavScene, cfg: NavigateConfig):
     """Exploration-mode RRT from ``cfg.start``: returns the :class:`~splatplan.planners.PlanResult`
     (``tree_nodes`` (N, 3) x, y, yaw; ``tree_parents`` (N,))."""
     from ..planners import RRT, RRTConfig
@@ -193,7 +197,7 @@ class DriveResult:
     message: str = ""
 
 
-def drive_to(robot, nav: NavScene, goal_xy, cfg: NavigateConfig, *, start=None, branch: np.ndarray | None = None, progress=None) -> DriveResult:
+def drive_to(robot: Robot, nav: NavScene, goal_xy, cfg: NavigateConfig, *, start=None, branch: np.ndarray | None = None, progress=None) -> DriveResult:
     """Base MPPI with the collision cost from ``start`` (default ``cfg.start``) to ``goal_xy``.
 
     Args:

@@ -4,6 +4,10 @@ end-effector or base trace, the goal. Library plotting returns a matplotlib ``Fi
 from __future__ import annotations
 
 import numpy as np
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from ..robots.robot import Robot
 
 
 def _ellipse_outlines(centers, quats, axes, dims, n: int = 96) -> list[np.ndarray]:
@@ -74,7 +78,7 @@ def _draw_memory(ax, maps: dict) -> None:
     ax.plot([], [], "s", color=(0.3, 0.3, 0.3, 0.6), label="sensed blocked (memory)")
 
 
-def plot_run(robot, task_scene, result, *, kind: str, n_frames: int = 6, title: str = ""):
+def plot_run(robot: Robot, task_scene, result, *, kind: str, n_frames: int = 6, title: str = ""):
     """A Figure of the run: ``kind`` "arm" (top and side views) or "base" (top view at body height)."""
     import matplotlib
     from matplotlib.figure import Figure

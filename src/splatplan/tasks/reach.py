@@ -40,6 +40,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -50,6 +51,9 @@ from ..planners.goal_time import GoalTimeMPC, GoalTimeSchedule
 from ..planners.image_cost import ImageTerms
 from ..planners.mppi import MPPI, MPPIConfig
 from ._common import TaskConfig, check_start, load_task_scene, moving_clearance, trajectory_clearance
+
+if TYPE_CHECKING:
+    from ..robots.robot import Robot
 
 __all__ = ["ReachConfig", "ReachResult", "reach_encoder", "run_reach"]
 
@@ -167,7 +171,7 @@ def reach_encoder(name: str = "thumbnail", weights: str | None = None, device: s
 
 
 def run_reach(
-    robot,
+    robot: Robot | str,
     scene,
     target_image,
     *,

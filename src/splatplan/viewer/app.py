@@ -21,6 +21,7 @@ import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 
@@ -28,6 +29,10 @@ from .._config import bounded, check_config
 from .._resources import require_bytes
 from ..errors import SplatplanError
 from .geometry import colormap, ellipsoid_mesh, polyline_segments, splat_s2_tilde, tree_segments
+
+if TYPE_CHECKING:
+    from ..robots.robot import Robot
+    from ..scenes.splats import Splats
 
 
 @dataclass
@@ -74,15 +79,12 @@ def free_port(host: str = "127.0.0.1") -> int:
         return int(s.getsockname()[1])
 
 
-def _robot_kind(robot) -> str:
-    """'point' (dof = x, y, z), 'planar' (x, y, yaw) or 'joints' (an arm: sliders)."""
-    kind = getattr(robot, "kind", None)
-    if kind in ("point", "planar", "joints"):
-        return kind
-    if getattr(robot, "is_point", False):
+def _robot_kind(robot: Robot) -> Literal["point", "planar", "joints"]:
+    """How the viewer moves the robot, from what the robot is: 'point' (dofs x, y, z: dragged),
+    'planar' (a planar base whose dofs are x, y, yaw: dragged and turned) or 'joints' (sliders)."""
+    if robot.is_point:
         return "point"
-    name = str(getattr(robot, "name", "")).lower()
-    if "go2" in name or "planar" in name:
+    if robot.base == "planar" and robot.dof == 3:
         return "planar"
     return "joints"
 
@@ -113,7 +115,8 @@ class SplatViewer:
             robot, the scene without its terrain (:func:`splatplan.scenes.terrain.remove_terrain`).
     """
 
-    def __init__(self, scene, robot=None, plan=None, trajectory=None, tree=None, config: ViewerConfig | None = None, collision_scene=None) -> None:
+    def __init__(self, scene: Splats, robot: Robot | None = None, plan=None, trajectory=None, tree=None, config: ViewerConfig | None = None,
+                 collision_scene: Splats | None = None) -> None:
         from ..metric import CollisionChecker
 
         self.config = cfg = (config or ViewerConfig()).validate()
@@ -138,7 +141,7 @@ class SplatViewer:
         for what, arr in (("plan", self.plan), ("trajectory", self.trajectory)):
             if arr is not None and (arr.ndim != 2 or arr.shape[1] != robot.dof):
                 raise SplatplanError(f"{what}: expected shape (P, {robot.dof}) for robot {robot.name}, got {arr.shape}")
-        q0 = np.asarray(getattr(robot, "q_default", np.zeros(robot.dof)), dtype=np.float64).copy()
+        q0 = np.asarray(robot.q_default, dtype=np.float64).copy()
         if self.kind == "point":
             q0 = 0.5 * (self.lo + self.hi)
         elif self.kind == "planar":
@@ -293,7 +296,7 @@ class SplatViewer:
             self._ell_handles.append(h)
         self._urdf = None
         self._urdf_fixed: dict[str, float] = {}
-        info = getattr(self.robot, "info", {}) or {}
+        info = self.robot.info
         if info.get("urdf") and self.kind in ("joints", "planar"):
             try:
                 from viser.extras import ViserUrdf
