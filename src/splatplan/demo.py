@@ -189,7 +189,7 @@ def run_demo(out_dir: Path, device: str = "auto", seed: int = 0) -> dict:
 def run_reach_demo(out: Path, device: str = "auto") -> dict:
     """One short visual-reaching run (E5): the Panda's wrist camera reaches a goal image in the
     tabletop with MPPI, the terminal image cost (the E5 study's weight-free thumbnail pyramid, its
-    ``--quick`` settings) and the collision cost -> ``demo_reach.png`` (target image, final image, wrist views, camera path). ~10 s on 2 cores."""
+    ``--quick`` settings) and the collision cost -> ``demo_reach.png`` (target image, final image, wrist views, camera path). ~30 s on 2 cores."""
     from .eval.reach import plot_goal, quick_task_config
     from .render import SplatRenderer
     from .robots import load_robot

@@ -135,6 +135,19 @@ def test_quick_pr_outputs(quick_pr):
     assert markdown(PRResult(**data)) == md  # the tables are a function of the JSON alone
 
 
+def test_quick_pr_keeps_the_full_runs_ap_order(quick_pr):
+    """The quick study's qualitative result is the full run's (benchmarks/results/pr.md): the
+    unconservative metric (n_sigma = 0) and SPLANNING lead, CollisionSplatting (n_sigma = 1, 2) and
+    Splat-Nav follow on par with them, then SAFER-Splat, and AtlasNav is last by far."""
+    _, res = quick_pr
+    ap = {k: m["ap"] for k, m in res["methods"].items()}
+    order = sorted(ap, key=ap.get, reverse=True)
+    assert set(order[:2]) == {"collisionsplatting_nsigma0", "splanning"}, ap
+    assert set(order[2:5]) == {"collisionsplatting", "collisionsplatting_nsigma2", "splatnav"}, ap
+    assert order[5:] == ["safersplat", "atlasnav"], ap
+    assert ap["splanning"] - ap["collisionsplatting"] < 0.1 and ap["atlasnav"] < 0.8 * ap["collisionsplatting"], ap
+
+
 def test_scene_path_needs_ground_truth(tmp_path):
     with pytest.raises(SplatplanError, match="--gt"):
         run(replace(PRConfig.quick_config(), scene=str(tmp_path / "scene.ply"), gt=None))
