@@ -134,18 +134,21 @@ def test_blockers_name_faint_haze_and_the_remedy():
     op = np.concatenate([np.full(n, 0.9), np.full(20, 0.05)])
     sc = np.concatenate([np.full((n, 3), 0.005), np.full((20, 3), 0.08)])
     s = Splats(m, np.tile([1.0, 0, 0, 0], (len(m), 1)), sc, op, np.full((len(m), 3), 0.5))
-    ch = CollisionChecker(s, n_sigma=1.0)
+    paper = MetricConfig.paper()  # every splat counts (the default's opacity_min 0.1 already frees this haze)
+    ch = CollisionChecker(s, n_sigma=1.0, config=paper)
     c, ax = np.array([0.0, 0.0, 0.05]), np.full(3, 0.03)
     b = ch.blockers(c, None, ax)
-    ref = CollisionChecker(s, n_sigma=1.0, backend="reference").query(c[None], None, ax)
+    ref = CollisionChecker(s, n_sigma=1.0, backend="reference", config=paper).query(c[None], None, ax)
     assert b.n == int(ref.n_colliding[0]) > 0 and b.n_faint == b.n and set(b.indices.tolist()) <= set(range(n, n + 20))
     assert "opacity" in b.remedy() and "0.3" in b.remedy() and "faint" in b.summary()
     assert not bool(np.asarray(CollisionChecker(s, config=MetricConfig(n_sigma=1.0, opacity_min=0.3)).collides(c[None], None, ax))[0])
     # an opaque splat just outside the sphere, reached by the inflation only
     s2 = Splats(np.array([[0.0, 0.0, 0.085]]), np.array([[1.0, 0, 0, 0]]), np.full((1, 3), 0.02), np.array([0.9]), np.full((1, 3), 0.5))
-    b2 = CollisionChecker(s2, n_sigma=2.0).blockers(c, None, ax)
+    b2 = CollisionChecker(s2, n_sigma=2.0, config=paper).blockers(c, None, ax)
     assert b2.n == 1 and b2.n_inside == 0 and "n_sigma" in b2.remedy()
-    assert CollisionChecker(s2, n_sigma=0.0).blockers(c, None, ax).n == 0
+    assert CollisionChecker(s2, n_sigma=0.0, config=paper).blockers(c, None, ax).n == 0
+    # at the defaults the haze is free space, and so is the ellipsoid
+    assert CollisionChecker(s, n_sigma=1.0).blockers(c, None, ax).n == 0
 
 
 def test_groups_without_link_poses_are_one_per_ellipsoid():

@@ -95,6 +95,55 @@ def test_faint_splats_of_the_step_band_are_floor_haze():
     assert not m0[blobs].any() and np.array_equal(m[blobs], np.arange(len(blobs)) < 500)
     box = np.arange(len(s))[parts["box"]]
     assert not (m & ~m0)[box].any()  # opaque obstacles are never haze
-    _, rep = remove_terrain(hazy, TerrainConfig(floor_z=0.0, step_height=0.05), n_sigma=5.0)
-    _, rep0 = remove_terrain(hazy, TerrainConfig(floor_z=0.0, step_height=0.05, faint_below=0.0), n_sigma=5.0)
+    _, rep = remove_terrain(hazy, TerrainConfig(floor_z=0.0, step_height=0.05, rule="shape"), n_sigma=5.0)
+    _, rep0 = remove_terrain(hazy, TerrainConfig(floor_z=0.0, step_height=0.05, faint_below=0.0, rule="shape"), n_sigma=5.0)
     assert rep.n_terrain - rep0.n_terrain == 500
+
+
+def test_band_rule_feet_stand_on_the_floor_and_low_obstacles_still_block():
+    """The default rule (issue #36): every splat with its mean in the step band or below the floor
+    is terrain (round floor blobs, a mirror layer under the plane); what rises above the step
+    height still blocks the Go2 (a 10 cm step under a foot, the 40 cm box)."""
+    from splatplan.metric import CollisionChecker
+    from splatplan.robots import load_robot
+
+    s, parts = floor_room()
+    rng = np.random.default_rng(5)
+    # round, fairly opaque floor-level matter (not flat, reaching above the band at n_sigma 1)
+    n_fm = 300
+    fm = np.c_[rng.uniform(-2, 2, (n_fm, 2)), rng.uniform(0.0, 0.03, n_fm)]
+    # a mirror layer: opaque, large splats under the plane
+    n_mir = 400
+    mir = np.c_[rng.uniform(-2, 2, (n_mir, 2)), rng.uniform(-0.45, -0.05, n_mir)]
+    # a 10 cm step (a threshold / a low toy) at x in [-0.2, 0.2], y in [1.3, 1.7]: splats on its faces up to z = 0.1
+    n_step = 600
+    step = np.c_[rng.uniform(-0.2, 0.2, n_step), rng.uniform(1.3, 1.7, n_step), rng.uniform(0.0, 0.1, n_step)]
+    means = np.concatenate([s.means, fm, mir, step])
+    scales = np.concatenate([s.scales, np.full((n_fm, 3), 0.04), np.full((n_mir, 3), 0.12), np.full((n_step, 3), 0.01)])
+    op = np.concatenate([s.opacities, np.full(n_fm, 0.6), np.full(n_mir, 0.9), np.full(n_step, 0.9)])
+    room = Splats(means, np.tile(s.quats[:1], (len(means), 1)), scales, op, np.full((len(means), 3), 0.5))
+    n0 = len(s)
+    band = terrain_mask(room, 0.0, 0.05, rule="band")
+    assert band[n0:n0 + n_fm + n_mir].all()  # floor matter and the mirror layer: terrain
+    assert not terrain_mask(room, 0.0, 0.05, n_sigma=1.0)[n0:n0 + n_fm].all()  # not under the shape rule
+    step_z = room.means[n0 + n_fm + n_mir:, 2]
+    np.testing.assert_array_equal(band[n0 + n_fm + n_mir:], step_z < 0.05)  # the step's upper half stays
+    box_z = s.means[parts["box"], 2]
+    np.testing.assert_array_equal(band[parts["box"]], box_z < 0.05)
+    go2 = load_robot("go2")
+    q = np.array([[-1.0, -1.0, 0.0],  # open floor over floor matter and the mirror layer
+                  [1.0, -1.0, 0.0],  # over the 40 cm box
+                  [0.0, 1.5, 0.0],  # the 10 cm step under the body's middle, between the legs: it fits under
+                  [0.22, 1.5, 0.0]])  # a front leg over the step
+    ground, rep = remove_terrain(room, TerrainConfig(floor_z=0.0))  # the default rule
+    hit = np.asarray(CollisionChecker(ground).collides_robot(go2, q)).any(axis=-1)
+    assert not hit[0] and hit[1] and hit[3]
+    # open floor (away from the strip at y = 1, the box and the step): every pose free under the
+    # band rule; the shape rule leaves round floor matter at the feet that blocks some
+    X, Y = np.meshgrid(np.linspace(-1.6, -0.6, 6), np.linspace(-1.6, 0.4, 8), indexing="ij")
+    grid = np.c_[X.ravel(), Y.ravel(), np.zeros(X.size)]
+    assert not np.asarray(CollisionChecker(ground).collides_robot(go2, grid)).any()
+    shape_ground, _ = remove_terrain(room, TerrainConfig(floor_z=0.0, rule="shape"))
+    assert np.asarray(CollisionChecker(shape_ground).collides_robot(go2, grid)).any(axis=-1).sum() >= 3
+    with pytest.raises(SplatplanError):
+        terrain_mask(room, 0.0, 0.05, rule="nope")

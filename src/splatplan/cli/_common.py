@@ -404,6 +404,22 @@ def _load(path: str, filter_floaters: bool = True, usable: bool = True):
     return scene
 
 
+def add_metric_args(parser: argparse.ArgumentParser) -> None:
+    """The metric's flags (:class:`~splatplan.metric.MetricConfig`) plus ``--paper-metric``."""
+    from ..metric import MetricConfig
+
+    add_config_args(parser, MetricConfig, group="metric options (MetricConfig)")
+    parser.add_argument("--paper-metric", action="store_true", help="the paper's exact metric settings (every splat counts and is inflated by "
+                        "n_sigma * sigma whatever its opacity: --opacity-min 0 --opacity-scaled-inflation false); explicit metric flags still win")
+
+
+def metric_config_from_args(args: argparse.Namespace):
+    """The :class:`~splatplan.metric.MetricConfig` of :func:`add_metric_args`'s flags (validated)."""
+    from ..metric import MetricConfig
+
+    return config_from_args(args, MetricConfig, base=MetricConfig.paper() if getattr(args, "paper_metric", False) else None).validate()
+
+
 def add_terrain_args(parser: argparse.ArgumentParser) -> None:
     """The ground robots' terrain flags (``--terrain-floor-z``, ``--terrain-step-height``, ...)."""
     from ..scenes.terrain import TerrainConfig

@@ -22,8 +22,8 @@ from .._resources import require_bytes
 from ..errors import SplatplanError
 from ..robots.builtin import ROBOT_NAME_HELP, parse_robot_name
 from ._common import (
-    BASE_POSE_HELP, POSITIVE_INT, _load, add_base_pose_arg, add_command, add_config_args, add_device_arg, atomic_path, config_from_args, load_npy,
-    load_poses, parse_base_pose, robot_at, signals_deferred,
+    BASE_POSE_HELP, POSITIVE_INT, _load, add_base_pose_arg, add_command, add_device_arg, add_metric_args, atomic_path, load_npy,
+    load_poses, metric_config_from_args, parse_base_pose, robot_at, signals_deferred,
 )  # fmt: skip
 
 #: queries (link poses) per kernel call: small enough that an interrupt waits < ~1 s on a CPU
@@ -133,7 +133,7 @@ def _check_robot(robot, q: np.ndarray, checker, scene, chunk: int) -> dict[str, 
 
 
 def cmd_check(args) -> int:
-    from ..metric import CollisionChecker, MetricConfig
+    from ..metric import CollisionChecker
 
     try:
         name = parse_robot_name(args.robot)  # fails fast on a malformed sphere:R / ellipsoid:A,B,C
@@ -153,7 +153,7 @@ def cmd_check(args) -> int:
         raise SplatplanError(f"--out {args.out}: expected a .npz path")
     if args.out and not Path(args.out).parent.exists():
         raise SplatplanError(f"output folder {Path(args.out).parent} does not exist")
-    cfg = config_from_args(args, MetricConfig).validate()
+    cfg = metric_config_from_args(args)
     # validate the query input before the (slow) scene load
     robot_q = _load_configs(args) if args.configs is not None else load_poses(args.poses)
     scene = _load(args.scene)
@@ -169,8 +169,6 @@ def cmd_check(args) -> int:
 
 
 def register(sub, eval_sub) -> None:
-    from ..metric import MetricConfig
-
     s = add_command(sub, "check", cmd_check, "CollisionSplatting metric for a batch of link poses or robot configurations",
                     "CollisionSplatting metric for link poses (--robot sphere:R|ellipsoid:A,B,C --poses) or robot configurations "
                     "(--robot panda|go2|URDF --configs).")  # fmt: skip
@@ -183,4 +181,4 @@ def register(sub, eval_sub) -> None:
                    "ellipsoid plus collision (B,), link_in_collision (B, L), link_min_s2 (B, L), link_names (L,) for --configs")  # fmt: skip
     s.add_argument("--chunk", type=POSITIVE_INT, default=DEFAULT_CHUNK, help=f"link poses per kernel call; Ctrl-C is honoured between calls (default {DEFAULT_CHUNK})")
     add_device_arg(s)
-    add_config_args(s, MetricConfig, group="metric options (MetricConfig)")
+    add_metric_args(s)

@@ -25,8 +25,8 @@ import numpy as np
 from ..errors import SplatplanError
 from ..robots.builtin import DEFAULT_POINT_ROBOT, ROBOT_NAME_HELP
 from ._common import (
-    _load, add_base_pose_arg, add_command, add_config_args, add_device_arg, add_seed_arg, add_terrain_args, allow_negative_values, config_from_args, float_arg,
-    MAX_COORD, ground_robot_scene, parse_base_pose, parse_numbers, robot_at, strict_float, unit_quaternion, write_json,
+    _load, add_base_pose_arg, add_command, add_config_args, add_device_arg, add_metric_args, add_seed_arg, add_terrain_args, allow_negative_values, config_from_args, float_arg,
+    MAX_COORD, ground_robot_scene, metric_config_from_args, parse_base_pose, parse_numbers, robot_at, strict_float, unit_quaternion, write_json,
 )  # fmt: skip
 
 if TYPE_CHECKING:
@@ -88,7 +88,7 @@ def _robot_for(args) -> Robot:
 
 
 def cmd_plan(args) -> int:
-    from ..metric import CollisionChecker, MetricConfig
+    from ..metric import CollisionChecker
     from ..planners import RefineConfig, RRTConfig, format_time_split, make_planner, plan
 
     out = Path(args.out)
@@ -133,7 +133,7 @@ def cmd_plan(args) -> int:
             raise SplatplanError(f"--planar is for point robots (sphere/ellipsoid) and planar bases (go2), not {robot.name}")
     rrt_cfg.validate()
     ref_cfg = config_from_args(args, RefineConfig, prefix="refine_", seed=args.seed)
-    mcfg = config_from_args(args, MetricConfig).validate()
+    mcfg = metric_config_from_args(args)
     scene = _load(args.scene)
     if robot.walks_on_terrain:  # a ground robot: the floor's splats are terrain (scenes/terrain.py)
         scene = ground_robot_scene(scene, args, mcfg.n_sigma)
@@ -183,7 +183,6 @@ def cmd_plan(args) -> int:
 
 
 def register(sub, eval_sub) -> None:
-    from ..metric import MetricConfig
     from ..planners import RefineConfig, RRTConfig
 
     s = add_command(sub, "plan", cmd_plan, "RRT / RRT-Connect (+ refinement) from a start to a goal configuration of a robot",
@@ -214,7 +213,7 @@ def register(sub, eval_sub) -> None:
     s.add_argument("--force", action="store_true", help="overwrite an existing --out even when no path is found")
     add_device_arg(s)
     s.add_argument("--out", required=True, help="PATH.json")
-    add_config_args(s, MetricConfig, group="metric options (MetricConfig)")
+    add_metric_args(s)
     add_terrain_args(s)
     add_config_args(s, RRTConfig, prefix="rrt_", skip=("seed",), group="RRT options (RRTConfig; lengths in scene units of robot motion)")
     add_config_args(s, RefineConfig, prefix="refine_", skip=("seed",), group="refinement options (RefineConfig, with --refine)")

@@ -133,6 +133,8 @@ def cmd_scene(args) -> int:
     from ..scenes.builtin import BUILTIN_SCENES, write_builtin
     from ..scenes.builtin.stonehenge import ground_truth_path
 
+    if getattr(args, "haze", False) and args.name in ("from-moveit", "align"):
+        raise SplatplanError(f"--haze is an option of the built-in apartment ('splatplan scene apartment --haze --out X.ply'), not of scene {args.name}")
     if args.name == "from-moveit":
         return _scene_from_moveit(args)
     if args.name == "align":
@@ -155,7 +157,7 @@ def cmd_scene(args) -> int:
     # Both files are written into a temp folder beside the output and moved into place only when
     # both are complete (an interrupted run leaves nothing behind).
     with atomic_dir(out.parent) as tmp:
-        ply, gt = write_builtin(args.name, tmp / out.name, seed=args.seed, level=args.level)
+        ply, gt = write_builtin(args.name, tmp / out.name, seed=args.seed, level=args.level, haze=args.haze)
         gt_dest = ground_truth_path(out)
         move_into(gt, gt_dest)
         move_into(ply, out)
@@ -236,6 +238,8 @@ def register(sub, eval_sub) -> None:
     g.add_argument("--drop-floaters", action="store_true", help="align: drop faint isolated splats (floaters in free space: opacity < 0.3, "
                    "mean 8-NN distance > 3x the median); says how many")  # fmt: skip
     add_config_args(s, AlignConfig, prefix="align_", skip=("up", "floor", "scale", "rotate_z", "translate", "crop", "drop_floaters"), group="align fit options (AlignConfig)")
+    s.add_argument("--haze", action="store_true", help="apartment only: add the real-capture look of phone captures of apartments "
+                   "(faint haze above the floor, a mirror layer under a shiny kitchen floor, floor-level matter)")
     s.add_argument("--level", type=int_arg(ge=1, le=5), default=1, help="Gaussian-size level 1..5 (larger, fewer splats)")
     add_seed_arg(s, help="layout and sampling seed, an integer >= 0 (default 0)")
     s.add_argument("--n-splats", type=int_arg(ge=1), default=None, help="from-moveit only: total splats (default 100000: ~7-8 mm spacing on a metre-scale workcell)")

@@ -34,6 +34,7 @@ VARIANTS: dict[str, tuple[str, str, dict[str, Any]]] = {
     "opacity_filter+log_mean_exp": ("(b)+(c) both", "opacity", {"softmin_mode": "mean", "softmin_t": "$lme_t"}),
     "opacity_min": ("(d1, beyond the paper) metric option opacity_min = $opacity_min on the default scene", "default", {"opacity_min": "$opacity_min"}),
     "opacity_scaled_inflation": ("(d2, beyond the paper) inflation n_sigma * o_i * sigma_i", "default", {"opacity_scaled_inflation": True}),
+    "library_default": ("(e) the library's default MetricConfig ($library_default)", "default", {"$library_default": None}),
 }
 
 
@@ -44,6 +45,12 @@ def variant_settings(name: str, cfg: "PRConfig") -> tuple[str, str, dict[str, An
     from ..metric.config import MetricConfig
 
     label, kind, changes = VARIANTS[name]
+    if "$library_default" in changes:  # the study runs the paper's settings; this variant the library's default
+        from ..metric.config import PAPER_SETTINGS
+
+        default = MetricConfig()
+        changes = {k: getattr(default, k) for k in PAPER_SETTINGS}
+        label = label.replace("$library_default", ", ".join(f"{k} = {v}" for k, v in changes.items()))
     subst = {"$lme_t": cfg.lme_t, "$opacity_min": cfg.opacity_min, "$default_t": MetricConfig().softmin_t}
     changes = {k: subst.get(v, v) if isinstance(v, str) else v for k, v in changes.items()}
     for key, val in subst.items():
@@ -88,7 +95,8 @@ class PRConfig(StudyConfig):
     check_seed: int = bounded(0, ge=0)
     #: CollisionSplatting fidelity variants scored at every n_sigma (empty = none): default (a),
     #: opacity_filter (b), log_mean_exp (c), log_mean_exp_default_t (c'), opacity_filter+log_mean_exp,
-    #: opacity_min (d1), opacity_scaled_inflation (d2); see VARIANTS.
+    #: opacity_min (d1), opacity_scaled_inflation (d2), library_default (e: the library's default
+    #: MetricConfig, the rest run the paper's); see VARIANTS.
     variants: tuple[str, ...] = (
         "default",
         "opacity_filter",
@@ -97,6 +105,7 @@ class PRConfig(StudyConfig):
         "opacity_filter+log_mean_exp",
         "opacity_min",
         "opacity_scaled_inflation",
+        "library_default",
     )
     #: Opacity threshold of the paper's evaluation filter (variant ``opacity_filter``: every splat below it removed).
     eval_opacity_below: float = bounded(0.1, ge=0, le=1)

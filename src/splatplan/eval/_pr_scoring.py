@@ -24,6 +24,7 @@ from .._progress import progress
 from ._common import DISPLAY, load_scene_with_gt
 from ._pr_culling import cull_rule, culled_collision_scores, culling_check
 from ._pr_config import PRConfig, variant_settings
+from ..metric.config import MetricConfig  # the paper-reproduction studies run the paper's exact settings
 
 #: bytes per grid cell across the study (centres, exact SDF, labels, every method's scores): an estimate
 GRID_BYTES_PER_CELL = 128
@@ -98,7 +99,7 @@ class PRContext(PRSetup):
         super().__init__(cfg)
         self.cfg = cfg
         self.device = device
-        self.checker = CollisionChecker(self.splats, n_sigma=1.0, device=device)
+        self.checker = CollisionChecker(self.splats, n_sigma=1.0, device=device, config=MetricConfig.paper())
         self.scenes_v = {"default": self.splats, "opacity": self.raw.subset(self.raw.opacities >= cfg.eval_opacity_below)}
         self.checkers_v: dict[str, Any] = {"default": self.checker}
 
@@ -106,7 +107,7 @@ class PRContext(PRSetup):
         from ..metric import CollisionChecker
 
         if kind not in self.checkers_v:
-            self.checkers_v[kind] = CollisionChecker(self.scenes_v[kind], n_sigma=1.0, device=self.device)
+            self.checkers_v[kind] = CollisionChecker(self.scenes_v[kind], n_sigma=1.0, device=self.device, config=MetricConfig.paper())
         return self.checkers_v[kind]
 
 

@@ -21,6 +21,7 @@ import numpy as np
 
 from ._common import make_queries
 from ._harness import proc_status_mb, reset_peak_rss, timed_runs, trim_heap
+from ..metric.config import MetricConfig  # the paper-reproduction studies run the paper's exact settings
 
 
 def _dummy_splats(n: int = 64):
@@ -48,7 +49,7 @@ def _make_runner(method: str, splats: Any, device: str, radius: float, n_sigma: 
         state: dict[str, Any] = {}
 
         def build() -> None:
-            state["c"] = CollisionChecker(splats, n_sigma=n_sigma, device=device)
+            state["c"] = CollisionChecker(splats, n_sigma=n_sigma, device=device, config=MetricConfig.paper())
 
         def run(centers: np.ndarray) -> None:
             c = state["c"]

@@ -38,6 +38,7 @@ from .._progress import progress
 from ..robots import load_robot, point_radius
 from ._common import load_stonehenge_filtered, mean_std
 from ._study import StudyConfig, config_dict, write_outputs
+from ..metric.config import MetricConfig  # the paper-reproduction studies run the paper's exact settings
 
 __all__ = ["ConservatismConfig", "ConservatismResult", "PAPER_TABLE_II", "markdown", "report", "run"]
 
@@ -218,7 +219,7 @@ class ConservatismContext:
         from ..metric import CollisionChecker
 
         self.splats, self.scene = load_scene(level, seed)
-        self.base = CollisionChecker(self.splats, n_sigma=0.0, device=device)
+        self.base = CollisionChecker(self.splats, n_sigma=0.0, device=device, config=MetricConfig.paper())
         self.tree = cKDTree(self.splats.means.astype(np.float64))
         self._checkers: dict[float, object] = {}
 
@@ -330,7 +331,7 @@ def run(config: ConservatismConfig, engine=None, *, results: str | Path | None =
 
     cfg = config.validate()
     splats, scene = load_scene(cfg.level, cfg.seed)
-    base = CollisionChecker(splats, n_sigma=0.0, device=cfg.device)
+    base = CollisionChecker(splats, n_sigma=0.0, device=cfg.device, config=MetricConfig.paper())
     strict = [base.with_config(n_sigma=max(cfg.n_sigmas))]
     start = free_start(np.array([0.0, 0.0, cfg.plane_z]), strict, radius=cfg.radius)
     rng = np.random.default_rng(cfg.seed)

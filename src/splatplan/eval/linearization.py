@@ -37,6 +37,7 @@ from ..robots import point_radius
 from ._common import mean_std
 from ._study import StudyConfig, config_dict, write_outputs
 from .conservatism import PLANE_Z, border_goals, free_start, load_scene, plan_trials
+from ..metric.config import MetricConfig  # the paper-reproduction studies run the paper's exact settings
 
 __all__ = ["LinearizationConfig", "LinearizationResult", "PAPER_TABLE_III", "markdown", "report", "run"]
 
@@ -197,7 +198,7 @@ def run(config: LinearizationConfig) -> LinearizationResult:
     scenes = {}
     for lv in progress(cfg.levels, desc="build scenes"):
         splats, scene = load_scene(lv, cfg.seed)
-        scenes[lv] = (splats, scene, CollisionChecker(splats, n_sigma=cfg.n_sigma, device=cfg.device))
+        scenes[lv] = (splats, scene, CollisionChecker(splats, n_sigma=cfg.n_sigma, device=cfg.device, config=MetricConfig.paper()))
     analytic = scenes[cfg.levels[0]][1]  # the geometry is the same at every level (same layout seed)
     checkers = [scenes[lv][2] for lv in cfg.plan_levels]
     radius = point_radius()  # the robot: the studies' sphere DEFAULT_POINT_ROBOT, as in E3 (whose planner runs here)

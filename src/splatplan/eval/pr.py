@@ -99,6 +99,7 @@ from ._pr_report import Curve, pr_figure
 from ._pr_report import markdown as _markdown
 from ._pr_scoring import PRSetup, cs_query, run_scoring
 from ._study import config_dict, write_outputs
+from ..metric.config import MetricConfig  # the paper-reproduction studies run the paper's exact settings
 
 __all__ = ["PRConfig", "PRResult", "VARIANTS", "precision_recall_curve", "average_precision", "best_f1", "pr_summary", "markdown", "report", "run"]
 
@@ -237,7 +238,7 @@ def _floater_diagnostics(st, cfg: PRConfig) -> dict[str, dict]:
     if n_kept_floaters <= 0:
         return out
     r = float(cfg.radius)
-    clean = CollisionChecker(st.splats.subset(np.arange(len(st.splats) - n_kept_floaters)), n_sigma=1.0, device=cfg.device)
+    clean = CollisionChecker(st.splats.subset(np.arange(len(st.splats) - n_kept_floaters)), n_sigma=1.0, device=cfg.device, config=MetricConfig.paper())
     for ns in cfg.n_sigmas:
         soft = cs_query(clean.with_config(n_sigma=float(ns)), st.q, r, f"without kept floaters n_sigma={ns:g}")[1]
         d = pr_summary(-soft, st.y)
@@ -375,7 +376,7 @@ def run(config: PRConfig, engine=None, *, results: str | Path | None = None) -> 
     st = PRSetup(cfg)
     if not st.y.any():
         raise SplatplanError("no grid point is in collision: is the ground truth in the scene's frame and units?")
-    checker = CollisionChecker(st.splats, n_sigma=1.0, device=cfg.device)
+    checker = CollisionChecker(st.splats, n_sigma=1.0, device=cfg.device, config=MetricConfig.paper())
     scored = run_scoring(cfg, names, str(checker.device), engine, results)
     ev = _Eval(st)
     curves: dict[str, Curve] = {}
@@ -464,7 +465,7 @@ def _softmin_check(checker, scenes: dict, cfg: PRConfig, q: np.ndarray, near: np
         if changes.get("softmin_mode") != "mean":
             continue
         if kind not in checkers:
-            checkers[kind] = CollisionChecker(scenes[kind], n_sigma=1.0, device=cfg.device)
+            checkers[kind] = CollisionChecker(scenes[kind], n_sigma=1.0, device=cfg.device, config=MetricConfig.paper())
         chk = checkers[kind].with_config(n_sigma=1.0, **changes)
         got = np.asarray(chk.query(pts, None, (r, r, r)).softmin, dtype=np.float64)
         sc = scenes[kind]

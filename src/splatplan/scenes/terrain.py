@@ -5,8 +5,17 @@ few centimetres thick (stds of ~4 cm on phone captures), so at any n_sigma its f
 "in collision". This module selects, once per scene, the splats that are **terrain** and the
 collision scene drops them (the metric and its kernels are untouched: a scene-level selection).
 
-A splat is terrain when its mean lies below ``floor_z + step_height`` **and** it is floor-like:
-either flat with a near-vertical normal (within 30 degrees of +z: a piece of the floor's surface),
+**The rule (``TerrainConfig.rule``).** ``"band"`` (the default): a splat is
+terrain when its mean lies below ``floor_z + step_height``, whatever its shape or opacity. That is
+the floor's own splats (a phone capture's floor holds round and upright splats of opacity 0.3-0.9
+and stds of 2-5 cm, not only flat ones), the floor-level matter where the feet and calves stand,
+and everything **below the floor plane**: the floor's underside and the reflection of a shiny
+floor, which captures train as opaque geometry down to half a metre under it. A ground robot stands
+on the floor and cannot reach below it, so none of these can hit it; an obstacle is what rises
+above the step height, and its splats up there stay obstacles (a 10 cm step, a toy, a box).
+
+``"shape"`` (the stricter rule): a splat is terrain when its mean lies below
+``floor_z + step_height`` **and** it is floor-like: either flat with a near-vertical normal (within 30 degrees of +z: a piece of the floor's surface),
 or wholly inside the step band (its n_sigma extent along z, ``mean_z + n_sigma * sqrt(Sigma_zz)``,
 below ``floor_z + step_height``), or faint (opacity below ``faint_below``, 0.1: the haze of
 upright and round splats a capture leaves on its floor; on the bathroom capture one of opacity
@@ -15,8 +24,9 @@ upright and round splats a capture leaves on its floor; on the bathroom capture 
 ``floor_z`` is the aligned floor (z = 0 after ``splatplan scene align``), fitted from the scene
 (:func:`~splatplan.scenes.align.guess_up` with up = +z) when not given.
 
-What it can miss (by design): an obstacle lower than the step height (a threshold strip, a
-cable, a flat book) is terrain too, so the robot may walk over it; a sloped or stepped floor
+What it can miss (by design, both rules): an obstacle lower than the step height (a threshold strip, a
+cable, a flat book) is terrain too, so the robot may walk over it (the Go2 steps over 5 cm);
+under ``"band"`` so are the lowest 5 cm of a taller obstacle, whose splats above still block; a sloped or stepped floor
 keeps its higher parts as obstacles (one floor height per scene); a floater lying flat on the
 floor is dropped with the floor; so is a faint object lower than the step height.
 """
@@ -48,6 +58,11 @@ class TerrainConfig:
     #: a splat of the step band fainter than this (activated opacity) is floor haze, terrain whatever
     #: its shape (0 = off)
     faint_below: float = bounded(0.1, ge=0, le=1)
+    #: "band": every splat with its mean below floor_z + step_height is terrain (the floor's splats
+    #: whatever their shape, floor-level matter, reflections under the floor plane);
+    #: "shape": only the floor-like ones (flat, wholly inside the band, or faint: max_tilt_deg and
+    #: faint_below apply), the stricter rule
+    rule: str = bounded("band", choices=("band", "shape"))
 
     def validate(self) -> "TerrainConfig":
         check_config(self)  # declared ranges and finiteness
@@ -65,10 +80,16 @@ def fitted_floor_z(splats: Splats) -> float:
     return float(guess_up(splats, AlignConfig(up="+z", floor="auto")).floor_height)
 
 
-def terrain_mask(splats: Splats, floor_z: float, step_height: float, n_sigma: float = 1.0, max_tilt_deg: float = 30.0, faint_below: float = 0.0) -> np.ndarray:
-    """(N,) bool: the terrain splats (module docstring). ``n_sigma`` is the checker's."""
+def terrain_mask(splats: Splats, floor_z: float, step_height: float, n_sigma: float = 1.0, max_tilt_deg: float = 30.0, faint_below: float = 0.0,
+                 rule: str = "shape") -> np.ndarray:
+    """(N,) bool: the terrain splats under ``rule`` (module docstring; ``"shape"`` here, the
+    :class:`TerrainConfig` default is ``"band"``). ``n_sigma`` is the checker's."""
     z = splats.means[:, 2].astype(np.float64)
     top_band = floor_z + step_height
+    if rule == "band":
+        return z < top_band
+    if rule != "shape":
+        raise SplatplanError(f"terrain rule must be 'band' or 'shape', got {rule!r}")
     sz = np.sqrt(np.maximum(splats.covariances()[:, 2, 2], 0.0))
     band = z < top_band
     return floor_surface_mask(splats, floor_z, step_height, max_tilt_deg) | (band & (z + n_sigma * sz < top_band)) | (band & (splats.opacities < faint_below))
@@ -91,7 +112,7 @@ def remove_terrain(splats: Splats, config: TerrainConfig | None = None, n_sigma:
     cfg = (config or TerrainConfig()).validate()
     fitted = cfg.floor_z is None
     fz = fitted_floor_z(splats) if fitted else float(cfg.floor_z)
-    mask = terrain_mask(splats, fz, cfg.step_height, n_sigma, cfg.max_tilt_deg, cfg.faint_below)
+    mask = terrain_mask(splats, fz, cfg.step_height, n_sigma, cfg.max_tilt_deg, cfg.faint_below, cfg.rule)
     out = splats.subset(~mask)
     out.info["terrain"] = {"floor_z": fz, "step_height": cfg.step_height, "n_terrain": int(mask.sum())}
     return out, TerrainReport(fz, cfg.step_height, fitted, int(mask.sum()))

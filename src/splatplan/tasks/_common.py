@@ -110,7 +110,7 @@ def load_task_scene(scene, n_sigma: float = 1.0, device: str | None = "auto", n_
     name = str(scene)
     splats, gt = load_filtered_scene(name, n_splats=n_splats)
     if terrain is None and ground_below is not None:
-        terrain = TerrainConfig(floor_z=float(ground_below), step_height=0.0)
+        terrain = TerrainConfig(floor_z=float(ground_below), step_height=0.0, rule="shape")  # an arm's ground plane: flat splats below it
     if terrain is not None:
         splats, rep = remove_terrain(splats, terrain, n_sigma=n_sigma)
         if gt is not None:

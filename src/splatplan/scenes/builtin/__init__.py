@@ -26,23 +26,30 @@ from .primitives import AnalyticScene, SurfaceSplatConfig, splats_from_boxes, sp
 __all__ = ["BUILTIN_SCENES", "AnalyticScene", "SurfaceSplatConfig", "build_builtin", "splats_from_boxes", "splats_from_scene", "write_builtin"]
 
 
-def _stonehenge(seed: int = 0, n_splats: int | None = None, level: int = 1):
+def _no_haze(name: str, haze: bool) -> None:
+    if haze:
+        raise SplatplanError(f"the {name} scene has no real-capture look (haze): only the apartment has one")
+
+
+def _stonehenge(seed: int = 0, n_splats: int | None = None, level: int = 1, haze: bool = False):
+    _no_haze("stonehenge", haze)
     return stonehenge.build_stonehenge(level=level, seed=seed, n_splats=n_splats)
 
 
-def _tabletop(seed: int = 0, n_splats: int | None = None, level: int = 1):
+def _tabletop(seed: int = 0, n_splats: int | None = None, level: int = 1, haze: bool = False):
+    _no_haze("tabletop", haze)
     if level != 1:
         raise SplatplanError("the tabletop scene has one splat level (1)")
     return tabletop.build_tabletop(seed=seed, n_splats=n_splats)
 
 
-def _apartment(seed: int = 0, n_splats: int | None = None, level: int = 1):
+def _apartment(seed: int = 0, n_splats: int | None = None, level: int = 1, haze: bool = False):
     if level != 1:
         raise SplatplanError("the apartment scene has one splat level (1)")
-    return apartment.build_apartment(seed=seed, n_splats=n_splats)
+    return apartment.build_apartment(seed=seed, n_splats=n_splats, haze=haze)
 
 
-#: name -> builder ``(seed=0, n_splats=None, level=1) -> (Splats, AnalyticScene)``.
+#: name -> builder ``(seed=0, n_splats=None, level=1, haze=False) -> (Splats, AnalyticScene)``.
 BUILTIN_SCENES: dict[str, Callable] = {"stonehenge": _stonehenge, "tabletop": _tabletop, "apartment": _apartment}
 
 
@@ -50,7 +57,7 @@ BUILTIN_SCENES: dict[str, Callable] = {"stonehenge": _stonehenge, "tabletop": _t
 SPLAT_BUILD_BYTES = 1024
 
 
-def build_builtin(name: str, seed: int = 0, n_splats: int | None = None, level: int = 1):
+def build_builtin(name: str, seed: int = 0, n_splats: int | None = None, level: int = 1, haze: bool = False):
     """Splats and exact ground truth of a built-in scene (fresh copies; cached in memory).
 
     Args:
@@ -58,6 +65,8 @@ def build_builtin(name: str, seed: int = 0, n_splats: int | None = None, level: 
         seed: layout jitter and sampling seed.
         n_splats: total splat count (default: the scene's own).
         level: Gaussian-size level (stonehenge 1..5; the others 1).
+        haze: the apartment's real-capture look (:func:`.apartment.add_capture_look`: haze, a
+            mirror layer under a shiny floor, floor-level matter); the other scenes refuse it.
 
     Returns:
         (Splats, AnalyticScene).
@@ -66,24 +75,28 @@ def build_builtin(name: str, seed: int = 0, n_splats: int | None = None, level: 
         raise SplatplanError(f"unknown built-in scene {name!r}: available: {', '.join(BUILTIN_SCENES)}")
     if n_splats is not None:  # the sampler holds several float64 copies of every splat
         require_bytes(float(n_splats) * SPLAT_BUILD_BYTES, f"{name} with {int(n_splats):,} splats", "the splat count (--n-splats)")
-    return BUILTIN_SCENES[name](seed=int(seed), n_splats=n_splats, level=int(level))
+    return BUILTIN_SCENES[name](seed=int(seed), n_splats=n_splats, level=int(level), haze=bool(haze))
 
 
-def write_builtin(name: str, out_ply, seed: int = 0, level: int = 1) -> tuple[Path, Path]:
-    """Write a built-in scene as an INRIA 3DGS .ply plus its ground truth ``<stem>.gt.json``.
+def write_builtin(name: str, out_ply, seed: int = 0, level: int = 1, haze: bool = False) -> tuple[Path, Path]:
+    """Write a built-in scene as an INRIA 3DGS .ply plus its ground truth ``<stem>.gt.json``
+    (``haze``: the apartment's real-capture look, see :func:`build_builtin`).
 
     Returns:
         (ply path, ground-truth JSON path).
     """
     if name == "stonehenge":
+        _no_haze(name, haze)
         return stonehenge.write_stonehenge(out_ply, level=level, seed=seed)
     out_ply = Path(out_ply)
     if out_ply.suffix.lower() != ".ply":
         raise SplatplanError(f"write_builtin writes an INRIA .ply; got {out_ply.name!r} (use a .ply name)")
-    splats, scene = build_builtin(name, seed=seed, level=level)
+    splats, scene = build_builtin(name, seed=seed, level=level, haze=haze)
     out_ply.parent.mkdir(parents=True, exist_ok=True)
     stonehenge.save_ply(out_ply, splats)
     gt = stonehenge.ground_truth_path(out_ply)
     meta = {**scene.meta, "n_splats": len(splats), "n_floaters": int(splats.info["n_floaters"]), "ply": out_ply.name}
+    if haze:
+        meta["capture_look"] = dict(splats.info["capture_look"])
     AnalyticScene(scene.boxes, scene.labels, meta).save(gt)
     return out_ply, gt
