@@ -54,7 +54,7 @@ def main(argv: list[str] | None = None) -> int:
             res["models"][model] = {
                 "n_ellipsoids": robot.n_ellipsoids,
                 "behind_wall": int(c.behind_wall.sum()),
-                "after": [{"filter": f, "all": n_all, "behind_wall": n_b} for f, n_all, n_b in c.counts()],
+                "after": [{"filter": f, "all": n_all, "behind_wall": n_b, "hidden_from_start": n_h} for f, n_all, n_b, n_h in c.counts()],
                 "view_per_pixel_alpha": {"all": int(per_pixel.sum()), "behind_wall": int((per_pixel & c.behind_wall).sum())},
             }
     models = list(res["models"])

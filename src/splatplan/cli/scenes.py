@@ -133,8 +133,9 @@ def cmd_scene(args) -> int:
     from ..scenes.builtin import BUILTIN_SCENES, write_builtin
     from ..scenes.builtin.stonehenge import ground_truth_path
 
-    if getattr(args, "haze", False) and args.name in ("from-moveit", "align"):
-        raise SplatplanError(f"--haze is an option of the built-in apartment ('splatplan scene apartment --haze --out X.ply'), not of scene {args.name}")
+    scene_cmd = args.name  # the scene subcommand: a built-in's name, from-moveit or align
+    if getattr(args, "haze", False) and scene_cmd in ("from-moveit", "align"):
+        raise SplatplanError(f"--haze is an option of the built-in apartment ('splatplan scene apartment --haze --out X.ply'), not of scene {scene_cmd}")
     if args.name == "from-moveit":
         return _scene_from_moveit(args)
     if args.name == "align":
