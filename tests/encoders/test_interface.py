@@ -1,4 +1,4 @@
-"""The one Encoder interface: shapes, kinds (numpy/torch), image_cost, ImageCost, bad input, no global state."""
+"""The one Encoder interface: shapes, kinds (numpy/torch), image_cost, EmbeddingDistance, bad input, no global state."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import torch
 
-from splatplan.encoders import ImageCost, image_cost, load_encoder
+from splatplan.encoders import EmbeddingDistance, image_cost, load_encoder
 from splatplan.errors import SplatplanError
 
 from .conftest import needs_effnet_weights
@@ -84,30 +84,30 @@ def test_combined_cost_is_the_formula(tiny_dinov2, images):
     g_t, tok_t = tiny_dinov2.features(target[None], tokens=True)
     g_r, tok_r = tiny_dinov2.features(rendered, tokens=True)
     want = 0.7 * ((g_t - g_r) ** 2).sum(1) + 0.3 * ((tok_t - tok_r) ** 2).sum(2).mean(1)
-    got = ImageCost(tiny_dinov2, target, w_global=0.7, w_patch=0.3)(rendered)
+    got = EmbeddingDistance(tiny_dinov2, target, w_global=0.7, w_patch=0.3)(rendered)
     np.testing.assert_allclose(got, want, rtol=1e-4)
     # global only == image_cost; a render equal to the target costs ~0
-    np.testing.assert_allclose(ImageCost(tiny_dinov2, target)(rendered), image_cost(g_t[0], g_r), rtol=1e-5)
-    assert ImageCost(tiny_dinov2, target, 1.0, 1.0)(target[None])[0] < 1e-6
+    np.testing.assert_allclose(EmbeddingDistance(tiny_dinov2, target)(rendered), image_cost(g_t[0], g_r), rtol=1e-5)
+    assert EmbeddingDistance(tiny_dinov2, target, 1.0, 1.0)(target[None])[0] < 1e-6
     # one target per rendered image
-    per_row = ImageCost(tiny_dinov2, images[:3], w_patch=1.0)(images[1:])
+    per_row = EmbeddingDistance(tiny_dinov2, images[:3], w_patch=1.0)(images[1:])
     assert per_row.shape == (3,) and per_row[0] > 0
 
 
 def test_combined_cost_bad_input(images):
     thumb = load_encoder("thumbnail")
     with pytest.raises(SplatplanError, match="no patch tokens"):
-        ImageCost(thumb, images[0], w_patch=1.0)
+        EmbeddingDistance(thumb, images[0], w_patch=1.0)
     with pytest.raises(SplatplanError, match="weights"):
-        ImageCost(thumb, images[0], w_global=0.0, w_patch=0.0)
+        EmbeddingDistance(thumb, images[0], w_global=0.0, w_patch=0.0)
     with pytest.raises(SplatplanError, match="target images"):
-        ImageCost(thumb, images[:2])(images[:3])
+        EmbeddingDistance(thumb, images[:2])(images[:3])
 
 
 def test_gradients_flow_to_torch_images(tiny_dinov2, images):
     for enc in (load_encoder("thumbnail"), tiny_dinov2):
         x = torch.from_numpy(images[1:3].copy()).requires_grad_(True)
-        cost = ImageCost(enc, images[0])(x)
+        cost = EmbeddingDistance(enc, images[0])(x)
         cost.sum().backward()
         assert x.grad is not None and torch.isfinite(x.grad).all() and x.grad.abs().sum() > 0
     assert torch.is_grad_enabled()  # grad mode restored after encoding
@@ -193,6 +193,16 @@ def test_devices_keep_data_where_it_is(device, images):
     x = torch.from_numpy(images).to(device)
     e = enc.encode(x)
     assert torch.is_tensor(e) and e.device.type == device
-    cost = ImageCost(enc, x[0], w_patch=1.0)(x)
+    cost = EmbeddingDistance(enc, x[0], w_patch=1.0)(x)
     assert cost.device.type == device and cost.shape == (4,)
     np.testing.assert_allclose(enc.encode(images), ref, rtol=1e-3, atol=1e-3)  # numpy in -> numpy out, same values
+
+
+def test_old_encoder_image_cost_name_warns_and_still_works():
+    """``splatplan.encoders.ImageCost`` is the deprecated name of :class:`EmbeddingDistance` (one
+    minor version): it warns, naming the new one, and returns the same class."""
+    import splatplan.encoders as encoders
+
+    with pytest.warns(DeprecationWarning, match="EmbeddingDistance"):
+        old = encoders.ImageCost
+    assert old is EmbeddingDistance

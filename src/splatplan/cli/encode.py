@@ -9,7 +9,7 @@ from ._common import add_command, add_config_args, add_device_arg, atomic_path, 
 
 
 def cmd_encode(args) -> int:
-    from ..encoders import EncoderConfig, ImageCost, load_encoder
+    from ..encoders import EncoderConfig, EmbeddingDistance, load_encoder
     from ..encoders.images import load_image
 
     if args.out and not str(args.out).endswith(".npy"):
@@ -30,7 +30,7 @@ def cmd_encode(args) -> int:
         if n > 1:
             if args.w_patch > 0:
                 what = f"{args.w_global:g} ||g_i - g_j||^2 + {args.w_patch:g} mean_p ||tok_i,p - tok_j,p||^2"
-                dist = np.stack([ImageCost(enc, images[i], w_global=args.w_global, w_patch=args.w_patch)(np.stack([_resized(im, images[i]) for im in images])) for i in range(n)])
+                dist = np.stack([EmbeddingDistance(enc, images[i], w_global=args.w_global, w_patch=args.w_patch)(np.stack([_resized(im, images[i]) for im in images])) for i in range(n)])
             else:
                 what = "||e_i - e_j||^2" if args.w_global == 1 else f"{args.w_global:g} ||e_i - e_j||^2"
                 dist = args.w_global * np.stack([enc.image_cost(emb[i], emb) for i in range(n)])

@@ -2,8 +2,8 @@
 
 One interface (:class:`Encoder`): ``encode(images (B, H, W, 3) in [0, 1]) -> (B, D)``,
 ``encode_tokens(images) -> (B, P, Dt)`` where available, ``image_cost(e_t, e_r) -> (B,)``
-(``||e_t - e_r||^2``), and :class:`ImageCost` for the combined global + patch-token cost against
-a target image. numpy in -> numpy out, torch in -> torch out.
+(``||e_t - e_r||^2``), and :class:`EmbeddingDistance` for the combined global + patch-token distance
+to a target image (the planners' :class:`splatplan.planners.ImageCost` renders each rollout and uses it). numpy in -> numpy out, torch in -> torch out.
 
 Encoders (:func:`load_encoder` names):
 
@@ -101,8 +101,16 @@ def load_encoder(name: str | EncoderConfig = "thumbnail", weights: str | None = 
 
 
 def __getattr__(name: str):
+    if name == "ImageCost":  # deprecated alias (0.3.0; removed in 0.4.0)
+        import warnings
+
+        from .base import EmbeddingDistance
+
+        warnings.warn("splatplan.encoders.ImageCost is renamed splatplan.encoders.EmbeddingDistance (the planners' "
+                      "cost term is splatplan.planners.ImageCost); the old name goes in 0.4.0", DeprecationWarning, stacklevel=2)
+        return EmbeddingDistance
     lazy = {
-        "Encoder": ".base", "ImageCost": ".base", "image_cost": ".base",
+        "Encoder": ".base", "EmbeddingDistance": ".base", "image_cost": ".base",
         "ThumbnailEncoder": ".thumbnail", "Dinov2Encoder": ".dinov2", "EfficientNetLite0Encoder": ".efficientnet_lite",
         "load_image": ".images",
     }
@@ -113,5 +121,5 @@ def __getattr__(name: str):
     raise AttributeError(f"module 'splatplan.encoders' has no attribute {name!r}")
 
 
-__all__ = ["ENCODER_NAMES", "EncoderConfig", "load_encoder", "Encoder", "ImageCost", "image_cost",
+__all__ = ["ENCODER_NAMES", "EncoderConfig", "load_encoder", "Encoder", "EmbeddingDistance", "image_cost",
            "ThumbnailEncoder", "Dinov2Encoder", "EfficientNetLite0Encoder", "load_image"]

@@ -5,7 +5,7 @@ a torch tensor; every function returns the same kind it was given (numpy float32
 on the input's device). Values outside [0, 1] are clamped (a 3DGS render is clamped at 0 only).
 Gradients flow to a torch input that requires them; otherwise encoders run under ``no_grad``.
 
-Cost (paper Sec. II-D): ``image_cost(e_t, e_r) = ||e_t - e_r||^2`` per row. :class:`ImageCost`
+Cost (paper Sec. II-D): ``image_cost(e_t, e_r) = ||e_t - e_r||^2`` per row. :class:`EmbeddingDistance`
 adds the combined form the paper's authors use, with global (CLS) and patch-token terms::
 
     cost = w_global * ||g_t - g_r||^2 + w_patch * mean_p ||tok_t,p - tok_r,p||^2
@@ -229,8 +229,10 @@ class Encoder:
         self.close()
 
 
-class ImageCost:
-    """The image-conditioned cost term against fixed target image(s), over batches of renders.
+class EmbeddingDistance:
+    """The distance in an encoder's embedding between fixed target image(s) and batches of renders
+    (the image term of the paper's objective; :class:`splatplan.planners.ImageCost` is the planner's
+    cost term that renders each rollout and calls this).
 
     ``cost(rendered) = w_global * ||g_t - g_r||^2 + w_patch * mean_p ||tok_t,p - tok_r,p||^2``
     with g the encoder's global embedding (CLS for DINOv2) and tok its patch tokens. Target

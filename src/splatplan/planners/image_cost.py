@@ -9,7 +9,7 @@ Per MPPI iteration, for the K terminal states x_kT:
 2. **one** batched render call (:class:`~splatplan.render.SplatRenderer`: Warp kernels on CPU
    cores or CUDA), (K, H, W, 3) in [0, 1];
 3. encoder features and ``cost_k = w_global ||g_t - g_k||^2 + w_patch mean_p ||tok_t,p - tok_k,p||^2``
-   (:class:`splatplan.encoders.ImageCost`; patch tokens only for encoders that have them);
+   (:class:`splatplan.encoders.EmbeddingDistance`; patch tokens only for encoders that have them);
 4. times ``weight`` -> (K,) float64.
 
     cost = ImageCost(renderer, camera, robot, encoder, target_rgb, weight=10.0)
@@ -46,7 +46,7 @@ class ImageCost(Cost):
             ``robot.dof`` state coordinates).
         encoder: an :class:`~splatplan.encoders.Encoder` (e.g. ``load_encoder("thumbnail")``).
         target: (H, W, 3) RGB target image in [0, 1] (any size: the encoder resizes both images to
-            its own input size), or a precomputed :class:`splatplan.encoders.ImageCost`.
+            its own input size), or a precomputed :class:`splatplan.encoders.EmbeddingDistance`.
         weight: weight of the term.
         w_global: weight of the global-embedding distance (CLS / pooled / thumbnail).
         w_patch: weight of the mean patch-token distance (0 for encoders without tokens).
@@ -62,7 +62,7 @@ class ImageCost(Cost):
             weights ``exp(-dC / lambda)`` then see relative progress, so the update stays greedy near
             the goal where absolute cost differences between samples shrink towards 0.
         normalize: compare L2-normalised features (cosine distance in [0, 4]: the same cost scale
-            for every encoder; see :class:`splatplan.encoders.ImageCost`).
+            for every encoder; see :class:`splatplan.encoders.EmbeddingDistance`).
     """
 
     name = "image"
@@ -84,7 +84,7 @@ class ImageCost(Cost):
         log_eps: float = 0.0,
         normalize: bool = False,
     ) -> None:
-        from ..encoders.base import ImageCost as _EncoderImageCost
+        from ..encoders.base import EmbeddingDistance
 
         if not np.isfinite(weight) or weight < 0:
             raise SplatplanError(f"ImageCost weight must be finite and >= 0, got {weight}")
@@ -101,13 +101,13 @@ class ImageCost(Cost):
             raise SplatplanError(f"ImageCost log_eps must be finite and >= 0, got {log_eps}")
         self.log_eps = float(log_eps)
         camera._link_index(robot)  # fail early on a wrong link name
-        if isinstance(target, _EncoderImageCost):
+        if isinstance(target, EmbeddingDistance):
             self.embedding_cost = target
         else:
             img = np.asarray(target, dtype=np.float32)
             if img.ndim != 3 or img.shape[-1] != 3:
                 raise SplatplanError(f"ImageCost target must be one (H, W, 3) RGB image, got shape {img.shape}")
-            self.embedding_cost = _EncoderImageCost(encoder, img, w_global=w_global, w_patch=w_patch, normalize=normalize)
+            self.embedding_cost = EmbeddingDistance(encoder, img, w_global=w_global, w_patch=w_patch, normalize=normalize)
         #: number of render calls made so far (one per evaluated batch)
         self.n_renders = 0
 
