@@ -89,7 +89,7 @@ def _plot_plans(path: Path, plans, gt, z: float, start, goal, radius: float) -> 
         if res is None or not res.success:
             continue
         p = np.asarray(res.path)
-        raw = np.asarray(res.info.get("path_shortcut", res.path))
+        raw = np.asarray(res.path_shortcut)
         ax.plot(raw[:, 0], raw[:, 1], ":", color=colors.get(ns, "k"), lw=1.0)
         ax.plot(p[:, 0], p[:, 1], "-", color=colors.get(ns, "k"), lw=2.0, label=f"n_sigma={ns:g} (length {res.length:.3f})")
     ax.plot(*start[:2], "ko", ms=7, label="start")
@@ -170,7 +170,7 @@ def run_demo(out_dir: Path, device: str = "auto", seed: int = 0) -> dict:
         res = plan(base.with_config(n_sigma=ns), start, goal, robot=robot, refine=True, seed=seed, rrt_config=rrt)
         plans[ns] = res
         if res.success:
-            rows.append((ns, res.info.get("length_rrt", float("nan")), res.length, d_min(res.path, scene.means),
+            rows.append((ns, res.length_shortcut, res.length, d_min(res.path, scene.means),
                          clearance(res.path, gt.sdf, r_robot), smoothness(res.path), res.time_s, res.n_nodes))  # fmt: skip
         else:
             rows.append((ns, float("nan"), float("nan"), float("nan"), float("nan"), float("nan"), res.time_s, res.n_nodes))

@@ -120,6 +120,19 @@ def test_plan_convenience_refines(checker):
     assert _dense_free(checker, res.path)
 
 
+def test_plan_result_typed_views(checker):
+    """The extras users read are typed properties of PlanResult, equal to the info dict's entries."""
+    res = plan(checker, START, GOAL, robot=SPHERE, rrt_config=RRTConfig(**PLANE), seed=0)
+    assert res.planner == res.info["planner"] == "rrt"
+    assert isinstance(res.n_configs, int) and res.n_configs == res.info["n_configs"] > 0
+    assert set(res.time_split) >= {"sampling", "nearest", "collision", "shortcut", "refine", "other"}
+    assert abs(sum(res.time_split.values()) - res.time_s) < 1e-6
+    assert res.settings and res.settings == res.info["settings"]
+    assert res.length_shortcut == res.info["length_rrt"] >= res.length - 1e-9
+    np.testing.assert_array_equal(res.path_shortcut, res.info["path_shortcut"])
+    assert isinstance(res.refine_message, str) and res.refine_message
+
+
 def test_backend_independent():
     """Same seed -> same tree with the numpy reference and (when present) the Warp kernel."""
     s = make_scene([((-0.01, -0.1, 0.0), (0.01, 0.05, 0.12))])

@@ -161,7 +161,7 @@ def _plan_one(checker, start, goal, means_tree, sdf, seed: int, rrt_cfg: RRTConf
         return {}, None
     if not res.success:
         return {}, res
-    p0 = res.info["path_shortcut"]
+    p0 = res.path_shortcut
     p1 = res.path
     return (
         dict(
@@ -239,7 +239,7 @@ def conservatism_task(spec: dict, ctx: ConservatismContext) -> dict:
     row, res = _plan_one(ctx.checker(float(spec["n_sigma"])), np.asarray(spec["start"]), np.asarray(spec["goal"]), ctx.tree, ctx.scene.sdf,
                          int(spec["seed"]), _rrt_config(c, c.time_budget_s), c.radius)  # fmt: skip
     if row and res is not None:
-        row["path_rrt"] = res.info["path_shortcut"]
+        row["path_rrt"] = res.path_shortcut
         row["path"] = res.path
     return row
 

@@ -171,8 +171,12 @@ class PlanResult:
             raw tree path, except for the lazy RRT-Connect, whose path is shortcut once while it is
             checked: the tree edges a shortcut jumps over are never checked).
         refined: whether ``path`` is the accepted output of the zeroth-order refinement.
-        info: extras: ``settings`` (the :class:`RRTSettings` as a dict), ``n_queries``,
-            ``edge_resolution``, ``time_limit_hit``.
+        info: the planner's extras as a dict (what the typed properties below read, and
+            planner-specific keys such as ``tree_sizes`` or ``stride``).
+
+    Typed views of the extras users read (properties; ``info`` keeps the same values under the
+    same names): :attr:`planner`, :attr:`n_configs`, :attr:`n_queries`, :attr:`time_split`,
+    :attr:`settings`, :attr:`path_shortcut`, :attr:`length_shortcut`, :attr:`refine_message`.
     """
 
     success: bool
@@ -187,6 +191,48 @@ class PlanResult:
     path_rrt: np.ndarray | None = None
     refined: bool = False
     info: dict = field(default_factory=dict)
+
+    @property
+    def planner(self) -> str:
+        """The planner that ran (``"rrt"``, ``"rrtconnect"``, ``"ompl:NAME"``; "" when unknown)."""
+        return str(self.info.get("planner", ""))
+
+    @property
+    def n_configs(self) -> int:
+        """Robot configurations collision-checked by the call (search, validation and shortcut)."""
+        return int(self.info.get("n_configs", 0))
+
+    @property
+    def n_queries(self) -> int:
+        """Collision-checker calls made by the call."""
+        return int(self.info.get("n_queries", 0))
+
+    @property
+    def time_split(self) -> dict[str, float]:
+        """Seconds by phase (``sampling``, ``nearest``, ``collision``, ``shortcut``, ``refine``,
+        ``other``; they sum to :attr:`time_s` after :func:`splatplan.planners.plan`)."""
+        return {str(k): float(v) for k, v in dict(self.info.get("time_split", {})).items()}
+
+    @property
+    def settings(self) -> dict:
+        """The search's settings as used (derived or given; :class:`RRTSettings` as a dict)."""
+        return dict(self.info.get("settings") or {})
+
+    @property
+    def path_shortcut(self) -> np.ndarray:
+        """(P, D) the shortcut search path, before any refinement (= :attr:`path` when not refined)."""
+        p = self.info.get("path_shortcut")
+        return np.asarray(self.path if p is None else p)
+
+    @property
+    def length_shortcut(self) -> float:
+        """Length of :attr:`path_shortcut` in the planner's metric (as :attr:`length`)."""
+        return float(self.info.get("length_rrt", self.length))
+
+    @property
+    def refine_message(self) -> str:
+        """Why the refinement was accepted or not ("" when it did not run)."""
+        return str(self.info.get("refine_message", ""))
 
 
 def path_length(path: np.ndarray, weights: np.ndarray | None = None) -> float:
