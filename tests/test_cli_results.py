@@ -134,3 +134,18 @@ def test_mpc_go2_around_an_object_and_its_box(scenes, tmp_path, capsys):
     assert code == 2 and "the given box" in err
     code = main(["mpc", "--robot", "panda", "--goal-pose", "0.5,0,0.3,1,0,0,0", "--box", "-1,-1", "1,1", "--out", str(tmp_path / "arm")])
     assert code == 2 and "--box is for --robot go2" in capsys.readouterr().err
+
+
+def test_terrain_only_where_a_floor_was_found(scenes):
+    """An object capture (a chair, no floor): the ends of its legs stay obstacles; a floor under it
+    makes them terrain as before."""
+    from splatplan.scenes.terrain import TerrainConfig, remove_terrain
+
+    chair = load_scene(scenes / "chair.ply")
+    out, rep = remove_terrain(chair, TerrainConfig(floor_z=0.0))
+    assert not rep.floor_found and rep.n_terrain == 0 and len(out) == len(chair) and "no floor" in rep.summary()
+    out, rep = remove_terrain(chair, TerrainConfig(floor_z=0.0, min_floor_coverage=0.0))
+    assert rep.floor_found and rep.n_terrain > 0
+    on_floor = make_scene(CHAIR + [((-1.0, -1.0, -0.01), (1.0, 1.0, 0.0))], spacing=0.02)
+    out, rep = remove_terrain(on_floor, TerrainConfig(floor_z=0.0))
+    assert rep.floor_found and rep.n_terrain > 0
