@@ -1,4 +1,10 @@
-"""`splatplan mpc` (arm reaching / quadruped driving under MPPI) and the studies `eval arm`, `eval base`."""
+"""`splatplan mpc` (arm reaching / quadruped driving under MPPI) and the studies `eval arm`, `eval base`.
+
+``mpc --plan PATH.json`` starts where a ``splatplan plan`` result starts and heads where it ends
+(go2: the plan is the route it tracks; panda: the goal is the end-effector pose of the plan's last
+configuration), with the robot, base pose and scene the result records unless flags give others.
+The result.json records its frame like ``plan``'s (:mod:`splatplan.cli._results`).
+"""
 
 from __future__ import annotations
 
@@ -9,6 +15,7 @@ import numpy as np
 
 from ..errors import SplatplanError
 from ..robots.builtin import DEFAULT_MODEL, PANDA_MODELS
+from ._results import check_scene, fill_robot, frame_record, note, read_plan
 from ._common import (
     MAX_COORD, _out_dir, add_base_pose_arg, atomic_dir, move_into, signals_deferred, parse_numbers, unit_quaternion, add_config_args, add_device_arg, add_seed_arg, check_device, config_from_args, float_arg, parse_base_pose, robot_at,
     write_json,
@@ -46,10 +53,35 @@ def straight_line_blocked(robot: Robot, checker: CollisionChecker, start, goal_x
     return bool(hit.any(axis=1).all())
 
 
+#: the --robot values mpc takes
+MPC_ROBOTS = ("panda", *(f"panda:{m}" for m in PANDA_MODELS), "go2")
+
+
+def _box_xy(args) -> tuple[np.ndarray, np.ndarray] | None:
+    """go2 --box LO HI: X,Y or X,Y,YAW corners (the yaw part is ignored: the base turns freely) -> (lo (2,), hi (2,))."""
+    if args.box is None:
+        return None
+    lo, hi = (_floats(b, 2 if len(b.split(",")) == 2 else 3, "--box", "X,Y or X,Y,YAW")[:2] for b in args.box)
+    if np.any(hi <= lo):
+        raise SplatplanError(f"--box {args.box[0]} {args.box[1]}: the corner LO must be below HI in x and y")
+    return lo, hi
+
+
 def cmd_mpc(args) -> int:
     from ..tasks._common import base_terrain, load_task_scene
     from ..tasks.plot import plot_run
 
+    plan_q, frame = read_plan(args.plan) if args.plan is not None else (None, None)
+    fill_robot(args, frame)
+    if args.robot is None:
+        raise SplatplanError("--robot is required (panda or go2), or --plan PATH.json of a plan that records it")
+    if args.robot not in MPC_ROBOTS:
+        raise SplatplanError(f"--robot {args.robot}: mpc runs {', '.join(MPC_ROBOTS)}" + (f" (from --plan {args.plan})" if frame is not None else ""))
+    if args.scene is None and frame is not None and frame.scene is not None:
+        args.scene = frame.scene.get("path") or frame.scene.get("builtin")
+        note(f"scene {args.scene} from --plan {args.plan}")
+    elif args.scene is not None:
+        check_scene(args.scene, frame)
     out = _out_dir(args.out)
     collision = not args.no_collision
     tag = "" if collision else " [--no-collision: collision cost OFF]"
@@ -63,21 +95,35 @@ def cmd_mpc(args) -> int:
             raise SplatplanError(f"{given[0]} is for --robot go2 only (panda takes --goal-pose)")
     elif args.goal_pose is not None:
         raise SplatplanError("--goal-pose is for --robot panda only (go2 takes --goal X,Y)")
+    if task == "arm" and args.box is not None:
+        raise SplatplanError("--box is for --robot go2 (an arm's joints are bounded by their limits)")
+    box = _box_xy(args)
     if args.route and args.no_route:
         raise SplatplanError("--route and --no-route contradict each other; give one")
     route_time = 60.0 if args.route_time is None else args.route_time
     if task == "arm":
         from ..tasks.arm import ArmConfig, run_arm
 
-        if args.goal_pose is None:
-            raise SplatplanError("--robot panda needs --goal-pose X,Y,Z,QW,QX,QY,QZ (metres, wxyz)")
-        gp = _floats(args.goal_pose, 7, "--goal-pose", "X,Y,Z,QW,QX,QY,QZ")
-        gp[3:] = unit_quaternion(gp[3:], "--goal-pose", args.goal_pose)
         cfg = config_from_args(args, ArmConfig, "arm_")
         cfg = replace(cfg, mppi=replace(cfg.mppi, seed=args.seed))
         robot = robot_at(args.robot, parse_base_pose(args.base_pose))
+        _plan_fits(plan_q, robot, args.plan)
+        if args.goal_pose is None and plan_q is None:
+            raise SplatplanError("--robot panda needs --goal-pose X,Y,Z,QW,QX,QY,QZ (metres, wxyz) or --plan PATH.json")
+        if args.goal_pose is not None:
+            gp = _floats(args.goal_pose, 7, "--goal-pose", "X,Y,Z,QW,QX,QY,QZ")
+            gp[3:] = unit_quaternion(gp[3:], "--goal-pose", args.goal_pose)
+        else:  # the end-effector pose of the plan's last configuration
+            from ..scenes.splats import rotmat_to_quat
+
+            t = robot.link_poses(plan_q[-1:])[0, robot.link_names.index(cfg.ee_link)]  # (4, 4) world <- ee
+            gp = np.concatenate([t[:3, 3], np.asarray(rotmat_to_quat(t[None, :3, :3]), np.float64).reshape(4)])
+            note(f"goal pose {np.round(gp, 4).tolist()} of {cfg.ee_link} at the last configuration of --plan {args.plan}")
         scene = args.scene or "tabletop"
-        q0 = None if args.start is None else _floats(args.start, robot.dof, "--start", f"with {robot.dof} joint values")
+        if args.start is not None:
+            q0 = _floats(args.start, robot.dof, "--start", f"with {robot.dof} joint values")
+        else:
+            q0 = None if plan_q is None else plan_q[0].copy()
         ts = load_task_scene(scene, n_sigma=cfg.n_sigma, device=args.device)  # once: the run and the figure share it
         res = run_arm(robot, ts, gp[:3], gp[3:], config=cfg, collision=collision, q0=q0, device=args.device)
         kind = "arm"
@@ -85,30 +131,39 @@ def cmd_mpc(args) -> int:
         from ..planners.route import plan_route
         from ..tasks.base import START, BaseConfig, load_go2, run_base
 
-        if args.goal is None:
-            raise SplatplanError("--robot go2 needs --goal X,Y (metres)")
-        g = _floats(args.goal, 2, "--goal", "X,Y")
+        from ..tasks.base import base_box
+
         cfg = config_from_args(args, BaseConfig, "base_")
         cfg = replace(cfg, mppi=replace(cfg.mppi, seed=args.seed))
         robot = robot_at("go2", parse_base_pose(args.base_pose), robot=load_go2())
+        _plan_fits(plan_q, robot, args.plan)
+        if args.goal is None and plan_q is None:
+            raise SplatplanError("--robot go2 needs --goal X,Y (metres) or --plan PATH.json")
+        g = _floats(args.goal, 2, "--goal", "X,Y") if args.goal is not None else plan_q[-1, :2].copy()
         scene = args.scene or "apartment"
         default = np.asarray(START, np.float64) if scene == "apartment" else np.zeros(3)  # the origin lies in the apartment's x = 0 wall
+        default = default if plan_q is None else plan_q[0].copy()
         start = default if args.start is None else _floats(args.start, 3, "--start", "X,Y,YAW")
         ts = load_task_scene(scene, n_sigma=cfg.n_sigma, device=args.device, terrain=base_terrain(cfg))
         route = None
-        lo, hi = ts.splats.bounds()
+        lo, hi = base_box(ts, robot, box)
         inside = bool(np.all(g >= lo[:2]) and np.all(g <= hi[:2]))  # else run_base says so
-        want = inside and (args.route or (not args.no_route and collision and straight_line_blocked(robot, ts.checker, start, g)))
+        if inside and plan_q is not None and not args.no_route and not args.route:  # the plan is the route
+            route = plan_q
+            print(f"tracking the {len(plan_q)}-vertex path of --plan {args.plan} (--no-route: goal only, --route: plan a new route)")
+        want = inside and route is None and (args.route or (not args.no_route and collision and straight_line_blocked(robot, ts.checker, start, g)))
         if want:
             if not args.route:
                 print(f"the straight line from {start[:2].round(2).tolist()} to {g.round(2).tolist()} is blocked facing the goal: planning an SE(2) route first (--no-route: goal only)")
-            route = plan_route(robot, ts.checker, start, g, time_budget_s=route_time, seed=args.seed)
+            route = plan_route(robot, ts.checker, start, g, time_budget_s=route_time, seed=args.seed, box=(lo[:2], hi[:2]))
             if route is None:
                 print(f"no SE(2) route from {start[:2].round(2).tolist()} to {g.round(2).tolist()} within {route_time:g} s (try a larger --route-time)")
                 return 1
-        res = run_base(robot, ts, g, start=start, config=cfg, collision=collision, route=route, device=args.device)
+        res = run_base(robot, ts, g, start=start, config=cfg, collision=collision, route=route, box=box, device=args.device)
         kind = "base"
     d = res.to_json()
+    terrain = ts.splats.info.get("terrain") if kind == "base" else None
+    d["frame"] = frame_record(args.robot, parse_base_pose(args.base_pose), scene, ts.checker.config, terrain)
     fig = plot_run(robot, ts, res, kind=kind)
     with atomic_dir(out) as tmp:  # result.json and motion.png appear together or not at all
         write_json(tmp / "result.json", d)
@@ -122,6 +177,12 @@ def cmd_mpc(args) -> int:
     )
     print(f"wrote {out / 'result.json'} and {out / 'motion.png'}{tag}")
     return 0 if res.success else 1
+
+
+def _plan_fits(plan_q: np.ndarray | None, robot: Robot, path: str | None) -> None:
+    """A --plan path must be of the robot's dofs (one line otherwise)."""
+    if plan_q is not None and plan_q.shape[1] != robot.dof:
+        raise SplatplanError(f"--plan {path}: its path has {plan_q.shape[1]} coordinates per vertex, {robot.name} has {robot.dof} ({', '.join(robot.joint_names)})")
 
 
 def cmd_eval(args) -> int:
@@ -145,8 +206,15 @@ def register(sub, eval_sub) -> None:
     from ..tasks.base import BaseConfig
 
     s = sub.add_parser("mpc", help="MPPI with the collision cost: Panda reaching (tabletop) or Go2 driving (apartment)")
-    s.add_argument("--robot", required=True, choices=("panda", *(f"panda:{m}" for m in PANDA_MODELS), "go2"),
-                   help=f"panda (7-DoF arm, the {DEFAULT_MODEL} collision model; panda:coarse = one ellipsoid per link) or go2 (planar base)")
+    s.add_argument("--robot", default=None, metavar="{" + ",".join(MPC_ROBOTS) + "}",
+                   help=f"panda (7-DoF arm, the {DEFAULT_MODEL} collision model; panda:coarse = one ellipsoid per link) or go2 (planar base); "
+                   "required unless --plan records it")  # fmt: skip
+    s.add_argument("--plan", default=None, help="PATH.json of 'splatplan plan': start at its first configuration and head for its last (go2: "
+                   "tracking it as the route; panda: the end-effector pose there is the goal), with the robot, base pose and scene it records "
+                   "unless flags give others")  # fmt: skip
+    s.add_argument("--box", nargs=2, metavar=("LO", "HI"), default=None, help="go2: corners X,Y (or X,Y,YAW like plan's --box; the yaw is free) of "
+                   "where the base may go: the goal must lie inside, the route and the obstacle memory stay inside (default: the scene's "
+                   "bounds grown by the robot's footprint diameter)")  # fmt: skip
     s.add_argument("--scene", default=None, help="built-in scene name or a splat file (default tabletop for panda, apartment for go2); files without a .gt.json get a metric clearance")
     s.add_argument("--goal-pose", default=None, help="panda: X,Y,Z,QW,QX,QY,QZ end-effector goal (metres, wxyz world <- panda_hand_tcp)")
     s.add_argument("--goal", default=None, help="go2: X,Y goal of the base (metres); e.g. the final node of an RRT path")

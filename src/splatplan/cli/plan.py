@@ -9,14 +9,20 @@ an existing ``--out`` is kept unless ``--force``), 2 bad input.
 Every length the user does not set (stride, edge resolution, goal tolerance, sampling box) is
 derived from the scene and the robot; the values used are printed on one line. Configuration
 vectors are comma lists of the robot's dofs and may start with a minus sign
-(``--start -0.3,0,0.06``).
+(``--start -0.3,0,0.06``); an arm without ``--start`` starts from its home configuration.
+
+The result file records its frame (robot spec, base pose, metric settings, scene path and sha256:
+:mod:`splatplan.cli._results`), so ``view --plan``, ``check --plan`` and ``mpc --plan`` place the
+robot where it was planned, and the path's clearance in metres
+(:func:`~splatplan.planners.clearance.path_metric_clearance`: an estimate from the metric, a lower
+bound on the distance to the nearest splat mean, less the n_sigma inflation).
 """
 
 from __future__ import annotations
 
 import argparse
 import sys
-from dataclasses import replace
+from dataclasses import asdict, replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -24,6 +30,7 @@ import numpy as np
 
 from ..errors import SplatplanError
 from ..robots.builtin import DEFAULT_POINT_ROBOT, ROBOT_NAME_HELP
+from ._results import frame_record, note
 from ._common import (
     _load, add_base_pose_arg, add_command, add_config_args, add_device_arg, add_metric_args, add_seed_arg, add_terrain_args, allow_negative_values, config_from_args, float_arg,
     MAX_COORD, ground_robot_scene, metric_config_from_args, parse_base_pose, parse_numbers, robot_at, strict_float, unit_quaternion, write_json,
@@ -35,6 +42,12 @@ if TYPE_CHECKING:
 
 #: the link ``--goal-pose`` places unless ``--ee-link`` names another
 DEFAULT_EE_LINK = "panda_hand_tcp"
+
+#: what the recorded clearance means (written beside it in the result file)
+CLEARANCE_NOTE = ("estimate from the CollisionSplatting metric, (sqrt(min s2~) - 1) x the smallest semi-axis of the ellipsoid, minimised over "
+                  "the path densified by step_m of robot motion: a lower bound on the distance from the robot's ellipsoids to the nearest "
+                  "splat mean (opacity >= opacity_min), smaller by the n_sigma inflation (about n_sigma splat standard deviations); "
+                  "at_least = farther than the metric looks; between samples it may dip by up to step_m / 2")
 
 
 def parse_goal_pose(text: str, robot: Robot, link: str) -> np.ndarray:
@@ -67,6 +80,17 @@ def parse_config(text: str, robot: Robot, what: str) -> np.ndarray:
     return v
 
 
+def _base_pose(args, robot: Robot) -> np.ndarray | None:
+    """The (4, 4) world <- base pose --base-pose gives ``robot`` with a planar base's --height folded
+    in (None for none): where _robot_for places it and what the result records as its base pose."""
+    pose = parse_base_pose(args.base_pose)
+    if args.height is not None and robot.base == "planar":
+        pose = (np.eye(4) if pose is None else pose) @ np.array([[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, float(args.height)], [0, 0, 0, 1.0]])
+    elif args.height is not None and not args.planar:
+        raise SplatplanError("--height is the plane of --planar (or of a planar base such as go2); give --planar too (or drop --height)")
+    return pose
+
+
 def _robot_for(args) -> Robot:
     """The robot named by --robot, its base placed by --base-pose; a planar base drives in the plane
     of the floor frame given by --base-pose raised by --height (a robot that walks on terrain, go2
@@ -78,13 +102,19 @@ def _robot_for(args) -> Robot:
             f"--up {args.up} was replaced by one frame vocabulary: align the scene once (splatplan scene align IN --up {args.up} --out OUT.ply, "
             "z up, floor at z = 0) and plan in it; --base-pose X,Y,Z[,QW,QX,QY,QZ] places the robot"
         )
-    pose = parse_base_pose(args.base_pose)
     robot = load_robot(args.robot)
-    if args.height is not None and robot.base == "planar":
-        pose = (np.eye(4) if pose is None else pose) @ np.array([[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, float(args.height)], [0, 0, 0, 1.0]])
-    elif args.height is not None and not args.planar:
-        raise SplatplanError("--height is the plane of --planar (or of a planar base such as go2); give --planar too (or drop --height)")
-    return robot_at(args.robot, pose, robot=robot)
+    return robot_at(args.robot, _base_pose(args, robot), robot=robot)
+
+
+def _start(args, robot: Robot) -> np.ndarray:
+    """--start, or an arm's home configuration (``robot.q_default``, as ``mpc`` starts) when not given."""
+    if args.start is not None:
+        return parse_config(args.start, robot, "--start")
+    if robot.base != "fixed":
+        raise SplatplanError(f"--start is required for {robot.name} (a moving base has no home in the scene): give its {robot.dof} dofs ({','.join(robot.joint_names)})")
+    q = np.asarray(robot.q_default, dtype=np.float64).reshape(robot.dof).copy()
+    note(f"no --start: {robot.name} starts from its home configuration {np.round(q, 4).tolist()}")
+    return q
 
 
 def cmd_plan(args) -> int:
@@ -103,7 +133,8 @@ def cmd_plan(args) -> int:
     if args.ee_link is not None and args.goal_pose is None:
         raise SplatplanError("--ee-link names the link that --goal-pose places; give --goal-pose too (or drop --ee-link)")
     robot = _robot_for(args)
-    start = parse_config(args.start, robot, "--start")
+    base_pose = _base_pose(args, robot)  # as given (a ground robot's standing offset is the robot's own)
+    start = _start(args, robot)
     if (args.goal is None) == (args.goal_pose is None):
         raise SplatplanError("give exactly one of --goal (a configuration) or --goal-pose X,Y,Z,QW,QX,QY,QZ (an arm's end-effector pose)")
     goal_pose = None if args.goal_pose is None else parse_goal_pose(args.goal_pose, robot, args.ee_link or DEFAULT_EE_LINK)
@@ -135,8 +166,13 @@ def cmd_plan(args) -> int:
     ref_cfg = config_from_args(args, RefineConfig, prefix="refine_", seed=args.seed)
     mcfg = metric_config_from_args(args)
     scene = _load(args.scene)
+    terrain = None
     if robot.walks_on_terrain:  # a ground robot: the floor's splats are terrain (scenes/terrain.py)
+        from ..scenes.terrain import TerrainConfig
+
         scene = ground_robot_scene(scene, args, mcfg.n_sigma)
+        terrain = {"config": asdict(config_from_args(args, TerrainConfig, prefix="terrain_")), **scene.info.get("terrain", {})}
+    frame = frame_record(args.robot, base_pose, args.scene, mcfg, terrain)
     checker = CollisionChecker(scene, device=args.device, config=mcfg)
     if goal_pose is not None:  # inverse kinematics: the collision-free solution nearest to the start
         from ..robots.ik import collision_free_ik
@@ -152,6 +188,14 @@ def cmd_plan(args) -> int:
         print(f"note: {note}", file=sys.stderr)
     res = plan(checker, start, goal, robot=robot, refine=args.refine, seed=args.seed, rrt_config=rrt_cfg, refine_config=ref_cfg, planner=name)
     split = res.info.get("time_split", {})
+    refine_note = None
+    if args.refine and not res.refined:  # why the path stayed as the RRT found it
+        refine_note = res.info.get("refine_message") or ("no path to refine" if not res.success else "a path of one vertex has nothing to refine")
+    clear = None
+    if res.success:
+        from ..planners.clearance import path_metric_clearance
+
+        clear = path_metric_clearance(checker, robot, np.asarray(res.path))
     doc = {
         "success": bool(res.success),
         "robot": robot.name,
@@ -162,7 +206,12 @@ def cmd_plan(args) -> int:
         "n_nodes": int(res.n_nodes),
         "n_iters": int(res.n_iters),
         "refined": bool(res.refined),
+        "refine_message": refine_note or res.info.get("refine_message"),  # why --refine kept the RRT path (null without --refine)
         "message": res.message,
+        # the smallest metric clearance estimate over the densified path (m; see `clearance`), null when no path
+        "clearance_m": None if clear is None else round(clear.clearance_m, 6),
+        "clearance": None if clear is None else {**clear.to_json(), "note": CLEARANCE_NOTE},
+        "frame": frame,
         "settings": res.info.get("settings"),
         "planner": name,
         "time_split": {k: float(v) for k, v in split.items()},
@@ -178,6 +227,9 @@ def cmd_plan(args) -> int:
     write_json(out, doc)
     print(f"path found: {len(res.path)} vertices, length {res.length:.4f}{' (refined)' if res.refined else ''}; "
           f"{res.n_nodes:,} nodes, {res.time_s:.3f} s -> {out}")  # fmt: skip
+    if refine_note:
+        print(f"not refined: {refine_note}")
+    print(clear.summary())
     print(f"time split: {format_time_split(split)}")
     return 0
 
@@ -187,11 +239,16 @@ def register(sub, eval_sub) -> None:
 
     s = add_command(sub, "plan", cmd_plan, "RRT / RRT-Connect (+ refinement) from a start to a goal configuration of a robot",
                     "Batched RRT or RRT-Connect (+ zeroth-order refinement) in the robot's configuration space. Exit codes: 0 path found, "
-                    "1 no path within the budget (an existing --out is kept unless --force), 2 bad input.")  # fmt: skip
+                    "1 no path within the budget (an existing --out is kept unless --force), 2 bad input. The result records its frame "
+                    "(robot, base pose, metric settings, scene path and sha256), which view/check/mpc --plan reuse, and the path's "
+                    "clearance in metres: the smallest metric estimate (sqrt(min s2~) - 1) x smallest semi-axis over the path densified "
+                    "by a quarter of the robot's smallest semi-axis of motion, a lower bound on the distance to the nearest splat mean, "
+                    "smaller by the n_sigma inflation (about n_sigma splat standard deviations; at n_sigma 0 the bound on the means alone).")  # fmt: skip
     allow_negative_values(s)
     s.add_argument("scene", metavar="SCENE")
     s.add_argument("--robot", default=DEFAULT_POINT_ROBOT, help=f"{ROBOT_NAME_HELP} (default {DEFAULT_POINT_ROBOT})")
-    s.add_argument("--start", required=True, help="start configuration, comma list of the robot's dofs (X,Y,Z for point robots; a leading minus is fine)")
+    s.add_argument("--start", default=None, help="start configuration, comma list of the robot's dofs (X,Y,Z for point robots; a leading minus is fine); "
+                   "default for an arm: its home configuration (required for other robots)")
     s.add_argument("--goal", default=None, help="goal configuration, comma list of the robot's dofs")
     s.add_argument("--goal-pose", default=None, help="arms: X,Y,Z,QW,QX,QY,QZ goal pose of --ee-link (metres, wxyz, world): the goal is the "
                    "collision-free inverse-kinematics solution nearest to the start")  # fmt: skip

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import time
 from pathlib import Path
 
@@ -10,34 +9,22 @@ import numpy as np
 
 from ..errors import SplatplanError
 from ..robots.builtin import ROBOT_NAME_HELP
+from ._results import RecordedFrame, check_scene, fill_robot, load_result, read_frame, read_plan
 from ._common import _load, add_base_pose_arg, add_command, add_config_args, add_terrain_args, config_from_args, ground_robot_scene, parse_base_pose, robot_at
 
 
-def _read_plan(path: str) -> np.ndarray:
-    p = Path(path)
-    if not p.is_file():
-        raise SplatplanError(f"--plan {path}: no such file")
-    try:
-        obj = json.loads(p.read_text())
-        arr = np.asarray(obj["path"], dtype=np.float64)
-    except (ValueError, KeyError, TypeError) as exc:
-        raise SplatplanError(f"--plan {path}: expected the JSON of 'splatplan plan' with a \"path\" list ({exc.__class__.__name__})") from None
-    if arr.ndim != 2 or len(arr) == 0 or not np.all(np.isfinite(arr)):
-        raise SplatplanError(f"--plan {path}: \"path\" must be a non-empty list of finite configurations, got shape {arr.shape}")
-    return arr
-
-
-def _read_mpc(folder: str) -> np.ndarray:
+def _read_mpc(folder: str) -> tuple[np.ndarray, RecordedFrame | None]:
     p = Path(folder) / "result.json"
     if not p.is_file():
         raise SplatplanError(f"--mpc {folder}: no result.json there (the output folder of 'splatplan mpc')")
+    obj = load_result(p, "--mpc")
     try:
-        arr = np.asarray(json.loads(p.read_text())["trajectory"], dtype=np.float64)
+        arr = np.asarray(obj["trajectory"], dtype=np.float64)
     except (ValueError, KeyError, TypeError) as exc:
         raise SplatplanError(f"--mpc {p}: expected a \"trajectory\" list of states ({exc.__class__.__name__})") from None
     if arr.ndim != 2 or len(arr) == 0 or not np.all(np.isfinite(arr)):
         raise SplatplanError(f"--mpc {p}: \"trajectory\" must be a non-empty (T, dof) list of finite numbers, got shape {arr.shape}")
-    return arr
+    return arr, read_frame(obj, f"--mpc {folder}")
 
 
 def _read_tree(path: str):
@@ -68,12 +55,14 @@ def cmd_view(args) -> int:
     except ImportError:
         raise SplatplanError("the viewer needs the optional extra: pip install 'splatplan[viewer]'") from None
     cfg = config_from_args(args, ViewerConfig)
-    plan = _read_plan(args.plan) if args.plan else None
-    traj = _read_mpc(args.mpc) if args.mpc else None
+    plan, plan_frame = read_plan(args.plan) if args.plan else (None, None)
+    traj, mpc_frame = _read_mpc(args.mpc) if args.mpc else (None, None)
     tree = _read_tree(args.tree) if args.tree else None
+    frame = plan_frame or mpc_frame  # where the result was made: its robot and base pose unless given
+    fill_robot(args, frame)
+    check_scene(args.scene, frame)
     robot = None
     if args.robot:
-
         robot = robot_at(args.robot, parse_base_pose(args.base_pose))
     elif args.base_pose is not None:
         raise SplatplanError("--base-pose places the robot given with --robot")
@@ -99,8 +88,8 @@ def register(sub, eval_sub) -> None:
 
     s = add_command(sub, "view", cmd_view, "open a browser viewer of a scene, robot, plan, tree or MPC run")
     s.add_argument("scene", metavar="SCENE", help="splat file or a built-in scene file")
-    s.add_argument("--robot", help=f"robot: {ROBOT_NAME_HELP} (default: a sphere sized to the scene)")
-    add_base_pose_arg(s)
+    s.add_argument("--robot", help=f"robot: {ROBOT_NAME_HELP} (default: the robot --plan / --mpc records, else a sphere sized to the scene)")
+    add_base_pose_arg(s, help="X,Y,Z[,QW,QX,QY,QZ]: where the robot's base stands (metres, wxyz); default the base pose --plan / --mpc records, else the origin")
     s.add_argument("--plan", help="PATH.json written by 'splatplan plan'")
     s.add_argument("--mpc", help="output folder of 'splatplan mpc' (its result.json trajectory is animated)")
     s.add_argument("--tree", help="TREE.npz with 'nodes' (N, D) and 'parents' (N,)")

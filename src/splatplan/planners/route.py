@@ -24,7 +24,8 @@ def wrap_angle(a):
 
 
 def plan_route(
-    robot: Robot, checker: CollisionChecker, start, goal_xy, time_budget_s: float = 60.0, seed: int = 0, edge_resolution: float = 0.05, stride: float = 0.4, goal_bias: float = 0.2
+    robot: Robot, checker: CollisionChecker, start, goal_xy, time_budget_s: float = 60.0, seed: int = 0, edge_resolution: float = 0.05, stride: float = 0.4, goal_bias: float = 0.2,
+    box=None,
 ) -> np.ndarray | None:
     """Global route on the base's SE(2) with the batched RRT: (P, 3) configurations (x, y, yaw),
     or None when none is found within ``time_budget_s``.
@@ -35,7 +36,9 @@ def plan_route(
     ``edge_resolution`` = 5 cm (half a wall's thickness) of ellipsoid motion rather than at the
     RRT default of a quarter of the Go2's smallest semi-axis (a 1.9 cm foot: 4.8 mm, ~80 checks
     per edge, which is why the default search did not reach the kitchen in 30 s), with a
-    ``stride`` of 0.4 m and a goal bias of 0.2."""
+    ``stride`` of 0.4 m and a goal bias of 0.2. ``box``: (lo, hi) world x, y (m) the route stays
+    in (e.g. :func:`~splatplan.planners.bounds.planning_box` around a captured object); default
+    the scene's bounds (a room: its walls)."""
     from ..planners import RRT, RRTConfig
 
     start = np.asarray(start, np.float64)
@@ -48,7 +51,10 @@ def plan_route(
     if not free.any():
         raise SplatplanError(f"goal {g.round(3).tolist()}: the base collides there at every heading; pick a free goal")
     yaw = float(q[np.argmax(free), 2])
-    lo, hi = checker.scene.bounds()
+    if box is None:
+        lo, hi = checker.scene.bounds()
+    else:
+        lo, hi = (np.asarray(b, np.float64).reshape(-1) for b in box)
     cfg = RRTConfig(box_lo=(float(lo[0]), float(lo[1]), -np.pi), box_hi=(float(hi[0]), float(hi[1]), np.pi), time_limit_s=time_budget_s, seed=seed, goal_tolerance=0.1,
                     edge_resolution=edge_resolution, stride=stride, goal_bias=goal_bias)  # fmt: skip
     res = RRT(checker, cfg, robot=robot).plan(start, np.array([g[0], g[1], yaw]))

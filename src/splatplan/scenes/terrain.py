@@ -24,6 +24,11 @@ upright and round splats a capture leaves on its floor; on the bathroom capture 
 ``floor_z`` is the aligned floor (z = 0 after ``splatplan scene align``), fitted from the scene
 (:func:`~splatplan.scenes.align.guess_up` with up = +z) when not given.
 
+**Only where a floor was found.** Terrain needs a floor: when the splats at floor height cover
+less than ``min_floor_coverage`` of the scene's footprint (:func:`floor_coverage`; an object
+capture such as a chair, whose only splats at z = 0 are the ends of its legs), nothing is terrain
+and the report says so: the bottom of the object stays an obstacle.
+
 What it can miss (by design, both rules): an obstacle lower than the step height (a threshold strip, a
 cable, a flat book) is terrain too, so the robot may walk over it (the Go2 steps over 5 cm);
 under ``"band"`` so are the lowest 5 cm of a taller obstacle, whose splats above still block; a sloped or stepped floor
@@ -63,6 +68,10 @@ class TerrainConfig:
     #: "shape": only the floor-like ones (flat, wholly inside the band, or faint: max_tilt_deg and
     #: faint_below apply), the stricter rule
     rule: str = bounded("band", choices=("band", "shape"))
+    #: terrain applies only when the splats at floor height (within step_height of floor_z) cover at
+    #: least this fraction of the scene's x, y footprint (:func:`floor_coverage`); below it the scene
+    #: has no floor there (an object capture) and nothing is terrain. 0 = always (a floor assumed)
+    min_floor_coverage: float = bounded(0.15, ge=0, le=1)
 
     def validate(self) -> "TerrainConfig":
         check_config(self)  # declared ranges and finiteness
@@ -95,15 +104,41 @@ def terrain_mask(splats: Splats, floor_z: float, step_height: float, n_sigma: fl
     return floor_surface_mask(splats, floor_z, step_height, max_tilt_deg) | (band & (z + n_sigma * sz < top_band)) | (band & (splats.opacities < faint_below))
 
 
+#: cells per side of the x, y grid :func:`floor_coverage` counts
+COVERAGE_CELLS = 32
+
+
+def floor_coverage(splats: Splats, floor_z: float, step_height: float, cells: int = COVERAGE_CELLS) -> float:
+    """The fraction (0..1) of the scene's x, y footprint where a splat lies at floor height: of the
+    cells of a ``cells`` x ``cells`` grid over the splat means' x, y bounds that hold any splat,
+    those that hold one with its mean within ``max(step_height, 2 cm)`` of ``floor_z``. A room or a
+    capture standing on the ground: near 1; an object alone (its legs' ends at the floor): small."""
+    m = np.asarray(splats.means, dtype=np.float64)
+    if len(m) == 0:
+        return 0.0
+    lo, hi = m[:, :2].min(axis=0), m[:, :2].max(axis=0)
+    ij = np.clip(((m[:, :2] - lo) / np.maximum(hi - lo, 1e-12) * cells).astype(np.int64), 0, cells - 1)
+    key = ij[:, 0] * cells + ij[:, 1]  # (N,) cell of each splat
+    near = np.abs(m[:, 2] - floor_z) <= max(float(step_height), 0.02)
+    return float(np.unique(key[near]).size / max(np.unique(key).size, 1))
+
+
 @dataclass
 class TerrainReport:
     floor_z: float
     step_height: float
     fitted: bool
     n_terrain: int
+    #: :func:`floor_coverage` at floor_z (nan when not measured)
+    coverage: float = float("nan")
+    #: whether a floor was found (coverage >= min_floor_coverage); without one nothing is terrain
+    floor_found: bool = True
 
     def summary(self) -> str:
         how = "fitted" if self.fitted else "given"
+        if not self.floor_found:
+            return (f"terrain: no floor at z = {self.floor_z:.3g} ({how}; splats there cover {self.coverage:.0%} of the scene's footprint, an object "
+                    "capture?): nothing is terrain, every splat is an obstacle (--terrain-min-floor-coverage 0 assumes a floor there)")
         return f"terrain: {self.n_terrain:,} floor splats below z = {self.floor_z + self.step_height:.3g} (floor {self.floor_z:.3g} {how} + step {self.step_height:g}) are ground, not obstacles"
 
 
@@ -112,7 +147,9 @@ def remove_terrain(splats: Splats, config: TerrainConfig | None = None, n_sigma:
     cfg = (config or TerrainConfig()).validate()
     fitted = cfg.floor_z is None
     fz = fitted_floor_z(splats) if fitted else float(cfg.floor_z)
-    mask = terrain_mask(splats, fz, cfg.step_height, n_sigma, cfg.max_tilt_deg, cfg.faint_below, cfg.rule)
+    cover = floor_coverage(splats, fz, cfg.step_height)
+    found = cover >= cfg.min_floor_coverage
+    mask = terrain_mask(splats, fz, cfg.step_height, n_sigma, cfg.max_tilt_deg, cfg.faint_below, cfg.rule) if found else np.zeros(len(splats), bool)
     out = splats.subset(~mask)
-    out.info["terrain"] = {"floor_z": fz, "step_height": cfg.step_height, "n_terrain": int(mask.sum())}
-    return out, TerrainReport(fz, cfg.step_height, fitted, int(mask.sum()))
+    out.info["terrain"] = {"floor_z": fz, "step_height": cfg.step_height, "n_terrain": int(mask.sum()), "floor_found": bool(found), "floor_coverage": round(cover, 4)}
+    return out, TerrainReport(fz, cfg.step_height, fitted, int(mask.sum()), cover, found)

@@ -9,7 +9,7 @@ import numpy as np
 
 from .._config import check_config
 from ..errors import SplatplanError
-from ..planners.clearance import densify_by_motion
+from ..planners.clearance import densify_by_motion, s2_to_metres
 
 
 @dataclass
@@ -184,8 +184,7 @@ def trajectory_clearance(robot, scene: TaskScene, states: np.ndarray) -> tuple[f
         source = "analytic"
     else:
         res = scene.checker.query_robot(robot, q)
-        s2 = np.asarray(res.min_s2, np.float64)  # (S', E)
-        per_e = (np.sqrt(np.maximum(s2, 0.0)) - 1.0) * robot.semi_axes.min(axis=1)
+        per_e = s2_to_metres(res.min_s2, robot.semi_axes)  # (S', E)
         source = "metric"
     return float(per_e.min()), source, per_e.min(axis=-1)
 
@@ -209,7 +208,7 @@ def moving_clearance(robot, scene: TaskScene, states: np.ndarray) -> float:
         c, quat, ax = robot.ellipsoids(q)
         return float(scene.analytic.ellipsoid_clearance(c[:, mov], quat[:, mov], ax[mov]).min())
     s2 = np.asarray(scene.checker.query_robot(robot, q).min_s2, np.float64)[:, mov]
-    return float(((np.sqrt(np.maximum(s2, 0.0)) - 1.0) * robot.semi_axes[mov].min(axis=1)).min())
+    return float(s2_to_metres(s2, robot.semi_axes[mov]).min())
 
 
 CLEARANCE_NOTES = {

@@ -59,6 +59,7 @@ import numpy as np
 
 from .._config import NESTED_SKIP, bounded
 from ..errors import SplatplanError
+from ..planners.bounds import box_margin, planning_box, reach_radius
 from ..planners.costs import StridedCollisionTerms
 from ..planners.drive import DriveTerms
 from ..planners.memory import MemoryTerms
@@ -128,6 +129,32 @@ class BaseConfig(TaskConfig, StridedCollisionTerms, DriveTerms, MemoryTerms, n_s
     ground_band: float = bounded(0.05, ge=0)
 
 
+def base_box(ts, robot: Robot, box=None) -> tuple[np.ndarray, np.ndarray]:
+    """(lo (3,), hi (3,)) world box where the base may go: x, y from ``box`` ((lo (2,), hi (2,)),
+    metres) or :func:`~splatplan.planners.bounds.planning_box` (the scene's bounds grown by the
+    footprint diameter), z the scene's bounds."""
+    lo, hi = (np.asarray(b, np.float64).copy() for b in ts.splats.bounds())
+    if box is None:
+        blo, bhi = planning_box(ts.splats, robot)
+    else:
+        blo, bhi = (np.asarray(b, np.float64).reshape(-1) for b in box)
+    lo[:2], hi[:2] = blo[:2], bhi[:2]
+    return lo, hi
+
+
+def _memory_box(ts, robot: Robot, box, start: np.ndarray, goal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The obstacle memory's (lo (3,), hi (3,)): the given box, else the scene's bounds grown to hold
+    the start and the goal with a footprint radius around them (a room keeps its walls as the edge)."""
+    if box is not None:
+        return base_box(ts, robot, box)
+    lo, hi = (np.asarray(b, np.float64).copy() for b in ts.splats.bounds())
+    r = reach_radius(robot)
+    ends = np.stack([start[:2], goal[:2]])
+    lo[:2] = np.minimum(lo[:2], ends.min(axis=0) - r)
+    hi[:2] = np.maximum(hi[:2], ends.max(axis=0) + r)
+    return lo, hi
+
+
 def run_base(
     robot: Robot | str | None,
     scene,
@@ -137,6 +164,7 @@ def run_base(
     config: BaseConfig | None = None,
     collision: bool = True,
     route: np.ndarray | None = None,
+    box=None,
     device: str | None = "auto",
     progress=None,
 ) -> TaskResult:
@@ -151,6 +179,9 @@ def run_base(
         collision: include the collision cost.
         route: optional (P, 2) or (P, 3) waypoints (x, y[, yaw]); the goal term then tracks the
             route (:class:`~splatplan.planners.drive.RouteTracker`, ``route_lookahead_m`` ahead).
+        box: (lo (2,), hi (2,)) world x, y (metres) where the base may go: the goal must lie in it
+            and the route's planner stays in it; default :func:`~splatplan.planners.bounds.planning_box`,
+            the scene's bounds grown by the robot's footprint diameter.
         device: metric device.
         progress: optional callable(step, distance) per MPC step.
     """
@@ -166,9 +197,11 @@ def run_base(
     if not np.all(np.isfinite(g)):
         raise SplatplanError(f"goal {g.tolist()} is not finite")
     ts = load_task_scene(scene, n_sigma=cfg.n_sigma, device=device, terrain=base_terrain(cfg))
-    lo, hi = ts.splats.bounds()
+    lo, hi = base_box(ts, robot, box)
     if np.any(g < lo[:2]) or np.any(g > hi[:2]):
-        raise SplatplanError(f"goal {g.round(3).tolist()} lies outside the scene (x, y in {lo[:2].round(2).tolist()} .. {hi[:2].round(2).tolist()})")
+        how = "the given box" if box is not None else f"the scene's bounds grown by {box_margin(robot):.2f} m, the robot's footprint diameter"
+        raise SplatplanError(f"goal {g.round(3).tolist()} lies outside the scene's planning box x, y in {lo[:2].round(2).tolist()} .. {hi[:2].round(2).tolist()} "
+                             f"({how}); widen it with --box X,Y X,Y (box= in Python)")  # fmt: skip
     if free_yaw(robot, ts.checker, g) is None:
         raise SplatplanError(f"goal {g.round(3).tolist()}: the base collides there at every heading; pick a free goal")
     x = np.zeros(3) if start is None else np.asarray(start, np.float64).reshape(3).copy()
@@ -176,7 +209,7 @@ def run_base(
 
     vmax = np.asarray(robot.velocity_limits, np.float64)
     dyn = PlanarBase(robot)
-    memory = cfg.obstacle_memory(robot, ts.checker, lo, hi, g) if route is None else None
+    memory = cfg.obstacle_memory(robot, ts.checker, *_memory_box(ts, robot, box, x, g), g) if route is None else None
     goal_cost = cfg.goal_cost(g, field=memory)
     costs = [ControlEffortCost(cfg.w_control, {2: cfg.w_yaw_rate}), goal_cost]
     if collision:

@@ -99,6 +99,12 @@ def plot_run(robot: Robot, task_scene, result, *, kind: str, n_frames: int = 6, 
         lo, hi = task_scene.splats.bounds()
         lo, hi = lo - 0.1, hi + 0.1
         z_cut = float(robot.info.get("standing_height_m", 0.35))
+    # the axes fit the data: the box above grown to hold every drawn robot pose (ellipsoid centres
+    # +- the largest semi-axis, world frame) and the trace, with a 5 cm margin
+    c, _, sa = robot.ellipsoids(traj[frames])  # (F, E, 3), (E, 3)
+    pts = np.concatenate([np.asarray(c, np.float64).reshape(-1, 3), trace.reshape(-1, 3)])
+    pad = float(np.max(sa)) + 0.05
+    lo, hi = np.minimum(lo, pts.min(axis=0) - pad), np.maximum(hi, pts.max(axis=0) + pad)
     fig = Figure(figsize=(6.5 * len(views), 6.0), constrained_layout=True)  # no pyplot state: any backend, nothing to close
     axes = fig.subplots(1, len(views), squeeze=False)
     cmap = matplotlib.colormaps["viridis"]

@@ -168,11 +168,15 @@ class SplatViewer:
 
     # ------------------------------------------------------------------ checks
     def _check_inside(self, arr, what: str) -> None:
-        """Warn (stdout) when a plan's points lie outside the scene bounds (a plan for another scene?)."""
+        """Warn (stdout) when a plan's points lie outside the scene bounds grown by what the robot needs
+        (:func:`~splatplan.planners.bounds.box_margin`: a ground robot's footprint diameter, a point
+        robot's size), and 10% of the scene's extent: a plan for another scene?"""
         if arr is None or self.kind == "joints":
             return
+        from ..planners.bounds import box_margin
+
         pts = arr[:, : 2 if self.kind == "planar" else 3]
-        pad = 0.1 * self.extent
+        pad = max(0.1 * self.extent, box_margin(self.robot))
         out = np.any((pts < self.lo[: pts.shape[1]] - pad) | (pts > self.hi[: pts.shape[1]] + pad), axis=1)
         if out.any():
             msg = f"warning: {int(out.sum())} of {len(pts)} {what} points lie outside the scene bounds (a {what} for another scene?)"
