@@ -125,7 +125,7 @@ class MBMConfig:
     #: derived margin the least conservative safe setting; see the module docstring)
     n_sigma: float = bounded(0.0, ge=0)
     #: surface sampling spacing of each scene (m; the built-in real-capture look): a scene gets
-    #: (exposed area / spacing^2) splats (scenes.builtin.primitives.n_splats_for_spacing), so a
+    #: (exposed area / spacing^2) splats (scenes.builtin.surface_splats.n_splats_for_spacing), so a
     #: large cell is sampled as densely as a small one. The safety margin is ~3.4x the splats'
     #: median nearest-neighbour spacing h (~0.6x this): 3.5 mm gives h ~ 2.2 mm and a ~7.6 mm margin,
     #: below the ~1 cm between a grasp pose's fingers and its object (on the MBM workcells, 5.7-6.5
@@ -274,7 +274,7 @@ class _Prepared:
     """One problem's scene as every planner sees it (all derived from the config's seed)."""
 
     splats: object  # splatplan.scenes.Splats, floaters filtered (metres, z-up)
-    scene: object  # splatplan.scenes.builtin.primitives.AnalyticScene: the exact primitives
+    scene: object  # splatplan.scenes.builtin.analytic_scene.AnalyticScene: the exact primitives
     checker: object  # CollisionChecker on the splats at config.n_sigma (cpu)
     margin: float  # planning margin (m)
     spacing_nn: float  # median NN distance of the means (m; nan with a fixed margin)
@@ -408,7 +408,8 @@ def _prepare(task: "MBMTask", cfg: MBMConfig, robot) -> _Prepared:
     the margin, measure rho when asked, build the checker."""
     from ..metric import CollisionChecker
     from ..scenes.filters import filter_floaters, isolated_mask
-    from ..scenes.builtin.primitives import AnalyticScene, n_splats_for_spacing
+    from ..scenes.builtin.analytic_scene import AnalyticScene
+    from ..scenes.builtin.surface_splats import n_splats_for_spacing
     from ..scenes.moveit import build_moveit, load_moveit_scene
 
     src = AnalyticScene.from_json(task.objects) if task.objects is not None else load_moveit_scene(task.scene)
