@@ -31,6 +31,8 @@ from .primitive_sdf import (
 from .surface_splats import FACE_NAMES, SurfaceSplatConfig, copy_splats, n_splats_for_spacing, sample_faces, splats_from_boxes, splats_from_scene
 
 __all__ = [
-    "AnalyticScene", "SurfaceSplatConfig", "box_corners", "box_sdf", "cylinder_sdf", "make_box", "make_cylinder", "make_sphere",
-    "n_splats_for_spacing", "sphere_sdf", "splats_from_boxes", "splats_from_scene",
+    "FACE_NAMES", "JSON_FORMAT", "JSON_VERSION", "AnalyticScene", "SurfaceSplatConfig", "box_aabbs", "box_corners", "box_sdf",
+    "box_sdf_local", "boxes_sdf_dense", "copy_splats", "curved_sdf", "cylinder_sdf", "cylinder_sdf_local", "ellipsoid_clearance_chunk",
+    "fibonacci_sphere", "make_box", "make_cylinder", "make_sphere", "n_splats_for_spacing", "primitive_aabbs", "project_to_ellipsoid",
+    "sample_faces", "sphere_sdf", "splats_from_boxes", "splats_from_scene", "yaw_quat",
 ]  # fmt: skip
