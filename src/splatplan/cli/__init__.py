@@ -169,7 +169,8 @@ class _HeldNotes:
     _PREFIXES = ("note:", "splatplan:")
 
     def __init__(self, target) -> None:
-        self.target, self.held, self.buf = target, [], ""
+        self.target, self.buf = target, ""
+        self.held: list[str] = []  # note lines held back until the command ends
 
     def _maybe_prefix(self, b: str) -> bool:
         return any(b.startswith(p) or p.startswith(b) for p in self._PREFIXES)
@@ -262,7 +263,7 @@ def _run(argv: list[str] | None) -> int:
                 parser = build_parser()
                 args = parser.parse_args(argv)  # --help / --version exit through argparse's SystemExit
             except UsageError as exc:  # already printed as one line
-                return int(exc.code)
+                return int(exc.code or 0)
             from ._flags import reject_nan_flags
             from ._inputs import check_paths
 
@@ -293,7 +294,7 @@ def _run(argv: list[str] | None) -> int:
             return 130
         except Terminated as exc:
             print(f"splatplan: terminated{_resume_hint()}", file=sys.stderr)
-            return int(exc.code)
+            return int(exc.code or 0)
         except MemoryError:
             print("splatplan: error: out of memory; try a smaller batch or --device cuda", file=sys.stderr)
             return 2

@@ -14,6 +14,7 @@ import linecache
 import re
 import types
 import typing
+from typing import Literal
 
 from .._config import NESTED_SKIP, check_config, check_value
 from .._resources import ResourceError
@@ -106,7 +107,8 @@ def _show(v) -> str:
     return str(v)
 
 
-def add_config_args(parser: argparse.ArgumentParser, cls, prefix: str = "", skip: tuple[str, ...] = (), group: str | None = None, base=None) -> None:
+def add_config_args(parser: argparse.ArgumentParser | argparse._ArgumentGroup, cls, prefix: str = "", skip: tuple[str, ...] = (), group: str | Literal[False] | None = None,
+                    base=None) -> None:
     """Add one ``--<prefix><field>`` flag per field of dataclass ``cls`` (help = its ``#:`` doc).
 
     A field that is itself a config dataclass (e.g. a task's ``mppi: MPPIConfig``) is flattened:
@@ -282,13 +284,13 @@ def _parser_for(tp, flag: str, f: dataclasses.Field | None = None, owner: str = 
                 return tuple(_scalar(el, x) for x in items)
             if origin is dict:
                 kt, vt = typing.get_args(inner) or (str, str)
-                out = {}
+                mapping = {}
                 for it in (x for x in text.split(",") if x.strip()):
                     k, sep, v = it.partition("=")
                     if not sep:
                         raise ValueError(it)
-                    out[_scalar(kt, k.strip())] = _scalar(vt, v.strip())
-                return out
+                    mapping[_scalar(kt, k.strip())] = _scalar(vt, v.strip())
+                return mapping
             tuples = [a for a in typing.get_args(inner) if typing.get_origin(a) is tuple] if _is_union(inner) else []
             if tuples:  # e.g. float | tuple[float, ...]: one value or a comma list of the tuple's items
                 el = [t for t in typing.get_args(tuples[0]) if t is not Ellipsis][0]

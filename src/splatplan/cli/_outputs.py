@@ -8,6 +8,7 @@ import shutil
 import tempfile
 from contextlib import contextmanager
 from pathlib import Path
+from typing import Sequence
 
 from .._files import atomic_path, publish
 from .._json import dumps_json, json_safe, write_json
@@ -72,7 +73,7 @@ def out_dir(path: str) -> Path:
 OUT_BEFORE: dict[Path, set[str]] = {}
 
 
-def remove_new_outputs(keep: list[Path] = ()) -> None:
+def remove_new_outputs(keep: Sequence[str | Path] = ()) -> None:
     """Remove the entries this run added to its output folders (a rejected or interrupted run
     leaves nothing: its outputs appear together or not at all), except ``keep`` (resumable results
     logs, which the closing line names) and their ``.arrays`` folders."""

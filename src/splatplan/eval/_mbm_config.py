@@ -8,6 +8,7 @@ from __future__ import annotations
 import os
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
+from typing import Any
 
 from .._config import bounded, check_config
 from ..errors import SplatplanError
@@ -29,7 +30,7 @@ def mbm_data_dir() -> Path:
     return Path(env) if env else DEFAULT_MBM
 
 #: Published reference numbers (../shared/data/mbm/README.md): same 700 problems, 7 families.
-PUBLISHED = {
+PUBLISHED: dict[str, dict[str, Any]] = {
     "VAMP": {
         "solved": "699/700 (99.86%)", "median_time_s": 35e-6, "mean_time_s": 76e-6, "p95_time_s": 343e-6,
         "robot_model": "59 spheres (0.90x the mesh volume, 26-73% of each link's surface covered)",

@@ -163,8 +163,8 @@ def report(result: MBMResult) -> str:
                   + "; ".join(f"{f['family']}/{f['index']} {f['planner']}: {f['error'][:120]}" for f in result.failures[:5])]  # fmt: skip
     lines += ["", "Published (same benchmark, 7 families x 100 problems; see ../shared/data/mbm/README.md):", "",
               "| planner | solved | median time | p95 time | robot model | scene | hardware |", "|---|---|---|---|---|---|---|"]  # fmt: skip
-    for name, p in PUBLISHED.items():
-        lines.append(f"| {name} | {p['solved']} | {_fmt(p['median_time_s'], '.3g')} s | {_fmt(p['p95_time_s'], '.3g')} s | {p['robot_model']} | {p['scene']} | {p['hardware']} |")
+    for name, ref in PUBLISHED.items():
+        lines.append(f"| {name} | {ref['solved']} | {_fmt(ref['median_time_s'], '.3g')} s | {_fmt(ref['p95_time_s'], '.3g')} s | {ref['robot_model']} | {ref['scene']} | {ref['hardware']} |")
     lines += [
         "",
         "What differs here: the scene is splats sampled from the exact primitives (the published planners check the primitives "

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -131,10 +132,10 @@ def size_class_tiers(smax: np.ndarray, factor: float = 2.0, min_count: int = 256
     cls = np.floor(np.log(np.maximum(smax, s0) / s0) / math.log(factor) + 1e-9).astype(np.int64)
     keys, inv, counts = np.unique(cls, return_inverse=True, return_counts=True)
     # groups of classes: [first class, last class, count, max std]
-    groups = []
+    groups: list[list[Any]] = []
     for j, (k, c) in enumerate(zip(keys, counts)):
         groups.append([int(k), int(k), int(c), float(smax[inv == j].max()), [j]])
-    merged = []
+    merged: list[list[Any]] = []
     for g in groups:
         if merged and merged[-1][2] < min_count and g[0] == merged[-1][1] + 1:
             p = merged.pop()

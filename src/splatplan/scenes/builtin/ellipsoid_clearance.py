@@ -220,7 +220,7 @@ def ellipsoid_clearance_chunk(
     upper bound over every primitive are solved."""
     q_n = len(c)
     a_max, a_min = a.max(1, keepdims=True), a.min(1, keepdims=True)
-    parts = []  # (kind, local centres (Q, M, 3) or None, rotations (M, 3, 3) or None, params (M, k), d_c (Q, M))
+    parts: list[tuple[Any, Any, Any, np.ndarray, np.ndarray]] = []  # (kind, local centres (Q, M, 3) or None, rotations (M, 3, 3) or None, params (M, k), d_c (Q, M))
     if len(scene.boxes):
         boxes, rot_b = scene.boxes, scene.rotations()
         local = np.einsum("mji,qmj->qmi", rot_b, c[:, None, :] - boxes[None, :, :3])  # (Q, M, 3) box frame

@@ -121,7 +121,11 @@ def sample_faces(
     gets one frame per sample.
     """
     rots = scene.rotations()
-    pts, fid, hloc, face_rot, face_box = [], [], [], [], []
+    pts: list[np.ndarray] = []  # (K, 3) sample points per face / curved primitive
+    fids: list[np.ndarray] = []  # (K,) frame index of each sample
+    hloc: list[np.ndarray] = []  # (K,) local spacing
+    rot_list: list[np.ndarray] = []  # (3, 3) per box face
+    owners: list[int] = []  # primitive index per frame
     for i, box in enumerate(scene.boxes):
         for f, (c, fr, half) in enumerate(_face_frames(box, rots[i])):
             if not faces[i, f]:
@@ -133,25 +137,25 @@ def sample_faces(
             u = -half[0] + (ia.ravel() + rng.random(na * nb)) * da  # (K,) along t1
             v = -half[1] + (ib.ravel() + rng.random(na * nb)) * db  # (K,) along t2
             pts.append(c + u[:, None] * fr[:, 0] + v[:, None] * fr[:, 1])
-            fid.append(np.full(na * nb, len(face_rot)))
+            fids.append(np.full(na * nb, len(rot_list)))
             hloc.append(np.full(na * nb, np.sqrt(da * db)))
-            face_rot.append(fr)
-            face_box.append(i)
-    face_rot = [np.asarray(face_rot).reshape(-1, 3, 3)]
+            rot_list.append(fr)
+            owners.append(i)
+    rot_blocks = [np.asarray(rot_list).reshape(-1, 3, 3)]  # (F, 3, 3) per block: the box faces, then one block per curved primitive
     n_box = len(scene.boxes)
     if len(scene.cylinders) or len(scene.spheres):
         hs = float(np.median(spacing)) if curved_spacing is None else float(curved_spacing)
         for k, (loc, frames, hl, owner) in enumerate(_curved_samples(scene, hs, rng)):
             pts.append(loc)
-            fid.append(sum(len(f) for f in face_rot) + np.arange(len(loc)))
+            fids.append(sum(len(f) for f in rot_blocks) + np.arange(len(loc)))
             hloc.append(hl)
-            face_rot.append(frames)
-            face_box.extend([owner] * len(loc))
+            rot_blocks.append(frames)
+            owners.extend([owner] * len(loc))
     p = np.concatenate(pts) if pts else np.zeros((0, 3))
-    fid = np.concatenate(fid) if fid else np.zeros(0, int)
+    fid = np.concatenate(fids) if fids else np.zeros(0, int)
     hl = np.concatenate(hloc) if hloc else np.zeros(0)
-    face_box = np.asarray(face_box, dtype=int)
-    face_rot = np.concatenate(face_rot) if len(face_rot) > 1 else face_rot[0]
+    face_box = np.asarray(owners, dtype=int)
+    face_rot = np.concatenate(rot_blocks) if len(rot_blocks) > 1 else rot_blocks[0]
     # Remove samples buried inside another primitive (contact faces, overlaps, the ground under stones).
     owner = face_box[fid]  # (S,)
     keep = np.ones(len(p), dtype=bool)
