@@ -387,3 +387,38 @@ def test_public_robot_parameters_are_annotated():
 
         visit(ast.parse(f.read_text(encoding="utf-8")), "", True)
     assert not bad, "public functions with an unannotated robot parameter:\n" + "\n".join(bad)
+
+
+#: the most lines a module of ``src/splatplan`` may have (a module over it holds several concepts: split it)
+MAX_MODULE_LINES = 600
+#: modules allowed to be longer, and why: the Warp kernels of the metric and their ``@wp.func``
+#: helpers stay in one file (Warp compiles a module's kernels together; the exactness argument
+#: in its docstring covers them all)
+LONG_MODULES = {"metric/wp_metric_kernel.py"}
+#: the most lines a function or method may have, from its ``def`` line to its last line
+MAX_FUNCTION_LINES = 150
+
+
+def test_modules_are_at_most_600_lines():
+    root = SRC / ROOT_PKG
+    long = sorted(
+        (n, rel)
+        for f in root.rglob("*.py")
+        if (rel := f.relative_to(root).as_posix()) not in LONG_MODULES
+        and (n := len(f.read_text(encoding="utf-8").splitlines())) > MAX_MODULE_LINES
+    )  # fmt: skip
+    assert not long, f"modules over {MAX_MODULE_LINES} lines (split them by concept):\n" + "\n".join(f"  {rel}: {n}" for n, rel in long)
+    assert all((root / rel).is_file() for rel in LONG_MODULES), "an exempt module is gone: drop it from LONG_MODULES"
+
+
+def test_functions_are_at_most_150_lines():
+    root = SRC / ROOT_PKG
+    long = []
+    for f in sorted(root.rglob("*.py")):
+        rel = f.relative_to(root).as_posix()
+        for node in ast.walk(ast.parse(f.read_text(encoding="utf-8"))):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                n = (node.end_lineno or node.lineno) - node.lineno + 1
+                if n > MAX_FUNCTION_LINES:
+                    long.append(f"  {rel}:{node.lineno} {node.name}: {n} lines")
+    assert not long, f"functions over {MAX_FUNCTION_LINES} lines (split them into named helpers):\n" + "\n".join(long)

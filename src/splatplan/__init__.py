@@ -7,6 +7,7 @@ Public API (imported lazily so ``splatplan --help`` stays fast):
 * :class:`CollisionChecker`, :class:`MetricConfig`, :class:`QueryResult` - the CollisionSplatting metric.
 * :func:`build_stonehenge` - the built-in scene (splats + exact analytic ground truth).
 * :func:`plan`, :class:`RRT`, :class:`MPPI` (+ configs) - planners on the metric.
+* :mod:`render` - the rendering package (:func:`splatplan.render.render`, :class:`RenderResult`, :class:`Camera`).
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ import importlib
 #: The package version (semantic versioning; the one place it is set: pyproject.toml reads it). See CHANGELOG.md.
 __version__ = "0.2.0"
 
+#: public name -> (module, attribute; None: the module itself)
 _LAZY = {
     "Splats": ("splatplan.scenes.splats", "Splats"),
     "load_scene": ("splatplan.scenes.load", "load_scene"),
@@ -33,7 +35,7 @@ _LAZY = {
     "MPPIConfig": ("splatplan.planners", "MPPIConfig"),
     "Robot": ("splatplan.robots", "Robot"), "load_robot": ("splatplan.robots", "load_robot"),
     "load_encoder": ("splatplan.encoders", "load_encoder"),
-    "render": ("splatplan.render", "render"), "RenderResult": ("splatplan.render", "RenderResult"), "Camera": ("splatplan.render", "Camera"),
+    "render": ("splatplan.render", None), "RenderResult": ("splatplan.render", "RenderResult"), "Camera": ("splatplan.render", "Camera"),
 }
 
 __all__ = sorted(_LAZY) + ["__version__"]
@@ -42,5 +44,6 @@ __all__ = sorted(_LAZY) + ["__version__"]
 def __getattr__(name: str):
     if name in _LAZY:
         mod, attr = _LAZY[name]
-        return getattr(importlib.import_module(mod), attr)
+        module = importlib.import_module(mod)
+        return module if attr is None else getattr(module, attr)
     raise AttributeError(f"module 'splatplan' has no attribute {name!r}")

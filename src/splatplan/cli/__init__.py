@@ -45,7 +45,7 @@ _MODULES = (
 
 def build_parser() -> argparse.ArgumentParser:
     from .. import __version__
-    from ._common import Parser
+    from ._flags import Parser
 
     p = Parser(prog="splatplan", description="Collision-aware motion planning in Gaussian-splat scenes.")
     p.add_argument("--version", action="version", version=f"splatplan {__version__}")
@@ -54,18 +54,19 @@ def build_parser() -> argparse.ArgumentParser:
     eval_sub = ev.add_subparsers(dest="study", required=True, metavar="STUDY")
     for name in _MODULES:
         importlib.import_module(f".{name}", __name__).register(sub, eval_sub)
-    from ._common import allow_negative_values
+    from ._flags import allow_negative_values
 
     allow_negative_values(p)  # every coordinate flag of every command accepts a leading minus
     return p
 
 
 def main(argv: list[str] | None = None) -> int:
-    from ._common import CREATED_DIRS, headless_matplotlib, remove_created_empty_dirs
+    from ._outputs import CREATED_DIRS, remove_created_empty_dirs
+    from ._process import headless_matplotlib
 
     headless_matplotlib()
     CREATED_DIRS.clear()
-    from ._common import OUT_BEFORE
+    from ._outputs import OUT_BEFORE
 
     OUT_BEFORE.clear()
     engine = sys.modules.get("splatplan.eval.engine")
@@ -77,13 +78,13 @@ def main(argv: list[str] | None = None) -> int:
     except BrokenPipeError:
         rc = _broken_pipe()
     if rc not in (0, 1, 141):  # 1: ran, with a negative answer (results written); else rejected, failed or interrupted
-        from ._common import remove_new_outputs
+        from ._outputs import remove_new_outputs
 
         engine = sys.modules.get("splatplan.eval.engine")
         remove_new_outputs(keep=list(getattr(engine, "RESUMABLE", [])))
         remove_created_empty_dirs()
     CREATED_DIRS.clear()
-    from ._common import OUT_BEFORE
+    from ._outputs import OUT_BEFORE
 
     OUT_BEFORE.clear()
     if argv is None:  # the process's own entry (console script, python -m): its exit is this rc
@@ -168,7 +169,8 @@ class _HeldNotes:
     _PREFIXES = ("note:", "splatplan:")
 
     def __init__(self, target) -> None:
-        self.target, self.held, self.buf = target, [], ""
+        self.target, self.buf = target, ""
+        self.held: list[str] = []  # note lines held back until the command ends
 
     def _maybe_prefix(self, b: str) -> bool:
         return any(b.startswith(p) or p.startswith(b) for p in self._PREFIXES)
@@ -252,7 +254,8 @@ def _main(argv: list[str] | None) -> int:
 
 
 def _run(argv: list[str] | None) -> int:
-    from ._common import Terminated, UsageError, check_device, cli_signal_handlers
+    from ._flags import UsageError, check_device
+    from ._process import Terminated, cli_signal_handlers
 
     with cli_signal_handlers():  # Ctrl-C / SIGTERM unwind through every finally (no stray temp files)
         try:
@@ -260,8 +263,9 @@ def _run(argv: list[str] | None) -> int:
                 parser = build_parser()
                 args = parser.parse_args(argv)  # --help / --version exit through argparse's SystemExit
             except UsageError as exc:  # already printed as one line
-                return int(exc.code)
-            from ._common import check_paths, reject_nan_flags
+                return int(exc.code or 0)
+            from ._flags import reject_nan_flags
+            from ._inputs import check_paths
 
             reject_nan_flags(args)
             check_paths(args, _leaf(parser, args))
@@ -290,7 +294,7 @@ def _run(argv: list[str] | None) -> int:
             return 130
         except Terminated as exc:
             print(f"splatplan: terminated{_resume_hint()}", file=sys.stderr)
-            return int(exc.code)
+            return int(exc.code or 0)
         except MemoryError:
             print("splatplan: error: out of memory; try a smaller batch or --device cuda", file=sys.stderr)
             return 2

@@ -3,7 +3,8 @@
 from __future__ import annotations
 
 from ..errors import SplatplanError
-from ._common import _out_dir, add_command, add_device_arg, add_seed_arg
+from ._flags import add_command, add_device_arg, add_seed_arg
+from ._outputs import out_dir
 
 
 def cmd_demo(args) -> int:
@@ -11,7 +12,7 @@ def cmd_demo(args) -> int:
 
     if args.seed < 0:
         raise SplatplanError(f"--seed must be an integer >= 0, got {args.seed}")
-    run_demo(_out_dir(args.out), device=args.device, seed=args.seed)
+    run_demo(out_dir(args.out), device=args.device, seed=args.seed)
     return 0
 
 

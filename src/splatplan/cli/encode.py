@@ -5,7 +5,9 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import SplatplanError
-from ._common import add_command, add_config_args, add_device_arg, atomic_path, config_from_args, float_arg
+from ._config_flags import add_config_args, config_from_args
+from ._flags import add_command, add_device_arg, float_arg
+from ._outputs import atomic_path
 
 
 def cmd_encode(args) -> int:

@@ -10,7 +10,9 @@ from __future__ import annotations
 
 import importlib
 
-from ._common import _out_dir, _Unset, add_config_args, add_engine_args, config_from_args, engine_from_args
+from ._config_flags import Unset, add_config_args, config_from_args
+from ._flags import add_engine_args, engine_from_args
+from ._outputs import out_dir
 
 #: studies whose tasks run on the job engine (--workers N / --scheduler ADDR); finished tasks stream
 #: to OUT/<study>.results.jsonl and a rerun resumes. `eval mbm` (registered on its own, see
@@ -38,7 +40,7 @@ def cmd_eval(args) -> int:
     engine = engine_from_args(args) if args.study in ENGINE_STUDIES else None
     base = cfg_cls.quick_config() if args.cfg_quick is True else cfg_cls()
     cfg = config_from_args(args, cfg_cls, base=base)  # validated
-    out = _out_dir(args.out)
+    out = out_dir(args.out)
     kw = {"engine": engine, "results": out / f"{args.study}.results.jsonl"} if args.study in ENGINE_STUDIES else {}
     res = mod.run(cfg, **kw)
     written = mod.report(res, out)
@@ -78,7 +80,7 @@ def cmd_mbm(args) -> int:
     base = MBMConfig.quick() if args.quick else MBMConfig()
     cfg = config_from_args(args, MBMConfig, base=base).validate()
     _mbm_joints_first(cfg)
-    out = _out_dir(args.out)
+    out = out_dir(args.out)
     res = run_mbm(cfg, out, engine=engine)
     print(report(res).rstrip())
     print(f"\nwrote {out / 'mbm.json'}, {out / 'mbm.md'}, {out / 'mbm.results.jsonl'}")
@@ -99,7 +101,7 @@ def register(sub, eval_sub) -> None:
         mod, cfg_cls = _study(name)
         s = eval_sub.add_parser(name, help=help_, description=(mod.__doc__ or help_).strip().splitlines()[0])
         s.add_argument("--out", required=True, help="output folder (created)")
-        s.add_argument("--quick", dest="cfg_quick", action="store_const", const=True, default=_Unset,
+        s.add_argument("--quick", dest="cfg_quick", action="store_const", const=True, default=Unset,
                        help="start from the small smoke-test settings (< 1 min); flags still override them")  # fmt: skip
         if name in ENGINE_STUDIES:
             add_engine_args(s)

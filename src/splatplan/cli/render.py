@@ -9,7 +9,10 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import SplatplanError
-from ._common import add_command, add_device_arg, atomic_path, check_device, float_arg, int_arg, load_npy, parse_vec3
+from ._flags import add_command, add_device_arg, check_device, float_arg, int_arg
+from ._inputs import load_npy
+from ._outputs import atomic_path
+from ._values import parse_vec3
 
 _IMAGE_EXT = (".png", ".jpg", ".jpeg")
 
@@ -48,9 +51,9 @@ def _scene(spec: str, filter_floaters: bool):
 
     if not Path(spec).exists() and spec in BUILTIN_SCENES:
         return build_builtin(spec)[0]
-    from ._common import _load
+    from ._inputs import load_scene_file
 
-    return _load(spec, filter_floaters=filter_floaters)
+    return load_scene_file(spec, filter_floaters=filter_floaters)
 
 
 def cmd_render(args) -> int:

@@ -19,7 +19,6 @@ to their visual meshes instead).
 
 from __future__ import annotations
 
-import json
 import sys
 from pathlib import Path
 
@@ -28,7 +27,8 @@ import numpy as np
 from ..errors import SplatplanError
 from ..robots.builtin import BUILTIN_STATE, DEFAULT_MODEL, PANDA_MODELS, ROBOT_NAME_HELP
 from ..robots.fit import MAX_PER_LINK
-from ._common import add_command, dumps_json, float_arg, int_arg
+from ._flags import add_command, float_arg, int_arg
+from ._outputs import dumps_json
 
 #: ``--per-link``: ellipsoids (slabs) per link, 1..MAX_PER_LINK
 PER_LINK = int_arg(ge=1, le=MAX_PER_LINK)
@@ -126,7 +126,7 @@ def cmd_fit(args) -> int:
             raise SplatplanError(f"URDF {src} does not exist (or use a built-in: panda, go2)")
     model = read_urdf(urdf)
     from ..robots.fit_cover import FitConfig
-    from ._common import config_from_args
+    from ._config_flags import config_from_args
 
     from ..robots.fit_opt import OptConfig
 
@@ -142,7 +142,7 @@ def cmd_fit(args) -> int:
     for link, rep in ells.report.items():
         print(f"  {link:<22} {rep['n']}x  volume ratio {rep['volume_ratio']:.2f}  ({rep['source']}: {'+'.join(rep['geometry'])})")
     if not args.no_png:
-        from ._common import atomic_path
+        from ._outputs import atomic_path
 
         sr = srdf if srdf is not None else (urdf.with_suffix(".srdf") if urdf.with_suffix(".srdf").is_file() else None)
         state = BUILTIN_STATE.get(src)
@@ -175,7 +175,7 @@ def register(sub, eval_sub) -> None:
     pf.add_argument("--from-visual", action="store_true", help="fit links without collision geometry to their visual meshes")
     pf.add_argument("--no-png", action="store_true", help="skip the PNG")
     from ..robots.fit_cover import FitConfig
-    from ._common import add_config_args
+    from ._config_flags import add_config_args
 
     add_config_args(pf, FitConfig, prefix="fit_", group="cover fitter (--method cover)")
     from ..robots.fit_opt import OptConfig

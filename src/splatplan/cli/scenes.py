@@ -181,7 +181,7 @@ def _scene_from_moveit(args) -> int:
     """``splatplan scene from-moveit SCENE.yaml --out X.ply``: splats + exact ground truth X.gt.json."""
     from .._resources import require_bytes
     from ..scenes.builtin import SPLAT_BUILD_BYTES
-    from ..scenes.builtin.primitives import n_splats_for_spacing
+    from ..scenes.builtin.surface_splats import n_splats_for_spacing
     from ..scenes.builtin.stonehenge import ground_truth_path
     from ..scenes.moveit import DEFAULT_N_SPLATS, load_moveit_scene, write_moveit
 

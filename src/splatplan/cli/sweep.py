@@ -11,7 +11,8 @@ from __future__ import annotations
 
 import sys
 
-from ._common import _out_dir, add_command, add_engine_args, engine_from_args
+from ._flags import add_command, add_engine_args, engine_from_args
+from ._outputs import out_dir
 
 
 def cmd_sweep(args) -> int:
@@ -19,7 +20,7 @@ def cmd_sweep(args) -> int:
 
     engine = engine_from_args(args)
     spec, base = load_spec(args.spec)
-    out = _out_dir(args.out)
+    out = out_dir(args.out)
     summary = run_sweep(spec, base, out, engine=engine)
     print(report(summary).rstrip())
     print(f"\nwrote {out / 'results.jsonl'}, {out / 'summary.json'}, {out / 'summary.md'}")

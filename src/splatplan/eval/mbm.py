@@ -64,7 +64,6 @@ from __future__ import annotations
 import functools
 import hashlib
 import json
-import os
 import time
 from collections import OrderedDict
 from dataclasses import asdict, dataclass, field
@@ -73,175 +72,20 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .._config import bounded, check_config
 from ..errors import SplatplanError
 from ..planners.clearance import dense_path, exact_clearance, path_min_clearance  # noqa: F401 - (also importable from here)
 from ..scenes.margin import covering_radius, derived_margin  # noqa: F401 (the margin lives in the scene stage; these names stay importable here)
+from ._mbm_config import DEFAULT_MBM, MBM_DATA_ENV, PUBLISHED, MBMConfig, MBMResult, MBMTask, check_planners, mbm_data_dir
+from ._mbm_report import report, summarise
 
 if TYPE_CHECKING:
     from ..robots.robot import Robot
 
-#: the repository root (src/splatplan/eval/mbm.py -> 3 levels up); shared data lives beside it
-_REPO = Path(__file__).resolve().parents[3]
-#: environment variable naming the MBM data folder (``problems/`` + ``panda/``) when --problems /
-#: --robot are not given
-MBM_DATA_ENV = "SPLATPLAN_MBM_DATA"
-DEFAULT_MBM = _REPO / ".." / "shared" / "data" / "mbm"  # a source checkout's sibling data folder
-
-
-def mbm_data_dir() -> Path:
-    """The MBM data folder: ``$SPLATPLAN_MBM_DATA``, else the source checkout's ``../shared/data/mbm``
-    (an installed package has none: then give --problems and --robot, or set the variable)."""
-    env = os.environ.get(MBM_DATA_ENV, "").strip()
-    return Path(env) if env else DEFAULT_MBM
-
-#: Published reference numbers (../shared/data/mbm/README.md): same 700 problems, 7 families.
-PUBLISHED = {
-    "VAMP": {
-        "solved": "699/700 (99.86%)", "median_time_s": 35e-6, "mean_time_s": 76e-6, "p95_time_s": 343e-6,
-        "robot_model": "59 spheres (0.90x the mesh volume, 26-73% of each link's surface covered)",
-        "scene": "exact primitives (also a point cloud via CAPT: median 111 us + 2-7 ms to build)",
-        "hardware": "one core of an AMD Ryzen 9 7950X (SIMD RRT-Connect)",
-    },
-    "cuRobo v2": {
-        "solved": "99.73%", "median_time_s": 35e-3, "mean_time_s": None, "p95_time_s": None,
-        "robot_model": "spheres", "scene": "exact primitives (MBM + MpiNets problems)",
-        "hardware": "GPU, NVIDIA RTX 6000 Ada",
-    },
-}  # fmt: skip
-
-
-@dataclass
-class MBMConfig:
-    """Knobs of the MBM benchmark (defaults = the full run; :meth:`quick` = the CI smoke version)."""
-
-    #: folder holding <family>_panda/sceneNNNN.yaml + requestNNNN.yaml; none = <repo>/../shared/data/mbm/problems
-    problems: str | None = None
-    #: families to run (folder names without the "_panda" suffix)
-    families: tuple[str, ...] = ("table_pick", "box", "bookshelf_small")
-    #: problems per family (the first N by index); none = all
-    n_per_family: int | None = bounded(None, ge=1)
-    #: metric conservatism of the planner's collision checks (0 = splat means, the default: with the
-    #: derived margin the least conservative safe setting; see the module docstring)
-    n_sigma: float = bounded(0.0, ge=0)
-    #: surface sampling spacing of each scene (m; the built-in real-capture look): a scene gets
-    #: (exposed area / spacing^2) splats (scenes.builtin.primitives.n_splats_for_spacing), so a
-    #: large cell is sampled as densely as a small one. The safety margin is ~3.4x the splats'
-    #: median nearest-neighbour spacing h (~0.6x this): 3.5 mm gives h ~ 2.2 mm and a ~7.6 mm margin,
-    #: below the ~1 cm between a grasp pose's fingers and its object (on the MBM workcells, 5.7-6.5
-    #: m^2 of surface: 480-560k splats; a real capture of such a cell has 0.3-3M). At 100k splats
-    #: (h ~ 5 mm, margin ~16 mm) most grasp goals cannot be called free
-    splat_spacing_m: float = bounded(3.5e-3, gt=0, le=1.0)
-    #: a fixed splat count per scene instead (none = from splat_spacing_m)
-    n_splats: int | None = bounded(None, ge=1000)
-    #: most splats per scene from splat_spacing_m (a larger scene is sampled more coarsely; each
-    #: row records its count and spacing, and the derived margin follows the coarser spacing)
-    max_splats: int = bounded(3_000_000, ge=1000)
-    #: after the paper's floater filter, also drop the faint isolated splats it keeps
-    #: (:func:`~splatplan.scenes.filters.isolated_mask`: opacity < 0.3 and a mean 8-NN distance above
-    #: 3x the scene's median; surfaces are dense and opaque splats are never dropped, so the margin's
-    #: covering argument is untouched). Real captures and the sampler's look both carry such floaters
-    #: in free space, and the denser the scene, the more of them stand in a robot's way
-    drop_isolated: bool = True
-    #: planning time limit per problem (s)
-    time_limit: float = bounded(10.0, gt=0)
-    #: robot URDF (or a built-in name, e.g. panda); none = <repo>/../shared/data/mbm/panda/panda.urdf
-    robot: str | None = None
-    #: planning margin (m) added around every ellipsoid (Robot.inflated); none = derived per scene
-    #: from the splats and n_sigma (see margin_spacing_factor); 0 = plan with the robot's own model
-    margin_m: float | None = bounded(None, ge=0)
-    #: derived margin = max(this x h - n_sigma x s_t, margin_floor_factor x h) + r/2, h = median
-    #: nearest-neighbour distance of the splat means, s_t = median middle std of the splats (the
-    #: sampler's covering radius measured 2.3-2.6 h at n_sigma 0: 3 keeps the bound with room)
-    margin_spacing_factor: float = bounded(3.0, ge=0)
-    #: the derived margin's estimate of the covering radius never drops below this x h, whatever
-    #: n_sigma (the splats' offsets along the surface normal are not covered by their tangential extent)
-    margin_floor_factor: float = bounded(0.5, ge=0)
-    #: measure the true covering radius rho(n_sigma) from the ground truth (diagnostic: did
-    #: m >= rho + r/2 hold? ~1 s per scene at n_sigma 0, tens of seconds above; off by default)
-    check_margin: bool = False
-    #: iteration budget of our planners' searches (reproducible benchmark mode: the search and
-    #: shortcut then run without a wall-clock limit, so no row depends on the machine's speed; the
-    #: summary counts solutions slower than time_limit as solved_late); none = time_limit ends the search
-    max_iters: int | None = bounded(None, ge=1)
-    #: scene sampling and planner seed (an integer >= 0)
-    seed: int = bounded(0, ge=0)
-    #: planners to compare, each on the same checker, time limit and margin: auto / rrt / rrtconnect
-    #: (ours, seeded) or ompl:NAME (an OMPL geometric planner, e.g. ompl:RRTConnect, ompl:BITstar,
-    #: ompl:PRM; the 'ompl' extra; not seedable)
-    planners: tuple[str, ...] = ("auto",)
-
-    @classmethod
-    def quick(cls) -> "MBMConfig":
-        """One problem per family, 30k splats, 5 s limit: the CI smoke version (< ~30 s)."""
-        return cls(n_per_family=1, n_splats=30_000, time_limit=5.0)
-
-    def validate(self) -> "MBMConfig":
-        check_config(self)  # every field's range and finiteness (named Class.field)
-        if not self.families:
-            raise SplatplanError("MBMConfig.families: give at least one family")
-        check_planners(self.planners)
-        return self
-
-    def problems_dir(self) -> Path:
-        d = Path(self.problems) if self.problems else mbm_data_dir() / "problems"
-        if not d.is_dir():
-            how = "" if self.problems else f" (the default: ${MBM_DATA_ENV}/problems, else the source checkout's ../shared/data/mbm)"
-            raise SplatplanError(f"MBM problems folder {d} not found{how}: pass --problems DIR (holding <family>_panda/sceneNNNN.yaml + "
-                                 f"requestNNNN.yaml) or set {MBM_DATA_ENV}")  # fmt: skip
-        return d
-
-    def robot_path(self) -> Path | str:
-        """The URDF path (or a built-in robot name such as "panda")."""
-        from ..robots import KNOWN
-
-        if self.robot in KNOWN:
-            return self.robot
-        p = Path(self.robot) if self.robot else mbm_data_dir() / "panda" / "panda.urdf"
-        if not p.is_file():
-            raise SplatplanError(f"robot URDF {p} not found: pass --robot URDF" + ("" if self.robot else f" or set {MBM_DATA_ENV}"))
-        return p
-
-
-def check_planners(names) -> tuple[str, ...]:
-    """Validate planner names (ours, or ``ompl:NAME`` with the extra installed and NAME one of
-    OMPL's geometric planners); a one-line :class:`SplatplanError` otherwise."""
-    from ..planners import PLANNERS
-
-    names = tuple(names)
-    if not names:
-        raise SplatplanError("MBMConfig.planners: give at least one planner (e.g. auto,ompl:RRTConnect)")
-    if len(set(names)) != len(names):
-        raise SplatplanError(f"MBMConfig.planners: a planner is listed twice in {','.join(names)}")
-    for n in names:
-        if n in PLANNERS:
-            continue
-        if not n.startswith("ompl:"):
-            raise SplatplanError(f"MBMConfig.planners: unknown planner {n!r}: use {', '.join(PLANNERS)} or ompl:NAME (e.g. ompl:RRTConnect)")
-        from ..planners.ompl_bridge import available_planners  # the install hint when the extra is missing
-
-        have = available_planners()
-        if n[5:] not in have:
-            raise SplatplanError(f"MBMConfig.planners: unknown OMPL planner {n[5:]!r}: available: {', '.join(have)}")
-    return names
-
-
-@dataclass(frozen=True)
-class MBMTask:
-    """One (problem, planner): what a worker needs to solve it (plain data, picklable, JSON-able).
-
-    ``objects`` (the parsed scene, :meth:`AnalyticScene.to_json`) and ``q_start`` / ``q_goal`` come
-    from :func:`check_inputs`, which parses every YAML once before the run, so the workers never
-    parse them again; without them (a task built by hand) the worker reads the files."""
-
-    family: str
-    index: int
-    scene: str  # path of sceneNNNN.yaml
-    request: str  # path of requestNNNN.yaml
-    planner: str = "auto"  # a name of MBMConfig.planners
-    objects: dict | None = None  # the parsed scene (AnalyticScene.to_json), or None
-    q_start: tuple[float, ...] | None = None  # (dof,) from the request, or None
-    q_goal: tuple[float, ...] | None = None  # (dof,)
+__all__ = [
+    "DEFAULT_MBM", "MBM_DATA_ENV", "PUBLISHED", "TIMING_FIELDS", "MBMConfig", "MBMContext", "MBMResult", "MBMTask", "check_inputs",
+    "check_planners", "comparable", "list_tasks", "make_context", "mbm_data_dir", "mbm_task", "report", "run_mbm", "settings_hash",
+    "solve_problem", "summarise", "task_key",
+]  # fmt: skip
 
 
 @dataclass
@@ -274,7 +118,7 @@ class _Prepared:
     """One problem's scene as every planner sees it (all derived from the config's seed)."""
 
     splats: object  # splatplan.scenes.Splats, floaters filtered (metres, z-up)
-    scene: object  # splatplan.scenes.builtin.primitives.AnalyticScene: the exact primitives
+    scene: object  # splatplan.scenes.builtin.analytic_scene.AnalyticScene: the exact primitives
     checker: object  # CollisionChecker on the splats at config.n_sigma (cpu)
     margin: float  # planning margin (m)
     spacing_nn: float  # median NN distance of the means (m; nan with a fixed margin)
@@ -284,24 +128,6 @@ class _Prepared:
     n_sampled: int  # splats sampled (floaters included, before any filter)
     base_spacing: float  # the sampler's grid spacing (m)
     endpoints: dict = field(default_factory=dict)  # request path -> (q0, q1, exact clearance (2,), hit (2,), hit_own (2,))
-
-
-@dataclass
-class MBMResult:
-    """Rows, per-family and overall summaries, and what was run."""
-
-    config: MBMConfig
-    rows: list[dict]  # one per (problem, planner) that finished, problem-major
-    summary: dict[str, dict]  # family / "overall" -> summary, of the first planner (ours by default)
-    setup: dict = field(default_factory=dict)
-    time_s: float = 0.0
-    summary_by_planner: dict[str, dict] = field(default_factory=dict)  # planner -> family -> summary
-    failures: list[dict] = field(default_factory=list)  # tasks recorded as failed, with their error
-
-    def to_json(self) -> dict:
-        return {"study": "mbm", "config": asdict(self.config), "engine": self.setup.get("engine", {"kind": "serial"}), "setup": self.setup,
-                "summary": self.summary, "summary_by_planner": self.summary_by_planner, "rows": self.rows, "failures": self.failures,
-                "published": PUBLISHED, "time_s": self.time_s}  # fmt: skip
 
 
 def list_tasks(config: MBMConfig) -> list[MBMTask]:
@@ -376,12 +202,6 @@ def task_key(task: MBMTask, config: MBMConfig, sig: str) -> str:
     return f"{sig}/{task.family}/{task.index:04d}/{task.planner}/ns={config.n_sigma:g}"
 
 
-# ---------------------------------------------------------------------------------------------
-# exact clearance and the margin
-# ---------------------------------------------------------------------------------------------
-
-
-
 
 # ---------------------------------------------------------------------------------------------
 # one problem
@@ -408,7 +228,8 @@ def _prepare(task: "MBMTask", cfg: MBMConfig, robot) -> _Prepared:
     the margin, measure rho when asked, build the checker."""
     from ..metric import CollisionChecker
     from ..scenes.filters import filter_floaters, isolated_mask
-    from ..scenes.builtin.primitives import AnalyticScene, n_splats_for_spacing
+    from ..scenes.builtin.analytic_scene import AnalyticScene
+    from ..scenes.builtin.surface_splats import n_splats_for_spacing
     from ..scenes.moveit import build_moveit, load_moveit_scene
 
     src = AnalyticScene.from_json(task.objects) if task.objects is not None else load_moveit_scene(task.scene)
@@ -526,82 +347,10 @@ def comparable(row: dict) -> dict | None:
     return {k: v for k, v in row.items() if k not in drop}
 
 
+
 # ---------------------------------------------------------------------------------------------
 # the benchmark
 # ---------------------------------------------------------------------------------------------
-
-
-def _pct(v: np.ndarray, q: float) -> float | None:
-    return float(np.percentile(v, q)) if len(v) else None
-
-
-def _rho(r: dict) -> float:
-    """A row's measured rho (nan when not measured: the results file stores NaN as null)."""
-    v = r.get("rho_measured_m")
-    return float("nan") if v is None else float(v)
-
-
-def _any_rho(rows: list[dict]) -> bool:
-    """Whether rho was measured for any of the rows."""
-    return any(np.isfinite(_rho(r)) for r in rows)
-
-
-def summarise(rows: list[dict], time_limit: float | None = None) -> dict:
-    """Valid / free endpoints, solved / free, median / p95 time, worst clearance (for a list of
-    rows); with ``time_limit`` (the iteration-budget mode), also how many solutions took longer."""
-    n = len(rows)
-    both_free = [r for r in rows if r["start_free"] and r["goal_free"]]
-    solved = [r for r in both_free if r["solved"]]
-    t = np.array([r["time_s"] for r in solved], dtype=np.float64)
-    clear = np.array([r["min_exact_clearance_m"] for r in solved], dtype=np.float64)
-    return {
-        "n_problems": n,
-        "valid_endpoints": int(sum(r["start_valid"] + r["goal_valid"] for r in rows)),
-        "valid_endpoints_frac": sum(r["start_valid"] + r["goal_valid"] for r in rows) / (2 * n) if n else None,
-        "problems_both_valid": int(sum(r["start_valid"] and r["goal_valid"] for r in rows)),
-        "free_endpoints": int(sum(r["start_free"] + r["goal_free"] for r in rows)),
-        "free_endpoints_frac": sum(r["start_free"] + r["goal_free"] for r in rows) / (2 * n) if n else None,
-        "free_endpoints_unmargined_frac": sum(r["start_free_unmargined"] + r["goal_free_unmargined"] for r in rows) / (2 * n) if n else None,
-        "problems_both_free": len(both_free),
-        "solved": len(solved),
-        "solved_of_free_frac": len(solved) / len(both_free) if both_free else None,
-        "median_time_s": _pct(t, 50),
-        "p95_time_s": _pct(t, 95),
-        "median_cpu_s": _pct(np.array([r["cpu_s"] for r in solved if r.get("cpu_s") is not None], dtype=np.float64), 50),
-        "median_configs": _pct(np.array([r["n_configs"] for r in solved if r.get("n_configs") is not None], dtype=np.float64), 50),
-        "worst_exact_clearance_m": float(clear.min()) if len(clear) else None,
-        "negative_clearance_paths": int(np.sum(clear < 0)),
-        "solved_late": None if time_limit is None else int(np.sum(t > time_limit)),
-        "margin_m_median": _pct(np.array([r["margin_m"] for r in rows]), 50),
-        "rho_measured_m_max": float(np.nanmax([_rho(r) for r in rows])) if rows and _any_rho(rows) else None,
-        "bound_holds": int(sum(bool(r["bound_holds"]) for r in rows)),
-        "not_free_below_margin": _not_free_below_margin(rows),
-        "blocked_by_link": _blocked_by_link(rows),
-    }
-
-
-def _blocked_by_link(rows: list[dict]) -> dict[str, int]:
-    """How many endpoints that are not free each link blocks (``*_blocked_by``)."""
-    out: dict[str, int] = {}
-    for r in rows:
-        for end in ("start", "goal"):
-            b = r.get(f"{end}_blocked_by")
-            if b:
-                out[b["link"]] = out.get(b["link"], 0) + 1
-    return dict(sorted(out.items(), key=lambda kv: -kv[1]))
-
-
-def _not_free_below_margin(rows: list[dict]) -> int:
-    """Endpoints that are not free for the planning model and whose exact clearance (own model vs
-    the primitives) is below the row's margin: no check from the splats alone that keeps the
-    zero-negative-clearance guarantee (margin >= rho + r/2) can call those free at this splat
-    density; only more splats (rho ~ spacing ~ 1/sqrt(n_splats)) can."""
-    n = 0
-    for r in rows:
-        for end in ("start", "goal"):
-            c = r.get(f"{end}_clearance_m")
-            n += int(not r[f"{end}_free"] and c is not None and c < r["margin_m"])
-    return n
 
 
 def run_mbm(config: MBMConfig | None = None, out_dir=None, *, engine=None, progress: bool = True) -> MBMResult:
@@ -660,94 +409,3 @@ def run_mbm(config: MBMConfig | None = None, out_dir=None, *, engine=None, progr
         write_atomic(out / "mbm.json", json.dumps(result.to_json(), indent=1) + "\n")
         write_atomic(out / "mbm.md", report(result))
     return result
-
-
-def _engine_text(e: dict | None) -> str:
-    if not e or e.get("kind") != "dask":
-        return "serial"
-    return f"dask ({e.get('workers')} workers at {e.get('scheduler')})"
-
-
-def _frac_pct(v) -> str:
-    return "" if v is None else f" ({100 * v:.0f}%)"
-
-
-def _fmt(v, spec: str, scale: float = 1.0, none: str = "-") -> str:
-    return none if v is None else format(v * scale, spec)
-
-
-def _margin_text(cfg: MBMConfig) -> str:
-    if cfg.margin_m is not None:
-        return format(cfg.margin_m, "g") + " m"
-    f, fl = format(cfg.margin_spacing_factor, "g"), format(cfg.margin_floor_factor, "g")
-    return f"derived (max({f} h - {cfg.n_sigma:g} s_t, {fl} h) + r/2)" if cfg.n_sigma > 0 else f"derived ({f} x NN spacing h + r/2)"
-
-
-def _density_text(rows: list[dict], cfg: MBMConfig) -> str:
-    """How densely the scenes were sampled: the fixed count, or the spacing and the counts it gave."""
-    if cfg.n_splats:
-        return f"{cfg.n_splats:,} splats per scene"
-    n = [r["n_splats_sampled"] for r in rows if r.get("n_splats_sampled")]
-    got = f" ({min(n):,}-{max(n):,} splats per scene)" if n else ""
-    return f"sampled at {1e3 * cfg.splat_spacing_m:g} mm spacing{got}"
-
-
-def report(result: MBMResult) -> str:
-    """Markdown: one row per family and overall, then the published numbers and what differs."""
-    cfg = result.config
-    lines = [
-        f"MBM on splats: {_density_text(result.rows, cfg)} (floaters: the paper's rule{', then isolated faint splats' if cfg.drop_isolated else ''}), n_sigma {cfg.n_sigma:g}, "
-        f"margin {_margin_text(cfg)}, "
-        f"time limit {cfg.time_limit:g} s{'' if cfg.max_iters is None else f' (searches run to {cfg.max_iters:,} iterations, no wall-clock limit)'}, robot {Path(result.setup.get('robot', '?')).name} ({result.setup.get('n_ellipsoids')} ellipsoids), "
-        f"planner {cfg.planners[0]} (table below: every planner), engine {_engine_text(result.setup.get('engine'))}",
-        "",
-        "| family | problems | valid endpoints | free endpoints (own model) | both free | solved / free | median time (s) | p95 time (s) | worst exact clearance (mm) | paths < 0 | margin (mm) | rho max (mm) |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|",
-    ]
-    for fam, s in result.summary.items():
-        n = s["n_problems"]
-        if not n:
-            continue
-        lines.append(
-            f"| {fam} | {n} | {s['valid_endpoints']}/{2 * n} ({100 * s['valid_endpoints_frac']:.0f}%) | "
-            f"{s['free_endpoints']}/{2 * n} ({100 * s['free_endpoints_frac']:.0f}%; {100 * s['free_endpoints_unmargined_frac']:.0f}%) | {s['problems_both_free']} | "
-            f"{s['solved']}/{s['problems_both_free']}{_frac_pct(s['solved_of_free_frac'])} | "
-            f"{_fmt(s['median_time_s'], '.3g')} | {_fmt(s['p95_time_s'], '.3g')} | {_fmt(s['worst_exact_clearance_m'], '+.2f', 1e3)} | "
-            f"{s['negative_clearance_paths']} | {_fmt(s['margin_m_median'], '.1f', 1e3)} | {_fmt(s['rho_measured_m_max'], '.1f', 1e3)} |"
-        )
-    o = result.summary.get("overall", {})
-    if o.get("n_problems") and o.get("not_free_below_margin") is not None:
-        n_not = 2 * o["n_problems"] - o["free_endpoints"]
-        lines += ["", f"Endpoints not free for the planning model: {n_not}; of them {o['not_free_below_margin']} lie closer to the "
-                      "real geometry (exact clearance) than the margin, so no splat-only check that keeps the guarantee can free them "
-                      "at this splat density (the margin scales with the splat spacing, ~1/sqrt(n_splats))."]  # fmt: skip
-    late = result.summary.get("overall", {}).get("solved_late")
-    if late is not None:
-        lines += ["", (f"Searches ran to {cfg.max_iters:,} iterations with no wall-clock limit (reproducible anywhere): "
-                       f"{late} of the solutions took longer than the {cfg.time_limit:g} s time limit on this machine.")]  # fmt: skip
-    if result.summary_by_planner:
-        lines += ["", "Planners (same splats, checker, margin, edge resolution and time limit; ours seeded, OMPL's not):", "",
-                  "| planner | family | solved / free | median time (s) | p95 time (s) | worst exact clearance (mm) | paths < 0 |",
-                  "|---|---|---|---|---|---|---|"]  # fmt: skip
-        for p, per in result.summary_by_planner.items():
-            for fam, s in per.items():
-                if not s["n_problems"]:
-                    continue
-                lines.append(f"| {p} | {fam} | {s['solved']}/{s['problems_both_free']}{_frac_pct(s['solved_of_free_frac'])} | "
-                             f"{_fmt(s['median_time_s'], '.3g')} | {_fmt(s['p95_time_s'], '.3g')} | "
-                             f"{_fmt(s['worst_exact_clearance_m'], '+.2f', 1e3)} | {s['negative_clearance_paths']} |")  # fmt: skip
-    if result.failures:
-        lines += ["", f"{len(result.failures)} task(s) failed (see failures in mbm.json): "
-                  + "; ".join(f"{f['family']}/{f['index']} {f['planner']}: {f['error'][:120]}" for f in result.failures[:5])]  # fmt: skip
-    lines += ["", "Published (same benchmark, 7 families x 100 problems; see ../shared/data/mbm/README.md):", "",
-              "| planner | solved | median time | p95 time | robot model | scene | hardware |", "|---|---|---|---|---|---|---|"]  # fmt: skip
-    for name, p in PUBLISHED.items():
-        lines.append(f"| {name} | {p['solved']} | {_fmt(p['median_time_s'], '.3g')} s | {_fmt(p['p95_time_s'], '.3g')} s | {p['robot_model']} | {p['scene']} | {p['hardware']} |")
-    lines += [
-        "",
-        "What differs here: the scene is splats sampled from the exact primitives (the published planners check the primitives "
-        "themselves or a point cloud); the robot is the URDF's ellipsoid model grown by the safety margin; collision checks run "
-        "on this machine's shared CPU cores (Warp kernels), timings are contended; only the families listed above were run.",
-        "",
-    ]
-    return "\n".join(lines)

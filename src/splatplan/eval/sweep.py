@@ -405,8 +405,8 @@ def run_sweep(spec: SweepSpec, base: Path, out_dir: Path, engine=None, progress:
         "groups": rows,
         "wall_s": res.wall_s,
     }
-    from ..cli._common import write_json
     from .._files import atomic_path
+    from .._json import write_json
 
     write_json(out_dir / "summary.json", summary)
     with atomic_path(out_dir / "summary.md") as tmp:

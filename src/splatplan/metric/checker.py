@@ -71,7 +71,7 @@ class CollisionChecker:
         device: "cpu", "cuda", "cuda:N" or None/"auto".
         config: full :class:`MetricConfig`; ``n_sigma`` overrides its field when given.
         backend: "warp" (the streaming kernel) or "reference" (numpy brute force, slow).
-        tiers: how splats are binned into tiers (:class:`~splatplan.metric.wp_metric.TierConfig`,
+        tiers: how splats are binned into tiers (:class:`~splatplan.metric.tiers.TierConfig`,
             a performance knob; results are exact either way).
     """
 

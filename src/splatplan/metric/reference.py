@@ -122,7 +122,7 @@ def collision_metric_ref(
 def mean_distance_lb_ref(lb: np.ndarray, origin: np.ndarray, v: float, box_lo: np.ndarray, box_hi: np.ndarray, pts: np.ndarray) -> np.ndarray:
     """The numpy twin of the kernels' ``mean_distance_lb`` (MEAN DISTANCE GRID): for points (P, 3), the
     larger of the distance to the means' box (times 0.999) and the bound stored in the point's voxel
-    of ``lb`` (nz, ny, nx) (0 outside the grid); grid arrays as :func:`~.wp_metric.mean_distance_bounds`
+    of ``lb`` (nz, ny, nx) (0 outside the grid); grid arrays as :func:`~.tiers.mean_distance_bounds`
     returns them."""
     p = np.asarray(pts, dtype=np.float64)
     lo, hi = np.asarray(box_lo, dtype=np.float64), np.asarray(box_hi, dtype=np.float64)

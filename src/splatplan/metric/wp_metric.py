@@ -28,11 +28,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._config import bounded, check_config
 from .._warp import cpu_threads, launch_split, resolve_device
 from .._warp import wp as _wp
 from ..scenes.splats import Splats, quat_to_rotmat
 from .config import COST_REDUCE_CODES, MetricConfig
+from .tiers import TierConfig, mean_distance_bounds, quantile_tiers, size_class_tiers
 from .wp_metric_kernel import (
     LanePartials,
     LinkBatch,
@@ -61,92 +61,6 @@ CONFIG_MIN_STEP = 64
 #: relative pad of the GROUP BOUND's radii against float32 rounding (:mod:`.wp_metric_kernel`)
 GROUP_PAD = 1.0 + 1e-4
 
-
-@dataclass
-class TierConfig:
-    """Performance knobs of the Warp backend: how splats are binned into tiers, grid cells, query
-    order (results are exact, and identical, either way)."""
-
-    #: "size": geometric size classes of the largest std (default); "quantile": tiers split at
-    #: ``quantiles`` of the largest std (the old scheme, kept for comparison).
-    mode: str = bounded("size", choices=("size", "quantile"))
-    #: Size classes are [s0 f^k, s0 f^(k+1)) of the largest std, f = class_factor, s0 = the smallest std.
-    class_factor: float = bounded(2.0, gt=1)
-    #: A class with fewer splats than this merges into the next larger class when that class is
-    #: adjacent (at most one factor apart); far larger classes are never merged with it.
-    min_tier_count: int = bounded(256, ge=0)
-    #: At most this many size classes: the adjacent pair whose merge widens fewest splats' radius merges first.
-    max_tiers: int = bounded(16, ge=1)
-    #: Fixed cost of one tier per query, in splat visits (a grid probe of ~27 cells). For each query
-    #: size, adjacent classes whose search radii are so close that a separate tier would not pay
-    #: for itself are searched as one tier (a dynamic programme over the estimated cost).
-    tier_overhead: float = bounded(64.0, ge=0)
-    #: mode "quantile": quantiles of the per-splat largest std that separate the tiers.
-    quantiles: tuple[float, ...] = bounded((0.9, 0.999), gt=0, lt=1)
-    #: Hash-grid cell width as a fraction of the tier's query radius.
-    cell_factor: float = bounded(1.5, gt=0)  # measured best on Stonehenge (CPU): 0.75-2.0 within 25%
-    #: Cell width factor of queries whose typical link is elongated (median a_max >= 1.5 median a_min):
-    #: the kernels bound such links' reads by the link box (full queries also clip each row of cells to
-    #: the link's ellipsoid), much tighter than the ball, so finer cells pay (Panda MPPI rollouts on the
-    #: 200k-splat tabletop, CPU: 0.25 is 1.5x faster than 0.5 and 2.5x faster than 1.0; 0.18-0.35 within
-    #: 15%; Panda collides_robot 1.7x faster than with cell_factor).
-    elongated_cell_factor: float = bounded(0.25, gt=0)
-    #: Largest grid dimension per axis (cells wrap around beyond it; results stay exact).
-    max_dim: int = bounded(128, ge=1)
-    #: Process the queries of a batch in Morton (Z-curve) order of their centres (a key kernel and a
-    #: radix sort on the device), so neighbouring threads read neighbouring splats: ~1.3x on CPU.
-    sort_queries: bool = True
-    #: ... for batches of at least this many queries.
-    sort_min_batch: int = bounded(1024, ge=0)
-    #: ... also for ``collides_robot`` (the collision-only kernel on robot batches). Off by default: a
-    #: robot batch comes in configuration order (the E ellipsoids of one configuration, then the next;
-    #: an RRT's edge samples one after the other), already close in space, and on CPU the sort costs
-    #: more than it saves (MBM Panda edge checks, one thread: 59 spheres 17 -> 9.5 us per configuration
-    #: without it, 11 fitted ellipsoids 9.2 -> 8.1 us).
-    sort_robot_collides: bool = False
-    #: Sort a robot batch (semi-axes repeating with a period of at most 512 ellipsoids: ``query_robot``)
-    #: by ellipsoid first, then Morton order, so that neighbouring threads (a GPU warp) hold the same
-    #: link, whose work per query is alike (Panda near the table: 1 to 300 cell rows per query by link).
-    #: The outputs do not change. CPU: no measurable effect. CUDA: not measured yet; a count of the
-    #: per-thread work (cell rows and splats read; Panda K = 256 batch near the table) predicts 1.7x less
-    #: warp time at 1 lane and 1.3x at 8
-    #: (``benchmarks/gpu_rates.py --tune-group-links``).
-    group_links: bool = False
-    #: Threads per query in the full kernel (``query``): lane l takes every lanes-th splat of each
-    #: cell run it visits, and a second kernel sums the lanes in order. On a GPU the lanes of a
-    #: query run in one warp over the same cells (coalesced reads, even work); on a CPU one thread
-    #: per query is best. None = 8 on CUDA, 1 on CPU. Counts and flags are the same for any value,
-    #: float sums up to summation order. Extra device memory per call: 28 bytes x lanes per query
-    #: (the partial sums; 73 MB for 327k queries at 8 lanes).
-    lanes: int | None = bounded(None, ge=1)
-    #: The collision-only kernel (``collides``, RRT edge checks) reads, in every cell row holding more
-    #: than a few splats, only the cells that the link's ellipsoid can reach (ROW_CLIP of the full
-    #: kernel, :mod:`.wp_metric_kernel`); False: whole rows of the link's box.
-    collide_row_clip: bool = True
-    #: ``collides_robot`` (the collision-only kernel on robot batches) uses grids with cells this many
-    #: times wider than (elongated_)cell_factor x its radius. Its radius is for cap 1, half the full
-    #: query's at the default s2_cap 4, so 2 gives both the same cell width. The best width depends on
-    #: the splats per cell: finer cells read fewer splats but cost a probe per cell row of the link box.
-    #: Measured per CPU-second, one thread: MBM Panda edge checks (100k splats over a few m^2) the fitted
-    #: one-per-link model 1.9x and VAMP's 59 spheres 1.2x faster with 2 than with 1; the Panda on
-    #: Stonehenge scaled x4 1.6x faster, at scale 1 (200k splats in 1 m, as dense as it gets) 1.5x
-    #: slower. Plain ``collides`` keeps 1: small spheres (r = 1.5 cm at n_sigma 1 on Stonehenge) are
-    #: 1.5x slower with 2.
-    robot_collide_cell_scale: float = bounded(2.0, gt=0)
-    #: The collision-only kernel skips a tier when a voxel grid of lower bounds on the distance to the
-    #: nearest splat mean says every mean is beyond the tier's search radius (MEAN DISTANCE GRID,
-    #: :mod:`.wp_metric_kernel`; same outputs). Built once per checker on the first ``collides`` call
-    #: (a distance transform on the host; MBM scene, 100k splats: ~0.1 s). Links in free space then
-    #: cost one read instead of their cell rows (MBM Panda edge checks ~3x fewer CPU-seconds).
-    collide_distance_grid: bool = True
-    #: Voxels of that grid at most (cubic voxels over the means' bounding box; 4 bytes each).
-    distance_grid_voxels: int = bounded(2**21, ge=1)
-
-    def validate(self) -> "TierConfig":
-        """Check every field's declared range (:mod:`splatplan._config`); returns self."""
-        return check_config(self)
-
-
 _GROUP_RADII: dict = {}  # (groups key, largest std, n_sigma) -> (radius (G,), reach (E,)): shared by every checker
 
 
@@ -170,93 +84,6 @@ def _group_radii(key: bytes, first: np.ndarray, members: np.ndarray, rel: np.nda
         _GROUP_RADII[ck] = hit
     return hit
 
-
-def quantile_tiers(smax: np.ndarray, quantiles: tuple[float, ...]) -> np.ndarray:
-    """(N,) tier index per splat: tiers split at quantiles of the largest std (the old scheme)."""
-    edges = np.unique(np.quantile(smax, quantiles)) if len(smax) > 1 and len(quantiles) else np.zeros(0)
-    return np.searchsorted(edges, smax, side="left")
-
-
-def size_class_tiers(smax: np.ndarray, factor: float = 2.0, min_count: int = 256, max_tiers: int = 8) -> np.ndarray:
-    """(N,) tier index per splat (0 = smallest) from geometric size classes of the largest std.
-
-    Class k holds the splats with std in [s0 f^k, s0 f^(k+1)), s0 = the smallest positive std.
-    Classes with fewer than ``min_count`` splats merge upwards into the next non-empty class only
-    when it is adjacent (k + 1), so a far larger class (a sky shell) keeps its own tight tier; then
-    while there are more than ``max_tiers`` tiers, the adjacent pair whose merge costs least
-    (the lower tier's count times the growth of its std bound) merges.
-    """
-    n = len(smax)
-    if n == 0:
-        return np.zeros(0, dtype=np.int64)
-    if factor <= 1.0:
-        raise ValueError(f"class_factor must be > 1, got {factor}")
-    pos = smax[smax > 0]
-    s0 = float(pos.min()) if len(pos) else 1.0
-    cls = np.floor(np.log(np.maximum(smax, s0) / s0) / math.log(factor) + 1e-9).astype(np.int64)
-    keys, inv, counts = np.unique(cls, return_inverse=True, return_counts=True)
-    # groups of classes: [first class, last class, count, max std]
-    groups = []
-    for j, (k, c) in enumerate(zip(keys, counts)):
-        groups.append([int(k), int(k), int(c), float(smax[inv == j].max()), [j]])
-    merged = []
-    for g in groups:
-        if merged and merged[-1][2] < min_count and g[0] == merged[-1][1] + 1:
-            p = merged.pop()
-            g = [p[0], g[1], p[2] + g[2], max(p[3], g[3]), p[4] + g[4]]
-        merged.append(g)
-    while len(merged) > max(1, max_tiers):
-        # cost of merging tier i into i + 1: its members' std bound grows from s_i to s_{i+1}
-        costs = [merged[i][2] * (merged[i + 1][3] / max(merged[i][3], 1e-30)) ** 3 for i in range(len(merged) - 1)]
-        i = int(np.argmin(costs))
-        a, b = merged[i], merged.pop(i + 1)
-        merged[i] = [a[0], b[1], a[2] + b[2], max(a[3], b[3]), a[4] + b[4]]
-    tier_of_class = np.empty(len(keys), dtype=np.int64)
-    for t, g in enumerate(merged):
-        tier_of_class[g[4]] = t
-    return tier_of_class[inv]
-
-
-def mean_distance_bounds(means: np.ndarray, max_voxels: int = 2**21, pad: float = 0.25):
-    """Per-voxel lower bounds on the distance to the nearest of ``means`` (N, 3) (float32 world
-    coordinates, as the kernels hold them): the MEAN DISTANCE GRID of :mod:`.wp_metric_kernel`.
-
-    Cubic voxels of side v over the means' bounding box padded by ``pad`` times its largest side,
-    at most ``max_voxels`` of them; voxel (i, j, k) covers ``origin + v [i, i + 1) x [j, j + 1) x
-    [k, k + 1)``. Two voxels whose indices differ by (di, dj, dk) are at least
-    ``v sqrt(sum max(|d| - 1, 0)^2)`` apart (box to box), which is the Euclidean distance from the
-    first voxel's centre to the nearest centre of the 3x3x3 block around the second: so a Euclidean
-    distance transform to the occupied voxels dilated by one voxel, times v, bounds the distance
-    from every point of a voxel to every mean (at least ``(D - sqrt(3)) v`` for centre distance D);
-    stored shrunk by ``1e-4`` relative and ``1e-3 v`` absolute (far above float32 rounding of the
-    voxel lookup).
-
-    Returns:
-        lb (nz, ny, nx) float32, origin (3,) float32, v (float), box lo (3,) float32, box hi (3,) float32.
-    """
-    from scipy.ndimage import binary_dilation, distance_transform_edt
-
-    m = np.asarray(means, dtype=np.float32).astype(np.float64)
-    box_lo, box_hi = m.min(axis=0), m.max(axis=0)
-    p = pad * float((box_hi - box_lo).max())
-    lo = (box_lo - p).astype(np.float32).astype(np.float64)  # the grid's corner, exactly as the kernel holds it
-    ext = box_hi + p - lo
-    tiny = max(float(ext.max()) * 1e-3, 1e-6)
-    v = float(np.cbrt(np.prod(ext + tiny) / max(1, max_voxels)))
-    v = max(v, tiny)
-    while True:
-        dims = np.floor(ext / v).astype(np.int64) + 1  # (3,) x, y, z
-        if int(np.prod(dims)) <= max_voxels:
-            break
-        v *= 1.05
-    ijk = np.minimum(np.floor((m - lo) / v).astype(np.int64), dims - 1)  # (N, 3)
-    occ = np.zeros((int(dims[2]), int(dims[1]), int(dims[0])), dtype=bool)
-    occ[ijk[:, 2], ijk[:, 1], ijk[:, 0]] = True
-    occ = binary_dilation(occ, structure=np.ones((3, 3, 3), dtype=bool))  # voxels touching an occupied one
-    dist = distance_transform_edt(~occ)  # voxels: box-to-box distance to the nearest occupied voxel
-    lb = dist * v * (1.0 - 1e-4) - 1e-3 * v
-    lb = np.maximum(lb, 0.0).astype(np.float32)
-    return lb, lo.astype(np.float32), v, box_lo.astype(np.float32), box_hi.astype(np.float32)
 
 
 @dataclass

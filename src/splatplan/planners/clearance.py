@@ -4,7 +4,7 @@ the path densified by the robot's motion bound.
 
 Used wherever the ground truth is exact: the MotionBenchMaker study (``eval mbm``), the arm
 benchmarks, the task studies on the built-in scenes. The scene is a
-:class:`~splatplan.scenes.builtin.primitives.AnalyticScene` (``sdf``, ``ellipsoid_clearance``); the
+:class:`~splatplan.scenes.builtin.analytic_scene.AnalyticScene` (``sdf``, ``ellipsoid_clearance``); the
 robot a :class:`~splatplan.robots.Robot` (``ellipsoids``, ``motion_bound``, ``min_semi_axis``).
 """
 

@@ -47,7 +47,7 @@ import numpy as np
 
 from .._config import ConfigTerms, bounded
 from ..errors import SplatplanError
-from .costs import Cost, CostValue, Rollout
+from .cost_base import Cost, CostValue, Rollout
 from .mppi import MPPI, Evaluation, SamplingStrategy
 
 __all__ = ["DriveGoalCost", "DriveTerms", "RouteTracker", "StructuredDrives"]

@@ -28,7 +28,7 @@ import numpy as np
 
 from .._config import ConfigTerms, bounded
 from ..errors import SplatplanError
-from .costs import Cost, CostValue, Rollout
+from .cost_base import Cost, CostValue, Rollout
 
 if TYPE_CHECKING:
     from ..robots.robot import Robot

@@ -42,7 +42,9 @@ from .._config import bounded, check_config
 from .._resources import require_rollouts
 from ..errors import SplatplanError
 from .bspline import UniformBSpline
-from .costs import CollisionCost, ControlEffortCost, Cost, Rollout, StateCost, TerminalCost, evaluate_costs, link_geometry
+from .collision_cost import CollisionCost, link_geometry
+from .cost_base import Cost, Rollout, evaluate_costs
+from .costs import ControlEffortCost, StateCost, TerminalCost
 from .dynamics import Dynamics, JointIntegrator
 
 if TYPE_CHECKING:

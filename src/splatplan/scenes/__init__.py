@@ -7,7 +7,8 @@ from .load import SCENE_EXTENSIONS, load_scene, save_scene
 from .margin import SplatMargin, margin_for
 from .splats import SH_C0, Splats, quat_to_rotmat, rotmat_to_quat
 from .moveit import load_moveit_request, load_moveit_scene
-from .builtin.primitives import AnalyticScene, SurfaceSplatConfig, splats_from_boxes, splats_from_scene
+from .builtin.analytic_scene import AnalyticScene
+from .builtin.surface_splats import SurfaceSplatConfig, splats_from_boxes, splats_from_scene
 from .builtin.stonehenge import StonehengeLayout, build_stonehenge, ground_truth_path, plot_top_view, stonehenge_layout, write_stonehenge
 
 __all__ = [

@@ -64,7 +64,9 @@ from typing import Protocol
 import numpy as np
 
 from ..errors import SplatplanError
-from .builtin.primitives import AnalyticScene, project_to_ellipsoid, sample_faces
+from .builtin.analytic_scene import AnalyticScene
+from .builtin.ellipsoid_clearance import project_to_ellipsoid
+from .builtin.surface_splats import sample_faces
 from .splats import Splats, quat_to_rotmat
 
 __all__ = ["EDGE_FRACTION", "HasMinSemiAxis", "SplatMargin", "covering_radius", "derived_margin", "margin_for", "splat_spacing"]

@@ -39,7 +39,8 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import PlanningError, SceneFormatError
-from .builtin.primitives import AnalyticScene, make_box, make_cylinder, make_sphere
+from .builtin.analytic_scene import AnalyticScene
+from .builtin.primitive_sdf import make_box, make_cylinder, make_sphere
 from .splats import quat_multiply, quat_to_rotmat
 
 __all__ = ["build_moveit", "load_moveit_request", "load_moveit_scene", "moveit_request_from_dict", "moveit_scene_from_dict", "read_yaml", "write_moveit"]
@@ -254,13 +255,13 @@ DEFAULT_N_SPLATS = 100_000
 
 
 def build_moveit(path: str | Path | AnalyticScene, n_splats: int = DEFAULT_N_SPLATS, seed: int = 0):
-    """Splats (the built-in real-capture look, :func:`~.builtin.primitives.splats_from_scene`) and
+    """Splats (the built-in real-capture look, :func:`~.builtin.surface_splats.splats_from_scene`) and
     the exact ground truth of a MoveIt planning scene (a YAML path, or the scene already parsed by
     :func:`load_moveit_scene`: the same splats for the same seed).
 
     Colours: one base colour per object, drawn from ``seed``. Returns (Splats, AnalyticScene).
     """
-    from .builtin.primitives import splats_from_scene
+    from .builtin.surface_splats import splats_from_scene
 
     scene = path if isinstance(path, AnalyticScene) else load_moveit_scene(path)
     rng = np.random.default_rng([int(seed), 19])

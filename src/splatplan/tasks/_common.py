@@ -20,7 +20,7 @@ class TaskScene:
         name: built-in name or the file path.
         splats: the (floater-filtered) splats.
         checker: :class:`~splatplan.metric.CollisionChecker` at the task's n_sigma.
-        analytic: :class:`~splatplan.scenes.builtin.primitives.AnalyticScene` or None (then the
+        analytic: :class:`~splatplan.scenes.builtin.analytic_scene.AnalyticScene` or None (then the
             clearance comes from the metric).
     """
 

@@ -14,7 +14,7 @@ def _ellipse_outlines(centers, quats, axes, dims, n: int = 96) -> list[np.ndarra
     """2D outlines (convex hulls of projected surface samples) of ellipsoids on the plane ``dims``."""
     from scipy.spatial import ConvexHull
 
-    from ..scenes.builtin.primitives import fibonacci_sphere
+    from ..scenes.builtin.ellipsoid_clearance import fibonacci_sphere
     from ..scenes.splats import quat_to_rotmat
 
     u = fibonacci_sphere(n)
@@ -30,7 +30,7 @@ def _draw_scene(ax, scene_splats, analytic, dims, z_cut: float | None, bounds) -
     from matplotlib.patches import Polygon
 
     if analytic is not None:
-        from ..scenes.builtin.primitives import box_corners
+        from ..scenes.builtin.primitive_sdf import box_corners
 
         from ..scenes.builtin import apartment, tabletop
 

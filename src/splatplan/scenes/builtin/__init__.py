@@ -2,7 +2,7 @@
 
 Every built-in scene is a union of solid oriented boxes (:class:`AnalyticScene`, the exact ground
 truth) plus 3DGS-like splats sampled on the box surfaces with the statistics of real captures
-(:func:`~.primitives.splats_from_boxes`):
+(:func:`~.surface_splats.splats_from_boxes`):
 
 * ``stonehenge``: normalised units, z up, ~200k splats (the paper's E1-E4 studies);
 * ``tabletop``: metres, z up, a table with box walls for the Panda at the origin (~150k splats);
@@ -21,7 +21,8 @@ from typing import Callable
 from ..._resources import require_bytes
 from ...errors import SplatplanError
 from . import apartment, stonehenge, tabletop
-from .primitives import AnalyticScene, SurfaceSplatConfig, splats_from_boxes, splats_from_scene
+from .analytic_scene import AnalyticScene
+from .surface_splats import SurfaceSplatConfig, splats_from_boxes, splats_from_scene
 
 __all__ = ["BUILTIN_SCENES", "AnalyticScene", "SurfaceSplatConfig", "build_builtin", "splats_from_boxes", "splats_from_scene", "write_builtin"]
 

@@ -16,7 +16,9 @@ import numpy as np
 
 from ..splats import Splats
 from .levels import level_config, splat_count
-from .primitives import AnalyticScene, copy_splats, make_box, splats_from_scene
+from .analytic_scene import AnalyticScene
+from .primitive_sdf import make_box
+from .surface_splats import copy_splats, splats_from_scene
 
 
 def object_colors(label_colors: dict) -> dict:

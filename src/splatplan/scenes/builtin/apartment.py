@@ -2,7 +2,7 @@
 
 Sized for the Unitree Go2 (body ~0.31 m wide with the legs, standing height ~0.3 m), for the
 quadruped studies (paper Sec. IV, E6). The boxes are the exact ground truth
-(:class:`~splatplan.scenes.builtin.primitives.AnalyticScene`); the splats are sampled on their
+(:class:`~splatplan.scenes.builtin.analytic_scene.AnalyticScene`); the splats are sampled on their
 surfaces with the statistics of real captures (:func:`.levels.level_config` level 1).
 
 Units and frames
@@ -32,7 +32,8 @@ import numpy as np
 
 from ..splats import Splats
 from ._layout import BoxList, SceneCache, object_colors
-from .primitives import AnalyticScene, yaw_quat
+from .analytic_scene import AnalyticScene
+from .primitive_sdf import yaw_quat
 
 __all__ = ["DOORS", "HAZE", "add_capture_look", "N_SPLATS", "ROOMS", "WALL_HEIGHT", "ApartmentLayout", "apartment_layout", "build_apartment", "room_of"]
 

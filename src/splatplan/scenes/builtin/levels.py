@@ -1,7 +1,7 @@
 """Splat levels of the built-in scenes: the look of the splats at a Gaussian-size level and how
 many there are.
 
-* :func:`level_config` - the :class:`~splatplan.scenes.builtin.primitives.SurfaceSplatConfig` of a
+* :func:`level_config` - the :class:`~splatplan.scenes.builtin.surface_splats.SurfaceSplatConfig` of a
   level 1..5 (level 1: the statistics of real captures; higher: larger, thicker, noisier splats).
   Stonehenge has all five levels; the box-built scenes (tabletop, apartment) use level 1.
 * :func:`default_n_splats` - Stonehenge's splat count at a level (``200k / 1.8**(L-1)``).
@@ -13,7 +13,7 @@ A leaf of the built-in scenes: it imports only the surface sampler's configurati
 from __future__ import annotations
 
 from ...errors import SplatplanError
-from .primitives import SurfaceSplatConfig
+from .surface_splats import SurfaceSplatConfig
 
 __all__ = ["LEVELS", "LEVEL_RATIO", "N_SPLATS_LEVEL1", "default_n_splats", "level_config", "splat_count"]
 

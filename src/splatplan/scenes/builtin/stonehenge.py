@@ -3,7 +3,7 @@
 Stand-in for Splat-Nav's trained Stonehenge (not available here), used by the studies E1-E4 of
 SPEC section 4. The geometry is a union of oriented boxes (:class:`AnalyticScene`), so the exact
 signed distance is known; the splats are sampled from the box surfaces by
-:func:`~splatplan.scenes.builtin.primitives.splats_from_boxes`.
+:func:`~splatplan.scenes.builtin.surface_splats.splats_from_boxes`.
 
 Units and frames
 ----------------
@@ -41,7 +41,9 @@ import numpy as np
 
 from ...errors import SplatplanError
 from .levels import LEVEL_RATIO, N_SPLATS_LEVEL1, default_n_splats, level_config, splat_count  # noqa: F401 (re-exported)
-from .primitives import AnalyticScene, copy_splats, yaw_quat, box_corners, make_box, splats_from_boxes
+from .analytic_scene import AnalyticScene
+from .primitive_sdf import box_corners, make_box, yaw_quat
+from .surface_splats import copy_splats, splats_from_boxes
 from ..splats import SH_C0, Splats, quat_multiply
 
 __all__ = [

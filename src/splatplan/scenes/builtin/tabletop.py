@@ -2,7 +2,7 @@
 
 Sized for the Franka Panda of ``example-robot-data`` mounted at the world origin on the table top
 (paper Sec. IV, E5: "a box-walled tabletop scene"). The boxes are the exact ground truth
-(:class:`~splatplan.scenes.builtin.primitives.AnalyticScene`); the splats are sampled on their
+(:class:`~splatplan.scenes.builtin.analytic_scene.AnalyticScene`); the splats are sampled on their
 surfaces with the statistics of real captures (:func:`.levels.level_config` level 1).
 
 Units and frames
@@ -36,7 +36,8 @@ import numpy as np
 
 from ..splats import Splats
 from ._layout import BoxList, SceneCache, object_colors
-from .primitives import AnalyticScene, yaw_quat
+from .analytic_scene import AnalyticScene
+from .primitive_sdf import yaw_quat
 
 __all__ = ["N_SPLATS", "TABLE_TOP", "TARGET_REGION", "TabletopLayout", "build_tabletop", "tabletop_layout"]
 

@@ -1,0 +1,80 @@
+"""The CLI process: signal handling (so every ``finally`` runs on Ctrl-C or kill) and the plot backend."""
+
+from __future__ import annotations
+
+import os
+import signal
+import sys
+import threading
+from contextlib import contextmanager
+
+__all__ = ["Terminated", "cli_signal_handlers", "headless_matplotlib", "signals_deferred"]
+
+
+class Terminated(SystemExit):
+    """Raised by the CLI's SIGTERM handler (exit code 143), so ``finally`` blocks clean up."""
+
+
+def _raise_terminated(signum, frame):
+    raise Terminated(128 + signum)
+
+
+@contextmanager
+def cli_signal_handlers():
+    """SIGINT -> KeyboardInterrupt and SIGTERM -> :class:`Terminated` while the block runs (main
+    thread only), so every ``finally`` (temp files of :func:`atomic_path`) runs on Ctrl-C or kill.
+    A signal the caller ignores (SIG_IGN, e.g. ``nohup``-style launchers) stays ignored."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    old = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    if old[signal.SIGINT] is not signal.SIG_IGN:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+    if old[signal.SIGTERM] is not signal.SIG_IGN:
+        signal.signal(signal.SIGTERM, _raise_terminated)
+    try:
+        yield
+    finally:
+        for s, h in old.items():
+            signal.signal(s, h if h is not None else signal.SIG_DFL)
+
+
+@contextmanager
+def signals_deferred():
+    """Hold SIGINT/SIGTERM while native work (a Warp launch on worker threads) is in flight and
+    deliver them when the block ends, as KeyboardInterrupt / :class:`Terminated`.
+
+    Interrupting the main thread while worker threads still run a kernel lets the interpreter shut
+    down under them (a segfault); use this around one bounded chunk of work at a time.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    pending: list[int] = []
+    old = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+
+    def record(signum, frame):
+        pending.append(signum)
+
+    for s, h in old.items():
+        if h is not signal.SIG_IGN:  # an ignored signal stays ignored
+            signal.signal(s, record)
+    try:
+        yield
+    finally:
+        for s, h in old.items():
+            signal.signal(s, h if h is not None else signal.SIG_DFL)
+    if pending:
+        if signal.SIGTERM in pending:
+            raise Terminated(128 + signal.SIGTERM)
+        raise KeyboardInterrupt
+
+
+def headless_matplotlib() -> None:
+    """The CLI only writes image files: matplotlib's Agg backend for this process and the worker
+    processes it starts, chosen once at start-up. The library never picks a backend (its plotting
+    returns Figures or saves through whatever backend its caller chose)."""
+    os.environ["MPLBACKEND"] = "Agg"  # read when matplotlib is imported: costs nothing when no command plots
+    mpl = sys.modules.get("matplotlib")
+    if mpl is not None:  # imported already (e.g. main() called in-process): switch it now
+        mpl.use("Agg")
