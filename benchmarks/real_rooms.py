@@ -71,6 +71,8 @@ VARIANTS = {
     "opacity_min_0.3": ({"opacity_min": 0.3}, "shape"),
     "n_sigma_0": ({"n_sigma": 0.0}, "shape"),
     "paper+band": ({}, "band"),
+    "distance+band": ({"linearize": "distance"}, "band"),
+    "default_squared": ({"opacity_scaled_inflation": True, "opacity_min": 0.1}, "band"),
 }
 
 

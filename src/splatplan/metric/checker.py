@@ -203,7 +203,7 @@ class CollisionChecker:
         keep, ns = splat_inflation_ref(sc.opacities, len(sc), self.config)
         near = near[keep[near]]
         a = link_matrices(None if quat is None else np.asarray(quat, dtype=np.float64).reshape(1, 4), ax, 1)
-        s2, s2c = conservative_s2_ref(np.asarray(sc.means)[near], np.asarray(sc.quats)[near], np.asarray(sc.scales)[near], c[None], a, ns[near])
+        s2, s2c = conservative_s2_ref(np.asarray(sc.means)[near], np.asarray(sc.quats)[near], np.asarray(sc.scales)[near], c[None], a, ns[near], self.config.linearize)
         hit = s2c[0] < 1.0
         idx = near[hit]
         op = np.asarray(sc.opacities, dtype=np.float64)[idx]
