@@ -147,6 +147,12 @@ def test_blockers_name_faint_haze_and_the_remedy():
     b2 = CollisionChecker(s2, n_sigma=2.0, config=paper).blockers(c, None, ax)
     assert b2.n == 1 and b2.n_inside == 0 and "n_sigma" in b2.remedy()
     assert CollisionChecker(s2, n_sigma=0.0, config=paper).blockers(c, None, ax).n == 0
+    # faint means inside plus an opaque splat reached by the inflation only: both remedies
+    s3 = Splats(np.concatenate([haze, s2.means]), np.tile([1.0, 0, 0, 0], (21, 1)), np.concatenate([np.full((20, 3), 0.08), s2.scales]),
+                np.concatenate([np.full(20, 0.05), s2.opacities]), np.full((21, 3), 0.5))
+    b3 = CollisionChecker(s3, n_sigma=2.0, config=paper).blockers(c, None, ax)
+    assert b3.n_faint < b3.n and b3.n_inside == b3.n_inside_faint > 0
+    assert "--opacity-min 0.3" in b3.remedy() and "--linearize distance" in b3.remedy()
     # at the defaults the haze is free space, and so is the ellipsoid
     assert CollisionChecker(s, n_sigma=1.0).blockers(c, None, ax).n == 0
 

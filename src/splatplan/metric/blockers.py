@@ -32,6 +32,7 @@ class Blockers:
         n_floor_level: how many reach into the terrain's step band within their inflation (mean z
             minus n_sigma_i times their std along z below ``floor_z + step_height``): matter standing
             on the floor, 0 without a floor.
+        n_inside_faint: how many of the ``n_inside`` are faint.
     """
 
     indices: np.ndarray
@@ -46,6 +47,7 @@ class Blockers:
     floor: tuple[float, float] | None = None
     height: tuple[float, float] = (float("nan"), float("nan"))
     n_floor_level: int = 0
+    n_inside_faint: int = 0
 
     def remedy(self) -> str:
         """The change that would free the ellipsoid, in words (CLI flag names in parentheses)."""
@@ -59,12 +61,16 @@ class Blockers:
             return (f"all stand on the floor ({self.height[0]:.3g}-{self.height[1]:.3g} above it, the terrain's step height is {self.floor[1]:g}): "
                     f"if this is floor-level matter (a rug, dust, a threshold) the robot may step over, raise the step height to {step:.2g} "
                     f"(TerrainConfig.step_height, --terrain-step-height {step:.2g}); else it is an obstacle: move the configuration")
-        if self.n_inside == 0:
+        faint = ""
+        if self.n_inside and self.n_inside_faint == self.n_inside:  # only faint means inside: they go with opacity_min
+            faint = (f"the {self.n_inside} splat(s) with the mean inside are faint: count them as free space with opacity_min = "
+                     f"{FAINT_OPACITY:g} (--opacity-min {FAINT_OPACITY:g}); of the rest, ")
+        if self.n_inside == self.n_inside_faint:
             if self.linearize == "squared":
-                return ("only the n_sigma inflation reaches the robot (no splat mean is inside it), linearised in s2 (the paper's rule, which "
-                        "overshoots for large splats far from thin links): linearise the distance (linearize = 'distance', --linearize distance, "
-                        "the default) or lower n_sigma (--n-sigma, e.g. 0)")
-            return f"only the n_sigma inflation reaches the robot (no splat mean is inside it): lower n_sigma (--n-sigma, e.g. 0)"
+                return faint + ("only the n_sigma inflation reaches the robot (no splat mean is inside it), linearised in s2 (the paper's rule, "
+                                "which overshoots for large splats far from thin links): linearise the distance (linearize = 'distance', "
+                                "--linearize distance, the default) or lower n_sigma (--n-sigma, e.g. 0)")
+            return faint + "only the n_sigma inflation reaches the robot (no splat mean is inside it): lower n_sigma (--n-sigma, e.g. 0)"
         return "splat means lie inside the robot: move the configuration away from them, or shrink the robot"
 
     def summary(self) -> str:

@@ -223,6 +223,7 @@ class CollisionChecker:
             max_std=float(sig[idx].max()) if idx.size else np.nan,
             centroid=np.asarray(sc.means, dtype=np.float64)[idx].mean(axis=0) if idx.size else np.full(3, np.nan),
             n_sigma=float(self.config.n_sigma), linearize=self.config.linearize, floor=floor, height=height, n_floor_level=n_floor,
+            n_inside_faint=int(np.sum((s2[0][hit] < 1.0) & (op < FAINT_OPACITY))),
         )  # fmt: skip
 
     # ------------------------------------------------------------------ robots
