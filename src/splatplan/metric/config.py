@@ -14,7 +14,7 @@ class MetricConfig:
     """Knobs of the CollisionSplatting metric. All distances are squared *scaling* distances
     (dimensionless: 1 on the link's surface), not metres."""
 
-    #: Conservatism: splat i's n_sigma-ellipsoid counts (s2~ below, :attr:`linearize`). 0 = point cloud of splat means.
+    #: Conservatism: a splat collides when its n_sigma-ellipsoid may reach into the link (s2~ < 1, see linearize). 0 = point cloud of splat means.
     n_sigma: float = bounded(1.0, ge=0)
     #: min_s2 is exact below this value; neighbourhood N(q) = {splats with s2~ < s2_cap}. Must be >= 1.
     s2_cap: float = bounded(4.0, ge=1)
@@ -46,7 +46,7 @@ class MetricConfig:
     #: Beyond the paper (our default): how the inflation is linearised at the splat mean. With
     #: sigma = |diag(s) R^T grad s2| (the splat's std along the gradient, scaled): "distance" linearises
     #: the scaling distance s = sqrt(s2), s2~ = max(0, s - n_sigma * sigma / (2 s))^2; "squared" (the
-    #: paper, :meth:`paper`) linearises s2, s2~ = max(0, s2 - n_sigma * sigma). Both are lower bounds of
+    #: paper, MetricConfig.paper()) linearises s2, s2~ = max(0, s2 - n_sigma * sigma). Both are lower bounds of
     #: the exact s2 over the splat's n_sigma-ellipsoid (s and s2 are convex), so neither misses a splat
     #: whose ellipsoid reaches into the link; they agree near the link's surface, and "distance" drops
     #: far less of the quadratic term the paper ignores, which for large splats far from a thin link
