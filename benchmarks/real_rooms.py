@@ -62,7 +62,9 @@ SUPPORT = 0.10
 
 #: candidate treatments of faint splats: name -> (MetricConfig changes from the paper's settings,
 #: the terrain rule); "paper" is the defaults before issue #36 (the paper's metric, the "shape"
-#: terrain rule), "default" today's MetricConfig() and TerrainConfig()
+#: terrain rule), "default" today's MetricConfig() and TerrainConfig(); "default_squared" the default
+#: with the paper's linearisation in s2 (MetricConfig(linearize="squared")), "distance+band" the
+#: paper's metric with only the distance linearisation and the band terrain rule
 VARIANTS = {
     "paper": ({}, "shape"),
     "opacity_scaled": ({"opacity_scaled_inflation": True}, "shape"),
@@ -71,6 +73,8 @@ VARIANTS = {
     "opacity_min_0.3": ({"opacity_min": 0.3}, "shape"),
     "n_sigma_0": ({"n_sigma": 0.0}, "shape"),
     "paper+band": ({}, "band"),
+    "distance+band": ({"linearize": "distance"}, "band"),
+    "default_squared": ({"opacity_scaled_inflation": True, "opacity_min": 0.1}, "band"),
 }
 
 

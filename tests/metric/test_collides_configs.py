@@ -147,8 +147,46 @@ def test_blockers_name_faint_haze_and_the_remedy():
     b2 = CollisionChecker(s2, n_sigma=2.0, config=paper).blockers(c, None, ax)
     assert b2.n == 1 and b2.n_inside == 0 and "n_sigma" in b2.remedy()
     assert CollisionChecker(s2, n_sigma=0.0, config=paper).blockers(c, None, ax).n == 0
+    # faint means inside plus an opaque splat reached by the inflation only: both remedies
+    s3 = Splats(np.concatenate([haze, s2.means]), np.tile([1.0, 0, 0, 0], (21, 1)), np.concatenate([np.full((20, 3), 0.08), s2.scales]),
+                np.concatenate([np.full(20, 0.05), s2.opacities]), np.full((21, 3), 0.5))
+    b3 = CollisionChecker(s3, n_sigma=2.0, config=paper).blockers(c, None, ax)
+    assert b3.n_faint < b3.n and b3.n_inside == b3.n_inside_faint > 0
+    assert "--opacity-min 0.3" in b3.remedy() and "--linearize distance" in b3.remedy()
     # at the defaults the haze is free space, and so is the ellipsoid
     assert CollisionChecker(s, n_sigma=1.0).blockers(c, None, ax).n == 0
+
+
+def test_blockers_of_a_ground_robot_say_how_high_above_the_floor():
+    """A ground robot's scene (terrain removed): the blockers carry their height above the floor;
+    matter standing on the floor (its inflation reaches into the step band) gets the step-height
+    remedy, an obstacle higher up does not; the paper's linearisation gets its own remedy."""
+    from splatplan.scenes.splats import Splats
+    from splatplan.scenes.terrain import TerrainConfig, remove_terrain
+
+    rng = np.random.default_rng(1)
+    xy = rng.uniform(-1, 1, (3000, 2))
+    floor = np.c_[xy, rng.normal(0.0, 0.005, 3000)]  # the floor's splats, flat
+    matter = np.array([[0.0, 0.0, 0.07]])  # a rug's fold, 7 cm up, std 3 cm
+    box = np.array([[0.6, 0.0, 0.30]])  # an obstacle, 30 cm up
+    m = np.concatenate([floor, matter, box])
+    sc = np.concatenate([np.tile([0.02, 0.02, 0.002], (3000, 1)), [[0.03, 0.03, 0.03]], [[0.03, 0.03, 0.03]]])
+    s = Splats(m, np.tile([1.0, 0, 0, 0], (len(m), 1)), sc, np.full(len(m), 0.9), np.full((len(m), 3), 0.5))
+    ground, _ = remove_terrain(s, TerrainConfig(floor_z=0.0))
+    assert len(ground) == 2
+    ch = CollisionChecker(ground)
+    b = ch.blockers(np.array([0.0, 0.0, 0.12]), None, np.full(3, 0.05))
+    assert b.n == 1 and b.n_floor_level == 1 and b.floor == (0.0, 0.05) and b.height[0] == pytest.approx(0.07, abs=1e-6)
+    assert "above the floor" in b.summary() and "--terrain-step-height 0.08" in b.remedy()
+    hi = ch.blockers(np.array([0.6, 0.0, 0.25]), None, np.full(3, 0.05))
+    assert hi.n == 1 and hi.n_floor_level == 0 and "terrain" not in hi.remedy()
+    # the paper's linearisation, inflation only: the remedy names the distance linearisation
+    flat, c = np.array([0.3, 0.3, 0.02]), np.array([0.6, 0.0, 0.245])  # a flat link 3.5 cm under the obstacle's mean
+    far = ch.with_config(linearize="squared").blockers(c, None, flat)
+    assert far.n == 1 and far.n_inside == 0 and far.n_floor_level == 0 and "--linearize distance" in far.remedy()
+    assert ch.blockers(c, None, flat).n == 0  # the default (distance) linearisation: free
+    # a scene that is not a ground robot's: no floor
+    assert CollisionChecker(s).blockers(np.array([0.6, 0.0, 0.25]), None, np.full(3, 0.05)).floor is None
 
 
 def test_groups_without_link_poses_are_one_per_ellipsoid():

@@ -25,7 +25,7 @@ def _check_against_reference(scene: Splats, centers, quats, axes, cfg: MetricCon
     """Every output of ``got`` (and the collision-only ``hit``) against the float64 brute force."""
     a = link_matrices(quats, axes, len(centers), rots)
     keep, ns = splat_inflation_ref(scene.opacities, len(scene), cfg)
-    _, s2t = conservative_s2_ref(scene.means[keep], scene.quats[keep], scene.scales[keep], centers, a, ns[keep])  # (B, N)
+    _, s2t = conservative_s2_ref(scene.means[keep], scene.quats[keep], scene.scales[keep], centers, a, ns[keep], cfg.linearize)  # (B, N)
     want_min = s2t.min(1) if s2t.shape[1] else np.full(len(centers), np.inf)
     below = want_min < cfg.s2_cap
     # min_s2: exact (to float32 rounding) below the cap, >= cap (up to rounding) above it

@@ -27,6 +27,9 @@ def _queries(rng, scene, b):
         dict(opacity_min=0.5),
         dict(opacity_scaled_inflation=True),
         dict(opacity_min=0.4, opacity_scaled_inflation=True, softmin_mode="mean", k_collide=2),
+        dict(linearize="squared"),  # the paper's linearisation
+        dict(linearize="squared", opacity_min=0.0, opacity_scaled_inflation=False),  # the paper's settings
+        dict(linearize="distance", opacity_min=0.0, opacity_scaled_inflation=False),
     ],
 )
 def test_options_match_reference(device, opts):
@@ -34,6 +37,44 @@ def test_options_match_reference(device, opts):
     scene = random_scene(rng, 1000)
     c, q, a = _queries(rng, scene, 160)
     _compare(scene, c, q, a, MetricConfig(n_sigma=1.5, **opts), device)
+
+
+@pytest.mark.parametrize("device", DEVICES)
+@pytest.mark.parametrize("linearize", ["distance", "squared"])
+def test_linearize_matches_reference_for_spheres(device, linearize):
+    rng = np.random.default_rng(7)
+    scene = random_scene(rng, 800, scale=0.01)
+    c, q, _ = _queries(rng, scene, 120)
+    _compare(scene, c, q, np.full(3, 0.02), MetricConfig(n_sigma=2.0, linearize=linearize), device)  # a sphere link: the kernel's own branch
+
+
+def test_linearize_distance_is_tighter_and_still_conservative():
+    """Both linearisations are lower bounds of the exact s2 over a splat's n-sigma ellipsoid (s2 and s
+    are convex); the distance's is never below the paper's, and both equal s2 at n_sigma 0."""
+    from splatplan.metric.reference import conservative_s2_ref, link_matrices, quat_to_rotmat
+
+    rng = np.random.default_rng(11)
+    n, b = 300, 40
+    means, quats = rng.uniform(-0.5, 0.5, (n, 3)), random_quats(rng, n)
+    scales = np.exp(rng.normal(np.log(0.05), 0.8, (n, 3)))  # large splats, up to ~0.3
+    centers, axes = rng.uniform(-0.3, 0.3, (b, 3)), np.array([0.17, 0.03, 0.02])  # a thin link (a Go2 calf)
+    a = link_matrices(random_quats(rng, b), axes, b)
+    for ns in (0.5, 1.0, 2.0):
+        s2, dist = conservative_s2_ref(means, quats, scales, centers, a, ns, "distance")
+        _, sq = conservative_s2_ref(means, quats, scales, centers, a, ns, "squared")
+        assert np.all(dist >= sq - 1e-12) and np.all(dist <= s2 + 1e-12)
+        # the exact minimum over the n-sigma ellipsoid, sampled (inside and on its surface): never below
+        u = rng.normal(size=(400, 3))
+        u = u / np.linalg.norm(u, axis=1, keepdims=True) * ns * rng.uniform(0, 1, (400, 1)) ** (1 / 3)
+        u[:200] *= ns / np.linalg.norm(u[:200], axis=1, keepdims=True)
+        pts = means[:, None] + np.einsum("nij,nj,kj->nki", quat_to_rotmat(quats), scales, u)  # (N, K, 3)
+        dp = pts[None] - centers[:, None, None]  # (B, N, K, 3)
+        exact = np.einsum("bnki,bij,bnkj->bnk", dp, a, dp).min(-1)  # (B, N) sampled minimum
+        assert np.all(dist <= exact + 1e-9)
+        assert np.mean(dist > sq + 1e-6) > 0.5  # and tighter for most pairs
+    _, d0 = conservative_s2_ref(means, quats, scales, centers, a, 0.0, "distance")
+    _, q0 = conservative_s2_ref(means, quats, scales, centers, a, 0.0, "squared")
+    np.testing.assert_allclose(d0, q0, rtol=1e-12)
 
 
 def test_reference_backend_takes_the_options():
@@ -77,5 +118,7 @@ def test_bad_options_are_clear_errors():
     rng = np.random.default_rng(0)
     with pytest.raises(SplatplanError, match="softmin_mode"):
         CollisionChecker(random_scene(rng, 5), config=MetricConfig(softmin_mode="max"))
+    with pytest.raises(SplatplanError, match="linearize"):
+        CollisionChecker(random_scene(rng, 5), config=MetricConfig(linearize="cubic"))
     with pytest.raises(SplatplanError, match="opacity_min"):
         CollisionChecker(random_scene(rng, 5), config=MetricConfig(opacity_min=1.5))

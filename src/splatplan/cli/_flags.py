@@ -173,7 +173,7 @@ def add_metric_args(parser: argparse.ArgumentParser) -> None:
 
     add_config_args(parser, MetricConfig, group="metric options (MetricConfig)")
     parser.add_argument("--paper-metric", action="store_true", help="the paper's exact metric settings (every splat counts and is inflated by "
-                        "n_sigma * sigma whatever its opacity: --opacity-min 0 --opacity-scaled-inflation false); explicit metric flags still win")
+                        "n_sigma * sigma whatever its opacity, linearised in s2: --opacity-min 0 --opacity-scaled-inflation false --linearize squared); explicit metric flags still win")
 
 
 def metric_config_from_args(args: argparse.Namespace):

@@ -25,6 +25,14 @@ class Blockers:
         max_std: their largest standard deviation (scene units).
         centroid: (3,) mean of their means (world frame, scene units).
         n_sigma: the checker's n_sigma.
+        linearize: the checker's :attr:`~.config.MetricConfig.linearize`.
+        floor: ``(floor_z, step_height)`` of the terrain removed from the scene for a ground robot
+            (``Splats.info["terrain"]``, :func:`~splatplan.scenes.terrain.remove_terrain`), else None.
+        height: (lowest, highest) height of their means above ``floor_z`` (nan without a floor).
+        n_floor_level: how many reach into the terrain's step band within their inflation (mean z
+            minus n_sigma_i times their std along z below ``floor_z + step_height``): matter standing
+            on the floor, 0 without a floor.
+        n_inside_faint: how many of the ``n_inside`` are faint.
     """
 
     indices: np.ndarray
@@ -35,6 +43,11 @@ class Blockers:
     max_std: float
     centroid: np.ndarray
     n_sigma: float
+    linearize: str = "distance"
+    floor: tuple[float, float] | None = None
+    height: tuple[float, float] = (float("nan"), float("nan"))
+    n_floor_level: int = 0
+    n_inside_faint: int = 0
 
     def remedy(self) -> str:
         """The change that would free the ellipsoid, in words (CLI flag names in parentheses)."""
@@ -43,8 +56,21 @@ class Blockers:
         if self.n_faint == self.n:
             return (f"all are faint (opacity < {FAINT_OPACITY:g}, e.g. haze or floaters): count them as free space with "
                     f"opacity_min = {FAINT_OPACITY:g} (--opacity-min {FAINT_OPACITY:g}), or drop floaters when loading (scene align --drop-floaters)")
-        if self.n_inside == 0:
-            return f"only the n_sigma inflation reaches the robot (no splat mean is inside it): lower n_sigma (--n-sigma, e.g. 0)"
+        if self.floor is not None and self.n_floor_level == self.n:
+            step = self.height[1] + 0.01  # scene units: just above the highest of them
+            return (f"all stand on the floor ({self.height[0]:.3g}-{self.height[1]:.3g} above it, the terrain's step height is {self.floor[1]:g}): "
+                    f"if this is floor-level matter (a rug, dust, a threshold) the robot may step over, raise the step height to {step:.2g} "
+                    f"(TerrainConfig.step_height, --terrain-step-height {step:.2g}); else it is an obstacle: move the configuration")
+        faint = ""
+        if self.n_inside and self.n_inside_faint == self.n_inside:  # only faint means inside: they go with opacity_min
+            faint = (f"the {self.n_inside} splat(s) with the mean inside are faint: count them as free space with opacity_min = "
+                     f"{FAINT_OPACITY:g} (--opacity-min {FAINT_OPACITY:g}); of the rest, ")
+        if self.n_inside == self.n_inside_faint:
+            if self.linearize == "squared":
+                return faint + ("only the n_sigma inflation reaches the robot (no splat mean is inside it), linearised in s2 (the paper's rule, "
+                                "which overshoots for large splats far from thin links): linearise the distance (linearize = 'distance', "
+                                "--linearize distance, the default) or lower n_sigma (--n-sigma, e.g. 0)")
+            return faint + "only the n_sigma inflation reaches the robot (no splat mean is inside it): lower n_sigma (--n-sigma, e.g. 0)"
         return "splat means lie inside the robot: move the configuration away from them, or shrink the robot"
 
     def summary(self) -> str:
@@ -53,5 +79,8 @@ class Blockers:
             return "no splat"
         lo, med, hi = self.opacity
         c = ", ".join(f"{v:.3f}" for v in self.centroid)
+        where = ""
+        if self.floor is not None:
+            where = f", {self.height[0]:.3g}-{self.height[1]:.3g} above the floor ({self.n_floor_level} standing on it)"
         return (f"{self.n} splat(s) ({self.n_inside} with the mean inside, {self.n_faint} faint) of opacity {lo:.3g}-{hi:.3g} "
-                f"(median {med:.3g}), std up to {self.max_std:.3g}, around ({c}) (scene units)")
+                f"(median {med:.3g}), std up to {self.max_std:.3g}, around ({c}){where} (scene units)")

@@ -191,6 +191,7 @@ class CollisionChecker:
         messages and diagnostics, not a hot loop). ``center`` (3,) world frame, ``quat`` (4,) wxyz
         world <- link or None, ``semi_axes`` (3,) scene units.
         """
+        from ..scenes.splats import quat_to_rotmat
         from .reference import conservative_s2_ref, link_matrices, splat_inflation_ref
         from .wp_metric_kernel import search_radius
 
@@ -203,16 +204,26 @@ class CollisionChecker:
         keep, ns = splat_inflation_ref(sc.opacities, len(sc), self.config)
         near = near[keep[near]]
         a = link_matrices(None if quat is None else np.asarray(quat, dtype=np.float64).reshape(1, 4), ax, 1)
-        s2, s2c = conservative_s2_ref(np.asarray(sc.means)[near], np.asarray(sc.quats)[near], np.asarray(sc.scales)[near], c[None], a, ns[near])
+        s2, s2c = conservative_s2_ref(np.asarray(sc.means)[near], np.asarray(sc.quats)[near], np.asarray(sc.scales)[near], c[None], a, ns[near], self.config.linearize)
         hit = s2c[0] < 1.0
         idx = near[hit]
         op = np.asarray(sc.opacities, dtype=np.float64)[idx]
+        terrain = (sc.info or {}).get("terrain")  # a ground robot's scene (scenes.terrain.remove_terrain)
+        floor, height, n_floor = None, (np.nan, np.nan), 0
+        if terrain is not None and idx.size:
+            fz, step = float(terrain["floor_z"]), float(terrain["step_height"])
+            z = np.asarray(sc.means, dtype=np.float64)[idx, 2]
+            rz = quat_to_rotmat(np.asarray(sc.quats, dtype=np.float64)[idx])[:, 2, :]  # (n, 3): row z of R
+            sz = np.sqrt(np.sum((rz * np.asarray(sc.scales, dtype=np.float64)[idx]) ** 2, axis=1))  # std along z
+            floor, height = (fz, step), (float(z.min() - fz), float(z.max() - fz))
+            n_floor = int(np.sum(z - ns[idx] * sz < fz + step))
         return Blockers(
             indices=idx, n=int(idx.size), n_inside=int(np.sum(s2[0][hit] < 1.0)), n_faint=int(np.sum(op < FAINT_OPACITY)),
             opacity=(float(op.min()), float(np.median(op)), float(op.max())) if idx.size else (np.nan,) * 3,
             max_std=float(sig[idx].max()) if idx.size else np.nan,
             centroid=np.asarray(sc.means, dtype=np.float64)[idx].mean(axis=0) if idx.size else np.full(3, np.nan),
-            n_sigma=float(self.config.n_sigma),
+            n_sigma=float(self.config.n_sigma), linearize=self.config.linearize, floor=floor, height=height, n_floor_level=n_floor,
+            n_inside_faint=int(np.sum((s2[0][hit] < 1.0) & (op < FAINT_OPACITY))),
         )  # fmt: skip
 
     # ------------------------------------------------------------------ robots

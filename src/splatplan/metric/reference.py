@@ -40,8 +40,12 @@ def conservative_s2_ref(
     centers: np.ndarray,  # (B, 3)
     link_A: np.ndarray,  # (B, 3, 3)
     n_sigma: float | np.ndarray,  # scalar or per splat (N,)
+    linearize: str = "distance",  # MetricConfig.linearize: "distance" or "squared" (the paper)
 ) -> tuple[np.ndarray, np.ndarray]:
-    """(s2, s2~) for every (query, splat) pair, each float64 (B, N). Use on small inputs only."""
+    """(s2, s2~) for every (query, splat) pair, each float64 (B, N). Use on small inputs only.
+
+    ``linearize`` (:attr:`MetricConfig.linearize`): "squared" s2~ = max(0, s2 - n sigma) (the paper),
+    "distance" s2~ = max(0, sqrt(s2) - n sigma / (2 sqrt(s2)))^2."""
     d = splat_means[None, :, :].astype(np.float64) - centers[:, None, :].astype(np.float64)  # (B, N, 3)
     ad = np.einsum("bij,bnj->bni", link_A, d)  # A d
     s2 = np.einsum("bni,bni->bn", d, ad)
@@ -49,7 +53,14 @@ def conservative_s2_ref(
     rot = quat_to_rotmat(splat_quats)  # (N, 3, 3)
     m = np.einsum("nji,bnj->bni", rot, g) * splat_scales[None].astype(np.float64)  # diag(s) R^T g
     sigma = np.linalg.norm(m, axis=-1)
-    return s2, np.maximum(0.0, s2 - np.asarray(n_sigma, dtype=np.float64) * sigma)
+    ns = np.asarray(n_sigma, dtype=np.float64)
+    if linearize == "squared":
+        return s2, np.maximum(0.0, s2 - ns * sigma)
+    if linearize != "distance":
+        raise ValueError(f"linearize must be 'distance' or 'squared', got {linearize!r}")
+    t = s2 - 0.5 * ns * sigma  # s * s~: positive exactly when s~ > 0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return s2, np.where(t > 0.0, t * t / np.where(s2 > 0.0, s2, 1.0), 0.0)
 
 
 def splat_inflation_ref(opacities: np.ndarray | None, n: int, config: MetricConfig) -> tuple[np.ndarray, np.ndarray]:
@@ -97,7 +108,7 @@ def collision_metric_ref(
     t = config.softmin_t
     for lo in range(0, b, chunk):
         hi = min(b, lo + chunk)
-        _, s2t = conservative_s2_ref(splat_means, splat_quats, splat_scales, centers[lo:hi], a_all[lo:hi], ns)
+        _, s2t = conservative_s2_ref(splat_means, splat_quats, splat_scales, centers[lo:hi], a_all[lo:hi], ns, config.linearize)
         out["min_s2"][lo:hi] = s2t.min(axis=1) if s2t.shape[1] else np.inf
         ncol[lo:hi] = (s2t < 1.0).sum(axis=1)
         nb = s2t < config.s2_cap  # the neighbourhood N(q)

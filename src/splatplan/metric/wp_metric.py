@@ -113,6 +113,7 @@ def metric_params(cfg: MetricConfig, pow_m: int, collide_clip: bool = False) -> 
     p.opacity_scaled = 1 if cfg.opacity_scaled_inflation else 0
     p.use_opacity = 1 if (cfg.opacity_min > 0 or cfg.opacity_scaled_inflation) else 0
     p.collide_clip = 1 if collide_clip else 0
+    p.lin_distance = 1 if cfg.linearize == "distance" else 0
     return p
 
 
@@ -441,7 +442,7 @@ class WarpMetric:
         else:
             slack_arr, want = slack, 1
         pk = (cfg.n_sigma, cfg.s2_cap, cfg.softmin_t, cfg.softmin_mode, cfg.cost_d_max, cfg.cost_gamma, cfg.cost_s_min, cfg.cost_reduce,
-              cfg.k_collide, cfg.opacity_min, cfg.opacity_scaled_inflation, self.tiers.collide_row_clip)  # every field metric_params reads
+              cfg.k_collide, cfg.opacity_min, cfg.opacity_scaled_inflation, cfg.linearize, self.tiers.collide_row_clip)  # every field metric_params reads
         params = self._params_cache.get(pk)
         if params is None:
             params = metric_params(cfg, 0, self.tiers.collide_row_clip)

@@ -21,7 +21,8 @@ s2~ >= cap whenever s >= k + sqrt(k^2 + cap), and since s >= |d| / a_max every s
 rho = a_max (k + sqrt(k^2 + cap)) has s2~ >= cap. :func:`search_radius` is that rho (times a
 relative slack of 1e-4 against float32 rounding); it is the one definition of the formula, used by
 the kernels, by the glue (grid cell sizes) and by the tests. The opacity options only shrink the
-inflation (o_i <= 1) or drop splats, so the same radius stays exact. The same bound in s, s2 >
+inflation (o_i <= 1) or drop splats, and the distance linearisation (LINEARISATION below) gives an
+s2~ no smaller than the paper's, so the same radius stays exact. The same bound in s, s2 >
 (rho / a_max)^2, rejects candidates inside the bounding sphere but far outside an elongated link
 before their inflation is computed.
 
@@ -85,6 +86,16 @@ rho from every point within ``slack`` of the centre, so the same link (same semi
 orientation) with its centre anywhere within ``slack`` of this one's is free too, and the kernel
 would read no splat for it. Other links get 0 (nothing proven). Robot edge checks use it to skip
 check samples that are proven free (:class:`~splatplan.planners.rrt.EdgeChecker`).
+
+LINEARISATION (``MetricParams.lin_distance``). With g = |diag(s) R^T A d| (so the paper's
+sigma = 2 g), the paper linearises s2 at the splat mean: s2~ = max(0, s2 - 2 n g). The default
+linearises the scaling distance s = sqrt(s2) instead: s~ = s - n g / s, s2~ = max(0, s~)^2 =
+(s2 - n g)^2 / s2 when s2 > n g, else 0. Both are tangent planes of a convex function (s2 resp. s is
+convex in the point), so both are lower bounds of the exact minimum over the splat's n-sigma
+ellipsoid (never miss a splat whose ellipsoid reaches into the link); the distance's is the tighter
+one, s~^2 = s2 - 2 n g + (n g / s)^2 >= s2 - 2 n g, and the gap is the quadratic term the paper
+drops, which grows with s: a thin link (a Go2 calf, 2 cm) "touched" by a 25 cm wall splat a metre
+away under the paper's rule is 12 scaling distances clear of it under the distance rule.
 
 Invalid queries (non-finite centre, rotation or semi-axes, a zero quaternion, a semi-axis <= 0)
 are never reported free: their outputs are min_s2 = softmin = cost = NaN, n_colliding = -1,
@@ -237,6 +248,7 @@ class MetricParams:
     opacity_scaled: int  # 1: inflation n_sigma * o_i * sigma_i
     use_opacity: int  # 1 when either opacity option is active (else opacity is never read)
     collide_clip: int  # 1: the collision-only kernel clips rows to the link's ellipsoid too (ROW_CLIP)
+    lin_distance: int  # 1: linearise the scaling distance s, 0: s2 (the paper) (LINEARISATION)
 
 
 @wp.struct
@@ -301,9 +313,22 @@ def link_valid(links: LinkBatch, q: int, c: wp.vec3, ax: wp.vec3):
 
 
 @wp.func
-def link_s2(d: wp.vec3, dd: float, link_a: wp.mat33, sphere: bool, inv_r2: float, mrows: wp.array(dtype=wp.mat33), i: int, n_sigma: float, s2_cut: float):
+def inflated_s2(s2: float, g: float, n_sigma: float, lin_distance: int):
+    """s2~ from s2 and g = |diag(s) R^T A d| (LINEARISATION): the paper's max(0, s2 - 2 n g), or with
+    ``lin_distance`` the squared linearised distance (s2 - n g)^2 / s2 (0 when s2 <= n g)."""
+    if lin_distance == 0:
+        return wp.max(0.0, s2 - n_sigma * 2.0 * g)
+    t = s2 - n_sigma * g
+    if t <= 0.0:
+        return 0.0
+    return t * t / s2
+
+
+@wp.func
+def link_s2(d: wp.vec3, dd: float, link_a: wp.mat33, sphere: bool, inv_r2: float, mrows: wp.array(dtype=wp.mat33), i: int, n_sigma: float, s2_cut: float,
+            lin_distance: int):
     """s2~ of splat i (``mrows[i]`` = its diag(s) R^T, read only when n_sigma > 0); for a sphere link
-    (A = I / r^2, so A d = d / r^2) it reuses dd = |d|^2.
+    (A = I / r^2, so A d = d / r^2) it reuses dd = |d|^2. ``lin_distance``: LINEARISATION.
 
     For other links, a splat with s2 > s2_cut = (rho / a_max)^2 is returned as +inf before its
     inflation is computed: by the radius bound it has s2~ >= cap anyway (this prunes the corners
@@ -312,14 +337,14 @@ def link_s2(d: wp.vec3, dd: float, link_a: wp.mat33, sphere: bool, inv_r2: float
     if sphere:
         if n_sigma == 0.0:  # no inflation (the term below would be 0): skip the splat's matrix
             return dd * inv_r2
-        return wp.max(0.0, (dd - n_sigma * 2.0 * wp.length(mrows[i] * d)) * inv_r2)
+        return inflated_s2(dd * inv_r2, wp.length(mrows[i] * d) * inv_r2, n_sigma, lin_distance)
     ad = link_a * d
     s2 = wp.dot(d, ad)
     if s2 > s2_cut:
         return float(wp.inf)
     if n_sigma == 0.0:
         return wp.max(0.0, s2)
-    return wp.max(0.0, s2 - n_sigma * wp.length(mrows[i] * (2.0 * ad)))
+    return inflated_s2(s2, wp.length(mrows[i] * ad), n_sigma, lin_distance)
 
 
 @wp.func
@@ -616,7 +641,7 @@ def metric_full_kernel(
                             ns = splat_inflation(splats, p, i)
                             if ns < 0.0:
                                 continue
-                            v = link_s2(d, dd, a, sphere, inv_r2, splats.mrows, i, ns, s2_cut)
+                            v = link_s2(d, dd, a, sphere, inv_r2, splats.mrows, i, ns, s2_cut, p.lin_distance)
                             best = wp.min(best, v)
                             if v < 1.0:
                                 ncol += 1
@@ -766,7 +791,7 @@ def link_collides(links: LinkBatch, q: int, splats: SplatTiers, dgrid: MeanDista
                         if dd <= rho2:
                             ns = splat_inflation(splats, p, i)
                             if ns >= 0.0:
-                                if link_s2(d, dd, a, sphere, inv_r2, splats.mrows, i, ns, s2_cut) < 1.0:
+                                if link_s2(d, dd, a, sphere, inv_r2, splats.mrows, i, ns, s2_cut, p.lin_distance) < 1.0:
                                     ncol += 1
     return ncol > k_collide, float(0.0), True
 

@@ -61,6 +61,7 @@ def splat_s2_tilde(
     semi_axes: np.ndarray,  # (E, 3)
     n_sigma: float,
     candidates: list[np.ndarray] | None = None,  # per ellipsoid: indices of splats to evaluate (None = all)
+    linearize: str = "distance",  # MetricConfig.linearize
 ) -> np.ndarray:
     """Per splat: min over the ellipsoids of the metric's s2~ (N,), for colouring.
 
@@ -76,7 +77,7 @@ def splat_s2_tilde(
         idx = np.arange(n) if candidates is None else candidates[e]
         if len(idx) == 0:
             continue
-        _, s2t = conservative_s2_ref(means[idx], splat_quats[idx], scales[idx], centers[e : e + 1], a[e : e + 1], n_sigma)
+        _, s2t = conservative_s2_ref(means[idx], splat_quats[idx], scales[idx], centers[e : e + 1], a[e : e + 1], n_sigma, linearize)
         np.minimum.at(out, idx, s2t[0])
     return out
 
