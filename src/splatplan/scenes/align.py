@@ -64,7 +64,8 @@ import numpy as np
 from .._config import bounded, check_config
 from ..errors import SplatplanError
 from .floor import floor_surface_mask, splat_normals
-from .filters import far_shell_mask, isolated_mask
+from .conventions import capture_convention
+from .filters import far_shell_mask, floater_mask, isolated_mask
 from .splats import Splats
 from .transforms import apply_rigid, scale as scale_scene
 
@@ -437,8 +438,8 @@ def _choose_support(bounding: list[Plane], cfg: AlignConfig) -> tuple[Plane, flo
     if angle > cfg.max_hint_angle:
         raise AlignmentRefused(
             f"the only clear support plane ({_describe_plane(best)}) is {angle:.0f} degrees from the capture convention's "
-            f"up ({cfg.up_hint}): a wall behind a fixture (use --wall) or a file in another convention (if that plane is "
-            f"the floor, give --up {nearest_axis(best.normal)})", bounding)  # fmt: skip
+            f"up ({cfg.up_hint}): a chair's back, a wall behind a fixture (then use --wall) or the floor of a file in another "
+            f"convention (then --up {nearest_axis(best.normal)}; check with --png)", bounding)  # fmt: skip
     margin = margin_of(best, True)
     if margin < cfg.min_margin:
         rival = max((p for p in supports if p is not best and float(p.normal @ best.normal) < np.cos(np.radians(30.0))), key=score)
@@ -652,12 +653,10 @@ def oversized_splats(splats: Splats, fraction: float = 0.25, percentile: float =
 
 
 def default_up_hint(path) -> str:
-    """The ``up_hint`` for a scene file: ``+z`` when splatplan wrote it z-up (an ``.align.json`` or
-    ``.gt.json`` sidecar beside it), else ``-y`` (the INRIA/COLMAP capture convention)."""
-    from pathlib import Path
-
-    p = Path(path)
-    return "+z" if p.with_suffix(".align.json").is_file() or p.with_suffix(".gt.json").is_file() else "-y"
+    """The ``up_hint`` for a scene file: ``+z`` when splatplan wrote it (a ``.align.json`` or
+    ``.gt.json`` sidecar beside it) or a nerfstudio ``.ply`` header says so, else ``-y`` (the
+    INRIA/COLMAP convention); :func:`splatplan.scenes.conventions.capture_convention`."""
+    return capture_convention(path)[0]
 
 
 def describe_frame(splats: Splats, config: AlignConfig | None = None) -> dict:
@@ -682,8 +681,17 @@ def describe_frame(splats: Splats, config: AlignConfig | None = None) -> dict:
         },
         "warnings": [],
     }
+    far = far_shell_mask(m)
+    far_r = np.linalg.norm(m[far] - np.median(m, axis=0), axis=1)
+    d["background_shell"] = {
+        "count": int(far.sum()),
+        "radius_median": float(np.median(far_r)) if far.any() else None,
+        "rule": "splats beyond the first wide empty gap in the distances from the scene's centre (scenes/filters.py far_shell_mask); "
+                "`splatplan scene align` drops them (--keep-shell keeps them)",
+    }  # fmt: skip
+    core = splats.subset(~far) if far.any() else splats
     try:
-        g = guess_up(splats, cfg)
+        g = guess_up(core, cfg)
         d["up_guess"] = g.to_json()
         height = float(np.percentile(m[inside] @ g.up, 100.0 - cfg.box_percentile) - g.floor_height)
         d["height_above_floor"] = height
@@ -708,9 +716,16 @@ def describe_frame(splats: Splats, config: AlignConfig | None = None) -> dict:
     if np.median(splats.opacities) < 0.1:
         d["warnings"].append(f"most splats are nearly transparent (median opacity {float(np.median(splats.opacities)):.3g}; {transparent:.0%} below 0.1): "
                              "opacity may be stored as a logit or the file is mostly haze; collision checks may see little")  # fmt: skip
+    if far.any():
+        d["warnings"].append(f"a background shell of {int(far.sum()):,} splat(s) at median radius {d['background_shell']['radius_median']:.3g} units: "
+                             "`splatplan scene align IN --out OUT.ply` drops it (--keep-shell keeps it)")  # fmt: skip
     absurd = oversized_splats(splats, percentile=cfg.box_percentile)
     d["absurd_splats"] = int(absurd.sum())
-    if absurd.any():
-        d["warnings"].append(f"{int(absurd.sum())} absurd splat(s): largest std up to {float(splats.scales.max()):.3g} units in a scene of robust extent {ext:.3g}; "
-                             "remove them (align --crop, or the floater filter) before planning")  # fmt: skip
+    rest = absurd & ~far
+    if rest.any():
+        faint = int((rest & floater_mask(splats.opacities, splats.scales)[0]).sum())
+        how = (f"{faint} of them are faint and large: the default floater filter drops those when a scene is loaded; " if faint else "") + (
+            "remove the others with `splatplan scene align IN --out OUT.ply --crop LO HI` (a box in the aligned frame)" if faint < int(rest.sum()) else "")
+        d["warnings"].append(f"{int(rest.sum())} absurd splat(s) outside any background shell: largest std up to {float(splats.scales[rest].max()):.3g} units "
+                             f"in a scene of robust extent {ext:.3g}; {how}".rstrip("; "))  # fmt: skip
     return d
