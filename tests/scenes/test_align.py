@@ -142,7 +142,9 @@ def test_cli_scene_align_writes_scene_and_sidecar(tmp_path, capsys):
     assert len(a) == len(load_scene(src, filter_floaters=False))
     assert main(["info", str(out)]) == 0
     info = capsys.readouterr().out
-    assert "up axis guess: +z" in info and "robust bounds" in info
+    assert "aligned by `splatplan scene align`" in info and "z-up, floor at z = 0" in info and "robust bounds" in info
+    assert main(["info", str(out), "--json"]) == 0  # the fit on the aligned file agrees with the record
+    assert json.loads(capsys.readouterr().out)["up_guess"]["up_axis"] == "+z"
     for argv, needle in (
         (["scene", "align", str(src), "--out", str(tmp_path / "x.ply"), "--scale", "nan"], "scale"),
         (["scene", "align", str(src), "--out", str(tmp_path / "x.ply"), "--translate", "0,0,-5"], "below the floor"),
