@@ -59,7 +59,10 @@ def room_y_down(seed=0, floor_y=0.4, shell=True) -> Splats:
 
 def test_align_room_finds_up_and_puts_the_floor_at_zero():
     s = room_y_down(floor_y=0.4)
-    out, res = align_scene(s)
+    dropped, dres = align_scene(s)  # by default the far sky shell (the last 2000 splats) is dropped
+    assert dres.n_shell_dropped == 2000 and len(dropped) == len(s) - 2000
+    np.testing.assert_allclose(dropped.means, s.means[:-2000].astype(np.float64) @ dres.transform[:3, :3].T + dres.transform[:3, 3], atol=1e-5)
+    out, res = align_scene(s, AlignConfig(keep_shell=True))
     assert np.dot(res.up.up, [0, -1, 0]) > np.cos(np.radians(1.0))  # the capture's -y is up
     assert res.up.floor_height == pytest.approx(-0.4, abs=0.02)  # along up = -y
     assert len(out) == len(s) and res.n_cropped == 0
@@ -139,7 +142,9 @@ def test_cli_scene_align_writes_scene_and_sidecar(tmp_path, capsys):
     assert len(a) == len(load_scene(src, filter_floaters=False))
     assert main(["info", str(out)]) == 0
     info = capsys.readouterr().out
-    assert "up axis guess: +z" in info and "robust bounds" in info
+    assert "aligned by `splatplan scene align`" in info and "z-up, floor at z = 0" in info and "robust bounds" in info
+    assert main(["info", str(out), "--json"]) == 0  # the fit on the aligned file agrees with the record
+    assert json.loads(capsys.readouterr().out)["up_guess"]["up_axis"] == "+z"
     for argv, needle in (
         (["scene", "align", str(src), "--out", str(tmp_path / "x.ply"), "--scale", "nan"], "scale"),
         (["scene", "align", str(src), "--out", str(tmp_path / "x.ply"), "--translate", "0,0,-5"], "below the floor"),

@@ -4,10 +4,12 @@ from __future__ import annotations
 
 import json
 from dataclasses import replace
+from datetime import datetime, timezone
 from pathlib import Path
 
 import numpy as np
 
+from .. import __version__
 from ..errors import SplatplanError
 from ._common import _Unset, _load, add_command, dumps_json, add_seed_arg, add_config_args, atomic_dir, config_from_args, float_arg, int_arg, move_into, parse_vec3
 
@@ -35,9 +37,14 @@ def cmd_info(args) -> int:
         "absurd": absurd_splats(s),  # values a corrupt file or a wrong unit gives (scenes.sanity)
     }
     from ..scenes.align import AlignConfig, default_up_hint, describe_frame
+    from ..scenes.conventions import align_sidecar_path, read_align_sidecar
 
     frame = describe_frame(s, AlignConfig(up_hint=args.up_hint or default_up_hint(args.scene)))
     info.update(frame)
+    side = read_align_sidecar(args.scene)
+    if side is not None:  # written by `scene align`: its record, not a new guess, says where up is
+        info["aligned"] = {"sidecar": str(align_sidecar_path(args.scene)), "frame": side.get("frame"), "floor_z": side.get("floor_z"),
+                           "date": side.get("date"), "wall": side.get("wall"), "matches_file": side.get("n_out") == len(s)}  # fmt: skip
     if args.json:
         print(dumps_json(info))
         return 0
@@ -56,7 +63,12 @@ def cmd_info(args) -> int:
     else:
         print("  shell/outliers: none outside the robust box")
     g = frame["up_guess"]
-    if g is None:
+    al = info.get("aligned")
+    if al is not None and not al["matches_file"]:
+        print(f"  warning: {al['sidecar']} records an alignment of a different file (splat count differs); guessing instead")
+    if al is not None and al["matches_file"]:
+        print(f"  aligned by `splatplan scene align`{' on ' + al['date'] if al.get('date') else ''}: {al['frame']} (recorded in {al['sidecar']})")
+    elif g is None:
         print(f"  up axis: no guess ({frame['up_note']})")
     else:
         print(f"  up axis guess: {g['up_axis']} (normal {g['up']}, confidence {g['confidence']:.2f}); floor at {g['floor_height']:.4g} along it "
@@ -69,7 +81,7 @@ def cmd_info(args) -> int:
 
 def cmd_align(args) -> int:
     """`splatplan scene align IN --out OUT`: write the aligned scene and its transform sidecar."""
-    from ..scenes.align import AlignConfig, align_scene, default_up_hint
+    from ..scenes.align import AlignConfig, align_scene, default_up_hint, nearest_axis
     from ..scenes.load import save_scene
 
     if args.input is None:
@@ -101,32 +113,61 @@ def cmd_align(args) -> int:
         cfg = replace(cfg, crop=tuple(lo) + tuple(hi))
     if args.drop_floaters:
         cfg = replace(cfg, drop_floaters=True)
+    if args.keep_shell:
+        cfg = replace(cfg, keep_shell=True)
+    if args.wall is not None:
+        cfg = replace(cfg, wall=args.wall)
+    png = None if args.png is None else Path(args.png)
+    if png is not None and (png.suffix.lower() != ".png" or png.is_dir() or not png.parent.exists()):
+        raise SplatplanError(f"--png {args.png}: expected a PATH.png in an existing folder")
     cfg.validate()
     scene = _load(args.input, filter_floaters=False)
     aligned, res = align_scene(scene, cfg)
-    doc = {"input": str(args.input), "output": str(out), **res.to_json()}
+    doc = {"input": str(args.input), "output": str(out), "written_by": f"splatplan {__version__} scene align",
+           "date": datetime.now(timezone.utc).isoformat(timespec="seconds"), "floor_z": res.floor_z(), **res.to_json()}  # fmt: skip
     side = sidecar_path(out)
-    with atomic_dir(out.parent) as tmp:  # both files appear together or not at all
+    fig = None
+    if png is not None:
+        from ..scenes.align_plot import alignment_figure
+
+        up_txt = "given" if res.up is None else f"{res.up.to_json()['up_axis']} of the input ({res.up.method})"
+        fig = alignment_figure(aligned, f"{out.name}: {res.frame_text()}; up = {up_txt}", res.floor_z(), None if cfg.wall == "none" else cfg.wall)
+    with atomic_dir(out.parent) as tmp:  # the files appear together or not at all
         save_scene(aligned, tmp / out.name)
         (tmp / side.name).write_text(dumps_json(doc, indent=2) + "\n")
+        if fig is not None:
+            fig.savefig(tmp / "view.png", dpi=80)
+            move_into(tmp / "view.png", png)
         move_into(tmp / side.name, side)
         move_into(tmp / out.name, out)
     g = res.up
-    if g is not None:
-        print(f"up: {g.to_json()['up_axis']} (normal {np.round(g.up, 4).tolist()}, {g.method}, confidence {g.confidence:.2f}); floor at {g.floor_height:.4g} along it -> z = 0")
-    dropped = [f"--crop dropped {res.n_cropped:,}"] if res.n_cropped else []
+    if g is not None and res.wall is not None:
+        print(f"wall: normal {np.round(res.wall['normal_in'], 4).tolist()} of the input -> {res.wall['axis']}, the wall at 0 along it; "
+              f"up {nearest_axis(g.up)} (normal {np.round(g.up, 4).tolist()}, {res.wall['up_source']})")  # fmt: skip
+    elif g is not None and g.method == "given":
+        print(f"up: {cfg.up} (given); floor at {g.floor_height:.4g} along it -> z = {res.floor_z() if res.floor_z() is not None else 0:g}")
+    elif g is not None:
+        why = "; only the capture convention (--align-up-hint) separated it from the runner-up" if g.hint_decides else ""
+        print(f"up: {g.to_json()['up_axis']} (normal {np.round(g.up, 4).tolist()}, support plane under {g.plane.coverage:.0%} of the scene, "
+              f"margin {g.margin:.2f}, confidence {g.confidence:.2f}{why}); floor at {g.floor_height:.4g} along it -> z = {res.floor_z():g}")  # fmt: skip
+    if res.n_shell_dropped:
+        print(f"dropped a background shell of {res.n_shell_dropped:,} splats far beyond the scene (--keep-shell keeps it)")
+    dropped = [f"the shell {res.n_shell_dropped:,}"] if res.n_shell_dropped else []
+    dropped += [f"--crop dropped {res.n_cropped:,}"] if res.n_cropped else []
     dropped += [f"--drop-floaters dropped {res.n_floaters:,}"] if res.n_floaters else []
     crop = f"; {' and '.join(dropped)} of {res.n_in:,} splats (the rest in order)" if dropped else "; every splat kept, in order"
     print(f"transform (x_out = T [x_in; 1], scale {res.scale:g}):")
     for row in res.transform:
         print("  [" + ", ".join(f"{v: .6f}" for v in row) + "]")
-    print(f"wrote {out} ({res.n_out:,} splats{crop}) and {side}")
+    print(f"wrote {out} ({res.n_out:,} splats{crop}) and {side}" + (f"; the views in {png}" if png is not None else ""))
     return 0
 
 
 def sidecar_path(out: Path) -> Path:
     """The transform sidecar of an aligned scene: PATH.ply -> PATH.align.json."""
-    return Path(out).with_suffix(".align.json")
+    from ..scenes.conventions import align_sidecar_path
+
+    return align_sidecar_path(out)
 
 
 def cmd_scene(args) -> int:
@@ -145,7 +186,8 @@ def cmd_scene(args) -> int:
             raise SplatplanError(f"--{flag.replace('_', '-')} goes with 'splatplan scene from-moveit SCENE.yaml --out X.ply'")
     if args.input is not None:
         raise SplatplanError(f"scene {args.name}: unexpected argument {args.input!r} (only 'scene align IN' and 'scene from-moveit SCENE.yaml' take an input)")
-    given = [f for f in ("up", "floor", "scale", "rotate_z", "translate", "crop") if getattr(args, f) is not None] + (["drop_floaters"] if args.drop_floaters else [])
+    given = [f for f in ("up", "floor", "scale", "rotate_z", "translate", "crop", "wall", "png") if getattr(args, f) is not None]
+    given += [f for f in ("drop_floaters", "keep_shell") if getattr(args, f)]
     if given:
         raise SplatplanError(f"--{given[0].replace('_', '-')} is an option of 'scene align IN --out OUT', not of a built-in scene")
     if args.name not in BUILTIN_SCENES:
@@ -218,19 +260,22 @@ def register(sub, eval_sub) -> None:
     s.add_argument("--json", action="store_true", help="print one JSON object")
     s.add_argument("--up-hint", default=None, choices=("+x", "-x", "+y", "-y", "+z", "-z"),
                    help="capture convention that breaks ties between perpendicular bounding planes in the up guess "
-                   "(default +z for files splatplan wrote, with a .align.json/.gt.json beside them, else -y)")  # fmt: skip
+                   "(default +z for files splatplan wrote, with a .align.json/.gt.json beside them, and nerfstudio plys, else -y)")  # fmt: skip
     from ..scenes.align import AlignConfig
+    from ..scenes.conventions import FORMAT_FRAMES
 
     s = add_command(sub, "scene", cmd_scene, "write a built-in scene or splats of a MoveIt planning scene with its ground truth, or align a capture",
                     "`scene NAME --out PATH.ply` writes a built-in scene; `scene from-moveit SCENE.yaml --out PATH.ply` samples "
                     "a MoveIt planning scene into splats (ground truth in PATH.gt.json); `scene align IN --out OUT.ply` puts a capture in the "
-                    "robot's world (z up, floor at z = 0; the transform goes to OUT.align.json and is printed).")  # fmt: skip
+                    "robot's world (z up, floor at z = 0; the transform goes to OUT.align.json and is printed). With --up auto it refuses "
+                    "rather than guess when no plane supports the scene or two could be the floor. Frames after loading: "
+                    + "; ".join(f"{k}: {v}" for k, v in FORMAT_FRAMES.items()) + ".")  # fmt: skip
     s.add_argument("name", metavar="NAME", help="built-in scene name: stonehenge | tabletop | apartment; or 'from-moveit' or 'align'")
     s.add_argument("input", metavar="IN", nargs="?", default=None, help="align: the input splat file; from-moveit: a MoveIt planning-scene "
                    "YAML (box, cylinder, sphere primitives)")  # fmt: skip
     s.add_argument("--out", required=True, help="PATH.ply (built-in / from-moveit: ground truth goes to PATH.gt.json; align: the transform to PATH.align.json)")
     g = s.add_argument_group("align options")
-    g.add_argument("--up", default=None, help="align: the input's up axis: auto (fitted floor/table plane, default) | +x | -x | +y | -y | +z | -z")
+    g.add_argument("--up", default=None, help="align: the input's up axis: auto (the plane under the scene, default; refuses when unsure) | +x | -x | +y | -y | +z | -z")
     g.add_argument("--floor", default=None, help="align: auto (fitted, default) | none | Z (floor height along the up axis, input units) -> z = 0")
     g.add_argument("--scale", type=float_arg(ge=1e-6, le=1e6), default=None, help="align: uniform scale after the rotation (default 1)")
     g.add_argument("--rotate-z", type=float_arg(ge=-3600, le=3600), default=None, help="align: rotation about the new z axis, degrees (default 0)")
@@ -238,7 +283,13 @@ def register(sub, eval_sub) -> None:
     g.add_argument("--crop", nargs=2, default=None, metavar=("LO", "HI"), help="align: keep splats in the box LO=X,Y,Z .. HI=X,Y,Z (aligned frame); says how many were dropped")
     g.add_argument("--drop-floaters", action="store_true", help="align: drop faint isolated splats (floaters in free space: opacity < 0.3, "
                    "mean 8-NN distance > 3x the median); says how many")  # fmt: skip
-    add_config_args(s, AlignConfig, prefix="align_", skip=("up", "floor", "scale", "rotate_z", "translate", "crop", "drop_floaters"), group="align fit options (AlignConfig)")
+    g.add_argument("--wall", default=None, choices=("+x", "-x", "+y", "-y"), help="align a wall fixture (a tap, a switch): the largest wall-like plane's normal "
+                   "(out of the wall) goes to this axis and the wall to 0 along it; up from --up, else the capture convention")  # fmt: skip
+    g.add_argument("--keep-shell", action="store_true", help="align: keep a detected background shell (far splats beyond an empty gap; dropped and counted by default)")
+    g.add_argument("--png", default=None, metavar="FILE.png", help="align: draw the aligned scene (front, side, top views coloured by height, the floor, "
+                   "the up axis) to check that up is up")  # fmt: skip
+    add_config_args(s, AlignConfig, prefix="align_", skip=("up", "floor", "scale", "rotate_z", "translate", "crop", "drop_floaters", "keep_shell", "wall"),
+                    group="align fit options (AlignConfig)")  # fmt: skip
     s.add_argument("--haze", action="store_true", help="apartment only: add the real-capture look of phone captures of apartments "
                    "(faint haze above the floor, a mirror layer under a shiny kitchen floor, floor-level matter)")
     s.add_argument("--level", type=int_arg(ge=1, le=5), default=1, help="Gaussian-size level 1..5 (larger, fewer splats)")

@@ -18,23 +18,41 @@ How ``up = "auto"`` works (all on the splat means, weighted by opacity):
    means within ``plane_tol`` (a fraction of the robust box's diagonal) whose own normal, when
    flat, agrees within 25 degrees. The best plane is refined by a weighted least-squares fit on
    its inliers, removed, and the search repeats (``n_planes`` planes).
-3. **Bounding planes.** A floor (or the table under an object) has the scene on one side: only
-   planes with at most ``max_below`` of the robust mass beyond them qualify; the up axis is
-   their normal, oriented towards the scene.
-4. **Choice.** Rooms have several bounding planes (floor, ceiling, walls). Each candidate scores
-   ``mass * (0.25 + max(0, n . up_hint))``: the plane's share of the splat mass, favouring the capture
-   convention's up axis (``up_hint``, default ``-y`` for INRIA/COLMAP-style y-down captures) as
-   a tie-break between perpendicular planes. The confidence reported is
-   ``one_sided * (1 - runner_up_score / best_score)`` (1 = one unambiguous bounding plane).
+3. **Support planes.** A floor (or the table under an object) has the scene on one side and
+   the scene's mass over it: a candidate has at most ``max_below`` of the robust mass beyond it
+   (a *bounding* plane, its normal oriented towards the scene) **and** at least ``min_coverage``
+   of the off-plane mass projects inside the convex hull of its inliers (a table disc covers the
+   house on it, the hidden patch under the house included; a chair's back, also a bounding
+   plane, leaves the seat and the legs hanging beyond its edges and is no support).
+4. **Choice, or a refusal.** Rooms have several supports (floor, ceiling, walls). Each scores
+   ``mass * coverage * (0.25 + max(0, n . up_hint))``: its share of the splat mass, favouring the
+   capture convention's up axis (``up_hint``, default ``-y`` for INRIA/COLMAP-style y-down
+   captures) as a tie-break between perpendicular planes. The margin is
+   ``1 - runner_up / best`` over the supports more than 30 degrees from the best. ``up = auto``
+   **refuses** (:class:`AlignmentRefused`, asking for ``--up``) rather than guess when no plane
+   supports the scene, when the best support is more than ``max_hint_angle`` from the capture
+   convention (a wall behind a fixture, or a file in another convention) or when the margin is
+   below ``min_margin`` (two planes could be the floor). The confidence reported is
+   ``one_sided * coverage * margin``; ``hint_decides`` says when only the convention separated
+   the best from the runner-up.
 
 The floor height is the opacity-weighted median height of the chosen plane's inliers after the
 rotation (so the floor's splats straddle z = 0). With an explicit ``up`` axis the floor is the
 densest bounding layer perpendicular to it (the same candidates, restricted to normals within
 10 degrees of the axis).
 
-What it can miss: a scene whose largest bounding plane is a wall and that disagrees with the
-hint (give ``up`` explicitly), an object scan with no supporting plane (``up = auto`` then raises
-:class:`~splatplan.errors.SplatplanError` and suggests ``--up``), a sloped floor (one plane).
+**Wall fixtures** (``wall``, e.g. a shower tap): the largest bounding plane within 30 degrees of
+vertical is the wall; up is ``up`` when given, else the capture convention's up made exactly
+parallel to the wall; the wall's normal (pointing out of the wall, towards the fixture) is turned
+to the ``wall`` axis and the wall moved to 0 along it.
+
+**Background shells** (:func:`~splatplan.scenes.filters.far_shell_mask`: splats beyond a wide
+empty gap in the distances from the scene's centre, e.g. a 240 m sphere around a 1 m object) are
+dropped from the output unless ``keep_shell``; the result counts them.
+
+What it cannot do: know an object's up without a support plane (a chair without its floor, a
+person: ``up = auto`` refuses and asks for ``--up``), see a sloped floor (one plane), or find the
+up of a room captured in another convention than ``up_hint`` (it refuses; give ``--up``).
 """
 
 from __future__ import annotations
@@ -46,7 +64,8 @@ import numpy as np
 from .._config import bounded, check_config
 from ..errors import SplatplanError
 from .floor import floor_surface_mask, splat_normals
-from .filters import isolated_mask
+from .conventions import capture_convention
+from .filters import far_shell_mask, floater_mask, isolated_mask
 from .splats import Splats
 from .transforms import apply_rigid, scale as scale_scene
 
@@ -87,6 +106,12 @@ class AlignConfig:
     #: 3x the scene's median; the floor's flat splats left out, scenes/floor.py floor_surface_mask; scenes/filters.py
     #: isolated_mask); the count is reported
     drop_floaters: bool = False
+    #: keep a detected background shell (far splats beyond an empty gap, scenes/filters.py
+    #: far_shell_mask); by default it is dropped and counted
+    keep_shell: bool = False
+    #: wall fixture: turn the largest wall-like plane's normal (out of the wall) to this axis and move
+    #: the wall to 0 along it; up from ``up`` or the capture convention (none: no wall alignment)
+    wall: str = bounded("none", choices=("none", "+x", "-x", "+y", "-y"))
     #: auto up: the capture convention that breaks ties between perpendicular bounding planes
     up_hint: str = bounded("-y", choices=("+x", "-x", "+y", "-y", "+z", "-z", "x", "y", "z"))
     #: robust box: per-axis percentile of the means that bounds the fit (and info's robust bounds)
@@ -101,6 +126,12 @@ class AlignConfig:
     max_below: float = bounded(0.1, ge=0, le=0.5)
     #: a plane needs at least this fraction of the robust splat mass
     min_plane_mass: float = bounded(0.02, ge=0, le=1)
+    #: auto up: a support plane has at least this fraction of the off-plane mass over its inliers' hull
+    min_coverage: float = bounded(0.6, ge=0, le=1)
+    #: auto up: refuse when 1 - runner_up / best score is below this (two planes could be the floor)
+    min_margin: float = bounded(0.3, ge=0, le=1)
+    #: auto up: refuse when the best support's normal is further than this from up_hint (degrees)
+    max_hint_angle: float = bounded(45.0, ge=0, le=180)
     #: means used by the fit (a seeded random subset of the robust box)
     max_points: int = bounded(30000, ge=1, le=10_000_000)
     #: RANSAC hypotheses per plane
@@ -157,6 +188,17 @@ class Plane:
     one_sided: float  # share of the robust mass not beyond the plane (1 = everything on the normal's side)
     n_inliers: int
     inliers: np.ndarray = field(repr=False, default_factory=lambda: np.zeros(0, np.int64))  # indices into the fit subset
+    coverage: float = 0.0  # share of the off-plane mass projecting inside the inliers' convex hull (see support_coverage)
+
+
+class AlignmentRefused(SplatplanError):
+    """``up = auto`` will not guess: no plane supports the scene, the best one disagrees with the
+    capture convention, or two planes could be the floor. The message says which and asks for
+    ``--up``; ``candidates`` holds the bounding planes that were weighed (input frame)."""
+
+    def __init__(self, message: str, candidates: list[Plane] | None = None):
+        super().__init__(message)
+        self.candidates = list(candidates or [])
 
 
 @dataclass
@@ -169,6 +211,8 @@ class UpGuess:
     plane: Plane | None  # the chosen plane (None when the axis was given and no plane matched)
     candidates: list[Plane]  # every bounding plane considered
     method: str
+    margin: float = 1.0  # 1 - runner_up / best score over the supports (1: no rival; auto only)
+    hint_decides: bool = False  # only the capture convention (up_hint) separated best and runner-up
 
     def to_json(self) -> dict:
         return {
@@ -176,8 +220,11 @@ class UpGuess:
             "up_axis": nearest_axis(self.up),
             "floor_height": round(float(self.floor_height), 6),
             "confidence": round(float(self.confidence), 3),
+            "margin": round(float(self.margin), 3),
+            "hint_decides": bool(self.hint_decides),
             "method": self.method,
             "plane_mass": None if self.plane is None else round(self.plane.mass, 4),
+            "plane_coverage": None if self.plane is None else round(self.plane.coverage, 3),
             "n_bounding_planes": len(self.candidates),
         }
 
@@ -195,19 +242,35 @@ class AlignResult:
     n_shell: int
     config: AlignConfig
     n_floaters: int = 0
+    n_shell_dropped: int = 0  # background-shell splats dropped (0 with keep_shell)
+    wall: dict | None = None  # the wall of ``wall`` alignment (WallFit.to_json), None otherwise
+
+    def floor_z(self) -> float | None:
+        """The floor's height in the output (output units): ``translate``'s z when the floor was
+        fitted or given, None with ``floor = none`` (z = 0 is then the input's origin)."""
+        return None if self.config.floor == "none" else float(self.config.translate[2])
+
+    def frame_text(self) -> str:
+        """One line: the output frame (up, floor, wall, units)."""
+        fz = self.floor_z()
+        floor = "floor not moved (z = 0 is the input's origin along up)" if fz is None else f"floor at z = {fz:g}"
+        wall = "" if self.wall is None else f", wall normal {self.wall['axis']} with the wall at 0 along it"
+        return f"z-up, {floor}{wall}, units = input units * {self.scale:g}"
 
     def to_json(self) -> dict:
         return {
             "transform": np.round(self.transform, 9).tolist(),
             "scale": float(self.scale),
             "convention": "x_out = T @ [x_in, 1] (T = [[scale * R, t], [0, 1]]); quaternions q_out = q_R * q_in (wxyz); stds * scale",
-            "frame": "z-up, floor at z = 0, units = input units * scale",
+            "frame": self.frame_text(),
             "up": None if self.up is None else self.up.to_json(),
             "n_in": self.n_in,
             "n_out": self.n_out,
             "n_cropped": self.n_cropped,
             "n_floaters_dropped": self.n_floaters,
+            "n_shell_dropped": self.n_shell_dropped,
             "n_shell_outside_robust_box": self.n_shell,
+            "wall": self.wall,
             "options": {k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(self.config).items()},
         }
 
@@ -310,13 +373,107 @@ def _rotation_to_z(up: np.ndarray) -> np.ndarray:
     return np.eye(3) + k + k @ k / (1.0 + c)
 
 
+def support_coverage(means: np.ndarray, weights: np.ndarray, plane: Plane, tol: float, max_hull_points: int = 20000) -> float:
+    """Share of the off-plane weight whose projection onto ``plane`` falls inside the convex hull
+    of the plane's inliers (grown by 5% about its centroid): 1 for a floor or a table disc under
+    an object (the hidden patch under the object included), low for a chair's back (the seat and
+    legs hang beyond it). ``means`` (M, 3) and ``weights`` (M,) are the fit subset of
+    :func:`fit_planes` (input frame); off-plane = farther than ``3 tol`` from the plane. 0 when
+    the inliers span no area."""
+    from scipy.spatial import ConvexHull, Delaunay, QhullError
+
+    n = np.asarray(plane.normal, np.float64)
+    a = np.cross(n, [1.0, 0.0, 0.0] if abs(n[0]) < 0.9 else [0.0, 1.0, 0.0])
+    a /= np.linalg.norm(a)
+    b = np.cross(n, a)
+    uv = np.asarray(means, np.float64) @ np.stack([a, b], axis=1)  # (M, 2) in-plane coordinates
+    inl = plane.inliers
+    if len(inl) > max_hull_points:
+        inl = inl[np.linspace(0, len(inl) - 1, max_hull_points).astype(np.int64)]
+    pts = uv[inl]
+    try:
+        hull = pts[ConvexHull(pts).vertices]
+        c = hull.mean(axis=0)
+        tri = Delaunay(c + 1.05 * (hull - c))
+    except (QhullError, ValueError):  # collinear or too few inliers: no area
+        return 0.0
+    off = np.abs(np.asarray(means, np.float64) @ n - plane.offset) > 3.0 * tol
+    w = np.asarray(weights, np.float64)[off]
+    if w.sum() <= 0:
+        return 1.0
+    inside = tri.find_simplex(uv[off]) >= 0
+    return float(w[inside].sum() / w.sum())
+
+
+def _describe_plane(p: Plane) -> str:
+    return f"normal {nearest_axis(p.normal)} {np.round(p.normal, 2).tolist()}, {p.mass:.0%} of the mass, coverage {p.coverage:.0%}"
+
+
+def _choose_support(bounding: list[Plane], cfg: AlignConfig) -> tuple[Plane, float, float, bool]:
+    """(best plane, confidence, margin, hint_decides) of ``up = auto``; raises :class:`AlignmentRefused`."""
+    hint = np.asarray(AXES[cfg.up_hint], np.float64)
+    ask = "give the up axis with --up (+x, -x, +y, -y, +z, -z; --png draws what you get)"
+    if not bounding:
+        raise AlignmentRefused(
+            "no plane to align to: no large plane bounds the scene (an object scan without a table or floor?); "
+            f"{ask} and the floor with --floor Z or --floor none"
+        )
+    supports = [p for p in bounding if p.coverage >= cfg.min_coverage]
+    if not supports:
+        p = max(bounding, key=lambda q: q.mass)
+        raise AlignmentRefused(
+            f"no plane supports the scene: the largest one-sided plane ({_describe_plane(p)}) leaves "
+            f"{1 - p.coverage:.0%} of the rest hanging beyond its edges (a chair's back or a wall, not a floor); "
+            f"{ask}; the capture convention says {cfg.up_hint}", bounding)  # fmt: skip
+
+    def score(p: Plane, with_hint: bool = True) -> float:
+        return p.mass * p.coverage * ((0.25 + max(0.0, float(p.normal @ hint))) if with_hint else 1.0)
+
+    def margin_of(best: Plane, with_hint: bool) -> float:
+        rivals = [score(p, with_hint) for p in supports if float(p.normal @ best.normal) < np.cos(np.radians(30.0))]
+        return 1.0 - (max(rivals) / score(best, with_hint) if rivals else 0.0)
+
+    best = max(supports, key=score)
+    angle = float(np.degrees(np.arccos(np.clip(best.normal @ hint, -1.0, 1.0))))
+    if angle > cfg.max_hint_angle:
+        raise AlignmentRefused(
+            f"the only clear support plane ({_describe_plane(best)}) is {angle:.0f} degrees from the capture convention's "
+            f"up ({cfg.up_hint}): a chair's back, a wall behind a fixture (then use --wall) or the floor of a file in another "
+            f"convention (then --up {nearest_axis(best.normal)}; check with --png)", bounding)  # fmt: skip
+    margin = margin_of(best, True)
+    if margin < cfg.min_margin:
+        rival = max((p for p in supports if p is not best and float(p.normal @ best.normal) < np.cos(np.radians(30.0))), key=score)
+        raise AlignmentRefused(
+            f"ambiguous up: two planes could be the floor ({_describe_plane(best)}; {_describe_plane(rival)}; "
+            f"margin {margin:.2f} < {cfg.min_margin:g}); {ask}", bounding)  # fmt: skip
+    plain_best = max(supports, key=lambda p: score(p, False))
+    hint_decides = plain_best is not best or margin_of(best, False) < cfg.min_margin
+    return best, best.one_sided * best.coverage * margin, margin, hint_decides
+
+
 def guess_up(splats: Splats, config: AlignConfig | None = None) -> UpGuess:
     """The up axis and floor height of a scene in its own frame (see the module docstring).
 
     Raises:
-        SplatplanError: ``up = auto`` and no plane bounds the scene (suggests ``--up``).
+        AlignmentRefused: ``up = auto`` and no plane supports the scene, the best one disagrees
+            with ``up_hint`` or two planes could be the floor (the message asks for ``--up``).
     """
     cfg = (config or AlignConfig()).validate()
+    m, w, bounding = _bounding_planes(splats, cfg)
+    margin, hint_decides = 1.0, False
+    if cfg.up == "auto":
+        plane, conf, margin, hint_decides = _choose_support(bounding, cfg)
+        up, method = plane.normal, "support-plane"
+        floor = _floor_along(up, plane, m, w, cfg)
+    else:
+        up = np.asarray(AXES[cfg.up], np.float64)
+        floor, plane = _floor_for_axis(up, bounding, m, w, cfg)
+        conf, method = 1.0, "given"
+    return UpGuess(np.asarray(up, np.float64), float(floor), float(conf), plane, bounding, method, float(margin), hint_decides)
+
+
+def _bounding_planes(splats: Splats, cfg: AlignConfig) -> tuple[np.ndarray, np.ndarray, list[Plane]]:
+    """(fit means (M, 3), weights (M,), bounding planes with their coverage): steps 1-3 of the module doc."""
     if len(splats) < 10:
         raise SplatplanError(f"cannot fit a floor to {len(splats)} splat(s); give --up and --floor")
     lo, hi, inside = robust_box(splats.means, cfg.box_percentile, cfg.box_pad, shell_weights(splats))
@@ -330,30 +487,76 @@ def guess_up(splats: Splats, config: AlignConfig | None = None) -> UpGuess:
     tol = cfg.plane_tol * float(np.linalg.norm(hi - lo))
     planes = fit_planes(m, normals, flat, w, tol, cfg.n_planes, cfg.n_hypotheses, cfg.seed)
     bounding = [p for p in planes if p.one_sided >= 1.0 - cfg.max_below and p.mass >= cfg.min_plane_mass]
-    if cfg.up == "auto":
-        hint = np.asarray(AXES[cfg.up_hint])
-        if not bounding:
-            raise SplatplanError(
-                "no plane to align to: no large plane bounds the scene (an object scan without a table or floor?); "
-                "give the up axis with --up (+y, -y, +z, ...) and the floor with --floor Z or --floor none"
-            )
-        scores = np.array([p.mass * (0.25 + max(0.0, float(p.normal @ hint))) for p in bounding])
-        order = np.argsort(-scores)
-        best = bounding[int(order[0])]
-        runner = float(scores[order[1]]) if len(order) > 1 else 0.0
-        conf = best.one_sided * (1.0 - runner / float(scores[order[0]]))
-        up, plane, method = best.normal, best, "ransac-bounding-plane"
-    else:
-        up = np.asarray(AXES[cfg.up], np.float64)
-        match = [p for p in bounding if float(p.normal @ up) > np.cos(np.radians(10.0))]
-        plane = max(match, key=lambda p: p.mass) if match else None
-        conf, method = 1.0, "given"
-    if plane is not None:
-        wi = w[plane.inliers]
-        floor = _weighted_median(m[plane.inliers] @ up, wi)
-    else:  # no plane: the robust bottom of the scene along up
-        floor = float(np.percentile(m @ up, cfg.box_percentile))
-    return UpGuess(np.asarray(up, np.float64), float(floor), float(conf), plane, bounding, method)
+    for p in bounding:
+        p.coverage = support_coverage(m, w, p, tol)
+    return m, w, bounding
+
+
+def _floor_for_axis(up: np.ndarray, bounding: list[Plane], m: np.ndarray, w: np.ndarray, cfg: AlignConfig) -> tuple[float, Plane | None]:
+    """(floor height along ``up``, its plane or None): the densest bounding plane within 10 degrees
+    of ``up``, else the robust bottom of the scene (the ``box_percentile`` percentile along up)."""
+    match = [p for p in bounding if float(p.normal @ up) > np.cos(np.radians(10.0))]
+    plane = max(match, key=lambda p: p.mass) if match else None
+    return _floor_along(up, plane, m, w, cfg), plane
+
+
+def _floor_along(up: np.ndarray, plane: Plane | None, m: np.ndarray, w: np.ndarray, cfg: AlignConfig) -> float:
+    if plane is not None:  # the opacity-weighted median height of the plane's inliers
+        return _weighted_median(m[plane.inliers] @ up, w[plane.inliers])
+    return float(np.percentile(m @ up, cfg.box_percentile))
+
+
+@dataclass
+class WallFit:
+    """The wall of ``wall`` alignment (input frame): the plane, its horizontal normal, the up axis used."""
+
+    plane: Plane  # the wall (normal towards the fixture)
+    normal: np.ndarray  # (3,) unit, the wall's normal made perpendicular to ``up``
+    offset: float  # the wall's position along ``normal`` (input units; weighted median of its inliers)
+    up: np.ndarray  # (3,) unit, input frame
+    up_source: str  # "given" or "capture convention <axis>"
+
+    def to_json(self, axis: str) -> dict:
+        return {"axis": axis, "normal_in": np.round(self.normal, 6).tolist(), "offset_in": round(float(self.offset), 6),
+                "plane_mass": round(self.plane.mass, 4), "up_source": self.up_source}  # fmt: skip
+
+
+def fit_wall(splats: Splats, config: AlignConfig | None = None) -> tuple[WallFit, UpGuess]:
+    """The wall of a wall-fixture capture and the up axis (see ``wall`` in the module docstring).
+
+    Returns:
+        (the wall, an :class:`UpGuess` with the floor along up: a floor plane when one bounds the
+        scene, else the robust bottom of the scene).
+
+    Raises:
+        AlignmentRefused: no large one-sided plane within 30 degrees of vertical, or (up from the
+            capture convention) the wall is nearly perpendicular to the convention's up.
+    """
+    cfg = (config or AlignConfig()).validate()
+    m, w, bounding = _bounding_planes(splats, cfg)
+    given = cfg.up != "auto"
+    up0 = np.asarray(AXES[cfg.up if given else cfg.up_hint], np.float64)
+    src = "given" if given else f"capture convention {cfg.up_hint}"
+    walls = [p for p in bounding if abs(float(p.normal @ up0)) < np.sin(np.radians(30.0))]
+    if not walls:
+        seen = "; ".join(_describe_plane(p) for p in bounding) or "none"
+        raise AlignmentRefused(f"no wall: no large one-sided plane within 30 degrees of vertical (up {nearest_axis(up0)}, {src}); "
+                               f"bounding planes: {seen}; give the up axis with --up", bounding)  # fmt: skip
+    wall = max(walls, key=lambda p: p.mass)
+    n = wall.normal
+    up = up0 if given else up0 - float(up0 @ n) * n  # the convention's up made parallel to the wall
+    up = up / np.linalg.norm(up)
+    h = n - float(n @ up) * up
+    h = h / np.linalg.norm(h)
+    offset = _weighted_median(m[wall.inliers] @ h, w[wall.inliers])
+    floor, plane = _floor_for_axis(up, bounding, m, w, cfg)
+    return WallFit(wall, h, offset, up, src), UpGuess(up, floor, 1.0, plane, bounding, f"wall (up {src})")
+
+
+def _rz(angle: float) -> np.ndarray:
+    """(3, 3) rotation by ``angle`` radians about +z."""
+    c, sn = np.cos(angle), np.sin(angle)
+    return np.array([[c, -sn, 0.0], [sn, c, 0.0], [0.0, 0.0, 1.0]])
 
 
 def _weighted_median(x: np.ndarray, w: np.ndarray) -> float:
@@ -376,9 +579,14 @@ def align_scene(splats: Splats, config: AlignConfig | None = None) -> tuple[Spla
     cfg = (config or AlignConfig()).validate()
     if len(splats) == 0:
         raise SplatplanError("the scene has no splats")
-    guess = None
-    if cfg.up == "auto" or cfg.floor == "auto":
-        guess = guess_up(splats, cfg)
+    shell = far_shell_mask(splats.means)
+    core = splats.subset(~shell) if shell.any() else splats  # the fit never sees the shell
+    guess, wall = None, None
+    if cfg.wall != "none":
+        wall, guess = fit_wall(core, cfg)
+        up = wall.up
+    elif cfg.up == "auto" or cfg.floor == "auto":
+        guess = guess_up(core, cfg)
         up = guess.up
     else:
         up = np.asarray(AXES[cfg.up], np.float64)
@@ -388,12 +596,20 @@ def align_scene(splats: Splats, config: AlignConfig | None = None) -> tuple[Spla
         floor = 0.0
     else:
         floor = float(cfg.floor)
-    a = np.radians(cfg.rotate_z)
-    rz = np.array([[np.cos(a), -np.sin(a), 0.0], [np.sin(a), np.cos(a), 0.0], [0.0, 0.0, 1.0]])
-    r = rz @ _rotation_to_z(up)
+    r = _rotation_to_z(up)
     s = float(cfg.scale)
-    t = np.array([0.0, 0.0, -s * floor]) + np.asarray(cfg.translate, np.float64)
-    out = scale_scene(apply_rigid(splats, r, np.zeros(3)), s)
+    t = np.array([0.0, 0.0, -s * floor])
+    if wall is not None:  # turn the wall's normal to the wall axis, the wall to 0 along it
+        axis = np.asarray(AXES[cfg.wall], np.float64)
+        h = r @ wall.normal
+        turn = np.arctan2(axis[1], axis[0]) - np.arctan2(h[1], h[0])
+        r = _rz(turn) @ r
+        t = t - s * wall.offset * axis
+    rz = _rz(np.radians(cfg.rotate_z))
+    r = rz @ r
+    t = rz @ t + np.asarray(cfg.translate, np.float64)
+    src = splats.subset(~shell) if shell.any() and not cfg.keep_shell else splats
+    out = scale_scene(apply_rigid(src, r, np.zeros(3)), s)
     out = apply_rigid(out, np.eye(3), t)
     _, _, inside = robust_box(out.means, cfg.box_percentile, cfg.box_pad, shell_weights(out))
     z90 = float(np.percentile(out.means[inside, 2], 90.0))
@@ -401,7 +617,6 @@ def align_scene(splats: Splats, config: AlignConfig | None = None) -> tuple[Spla
         raise SplatplanError(
             f"the transform puts the scene below the floor (90% of the splats under z = {z90:.3g}); check --up (its sign), --floor and --translate"
         )
-    n_in = len(out)
     n_floaters = 0
     if cfg.drop_floaters:
         # the floor's surface is left out of the test (its own splats and their neighbours), the rest of
@@ -421,7 +636,9 @@ def align_scene(splats: Splats, config: AlignConfig | None = None) -> tuple[Spla
     transform = np.eye(4)
     transform[:3, :3] = s * r
     transform[:3, 3] = t
-    res = AlignResult(transform, s, guess, n_in, len(out), n_cropped, int((~inside).sum()), cfg, n_floaters)
+    n_shell = 0 if cfg.keep_shell else int(shell.sum())
+    wall_doc = None if wall is None else wall.to_json(cfg.wall)
+    res = AlignResult(transform, s, guess, len(splats), len(out), n_cropped, int((~inside).sum()), cfg, n_floaters, n_shell, wall_doc)
     out.info["align"] = res.to_json()
     return out, res
 
@@ -436,12 +653,10 @@ def oversized_splats(splats: Splats, fraction: float = 0.25, percentile: float =
 
 
 def default_up_hint(path) -> str:
-    """The ``up_hint`` for a scene file: ``+z`` when splatplan wrote it z-up (an ``.align.json`` or
-    ``.gt.json`` sidecar beside it), else ``-y`` (the INRIA/COLMAP capture convention)."""
-    from pathlib import Path
-
-    p = Path(path)
-    return "+z" if p.with_suffix(".align.json").is_file() or p.with_suffix(".gt.json").is_file() else "-y"
+    """The ``up_hint`` for a scene file: ``+z`` when splatplan wrote it (a ``.align.json`` or
+    ``.gt.json`` sidecar beside it) or a nerfstudio ``.ply`` header says so, else ``-y`` (the
+    INRIA/COLMAP convention); :func:`splatplan.scenes.conventions.capture_convention`."""
+    return capture_convention(path)[0]
 
 
 def describe_frame(splats: Splats, config: AlignConfig | None = None) -> dict:
@@ -466,8 +681,17 @@ def describe_frame(splats: Splats, config: AlignConfig | None = None) -> dict:
         },
         "warnings": [],
     }
+    far = far_shell_mask(m)
+    far_r = np.linalg.norm(m[far] - np.median(m, axis=0), axis=1)
+    d["background_shell"] = {
+        "count": int(far.sum()),
+        "radius_median": float(np.median(far_r)) if far.any() else None,
+        "rule": "splats beyond the first wide empty gap in the distances from the scene's centre (scenes/filters.py far_shell_mask); "
+                "`splatplan scene align` drops them (--keep-shell keeps them)",
+    }  # fmt: skip
+    core = splats.subset(~far) if far.any() else splats
     try:
-        g = guess_up(splats, cfg)
+        g = guess_up(core, cfg)
         d["up_guess"] = g.to_json()
         height = float(np.percentile(m[inside] @ g.up, 100.0 - cfg.box_percentile) - g.floor_height)
         d["height_above_floor"] = height
@@ -492,9 +716,16 @@ def describe_frame(splats: Splats, config: AlignConfig | None = None) -> dict:
     if np.median(splats.opacities) < 0.1:
         d["warnings"].append(f"most splats are nearly transparent (median opacity {float(np.median(splats.opacities)):.3g}; {transparent:.0%} below 0.1): "
                              "opacity may be stored as a logit or the file is mostly haze; collision checks may see little")  # fmt: skip
+    if far.any():
+        d["warnings"].append(f"a background shell of {int(far.sum()):,} splat(s) at median radius {d['background_shell']['radius_median']:.3g} units: "
+                             "`splatplan scene align IN --out OUT.ply` drops it (--keep-shell keeps it)")  # fmt: skip
     absurd = oversized_splats(splats, percentile=cfg.box_percentile)
     d["absurd_splats"] = int(absurd.sum())
-    if absurd.any():
-        d["warnings"].append(f"{int(absurd.sum())} absurd splat(s): largest std up to {float(splats.scales.max()):.3g} units in a scene of robust extent {ext:.3g}; "
-                             "remove them (align --crop, or the floater filter) before planning")  # fmt: skip
+    rest = absurd & ~far
+    if rest.any():
+        faint = int((rest & floater_mask(splats.opacities, splats.scales)[0]).sum())
+        how = (f"{faint} of them are faint and large: the default floater filter drops those when a scene is loaded; " if faint else "") + (
+            "remove the others with `splatplan scene align IN --out OUT.ply --crop LO HI` (a box in the aligned frame)" if faint < int(rest.sum()) else "")
+        d["warnings"].append(f"{int(rest.sum())} absurd splat(s) outside any background shell: largest std up to {float(splats.scales[rest].max()):.3g} units "
+                             f"in a scene of robust extent {ext:.3g}; {how}".rstrip("; "))  # fmt: skip
     return d

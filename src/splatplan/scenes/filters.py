@@ -113,3 +113,33 @@ def isolated_mask(
     dk = d[:, 1:].mean(axis=1)
     out[idx] = (np.asarray(opacities)[idx] < opacity_below) & (dk > factor * float(np.median(dk)))
     return out
+
+
+def far_shell_mask(
+    means: np.ndarray,  # (N, 3) scene units
+    gap: float = 2.0,
+    far: float = 4.0,
+) -> np.ndarray:
+    """(N,) bool: a background shell and far floaters: the splats beyond the first wide empty gap
+    in their distances from the scene's centre (the per-axis median of the means).
+
+    Sorted by distance r, the cut is the first pair of neighbours with ``r[i+1] >= gap * r[i]``
+    (nothing between r and ``gap`` r: an empty spherical band) that lies beyond the median
+    distance and starts at ``r[i+1] >= far`` times it; everything past the cut is the shell. A
+    240 m sky sphere around a 1 m capture, or a few splats 50 m out, are cut; a room's walls and
+    the open ground of an outdoor capture (distances without such a gap) are not. Size and
+    opacity play no part, so a shell of small opaque splats is found too. Assumes the shell holds
+    fewer splats than the scene (the median is the scene's).
+    """
+    m = np.asarray(means, np.float64)
+    out = np.zeros(len(m), bool)
+    if len(m) < 4:
+        return out
+    r = np.linalg.norm(m - np.median(m, axis=0), axis=1)
+    rs = np.sort(r)
+    r_med = float(rs[len(rs) // 2])
+    ratio = rs[1:] / np.maximum(rs[:-1], 1e-30)
+    ok = (ratio >= gap) & (rs[1:] >= far * r_med) & (np.arange(len(rs) - 1) >= len(rs) // 2)
+    if ok.any():
+        out = r > rs[int(np.argmax(ok))]
+    return out
