@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 
@@ -67,8 +69,10 @@ def test_start_in_collision_names_links(tabletop_small):
     q = robot.q_default.copy()
     q[1] = 1.7  # shoulder forward: the arm lies on the table
     q[3] = -0.3
-    with pytest.raises(SplatplanError, match=r"in collision.*panda_link\d \(\d+ splats\)"):
+    with pytest.raises(SplatplanError, match=r"in collision.*panda_\w+ \(\d+ splats\)") as err:
         check_start(robot, tabletop_small.checker, q)
+    named = re.findall(r"(panda_\w+) \(\d+ splats\)", str(err.value))
+    assert named and len(named) == len(set(named))  # each link once
 
 
 def test_tiny_base_run_moves_toward_the_goal():

@@ -149,7 +149,13 @@ def test_line_of_sight_is_conservative_against_the_metric_along_the_segment(go2)
     fast = line_of_sight(mem.opaque, mem.origin, mem.sight_res, p0, tg, end=mem.cell)
     ref = _line_of_sight_reference(ts.checker, mem.sensor_height, p0, tg, end=mem.cell)
     assert not (fast & ~ref).any()  # visible implies the metric finds every point of the segment free
-    assert (fast == ref).mean() >= 0.9 and 10 < fast.sum() < len(tg) - 10, ((fast == ref).mean(), fast.sum())
+    assert 10 < fast.sum() < len(tg) - 10, fast.sum()
+    # ... and it is conservative by at most the squares' size: a square is opaque when its
+    # circumscribed sphere (radius res / sqrt 2) meets a splat, so a segment whose points are free by
+    # the metric for spheres of sqrt(2) res (+ the reference's sample spacing) is visible
+    big = _line_of_sight_reference(ts.checker, mem.sensor_height, p0, tg, end=mem.cell, radius=np.sqrt(2.0) * mem.sight_res + 0.005)
+    assert not (big & ~fast).any(), int((big & ~fast).sum())
+    assert big.sum() >= 0.9 * fast.sum(), (big.sum(), fast.sum())  # the bound is not vacuous
 
 
 def test_a_wall_hides_the_cells_behind_it_until_the_base_drives_around_it(go2):

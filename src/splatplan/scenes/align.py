@@ -57,7 +57,7 @@ up of a room captured in another convention than ``up_hint`` (it refuses; give `
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass
 
 import numpy as np
 
@@ -66,6 +66,7 @@ from ..errors import SplatplanError
 from .floor import floor_surface_mask, splat_normals
 from .conventions import capture_convention
 from .filters import far_shell_mask, floater_mask, isolated_mask
+from .planes import Plane, describe_plane, fit_planes, nearest_axis, robust_box, rotation_to_z, shell_weights, support_coverage
 from .splats import Splats
 from .transforms import apply_rigid, scale as scale_scene
 
@@ -178,19 +179,6 @@ class AlignConfig:
         return self
 
 
-@dataclass
-class Plane:
-    """A fitted plane n . x = d (input frame), its share of the robust splat mass, and how one-sided the scene is."""
-
-    normal: np.ndarray  # (3,) unit, oriented towards the bulk of the scene
-    offset: float  # d, input units
-    mass: float  # opacity-weighted inlier share of the robust subset
-    one_sided: float  # share of the robust mass not beyond the plane (1 = everything on the normal's side)
-    n_inliers: int
-    inliers: np.ndarray = field(repr=False, default_factory=lambda: np.zeros(0, np.int64))  # indices into the fit subset
-    coverage: float = 0.0  # share of the off-plane mass projecting inside the inliers' convex hull (see support_coverage)
-
-
 class AlignmentRefused(SplatplanError):
     """``up = auto`` will not guess: no plane supports the scene, the best one disagrees with the
     capture convention, or two planes could be the floor. The message says which and asks for
@@ -275,140 +263,6 @@ class AlignResult:
         }
 
 
-def nearest_axis(v: np.ndarray) -> str:
-    """'+x'..'-z': the signed coordinate axis nearest to ``v`` (3,)."""
-    i = int(np.argmax(np.abs(v)))
-    return ("+" if v[i] >= 0 else "-") + "xyz"[i]
-
-
-def robust_box(means: np.ndarray, percentile: float = 1.0, pad: float = 0.1, weights: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(lo (3,), hi (3,), inside (N,) bool): the per-axis weighted percentile box of ``means``
-    (N, 3), padded by ``pad`` of its size per side; ``inside`` marks the means in it (the rest: a
-    shell or far outliers). ``weights`` (N,) default 1; :func:`shell_weights` makes a shell of
-    many huge splats count little even when it holds a large share of the splats."""
-    m = np.asarray(means, np.float64)
-    w = np.ones(len(m)) if weights is None else np.asarray(weights, np.float64)
-    lo, hi = np.empty(3), np.empty(3)
-    for k in range(3):
-        o = np.argsort(m[:, k])
-        cw = np.cumsum(w[o])
-        cw /= cw[-1]
-        lo[k] = m[o[min(np.searchsorted(cw, percentile / 100.0), len(o) - 1)], k]
-        hi[k] = m[o[min(np.searchsorted(cw, 1.0 - percentile / 100.0), len(o) - 1)], k]
-    size = hi - lo
-    lo, hi = lo - pad * size, hi + pad * size
-    inside = np.all((m >= lo) & (m <= hi), axis=1)
-    return lo, hi, inside
-
-
-def shell_weights(splats: Splats) -> np.ndarray:
-    """(N,) weights of the robust box: opacity / max(largest std, median largest std)^2, so a sky
-    shell or a cloud of huge floaters (large stds) hardly moves the box's percentiles while the
-    scene's surfaces (small, opaque splats) define it."""
-    smax = splats.scales.max(axis=1).astype(np.float64)
-    ref = max(float(np.median(smax)), 1e-12)
-    return splats.opacities.astype(np.float64) / np.maximum(smax, ref) ** 2 + 1e-12
-
-
-def fit_planes(means, normals, flat, weights, tol: float, n_planes: int = 6, n_hypotheses: int = 800, seed: int = 0) -> list[Plane]:
-    """Sequential one-point RANSAC (see the module docstring, step 2).
-
-    Args:
-        means: (M, 3) input frame. normals: (M, 3) unit. flat: (M,) bool. weights: (M,) >= 0.
-        tol: inlier distance (input units).
-
-    Returns:
-        up to ``n_planes`` planes, in the order found; ``normal`` points to the side holding most
-        of the weight and ``one_sided`` is that side's share (inliers counted on both sides).
-    """
-    rng = np.random.default_rng(seed)
-    m = np.asarray(means, np.float64)
-    w = np.asarray(weights, np.float64)
-    total = max(float(w.sum()), 1e-12)
-    cos_agree = np.cos(np.radians(25.0))
-    alive = np.ones(len(m), bool)
-    out: list[Plane] = []
-    for _ in range(n_planes):
-        cand = np.flatnonzero(alive & flat)
-        if len(cand) < 10:
-            break
-        h = rng.choice(cand, min(n_hypotheses, len(cand)), replace=False)
-        n = normals[h]  # (H, 3)
-        d = np.einsum("hi,hi->h", n, m[h])  # (H,)
-        idx = np.flatnonzero(alive)
-        best_score, best = -1.0, None
-        for lo in range(0, len(h), 200):  # chunks of hypotheses: (A, 200) matrices
-            nn, dd = n[lo : lo + 200], d[lo : lo + 200]
-            inl = (np.abs(m[idx] @ nn.T - dd) < tol) & ((np.abs(normals[idx] @ nn.T) > cos_agree) | ~flat[idx, None])
-            score = w[idx] @ inl
-            b = int(np.argmax(score))
-            if score[b] > best_score:
-                best_score, best = float(score[b]), idx[inl[:, b]]
-        if best is None or len(best) < 3:
-            break
-        wi = w[best] + 1e-12
-        c = np.average(m[best], axis=0, weights=wi)
-        _, _, vt = np.linalg.svd((m[best] - c) * np.sqrt(wi)[:, None], full_matrices=False)
-        nrm = vt[2] / np.linalg.norm(vt[2])
-        off = float(nrm @ c)
-        side = m @ nrm - off  # (M,) all robust means
-        above = float(w[side > tol].sum()) / total
-        below = float(w[side < -tol].sum()) / total
-        if below > above:
-            nrm, off, above, below = -nrm, -off, below, above
-        out.append(Plane(nrm, off, best_score / total, 1.0 - below, len(best), best))
-        alive[best] = False
-    return out
-
-
-def _rotation_to_z(up: np.ndarray) -> np.ndarray:
-    """The smallest rotation (3, 3) taking the unit vector ``up`` to +z (about x for up = -z)."""
-    u = np.asarray(up, np.float64) / np.linalg.norm(up)
-    z = np.array([0.0, 0.0, 1.0])
-    c = float(u @ z)
-    if c < -1 + 1e-12:
-        return np.diag([1.0, -1.0, -1.0])
-    v = np.cross(u, z)
-    k = np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
-    return np.eye(3) + k + k @ k / (1.0 + c)
-
-
-def support_coverage(means: np.ndarray, weights: np.ndarray, plane: Plane, tol: float, max_hull_points: int = 20000) -> float:
-    """Share of the off-plane weight whose projection onto ``plane`` falls inside the convex hull
-    of the plane's inliers (grown by 5% about its centroid): 1 for a floor or a table disc under
-    an object (the hidden patch under the object included), low for a chair's back (the seat and
-    legs hang beyond it). ``means`` (M, 3) and ``weights`` (M,) are the fit subset of
-    :func:`fit_planes` (input frame); off-plane = farther than ``3 tol`` from the plane. 0 when
-    the inliers span no area."""
-    from scipy.spatial import ConvexHull, Delaunay, QhullError
-
-    n = np.asarray(plane.normal, np.float64)
-    a = np.cross(n, [1.0, 0.0, 0.0] if abs(n[0]) < 0.9 else [0.0, 1.0, 0.0])
-    a /= np.linalg.norm(a)
-    b = np.cross(n, a)
-    uv = np.asarray(means, np.float64) @ np.stack([a, b], axis=1)  # (M, 2) in-plane coordinates
-    inl = plane.inliers
-    if len(inl) > max_hull_points:
-        inl = inl[np.linspace(0, len(inl) - 1, max_hull_points).astype(np.int64)]
-    pts = uv[inl]
-    try:
-        hull = pts[ConvexHull(pts).vertices]
-        c = hull.mean(axis=0)
-        tri = Delaunay(c + 1.05 * (hull - c))
-    except (QhullError, ValueError):  # collinear or too few inliers: no area
-        return 0.0
-    off = np.abs(np.asarray(means, np.float64) @ n - plane.offset) > 3.0 * tol
-    w = np.asarray(weights, np.float64)[off]
-    if w.sum() <= 0:
-        return 1.0
-    inside = tri.find_simplex(uv[off]) >= 0
-    return float(w[inside].sum() / w.sum())
-
-
-def _describe_plane(p: Plane) -> str:
-    return f"normal {nearest_axis(p.normal)} {np.round(p.normal, 2).tolist()}, {p.mass:.0%} of the mass, coverage {p.coverage:.0%}"
-
-
 def _choose_support(bounding: list[Plane], cfg: AlignConfig) -> tuple[Plane, float, float, bool]:
     """(best plane, confidence, margin, hint_decides) of ``up = auto``; raises :class:`AlignmentRefused`."""
     hint = np.asarray(AXES[cfg.up_hint], np.float64)
@@ -422,7 +276,7 @@ def _choose_support(bounding: list[Plane], cfg: AlignConfig) -> tuple[Plane, flo
     if not supports:
         p = max(bounding, key=lambda q: q.mass)
         raise AlignmentRefused(
-            f"no plane supports the scene: the largest one-sided plane ({_describe_plane(p)}) leaves "
+            f"no plane supports the scene: the largest one-sided plane ({describe_plane(p)}) leaves "
             f"{1 - p.coverage:.0%} of the rest hanging beyond its edges (a chair's back or a wall, not a floor); "
             f"{ask}; the capture convention says {cfg.up_hint}", bounding)  # fmt: skip
 
@@ -437,14 +291,14 @@ def _choose_support(bounding: list[Plane], cfg: AlignConfig) -> tuple[Plane, flo
     angle = float(np.degrees(np.arccos(np.clip(best.normal @ hint, -1.0, 1.0))))
     if angle > cfg.max_hint_angle:
         raise AlignmentRefused(
-            f"the only clear support plane ({_describe_plane(best)}) is {angle:.0f} degrees from the capture convention's "
+            f"the only clear support plane ({describe_plane(best)}) is {angle:.0f} degrees from the capture convention's "
             f"up ({cfg.up_hint}): a chair's back, a wall behind a fixture (then use --wall) or the floor of a file in another "
             f"convention (then --up {nearest_axis(best.normal)}; check with --png)", bounding)  # fmt: skip
     margin = margin_of(best, True)
     if margin < cfg.min_margin:
         rival = max((p for p in supports if p is not best and float(p.normal @ best.normal) < np.cos(np.radians(30.0))), key=score)
         raise AlignmentRefused(
-            f"ambiguous up: two planes could be the floor ({_describe_plane(best)}; {_describe_plane(rival)}; "
+            f"ambiguous up: two planes could be the floor ({describe_plane(best)}; {describe_plane(rival)}; "
             f"margin {margin:.2f} < {cfg.min_margin:g}); {ask}", bounding)  # fmt: skip
     plain_best = max(supports, key=lambda p: score(p, False))
     hint_decides = plain_best is not best or margin_of(best, False) < cfg.min_margin
@@ -539,7 +393,7 @@ def fit_wall(splats: Splats, config: AlignConfig | None = None) -> tuple[WallFit
     src = "given" if given else f"capture convention {cfg.up_hint}"
     walls = [p for p in bounding if abs(float(p.normal @ up0)) < np.sin(np.radians(30.0))]
     if not walls:
-        seen = "; ".join(_describe_plane(p) for p in bounding) or "none"
+        seen = "; ".join(describe_plane(p) for p in bounding) or "none"
         raise AlignmentRefused(f"no wall: no large one-sided plane within 30 degrees of vertical (up {nearest_axis(up0)}, {src}); "
                                f"bounding planes: {seen}; give the up axis with --up", bounding)  # fmt: skip
     wall = max(walls, key=lambda p: p.mass)
@@ -596,7 +450,7 @@ def align_scene(splats: Splats, config: AlignConfig | None = None) -> tuple[Spla
         floor = 0.0
     else:
         floor = float(cfg.floor)
-    r = _rotation_to_z(up)
+    r = rotation_to_z(up)
     s = float(cfg.scale)
     t = np.array([0.0, 0.0, -s * floor])
     if wall is not None:  # turn the wall's normal to the wall axis, the wall to 0 along it

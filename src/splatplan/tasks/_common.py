@@ -135,9 +135,11 @@ def check_start(robot, checker, q0: np.ndarray) -> None:
     res = checker.query_robot(robot, np.asarray(q0, np.float64)[None])
     hit = np.asarray(res.in_collision)[0]
     if np.any(hit):
-        names = [robot.link_names[int(robot.ellipsoid_link[e])] for e in np.flatnonzero(hit)]
-        counts = np.asarray(res.n_colliding)[0][hit]
-        parts = ", ".join(f"{n} ({int(c)} splats)" for n, c in zip(names, counts))
+        per_link: dict[str, int] = {}  # link name -> most splats inside one of its ellipsoids (link order)
+        for e in np.flatnonzero(hit):
+            name = robot.link_names[int(robot.ellipsoid_link[e])]
+            per_link[name] = max(per_link.get(name, 0), int(np.asarray(res.n_colliding)[0][e]))
+        parts = ", ".join(f"{n} ({c} splats)" for n, c in per_link.items())
         raise SplatplanError(f"the start configuration of {robot.name} is in collision (n_sigma = {checker.n_sigma:g}): {parts}; "
                              "change the start (--start), move the robot's base (--base-pose) or lower n_sigma")  # fmt: skip
 
