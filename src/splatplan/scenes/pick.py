@@ -305,9 +305,9 @@ def _surfaces(m: np.ndarray, grid: _Grid, floor: FloorInfo, cfg: PickConfig) -> 
     from scipy.ndimage import binary_opening, distance_transform_edt, label
 
     nx, ny = grid.shape
-    top = np.full(nx * ny, -np.inf)
-    np.maximum.at(top, grid.flat(m[:, :2]), m[:, 2])
-    top = top.reshape(nx, ny)  # the height map: the highest opaque mean of each cell
+    flat_top = np.full(nx * ny, -np.inf)
+    np.maximum.at(flat_top, grid.flat(m[:, :2]), m[:, 2])
+    top = flat_top.reshape(nx, ny)  # the height map: the highest opaque mean of each cell
     occ = np.isfinite(top)
     tol = 0.5 * grid.cell
     with np.errstate(invalid="ignore"):
