@@ -10,7 +10,8 @@ import pytest
 
 from splatplan.errors import SplatplanError
 from splatplan.scenes import Splats
-from splatplan.scenes.pick import PickConfig, pick_points, robot_footprint
+from splatplan.robots.footprint import robot_footprint
+from splatplan.scenes.pick import PickConfig, pick_points
 
 #: the room: a 4 x 4 m floor at z = 0, a wall along x = 1.9 (x from 1.9 to 1.96, 1 m tall), a box of
 #: 40 x 40 cm with its top at z = 0.6 centred at (-1, -1), a 2 cm thin rail (top z = 0.8) at y = 1.5;
@@ -74,7 +75,7 @@ def test_free_floor_avoids_obstacles_by_the_footprint(room):
     go2 = load_robot("go2")
     height, radius = robot_footprint(go2)
     assert 0.3 < height < 0.7 and 0.3 < radius < 0.7
-    res = pick_points(room, PickConfig(cell=0.02), robot=go2)
+    res = pick_points(room, PickConfig(cell=0.02), footprint=(height, radius))
     free = res.free
     assert free is not None and free.radius == radius and len(free.cells)
     c = free.cells
@@ -104,7 +105,7 @@ def test_object_capture_has_no_free_floor_and_an_arm_is_refused():
     from splatplan.robots import load_robot
 
     with pytest.raises(SplatplanError, match="fixed-base arm"):
-        pick_points(blob, robot=load_robot("panda"))
+        robot_footprint(load_robot("panda"))
     with pytest.raises(SplatplanError, match="opacity"):
         pick_points(blob, PickConfig(opacity_min=1.0))
 

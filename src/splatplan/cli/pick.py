@@ -30,6 +30,7 @@ def _row(what: str, p, normal, size: str) -> str:
 
 
 def cmd_pick(args) -> int:
+    from ..robots.footprint import robot_footprint
     from ..scenes.pick import PickConfig, pick_points
 
     if args.out is not None and not str(args.out).endswith(".json"):
@@ -40,7 +41,7 @@ def cmd_pick(args) -> int:
     if robot is not None and robot.base == "fixed" and not robot.is_point:
         raise SplatplanError(f"--robot {args.robot}: a fixed-base arm has no footprint on the floor; pick's --robot is for ground robots (go2) and point robots")
     scene = _load(args.scene)
-    res = pick_points(scene, cfg, robot=robot, near=near)
+    res = pick_points(scene, cfg, footprint=None if robot is None else robot_footprint(robot), near=near)
     fl = res.floor
     print(f"pick {args.scene}: {res.n_splats:,} splats, {res.n_opaque:,} opaque (opacity >= {cfg.opacity_min:g}), grid cell {res.cell:.3g}; "
           "frame: the scene's (z up, floor at z = 0 after `scene align`), scene units (metres after align)")  # fmt: skip

@@ -33,7 +33,7 @@ horizontal extent):
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
@@ -42,10 +42,7 @@ from ..errors import SplatplanError
 from .splats import Splats
 from .terrain import TerrainConfig, fitted_floor_z, floor_coverage
 
-if TYPE_CHECKING:
-    from ..robots.robot import Robot
-
-__all__ = ["FloorInfo", "FreeFloor", "NearPoint", "PickConfig", "Picks", "Surface", "Wall", "pick_points", "robot_footprint"]
+__all__ = ["FloorInfo", "FreeFloor", "NearPoint", "PickConfig", "Picks", "Surface", "Wall", "pick_points"]
 
 
 @dataclass
@@ -200,22 +197,6 @@ class Picks:
         }
 
 
-def robot_footprint(robot: Robot) -> tuple[float, float]:
-    """``(height, radius)`` of ``robot`` standing at its default configuration and base pose: the z
-    extent of its ellipsoids (a ground robot's from its floor frame, z = 0 under its feet) and the
-    largest x, y distance of an ellipsoid point from the base's axis (bounded by centre distance +
-    largest semi-axis: a disc that holds the robot at any heading)."""
-    q = np.asarray(robot.q_default, dtype=np.float64)
-    c, rot = robot.ellipsoid_frames(q)  # (E, 3), (E, 3, 3) world <- ellipsoid
-    a = np.asarray(robot.semi_axes, dtype=np.float64)  # (E, 3)
-    ext_z = np.sqrt(np.sum((rot[:, 2, :] * a) ** 2, axis=1))  # (E,) half extent along world z
-    bottom = 0.0 if robot.walks_on_terrain else float(np.min(c[:, 2] - ext_z))
-    height = float(np.max(c[:, 2] + ext_z)) - bottom
-    axis = robot.base_pose[:2, 3]
-    radius = float(np.max(np.linalg.norm(c[:, :2] - axis, axis=1) + a.max(axis=1)))
-    return height, radius
-
-
 class _Grid:
     """An x, y grid of square cells over ``lo`` (2,) with ``shape`` (nx, ny); cell (i, j) is centred at lo + (i + 0.5, j + 0.5) * cell."""
 
@@ -237,26 +218,27 @@ class _Grid:
         return self.lo + (np.asarray(ij, dtype=np.float64) + 0.5) * self.cell
 
 
-def pick_points(splats: Splats, config: PickConfig | None = None, *, robot: Robot | None = None, near=None) -> Picks:
+def pick_points(splats: Splats, config: PickConfig | None = None, *, footprint: tuple[float, float] | None = None, near=None) -> Picks:
     """Points on the surfaces of ``splats`` (module docstring), in its frame.
 
     Args:
         splats: the scene (z up, as after ``scene align``).
         config: the grid and thresholds (default :class:`PickConfig`).
-        robot: for the free floor, a ground or point robot whose height and footprint radius
-            (:func:`robot_footprint`) replace ``config.height`` and 0; a fixed-base arm is refused.
+        footprint: for the free floor, a robot's ``(height, radius)``
+            (:func:`splatplan.robots.footprint.robot_footprint`), replacing ``config.height`` and a
+            point's radius 0.
         near: (3,) a point: the nearest surface point to it is reported and walls face it.
 
     Raises:
-        SplatplanError: too few opaque splats, or an arm given as the robot.
+        SplatplanError: too few opaque splats, or a footprint that is not two positive numbers.
     """
     cfg = (config or PickConfig()).validate()
     op = np.asarray(splats.opacities, dtype=np.float64)
     m = np.asarray(splats.means, dtype=np.float64)[op >= cfg.opacity_min]  # (M, 3) world
     if len(m) < 10:
         raise SplatplanError(f"only {len(m)} splat(s) have opacity >= {cfg.opacity_min:g}: too few to find surfaces; lower opacity_min (--opacity-min)")
-    if robot is not None and robot.base == "fixed" and not robot.is_point:
-        raise SplatplanError(f"{robot.name} is a fixed-base arm: it has no footprint on the floor; give a ground robot (go2) or a point robot, or a --height")
+    if footprint is not None and not (len(footprint) == 2 and np.all(np.isfinite(footprint)) and footprint[0] > 0 and footprint[1] >= 0):
+        raise SplatplanError(f"footprint {footprint}: expected (height > 0, radius >= 0)")
     span = m[:, :2].max(axis=0) - m[:, :2].min(axis=0)
     cell = float(cfg.cell) if cfg.cell is not None else max(float(span.max()) / 200.0, 1e-6)
     if float(span.max()) / cell > 4000:
@@ -272,7 +254,7 @@ def pick_points(splats: Splats, config: PickConfig | None = None, *, robot: Robo
     if cfg.n_walls:
         out.walls = _walls(m, grid, floor, cfg, ref)
     if floor.found:
-        height, radius = (cfg.height, 0.0) if robot is None else robot_footprint(robot)
+        height, radius = (cfg.height, 0.0) if footprint is None else (float(footprint[0]), float(footprint[1]))
         out.free = _free_floor(m, grid, fz, height, radius, cfg)
     if q is not None:
         out.near = _near(m, q)
