@@ -68,6 +68,7 @@ BASE: dict[tuple[str, ...], tuple[list[str], list[str]]] = {
     ("robot", "info"): (["panda"], []),
     ("robot", "fit"): (["panda"], ["--out", "{d}/e.yaml", "--no-png"]),
     ("plan",): ([BANANA], ["--start", "0,0,0", "--goal", "0.05,0,0", "--out", "{d}/p.json", "--time-limit", "1"]),
+    ("pick",): ([BANANA], ["--json", "{d}/pick.json"]),
     ("demo",): ([], ["--out", "{d}/demo"]),
     ("view",): ([BANANA], ["--port", "{port}", "--device", "cpu"]),
     ("encode",): (["{img}"], ["--encoder", "thumbnail"]),

@@ -29,6 +29,7 @@ from ..errors import SplatplanError
 #: Subcommand modules (relative to this package), in the order of ``splatplan --help``.
 _MODULES = (
     "scenes",
+    "pick",
     "check",
     "robot",
     "plan",

@@ -117,6 +117,28 @@ def _start(args, robot: Robot) -> np.ndarray:
     return q
 
 
+def _png_target(text: str | None) -> Path | None:
+    """``--png``'s path, checked before any work: a PATH.png with a place to go (one line otherwise)."""
+    if text is None:
+        return None
+    from .._files import output_target
+
+    if Path(text).suffix.lower() != ".png":
+        raise SplatplanError(f"--png {text}: expected a PATH.png")
+    output_target(text)  # the one output rule: its folder exists, it is not a folder
+    return Path(text)
+
+
+def _write_png(png: Path, scene, robot: Robot, path: np.ndarray, title: str, trace_link: str | None) -> None:
+    """The path's picture (:func:`splatplan.render.robot_overlay.path_figure`), written atomically."""
+    from .._files import atomic_path
+    from ..render.robot_overlay import path_figure
+
+    fig = path_figure(scene, robot, path, title=title, trace_link=trace_link)
+    with atomic_path(png) as tmp:
+        fig.savefig(tmp, format="png", dpi=100)
+
+
 def cmd_plan(args) -> int:
     from ..metric import CollisionChecker
     from ..planners import RefineConfig, RRTConfig, format_time_split, make_planner, plan
@@ -130,6 +152,7 @@ def cmd_plan(args) -> int:
         from ..planners.ompl_bridge import require_ompl
 
         require_ompl()  # the missing extra is named before any work
+    png = _png_target(args.png)
     if args.ee_link is not None and args.goal_pose is None:
         raise SplatplanError("--ee-link names the link that --goal-pose places; give --goal-pose too (or drop --ee-link)")
     robot = _robot_for(args)
@@ -225,10 +248,16 @@ def cmd_plan(args) -> int:
         print(f"time split: {format_time_split(split)}")
         return 1
     write_json(out, doc)
+    if png is not None:
+        ee = args.ee_link or DEFAULT_EE_LINK
+        trace = ee if robot.base == "fixed" and ee in robot.link_names else None
+        _write_png(png, scene, robot, np.asarray(res.path), f"{robot.name} in {Path(args.scene).name}, {name}", trace)
     print(f"path found: {len(res.path)} vertices, length {res.length:.4f}{' (refined)' if res.refined else ''}; "
           f"{res.n_nodes:,} nodes, {res.time_s:.3f} s -> {out}")  # fmt: skip
     if refine_note:
         print(f"not refined: {refine_note}")
+    if png is not None:
+        print(f"picture of the path (top and side views): {png}")
     print(clear.summary())
     print(f"time split: {format_time_split(split)}")
     return 0
@@ -270,6 +299,8 @@ def register(sub, eval_sub) -> None:
     s.add_argument("--force", action="store_true", help="overwrite an existing --out even when no path is found")
     add_device_arg(s)
     s.add_argument("--out", required=True, help="PATH.json")
+    s.add_argument("--png", default=None, metavar="FILE.png", help="when a path is found, draw it: the robot's ellipsoids at several "
+                   "configurations from start to goal over the opaque splat means (top and side views, coloured by height, metres)")  # fmt: skip
     add_metric_args(s)
     add_terrain_args(s)
     add_config_args(s, RRTConfig, prefix="rrt_", skip=("seed",), group="RRT options (RRTConfig; lengths in scene units of robot motion)")

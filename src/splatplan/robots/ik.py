@@ -95,6 +95,56 @@ def solve_ik(
     return q[order], pos_err[order], rot_err[order]
 
 
+def link_pose(robot: Robot, q: np.ndarray, link: str) -> np.ndarray:
+    """(7,) pose ``X,Y,Z,QW,QX,QY,QZ`` of ``link`` at configuration ``q`` (dof,): world frame,
+    metres, wxyz: the format of ``--goal-pose``."""
+    from ..scenes.splats import rotmat_to_quat
+
+    t = robot.link_poses(np.asarray(q, np.float64).reshape(1, -1))[0, list(robot.link_names).index(link)]  # (4, 4) world <- link
+    quat = np.asarray(rotmat_to_quat(t[None, :3, :3]), np.float64).reshape(4)
+    return np.concatenate([t[:3, 3], quat * (1.0 if quat[0] >= 0 else -1.0)])  # w >= 0: one spelling of each rotation
+
+
+def format_pose(pose: np.ndarray) -> str:
+    """``X,Y,Z,QW,QX,QY,QZ`` to 4 decimals (0.1 mm, about 0.01 deg): pasteable as ``--goal-pose``."""
+    return ",".join(f"{v:.4f}" for v in np.asarray(pose, np.float64).reshape(7))
+
+
+def unreachable_message(robot: Robot, q_best: np.ndarray, pos_err: float, rot_err: float, link: str, n_seeds: int) -> str:
+    """The part of an "unreachable goal pose" error every caller shares: how far the best IK
+    solution (of ``n_seeds`` starts) lands from the goal, and the pose it does reach, in the format
+    of ``--goal-pose`` (the nearest reachable pose the solver found)."""
+    return (f"the closest IK solution ({n_seeds} starts) misses it by {pos_err * 100:.2f} cm / {np.degrees(rot_err):.1f} deg; "
+            f"the nearest reachable pose found is --goal-pose {format_pose(link_pose(robot, q_best, link))}")  # fmt: skip
+
+
+def collision_report(robot: Robot, checker, q: np.ndarray, near: np.ndarray | None = None, max_links: int = 3) -> str:
+    """Which links of ``robot`` collide at the configurations ``q`` (S, dof), and where: how many of
+    the S each link hits, then, at the one nearest to ``near`` (the first without it), the splats
+    each colliding link hits (:meth:`~splatplan.metric.checker.CollisionChecker.blockers`: count
+    and centroid, world frame) and the remedy for the first. One clause, for error messages."""
+    q = np.asarray(q, np.float64).reshape(-1, robot.dof)
+    hit = np.asarray(checker.collides_robot(robot, q), bool).reshape(len(q), -1)  # (S, E)
+    owner = np.asarray(robot.ellipsoid_link)  # (E,) link index of each ellipsoid
+    names = list(robot.link_names)
+    links = sorted({int(li) for li in owner[hit.any(axis=0)]}, key=lambda li: -int(hit[:, owner == li].any(axis=1).sum()))
+    counts = ", ".join(f"{names[li]} in {int(hit[:, owner == li].any(axis=1).sum())}" for li in links[:max_links])
+    k = 0 if near is None else int(np.argmin(np.linalg.norm(q - np.asarray(near, np.float64).reshape(1, -1), axis=1)))
+    c, quat, axes = robot.ellipsoids(q[k])
+    parts, remedy = [], ""
+    for li in [li for li in links if hit[k, owner == li].any()][:max_links]:
+        e = [int(j) for j in np.nonzero((owner == li) & hit[k])[0]]
+        bs = [checker.blockers(c[j], quat[j], axes[j]) for j in e]
+        n = sum(b.n for b in bs)
+        cen = np.mean([b.centroid for b in bs if b.n], axis=0) if n else np.asarray(c[e[0]], np.float64)
+        parts.append(f"{names[li]} hits {n} splat(s) around ({', '.join(f'{v:.3f}' for v in cen)})")
+        if not remedy and n:
+            remedy = next(b for b in bs if b.n).remedy()
+    where = "the one nearest the start" if near is not None else "the best one"
+    text = f"colliding links: {counts or 'none'}; at {where}: {'; '.join(parts) or 'no link'}"
+    return text + (f" ({remedy})" if remedy else "")
+
+
 def collision_free_ik(
     robot: Robot,
     checker,
@@ -112,21 +162,20 @@ def collision_free_ik(
     collision under ``checker`` (its n_sigma); the free solution nearest to ``near`` in joint space.
 
     Raises:
-        SplatplanError: no IK solution reaches the pose, or every one collides (the message says which).
+        SplatplanError: no IK solution reaches the pose (the message gives the nearest reachable
+            pose found, in the format of ``--goal-pose``), or every one collides (the message names
+            the links and the splats they hit).
     """
-    from ..errors import SplatplanError
-
     q, pe, re = solve_ik(robot, position, quat, link=link, n_seeds=n_seeds, seed=seed, q_init=near)
     ok = (pe < pos_tol) & (re < rot_tol)
     if not ok.any():
-        raise SplatplanError(
-            f"goal pose unreachable for {robot.name}: the best IK solution misses it by {pe[0] * 100:.2f} cm / {np.degrees(re[0]):.1f} deg; "
-            "move the goal or the robot's base (--base-pose)"
-        )
+        raise SplatplanError(f"goal pose unreachable for {robot.name}: {unreachable_message(robot, q[0], pe[0], re[0], link, len(q))}; "
+                             "plan there, or move the goal or the robot's base (--base-pose)")  # fmt: skip
     q = q[ok]
     free = ~np.asarray(checker.collides_robot(robot, q)).any(axis=-1)
     if not free.any():
-        raise SplatplanError(f"goal pose: all {len(q)} IK solutions of {robot.name} are in collision (n_sigma = {checker.n_sigma:g}); move the goal or the base, or lower n_sigma")
+        raise SplatplanError(f"goal pose: all {len(q)} IK solutions of {robot.name} are in collision (n_sigma = {checker.n_sigma:g}): "
+                             f"{collision_report(robot, checker, q, near)}; move the goal or the base, or lower n_sigma")  # fmt: skip
     q = q[free]
     if near is not None:
         q = q[np.argsort(np.linalg.norm(q - np.asarray(near, np.float64), axis=1))]
@@ -144,13 +193,12 @@ def check_reachable(robot: Robot, position, quat, link: str, tol_m: float = 0.00
     p = np.asarray(position, np.float64).reshape(3)
     base = robot.base_pose[:3, 3]
     reach = float(robot.info.get("reach_m", 1.2))
-    if np.linalg.norm(p - base) > reach:
-        raise SplatplanError(f"unreachable goal pose: {p.round(3).tolist()} is {np.linalg.norm(p - base):.2f} m from the base of {robot.name} (reach < {reach:.2f} m)")
     q, pe, re = solve_ik(robot, p, quat, link=link, n_seeds=n_seeds, n_iters=60, seed=seed)
     ok = (pe < tol_m) & (re < np.deg2rad(tol_deg))
-    if not np.any(ok):
-        raise SplatplanError(
-            f"unreachable goal pose: position {p.round(3).tolist()}, quat {np.round(quat, 3).tolist()}: the closest IK solution "
-            f"({n_seeds} starts) is {pe[0] * 100:.1f} cm / {np.rad2deg(re[0]):.1f} deg away; pick a pose inside the workspace"
-        )
+    far = float(np.linalg.norm(p - base))
+    if far > reach or not np.any(ok):
+        why = f"{p.round(3).tolist()} is {far:.2f} m from the base of {robot.name} (reach < {reach:.2f} m)" if far > reach else (
+            f"position {p.round(3).tolist()}, quat {np.round(quat, 3).tolist()}")  # fmt: skip
+        raise SplatplanError(f"unreachable goal pose: {why}: {unreachable_message(robot, q[0], pe[0], re[0], link, len(q))}; "
+                             "pick a pose inside the workspace")  # fmt: skip
     return q[ok]
