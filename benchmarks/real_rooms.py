@@ -1,4 +1,4 @@
-"""Real rooms at the default settings (issue #36): does a Go2 stand and walk where the floor is
+"""Real rooms at the default settings: does a Go2 stand and walk where the floor is
 visibly free, and does a 5 cm sphere cross the room?
 
     python benchmarks/real_rooms.py [--variants default,paper,...] [--n-points 20] [--n-pairs 10]
@@ -21,7 +21,8 @@ Per room, computed here from the splats alone (no ground truth):
    visible obstacle (the Go2 is ~65 cm long).
 2. 20 such points (seeded; fewer when the room has fewer), at heading 0 (``--start=X,Y,0``): how many are free for the Go2 at the
    metric variant's settings, with the default terrain rule (``splatplan plan --robot go2``).
-3. 10 random pairs of them: ``plan`` (the CLI's planner at its defaults) with a 10 s limit; a plan
+3. 10 random pairs of them: ``plan`` (the CLI's planner at its defaults: ``--planner auto``, no
+   refinement) with a 10 s limit; a plan
    counts when it is found and every point of the path, densified at 2 cm, lies on the visibly free
    floor in the wide sense: on a floor cell (or within 10 cm of one) and at least 15 cm (the Go2's
    half width) from every visible obstacle.
@@ -32,7 +33,7 @@ Per room, computed here from the splats alone (no ground truth):
    path point, densified at 2 cm, lies >= 5 cm (xy) from every visible obstacle.
 
 Variants (``--variants``, :data:`VARIANTS`): ``default`` (today's ``MetricConfig()`` and
-``TerrainConfig()``), ``paper`` (the defaults before issue #36: ``MetricConfig.paper()``, the
+``TerrainConfig()``), ``paper`` (the paper's settings: ``MetricConfig.paper()``, the
 paper's n_sigma 1, every splat, opacity-blind inflation, and the "shape" terrain rule) and the
 candidates of the README's "Faint splats and the floor" section. Prints a markdown table, writes JSON and the .md beside it.
 Timings on a shared machine are indicative only.
@@ -61,7 +62,7 @@ SPHERE_CLEAR = 0.25
 SUPPORT = 0.10
 
 #: candidate treatments of faint splats: name -> (MetricConfig changes from the paper's settings,
-#: the terrain rule); "paper" is the defaults before issue #36 (the paper's metric, the "shape"
+#: the terrain rule); "paper" is the paper's settings (the paper's metric, the "shape"
 #: terrain rule), "default" today's MetricConfig() and TerrainConfig(); "default_squared" the default
 #: with the paper's linearisation in s2 (MetricConfig(linearize="squared")), "distance+band" the
 #: paper's metric with only the distance linearisation and the band terrain rule
@@ -154,7 +155,8 @@ def _plan(checker, start, goal, robot, seed, time_limit, frozen=None):
     from splatplan.planners import RRTConfig, plan
 
     try:
-        res = plan(checker, start, goal, robot=robot, seed=seed, rrt_config=RRTConfig(time_limit_s=time_limit, seed=seed, frozen=frozen))
+        res = plan(checker, start, goal, robot=robot, seed=seed, refine=False,  # as `splatplan plan` without --refine
+                   rrt_config=RRTConfig(time_limit_s=time_limit, seed=seed, frozen=frozen))
     except PlanningError as e:
         return False, None, str(e).split(": min_s2")[0]
     return bool(res.success), (np.asarray(res.path) if res.success else None), res.message
@@ -172,7 +174,7 @@ def run_room(name, splats, variant, args, rng_seed=0):
     if n_pts < 2:
         return {"room": name, "variant": variant, "error": f"only {len(ff.candidates)} visibly free floor cells"}
     pts = ff.candidates[rng.choice(len(ff.candidates), n_pts, replace=False)]
-    yaws = np.zeros(n_pts)  # heading 0, as `plan --start=X,Y,0` (issue #36)
+    yaws = np.zeros(n_pts)  # heading 0, as `plan --start=X,Y,0`
     go2 = load_robot("go2")
     ground, _ = remove_terrain(splats, terrain_config(variant), n_sigma=cfg.n_sigma)
     checker = CollisionChecker(ground, device="cpu", config=cfg)
@@ -257,7 +259,7 @@ def main(argv=None) -> int:
             "wall_s": time.time() - t0, "args": vars(args)}
     out.write_text(json.dumps({**meta, "rows": rows}, indent=1))
     out.with_suffix(".md").write_text(
-        f"# Real rooms at the default settings (issue #36)\n\nRun {meta['when']} ({meta['wall_s']:.0f} s); `python benchmarks/real_rooms.py "
+        f"# Real rooms at the default settings\n\nRun {meta['when']} ({meta['wall_s']:.0f} s); `python benchmarks/real_rooms.py "
         f"--variants {args.variants}`. Rules: see the script's docstring (visible obstacles: opacity >= {VISIBLE_OPACITY}, "
         f"{OBST_Z[0]:g}-{OBST_Z[1]:g} m above the floor; points >= {MIN_CLEAR} m from them; path points on floor support and >= {PATH_CLEAR} m from them).\n\n" + md)
     return 0

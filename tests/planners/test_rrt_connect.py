@@ -147,7 +147,7 @@ def test_make_planner_auto_and_bad_name(wall):
     assert isinstance(make_planner("auto", wall, robot="panda"), RRTConnect)
     p = make_planner("auto", wall, robot="sphere:0.015")
     assert type(p) is RRT and p.name == "rrt"
-    assert type(make_planner("auto", wall, robot="go2")) is RRT
+    assert type(make_planner("auto", wall, robot="go2")) is RRTConnect  # a planar base: RRT-Connect, like an arm
     assert isinstance(make_planner("RRT-Connect", wall, robot=SPHERE), RRTConnect)
     with pytest.raises(SplatplanError, match="unknown planner 'prm'.*auto, rrt, rrtconnect"):
         make_planner("prm", wall, robot=SPHERE)

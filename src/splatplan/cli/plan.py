@@ -1,6 +1,6 @@
 """`splatplan plan`: batched RRT or RRT-Connect (+ refinement) for a robot, from a start to a goal
-configuration. ``--planner auto`` (the default) runs RRT-Connect for robots with 4 or more dofs and
-the goal-biased RRT otherwise; ``--time-limit`` bounds the whole call, refinement included, and the
+configuration. ``--planner auto`` (the default) runs RRT-Connect for every robot but a point and the
+goal-biased RRT for a point (a sphere or ellipsoid that translates); ``--time-limit`` bounds the whole call, refinement included, and the
 time split (sampling, nearest neighbours, collision, shortcut, refine) is printed.
 
 Exit codes: 0 path found (written to ``--out``), 1 no path within the budget (one line on stderr;
@@ -289,7 +289,7 @@ def register(sub, eval_sub) -> None:
     s.add_argument("--planar", action="store_true", help="plan at a fixed height z: point robots keep z at "
                    "--height (default the start's); a planar base (go2) drives in the plane z = --height")  # fmt: skip
     s.add_argument("--height", type=float_arg(ge=-MAX_COORD, le=MAX_COORD), default=None, help="plane height z for --planar / a planar base such as go2, which stands on it (scene units; world z up, see `scene align`)")
-    s.add_argument("--planner", default="auto", metavar="NAME", help="auto (rrtconnect for robots with 4 or more dofs, else rrt) | rrt "
+    s.add_argument("--planner", default="auto", metavar="NAME", help="auto (rrt for a point robot, else rrtconnect) | rrt "
                    "(goal-biased batched RRT) | rrtconnect (batched bidirectional RRT-Connect) | ompl:NAME, an OMPL geometric planner on "
                    "the same checker (ompl:RRTConnect, ompl:RRTstar, ompl:BITstar, ompl:PRM, ...; needs the 'ompl' extra) (default auto)")  # fmt: skip
     s.add_argument("--time-limit", type=float_arg(gt=0, le=1e6), default=None, help="wall-clock budget of the whole call in seconds: search, shortcut and "

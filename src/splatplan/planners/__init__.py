@@ -98,8 +98,8 @@ __all__ = [
 ]
 
 
-#: planner names for :func:`plan` / ``splatplan plan --planner`` ("auto": rrtconnect for robots
-#: with 4 or more dofs, else rrt)
+#: planner names for :func:`plan` / ``splatplan plan --planner`` ("auto": rrt for a point robot,
+#: the paper's planner for it; rrtconnect for every other robot: arms and planar bases)
 PLANNERS = ("auto", "rrt", "rrtconnect")
 
 
@@ -116,7 +116,7 @@ def make_planner(name: str, checker: CollisionChecker, config: RRTConfig | None 
         raise SplatplanError(f"unknown planner {name!r}: choose one of {', '.join(PLANNERS)}")
     robot = as_robot(robot)
     if key == "auto":
-        key = "rrtconnect" if int(robot.dof) >= 4 else "rrt"
+        key = "rrt" if robot.is_point else "rrtconnect"
     cls = RRTConnect if key == "rrtconnect" else RRT
     return cls(checker, config, robot=robot)
 
@@ -151,8 +151,8 @@ def plan(
         rrt_config: :class:`RRTConfig` (default: RRTConfig(): scene-scaled lengths, 10 s).
             Give ``box_lo``/``box_hi`` with equal z (or ``frozen=(2,)``) to plan in a plane.
         refine_config: :class:`RefineConfig` (default: RefineConfig()).
-        planner: one of :data:`PLANNERS`: "auto" (RRT-Connect for robots with 4 or more dofs,
-            the goal-biased RRT for point robots and planar bases), "rrt" or "rrtconnect"; or
+        planner: one of :data:`PLANNERS`: "auto" (the goal-biased RRT for a point robot,
+            RRT-Connect for every other robot: arms and planar bases), "rrt" or "rrtconnect"; or
             "ompl:NAME", an OMPL geometric planner on the same checker, box, edge resolution and
             time limit (:func:`~splatplan.planners.ompl_bridge.plan_ompl`; the ``ompl`` extra;
             ``refine`` and ``seed`` do not apply there).
