@@ -357,7 +357,7 @@ class MPPI:
     def __init__(
         self,
         dynamics: Dynamics,
-        checker: CollisionChecker,
+        checker: CollisionChecker | None,
         config: MPPIConfig | None = None,
         task_cost: Callable[[np.ndarray], np.ndarray] | None = None,
         terminal_cost: Callable[[np.ndarray], np.ndarray] | None = None,
