@@ -175,7 +175,7 @@ class LazyThreadPool:
         return {"threads": self.threads, "name": self.name}
 
     def __setstate__(self, state: dict) -> None:
-        self.__init__(**state)
+        type(self).__init__(self, **state)
 
     def __copy__(self) -> "LazyThreadPool":
         return LazyThreadPool(self.threads, self.name)

@@ -33,6 +33,7 @@ def collision_field(checker, z: float, lo: np.ndarray, hi: np.ndarray, radius: f
 
 def _plot_field(path: Path, fields, gt, z: float, lo, hi, radius: float, n_kept_floaters: int = 0, floater_opacity: tuple[float, float] = (0.1, 0.3)) -> None:
     import matplotlib.pyplot as plt
+    from matplotlib.layout_engine import ConstrainedLayoutEngine
     from matplotlib.lines import Line2D
 
     from .eval._plots import top_view_handles
@@ -68,7 +69,9 @@ def _plot_field(path: Path, fields, gt, z: float, lo, hi, radius: float, n_kept_
         + floaters,
         fontsize=9,
     )
-    fig.get_layout_engine().set(rect=(0, 0.08, 1, 1))
+    engine = fig.get_layout_engine()
+    assert isinstance(engine, ConstrainedLayoutEngine)  # (constrained_layout=True above)
+    engine.set(rect=(0, 0.08, 1, 1))
     fig.savefig(path, dpi=110)
     plt.close(fig)
 

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import dataclasses
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -114,7 +115,7 @@ def _load_configs(args, q: np.ndarray | None = None):
 
 def _check_robot(robot, q: np.ndarray, checker, scene, chunk: int) -> dict[str, np.ndarray]:
     lim = np.asarray(robot.joint_limits, dtype=np.float64)
-    outside = ((q < lim[:, 0] - 1e-9) | (q > lim[:, 1] + 1e-9)).any(axis=1)
+    outside = np.any((q < lim[:, 0] - 1e-9) | (q > lim[:, 1] + 1e-9), axis=1)  # (B,)
     e = int(robot.n_ellipsoids)
     b = len(q)
     per_chunk = max(1, chunk // max(1, e))  # configurations per chunk (chunk counts link poses)
@@ -135,13 +136,13 @@ def _check_robot(robot, q: np.ndarray, checker, scene, chunk: int) -> dict[str, 
     hit = out["in_collision"]
     link_hit = np.stack([hit[:, link_idx == li].any(axis=1) for li in links], axis=1) if b else np.zeros((0, len(links)), bool)  # (B, L)
     link_min = np.stack([out["min_s2"][:, link_idx == li].min(axis=1) for li in links], axis=1) if b else np.zeros((0, len(links)), np.float32)
-    collision = hit.any(axis=1)  # (B,) scene collision of the whole robot
+    collision = np.any(hit, axis=1)  # (B,) scene collision of the whole robot
     clear, least = _metres(out["min_s2"], robot.semi_axes, checker.config.s2_cap)  # (B, E) metres
     out["clearance_m"] = clear
     with signals_deferred():
         self_hit = np.asarray(robot.self_collision(q), dtype=bool) if b else np.zeros(0, bool)
     names = np.asarray([robot.link_names[li] for li in links])
-    res = {
+    res: dict[str, np.ndarray] = {
         **out,
         "collision": collision,
         "self_collision": self_hit,
@@ -182,7 +183,7 @@ def _metric_config(args, frame: RecordedFrame | None):
     """The metric flags over the settings the plan records (else the defaults); one warning where an
     explicit flag departs from the record."""
     rec = recorded_metric(frame)
-    if rec is None:
+    if rec is None or frame is None:  # (a recorded metric comes with its frame)
         return metric_config_from_args(args)
     from ..metric import MetricConfig
 
@@ -236,18 +237,26 @@ def cmd_check(args) -> int:
         raise SplatplanError(f"output folder {Path(args.out).parent} does not exist")
     cfg = _metric_config(args, frame)
     # validate the query input before the (slow) scene load
-    robot_q = _load_configs(args, plan_q) if args.poses is None else load_poses(args.poses)
+    if args.poses is not None:
+        centers, quats = load_poses(args.poses)
+    else:
+        robot, q = _load_configs(args, plan_q)
     check_scene(args.scene, frame)
     scene = _load(args.scene)
-    if plan_q is not None:
-        scene = _terrain_scene(scene, robot_q[0], frame, cfg.n_sigma)
+    if plan_q is not None:  # (a plan takes no --poses)
+        scene = _terrain_scene(scene, robot, frame, cfg.n_sigma)
     checker = CollisionChecker(scene, device=args.device, config=cfg)
-    res = _check_link(axes, *robot_q, checker, scene, args.chunk) if args.poses is not None else _check_robot(*robot_q, checker, scene, args.chunk)
+    res: dict[str, Any]
+    if args.poses is not None:
+        assert axes is not None  # (--poses: a single link, checked above)
+        res = _check_link(axes, centers, quats, checker, scene, args.chunk)
+    else:
+        res = _check_robot(robot, q, checker, scene, args.chunk)
     if args.out:
         with atomic_path(args.out) as tmp:
             with open(tmp, "wb") as f:
                 with signals_deferred():  # a half-written archive is removed by atomic_path anyway
-                    np.savez(f, **res)
+                    np.savez(f, **res)  # type: ignore[arg-type]  # numpy's stub: **arrays could fill its allow_pickle (numpy >= 2.1)
         print(f"wrote {args.out}")
     return 0
 

@@ -116,10 +116,13 @@ def cmd_mpc(args) -> int:
         else:  # the end-effector pose of the plan's last configuration
             from ..scenes.splats import rotmat_to_quat
 
+            assert plan_q is not None  # (checked above)
+
             t = robot.link_poses(plan_q[-1:])[0, robot.link_names.index(cfg.ee_link)]  # (4, 4) world <- ee
             gp = np.concatenate([t[:3, 3], np.asarray(rotmat_to_quat(t[None, :3, :3]), np.float64).reshape(4)])
             note(f"goal pose {np.round(gp, 4).tolist()} of {cfg.ee_link} at the last configuration of --plan {args.plan}")
         scene = args.scene or "tabletop"
+        q0: np.ndarray | None
         if args.start is not None:
             q0 = _floats(args.start, robot.dof, "--start", f"with {robot.dof} joint values")
         else:
@@ -139,7 +142,11 @@ def cmd_mpc(args) -> int:
         _plan_fits(plan_q, robot, args.plan)
         if args.goal is None and plan_q is None:
             raise SplatplanError("--robot go2 needs --goal X,Y (metres) or --plan PATH.json")
-        g = _floats(args.goal, 2, "--goal", "X,Y") if args.goal is not None else plan_q[-1, :2].copy()
+        if args.goal is not None:
+            g = _floats(args.goal, 2, "--goal", "X,Y")
+        else:
+            assert plan_q is not None  # (checked above)
+            g = plan_q[-1, :2].copy()
         scene = args.scene or "apartment"
         default = np.asarray(START, np.float64) if scene == "apartment" else np.zeros(3)  # the origin lies in the apartment's x = 0 wall
         default = default if plan_q is None else plan_q[0].copy()

@@ -78,7 +78,7 @@ def cmd_info(args) -> int:
     for j in d["joints"]:
         print(f"    {j['name']:<22} [{j['lower']:9.4g}, {j['upper']:9.4g}]  vel {j['velocity']:7.4g}  default {j['default']:8.4g}  bound {j['motion_bound_m']:.4g} m")
     print("  ellipsoids per link (semi-axes in m; volume ratio = ellipsoids / collision geometry):")
-    per = {}
+    per: dict[str, list] = {}
     for e in d["ellipsoids"]:
         per.setdefault(e["link"], []).append(e["semi_axes"])
     for link, axes in per.items():

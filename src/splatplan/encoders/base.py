@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import importlib
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -31,7 +31,10 @@ def require(module: str, extra: str = "vision", what: str = "image encoders"):
         raise SplatplanError(f"{what} need the Python package {module!r}: pip install 'splatplan[{extra}]'") from None
 
 
-torch = require("torch")
+if TYPE_CHECKING:
+    import torch
+else:
+    torch = require("torch")
 
 
 def size_hw(image_size: int | tuple[int, int]) -> tuple[int, ...]:
@@ -61,6 +64,7 @@ def images_to_torch(images: Any, device: "torch.device") -> tuple["torch.Tensor"
     Raises :class:`SplatplanError` for a wrong shape, a wrong channel count, a non-numeric dtype or
     non-finite values (checked on host inputs; device tensors are not synchronised to check).
     """
+    x: Any  # the torch tensor or the numpy array until converted below
     if torch.is_tensor(images):
         kind = _Kind(True, images.device)
         x = images
@@ -160,6 +164,7 @@ class Encoder:
     description: str = ""
     has_tokens: bool = False
     image_size: tuple[int, int] = (224, 224)
+    model: Any  # the torch model of the encoders that have one (None once closed)
 
     def __init__(self, *, device: Any = "auto", batch_size: int = 32, normalize: bool = False) -> None:
         if int(batch_size) < 1:
@@ -188,11 +193,13 @@ class Encoder:
         """:meth:`features` of images already converted by :func:`images_to_torch`: x (B, 3, H, W) on
         ``self.device`` -> torch tensors (callers check ``has_tokens``)."""
         with torch.set_grad_enabled(bool(x.requires_grad)):
-            gs, ts = [], []
+            gs: list[torch.Tensor] = []
+            ts: list[torch.Tensor] = []
             for i in range(0, x.shape[0], self.batch_size):
                 g, t = self._forward(x[i : i + self.batch_size], tokens)
                 gs.append(g)
                 if tokens:
+                    assert t is not None  # (_forward returns tokens when asked)
                     ts.append(t)
             if x.shape[0] == 0:
                 g = x.new_zeros((0, self.dim))
@@ -279,5 +286,6 @@ class EmbeddingDistance:
         g, t = self._features(x)
         cost = self.w_global * ((self.target_global - g) ** 2).sum(dim=1) if self.w_global > 0 else g.new_zeros(g.shape[0])
         if self.w_patch > 0:
+            assert self.target_tokens is not None and t is not None  # (tokens asked for: w_patch > 0)
             cost = cost + self.w_patch * token_cost(self.target_tokens, t)
         return kind.back(cost)

@@ -25,7 +25,7 @@ def area_resize(x: "torch.Tensor", size: tuple[int, int]) -> "torch.Tensor":
     """(B, 3, H, W) -> (B, 3, h, w): mean over each output cell (exact box filter for integer factors)."""
     if tuple(x.shape[-2:]) == tuple(size):
         return x
-    return F.adaptive_avg_pool2d(x, tuple(size))
+    return F.adaptive_avg_pool2d(x, (size[0], size[1]))
 
 
 def imagenet_normalize(x: "torch.Tensor") -> "torch.Tensor":

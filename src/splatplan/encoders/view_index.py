@@ -20,6 +20,7 @@ from ..planners.route import wrap_angle
 
 if TYPE_CHECKING:
     from ..robots.robot import Robot
+    from .base import Encoder
 
 __all__ = ["Match", "ViewIndex", "ViewIndexTerms", "index_views", "retrieve", "thin_nodes"]
 
@@ -44,7 +45,7 @@ class ViewIndex:
     poses: np.ndarray  # (M, 3) x, y, yaw of each view
     node: np.ndarray  # (M,) tree node index
     embeddings: object  # (M, D) encoder output (numpy or torch)
-    encoder: object
+    encoder: Encoder  # what encoded them (and encodes a target image)
     render_s: float = 0.0
     encode_s: float = 0.0
 
@@ -84,7 +85,7 @@ class Match:
     median_cost: float
     ratio: float
     weak: bool
-    costs: np.ndarray = field(repr=False, default=None)
+    costs: np.ndarray | None = field(repr=False, default=None)
 
     def to_json(self) -> dict:
         return {"node": int(self.node), "pose": self.pose.round(4).tolist(), "cost": round(self.cost, 6), "median_cost": round(self.median_cost, 6),

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from contextlib import contextmanager
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -15,6 +16,9 @@ from .._warp import cpu_threads
 from ..errors import SplatplanError
 from ..scenes.filters import FilterReport, filter_floaters
 from ..scenes.splats import Splats
+
+if TYPE_CHECKING:
+    from ..scenes.builtin.analytic_scene import AnalyticScene
 
 #: Display names, in the order rows are printed.
 DISPLAY = {
@@ -54,7 +58,7 @@ def load_stonehenge_filtered(level: int = 1, seed: int = 0, n_splats: int | None
     return splats, scene, rep
 
 
-def load_scene_with_gt(path: str | Path, gt: str | Path | None, filtered: bool = True) -> tuple[Splats, object, FilterReport | None]:
+def load_scene_with_gt(path: str | Path, gt: str | Path | None, filtered: bool = True) -> tuple[Splats, AnalyticScene, FilterReport | None]:
     """A splat file and its analytic ground truth (``.gt.json`` written by ``splatplan scene``).
 
     Args:

@@ -23,7 +23,7 @@ def top_view_handles(scene, z: float, *, footprints: bool = True, inflate: float
     for box, lab in zip(scene.boxes, scene.labels):
         if lab != "ground" and lab not in kinds and box_cross_section(box, z) is not None:
             kinds.append(lab)
-    handles = [
+    handles: list[Patch | Line2D] = [
         Patch(fc=LABEL_COLORS.get(k, "0.4"), ec="k", lw=0.5, alpha=alpha, label=f"stone at z = {z:g}: {k.replace('_', ' ')}")
         for k in kinds
     ]

@@ -45,11 +45,11 @@ def pr_figure(curves: dict[str, Curve], title: str, curves_v: dict[str, Curve] |
         }.get(key, DISPLAY.get(key, key))
         ax.plot(r, p, label=f"{label}  AP {ap:.3f}", drawstyle="steps-post", **styles.get(key, {}))
     panels = [(ax, title)]
-    if two:
+    if two and curves_v:  # (two: curves_v is not empty)
         axv = axs[0][1]
         for i, (key, (p, r, ap)) in enumerate(curves_v.items()):
             if key in (variants or {}):  # decreasing widths and varied dashes: identical curves stay visible
-                label, st = variants[key]["label"], dict(color=f"C{i}", lw=max(0.8, 3.2 - 0.4 * i), ls=("-", "--", "-.", ":")[i % 4])
+                label, st = (variants or {})[key]["label"], dict(color=f"C{i}", lw=max(0.8, 3.2 - 0.4 * i), ls=("-", "--", "-.", ":")[i % 4])
             else:  # a baseline on the opacity-filtered scene
                 label, st = f"{DISPLAY.get(key.replace('_opacity', ''), key)} on the (b) scene (reference)", dict(color="0.3", lw=1.2, ls="--")
             axv.plot(r, p, label=f"{label}  AP {ap:.3f}", drawstyle="steps-post", **st)

@@ -95,7 +95,8 @@ class PRContext(PRSetup):
     def __init__(self, cfg_dict: dict, device: str) -> None:
         from ..metric import CollisionChecker
 
-        cfg = PRConfig(**{k: tuple(v) if isinstance(v, list) else v for k, v in cfg_dict.items()})
+        fields: dict[str, Any] = {k: tuple(v) if isinstance(v, list) else v for k, v in cfg_dict.items()}
+        cfg = PRConfig(**fields)
         super().__init__(cfg)
         self.cfg = cfg
         self.device = device

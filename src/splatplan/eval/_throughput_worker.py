@@ -68,17 +68,17 @@ def _make_runner(method: str, splats: Any, device: str, radius: float, n_sigma: 
 
     info = BASELINES[method]
     dev = torch.device(device)
-    state = {}
+    scored: dict[str, Any] = {}
 
-    def build() -> None:
-        state["o"] = info.cls(splats, dev)
+    def build_baseline() -> None:
+        scored["o"] = info.cls(splats, dev)
         sync(dev)
 
-    def run(centers: np.ndarray) -> None:
-        state["o"].score(centers, radius, batch=max(1, min(len(centers), info.native_batch)) if info.native_batch > 1 else 1)
+    def run_baseline(centers: np.ndarray) -> None:
+        scored["o"].score(centers, radius, batch=max(1, min(len(centers), info.native_batch)) if info.native_batch > 1 else 1)
         sync(dev)
 
-    return build, run
+    return build_baseline, run_baseline
 
 
 def _worker(spec: dict) -> dict:

@@ -54,7 +54,7 @@ def pick_targets(n: int, seed: int = 0, min_goal_clearance: float = 0.01, max_tr
     gt = tabletop_layout(seed).scene
     rng = np.random.default_rng([seed, 77])
     lo, hi = TARGET_REGION
-    out = []
+    out: list[tuple[np.ndarray, np.ndarray]] = []
     for _ in range(max_tries):
         if len(out) == n:
             break

@@ -52,7 +52,7 @@ def pick_goals(n: int, seed: int = 0, min_clearance: float = 0.1) -> list[np.nda
     gt = gt.select(np.array([lab != "floor" for lab in gt.labels]))
     rng = np.random.default_rng([seed, 88])
     rooms = ["bedroom", "kitchen"]
-    out = []
+    out: list[np.ndarray] = []
     for k in range(400):
         if len(out) == n:
             break

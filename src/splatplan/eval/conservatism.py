@@ -246,7 +246,7 @@ def conservatism_task(spec: dict, ctx: ConservatismContext) -> dict:
 
 def summarise(rows: list[dict], keys=COLUMNS) -> dict:
     ok = [r for r in rows if r]
-    out = {k: mean_std([r[k] for r in ok], finite_only=True) for k in keys}
+    out: dict[str, Any] = {k: mean_std([r[k] for r in ok], finite_only=True) for k in keys}
     out["success_rate"] = len(ok) / max(1, len(rows))
     out["n_trials"] = len(rows)
     return out

@@ -402,14 +402,14 @@ def run_tasks(
             f.close()
     res.n_run = len(todo)
     for k in keys:
-        rec = done.get(k)
-        if rec is None:
+        got = done.get(k)
+        if got is None:
             continue
-        res.records[k] = rec
-        if rec.get("ok"):
-            res.rows[k] = _decode(rec["row"], arrays_dir)
+        res.records[k] = got
+        if got.get("ok"):
+            res.rows[k] = _decode(got["row"], arrays_dir)
         else:
-            res.errors[k] = rec.get("error", "unknown error")
+            res.errors[k] = got.get("error", "unknown error")
     res.wall_s = time.perf_counter() - t_all
     return res
 
@@ -434,6 +434,7 @@ def _dask_client(engine: EngineConfig):
         return client, None, {"kind": "dask", "workers": n, "scheduler": engine.scheduler}
     # the local cluster: loopback only, no dashboard, one task thread per worker process; workers
     # split their collision calls over cores / workers threads (no oversubscription of the cores)
+    assert engine.workers is not None  # (validated: a dask engine without a scheduler has workers)
     with _workers_ignore_sigint(), _glibc_malloc_defaults(), warnings.catch_warnings():
         # the scheduler's HTTP routes (health, metrics; no dashboard) bind 127.0.0.1:8787, or another
         # port when that one is taken (another cluster on this machine): not the user's business

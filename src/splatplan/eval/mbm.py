@@ -79,7 +79,10 @@ from ._mbm_config import DEFAULT_MBM, MBM_DATA_ENV, PUBLISHED, MBMConfig, MBMRes
 from ._mbm_report import report, summarise
 
 if TYPE_CHECKING:
+    from ..metric.checker import CollisionChecker
     from ..robots.robot import Robot
+    from ..scenes.builtin.analytic_scene import AnalyticScene
+    from ..scenes.splats import Splats
 
 __all__ = [
     "DEFAULT_MBM", "MBM_DATA_ENV", "PUBLISHED", "TIMING_FIELDS", "MBMConfig", "MBMContext", "MBMResult", "MBMTask", "check_inputs",
@@ -94,7 +97,7 @@ class MBMContext:
     ``max_scenes`` prepared scenes (by scene file), so the planners of one problem share them."""
 
     config: MBMConfig
-    robot: object  # splatplan.robots.Robot
+    robot: Robot
     scenes: OrderedDict = field(default_factory=OrderedDict)  # scene path -> _Prepared (LRU)
     max_scenes: int = 2
 
@@ -117,9 +120,9 @@ class MBMContext:
 class _Prepared:
     """One problem's scene as every planner sees it (all derived from the config's seed)."""
 
-    splats: object  # splatplan.scenes.Splats, floaters filtered (metres, z-up)
-    scene: object  # splatplan.scenes.builtin.analytic_scene.AnalyticScene: the exact primitives
-    checker: object  # CollisionChecker on the splats at config.n_sigma (cpu)
+    splats: Splats  # floaters filtered (metres, z-up)
+    scene: AnalyticScene  # the exact primitives
+    checker: CollisionChecker  # on the splats at config.n_sigma (cpu)
     margin: float  # planning margin (m)
     spacing_nn: float  # median NN distance of the means (m; nan with a fixed margin)
     resolution: float  # edge resolution r (m)
@@ -313,7 +316,7 @@ def _blocking(scene, robot, ends: np.ndarray, hit_e: np.ndarray) -> list:
     """Per endpoint (2, dof): None when free for the planning model, else the link and ellipsoid the
     margin makes collide that is nearest the exact geometry, with that ellipsoid's own exact
     clearance (m): what keeps the endpoint from being called free."""
-    out = []
+    out: list[dict | None] = []
     names, link = list(robot.link_names), np.asarray(robot.ellipsoid_link)
     for k in range(len(ends)):
         idx = np.nonzero(hit_e[k])[0]

@@ -52,7 +52,7 @@ def target_poses(robot: Robot, nav, nodes: np.ndarray, labels=LANDMARKS, n: int 
     """One free held-out pose (x, y, yaw) near each landmark (see the module docstring)."""
     rng = np.random.default_rng(seed)
     gt = nav.task.analytic
-    out = []
+    out: list[dict] = []
     for lab in labels:
         if len(out) >= n:
             break

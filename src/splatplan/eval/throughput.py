@@ -275,7 +275,7 @@ def _targets(ok: list[dict], device: str) -> dict[str, Any]:
 
     ours = rate("collisionsplatting", 4096) if np.isfinite(rate("collisionsplatting", 4096)) else rate("collisionsplatting")
     base = {m: rate(m) for m in ("splatnav", "safersplat", "atlasnav", "splanning") if np.isfinite(rate(m))}
-    fastest = max(base, key=base.get) if base else "none"
+    fastest = max(base, key=lambda m: base[m]) if base else "none"
     col = 0 if device.startswith("cuda") else 1
     paper_fastest = max(PAPER_TABLE_I[(m, b)][col] for m, b in PAPER_TABLE_I if m != "collisionsplatting")
     mem = {r["method"]: r["peak_mem_mb"] for r in ok if r["method"] in ("atlasnav", "splanning")}

@@ -24,7 +24,7 @@ from __future__ import annotations
 import contextlib
 import threading
 from dataclasses import replace
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, overload
 
 import numpy as np
 
@@ -50,11 +50,18 @@ from .interop import (
 
 if TYPE_CHECKING:
     from ..robots.robot import Robot
+    from .wp_metric import WarpMetric
 
 _FIELDS = ("min_s2", "n_colliding", "in_collision", "softmin", "cost")
 _DTYPES = {"min_s2": np.float32, "n_colliding": np.int32, "in_collision": bool, "softmin": np.float32, "cost": np.float32}
 
 
+@overload
+def _tile(x: np.ndarray, period: int, b: int) -> np.ndarray: ...
+@overload
+def _tile(x: None, period: int, b: int) -> None: ...
+@overload
+def _tile(x: np.ndarray | None, period: int, b: int) -> np.ndarray | None: ...
 def _tile(x: np.ndarray | None, period: int, b: int) -> np.ndarray | None:
     """Rows of a compact (P, ...) array for every query (row q % P)."""
     if x is None or period == b:
@@ -94,7 +101,7 @@ class CollisionChecker:
         if backend not in ("warp", "reference"):
             raise SplatplanError(f"unknown backend {backend!r}: use 'warp' or 'reference'")
         self.backend = backend
-        self._impl = None
+        self._impl: WarpMetric | None = None  # the kernels (None: the reference backend)
         self._robot_axes: dict = {}  # semi-axes bytes -> (wp.array (E,) vec3, a_min median, a_max median)
         self._lock = threading.Lock()
         if backend == "warp":
@@ -112,6 +119,12 @@ class CollisionChecker:
         """Release the CPU thread pool (the checker stays usable: a later query starts a new one)."""
         if self._impl is not None:
             self._impl.close()
+
+    def _kernels(self) -> WarpMetric:
+        """The Warp implementation: the calls that reach the kernels come from the warp backend."""
+        if self._impl is None:
+            raise AssertionError("the reference backend has no kernels")
+        return self._impl
 
     def __enter__(self) -> "CollisionChecker":
         return self
@@ -175,9 +188,9 @@ class CollisionChecker:
             if kind != "numpy":
                 ws.reset_bad()
             if full:
-                self._impl.query(links, b, amin, amax, self.config, ws.outputs(), ws.scratch())
+                self._kernels().query(links, b, amin, amax, self.config, ws.outputs(), ws.scratch())
             else:
-                self._impl.collides(links, b, amin, amax, self.config, ws.in_collision, ws.bad, ws.scratch())
+                self._kernels().collides(links, b, amin, amax, self.config, ws.in_collision, ws.bad, ws.scratch())
             self._raise_bad(ws, kind, validate)
         del keep
         if full:
@@ -354,15 +367,15 @@ class CollisionChecker:
             ws.reset_bad()
         if per_config:
             sl = (ws.reserve_slack(n) if out is not None else wp.empty(n, dtype=wp.float32, device=self.device)) if slack else None
-            self._impl.collides_configs(links, b, robot_groups(robot), amin, amax, self.config, ws.in_collision, ws.bad, slack=sl)
+            self._kernels().collides_configs(links, b, robot_groups(robot), amin, amax, self.config, ws.in_collision, ws.bad, slack=sl)
             self._raise_bad(ws, kind, validate)
             hits = convert_out(ws.in_collision, b, shape, kind, False)
             return (hits, convert_out(sl, n, oshape, kind, False)) if slack else hits
         if full:
-            self._impl.query(links, n, amin, amax, self.config, ws.outputs(), ws.scratch())
+            self._kernels().query(links, n, amin, amax, self.config, ws.outputs(), ws.scratch())
         else:
             sl = wp.empty(n, dtype=wp.float32, device=self.device) if slack else None
-            self._impl.collides(links, n, amin, amax, self.config, ws.in_collision, ws.bad, ws.scratch(), robot_batch=True, slack=sl)
+            self._kernels().collides(links, n, amin, amax, self.config, ws.in_collision, ws.bad, ws.scratch(), robot_batch=True, slack=sl)
         self._raise_bad(ws, kind, validate)
         if full:
             return QueryResult(**{k: convert_out(getattr(ws, k), n, oshape, kind, False) for k in _FIELDS})
@@ -392,7 +405,7 @@ class CollisionChecker:
         if kind != "numpy":
             ws.reset_bad()
         sl = (ws.reserve_slack(n) if reuse else wp.empty(n, dtype=wp.float32, device=self.device)) if slack else None
-        self._impl.collides_configs(links, b, robot_groups(robot), amin, amax, self.config, ws.in_collision, ws.bad, slack=sl)
+        self._kernels().collides_configs(links, b, robot_groups(robot), amin, amax, self.config, ws.in_collision, ws.bad, slack=sl)
         self._raise_bad(ws, kind, validate)
         hits = convert_out(ws.in_collision, b, shape, kind, False)
         return (hits, convert_out(sl, n, shape + (e,), kind, False)) if slack else hits

@@ -18,12 +18,16 @@ Rotations and semi-axes whose leading shape is a suffix of the batch shape (e.g.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from .._arrays import array_kind, host_array
 from .._warp import wp as _wp
 from ..errors import SplatplanError
+
+if TYPE_CHECKING:
+    import warp as wp
 
 # Warp is loaded on first use, not on import (``import splatplan.metric`` stays light).
 
@@ -221,8 +225,8 @@ def device_side_rows(x, name: str, tail: tuple[int, ...], shape: tuple[int, ...]
         arr = _wp().array(np.ascontiguousarray(a, dtype=np.float32), dtype=_wdt(tail), device=device)
         return arr, p, arr, a
     arr, lead, keep = device_rows(x, k, name, tail, device)
-    p = _period(lead, shape)
-    if p is None:
+    per = _period(lead, shape)
+    if per is None:
         if k != "torch":
             raise SplatplanError(
                 f"{name} shape {lead + tail} does not tile the batch {tuple(shape)}: its leading shape must be a suffix of the batch shape"
@@ -231,8 +235,8 @@ def device_side_rows(x, name: str, tail: tuple[int, ...], shape: tuple[int, ...]
             t = keep.reshape(lead + tail).expand(tuple(shape) + tail).contiguous().reshape((-1,) + tail)
         except RuntimeError as exc:
             raise SplatplanError(f"{name} shape {lead + tail} does not broadcast to the batch {tuple(shape)}") from exc
-        arr, keep, p = _wp().from_torch(t, dtype=_wdt(tail)), t, max(1, int(np.prod(shape, dtype=np.int64)))
-    return arr, p, keep, None
+        arr, keep, per = _wp().from_torch(t, dtype=_wdt(tail)), t, max(1, int(np.prod(shape, dtype=np.int64)))
+    return arr, per, keep, None
 
 
 def device_axes_medians(axes: "wp.array", device: str) -> tuple[float, float]:
@@ -270,20 +274,20 @@ class MetricWorkspace:
 
     device: str
     capacity: int = 0
-    min_s2: object = None  # wp.array(float32) (capacity,)
-    n_colliding: object = None  # wp.array(int32)
-    in_collision: object = None  # wp.array(bool)
-    softmin: object = None  # wp.array(float32)
-    cost: object = None  # wp.array(float32)
-    bad: object = None  # wp.array(int32) (1,)
-    sort_keys: object = None  # wp.array(int32) (2 * capacity,) scratch of the query sort
-    sort_values: object = None  # wp.array(int32) (2 * capacity,)
+    min_s2: Any = None  # wp.array(float32) (capacity,)
+    n_colliding: Any = None  # wp.array(int32)
+    in_collision: Any = None  # wp.array(bool)
+    softmin: Any = None  # wp.array(float32)
+    cost: Any = None  # wp.array(float32)
+    bad: Any = None  # wp.array(int32) (1,)
+    sort_keys: Any = None  # wp.array(int32) (2 * capacity,) scratch of the query sort
+    sort_values: Any = None  # wp.array(int32) (2 * capacity,)
     fk_capacity: int = 0
-    fk_centers: object = None  # wp.array(vec3) (fk_capacity,) ellipsoid centres from robot FK
-    fk_rots: object = None  # wp.array(mat33) (fk_capacity,)
+    fk_centers: Any = None  # wp.array(vec3) (fk_capacity,) ellipsoid centres from robot FK
+    fk_rots: Any = None  # wp.array(mat33) (fk_capacity,)
     q_capacity: int = 0
-    q: object = None  # wp.array(float32) (q_capacity, dof) host configurations copied to the device (numpy inputs)
-    slack: object = None  # wp.array(float32) (fk_capacity,) per-ellipsoid FREE SLACK of collides_robot / collides_configs
+    q: Any = None  # wp.array(float32) (q_capacity, dof) host configurations copied to the device (numpy inputs)
+    slack: Any = None  # wp.array(float32) (fk_capacity,) per-ellipsoid FREE SLACK of collides_robot / collides_configs
     reallocations: int = 0  # how often buffers were (re)allocated (tests and benchmarks read it)
     _cache: dict = field(default_factory=dict)
 

@@ -176,10 +176,10 @@ class WarpMetric:
         self._sort_lo = wp.vec3(*(blo - pad).astype(np.float32))
         self._sort_scale = wp.vec3(*(1023.0 / (bhi - blo + 2 * pad)).astype(np.float32))
         self._gridsets: dict[tuple[int, ...], _GridSet] = {}  # quantised cell per tier -> grids + data
-        self._keys: dict[tuple[float, ...], tuple[int, ...]] = {}  # (n_sigma, cap, a_min, a_max) -> grid key
+        self._keys: dict[tuple[float, ...], tuple[tuple[tuple[int, int], ...], tuple[int, ...]]] = {}  # (n_sigma, cap, a_min, a_max) -> grid key
         self._lock = threading.Lock()
         self._pool: ThreadPoolExecutor | None = None
-        self._pool_finalizer = None
+        self._pool_finalizer: weakref.finalize | None = None
         self._dgrid: MeanDistanceGrid | None = None  # built on first use (mean_distance_grid)
         self._no_slack = None  # (1,) placeholder of the collide kernel's slack output
         self._groups_cache: dict = {}  # (robot groups key, largest std, n_sigma) -> RobotGroups
@@ -308,12 +308,12 @@ class WarpMetric:
             inv_ws.append(inv_w)
             offsets.append(offsets[-1] + n)
             sigmas.append(self.class_sigma[cj])  # classes are sorted by sigma: the last one's is the largest
-        perm = np.concatenate(perm)
+        cell_perm = np.concatenate(perm)
         d = self.device
         t = SplatTiers()
-        t.means = wp.array(self._means_np[perm], dtype=wp.vec3, device=d)
-        t.mrows = wp.array(self._mrows_np[perm], dtype=wp.mat33, device=d)
-        t.opacity = wp.array(self._opac_np[perm], dtype=wp.float32, device=d)
+        t.means = wp.array(self._means_np[cell_perm], dtype=wp.vec3, device=d)
+        t.mrows = wp.array(self._mrows_np[cell_perm], dtype=wp.mat33, device=d)
+        t.opacity = wp.array(self._opac_np[cell_perm], dtype=wp.float32, device=d)
         t.cell_start = wp.array(np.concatenate(starts).astype(np.int32), dtype=wp.int32, device=d)
         t.cell_base = wp.array(np.asarray(bases, np.int32), dtype=wp.int32, device=d)
         t.dims = wp.array(np.asarray(dims_all, np.int32).reshape(-1, 3), dtype=wp.vec3i, device=d)

@@ -45,7 +45,7 @@ class _DynamicsLinks:
         return res
 
 
-def link_geometry(source: Robot | Dynamics | LinkGeometry) -> LinkGeometry | _DynamicsLinks:
+def link_geometry(source: Robot | Dynamics | LinkGeometry | _DynamicsLinks) -> LinkGeometry | _DynamicsLinks:
     """The link geometry of a Robot or of a dynamics model (its ``robot``; its own ``link_poses``
     when it has no Robot), or a geometry given as is."""
     if isinstance(source, (LinkGeometry, _DynamicsLinks)):
@@ -103,7 +103,7 @@ class CollisionCost(Cost):
     def __init__(
         self,
         checker: CollisionChecker,
-        robot: Robot | Dynamics | LinkGeometry,
+        robot: Robot | Dynamics | LinkGeometry | _DynamicsLinks,
         weight: float = 1.0,
         hit_weight: float = 10.0,
         s2_cap: float | None = 2.0,
@@ -121,24 +121,24 @@ class CollisionCost(Cost):
         rob = self.geometry.robot
         use_static = static_shortcut and rob is not None and bool(np.any(rob.static_ellipsoids))
         #: (E,) bool static ellipsoids answered from the cache, or None (every ellipsoid queried)
-        self.static = np.asarray(rob.static_ellipsoids, dtype=bool) if use_static else None
+        self.static = np.asarray(rob.static_ellipsoids, dtype=np.bool_) if use_static and rob is not None else None
         self._static_cache: dict = {}
         self.auto_stride = isinstance(time_stride, str)
         if self.auto_stride:
             if time_stride != "auto":
                 raise SplatplanError(f"CollisionCost.time_stride must be an integer >= 1 or 'auto', got {time_stride!r}")
-            if self.geometry.weights is None:
+            if not isinstance(self.geometry, LinkGeometry):  # (the geometry without weights)
                 raise SplatplanError("CollisionCost(time_stride='auto') needs a Robot (its motion_bound): build the dynamics model from one")
-            self.speed_bound = _speed_bound(robot, self.geometry) if speed_bound is None else np.asarray(speed_bound, dtype=np.float64).reshape(-1)
+            self.speed_bound: np.ndarray | None = _speed_bound(robot, self.geometry) if speed_bound is None else np.asarray(speed_bound, dtype=np.float64).reshape(-1)
             if self.speed_bound.shape != (self.geometry.dof,) or not np.all(np.isfinite(self.speed_bound)) or np.any(self.speed_bound < 0):
                 raise SplatplanError(f"CollisionCost: speed_bound must be {self.geometry.dof} finite values >= 0, got {self.speed_bound}")
             if max_gap_m is None:
-                ax = np.asarray(rob.semi_axes, dtype=np.float64)
+                ax = np.asarray(self.geometry.robot.semi_axes, dtype=np.float64)
                 moving = ax if self.static is None or self.static.all() else ax[~self.static]
                 max_gap_m = 0.5 * float(moving.min())
             if not (np.isfinite(max_gap_m) and max_gap_m > 0):
                 raise SplatplanError(f"CollisionCost.max_gap_m must be finite and > 0, got {max_gap_m}")
-            self.max_gap_m = float(max_gap_m)
+            self.max_gap_m: float | None = float(max_gap_m)
             self.time_stride = 1
         else:
             if int(time_stride) < 1:
@@ -149,11 +149,13 @@ class CollisionCost(Cost):
 
     def step_motion(self, dt: float) -> float:
         """Bound on how far any ellipsoid point moves in one control step of ``dt`` s ("auto" mode)."""
+        if self.speed_bound is None or not isinstance(self.geometry, LinkGeometry):  # (both set by time_stride="auto")
+            raise TypeError("CollisionCost.step_motion needs time_stride='auto'")
         return float(self.geometry.motion(self.speed_bound * float(dt)))
 
     def stride(self, dt: float, t_len: int) -> int:
         """The time stride used for a horizon of ``t_len`` steps of ``dt`` s (see ``time_stride``)."""
-        if not self.auto_stride:
+        if not self.auto_stride or self.max_gap_m is None:  # (max_gap_m is set by time_stride="auto")
             return self.time_stride
         m = self.step_motion(dt)
         if m <= 0:
@@ -171,6 +173,7 @@ class CollisionCost(Cost):
         hit = self._static_cache.get(key)
         if hit is None:
             rob = self.geometry.robot
+            assert rob is not None  # (self.static is set only with a robot)
             res = self.checker.query_robot(rob, np.asarray(rob.q_default, dtype=np.float64)[None])  # (1, E)
             hit = QueryResult(**{f: np.asarray(v)[0, self.static].copy() for f, v in res.as_dict().items()})
             self._static_cache = {key: hit}
@@ -181,6 +184,7 @@ class CollisionCost(Cost):
         if self.static is None:
             return self.geometry.query(self.checker, states)
         rob = self.geometry.robot
+        assert rob is not None  # (self.static is set only with a robot)
         st = self.static
         mv = ~st
         static = self._static_result()
@@ -273,7 +277,7 @@ class StridedCollisionTerms(CollisionTerms):
 
 
 
-def _speed_bound(source: Robot | Dynamics | LinkGeometry, geometry: LinkGeometry) -> np.ndarray:
+def _speed_bound(source: Robot | Dynamics | LinkGeometry | _DynamicsLinks, geometry: LinkGeometry) -> np.ndarray:
     """(dof,) bound on |dq_j / dt| of the robot configuration: the dynamics model's own
     (:meth:`DynamicsModel.speed_bound`), else the robot's velocity limits."""
     if isinstance(source, DynamicsModel):

@@ -155,7 +155,7 @@ class GoalPoseCost(Cost):
         if self.robot is None:
             return rollout.states[..., list(self.state_dims)], None
         if self.device is not None:
-            key = ("link_pose_fk", self.link_index)
+            key: str | tuple[str, int | None] = ("link_pose_fk", self.link_index)
             if key not in rollout.cache:
                 c, r = self.robot.fk(rollout.states, device=self.device, links=[self.link_index])  # (K, T, 1, 3), (K, T, 1, 3, 3)
                 rollout.cache[key] = (c[..., 0, :].astype(np.float64), r[..., 0, :, :].astype(np.float64))
@@ -176,7 +176,7 @@ class GoalPoseCost(Cost):
         """(K, T) weighted cost of every step (before the time sum)."""
         p, r = self.pose(rollout)
         c = self.position_weight * np.linalg.norm(p - self.position, axis=-1)
-        if self.r_goal is not None and self.orientation_weight > 0:
+        if self.r_goal is not None and self.orientation_weight > 0 and r is not None:  # (r_goal needs a robot: r is set)
             c = c + self.orientation_weight * _rotation_angle(r, self.r_goal)
         return c
 

@@ -125,7 +125,7 @@ class StructuredDrives(SamplingStrategy):
         self.n_directions, self.speed, self.turn_rate = int(n_directions), float(speed), float(turn_rate)
         self.recovery, self.stuck_steps, self.min_distance_m, self.stuck_progress_m = bool(recovery), int(stuck_steps), float(min_distance_m), float(stuck_progress_m)
         self.detour_length_m, self.exit_margin_m, self.first_sweep = float(detour_length_m), float(exit_margin_m), int(first_sweep)
-        self._basis_pinv = None  # (n_knots, T) controls -> knots, from the MPPI's spline (bind)
+        self._basis_pinv: np.ndarray | None = None  # (n_knots, T) controls -> knots, from the MPPI's spline (bind)
         self.mode = "goal"
         self.best = np.inf  # best distance to the goal reached so far (m)
         self.best_step = 0
@@ -161,6 +161,7 @@ class StructuredDrives(SamplingStrategy):
             u[:, t, 1] = -s_ * v_world[:, t, 0] + c * v_world[:, t, 1]
             u[:, t, 2] = wz
             yaw = yaw + wz * self.dt
+        assert self._basis_pinv is not None  # (bound by the first begin_step)
         return np.einsum("nt,ptd->pnd", self._basis_pinv, u)
 
     def primitives(self, x: np.ndarray) -> np.ndarray:
@@ -174,7 +175,7 @@ class StructuredDrives(SamplingStrategy):
         if m <= 0:
             return np.zeros((0, self.n_knots, 3))
         tgt = self.goal_cost.goal
-        if self.mode == "detour":
+        if self.mode == "detour" and self.detour is not None:  # (a detour mode has its detour)
             tgt = x[:2] + 10.0 * np.array([np.cos(self.detour["heading"]), np.sin(self.detour["heading"])])
         field = self.goal_cost.field
         geo = field is not None and self.mode == "goal"  # the target's direction: descent of the field
@@ -245,7 +246,7 @@ class StructuredDrives(SamplingStrategy):
             self.best, self.best_step = dist_now, self.step_i
         if self.recovery and self.mode == "goal" and self.step_i - self.best_step >= self.stuck_steps and dist_now > self.min_distance_m:
             self._start_detour(x)
-        if self.mode == "detour":
+        if self.mode == "detour" and self.detour is not None:
             det = self.detour
             det["walked"] += float(np.linalg.norm(x[:2] - det["last"]))
             det["last"] = x[:2].copy()
@@ -257,7 +258,7 @@ class StructuredDrives(SamplingStrategy):
                 det["limit"] = 2.0 * det["limit"] + det["walked"]
                 det["walked"], det["window"] = 0.0, [x[:2].copy()]
                 self.events.append({"step": self.step_i, "event": "reverse", "xy": x[:2].round(3).tolist()})
-        self.goal_cost.sweep = (self.detour["heading"], x[:2].copy()) if self.mode == "detour" else None
+        self.goal_cost.sweep = (self.detour["heading"], x[:2].copy()) if self.mode == "detour" and self.detour is not None else None
 
     def _start_detour(self, x: np.ndarray) -> None:
         """Stagnation: sidestep, perpendicular to the bearing to the goal, first to the side
@@ -280,7 +281,7 @@ class StructuredDrives(SamplingStrategy):
         dmin = evaluation.values["goal_distance"].min(axis=1)  # (K,)
         free = ~evaluation.in_collision()
         chosen = None
-        if self.mode == "detour":
+        if self.mode == "detour" and self.detour is not None:
             ok = free & (dmin < self.detour["ref"] - self.exit_margin_m)
             if ok.any():
                 base = 0.0

@@ -318,5 +318,7 @@ class JointIntegrator(DynamicsModel):
         return self.v_max.copy()
 
     def _own_link_poses(self, s: np.ndarray):  # the deprecated forward-kinematics callable
+        if self.fk is None:  # (set only with the callable)
+            raise TypeError("these dynamics have no forward-kinematics callable")
         centers, quats = self.fk(s)
         return np.asarray(centers, dtype=np.float64), None if quats is None else np.asarray(quats, dtype=np.float64), self.semi_axes

@@ -98,7 +98,8 @@ class GoalTimeMPC:
         self.cfg, self.mppi, self.mcfg = schedule, mppi, mppi.config
         self.dyn, self.vmax, self.value = mppi.dynamics, np.asarray(u_max, np.float64), progress_value
         self.refiner = self._new_refiner()
-        self.iters, self.start_costs = 0, []
+        self.iters = 0
+        self.start_costs: list[float] = []
 
     def anneal(self, c: float) -> float:
         """Noise scale from the raw goal cost ``c`` of the current plan."""

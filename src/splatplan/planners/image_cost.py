@@ -31,6 +31,8 @@ from ..errors import SplatplanError
 from .cost_base import Cost, CostValue, Rollout
 
 if TYPE_CHECKING:
+    import torch
+
     from ..robots.robot import Robot
 
 __all__ = ["ImageCost", "ImageTerms"]
@@ -123,8 +125,8 @@ class ImageCost(Cost):
         return self._render(states).rgb
 
     def _render(self, states: np.ndarray):
-        v = self.viewmats(states)
-        ks = self.camera.Ks((v.shape[0],))
+        v: np.ndarray | torch.Tensor = self.viewmats(states)  # (B, 4, 4); a tensor on the renderer's device when it runs on CUDA
+        ks: np.ndarray | torch.Tensor = self.camera.Ks((v.shape[0],))
         if getattr(self.renderer, "is_cuda", False):
             import torch
 

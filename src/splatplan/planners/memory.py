@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -99,7 +99,7 @@ class ObstacleMemory:
         self.sight_shape = (2 * self.shape[0], 2 * self.shape[1])  # (MX, MY)
         self.opacity_known = np.zeros(self.sight_shape, bool)  # (MX, MY) the metric was asked
         self.opaque = np.zeros(self.sight_shape, bool)  # (MX, MY) a surface within the square's circumscribed sphere
-        self.stats = {"n_sensed": 0, "n_blocked": 0, "n_queries": 0, "n_recomputes": 0, "sense_s": 0.0, "field_s": 0.0, "first_sense_s": None,
+        self.stats: dict[str, Any] = {"n_sensed": 0, "n_blocked": 0, "n_queries": 0, "n_recomputes": 0, "sense_s": 0.0, "field_s": 0.0, "first_sense_s": None,
                       "n_rays": 0, "n_occluded": 0, "n_opacity_queries": 0, "sight_s": 0.0}  # fmt: skip
         self._recompute()
 
@@ -175,7 +175,7 @@ class ObstacleMemory:
     def _blocked_at(self, xy: np.ndarray) -> np.ndarray:
         """(C,) True where the robot at xy (C, 2) collides at every heading of ``yaws``."""
         q = np.concatenate([xy, np.full((len(xy), 1), self.yaws[0])], axis=1)  # (C, 3) x, y, yaw
-        blocked = np.asarray(self.checker.collides_robot(self.robot, q)).any(axis=-1)  # (C,)
+        blocked = np.any(np.asarray(self.checker.collides_robot(self.robot, q)), axis=-1)  # (C,)
         self.stats["n_queries"] += len(q)
         rest = np.flatnonzero(blocked)
         if len(rest) and len(self.yaws) > 1:  # the other headings only where yaw 0 collides
@@ -359,7 +359,7 @@ def _geodesic_field_reference(blocked: np.ndarray, origin, cell: float, goal, co
     g = np.asarray(goal, np.float64)[:2]
     center = lambda i, j: np.asarray(origin, np.float64) + (np.array([i, j]) + 0.5) * cell  # noqa: E731
     dist = np.full((nx, ny), np.inf)
-    heap = []
+    heap: list[tuple[float, int, int]] = []
     starts = [(i, j) for i in range(nx) for j in range(ny) if not blocked[i, j] and np.linalg.norm(center(i, j) - g) <= 1.5 * cell]
     if not starts:
         dd = {(i, j): np.linalg.norm(center(i, j) - g) for i in range(nx) for j in range(ny)}

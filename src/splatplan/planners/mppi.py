@@ -34,7 +34,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Callable
+from typing import TYPE_CHECKING, Callable, overload
 
 import numpy as np
 
@@ -49,6 +49,7 @@ from .dynamics import Dynamics, JointIntegrator
 
 if TYPE_CHECKING:
     from ..metric.checker import CollisionChecker
+    from ..metric.config import QueryResult
 
 
 @dataclass
@@ -201,14 +202,14 @@ class Evaluation:
     values: dict
     states: np.ndarray
     controls: np.ndarray
-    query: object = None
+    query: QueryResult | None = None
     n_pruned: int = 0
 
     def in_collision(self) -> np.ndarray:
         """(K,) bool: some ellipsoid of the sample collides at some evaluated step (False without a query)."""
         if self.query is None:
             return np.zeros(len(self.total), dtype=bool)
-        return np.asarray(self.query.in_collision).reshape(len(self.total), -1).any(axis=1)
+        return np.any(np.asarray(self.query.in_collision).reshape(len(self.total), -1), axis=1)
 
 
 class SamplingStrategy:
@@ -290,6 +291,10 @@ class MPPIInfo:
         return bool(np.any(self.nominal_in_collision))
 
 
+@overload
+def _per_dim(v: None, du: int, name: str) -> None: ...
+@overload
+def _per_dim(v: float | tuple[float, ...] | np.ndarray, du: int, name: str) -> np.ndarray: ...
 def _per_dim(v, du: int, name: str) -> np.ndarray | None:
     if v is None:
         return None
@@ -352,7 +357,7 @@ class MPPI:
     def __init__(
         self,
         dynamics: Dynamics,
-        checker: CollisionChecker,
+        checker: CollisionChecker | None,
         config: MPPIConfig | None = None,
         task_cost: Callable[[np.ndarray], np.ndarray] | None = None,
         terminal_cost: Callable[[np.ndarray], np.ndarray] | None = None,
@@ -457,6 +462,7 @@ class MPPI:
         """total (K,), terms, values and the pruned count of a batch with hopeless samples pruned
         (see ``MPPIConfig.prune_margin``)."""
         cfg = self.config
+        assert cfg.prune_margin is not None  # (the caller prunes only with a margin)
         k, t_len = rollout.k, rollout.states.shape[1]
         base, terms, values, _ = evaluate_costs([c for c in self.costs if c is not col], rollout)  # every other term, exact
         for name, v in col.self_terms(rollout).items():

@@ -48,7 +48,7 @@ import sys
 import threading
 import time
 from dataclasses import replace
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -247,7 +247,7 @@ class _Problem:
         self.w = np.where(w > 0, w, 1.0)  # (k,) configuration -> metric (a zero motion bound: plain units)
         self.k = int(free.size)
         self.errors: list[BaseException] = []
-        self.stop = {"flag": False, "ptc": None}
+        self.stop: dict[str, Any] = {"flag": False, "ptc": None}  # ptc: the running OMPL termination condition
         self.lock = threading.Lock()  # PRM's roadmap thread calls back too; the checker is not re-entrant
         self.n_motions = 0
 

@@ -206,7 +206,7 @@ class LinkGeometry:
         hit = np.asarray(hit)
         self.n_queries += hit.size
         self.n_configs += hit.size // max(hit.shape[-1], 1) if hit.ndim else 1
-        return hit.any(axis=-1)
+        return np.any(hit, axis=-1)
 
     def collides_slack(self, checker: CollisionChecker, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(..., D) -> (any ellipsoid in collision (...,) bool, slack (..., E) float): each

@@ -94,7 +94,7 @@ def carrot(path_xy: np.ndarray, p: np.ndarray, lookahead: float, progress: int) 
     pt = a[j] + t[j] * ab[j]
     k = j
     while k < len(ab):
-        seg = np.linalg.norm(b[k] - pt)
+        seg = float(np.linalg.norm(b[k] - pt))
         if seg >= rem:
             return pt + (b[k] - pt) * (rem / max(seg, 1e-12)), j
         rem -= seg

@@ -112,7 +112,7 @@ class Search:
         if config.max_nodes is not None and n_nodes >= config.max_nodes:
             return f"within the node budget ({config.max_nodes:,} nodes)"
         if time.perf_counter() > self.end:
-            limit = self.st.time_limit_s if self.st.time_limit_s is not None else self.deadline - self.t0  # the budget the user gave
+            limit = self.st.time_limit_s if self.st.time_limit_s is not None else self.end - self.t0  # the budget the user gave (end: the deadline here)
             info["time_limit_hit"] = True
             return f"within {limit:.1f} s ({n_nodes:,} nodes)"
         return None
@@ -154,7 +154,7 @@ class RRT:
         pad = geom.max_semi_axis
         c_ref = np.asarray(robot.ellipsoids(ref[None])[0], dtype=np.float64)[0].mean(axis=0)  # (3,) robot centre
         trans_dirs = np.full((d, 3), np.nan)
-        for j in np.nonzero(~np.isfinite(lim).all(axis=1))[0]:
+        for j in np.nonzero(~np.isfinite(lim).all(axis=1))[0].tolist():
             q1 = ref.copy()
             q1[j] += 1.0
             c1, quat1, _ = robot.ellipsoids(np.stack([ref, q1]))

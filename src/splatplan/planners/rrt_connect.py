@@ -78,6 +78,7 @@ class RRTConnect(RRT):
             raise PlanningError("RRT-Connect needs a goal; use the RRT planner to explore without one")
         cfg = self.config
         s = self._setup(start, goal, deadline)
+        assert s.goal is not None  # (the goal given, checked above)
         cap0 = int(min(math.inf if cfg.max_nodes is None else cfg.max_nodes, 4096))
         trees = [Tree(s.start, s.w, cap0), Tree(s.goal, s.w, cap0)]  # 0: from the start, 1: from the goal
         clock = {"sampling": 0.0, "nearest": 0.0}
@@ -85,8 +86,7 @@ class RRTConnect(RRT):
         if s.edges.edges_free(s.start[None], s.goal[None])[0]:
             return self._result(s, trees, info, clock, np.stack([s.start, s.goal]), "direct edge from start to goal is free", 0)
         if cfg.lazy:
-            raw, message, it = lazy_connect_search(self, s, trees, info, clock)
-            return self._result(s, trees, info, clock, raw, message, it)
+            return self._result(s, trees, info, clock, *lazy_connect_search(self, s, trees, info, clock))
         it = 0
         runs: list[tuple[int, int, int, int]] = []  # connect runs still free, carried to the next iteration
         while (message := s.stop(cfg, it, trees[0].n + trees[1].n, info)) is None:
@@ -160,7 +160,7 @@ class RRTConnect(RRT):
         """Add the free part of each connect run to its tree, one node every stride on the
         check-sample grid (nodes are always checked configurations) and the last free sample;
         returns the runs free so far that go on in the next iteration."""
-        runs = []
+        runs: list[tuple[int, int, int, int]] = []
         for c, (f, i_from, g, tgt) in enumerate(todo):
             if kc[c] == 0:
                 continue

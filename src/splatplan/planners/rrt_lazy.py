@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import math
 import time
+from typing import Any
 
 import numpy as np
 
@@ -55,7 +56,7 @@ def lazy_connect_search(planner, s: Search, trees: list[Tree], info: dict, clock
     """
     cfg = planner.config
     w, stride = s.w, float(s.st.stride)
-    stats = {"validations": 0, "edges_rejected": 0, "nodes_removed": 0, "configs_nodes": 0, "configs_validation": 0,
+    stats: dict[str, Any] = {"validations": 0, "edges_rejected": 0, "nodes_removed": 0, "configs_nodes": 0, "configs_validation": 0,
              "shortcut": "doubling" if cfg.shortcut else None}  # fmt: skip
     info["lazy"] = stats
     clock.setdefault("collision_nodes", 0.0)
@@ -184,6 +185,7 @@ def _validate(s: Search, trees: list[Tree], a_id: int, candidates: list[tuple[in
             short, bad = _shortcut_check(s, trees, path, owners, screen)
             if short is not None:
                 return short
+            assert bad is not None  # (no path: the edge that collides)
             bad_edges = [bad]
         else:  # the path as it is: every unchecked edge in one call
             todo = [k for k, (t, i) in enumerate(owners) if not trees[t].verified[i]]

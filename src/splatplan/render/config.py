@@ -20,6 +20,7 @@ Conventions (see ``docs/rendering.md``):
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -71,9 +72,9 @@ class RenderResult:
     device) or Warp arrays (then Warp arrays on the render device, rgb as wp.vec3 (B, H, W)).
     """
 
-    rgb: object
-    depth: object
-    alpha: object
+    rgb: Any  # numpy, torch or Warp array (see above)
+    depth: Any
+    alpha: Any
 
     def __len__(self) -> int:
         return int(self.rgb.shape[0])

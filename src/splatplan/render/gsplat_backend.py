@@ -56,7 +56,7 @@ class GsplatRenderer:
         k_rest = (self.sh_degree + 1) ** 2 - 1
         sh0 = (scene.colors.astype(np.float64) - 0.5) / SH_C0  # colours = 0.5 + C0 * sh0
         coeffs = sh0[:, None, :]
-        if k_rest:
+        if k_rest and scene.sh_rest is not None:  # (k_rest > 0: the scene has its SH bands)
             coeffs = np.concatenate([coeffs, scene.sh_rest[:, :k_rest].astype(np.float64)], axis=1)  # (N, K, 3)
         q = scene.quats.astype(np.float64)
         q = q / np.maximum(np.linalg.norm(q, axis=1, keepdims=True), 1e-30) if self.n else q

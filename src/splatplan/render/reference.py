@@ -9,6 +9,9 @@ rounding. Use for tests on small scenes and images only.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from typing import Any, TypedDict
+
 import numpy as np
 
 from ..scenes.splats import Splats, quat_to_rotmat
@@ -20,7 +23,18 @@ from .config import (
 __all__ = ["scene_arrays", "eval_sh", "project_reference", "render_reference"]
 
 
-def scene_arrays(scene: Splats) -> dict[str, np.ndarray | int]:
+class SceneArrays(TypedDict):
+    """What :func:`scene_arrays` returns (float64 arrays, world frame)."""
+
+    means: np.ndarray  # (N, 3)
+    covs: np.ndarray  # (N, 3, 3)
+    opacities: np.ndarray  # (N,)
+    colors: np.ndarray  # (N, 3)
+    sh: np.ndarray  # (N, K, 3)
+    degree: int
+
+
+def scene_arrays(scene: Splats) -> SceneArrays:
     """The per-splat data every renderer uses (float64, world frame).
 
     Returns means (N, 3), covs (N, 3, 3) = R diag(s^2) R^T with 2DGS disks (third std 0) given the
@@ -69,7 +83,7 @@ def eval_sh(colors: np.ndarray, sh: np.ndarray, dirs: np.ndarray, degree: int) -
     return np.maximum(c, 0.0)
 
 
-def project_reference(arrs: dict, cam: dict, b: int, width: int, height: int, near: float, far: float, degree: int) -> dict[str, np.ndarray]:
+def project_reference(arrs: Mapping[str, Any], cam: dict, b: int, width: int, height: int, near: float, far: float, degree: int) -> dict[str, np.ndarray]:
     """Project every splat into camera b. Returns per-splat arrays and a ``valid`` mask (N,).
 
     ``valid`` drops splats whose mean lies outside [near, far] along the view axis and those with

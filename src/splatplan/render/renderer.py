@@ -16,6 +16,7 @@ from __future__ import annotations
 import math
 import queue
 import threading
+from typing import Any
 
 import numpy as np
 
@@ -45,12 +46,13 @@ class _Workspace:
         self.rows = 0
         self.pairs = 0
         self.tiles = 0
-        self.proj = None
-        self.offsets = None
-        self.keys = None
-        self.vals = None
-        self.sorted = None
-        self.ranges = None
+        # Warp structs and arrays on ``device``, None until first grown
+        self.proj: Any = None  # rast.ProjArgs (rows,)
+        self.offsets: Any = None  # wp.array(int32) (rows,)
+        self.keys: Any = None  # wp.array(int64) (2 * pairs,)
+        self.vals: Any = None  # wp.array(int32) (2 * pairs,)
+        self.sorted: Any = None  # wp.array(Splat2D) (pairs,)
+        self.ranges: Any = None  # wp.array(vec2i) (tiles,)
 
     def ensure_rows(self, rows: int) -> None:
         if rows <= self.rows:

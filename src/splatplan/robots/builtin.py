@@ -147,7 +147,8 @@ def parse_robot_name(spec: str | Path) -> RobotName:
         raise SplatplanError(f"robot {text!r}: numbers expected after ':' ('sphere:R' or 'ellipsoid:A,B,C', scene units)") from None
     if not ((kind == "sphere" and len(vals) == 1) or (kind == "ellipsoid" and len(vals) == 3)):
         raise SplatplanError(f"robot {text!r} not understood: 'sphere:R' or 'ellipsoid:A,B,C' (semi-axes, scene units)")
-    axes = tuple(vals * 3 if kind == "sphere" else vals)
+    abc = vals * 3 if kind == "sphere" else vals
+    axes = (abc[0], abc[1], abc[2])
     if not all(math.isfinite(v) and v > 0 for v in axes):
         raise SplatplanError(f"robot {text!r}: sizes must be finite and > 0")
     return RobotName(kind, text, axes)
@@ -178,7 +179,7 @@ def point_radius(name: str = DEFAULT_POINT_ROBOT) -> float:
         SplatplanError: ``name`` is not a sphere.
     """
     parsed = parse_robot_name(name)
-    if parsed.kind != "sphere":
+    if parsed.kind != "sphere" or parsed.semi_axes is None:  # (a sphere has its semi-axes)
         raise SplatplanError(f"robot {parsed.text!r} is not a sphere 'sphere:R'")
     return parsed.semi_axes[0]
 
@@ -269,7 +270,7 @@ def load_robot(
                 fixed = {**(fixed or {}), "panda_finger_joint1": fo}
             ellipsoids = ellipsoids or DATA / PANDA_MODELS[model]
         if not (active or fixed or base or base_pose is not None or srdf or walks_on_terrain is not None) and (
-            ellipsoids is None or text == "panda" and Path(ellipsoids) == DATA / PANDA_MODELS[model]
+            ellipsoids is None or text == "panda" and model is not None and Path(ellipsoids) == DATA / PANDA_MODELS[model]
         ):
             return copy.deepcopy(_cached_builtin(text, str(ellipsoids) if ellipsoids else None))  # fresh: never the cached one
         return _builtin(text, active, fixed, base, base_pose, ellipsoids, walks_on_terrain)
@@ -387,9 +388,9 @@ def build_robot(
     vals = np.zeros(len(dof_joints))
     if sr is not None and state and state in sr.group_states:
         for k, jn in enumerate(dof_joints):
-            v = sr.group_states[state].get(jn)
-            if v and len(v) == 1:
-                vals[k] = v[0]
+            sv = sr.group_states[state].get(jn)
+            if sv and len(sv) == 1:
+                vals[k] = sv[0]
     for jn, v in (fixed or {}).items():
         if jn not in dof_joints:
             raise SplatplanError(f"robot {model.name}: cannot fix unknown joint {jn!r}; movable joints: {', '.join(dof_joints)}")

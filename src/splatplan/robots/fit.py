@@ -37,6 +37,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import cast
 
 import numpy as np
 
@@ -92,6 +93,7 @@ def _cylinder_like(radius: float, half: float, cap: float) -> tuple[float, float
         v = a2 * cz
         if best is None or v < best[0]:
             best = (v, math.sqrt(a2), cz)
+    assert best is not None  # (the loop above runs 4000 times)
     _, a, cz = best
     return a * (1.0 + 1e-4), cz  # 1e-4 margin covers the sampling of the profile
 
@@ -183,7 +185,7 @@ def fit_link(link: str, geoms: list[Geom], k: int = 1, method: str = "split", co
     elif polys and method == "cover":
         ells += fit_cover.fit_link_cover(polys, config or fit_cover.FitConfig())[0]
     elif polys:
-        merged = trimesh.util.concatenate(polys) if len(polys) > 1 else polys[0]
+        merged = cast("trimesh.Trimesh", trimesh.util.concatenate(polys)) if len(polys) > 1 else polys[0]  # (meshes join into a mesh)
         ells += split_fit(np.asarray(merged.vertices, dtype=np.float64), np.asarray(merged.edges_unique), k)
     return ells, vol
 
@@ -253,7 +255,7 @@ def fit_model(
             skipped.append(link)
             continue
         k = per_link if isinstance(per_link, int) else int(per_link.get(link, 1))
-        alt = [] if budget else None
+        alt: list | None = [] if budget else None
         ells, gvol = fit_link(link, geoms, k, method, config, alternatives=alt)
         fitted[link] = (ells, gvol, geoms, source)
         if alt:

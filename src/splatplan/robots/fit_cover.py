@@ -40,6 +40,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -233,7 +234,7 @@ def greedy_cover(cands: list, targets: np.ndarray, waste_pts: np.ndarray, cell_v
     covered = np.zeros(len(targets), dtype=bool)
     wasted = np.zeros(len(waste_pts), dtype=bool)
     per_point = volume / len(targets)
-    chosen = []
+    chosen: list = []  # of the candidates (centre, rotation, semi-axes)
     while not covered.all() and len(chosen) < cfg.max_per_link:
         gain = (in_t & ~covered).sum(axis=1) * per_point
         cost = (in_w & ~wasted).sum(axis=1) * cell_volume + cfg.ellipsoid_cost * volume
@@ -364,7 +365,8 @@ def fit_link_cover(polys: list, cfg: FitConfig) -> tuple[list, dict]:
     t2 = time.time()
     simp = [simplices_of(m) for m in solids]
     solid_cert = all(full for _, full in simp)
-    ells, stats = chosen, {"checked": 0, "repairs": 0, "max_scale": 1.0}
+    ells = chosen
+    stats: dict[str, Any] = {"checked": 0, "repairs": 0, "max_scale": 1.0}
     k_patch = max(12, len(targets) // 100)
 
     def patch(pts):  # a small ellipsoid around a gap: the MVEE of it and its nearest target points

@@ -162,11 +162,11 @@ def _field_at_numpy(grid: np.ndarray, lo: np.ndarray, pitch: float, pts: np.ndar
 
 def _kmeans(pts: np.ndarray, k: int, rng: np.random.Generator, iters: int = 30) -> np.ndarray:
     """(N,) cluster labels of k-means (k-means++ seeding)."""
-    c = [pts[rng.integers(len(pts))]]
+    seeds = [pts[rng.integers(len(pts))]]
     for _ in range(k - 1):
-        d = np.min(((pts[:, None] - np.array(c)[None]) ** 2).sum(-1), axis=1)
-        c.append(pts[rng.choice(len(pts), p=d / d.sum())])
-    c = np.array(c)
+        d = np.min(((pts[:, None] - np.array(seeds)[None]) ** 2).sum(-1), axis=1)
+        seeds.append(pts[rng.choice(len(pts), p=d / d.sum())])
+    c = np.array(seeds)
     for _ in range(iters):
         lab = np.argmin(((pts[:, None] - c[None]) ** 2).sum(-1), axis=1)
         c = np.array([pts[lab == j].mean(axis=0) if (lab == j).any() else c[j] for j in range(k)])
@@ -332,9 +332,9 @@ def fit_link_opt(polys: list, cfg: OptConfig | None = None, k: int | None = None
     edges = np.concatenate([np.asarray(m.vertices)[m.edges_unique].mean(axis=1) for m in solids])
     targets = np.concatenate([surf, interior, verts, edges, dense])
     mu, S = 0.5 * (lo_b + hi_b), extent
-    simp = [simplices_of(m) for m in solids]
-    solid_cert = all(full for _, full in simp)
-    simp = [sp for sp, _ in simp]
+    simp_full = [simplices_of(m) for m in solids]
+    solid_cert = all(full for _, full in simp_full)
+    simp = [sp for sp, _ in simp_full]
     limit = cfg.reach - pitch  # the field's error is about half a pitch; the certificate adds a little
     t1 = time.time()
     tried = []
@@ -355,6 +355,7 @@ def fit_link_opt(polys: list, cfg: OptConfig | None = None, k: int | None = None
             score = (max(m.reach_m - cfg.reach, 0.0) * 100.0, m.volume_ratio)
             if best is None or score < best[0]:
                 best = (score, e, m, grow)
+        assert best is not None  # (restarts >= 1)
         tried.append((kk, best[1], best[2], best[3]))
         if best[2].reach_m <= cfg.reach and best[2].volume_ratio <= cfg.volume_ratio and not cfg.budget_per_link:
             break  # (with a robot budget every k is kept: fit_model chooses across links)

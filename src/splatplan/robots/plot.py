@@ -45,8 +45,8 @@ def plot_robot_ellipsoids(robot: Robot, model: UrdfModel | None = None, q=None, 
     for e in range(robot.n_ellipsoids):
         x, y, z = ellipsoid_surface(centers[e], rots[e], robot.semi_axes[e])
         ax.plot_wireframe(x, y, z, color=colors[int(robot.ellipsoid_link[e])], linewidth=0.3, alpha=0.6)
-    allpts = np.concatenate(allpts)
-    lo, hi = allpts.min(axis=0), allpts.max(axis=0)
+    every = np.concatenate(allpts)
+    lo, hi = every.min(axis=0), every.max(axis=0)
     mid, half = (lo + hi) / 2, (hi - lo).max() / 2
     ax.set_xlim(mid[0] - half, mid[0] + half)
     ax.set_ylim(mid[1] - half, mid[1] + half)

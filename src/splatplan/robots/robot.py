@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import copy
 import threading
+from collections.abc import Set as AbstractSet
 from concurrent.futures import ThreadPoolExecutor
 from typing import Literal
 
@@ -77,7 +78,7 @@ class Robot(OwnsThreadPool):
         q_default: np.ndarray,
         ellipsoids: EllipsoidSet,
         continuous: np.ndarray | None = None,
-        disabled_pairs: set[frozenset[str]] | None = None,
+        disabled_pairs: AbstractSet[frozenset[str | None]] | None = None,
         info: dict | None = None,
         walks_on_terrain: bool = False,
     ):
@@ -282,7 +283,7 @@ class Robot(OwnsThreadPool):
 
     def _subtree(self) -> list[list[int]]:
         kids = self.kin.children()
-        out = [[] for _ in range(self.kin.n_links)]
+        out: list[list[int]] = [[] for _ in range(self.kin.n_links)]
         for l in reversed(range(self.kin.n_links)):
             out[l] = [l] + [x for c in kids[l] for x in out[c]]
         return out
@@ -413,11 +414,11 @@ class Robot(OwnsThreadPool):
 
     # ------------------------------------------------------------------ self-collision
 
-    def _pairs(self, disabled: set[frozenset[str]]) -> np.ndarray:
+    def _pairs(self, disabled: AbstractSet[frozenset[str | None]]) -> np.ndarray:
         """Ellipsoid pairs to check: different rigid bodies, not adjacent, not disabled, apart at q_default."""
         kin, fr = self.kin, self.frame_of_link
         parent_frame = {int(f): (int(fr[kin.parent[f]]) if kin.parent[f] >= 0 else -1) for f in set(fr.tolist())}
-        pairs = []
+        kept: list[tuple[int, int]] = []
         for i in range(self.n_ellipsoids):
             for j in range(i + 1, self.n_ellipsoids):
                 li, lj = int(self.ellipsoid_link[i]), int(self.ellipsoid_link[j])
@@ -426,15 +427,15 @@ class Robot(OwnsThreadPool):
                     continue
                 if frozenset((self.link_names[li], self.link_names[lj])) in disabled:
                     continue
-                pairs.append((i, j))
-        pairs = np.array(pairs, dtype=np.int64).reshape(-1, 2)
+                kept.append((i, j))
+        pairs = np.array(kept, dtype=np.int64).reshape(-1, 2)
         if len(pairs):
             c, r = self.ellipsoid_frames(self.q_default)
             hit = _maybe_overlap(c[pairs[:, 0]], r[pairs[:, 0]], self.semi_axes[pairs[:, 0]], c[pairs[:, 1]], r[pairs[:, 1]], self.semi_axes[pairs[:, 1]])
             pairs = pairs[~hit]  # touching in the home pose: treated as always in contact (MoveIt's "Default")
         return pairs
 
-    def self_collision(self, q) -> np.ndarray:
+    def self_collision(self, q) -> np.ndarray | np.bool_:
         """(...,) bool: True where some checked ellipsoid pair may overlap (conservative: never misses a true overlap).
 
         Pairs are those of ``self_collision_pairs``: ellipsoids on different rigid bodies whose

@@ -111,7 +111,8 @@ def sample_solids(solids: list, n: int, rng: np.random.Generator) -> tuple[np.nd
         pts, _ = trimesh.sample.sample_surface(m, ns, seed=int(rng.integers(2**31)))
         surf.append(np.asarray(pts))
         nv = max(8, int(round(0.5 * n * v / max(vols.sum(), 1e-300))))
-        got, tries = [], 0
+        got: list[np.ndarray] = []
+        tries = 0
         lo, hi = m.bounds
         while sum(len(g) for g in got) < nv and tries < 50:
             cand = rng.uniform(lo, hi, size=(4 * nv, 3))

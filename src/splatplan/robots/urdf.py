@@ -96,9 +96,9 @@ def _rpy_xyz(el) -> np.ndarray:
     return t
 
 
-def _capsules(path: Path) -> dict[tuple[str, str, int], Geom]:
+def _capsules(path: Path) -> dict[tuple[str | None, str, int], Geom]:
     """<capsule> elements (not in the URDF standard, ignored by yourdfpy): (link, tag, index) -> Geom."""
-    out = {}
+    out: dict[tuple[str | None, str, int], Geom] = {}
     try:
         root = ET.parse(path).getroot()
     except ET.ParseError:
@@ -355,8 +355,8 @@ def _check_geom(path: Path, link: str, kind: str, g: "Geom") -> None:
 class Srdf:
     """The parts of an SRDF this package uses."""
 
-    disabled_pairs: set[frozenset[str]]
-    group_states: dict[str, dict[str, list[float]]]  # state name -> joint -> values
+    disabled_pairs: set[frozenset[str | None]]  # (None: a link attribute missing from the file)
+    group_states: dict[str | None, dict[str | None, list[float]]]  # state name -> joint -> values
 
 
 def read_srdf(path: str | Path) -> Srdf:
@@ -365,7 +365,7 @@ def read_srdf(path: str | Path) -> Srdf:
     except (ET.ParseError, OSError) as exc:
         raise SplatplanError(f"SRDF {path} does not parse ({exc})") from None
     pairs = {frozenset((d.get("link1"), d.get("link2"))) for d in root.iter("disable_collisions")}
-    states = {}
+    states: dict[str | None, dict[str | None, list[float]]] = {}
     for s in root.iter("group_state"):
         states[s.get("name")] = {j.get("name"): [float(v) for v in j.get("value", "").split()] for j in s.iter("joint")}
     return Srdf(pairs, states)

@@ -315,6 +315,7 @@ def guess_up(splats: Splats, config: AlignConfig | None = None) -> UpGuess:
     cfg = (config or AlignConfig()).validate()
     m, w, bounding = _bounding_planes(splats, cfg)
     margin, hint_decides = 1.0, False
+    plane: Plane | None
     if cfg.up == "auto":
         plane, conf, margin, hint_decides = _choose_support(bounding, cfg)
         up, method = plane.normal, "support-plane"
@@ -445,6 +446,7 @@ def align_scene(splats: Splats, config: AlignConfig | None = None) -> tuple[Spla
     else:
         up = np.asarray(AXES[cfg.up], np.float64)
     if cfg.floor == "auto":
+        assert guess is not None  # (floor "auto" takes one of the guessing branches above)
         floor = guess.floor_height
     elif cfg.floor == "none":
         floor = 0.0
@@ -475,8 +477,8 @@ def align_scene(splats: Splats, config: AlignConfig | None = None) -> tuple[Spla
     if cfg.drop_floaters:
         # the floor's surface is left out of the test (its own splats and their neighbours), the rest of
         # the step band is not: a faint upright splat standing alone on the floor blocks a ground robot
-        floor = floor_surface_mask(out, 0.0, 0.05 * s) if cfg.floor != "none" else np.zeros(len(out), bool)
-        iso = isolated_mask(out.means, out.opacities, candidates=~floor)
+        on_floor = floor_surface_mask(out, 0.0, 0.05 * s) if cfg.floor != "none" else np.zeros(len(out), bool)
+        iso = isolated_mask(out.means, out.opacities, candidates=~on_floor)
         n_floaters = int(iso.sum())
         out = out.subset(~iso)
     n_cropped = 0
@@ -554,7 +556,7 @@ def describe_frame(splats: Splats, config: AlignConfig | None = None) -> dict:
         d["up_guess"] = None
         d["up_note"] = str(exc)
     ext = float(np.max(hi1 - lo1))
-    if g is not None and 1.8 <= height <= 4.5 and g.confidence > 0.3:
+    if g is not None and height is not None and 1.8 <= height <= 4.5 and g.confidence > 0.3:
         note = f"looks metric: {height:.2f} units from the floor to the top, a room's height in metres"
     elif 0.5 <= ext <= 5.0 and g is None:
         note = f"cannot tell: the robust extent is {ext:.3g} units (an object in metres and a normalised capture look alike); use --scale if you know a size"

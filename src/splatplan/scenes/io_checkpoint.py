@@ -105,7 +105,7 @@ def read_gsplat_checkpoint(path: str | Path, *, drop_invalid: bool = False) -> S
         bad.append(f"sh0 {arrays['sh0'].shape} (expected ({n}, 1, 3))")
     if "shN" in arrays and (arrays["shN"].ndim != 3 or arrays["shN"].shape[0] != n or arrays["shN"].shape[2] != 3):
         bad.append(f"shN {arrays['shN'].shape} (expected ({n}, K, 3))")
-    if bad:
+    if bad or sh0 is None:  # (sh0 None is among the bad shapes)
         raise scene_error(path, f"gsplat checkpoint tensors have wrong shapes: {'; '.join(bad)}")
 
     is_2d = arrays["scales"].shape[1] == 2

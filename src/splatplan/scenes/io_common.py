@@ -129,7 +129,7 @@ def read_exact(stream: _Readable, size: int, path: str | Path, what: str, *, all
         out = np.empty(size, dtype=np.uint8)
     except (MemoryError, ValueError):
         raise scene_error(path, f"{what} would need {size:,} bytes according to the header, more than this machine can allocate; the header is corrupt or the scene is too large") from None
-    view = memoryview(out)
+    view = out.data  # (a memoryview of the bytes)
     pos = 0
     while pos < size:
         chunk = stream.read(min(READ_CHUNK, size - pos))

@@ -176,10 +176,13 @@ def _float32_matrix(rows: np.ndarray) -> tuple[np.ndarray | None, dict[str, int]
     names = dt.names or ()
     if not names or not rows.flags.c_contiguous or dt.itemsize != 4 * len(names):
         return None, {}
-    f0 = dt.fields[names[0]][0]
-    if f0.kind != "f" or f0.itemsize != 4 or any(dt.fields[nm][0] != f0 or dt.fields[nm][1] % 4 for nm in names):
+    fields = dt.fields
+    if fields is None:  # (a structured dtype with names always has fields)
         return None, {}
-    col = {nm: dt.fields[nm][1] // 4 for nm in names}
+    f0 = fields[names[0]][0]
+    if f0.kind != "f" or f0.itemsize != 4 or any(fields[nm][0] != f0 or fields[nm][1] % 4 for nm in names):
+        return None, {}
+    col = {nm: fields[nm][1] // 4 for nm in names}
     if len(set(col.values())) != len(names):
         return None, {}
     return rows.view(f0).reshape(len(rows), len(names)), col
@@ -233,7 +236,7 @@ def decode_gaussian_ply(ply: plyfile.PlyData, path: str | Path, *, drop_invalid:
                 scales[a:b, :n_scales] = exp_std(mat[:, _cols(col, [f"scale_{j}" for j in range(n_scales)])])
                 opacities[a:b] = sigmoid(mat[:, col["opacity"]])
                 colors[a:b] = sh_dc_to_color(mat[:, _cols(col, [f"f_dc_{c}" for c in range(3)])])
-                if k:  # (M, 3K) channel-major -> (M, K, 3)
+                if sh_rest is not None:  # (k > 0) (M, 3K) channel-major -> (M, K, 3)
                     sh_rest[a:b] = mat[:, _cols(col, [f"f_rest_{i}" for i in range(3 * k)])].reshape(b - a, 3, k).transpose(0, 2, 1)
                 continue
             for j, axis in enumerate("xyz"):
@@ -245,7 +248,7 @@ def decode_gaussian_ply(ply: plyfile.PlyData, path: str | Path, *, drop_invalid:
             opacities[a:b] = sigmoid(rows["opacity"])
             for c in range(3):
                 colors[a:b, c] = sh_dc_to_color(rows[f"f_dc_{c}"])
-            if k:
+            if sh_rest is not None:  # (k > 0)
                 fill_sh_rest(sh_rest[a:b], rows)
         rows = mat = None  # release the last block before validating
     return build_splats(
@@ -305,7 +308,7 @@ def write_gaussian_ply(splats: Splats, path: str | Path) -> None:
     f_dc = color_to_sh_dc(splats.colors)  # (N, 3)
     for c in range(3):
         data[f"f_dc_{c}"] = f_dc[:, c]
-    if k:
+    if k and splats.sh_rest is not None:
         flat = splats.sh_rest.transpose(0, 2, 1).reshape(n, 3 * k)  # (N, 3K) channel-major
         for i in range(3 * k):
             data[f"f_rest_{i}"] = flat[:, i]

@@ -398,7 +398,7 @@ def encode_spz_streams(splats: Splats, *, version: int = 4, fractional_bits: int
     q = splats.quats.astype(np.float64) * np.array([1.0, 1.0, -1.0, -1.0])  # (N, 4) wxyz RUB
     xyzw = np.concatenate([q[:, 1:], q[:, :1]], axis=1)
     streams["rotations"] = pack_rotation_v3(xyzw).astype("<u4").tobytes()
-    if k:
+    if k and splats.sh_rest is not None:
         sh = splats.sh_rest.astype(np.float64) * SH_FLIP_RUB_RDF[:k, None]  # (N, K, 3) RUB
         streams["sh"] = u8(sh * 128.0 + 128.0)
     header = {"version": version, "n": n, "sh_degree": degree, "frac_bits": fractional_bits, "flags": 0}

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import os
 import stat
+from collections.abc import Callable
 from pathlib import Path
 
 from ..errors import SceneFormatError
@@ -47,7 +48,7 @@ def _read_ply(path: Path, *, drop_invalid: bool) -> Splats:
     return decode_gaussian_ply(ply, path, drop_invalid=drop_invalid)  # names missing fields if not a splat PLY
 
 
-_READERS = {
+_READERS: dict[str, Callable[..., Splats]] = {
     ".ply": _read_ply,
     ".splat": read_splat,
     ".spz": read_spz,

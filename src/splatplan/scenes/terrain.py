@@ -146,7 +146,7 @@ def remove_terrain(splats: Splats, config: TerrainConfig | None = None, n_sigma:
     """The scene without its terrain splats (order of the rest kept) and a report."""
     cfg = (config or TerrainConfig()).validate()
     fitted = cfg.floor_z is None
-    fz = fitted_floor_z(splats) if fitted else float(cfg.floor_z)
+    fz = fitted_floor_z(splats) if cfg.floor_z is None else float(cfg.floor_z)
     cover = floor_coverage(splats, fz, cfg.step_height)
     found = cover >= cfg.min_floor_coverage
     mask = terrain_mask(splats, fz, cfg.step_height, n_sigma, cfg.max_tilt_deg, cfg.faint_below, cfg.rule) if found else np.zeros(len(splats), bool)

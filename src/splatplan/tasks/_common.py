@@ -4,12 +4,18 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .._config import check_config
 from ..errors import SplatplanError
 from ..planners.clearance import densify_by_motion, s2_to_metres
+
+if TYPE_CHECKING:
+    from ..metric.checker import CollisionChecker
+    from ..scenes.builtin.analytic_scene import AnalyticScene
+    from ..scenes.splats import Splats
 
 
 @dataclass
@@ -25,9 +31,9 @@ class TaskScene:
     """
 
     name: str
-    splats: object
-    checker: object
-    analytic: object | None
+    splats: Splats
+    checker: CollisionChecker
+    analytic: AnalyticScene | None
 
 
 #: the most rollout steps (samples x horizon x iterations x MPC steps) one task run may take:

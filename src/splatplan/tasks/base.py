@@ -53,7 +53,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field, replace
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 
@@ -156,7 +156,7 @@ def _memory_box(ts, robot: Robot, box, start: np.ndarray, goal: np.ndarray) -> t
 
 
 def run_base(
-    robot: Robot | str | None,
+    robot: Robot | Literal["go2"] | None,
     scene,
     goal_xy,
     *,

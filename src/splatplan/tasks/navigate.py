@@ -44,6 +44,7 @@ from ._common import TaskConfig, TaskScene, load_filtered_scene
 
 if TYPE_CHECKING:
     from ..robots.robot import Robot
+    from ..scenes.splats import Splats
 
 __all__ = ["NavigateConfig", "NavScene", "DriveResult", "head_camera", "load_nav_scene", "explore", "build_view_index", "drive_to", "nav_robot"]
 
@@ -138,7 +139,7 @@ def build_view_index(robot: Robot, nav: NavScene, nodes: np.ndarray, encoder, re
 class NavScene:
     """The scene twice: every splat for rendering, the floor-free scene for the metric and clearance."""
 
-    render_splats: object
+    render_splats: Splats
     task: TaskScene  # checker and analytic geometry without the floor
 
 

@@ -31,6 +31,9 @@ from ..errors import SplatplanError
 from .geometry import colormap, ellipsoid_mesh, polyline_segments, splat_s2_tilde, tree_segments
 
 if TYPE_CHECKING:
+    import viser
+    from viser.extras import ViserUrdf
+
     from ..robots.robot import Robot
     from ..scenes.splats import Splats
 
@@ -79,6 +82,16 @@ def free_port(host: str = "127.0.0.1") -> int:
         return int(s.getsockname()[1])
 
 
+def _vec3(a) -> tuple[float, float, float]:
+    """A viser position from 3 numbers."""
+    return (float(a[0]), float(a[1]), float(a[2]))
+
+
+def _wxyz(a) -> tuple[float, float, float, float]:
+    """A viser orientation from a wxyz quaternion."""
+    return (float(a[0]), float(a[1]), float(a[2]), float(a[3]))
+
+
 def _robot_kind(robot: Robot) -> Literal["point", "planar", "joints"]:
     """How the viewer moves the robot, from what the robot is: 'point' (dofs x, y, z: dragged),
     'planar' (a planar base whose dofs are x, y, yaw: dragged and turned) or 'joints' (sliders)."""
@@ -114,6 +127,8 @@ class SplatViewer:
         collision_scene: the splats the collision checks see (default ``scene``); for a ground
             robot, the scene without its terrain (:func:`splatplan.scenes.terrain.remove_terrain`).
     """
+
+    _field: viser.ImageHandle  # the collision-field image (set by the first _update_field that draws it)
 
     def __init__(self, scene: Splats, robot: Robot | None = None, plan=None, trajectory=None, tree=None, config: ViewerConfig | None = None,
                  collision_scene: Splats | None = None) -> None:
@@ -154,7 +169,7 @@ class SplatViewer:
         z0 = float(np.mean(np.asarray(robot.ellipsoids(q0)[0])[..., 2]))
         self.state = _State(q=q0, n_sigma=cfg.n_sigma, field_z=float(np.clip(z0, self.lo[2], self.hi[2])), show_field=self.kind == "point")
         self._syncing = False  # True while set_q moves the joint sliders (their callbacks then do nothing)
-        self.server = None
+        self.server: viser.ViserServer | None = None
         self._lock = threading.Lock()
         self._plan_thread: threading.Thread | None = None
         self.warnings: list[str] = []
@@ -280,7 +295,7 @@ class SplatViewer:
             print(f"showing {len(idx):,} of {n:,} splats in the browser (decimated; the metric uses all of them)", flush=True)
         self._n_shown = len(idx)
         sub = s.subset(idx)
-        self.server.scene.add_gaussian_splats(
+        self._server().scene.add_gaussian_splats(
             "/splats",
             centers=sub.means.astype(np.float32),
             covariances=sub.covariances().astype(np.float32),
@@ -288,8 +303,13 @@ class SplatViewer:
             opacities=sub.opacities.reshape(-1, 1).astype(np.float32),
         )
 
+    def _server(self) -> viser.ViserServer:
+        """The running server (the scene and the GUI are built by :meth:`start`, after it is set)."""
+        assert self.server is not None  # (start() set it)
+        return self.server
+
     def _add_robot(self) -> None:
-        srv = self.server
+        srv = self._server()
         c, quat, ax = self.robot.ellipsoids(self.state.q)
         ax = np.broadcast_to(ax, c.shape)
         self._ell_handles = []
@@ -298,8 +318,8 @@ class SplatViewer:
             h = srv.scene.add_mesh_simple(f"/robot/ellipsoids/{e}", v, f, color=(90, 200, 255), opacity=0.55,
                                           position=tuple(c[e]), wxyz=tuple(quat[e]))  # fmt: skip
             self._ell_handles.append(h)
-        self._urdf = None
-        self._urdf_fixed: dict[str, float] = {}
+        self._urdf: ViserUrdf | None = None
+        self._urdf_fixed: dict[str | None, list[float]] = {}  # SRDF joint values (lists)
         info = self.robot.info
         if info.get("urdf") and self.kind in ("joints", "planar"):
             try:
@@ -349,7 +369,7 @@ class SplatViewer:
         return q
 
     def _add_paths(self) -> None:
-        srv = self.server
+        srv = self._server()
         if self.tree is not None:
             nodes, parents = self.tree
             seg = tree_segments(self._trace(np.asarray(nodes, dtype=np.float64)), parents)
@@ -369,7 +389,7 @@ class SplatViewer:
         return c[:, -1, :]
 
     def _add_gui(self) -> None:
-        gui = self.server.gui
+        gui = self._server().gui
         st = self.state
         self._md = gui.add_markdown("**Robot**: ...")
         self.gui_n_sigma = gui.add_slider("n_sigma", min=0.0, max=3.0, step=0.25, initial_value=float(st.n_sigma),
@@ -441,7 +461,7 @@ class SplatViewer:
             with gui.add_folder("plan (RRT)"):
                 gui.add_markdown("Drag the green goal gizmo; the robot gizmo is the start.")
                 g0 = self.plan[-1] if self.plan is not None else self.state.q.copy()
-                self._goal = self.server.scene.add_transform_controls("/plans/goal", scale=0.1 * self.extent, position=self._q_to_position(g0),
+                self._goal = self._server().scene.add_transform_controls("/plans/goal", scale=0.1 * self.extent, position=self._q_to_position(g0),
                                                                       disable_rotations=True)  # fmt: skip
                 btn = gui.add_button("plan from robot to goal")
                 self._plan_md = gui.add_markdown("")
@@ -458,7 +478,7 @@ class SplatViewer:
             try:
                 for s, v in zip(self._sliders, self.state.q):
                     if abs(float(s.value) - float(v)) > 1e-9:
-                        s.value = float(np.clip(v, s.min, s.max))
+                        s.value = float(np.clip(v, s.min, s.max))  # type: ignore[misc]  # viser types the slider's value read-only; it has a setter
             finally:
                 self._syncing = False
         self._update_pose()
@@ -472,8 +492,8 @@ class SplatViewer:
         info = self._collision_state(c, quat, ax)
         colour = (255, 60, 60) if info["collides"] else (90, 200, 255)
         for e, h in enumerate(self._ell_handles):
-            h.position = tuple(float(v) for v in c[e])
-            h.wxyz = tuple(float(v) for v in quat[e])
+            h.position = _vec3(c[e])
+            h.wxyz = _wxyz(quat[e])
             h.color = colour
         if self._urdf is not None:
             self._set_urdf(st.q)
@@ -499,6 +519,7 @@ class SplatViewer:
         return info
 
     def _set_urdf(self, q) -> None:
+        assert self._urdf is not None  # (called when the URDF meshes loaded)
         names = list(self._urdf.get_actuated_joint_names())
         ours = {} if self.kind == "planar" else {n: float(v) for n, v in zip(self.robot.joint_names, q)}
         cfg = np.array([ours.get(n, float(np.ravel(self._urdf_fixed.get(n, 0.0))[0])) for n in names])  # SRDF values are lists
@@ -512,8 +533,8 @@ class SplatViewer:
             base = base @ pose
         from ..scenes.splats import rotmat_to_quat
 
-        self._urdf_frame.position = tuple(float(v) for v in base[:3, 3])
-        self._urdf_frame.wxyz = tuple(float(v) for v in rotmat_to_quat(base[:3, :3]))
+        self._urdf_frame.position = _vec3(base[:3, 3])
+        self._urdf_frame.wxyz = _wxyz(rotmat_to_quat(base[:3, :3]))
 
     def _update_field(self) -> None:
         srv = self.server  # one reference: stop() may clear self.server while this callback runs
@@ -569,6 +590,7 @@ class SplatViewer:
             dt = time.perf_counter() - t0
             if res.success:
                 path = np.asarray(res.path, dtype=np.float64)
+                assert srv is not None  # (the GUI that asks for a plan runs on it)
                 srv.scene.add_line_segments("/plans/replanned", polyline_segments(self._trace(path)), (255, 0, 200),
                                             thickness=0.005 * self.extent)  # fmt: skip
                 self._plan_md.content = f"path found: length {res.length:.3f}, {dt:.2f} s (n_sigma {n_sigma:g})"

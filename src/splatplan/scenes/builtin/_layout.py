@@ -10,7 +10,7 @@ from __future__ import annotations
 import copy
 import functools
 from dataclasses import replace
-from typing import Callable
+from typing import Callable, Protocol
 
 import numpy as np
 
@@ -89,6 +89,16 @@ def sample_splats(
     return splats
 
 
+class Layout(Protocol):
+    """What :class:`SceneCache` reads of a scene's layout."""
+
+    @property
+    def scene(self) -> AnalyticScene: ...  # the boxes
+
+    @property
+    def colors(self) -> np.ndarray: ...  # float64 (M, 3) base RGB per box
+
+
 class SceneCache:
     """The layouts and splats of one box-built scene, cached in memory (the 4 latest seeds, resp.
     (seed, splat count) pairs); callers get fresh copies.
@@ -99,7 +109,7 @@ class SceneCache:
         seed_tag, floater_region, density, top_only: the scene's arguments of :func:`sample_splats`.
     """
 
-    def __init__(self, build_layout: Callable[[int], object], n_splats: int, seed_tag: int, floater_region, density: dict, top_only: tuple[str, ...] = ()) -> None:
+    def __init__(self, build_layout: Callable[[int], Layout], n_splats: int, seed_tag: int, floater_region, density: dict, top_only: tuple[str, ...] = ()) -> None:
         self.n_splats = n_splats
         self._sample_args = (seed_tag, floater_region, density, top_only)
         self.cached_layout = functools.lru_cache(maxsize=4)(build_layout)  # shared: never mutate what it returns

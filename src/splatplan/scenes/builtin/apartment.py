@@ -27,6 +27,7 @@ face, walls 1.5x.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -169,7 +170,7 @@ def _build_layout(seed: int) -> ApartmentLayout:
     block("object_red_bin", 0.4 + j(0.03), -0.4, 0.15, 0.15, 0.40)
     block("object_lime_stool", 1.1 + j(0.03), -1.4 + j(0.03), 0.16, 0.16, 0.45)
 
-    doors = {}
+    doors: dict[str, dict[str, Any]] = {}
     for name, ax, c, s, e, rooms in DOORS:
         mid = (s + e) / 2
         center = np.array([c, mid, 0.3]) if ax == "x" else np.array([mid, c, 0.3])
@@ -265,6 +266,11 @@ def _random_quats(n: int, rng: np.random.Generator) -> np.ndarray:
     return q * np.where(q[:, :1] < 0, -1.0, 1.0)
 
 
+def _span(v: Any) -> tuple[float, float]:
+    """A (low, high) range of the capture-look parameters, as given (typed for the sampler)."""
+    return v
+
+
 def add_capture_look(splats: Splats, scene: AnalyticScene, seed: int = 0, params: dict | None = None) -> Splats:
     """The apartment ``splats`` with the real-capture look of :data:`HAZE` added (haze, fringe splats, a mirror layer under the kitchen's shiny floor, floor-level matter), seeded by ``seed``.
 
@@ -278,7 +284,7 @@ def add_capture_look(splats: Splats, scene: AnalyticScene, seed: int = 0, params
     n0 = len(splats)
     rows = []  # (means, quats, scales, opacities, colors, kind)
 
-    def cloud(n: int, heights, std, opacity, clearance: float):
+    def cloud(n: int, heights: tuple[float, float], std: tuple[float, float], opacity: tuple[float, float], clearance: float):
         z = rng.uniform(*heights, n)
         means = _free_floor_points(scene, n, rng, z=z, clearance=clearance)
         k = len(means)
@@ -295,7 +301,7 @@ def add_capture_look(splats: Splats, scene: AnalyticScene, seed: int = 0, params
     src = rng.integers(0, n_surf0, int(round(p["fringe_fraction"] * n0)))
     k = len(src)
     rows.append((splats.means[src] + rng.normal(0.0, p["fringe_offset"], (k, 3)), splats.quats[src], splats.scales[src] * rng.uniform(1.0, 2.0, (k, 1)),
-                 rng.uniform(*p["fringe_opacity"], k), splats.colors[src], "fringe"))
+                 rng.uniform(*_span(p["fringe_opacity"]), k), splats.colors[src], "fringe"))
     # mirror layer: the reflection in z = 0 of what stands on the shiny floor, opaque, blurrier
     z = splats.means[:, 2]
     shiny = np.array([room_of(m) in p["mirror_rooms"] for m in splats.means[:, :2]]) & (z > 0.005) & (z < p["mirror_reach"])
@@ -304,7 +310,7 @@ def add_capture_look(splats: Splats, scene: AnalyticScene, seed: int = 0, params
     if len(idx):
         means = splats.means[idx].astype(np.float64) * np.array([1.0, 1.0, -1.0])
         q = splats.quats[idx].astype(np.float64) * np.array([1.0, -1.0, -1.0, 1.0])  # reflection of the rotation in z = 0
-        scales = np.minimum(splats.scales[idx] * rng.uniform(*p["mirror_std_gain"], (len(idx), 1)), p["mirror_std_max"])
+        scales = np.minimum(splats.scales[idx] * rng.uniform(*_span(p["mirror_std_gain"]), (len(idx), 1)), p["mirror_std_max"])
         opac = np.maximum(splats.opacities[idx], 0.5)
         rows.append((means, q, scales, opac, splats.colors[idx] * 0.8, "mirror"))
     # floor-level matter: rounded splats at the floor (dust, grout, rug fibres)
@@ -312,7 +318,7 @@ def add_capture_look(splats: Splats, scene: AnalyticScene, seed: int = 0, params
     n_fm = int(round(p["floor_matter_per_m2"] * area))
     m = _free_floor_points(scene, n_fm, rng, z=rng.uniform(-0.01, 0.03, n_fm), clearance=0.02)
     k = len(m)
-    rows.append((m, _random_quats(k, rng), rng.uniform(*p["floor_matter_std"], (k, 3)), rng.uniform(*p["floor_matter_opacity"], k),
+    rows.append((m, _random_quats(k, rng), rng.uniform(*_span(p["floor_matter_std"]), (k, 3)), rng.uniform(*_span(p["floor_matter_opacity"]), k),
                  np.tile(np.array(LABEL_COLORS["floor"]) * 0.7, (k, 1)), "floor_matter"))
 
     n_surf = n0 - int(splats.info.get("n_floaters", 0))  # the floaters stay last
