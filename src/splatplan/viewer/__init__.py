@@ -5,6 +5,7 @@ Nothing in the library's stages imports this package; it is a layer on top of th
 
 from __future__ import annotations
 
-from .app import SplatViewer, ViewerConfig, free_port, port_free
+from .app import SplatViewer, ViewerConfig
+from .ports import free_port, port_free
 
 __all__ = ["SplatViewer", "ViewerConfig", "free_port", "port_free"]

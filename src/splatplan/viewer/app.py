@@ -15,7 +15,6 @@ time it took (``timings``, and the ``--status-file`` log).
 from __future__ import annotations
 
 import json
-import socket
 from collections import deque
 import threading
 import time
@@ -29,6 +28,7 @@ from .._config import bounded, check_config
 from .._resources import require_bytes
 from ..errors import SplatplanError
 from .geometry import colormap, ellipsoid_mesh, polyline_segments, splat_s2_tilde, tree_segments
+from .ports import free_port, port_free
 
 if TYPE_CHECKING:
     import viser
@@ -62,24 +62,6 @@ class ViewerConfig:
     def validate(self) -> "ViewerConfig":
         """Check every field's declared range (:mod:`splatplan._config`); returns self."""
         return check_config(self)
-
-
-def port_free(host: str, port: int) -> bool:
-    """True when ``host:port`` can be bound right now."""
-    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
-        s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-        try:
-            s.bind((host, port))
-        except OSError:
-            return False
-    return True
-
-
-def free_port(host: str = "127.0.0.1") -> int:
-    """A port the OS reports free on ``host``."""
-    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
-        s.bind((host, 0))
-        return int(s.getsockname()[1])
 
 
 def _vec3(a) -> tuple[float, float, float]:
