@@ -34,7 +34,9 @@ this extra test is used for spheres only.)
 
 **Scene-scaled defaults.** Lengths the user leaves unset are derived from the scene and the robot
 (:meth:`RRT.settings`): the sampling box is the 0.5-99.5 percentile box of the splat means padded
-by the robot's largest semi-axis (joint limits for joints; [-pi, pi] for an unlimited yaw), the
+by the robot's largest semi-axis (joint limits for joints; [-pi, pi] for an unlimited yaw) and
+widened to hold the start and goal, which may lie that far beyond the splat means' bounds (a ground
+robot's: its footprint diameter, so it can stand beside an object capture), the
 stride 1/32 of the largest side of that box in the weighted metric (``(hi - lo) * motion_bound``),
 the goal tolerance half the smallest semi-axis, and the search runs until
 ``time_limit_s`` (default 10 s) rather than a node count. The chosen values are returned in
@@ -56,6 +58,7 @@ import numpy as np
 from scipy.spatial.distance import cdist
 
 from ..errors import PlanningError
+from .bounds import box_margin
 from .edges import EdgeChecker, check_endpoint, edge_points, edge_samples, shortcut_path
 from .robot_links import LinkGeometry, as_robot
 from .rrt_types import PlanResult, RRTConfig, RRTSettings, path_length
@@ -152,6 +155,9 @@ class RRT:
         lim = np.asarray(robot.joint_limits, dtype=np.float64).reshape(d, 2)
         ref = np.asarray(robot.q_default, dtype=np.float64).reshape(d).copy()
         pad = geom.max_semi_axis
+        # a ground robot may stand beside the captured space (an object capture ends at the object):
+        # its start and goal may lie anywhere within the scene's bounds grown by its footprint diameter
+        end_pad = max(pad, box_margin(robot)) if robot.base == "planar" else pad
         c_ref = np.asarray(robot.ellipsoids(ref[None])[0], dtype=np.float64)[0].mean(axis=0)  # (3,) robot centre
         trans_dirs = np.full((d, 3), np.nan)
         for j in np.nonzero(~np.isfinite(lim).all(axis=1))[0].tolist():
@@ -176,14 +182,14 @@ class RRT:
                     continue
                 off = ref[j] - float(u @ c_ref)  # q_j = off + u . (robot centre)
                 lo[j], hi[j] = off + float((corners @ u).min()) - pad, off + float((corners @ u).max()) + pad
-                raw_lo, raw_hi = off + float((raw @ u).min()) - pad, off + float((raw @ u).max()) + pad
+                raw_lo, raw_hi = off + float((raw @ u).min()) - end_pad, off + float((raw @ u).max()) + end_pad
                 for name, x in (("start", start), ("goal", goal)):
                     if x is None:
                         continue
                     if x[j] < raw_lo - 1e-9 or x[j] > raw_hi + 1e-9:
                         raise PlanningError(
                             f"the {name} {np.array2string(x, precision=4)} lies outside the scene bounds: coordinate {j} = {x[j]:.4g} "
-                            f"is not within {raw_lo:.4g}..{raw_hi:.4g} (splat means, padded by the robot size); "
+                            f"is not within {raw_lo:.4g}..{raw_hi:.4g} (splat means, padded by the robot size, a ground robot's by its footprint diameter); "
                             f"give a {name} inside the scene or set the sampling box (box_lo/box_hi, --box)"
                         )
                     if x[j] < lo[j] or x[j] > hi[j]:
