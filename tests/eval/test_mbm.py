@@ -13,7 +13,8 @@ import pytest
 from splatplan.cli import main
 from splatplan.errors import SplatplanError
 from splatplan.eval.mbm import (TIMING_FIELDS, MBMConfig, MBMContext, MBMTask, check_inputs, covering_radius, dense_path, derived_margin, exact_clearance,
-                                path_min_clearance, solve_problem, summarise)
+                                path_min_clearance, run_mbm, solve_problem, summarise)
+from splatplan.eval._mbm_config import MBM_DATA_ENV, mbm_data_dir
 from splatplan.robots import load_robot
 from splatplan.scenes.builtin.primitives import AnalyticScene, make_box, make_cylinder
 
@@ -276,3 +277,19 @@ def test_data_location_from_the_environment(tmp_path, monkeypatch):
     monkeypatch.setenv(MBM_DATA_ENV, str(tmp_path / "nowhere"))
     with pytest.raises(SplatplanError, match=f"--problems DIR .* or set {MBM_DATA_ENV}"):
         MBMConfig().problems_dir()
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not (mbm_data_dir() / "problems").is_dir(), reason=f"MBM data not found at {mbm_data_dir()} (set {MBM_DATA_ENV})")
+def test_quick_defaults_solve_every_free_problem_safely():
+    """``eval mbm --quick`` at its defaults (derived margin, the full run's splat spacing): as in the
+    full run (benchmarks/results/mbm/), every problem whose endpoints are free for the planning model
+    is solved, and no solved path comes closer than 0 to the exact geometry."""
+    res = run_mbm(MBMConfig.quick(), progress=False)
+    assert not res.failures and len(res.rows) == len(MBMConfig().families)
+    free = [r for r in res.rows if r["start_free"] and r["goal_free"]]
+    assert len(free) >= 2, [(r["family"], r["index"], r["message"]) for r in res.rows]  # the quick run plans something
+    assert all(r["solved"] for r in free), [(r["family"], r["index"], r["message"]) for r in free if not r["solved"]]
+    solved = [r for r in res.rows if r["solved"]]
+    assert all(r["min_exact_clearance_m"] >= 0 for r in solved), [(r["family"], r["index"], r["min_exact_clearance_m"]) for r in solved]
+    assert res.summary["overall"]["negative_clearance_paths"] == 0 and res.summary["overall"]["solved_of_free_frac"] == 1.0
