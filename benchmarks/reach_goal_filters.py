@@ -26,7 +26,7 @@ from splatplan.tasks._common import load_task_scene
 from splatplan.tasks.reach import ReachConfig
 
 LABELS = {
-    "move": "camera move 5..15 cm (behind the wall 5..20 cm)",
+    "move": "camera move 5..15 cm (behind the wall or hidden from the start 5..20 cm)",
     "turn": "camera turn < 30 deg",
     "clearance": "exact clearance > 2 cm",
     "metric": "metric finds no collision",

@@ -246,10 +246,11 @@ def test_line_of_sight_uses_the_exact_scene_only():
 
 @pytest.mark.slow
 def test_hidden_goals_come_first_and_do_not_depend_on_the_robot_model():
-    """From the before_wall start, the study's goals are first those hidden from the start camera by
-    the exact scene (their straight camera path runs through the bin's front wall); the line of
-    sight of a candidate is the same for the tight and the coarse Panda (cameras and exact scene
-    only). From the default start above the bin, no goal is hidden (and none is called hidden)."""
+    """With the studies' sampler, the goals are first those hidden from the start camera by the exact
+    scene (their straight camera path runs through the bin's front wall), from either start view,
+    the most textured view first; the line of sight of a candidate is the same for the tight and the
+    coarse Panda (cameras and exact scene only). With the default sampler's shorter camera moves,
+    nothing is hidden from the start above the bin (and nothing is called hidden)."""
     from splatplan.planners.reach_goals import HIDDEN_GOAL_SAMPLER, line_of_sight_m, make_reach_goals, reach_candidates, reach_start
     from splatplan.render.cameras import wrist_camera
     from splatplan.tasks._common import load_task_scene
@@ -258,24 +259,28 @@ def test_hidden_goals_come_first_and_do_not_depend_on_the_robot_model():
     cfg = ReachConfig()
     ts = load_task_scene("tabletop", n_sigma=cfg.n_sigma, n_splats=cfg.n_splats)
     tight, coarse = robots.load_robot("panda"), robots.load_robot("panda", model="coarse")
-    q0 = reach_start(tight, view="before_wall")
-    assert np.array_equal(q0, reach_start(coarse, view="before_wall"))
     cam = wrist_camera(tight, cfg.image_size, cfg.fov_deg, cfg.camera_link)
-    kw = dict(q_start=q0, seed=0, **HIDDEN_GOAL_SAMPLER)
+    li = tight.link_names.index(cfg.camera_link)
     with SplatRenderer(ts.splats, "cpu") as rend:
-        ct = reach_candidates(tight, ts, rend, cam, **kw)
-        cc = reach_candidates(coarse, ts, rend, wrist_camera(coarse, cfg.image_size, cfg.fov_deg, cfg.camera_link), **kw)
-        goals = make_reach_goals(tight, ts, rend, cam, n=3, **kw)
+        for view in ("before_wall", "above_bin"):
+            q0 = reach_start(tight, view=view)
+            assert np.array_equal(q0, reach_start(coarse, view=view))
+            kw = dict(q_start=q0, seed=0, **HIDDEN_GOAL_SAMPLER)
+            ct = reach_candidates(tight, ts, rend, cam, **kw)
+            cc = reach_candidates(coarse, ts, rend, wrist_camera(coarse, cfg.image_size, cfg.fov_deg, cfg.camera_link), **kw)
+            goals = make_reach_goals(tight, ts, rend, cam, n=3, **kw)
+            np.testing.assert_array_equal(ct.line_of_sight_m, cc.line_of_sight_m)
+            assert ct.counts()[-1][3] == int((ct.kept & ct.occluded).sum()) >= 2, view
+            n_hidden = min(3, int((ct.kept & ct.occluded).sum()))
+            assert [g["occluded"] for g in goals] == [True] * n_hidden + [False] * (3 - n_hidden), view
+            stds = [float(ct.view_std[np.flatnonzero([np.array_equal(g["q"], q) for q in ct.q])[0]]) for g in goals[:n_hidden]]
+            assert stds == sorted(stds, reverse=True), view  # the most textured hidden view first
+            p_start = (tight.link_poses(q0)[li] @ cam.offset)[:3, 3]
+            for g in goals[:n_hidden]:
+                p = g["camera_pose"][:3, 3]
+                s = np.linspace(0, 1, 1001)[1:-1, None]
+                assert ts.analytic.sdf(p_start * (1 - s) + p * s).min() < 0  # independently: the segment enters the geometry
+                assert g["line_of_sight_m"] == pytest.approx(float(line_of_sight_m(ts.analytic, p_start, p[None])[0]))
+                assert ts.analytic.sdf(p[None])[0] > 0  # the goal camera itself is in free space
         above = make_reach_goals(tight, ts, rend, cam, n=2, q_start=reach_start(tight), n_candidates=256, seed=0)
     assert not any(g["occluded"] for g in above) and all(g["line_of_sight_m"] > 0 for g in above)
-    np.testing.assert_array_equal(ct.line_of_sight_m, cc.line_of_sight_m)
-    assert ct.counts()[-1][3] == int((ct.kept & ct.occluded).sum()) >= 2
-    n_hidden = min(3, int((ct.kept & ct.occluded).sum()))
-    assert [g["occluded"] for g in goals] == [True] * n_hidden + [False] * (3 - n_hidden)
-    p_start = (tight.link_poses(q0)[tight.link_names.index(cfg.camera_link)] @ cam.offset)[:3, 3]
-    for g in goals[:n_hidden]:
-        p = g["camera_pose"][:3, 3]
-        s = np.linspace(0, 1, 1001)[1:-1, None]
-        assert ts.analytic.sdf(p_start * (1 - s) + p * s).min() < 0  # independently: the segment enters the geometry
-        assert g["line_of_sight_m"] == pytest.approx(float(line_of_sight_m(ts.analytic, p_start, p[None])[0]))
-        assert ts.analytic.sdf(p[None])[0] > 0  # the goal camera itself is in free space

@@ -1,12 +1,13 @@
 """E5 visual reaching study (paper Table IV): the Panda's wrist camera reaches 5 goal images in the
 ``tabletop`` with MPPI and the terminal image cost, with and without the collision cost.
 
-Goals (:func:`splatplan.planners.reach_goals.make_reach_goals`): random collision-free configurations near
+Goals (:func:`splatplan.planners.reach_goals.make_reach_goals` with
+:data:`~splatplan.planners.reach_goals.HIDDEN_GOAL_SAMPLER`): random collision-free configurations near
 the start (``start_view``: camera above the bin looking down, the default, or ``before_wall``: in front of
 the bin just above its front wall), first those whose camera is hidden from the start camera by the exact
 scene (the straight camera path runs through the bin's front wall: the paper's goals behind the box walls;
-there are none from ``above_bin``), then some with the camera behind the bin's front wall; the goal image
-is the wrist view there.
+from ``above_bin`` they lie on the table in front of the wall), then some with the camera behind the bin's
+front wall; the goal image is the wrist view there.
 Per goal and run, ``touched``: the executed trajectory's clearance is <= 0 (the arm touched or cut the
 geometry). Errors: final camera pose vs the goal camera pose.
 Clearance: the smallest exact signed distance of any link ellipsoid to the analytic boxes over the
@@ -161,8 +162,8 @@ class ReachStudyConfig(ImageGoalStudyConfig):
     task: ReachConfig = field(default_factory=ReachConfig)
     #: the built-in Panda's collision model (tight: certified, several ellipsoids per link; coarse: one per link)
     robot_model: str = bounded(DEFAULT_MODEL, choices=tuple(PANDA_MODELS))
-    #: the start view (planners.reach_goals.START_VIEWS): above_bin (no goal is hidden from it) or before_wall
-    #: (goals inside the bin are hidden behind its front wall; the goal sampler then uses HIDDEN_GOAL_SAMPLER)
+    #: the start view (planners.reach_goals.START_VIEWS): above_bin (goals on the table in front of the bin are
+    #: hidden behind its front wall) or before_wall (goals inside the bin are)
     start_view: str = bounded("above_bin", choices=("above_bin", "before_wall"))
 
     @classmethod
@@ -197,12 +198,11 @@ def run(config: ReachStudyConfig | None = None, engine=None, *, progress: bool =
     enc = reach_encoder(c.encoder, c.encoder_weights, device, cfg)
     cam = wrist_camera(robot, cfg.image_size, cfg.fov_deg, cfg.camera_link)
     q0 = reach_start(robot, cfg.camera_link, c.start_view)
-    sampler = HIDDEN_GOAL_SAMPLER if c.start_view == "before_wall" else {}
     bg = (cfg.background,) * 3
     runs = {"with_collision": [], "without_collision": []}
     goals_json, figures = [], []
     with SplatRenderer(ts.splats, device) as rend:
-        goals = make_reach_goals(robot, ts, rend, cam, n=n_goals, q_start=q0, n_behind=min(2, n_goals), seed=cfg.mppi.seed, **sampler)
+        goals = make_reach_goals(robot, ts, rend, cam, n=n_goals, q_start=q0, n_behind=min(2, n_goals), seed=cfg.mppi.seed, **HIDDEN_GOAL_SAMPLER)
         if len(goals) < n_goals:
             raise SplatplanError(f"found only {len(goals)} of {n_goals} goal configurations (reachable, collision-free, a full and textured wrist view "
                                  f"within reach of the start): ask for fewer goals or change the seed")  # fmt: skip

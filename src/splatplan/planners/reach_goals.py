@@ -6,7 +6,8 @@ scene** (the straight segment between the two cameras passes through the exact g
 :func:`line_of_sight_m`): goals behind the bin's front wall as seen from the start, as in the
 paper, where a controller that moves the camera straight to the goal cuts the wall. The rule uses
 the cameras and the exact scene only, not the robot's collision model. From the default start above
-the bin no candidate is hidden (the walls are below it); from ``before_wall`` the inside of the bin is.
+the bin, the tabletop in front of the bin's front wall below its top is hidden (a camera move of
+about 30 cm back over the wall); from ``before_wall``, the inside of the bin is.
 
 Units: metres, radians; world frame z up (the tabletop scene's).
 """
@@ -29,9 +30,10 @@ START_CAMERA = (np.array([0.56, 0.0, 0.22]), _DOWN)
 #: the bin, 5 cm before its front wall (x = 0.43..0.45) and 2 cm above its top (z = 0.15), looking straight
 #: down; the inside of the bin below the wall's top is hidden from it.
 START_VIEWS = {"above_bin": START_CAMERA, "before_wall": (np.array([0.38, 0.0, 0.17]), _DOWN)}
-#: Sampler settings that find goals hidden from the ``before_wall`` start (wider joint spread, longer
-#: camera moves behind the wall, more candidates: about 3 hidden goals in 4096 candidates).
-HIDDEN_GOAL_SAMPLER = {"n_candidates": 4096, "behind_spread": 0.8, "behind_max_move_m": 0.3}
+#: Sampler settings of the studies, which find goals hidden from either start view: a wider joint spread,
+#: camera moves up to 35 cm for a goal behind the wall or hidden from the start (the move
+#: around the wall), more candidates (hidden ones are rare: about 1 in 700 from ``above_bin``).
+HIDDEN_GOAL_SAMPLER = {"n_candidates": 8192, "spread": 0.8, "behind_spread": 0.8, "behind_max_move_m": 0.35}
 #: Camera region counted as "behind the wall": inside the bin (x, y) and below the front wall's top.
 BEHIND_WALL = (np.array([0.46, -0.28, -0.09]), np.array([0.84, 0.28, 0.15]))
 
@@ -87,7 +89,8 @@ class ReachCandidates:
         camera_pose: (M, 4, 4) world <- camera at each candidate.
         behind_wall: (M,) bool, camera inside :data:`BEHIND_WALL`.
         line_of_sight_m: (M,) :func:`line_of_sight_m` from the start camera (NaN where not evaluated:
-            only the candidates that passed move and turn; +inf without an analytic scene).
+            only the candidates within the longer move bound that turn little enough; +inf without an
+            analytic scene).
         passed: filter name (:data:`FILTERS`) -> (M,) bool; a filter is evaluated only on the
             candidates that passed the filters before it (False elsewhere), except that the metric
             and self-collision checks see every candidate that passed move and turn.
@@ -125,12 +128,6 @@ class ReachCandidates:
         return out
 
 
-def camera_start_pose(robot, camera, q_start=None) -> np.ndarray:
-    """(4, 4) world <- camera at ``q_start`` (default ``robot.q_default``)."""
-    q = np.asarray(robot.q_default if q_start is None else q_start, np.float64)
-    return robot.link_poses(q)[camera._link_index(robot)] @ camera.offset
-
-
 def reach_candidates(
     robot, scene, renderer, camera, *, q_start=None, spread: float = 0.35, margin_m: float = 0.02, min_move_m: float = 0.05, max_move_m: float = 0.15,
     max_turn_deg: float = 30.0, n_candidates: int = 1024, seed: int = 0, behind_spread: float = 0.45, behind_max_move_m: float = 0.2,
@@ -152,12 +149,17 @@ def reach_candidates(
     in_b = np.all((t[:, :3, 3] > lo_b) & (t[:, :3, 3] < hi_b), axis=1)
     m = len(q)
     passed = {f: np.zeros(m, bool) for f in FILTERS}
-    passed["move"] = (move > min_move_m) & (move < np.where(in_b, behind_max_move_m, max_move_m))
-    passed["turn"] = passed["move"] & (turn < max_turn_deg)
     clear, a_mean, a_min, std, los = (np.full(m, np.nan) for _ in range(5))
-    idx = np.flatnonzero(passed["turn"])
+    # the line of sight decides the move bound (a hidden goal takes the longer move around the wall): evaluated on
+    # every candidate within the longer bound that turns little enough
+    idx = np.flatnonzero((move > min_move_m) & (move < max(max_move_m, behind_max_move_m)) & (turn < max_turn_deg))
     if len(idx):
         los[idx] = line_of_sight_m(scene.analytic, t_start[:3, 3], t[idx, :3, 3]) if scene.analytic is not None else np.inf
+    long_move = in_b | (np.nan_to_num(los, nan=np.inf) < 0.0)
+    passed["move"] = (move > min_move_m) & (move < np.where(long_move, behind_max_move_m, max_move_m))
+    passed["turn"] = passed["move"] & (turn < max_turn_deg)
+    idx = np.flatnonzero(passed["turn"])
+    if len(idx):
         if scene.analytic is not None:
             c, qu, ax = robot.ellipsoids(q[idx])
             clear[idx] = scene.analytic.ellipsoid_clearance(c, qu, ax).min(axis=-1)
@@ -185,15 +187,17 @@ def make_reach_goals(
     camera by the exact scene (:func:`line_of_sight_m` < 0: the straight camera path runs through
     the geometry), then behind-wall ones up to ``n_behind`` with the camera behind the bin's front
     wall (:data:`BEHIND_WALL`), then any; fewer of a kind when the candidates hold fewer. The hidden
-    goals are taken nearest first (smallest camera move from the start: the goal the image cost
-    leads to most reliably whose straight path still runs through the geometry); the others far
-    apart from each other (greedy farthest point in camera position).
+    goals are taken most textured view first (largest pixel std of the check view): the image cost
+    has only the view to go by, and a plain view (floor, or floor and one wall edge) recurs
+    elsewhere in the scene (the bin's walls look alike), where the controller can settle in a
+    look-alike; the others far apart from each other (greedy farthest point in camera position).
 
     Candidates ``q_start + U(-spread, spread)^7`` (clipped to the limits) are kept when every link
     ellipsoid clears the exact geometry by ``margin_m``, the metric finds no collision, there is no
     self-collision, the camera moves ``min_move_m``..``max_move_m`` from the start and turns by at
-    most ``max_turn_deg`` (half the candidates use ``behind_spread`` and, behind the wall only,
-    ``behind_max_move_m``: reaching behind the wall takes a longer move), and the view
+    most ``max_turn_deg`` (half the candidates use ``behind_spread``; a camera behind the wall or
+    hidden from the start may move up to ``behind_max_move_m``: reaching around a wall takes a
+    longer move), and the view
     is filled by the scene (mean alpha > 0.98: at most 2 % of the view's colour is background) with
     contrast (pixel std > ``min_contrast``: a plain view of floor and wall is ambiguous for any
     encoder). The fill is a mean over the view, not a per-pixel minimum: a close view resolves the
@@ -214,25 +218,23 @@ def make_reach_goals(
     )
     keep = cands.kept
     q, t, clear, behind = cands.q[keep], cands.camera_pose[keep], cands.clearance_m[keep], cands.behind_wall[keep]
-    occl, los = cands.occluded[keep], cands.line_of_sight_m[keep]
-    p_start = (camera_start_pose(robot, camera, q_start))[:3, 3]
-    move = np.linalg.norm(t[:, :3, 3] - p_start, axis=1)
+    occl, los, std = cands.occluded[keep], cands.line_of_sight_m[keep], cands.view_std[keep]
     chosen: list[int] = []
 
-    def pick(pool: np.ndarray, count: int, nearest: bool = False) -> None:  # greedy farthest point in camera position
+    def pick(pool: np.ndarray, count: int, textured: bool = False) -> None:  # greedy farthest point in camera position
         for _ in range(max(count, 0)):
             cand = [int(i) for i in pool if int(i) not in chosen]
             if not cand:
                 return
-            if nearest:  # the hidden goals: the smallest camera move first
-                chosen.append(cand[int(np.argmin(move[cand]))])
+            if textured:  # the hidden goals: the most textured view first
+                chosen.append(cand[int(np.argmax(std[cand]))])
             elif not chosen:
                 chosen.append(cand[int(np.argmax(clear[cand]))])
             else:
                 d = np.min(np.linalg.norm(t[cand][:, None, :3, 3] - t[chosen][None, :, :3, 3], axis=-1), axis=1)
                 chosen.append(cand[int(np.argmax(d))])
 
-    pick(np.flatnonzero(occl), min(n if n_occluded is None else n_occluded, n), nearest=True)
+    pick(np.flatnonzero(occl), min(n if n_occluded is None else n_occluded, n), textured=True)
     pick(np.flatnonzero(behind), min(min(n_behind, n) - int(sum(behind[i] for i in chosen)), n - len(chosen)))
     pick(np.arange(len(q)), n - len(chosen))
     return [
