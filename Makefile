@@ -24,8 +24,11 @@ browser:
 	    || echo "note: could not install chromium; the browser test will skip"; \
 	fi
 
+# The suite on two worker processes (pytest-xdist; TEST_WORKERS=0 runs it in this process): studies run in their
+# --quick form, the docs site is built, mypy checks the source.
+TEST_WORKERS ?= 2
 test: $(STAMP) browser
-	$(PY) -m pytest -q
+	$(PY) -m pytest -q -n $(TEST_WORKERS)
 
 # The documentation site into site/ (warnings are errors); the CLI and API reference and the benchmark
 # tables are generated from the code and benchmarks/results/ while it builds. make test builds it too
