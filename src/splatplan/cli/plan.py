@@ -180,9 +180,9 @@ def cmd_plan(args) -> int:
             frozen = tuple(sorted(set(rrt_cfg.frozen or ()) | {axis}))
             rrt_cfg = replace(rrt_cfg, frozen=frozen)
             if rrt_cfg.box_lo is not None and rrt_cfg.box_hi is not None:
-                lo, hi = list(rrt_cfg.box_lo), list(rrt_cfg.box_hi)
-                lo[axis] = hi[axis] = h
-                rrt_cfg = replace(rrt_cfg, box_lo=tuple(lo), box_hi=tuple(hi))
+                blo, bhi = list(rrt_cfg.box_lo), list(rrt_cfg.box_hi)
+                blo[axis] = bhi[axis] = h
+                rrt_cfg = replace(rrt_cfg, box_lo=tuple(blo), box_hi=tuple(bhi))
         else:
             raise SplatplanError(f"--planar is for point robots (sphere/ellipsoid) and planar bases (go2), not {robot.name}")
     rrt_cfg.validate()
@@ -258,7 +258,8 @@ def cmd_plan(args) -> int:
         print(f"not refined: {refine_note}")
     if png is not None:
         print(f"picture of the path (top and side views): {png}")
-    print(clear.summary())
+    if clear is not None:  # (a path was found: computed above)
+        print(clear.summary())
     print(f"time split: {format_time_split(split)}")
     return 0
 

@@ -135,7 +135,7 @@ def cmd_align(args) -> int:
     with atomic_dir(out.parent) as tmp:  # the files appear together or not at all
         save_scene(aligned, tmp / out.name)
         (tmp / side.name).write_text(dumps_json(doc, indent=2) + "\n")
-        if fig is not None:
+        if fig is not None and png is not None:
             fig.savefig(tmp / "view.png", dpi=80)
             move_into(tmp / "view.png", png)
         move_into(tmp / side.name, side)
@@ -148,7 +148,7 @@ def cmd_align(args) -> int:
         print(f"up: {cfg.up} (given); floor at {g.floor_height:.4g} along it -> z = {res.floor_z() if res.floor_z() is not None else 0:g}")
     elif g is not None:
         why = "; only the capture convention (--align-up-hint) separated it from the runner-up" if g.hint_decides else ""
-        print(f"up: {g.to_json()['up_axis']} (normal {np.round(g.up, 4).tolist()}, support plane under {g.plane.coverage:.0%} of the scene, "
+        print(f"up: {g.to_json()['up_axis']} (normal {np.round(g.up, 4).tolist()}, support plane under {'n/a' if g.plane is None else format(g.plane.coverage, '.0%')} of the scene, "
               f"margin {g.margin:.2f}, confidence {g.confidence:.2f}{why}); floor at {g.floor_height:.4g} along it -> z = {res.floor_z():g}")  # fmt: skip
     if res.n_shell_dropped:
         print(f"dropped a background shell of {res.n_shell_dropped:,} splats far beyond the scene (--keep-shell keeps it)")

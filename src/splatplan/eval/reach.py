@@ -199,7 +199,7 @@ def run(config: ReachStudyConfig | None = None, engine=None, *, progress: bool =
     cam = wrist_camera(robot, cfg.image_size, cfg.fov_deg, cfg.camera_link)
     q0 = reach_start(robot, cfg.camera_link, c.start_view)
     bg = (cfg.background,) * 3
-    runs = {"with_collision": [], "without_collision": []}
+    runs: dict[str, list] = {"with_collision": [], "without_collision": []}
     goals_json, figures = [], []
     with SplatRenderer(ts.splats, device) as rend:
         goals = make_reach_goals(robot, ts, rend, cam, n=n_goals, q_start=q0, n_behind=min(2, n_goals), seed=cfg.mppi.seed, **HIDDEN_GOAL_SAMPLER)

@@ -15,6 +15,7 @@ Units: metres, radians; world frame z up (the tabletop scene's).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -33,7 +34,7 @@ START_VIEWS = {"above_bin": START_CAMERA, "before_wall": (np.array([0.38, 0.0, 0
 #: Sampler settings of the studies, which find goals hidden from either start view: a wider joint spread,
 #: camera moves up to 35 cm for a goal behind the wall or hidden from the start (the move
 #: around the wall), more candidates (hidden ones are rare: about 1 in 700 from ``above_bin``).
-HIDDEN_GOAL_SAMPLER = {"n_candidates": 8192, "spread": 0.8, "behind_spread": 0.8, "behind_max_move_m": 0.35}
+HIDDEN_GOAL_SAMPLER: dict[str, Any] = {"n_candidates": 8192, "spread": 0.8, "behind_spread": 0.8, "behind_max_move_m": 0.35}
 #: Camera region counted as "behind the wall": inside the bin (x, y) and below the front wall's top.
 BEHIND_WALL = (np.array([0.46, -0.28, -0.09]), np.array([0.84, 0.28, 0.15]))
 
@@ -107,11 +108,13 @@ class ReachCandidates:
     alpha_mean: np.ndarray
     alpha_min: np.ndarray
     view_std: np.ndarray
-    line_of_sight_m: np.ndarray = None
+    line_of_sight_m: np.ndarray | None = None
 
     @property
     def occluded(self) -> np.ndarray:
         """(M,) bool: the goal camera is hidden from the start camera by the exact scene."""
+        if self.line_of_sight_m is None:
+            return np.zeros(len(self.q), bool)
         return np.nan_to_num(self.line_of_sight_m, nan=np.inf) < 0.0
 
     @property
@@ -218,7 +221,8 @@ def make_reach_goals(
     )
     keep = cands.kept
     q, t, clear, behind = cands.q[keep], cands.camera_pose[keep], cands.clearance_m[keep], cands.behind_wall[keep]
-    occl, los, std = cands.occluded[keep], cands.line_of_sight_m[keep], cands.view_std[keep]
+    los_all = cands.line_of_sight_m if cands.line_of_sight_m is not None else np.full(len(cands.q), np.inf)
+    occl, los, std = cands.occluded[keep], los_all[keep], cands.view_std[keep]
     chosen: list[int] = []
 
     def pick(pool: np.ndarray, count: int, textured: bool = False) -> None:  # greedy farthest point in camera position

@@ -270,7 +270,7 @@ def build_moveit(path: str | Path | AnalyticScene, n_splats: int = DEFAULT_N_SPL
     return splats, scene
 
 
-def write_moveit(path: str | Path, out_ply: str | Path, n_splats: int = DEFAULT_N_SPLATS, seed: int = 0) -> tuple[Path, Path]:
+def write_moveit(path: str | Path | AnalyticScene, out_ply: str | Path, n_splats: int = DEFAULT_N_SPLATS, seed: int = 0) -> tuple[Path, Path]:
     """Write a MoveIt scene as an INRIA 3DGS .ply plus its exact ground truth ``<stem>.gt.json``.
 
     Returns:
