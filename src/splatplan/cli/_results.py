@@ -236,10 +236,18 @@ def metric_differences(cfg, recorded) -> list[str]:
 def read_plan(path: str, what: str = "--plan") -> tuple[np.ndarray, RecordedFrame | None]:
     """The path (P, dof) of a ``splatplan plan`` result and its recorded frame (None in files without one)."""
     obj = load_result(path, what)
-    try:
-        arr = np.asarray(obj["path"], dtype=np.float64)
-    except (ValueError, KeyError, TypeError) as exc:
-        raise SplatplanError(f"{what} {path}: expected the JSON of 'splatplan plan' with a \"path\" list ({exc.__class__.__name__})") from None
-    if arr.ndim != 2 or len(arr) == 0 or not np.all(np.isfinite(arr)):
-        raise SplatplanError(f"{what} {path}: \"path\" must be a non-empty list of finite configurations, got shape {arr.shape}")
+    arr = finite_rows(obj, "path", f"{what} {path}", "the JSON of 'splatplan plan' with a \"path\" list", "list of finite configurations")
     return arr, read_frame(obj, f"{what} {path}")
+
+
+def finite_rows(obj: dict, key: str, where: str, expected: str, rows: str) -> np.ndarray:
+    """``obj[key]`` as a non-empty (N, D) float64 array of finite numbers; otherwise one-line
+    errors: "WHERE: expected EXPECTED" (missing or not numeric) or "WHERE: "KEY" must be a
+    non-empty ROWS" (wrong shape, empty, NaN/Inf)."""
+    try:
+        arr = np.asarray(obj[key], dtype=np.float64)
+    except (ValueError, KeyError, TypeError) as exc:
+        raise SplatplanError(f"{where}: expected {expected} ({exc.__class__.__name__})") from None
+    if arr.ndim != 2 or len(arr) == 0 or not np.all(np.isfinite(arr)):
+        raise SplatplanError(f"{where}: \"{key}\" must be a non-empty {rows}, got shape {arr.shape}")
+    return arr

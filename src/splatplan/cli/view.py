@@ -9,7 +9,7 @@ import numpy as np
 
 from ..errors import SplatplanError
 from ..robots.builtin import ROBOT_NAME_HELP
-from ._results import RecordedFrame, check_scene, fill_robot, load_result, read_frame, read_plan
+from ._results import RecordedFrame, check_scene, fill_robot, finite_rows, load_result, read_frame, read_plan
 from ._common import _load, add_base_pose_arg, add_command, add_config_args, add_terrain_args, config_from_args, ground_robot_scene, parse_base_pose, robot_at
 
 
@@ -18,12 +18,7 @@ def _read_mpc(folder: str) -> tuple[np.ndarray, RecordedFrame | None]:
     if not p.is_file():
         raise SplatplanError(f"--mpc {folder}: no result.json there (the output folder of 'splatplan mpc')")
     obj = load_result(p, "--mpc")
-    try:
-        arr = np.asarray(obj["trajectory"], dtype=np.float64)
-    except (ValueError, KeyError, TypeError) as exc:
-        raise SplatplanError(f"--mpc {p}: expected a \"trajectory\" list of states ({exc.__class__.__name__})") from None
-    if arr.ndim != 2 or len(arr) == 0 or not np.all(np.isfinite(arr)):
-        raise SplatplanError(f"--mpc {p}: \"trajectory\" must be a non-empty (T, dof) list of finite numbers, got shape {arr.shape}")
+    arr = finite_rows(obj, "trajectory", f"--mpc {p}", "a \"trajectory\" list of states", "(T, dof) list of finite numbers")
     return arr, read_frame(obj, f"--mpc {folder}")
 
 

@@ -12,6 +12,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..robots.footprint import robot_footprint
+
 if TYPE_CHECKING:
     from ..robots.robot import Robot
     from ..scenes.splats import Splats
@@ -25,26 +27,23 @@ N_REACH_SAMPLES = 512
 def reach_radius(robot: Robot, n_samples: int = N_REACH_SAMPLES, seed: int = 0) -> float:
     """How far the robot's ellipsoids reach from its reference point (scene units):
 
-    * a planar base (a ground robot): its footprint radius, the largest horizontal distance of an
-      ellipsoid point from the base origin (at any yaw);
+    * a planar base (a ground robot): its footprint radius (:func:`~splatplan.robots.footprint.robot_footprint`),
+      the largest horizontal distance of an ellipsoid point from the base's axis (at any yaw);
     * a fixed base (an arm): its reach, the largest distance of an ellipsoid point from the base
       origin over ``n_samples`` configurations within the joint limits (plus the home one);
     * a point robot: its largest semi-axis (the reference point is its centre).
     """
     if robot.is_point:
         return float(robot.semi_axes.max())
+    if robot.base == "planar":  # the footprint disc at its default configuration (yaw turns it about the base origin)
+        return robot_footprint(robot)[1]
     lim = np.asarray(robot.joint_limits, dtype=np.float64).reshape(robot.dof, 2)
     lo = np.where(np.isfinite(lim[:, 0]), lim[:, 0], -np.pi)
     hi = np.where(np.isfinite(lim[:, 1]), lim[:, 1], np.pi)
-    if robot.base == "planar":  # the footprint at the origin of the floor frame; yaw turns it about the base origin
-        q = np.zeros((1, robot.dof))
-    else:
-        rng = np.random.default_rng(seed)
-        q = np.concatenate([np.asarray(robot.q_default, np.float64).reshape(1, -1), lo + rng.random((n_samples, robot.dof)) * (hi - lo)])
+    rng = np.random.default_rng(seed)
+    q = np.concatenate([np.asarray(robot.q_default, np.float64).reshape(1, -1), lo + rng.random((n_samples, robot.dof)) * (hi - lo)])
     c, _, ax = robot.ellipsoids(q)  # (Q, E, 3), (E, 3)
     d = np.asarray(c, np.float64) - np.asarray(robot.base_pose, np.float64)[:3, 3]  # (Q, E, 3) from the base origin
-    if robot.base == "planar":
-        d = d[..., :2]
     return float((np.linalg.norm(d, axis=-1) + ax.max(axis=1)).max())
 
 

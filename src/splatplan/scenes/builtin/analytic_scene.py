@@ -7,14 +7,8 @@ A built-in scene (see :mod:`.stonehenge`) is a set of solid oriented boxes. The 
 
 Units and frames
 ----------------
-* Coordinates are in *scene units* in the scene's world frame (z up for the built-in scenes).
-* A box row is ``(cx, cy, cz, hx, hy, hz, qw, qx, qy, qz)``: centre (world), half-extents along
-  the box's own x/y/z axes, and a **wxyz** unit quaternion rotating the box frame into the world
-  frame (``p_world = R @ p_box + c``).
-* A cylinder row is ``(cx, cy, cz, radius, half_height, qw, qx, qy, qz)``: centre (world), radius,
-  half of its height along the cylinder's own **z** axis, wxyz quaternion cylinder -> world
-  (MoveIt's ``cylinder`` primitive ``[height, radius]``, axis along the object's z).
-* A sphere row is ``(cx, cy, cz, radius)``.
+* Coordinates, and the box / cylinder / sphere rows, as in :mod:`.primitive_sdf` (scene units,
+  the scene's world frame, wxyz quaternions primitive -> world).
 * Primitives are indexed in one order everywhere (labels, colours, ``select``): the boxes, then
   the cylinders, then the spheres.
 
