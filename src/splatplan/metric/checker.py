@@ -33,6 +33,7 @@ from ..errors import SplatplanError
 from ..scenes.splats import Splats
 from .blockers import FAINT_OPACITY, Blockers
 from .config import MetricConfig, QueryResult
+from .configs_launch import fast_collides_configs
 from .groups import robot_groups
 from .interop import (
     MetricWorkspace,
@@ -319,6 +320,10 @@ class CollisionChecker:
             if slack:
                 return res, _from_host(np.zeros(np.shape(host_array(res)), dtype=np.float32), kind, _device_of(q, self.device))
             return res
+        if per_config and sub is None and kind == "numpy" and out is not None and self.device == "cpu" and self._impl is not None:
+            fast = fast_collides_configs(self._impl, self.config, self._axes_for, robot, q, self._workspace(out, 1), slack)
+            if fast is not None:
+                return fast
         from .._warp import wp as _wp
         from .wp_metric_kernel import LinkBatch
 

@@ -186,7 +186,8 @@ class WarpMetric:
         self._params_cache: dict = {}  # the collide kernels' MetricParams by the config values they are made of
 
     # ------------------------------------------------------------------ resources
-    def _executor(self) -> ThreadPoolExecutor:
+    def executor(self) -> ThreadPoolExecutor:
+        """The CPU worker threads of this object's split launches (started on first use)."""
         with self._lock:
             if self._pool is None:
                 self._pool = ThreadPoolExecutor(max_workers=cpu_threads(), thread_name_prefix="splatplan-metric")
@@ -349,7 +350,7 @@ class WarpMetric:
     def _launch(self, kernel, b: int, args: list) -> None:
         """Launch over b queries (kernel inputs ``[offset, *args]``); on CPU several launches per core
         from the checker's pool (:func:`~splatplan._warp.launch_split`)."""
-        pool = self._executor() if self.device == "cpu" and cpu_threads() > 1 else None
+        pool = self.executor() if self.device == "cpu" and cpu_threads() > 1 else None
         launch_split(kernel, b, [0, *args], self.device, pool, min_split=256, min_step=128, chunks_per_thread=CHUNKS_PER_THREAD)
 
     def sort_queries(self, links: LinkBatch, b: int, keys, values) -> None:
@@ -417,12 +418,7 @@ class WarpMetric:
         else:
             self.sort_queries(links, b, *(scratch or self._scratch(b)))
         dgrid = self.mean_distance_grid()
-        if slack is None:
-            if self._no_slack is None:
-                self._no_slack = wp.zeros(1, dtype=wp.float32, device=self.device)
-            slack_arr, want = self._no_slack, 0
-        else:
-            slack_arr, want = slack, 1
+        slack_arr, want = (self.no_slack_array(), 0) if slack is None else (slack, 1)
         params = metric_params(cfg, 0, self.tiers.collide_row_clip)
         self._launch(metric_collide_kernel, b, [links, gs.tiers, dgrid, params, out_hit, bad, slack_arr, want])
 
@@ -434,25 +430,26 @@ class WarpMetric:
         gs = self.gridset(cfg.n_sigma, 1.0, a_min, a_max, collide=True)
         links.use_order = 0
         dgrid = self.mean_distance_grid()
-        rg = self._robot_groups(groups, gs, cfg.n_sigma)
-        if slack is None:
-            if self._no_slack is None:
-                self._no_slack = wp.zeros(1, dtype=wp.float32, device=self.device)
-            slack_arr, want = self._no_slack, 0
-        else:
-            slack_arr, want = slack, 1
+        rg = self.robot_groups(groups, gs, cfg.n_sigma)
+        slack_arr, want = (self.no_slack_array(), 0) if slack is None else (slack, 1)
         pk = (cfg.n_sigma, cfg.s2_cap, cfg.softmin_t, cfg.softmin_mode, cfg.cost_d_max, cfg.cost_gamma, cfg.cost_s_min, cfg.cost_reduce,
               cfg.k_collide, cfg.opacity_min, cfg.opacity_scaled_inflation, cfg.linearize, self.tiers.collide_row_clip)  # every field metric_params reads
         params = self._params_cache.get(pk)
         if params is None:
             params = metric_params(cfg, 0, self.tiers.collide_row_clip)
             self._params_cache = {pk: params}  # (one entry: the config in use)
-        pool = self._executor() if self.device == "cpu" and cpu_threads() > 1 else None
+        pool = self.executor() if self.device == "cpu" and cpu_threads() > 1 else None
         # a thread is a whole configuration (tens of ellipsoids): split smaller batches than per-ellipsoid ones
         launch_split(robot_collide_kernel, b, [0, links, gs.tiers, dgrid, params, rg, out_hit, bad, slack_arr, want], self.device, pool,
                      min_split=CONFIG_MIN_SPLIT, min_step=CONFIG_MIN_STEP, chunks_per_thread=CHUNKS_PER_THREAD)  # fmt: skip
 
-    def _robot_groups(self, groups, gs: "_GridSet", n_sigma: float) -> RobotGroups:
+    def no_slack_array(self):
+        """The (1,) placeholder of the collide kernels' slack output when no slack is asked for."""
+        if self._no_slack is None:
+            self._no_slack = wp.zeros(1, dtype=wp.float32, device=self.device)
+        return self._no_slack
+
+    def robot_groups(self, groups, gs: "_GridSet", n_sigma: float) -> RobotGroups:
         """The kernel's :class:`RobotGroups` for a robot's groups at this grid set and n_sigma
         (cached): R_g = max over members (|c_e - c_g| + rho_top(e)), padded (GROUP BOUND)."""
         key, first, members, rel, ax = groups

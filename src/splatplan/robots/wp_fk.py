@@ -257,3 +257,16 @@ def launch_fk(robot, q_wp, out_centers, out_rots, attach: Attachments | None = N
     sr, sp = _scratch(robot, m, b, dev)
     pool = robot._thread_pool() if dev.is_cpu and b >= MIN_SPLIT else None
     launch_split(fk_kernel, b, [m, q_wp, 0, sr, sp, out_centers, out_rots], dev, pool, offset_at=2, min_split=MIN_SPLIT, min_step=MIN_SPLIT // 4, chunks_per_thread=CHUNKS_PER_THREAD)
+
+
+def record_fk(robot, q_wp, out_centers, out_rots):
+    """A recorded launch of :func:`fk_kernel` (``wp.launch(..., record_cmd=True)``) over every
+    row of ``q_wp`` (capacity, dof) into ``out_centers`` / ``out_rots`` (capacity * E,), every
+    ellipsoid, for callers that run the same FK many times on small batches: ``cmd.set_dim(b);
+    cmd.launch()`` computes rows [0, b). Returns (the command, the arrays it points at: keep them
+    alive as long as the command)."""
+    dev = q_wp.device
+    m = _model(robot, dev)
+    sr, sp = _scratch(robot, m, int(q_wp.shape[0]), dev)
+    cmd = wp.launch(fk_kernel, dim=int(q_wp.shape[0]), inputs=[m, q_wp, 0, sr, sp, out_centers, out_rots], device=dev, record_cmd=True)
+    return cmd, (m, sr, sp, q_wp, out_centers, out_rots)

@@ -1,0 +1,86 @@
+"""The recorded-launch CPU path of ``collides_configs`` (:mod:`splatplan.metric.configs_launch`, taken
+when a workspace is given): the same hits and slack as the general path (no workspace) and the
+numpy reference, on random and near-surface configurations, every n_sigma regime, across a
+capacity growth, a change of robot, batch shapes, and the split over threads; invalid input still
+gets the general path's errors."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from splatplan.errors import SplatplanError
+from splatplan.metric import CollisionChecker, MetricConfig
+from splatplan.metric.wp_metric import TierConfig
+
+from .conftest import random_scene
+
+
+def _setup(n_sigma: float, seed: int = 0):
+    from splatplan.robots import load_robot
+
+    rng = np.random.default_rng(seed)
+    scene = random_scene(rng, 4000, scale=0.005 / (1.0 + n_sigma))
+    scene.means[:] = rng.uniform(-1.0, 1.0, (4000, 3)) * np.array([0.03, 0.5, 0.4]) + np.array([0.55, 0.0, 0.4])
+    ch = CollisionChecker(scene, config=MetricConfig(n_sigma=n_sigma), device="cpu", tiers=TierConfig(distance_grid_voxels=2**15))
+    robot = load_robot("panda").inflated(0.01)
+    lim = robot.joint_limits
+    q = lim[:, 0] + rng.random((300, robot.dof)) * (lim[:, 1] - lim[:, 0])
+    hit = np.asarray(ch.collides_configs(robot, q))
+    near = q[hit][rng.integers(0, int(hit.sum()), 300)] + rng.normal(scale=0.03, size=(300, robot.dof))
+    return ch, robot, np.concatenate([q, near]), scene
+
+
+@pytest.mark.parametrize("n_sigma", [0.0, 1.0, 3.0])
+def test_same_hits_and_slack_as_the_general_path(n_sigma):
+    ch, robot, q, scene = _setup(n_sigma, seed=int(n_sigma))
+    want = np.asarray(ch.collides_configs(robot, q))  # no workspace: the general path
+    want_h, want_s = (np.asarray(a) for a in ch.collides_configs_slack(robot, q))
+    assert 0.1 < want.mean() < 0.9 and (want_s > 0).any()
+    ws = ch.workspace()
+    # small batches (one thread, recorded launches) in growing sizes: the buffers grow on the way
+    for lo, hi in [(0, 1), (1, 9), (9, 70), (70, 200), (200, 600)]:
+        got = np.asarray(ch.collides_configs(robot, q[lo:hi], out=ws)).copy()
+        np.testing.assert_array_equal(got, want[lo:hi])
+        h, s = ch.collides_configs_slack(robot, q[lo:hi], out=ws)
+        np.testing.assert_array_equal(np.asarray(h), want_h[lo:hi])
+        np.testing.assert_array_equal(np.asarray(s), want_s[lo:hi])
+    assert "configs_launcher" in ws._cache
+    ref = CollisionChecker(scene, config=MetricConfig(n_sigma=n_sigma), backend="reference")
+    np.testing.assert_array_equal(np.asarray(ref.collides_configs(robot, q[::12])), want[::12])
+
+
+def test_batch_shapes_robot_change_and_threads(monkeypatch):
+    from splatplan.metric import wp_metric
+
+    ch, robot, q, _ = _setup(0.0, seed=5)
+    ws = ch.workspace()
+    want = np.asarray(ch.collides_configs(robot, q))
+    got = np.asarray(ch.collides_configs(robot, q[:60].reshape(3, 20, -1), out=ws))
+    np.testing.assert_array_equal(got, want[:60].reshape(3, 20))
+    h, s = ch.collides_configs_slack(robot, q[:60].reshape(3, 20, -1), out=ws)
+    assert np.asarray(h).shape == (3, 20) and np.asarray(s).shape == (3, 20, robot.n_ellipsoids)
+    # float32 input, and a single configuration (..., dof) -> ()
+    np.testing.assert_array_equal(np.asarray(ch.collides_configs(robot, q[:50].astype(np.float32), out=ws)), want[:50])
+    assert np.asarray(ch.collides_configs(robot, q[3], out=ws)).shape == ()
+    # another robot object (a larger inflation) on the same workspace: a new launcher
+    big = robot.inflated(0.02)
+    np.testing.assert_array_equal(np.asarray(ch.collides_configs(big, q, out=ws)).copy(), np.asarray(ch.collides_configs(big, q)))
+    np.testing.assert_array_equal(np.asarray(ch.collides_configs(robot, q, out=ws)), want)
+    # a batch split over several threads
+    monkeypatch.setattr(wp_metric, "CONFIG_MIN_SPLIT", 16)
+    monkeypatch.setattr(wp_metric, "CONFIG_MIN_STEP", 8)
+    ws2 = ch.workspace()
+    np.testing.assert_array_equal(np.asarray(ch.collides_configs(robot, q, out=ws2)), want)
+
+
+def test_invalid_input_gets_the_general_errors():
+    ch, robot, q, _ = _setup(0.0, seed=2)
+    ws = ch.workspace()
+    bad = q[:5].copy()
+    bad[2, 3] = np.nan
+    with pytest.raises(SplatplanError, match="NaN"):
+        ch.collides_configs(robot, bad, out=ws)
+    with pytest.raises(SplatplanError, match="configurations need 7 values"):
+        ch.collides_configs(robot, q[:5, :6], out=ws)
+    assert np.asarray(ch.collides_configs(robot, q[:0], out=ws)).shape == (0,)
