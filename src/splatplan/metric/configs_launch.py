@@ -123,15 +123,19 @@ def fast_collides_configs(impl: WarpMetric, config, axes_for: Callable, robot: A
     cached device semi-axes), or None where this path does not apply: another robot type, an empty batch or one
     over :data:`MAX_BATCH`, or input that the general path must validate (and reject)."""
     a = q if isinstance(q, np.ndarray) else None
-    if a is None or a.dtype.kind != "f" or a.ndim < 1 or a.shape[-1] != robot.dof or not fast_path_robot(robot):
+    if a is None or a.dtype.kind != "f" or a.ndim < 1 or a.shape[-1] != robot.dof:
+        return None
+    hit = ws._cache.get("configs_launcher")  # (weak reference to the robot, its launcher)
+    if hit is not None and hit[0]() is not robot:
+        hit = None
+    if hit is None and not fast_path_robot(robot):
         return None
     shape = a.shape[:-1]
     a2 = a.reshape(-1, a.shape[-1])
     b = a2.shape[0]
     if b == 0 or b > MAX_BATCH or not np.isfinite(a2).all():
         return None
-    hit = ws._cache.get("configs_launcher")  # (weak reference to the robot, its launcher)
-    if hit is None or hit[0]() is not robot or hit[1].robot_key != robot.semi_axes.tobytes() or hit[1].capacity < b:
+    if hit is None or hit[1].robot_key != robot.semi_axes.tobytes() or hit[1].capacity < b:
         cap = b if hit is None else max(b, 2 * hit[1].capacity)
         launcher = ConfigsLauncher(impl, robot, axes_for(robot), config, cap)
         ws._cache["configs_launcher"] = hit = (weakref.ref(robot), launcher)
