@@ -284,3 +284,19 @@ def test_hidden_goals_come_first_and_do_not_depend_on_the_robot_model():
                 assert ts.analytic.sdf(p[None])[0] > 0  # the goal camera itself is in free space
         above = make_reach_goals(tight, ts, rend, cam, n=2, q_start=reach_start(tight), n_candidates=256, seed=0)
     assert not any(g["occluded"] for g in above) and all(g["line_of_sight_m"] > 0 for g in above)
+
+
+def test_view_contrast_is_spatial():
+    """A view of one flat colour has no contrast whatever the colour (a flat red once counted, the
+    std of the flattened pixels and channels); texture in any channel counts."""
+    from splatplan.planners.reach_goals import view_contrast
+
+    flat = np.broadcast_to(np.array([0.9, 0.1, 0.1]), (2, 64, 3))
+    np.testing.assert_allclose(view_contrast(flat), 0.0, atol=1e-12)
+    assert float(np.asarray(flat).reshape(2, -1).std(axis=1)[0]) > 0.3  # (what the flattened std said)
+    checker = np.zeros((1, 64, 3))
+    checker[0, ::2] = 1.0
+    np.testing.assert_allclose(view_contrast(checker), [0.5])
+    green = np.zeros((1, 64, 3))
+    green[0, ::2, 1] = 1.0
+    np.testing.assert_allclose(view_contrast(green), [0.5 / 3])

@@ -57,8 +57,15 @@ def reach_start(robot, camera_link: str = "panda_hand_tcp", view: str = "above_b
 
 #: A goal view is filled by the scene when its mean alpha exceeds this (at most 2 % background).
 VIEW_MIN_ALPHA = 0.98
-#: ... and has contrast when its pixel std exceeds this (default ``min_contrast``).
+#: ... and has contrast when its :func:`view_contrast` exceeds this (default ``min_contrast``).
 VIEW_MIN_CONTRAST = 0.12
+
+def view_contrast(rgb: np.ndarray) -> np.ndarray:
+    """Spatial contrast of views (M, P, 3) (P pixels, RGB in [0, 1]): each colour channel's std
+    over the pixels, averaged over the channels. A view of one flat colour has 0, whatever the
+    colour (the std of the flattened pixels and channels would count a flat red as contrast)."""
+    return np.asarray(rgb, dtype=np.float64).std(axis=1).mean(axis=1)
+
 
 #: Points along the camera-to-camera segment at which :func:`line_of_sight_m` evaluates the exact distance.
 LINE_OF_SIGHT_POINTS = 200
@@ -174,8 +181,8 @@ def reach_candidates(
     idx = np.flatnonzero(passed["clearance"] & passed["metric"] & passed["self_collision"])
     if len(idx):
         res = camera.scaled(min(camera.width, view_check_px)).render(renderer, robot, q[idx])
-        rgb, alpha = np.asarray(res.rgb).reshape(len(idx), -1), np.asarray(res.alpha).reshape(len(idx), -1)
-        a_mean[idx], a_min[idx], std[idx] = alpha.mean(axis=1), alpha.min(axis=1), rgb.std(axis=1)
+        rgb, alpha = np.asarray(res.rgb).reshape(len(idx), -1, 3), np.asarray(res.alpha).reshape(len(idx), -1)  # (M, P, 3), (M, P)
+        a_mean[idx], a_min[idx], std[idx] = alpha.mean(axis=1), alpha.min(axis=1), view_contrast(rgb)
         passed["view"][idx] = (a_mean[idx] > VIEW_MIN_ALPHA) & (std[idx] > min_contrast)
     return ReachCandidates(q, t, in_b, passed, clear, a_mean, a_min, std, los)
 
@@ -190,7 +197,7 @@ def make_reach_goals(
     camera by the exact scene (:func:`line_of_sight_m` < 0: the straight camera path runs through
     the geometry), then behind-wall ones up to ``n_behind`` with the camera behind the bin's front
     wall (:data:`BEHIND_WALL`), then any; fewer of a kind when the candidates hold fewer. The hidden
-    goals are taken most textured view first (largest pixel std of the check view): the image cost
+    goals are taken most textured view first (largest :func:`view_contrast` of the check view): the image cost
     has only the view to go by, and a plain view (floor, or floor and one wall edge) recurs
     elsewhere in the scene (the bin's walls look alike), where the controller can settle in a
     look-alike; the others far apart from each other (greedy farthest point in camera position).
@@ -202,7 +209,7 @@ def make_reach_goals(
     hidden from the start may move up to ``behind_max_move_m``: reaching around a wall takes a
     longer move), and the view
     is filled by the scene (mean alpha > 0.98: at most 2 % of the view's colour is background) with
-    contrast (pixel std > ``min_contrast``: a plain view of floor and wall is ambiguous for any
+    contrast (:func:`view_contrast` > ``min_contrast``: a plain view of floor and wall is ambiguous for any
     encoder). The fill is a mean over the view, not a per-pixel minimum: a close view resolves the
     gaps between single splats (isolated pixels of alpha 0.8..0.97, the start view has them too),
     and a per-pixel bar rejected nearly every view from inside the bin, i.e. every behind-wall
