@@ -64,7 +64,7 @@ for s in "${stages[@]}"; do
       for _ in $(seq 60); do grep -q "gsplat built\|Error" "$res/gsplat_build.log" 2>/dev/null && break; sleep 5; done
       stage gsplat_tests 150 $py -m pytest -q -p no:cacheprovider tests/render/test_gsplat_backend.py ;;
     studies)
-      stage reach_full ${STUDY_S:-300} $py -m splatplan.cli eval reach --device cuda --image-size 224 --out "$res/reach_gpu"
+      stage reach_full ${STUDY_S:-300} $py -m splatplan.cli eval reach --device cuda --task-image-size 224 --out "$res/reach_gpu"
       stage arm_full ${STUDY_S:-300} $py -m splatplan.cli eval arm --device cuda --out "$res/arm_gpu"
       stage base_full ${STUDY_S:-300} $py -m splatplan.cli eval base --device cuda --out "$res/base_gpu" ;;
     kernel)
