@@ -16,11 +16,11 @@ and without slack, and across a capacity growth).
 from __future__ import annotations
 
 import weakref
-from typing import TYPE_CHECKING, Any, Callable
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from .._warp import launch_split
 from .._warp import wp as _wp
 from .groups import robot_groups
 
@@ -57,42 +57,33 @@ class ConfigsLauncher:
 
     def __init__(self, impl: WarpMetric, robot: Robot, axes: tuple, config, capacity: int) -> None:
         from ..robots.wp_fk import record_fk
-        from .wp_metric import CHUNKS_PER_THREAD, CONFIG_MIN_SPLIT, CONFIG_MIN_STEP, metric_params
+        from . import wp_metric
         from .wp_metric_kernel import LinkBatch, robot_collide_kernel
 
         wp = _wp()
         dev = impl.device
         self.robot_key = robot.semi_axes.tobytes()
-        self.dof = int(robot.dof)
         self.n_ell = e = int(robot.n_ellipsoids)
         self.capacity = cap = max(int(capacity), MIN_CAPACITY)
         self.impl = impl
-        self.q = wp.empty((cap, self.dof), dtype=wp.float32, device=dev)  # (cap, dof)
-        self.q_np = self.q.numpy()  # a view of the host buffer
-        self.centers = wp.empty(cap * e, dtype=wp.vec3, device=dev)  # (cap E,) world frame
-        self.rots = wp.empty(cap * e, dtype=wp.mat33, device=dev)  # (cap E,) world <- ellipsoid
-        self.hits = wp.empty(cap, dtype=wp.bool, device=dev)  # (cap,)
-        self.hits_np = self.hits.numpy()
-        self.slack = wp.empty(cap * e, dtype=wp.float32, device=dev)  # (cap E,) FREE SLACK
-        self.slack_np = self.slack.numpy()
-        self.bad = wp.empty(1, dtype=wp.int32, device=dev)
-        self.fk, keep = record_fk(robot, self.q, self.centers, self.rots)
-        self._keep = [keep, axes]  # (everything the recorded commands point at stays alive)
+        self._wm = wp_metric  # (its CONFIG_MIN_SPLIT read per call)
+        q = wp.empty((cap, int(robot.dof)), dtype=wp.float32, device=dev)  # (cap, dof)
+        self.q_np = q.numpy()  # a view of the host buffer
+        centers = wp.empty(cap * e, dtype=wp.vec3, device=dev)  # (cap E,) world frame
+        rots = wp.empty(cap * e, dtype=wp.mat33, device=dev)  # (cap E,) world <- ellipsoid
+        hits = wp.empty(cap, dtype=wp.bool, device=dev)  # (cap,)
+        slack = wp.empty(cap * e, dtype=wp.float32, device=dev)  # (cap E,) FREE SLACK
+        self.hits_np, self.slack_np = hits.numpy(), slack.numpy()
+        self.fk, self._fk_keep = record_fk(robot, q, centers, rots)  # (the arrays the command points at, kept alive)
         ax, a_min, a_max = axes
-        gs = impl.gridset(config.n_sigma, 1.0, a_min, a_max, collide=True)
-        dgrid = impl.mean_distance_grid()
-        rg = impl.robot_groups(robot_groups(robot), gs, config.n_sigma)
-        params = metric_params(config, 0, impl.tiers.collide_row_clip)
         links = LinkBatch()
-        links.centers, links.rots, links.axes = self.centers, self.rots, ax
-        links.rot_mode, links.rot_period, links.axes_period, links.use_order = 2, cap * e, e, 0
-        self._keep += [gs, dgrid, rg, params, links]
-        # kernel arguments after the offset, without and with slack
-        self._args = [[links, gs.tiers, dgrid, params, rg, self.hits, self.bad, impl.no_slack_array(), 0],
-                      [links, gs.tiers, dgrid, params, rg, self.hits, self.bad, self.slack, 1]]  # fmt: skip
+        links.centers, links.rots, links.axes = centers, rots, ax
+        links.rot_mode, links.rot_period, links.axes_period = 2, cap * e, e
+        bad = wp.empty(1, dtype=wp.int32, device=dev)
+        groups = robot_groups(robot)
+        # the kernel's inputs after the offset, without and with slack (they keep what they point at alive)
+        self._args = [impl.configs_args(links, groups, a_min, a_max, config, hits, bad, sl) for sl in (None, slack)]
         self.collide = [wp.launch(robot_collide_kernel, dim=cap, inputs=[0, *a], device=dev, record_cmd=True) for a in self._args]
-        self._kernel = robot_collide_kernel
-        self._split = (CONFIG_MIN_SPLIT, CONFIG_MIN_STEP, CHUNKS_PER_THREAD)
 
     def run(self, q: np.ndarray, slack: bool):
         """Check configurations ``q`` (B, dof) finite float, B <= capacity: hits (B,) bool and,
@@ -102,10 +93,8 @@ class ConfigsLauncher:
         self.q_np[:b] = q
         self.fk.set_dim(b)
         self.fk.launch()
-        min_split, min_step, chunks = self._split
-        pool = self.impl.executor() if b >= min_split else None
-        if pool is not None and getattr(pool, "_max_workers", 1) > 1:
-            launch_split(self._kernel, b, [0, *self._args[int(slack)]], self.impl.device, pool, min_split=min_split, min_step=min_step, chunks_per_thread=chunks)
+        if b >= self._wm.CONFIG_MIN_SPLIT:  # over the checker's threads, as the general path
+            self.impl.launch_configs(b, self._args[int(slack)])
         else:
             cmd = self.collide[int(slack)]
             cmd.set_dim(b)

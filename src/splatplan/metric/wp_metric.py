@@ -427,9 +427,14 @@ class WarpMetric:
         their B E ellipsoids configuration-major, ``groups`` the robot's :func:`~.checker.robot_groups`;
         ``out_hit`` (>= b rows) gets any-ellipsoid-collides, ``slack`` (>= b E rows, optional) each
         ellipsoid's FREE SLACK. Grids as :meth:`collides` with ``robot_batch``."""
+        self.launch_configs(b, self.configs_args(links, groups, a_min, a_max, cfg, out_hit, bad, slack))
+
+    def configs_args(self, links: LinkBatch, groups, a_min: float, a_max: float, cfg: MetricConfig, out_hit, bad, slack=None) -> list:
+        """The inputs of ``robot_collide_kernel`` after its launch offset, for :meth:`collides_configs`
+        (arguments as there; grids, groups and parameters cached). The list holds every array the
+        kernel reads: a launch recorded with it stays valid while the list is kept."""
         gs = self.gridset(cfg.n_sigma, 1.0, a_min, a_max, collide=True)
         links.use_order = 0
-        dgrid = self.mean_distance_grid()
         rg = self.robot_groups(groups, gs, cfg.n_sigma)
         slack_arr, want = (self.no_slack_array(), 0) if slack is None else (slack, 1)
         pk = (cfg.n_sigma, cfg.s2_cap, cfg.softmin_t, cfg.softmin_mode, cfg.cost_d_max, cfg.cost_gamma, cfg.cost_s_min, cfg.cost_reduce,
@@ -438,10 +443,15 @@ class WarpMetric:
         if params is None:
             params = metric_params(cfg, 0, self.tiers.collide_row_clip)
             self._params_cache = {pk: params}  # (one entry: the config in use)
+        return [links, gs.tiers, self.mean_distance_grid(), params, rg, out_hit, bad, slack_arr, want]
+
+    def launch_configs(self, b: int, args: list) -> None:
+        """``robot_collide_kernel`` over b configurations with :meth:`configs_args`' inputs; on CPU
+        split over the checker's threads."""
         pool = self.executor() if self.device == "cpu" and cpu_threads() > 1 else None
         # a thread is a whole configuration (tens of ellipsoids): split smaller batches than per-ellipsoid ones
-        launch_split(robot_collide_kernel, b, [0, links, gs.tiers, dgrid, params, rg, out_hit, bad, slack_arr, want], self.device, pool,
-                     min_split=CONFIG_MIN_SPLIT, min_step=CONFIG_MIN_STEP, chunks_per_thread=CHUNKS_PER_THREAD)  # fmt: skip
+        launch_split(robot_collide_kernel, b, [0, *args], self.device, pool, min_split=CONFIG_MIN_SPLIT, min_step=CONFIG_MIN_STEP,
+                     chunks_per_thread=CHUNKS_PER_THREAD)  # fmt: skip
 
     def no_slack_array(self):
         """The (1,) placeholder of the collide kernels' slack output when no slack is asked for."""

@@ -60,6 +60,7 @@ VIEW_MIN_ALPHA = 0.98
 #: ... and has contrast when its :func:`view_contrast` exceeds this (default ``min_contrast``).
 VIEW_MIN_CONTRAST = 0.12
 
+
 def view_contrast(rgb: np.ndarray) -> np.ndarray:
     """Spatial contrast of views (M, P, 3) (P pixels, RGB in [0, 1]): each colour channel's std
     over the pixels, averaged over the channels. A view of one flat colour has 0, whatever the
