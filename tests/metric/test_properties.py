@@ -4,11 +4,12 @@ and the neighbour-radius bound that makes the hash-grid search exact."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from splatplan.metric import CollisionChecker, MetricConfig
-from splatplan.metric.reference import conservative_s2_ref, link_matrices
+from splatplan.metric.reference import conservative_s2_ref, link_matrices, search_radius_ref
 from splatplan.metric.wp_metric_kernel import search_radius
 from splatplan.scenes.splats import Splats, quat_to_rotmat, rotmat_to_quat
 
@@ -84,6 +85,22 @@ def test_radius_bound(seed, n_sigma, cap):
     rho = search_radius(float(n_sigma), float(scene.scales.max()), float(axes.min()), float(axes.max()), float(cap))
     far = np.linalg.norm(scene.means - c, axis=1) > rho
     assert np.all(s2t[0][far] >= cap * (1 - 1e-9))
+
+
+@SETTINGS
+@given(seed=st.integers(0, 10_000))
+def test_search_radius_ref_matches_kernel_function(seed):
+    """The glue's vectorised radius (float64) is the kernels' @wp.func (evaluated in Python scope, float32)."""
+    rng = np.random.default_rng(seed)
+    n = 20
+    n_sigma, sig = rng.uniform(0, 4, n), 10 ** rng.uniform(-4, -1, n)
+    a_min = 10 ** rng.uniform(-3, -1, n)
+    a_max = a_min * rng.uniform(1, 20, n)
+    cap = rng.uniform(1, 16, n)
+    got = search_radius_ref(n_sigma, sig, a_min, a_max, cap)
+    want = [search_radius(float(n_sigma[i]), float(sig[i]), float(a_min[i]), float(a_max[i]), float(cap[i])) for i in range(n)]
+    np.testing.assert_allclose(got, want, rtol=1e-5)
+    assert search_radius_ref(0.0, 0.01, 0.02, 0.05, 1.0) == pytest.approx(0.05 * 1.0001, rel=1e-12)
 
 
 def test_softmin_bounds():

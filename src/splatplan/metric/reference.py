@@ -12,6 +12,18 @@ from ..scenes.splats import quat_to_rotmat
 from .config import MetricConfig, QueryResult
 
 
+def search_radius_ref(n_sigma, sigma_g, a_min, a_max, cap) -> np.ndarray:
+    """The kernels' search radius (:func:`~.wp_metric_kernel.search_radius`), vectorised in float64:
+    rho = a_max (k + sqrt(k^2 + cap)) (1 + 1e-4), k = n_sigma sigma_g / a_min (arguments broadcast).
+
+    The glue evaluates the radius here rather than calling the ``@wp.func`` in Python scope (~40 us a
+    call, float32); ``tests/metric/test_properties.py`` checks the two agree."""
+    from .wp_metric_kernel import RHO_SLACK
+
+    k = np.asarray(n_sigma, dtype=np.float64) * np.asarray(sigma_g, dtype=np.float64) / np.asarray(a_min, dtype=np.float64)
+    return np.asarray(a_max, dtype=np.float64) * (k + np.sqrt(k * k + np.asarray(cap, dtype=np.float64))) * float(RHO_SLACK)
+
+
 def link_matrices(quats: np.ndarray | None, semi_axes: np.ndarray, batch: int, rots: np.ndarray | None = None) -> np.ndarray:
     """A = R diag(1/a^2, 1/b^2, 1/c^2) R^T per query, float64 (B, 3, 3).
 

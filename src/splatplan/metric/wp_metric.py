@@ -32,6 +32,7 @@ from .._warp import cpu_threads, launch_split, resolve_device
 from .._warp import wp as _wp
 from ..scenes.splats import Splats, quat_to_rotmat
 from .config import COST_REDUCE_CODES, MetricConfig
+from .reference import search_radius_ref
 from .tiers import TierConfig, mean_distance_bounds, quantile_tiers, size_class_tiers
 from .wp_metric_kernel import (
     LanePartials,
@@ -46,7 +47,6 @@ from .wp_metric_kernel import (
     morton_keys_kernel,
     RobotGroups,
     robot_collide_kernel,
-    search_radius,
 )
 
 wp = _wp()
@@ -67,16 +67,12 @@ _GROUP_RADII: dict = {}  # (groups key, largest std, n_sigma) -> (radius (G,), r
 def _group_radii(key: bytes, first: np.ndarray, members: np.ndarray, rel: np.ndarray, ax: np.ndarray, s_top: float, n_sigma: float):
     """GROUP BOUND radii (float64, unpadded): R_g (G,) and each member's reach |c_e - c_g| + rho_top(e)
     (E,, member order); cached across checkers (a new scene with the same robot and largest std
-    reuses them: :func:`search_radius` evaluated in Python scope costs ~0.1 ms a call)."""
+    reuses them; every scene has its own largest std, so a miss must be cheap: the radii in numpy)."""
     ck = (key, s_top, n_sigma)
     hit = _GROUP_RADII.get(ck)
     if hit is None:
-        pairs = {}
-        for a in ax:  # one evaluation per distinct (a_min, a_max)
-            k = (float(a.min()), float(a.max()))
-            if k not in pairs:
-                pairs[k] = float(search_radius(n_sigma, s_top, k[0], k[1], 1.0))
-        rho = np.array([pairs[(float(a.min()), float(a.max()))] for a in ax])  # (E,)
+        ax = np.asarray(ax, dtype=np.float64)  # (E, 3)
+        rho = search_radius_ref(n_sigma, s_top, ax.min(axis=1), ax.max(axis=1), 1.0)  # (E,)
         reach = (rel + rho)[members]
         hit = (np.array([np.max(reach[first[g] : first[g + 1]]) for g in range(len(first) - 1)]), reach)
         if len(_GROUP_RADII) >= 64:
@@ -214,12 +210,13 @@ class WarpMetric:
         if collide:
             cf *= self.tiers.robot_collide_cell_scale
         args = (float(n_sigma), float(cap), float(a_min), float(a_max), float(cf))
-        key = self._keys.get(args)  # memoised: search_radius in Python scope costs ~0.2 ms a call
+        key = self._keys.get(args)  # memoised
         if key is None:
-            # float32 in Python scope: extreme size ratios (a 1e-30 link) overflow to inf; any radius beyond
-            # 1e30 already makes every grid 1x1x1 (every splat visited), so clamp it there
-            rho = [float(search_radius(args[0], s, args[2], args[3], args[1])) for s in self.class_sigma]
-            rho = [r if math.isfinite(r) and r < 1e30 else 1e30 for r in rho]
+            # extreme size ratios (a 1e-30 link) give huge radii; any radius beyond 1e30 already makes
+            # every grid 1x1x1 (every splat visited), so clamp it there
+            with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+                rho_all = search_radius_ref(args[0], np.asarray(self.class_sigma, dtype=np.float64), args[2], args[3], args[1])
+            rho = [float(r) if math.isfinite(r) and r < 1e30 else 1e30 for r in np.atleast_1d(rho_all)]
             groups = self._group_classes(rho, cf)
             cells = tuple(int(math.floor(4 * math.log2(max(rho[j] * cf, 1e-9)))) for _, j in groups)
             key = (groups, cells)
