@@ -325,7 +325,7 @@ def headline() -> str:
     mb = _load("mbm/default_budget/mbm.json")
     if mb:
         o = mb["summary"]["overall"]
-        rows.append(f"| MotionBenchMaker, Panda on splats of {o['n_problems']} MoveIt problems | {o['solved']}/{o['problems_both_free']} solved, "
+        rows.append(f"| MotionBenchMaker, Panda on splats of {o['n_problems']} MoveIt problems | {o['solved']}/{o.get('problems_started', o['problems_both_free'])} solved, "
                     f"{o['negative_clearance_paths']} paths with negative exact clearance, median plan {_duration(o['median_time_s'])} | [MBM](docs/benchmarks/mbm.md) |")  # fmt: skip
     arm, base_ = _load("arm.json"), _load("base.json")
     if arm and base_:

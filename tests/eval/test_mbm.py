@@ -292,4 +292,4 @@ def test_quick_defaults_solve_every_free_problem_safely():
     assert all(r["solved"] for r in free), [(r["family"], r["index"], r["message"]) for r in free if not r["solved"]]
     solved = [r for r in res.rows if r["solved"]]
     assert all(r["min_exact_clearance_m"] >= 0 for r in solved), [(r["family"], r["index"], r["min_exact_clearance_m"]) for r in solved]
-    assert res.summary["overall"]["negative_clearance_paths"] == 0 and res.summary["overall"]["solved_of_free_frac"] == 1.0
+    assert res.summary["overall"]["negative_clearance_paths"] == 0 and res.summary["overall"]["solved_of_started_frac"] == 1.0

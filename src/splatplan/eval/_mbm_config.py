@@ -91,6 +91,10 @@ class MBMConfig:
     #: the derived margin's estimate of the covering radius never drops below this x h, whatever
     #: n_sigma (the splats' offsets along the surface normal are not covered by their tangential extent)
     margin_floor_factor: float = bounded(0.5, ge=0)
+    #: leave an endpoint the margin blocks by a short segment checked at a finer resolution with the
+    #: smaller margin that keeps the same guarantee (splatplan.planners.escape; our planners, derived
+    #: or given margin > 0); false: such a problem is not started
+    endpoint_escape: bool = True
     #: measure the true covering radius rho(n_sigma) from the ground truth (diagnostic: did
     #: m >= rho + r/2 hold? ~1 s per scene at n_sigma 0, tens of seconds above; off by default)
     check_margin: bool = False

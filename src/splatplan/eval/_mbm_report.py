@@ -27,11 +27,12 @@ def _any_rho(rows: list[dict]) -> bool:
 
 
 def summarise(rows: list[dict], time_limit: float | None = None) -> dict:
-    """Valid / free endpoints, solved / free, median / p95 time, worst clearance (for a list of
+    """Valid / free endpoints, problems started (both endpoints free or escaped), solved / started, median / p95 time, worst clearance (for a list of
     rows); with ``time_limit`` (the iteration-budget mode), also how many solutions took longer."""
     n = len(rows)
     both_free = [r for r in rows if r["start_free"] and r["goal_free"]]
-    solved = [r for r in both_free if r["solved"]]
+    started = [r for r in rows if r.get("started", r["start_free"] and r["goal_free"])]  # (rows from before escapes: both free)
+    solved = [r for r in started if r["solved"]]
     t = np.array([r["time_s"] for r in solved], dtype=np.float64)
     clear = np.array([r["min_exact_clearance_m"] for r in solved], dtype=np.float64)
     return {
@@ -43,8 +44,10 @@ def summarise(rows: list[dict], time_limit: float | None = None) -> dict:
         "free_endpoints_frac": sum(r["start_free"] + r["goal_free"] for r in rows) / (2 * n) if n else None,
         "free_endpoints_unmargined_frac": sum(r["start_free_unmargined"] + r["goal_free_unmargined"] for r in rows) / (2 * n) if n else None,
         "problems_both_free": len(both_free),
+        "problems_started": len(started),
+        "problems_escaped": len(started) - len([r for r in started if r["start_free"] and r["goal_free"]]),
         "solved": len(solved),
-        "solved_of_free_frac": len(solved) / len(both_free) if both_free else None,
+        "solved_of_started_frac": len(solved) / len(started) if started else None,
         "median_time_s": _pct(t, 50),
         "p95_time_s": _pct(t, 95),
         "median_cpu_s": _pct(np.array([r["cpu_s"] for r in solved if r.get("cpu_s") is not None], dtype=np.float64), 50),
@@ -123,8 +126,8 @@ def report(result: MBMResult) -> str:
         f"time limit {cfg.time_limit:g} s{'' if cfg.max_iters is None else f' (searches run to {cfg.max_iters:,} iterations, no wall-clock limit)'}, robot {Path(result.setup.get('robot', '?')).name} ({result.setup.get('n_ellipsoids')} ellipsoids), "
         f"planner {cfg.planners[0]} (table below: every planner), engine {_engine_text(result.setup.get('engine'))}",
         "",
-        "| family | problems | valid endpoints | free endpoints (own model) | both free | solved / free | median time (s) | p95 time (s) | worst exact clearance (mm) | paths < 0 | margin (mm) | rho max (mm) |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|",
+        "| family | problems | valid endpoints | free endpoints (own model) | both free | started (escapes) | solved / started | median time (s) | p95 time (s) | worst exact clearance (mm) | paths < 0 | margin (mm) | rho max (mm) |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for fam, s in result.summary.items():
         n = s["n_problems"]
@@ -133,7 +136,7 @@ def report(result: MBMResult) -> str:
         lines.append(
             f"| {fam} | {n} | {s['valid_endpoints']}/{2 * n} ({100 * s['valid_endpoints_frac']:.0f}%) | "
             f"{s['free_endpoints']}/{2 * n} ({100 * s['free_endpoints_frac']:.0f}%; {100 * s['free_endpoints_unmargined_frac']:.0f}%) | {s['problems_both_free']} | "
-            f"{s['solved']}/{s['problems_both_free']}{_frac_pct(s['solved_of_free_frac'])} | "
+            f"{s['problems_started']} ({s['problems_escaped']}) | {s['solved']}/{s['problems_started']}{_frac_pct(s['solved_of_started_frac'])} | "
             f"{_fmt(s['median_time_s'], '.3g')} | {_fmt(s['p95_time_s'], '.3g')} | {_fmt(s['worst_exact_clearance_m'], '+.2f', 1e3)} | "
             f"{s['negative_clearance_paths']} | {_fmt(s['margin_m_median'], '.1f', 1e3)} | {_fmt(s['rho_measured_m_max'], '.1f', 1e3)} |"
         )
@@ -149,13 +152,13 @@ def report(result: MBMResult) -> str:
                        f"{late} of the solutions took longer than the {cfg.time_limit:g} s time limit on this machine.")]  # fmt: skip
     if result.summary_by_planner:
         lines += ["", "Planners (same splats, checker, margin, edge resolution and time limit; ours seeded, OMPL's not):", "",
-                  "| planner | family | solved / free | median time (s) | p95 time (s) | worst exact clearance (mm) | paths < 0 |",
+                  "| planner | family | solved / started | median time (s) | p95 time (s) | worst exact clearance (mm) | paths < 0 |",
                   "|---|---|---|---|---|---|---|"]  # fmt: skip
         for p, per in result.summary_by_planner.items():
             for fam, s in per.items():
                 if not s["n_problems"]:
                     continue
-                lines.append(f"| {p} | {fam} | {s['solved']}/{s['problems_both_free']}{_frac_pct(s['solved_of_free_frac'])} | "
+                lines.append(f"| {p} | {fam} | {s['solved']}/{s['problems_started']}{_frac_pct(s['solved_of_started_frac'])} | "
                              f"{_fmt(s['median_time_s'], '.3g')} | {_fmt(s['p95_time_s'], '.3g')} | "
                              f"{_fmt(s['worst_exact_clearance_m'], '+.2f', 1e3)} | {s['negative_clearance_paths']} |")  # fmt: skip
     if result.failures:

@@ -28,7 +28,11 @@ impossible: the claim, its proof and the estimate of m from the splats alone are
 :mod:`splatplan.scenes.margin` (:func:`~splatplan.scenes.margin.derived_margin` with
 ``margin_spacing_factor`` and ``margin_floor_factor``; the benchmark asks the planner for r = a
 quarter of the robot's own smallest semi-axis). Nothing is exempted at the endpoints: they are
-checked with the same grown model (``start_free``, ``goal_free``). With ``check_margin`` the
+checked with the same grown model (``start_free``, ``goal_free``); with ``endpoint_escape`` (the
+default) an endpoint the margin blocks is left by a short segment checked at a finer resolution
+with the smaller margin that keeps the same guarantee (:mod:`splatplan.planners.escape`;
+``start_escape`` / ``goal_escape``: the resolution divisor used, 1 = free, None = blocked even at
+the finest: the problem is not started). With ``check_margin`` the
 benchmark measures rho(n) (:func:`~splatplan.scenes.margin.covering_radius`, ``rho_measured_m``)
 and reports whether ``m >= rho(n) + r / 2`` held (``bound_holds``).
 
@@ -211,11 +215,13 @@ def task_key(task: MBMTask, config: MBMConfig, sig: str) -> str:
 # ---------------------------------------------------------------------------------------------
 
 
-def _plan(checker, start, goal, robot, time_limit: float, seed: int, edge_resolution: float, planner: str = "auto", max_iters: int | None = None):
+def _plan(checker, start, goal, robot, time_limit: float, seed: int, edge_resolution: float, planner: str = "auto", max_iters: int | None = None,
+          margin=None):  # fmt: skip
     """The public planner with the time limit and the edge resolution the margin was derived with
     (that of the un-inflated robot: the inflated one's default would be coarser and need a larger
     margin), no refinement. With ``max_iters`` our planners run to that iteration budget without a
-    wall-clock limit (reproducible); OMPL's keep the time limit."""
+    wall-clock limit (reproducible); OMPL's keep the time limit. With ``margin`` (a SplatMargin),
+    ``robot`` is the robot's own model and the planner grows it and escapes blocked endpoints."""
     from ..planners import RRTConfig, plan
 
     ours = not planner.startswith("ompl:")
@@ -223,7 +229,7 @@ def _plan(checker, start, goal, robot, time_limit: float, seed: int, edge_resolu
         cfg = RRTConfig(time_limit_s=None, max_iters=int(max_iters), edge_resolution=edge_resolution)
     else:
         cfg = RRTConfig(time_limit_s=time_limit, edge_resolution=edge_resolution)
-    return plan(checker, start, goal, robot=robot, seed=seed, refine=False, planner=planner, rrt_config=cfg)
+    return plan(checker, start, goal, robot=robot, seed=seed, refine=False, planner=planner, rrt_config=cfg, margin=margin)
 
 
 def _prepare(task: "MBMTask", cfg: MBMConfig, robot) -> _Prepared:
@@ -259,7 +265,9 @@ def _prepare(task: "MBMTask", cfg: MBMConfig, robot) -> _Prepared:
 def solve_problem(task: MBMTask, ctx: MBMContext) -> dict:
     """Solve one MBM problem with ``task.planner`` (pure: the row depends only on ``task`` and the
     config, whatever the context has cached); returns its row."""
+    from ..planners.escape import endpoint_divisor
     from ..planners.robot_links import robot_collides
+    from ..scenes.margin import SplatMargin
     from ..scenes.moveit import load_moveit_request
 
     cfg, robot = ctx.config, ctx.robot
@@ -280,15 +288,25 @@ def solve_problem(task: MBMTask, ctx: MBMContext) -> dict:
         hit_e = np.asarray(robot_collides(checker, plan_robot, ends))  # (2, E)
         hit = hit_e.any(axis=-1)
         hit_own = np.asarray(robot_collides(checker, robot, ends)).any(axis=-1) if plan_robot is not robot else hit
-        prep.endpoints[task.request] = (q0, q1, exact_clearance(scene, robot, ends), hit, hit_own, _blocking(scene, robot, ends, hit_e))
-    q0, q1, clear, hit, hit_own, block = prep.endpoints[task.request]
+        smargin = SplatMargin(margin, prep.spacing_nn, res, cfg.n_sigma)
+        can = cfg.endpoint_escape and margin >= 0.5 * res > 0  # (an escape needs a margin with room for r / 2)
+        escape = [1 if not h else (endpoint_divisor(checker, robot, q, smargin) if can else None) for q, h in zip(ends, hit)]
+        prep.endpoints[task.request] = (q0, q1, exact_clearance(scene, robot, ends), hit, hit_own, _blocking(scene, robot, ends, hit_e), escape)
+    q0, q1, clear, hit, hit_own, block, escape = prep.endpoints[task.request]
     row.update(start_blocked_by=block[0], goal_blocked_by=block[1])
     row.update(start_valid=bool(clear[0] > 0), goal_valid=bool(clear[1] > 0), start_clearance_m=float(clear[0]), goal_clearance_m=float(clear[1]))
     row.update(start_free=bool(not hit[0]), goal_free=bool(not hit[1]), start_free_unmargined=bool(not hit_own[0]), goal_free_unmargined=bool(not hit_own[1]))
+    escapes = ours and cfg.endpoint_escape and margin >= 0.5 * res > 0
+    row.update(start_escape=escape[0] if escapes else None, goal_escape=escape[1] if escapes else None)
+    row["started"] = bool((row["start_free"] and row["goal_free"]) or (escapes and escape[0] is not None and escape[1] is not None))
     row.update(solved=False, time_s=None, cpu_s=None, n_configs=None, n_nodes=None, path_length=None, path=None, min_exact_clearance_m=None, message="", timed_out=False)
-    if row["start_free"] and row["goal_free"]:
+    if row["started"]:
         cpu0 = time.process_time()
-        res_p = _plan(checker, q0, q1, plan_robot, cfg.time_limit, cfg.seed + task.index, res, task.planner, cfg.max_iters)
+        if escapes:  # the planner grows the robot and leaves blocked endpoints (planners.escape)
+            res_p = _plan(checker, q0, q1, robot, cfg.time_limit, cfg.seed + task.index, res, task.planner, cfg.max_iters,
+                          margin=SplatMargin(margin, prep.spacing_nn, res, cfg.n_sigma))  # fmt: skip
+        else:
+            res_p = _plan(checker, q0, q1, plan_robot, cfg.time_limit, cfg.seed + task.index, res, task.planner, cfg.max_iters)
         cpu_s = time.process_time() - cpu0  # this process's CPU seconds (the checker's threads included)
         row.update(solved=bool(res_p.success), time_s=float(res_p.time_s), cpu_s=cpu_s, n_nodes=int(res_p.n_nodes),
                    n_configs=(res_p.info or {}).get("n_configs"), message=str(getattr(res_p, "message", "")))  # fmt: skip

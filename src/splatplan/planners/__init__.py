@@ -13,9 +13,11 @@ from __future__ import annotations
 
 import time
 from dataclasses import replace
+
+import numpy as np
 from typing import TYPE_CHECKING
 
-from ..errors import SplatplanError
+from ..errors import PlanningError, SplatplanError
 
 from .bspline import UniformBSpline, bspline_basis, bspline_eval, fit_bspline, knot_vector, resample_polyline
 from .costs import CollisionCost, CollisionTerms, ControlEffortCost, Cost, CostValue, GoalPoseCost, JointLimitCost, JointVelocityTerms, Rollout, StateCost, StridedCollisionTerms, TerminalCost, UntilGoalCost, evaluate_costs, total_cost
@@ -27,12 +29,14 @@ from .refine import RefineConfig, RefineResult, refine_path
 from .robot_links import as_robot, robot_collides, robot_query
 from .rrt_connect import RRTConnect
 from .edges import EdgeChecker, edge_points, edge_samples, shortcut_path
+from .escape import Escape, escape_endpoint
 from .rrt import RRT, robust_scene_box
 from .rrt_types import PlanResult, RRTConfig, RRTSettings, path_length
 
 if TYPE_CHECKING:
     from ..metric.checker import CollisionChecker
     from ..robots.robot import Robot
+    from ..scenes.margin import SplatMargin
 
 __all__ = [
     "CollisionCost",
@@ -50,6 +54,8 @@ __all__ = [
     "Dynamics",
     "DynamicsModel",
     "EdgeChecker",
+    "Escape",
+    "escape_endpoint",
     "GoalPoseCost",
     "ImageCost",
     "JointLimitCost",
@@ -132,6 +138,7 @@ def plan(
     rrt_config: RRTConfig | None = None,
     refine_config: RefineConfig | None = None,
     planner: str = "auto",
+    margin: SplatMargin | None = None,
 ) -> PlanResult:
     """Plan a collision-free path for a robot: RRT or RRT-Connect (+ shortcut) (+ refinement).
 
@@ -156,6 +163,13 @@ def plan(
             "ompl:NAME", an OMPL geometric planner on the same checker, box, edge resolution and
             time limit (:func:`~splatplan.planners.ompl_bridge.plan_ompl`; the ``ompl`` extra;
             ``refine`` and ``seed`` do not apply there).
+        margin: the scene's :class:`~splatplan.scenes.SplatMargin` (:func:`~splatplan.scenes.margin_for`),
+            with ``robot`` the robot's own model: the planner grows the robot by ``margin.margin``,
+            checks edges at ``margin.edge_resolution`` (or the finer ``rrt_config.edge_resolution``)
+            and leaves an endpoint that the margin blocks by a short straight segment checked at a
+            finer resolution with the smaller margin that keeps the same guarantee
+            (:func:`~splatplan.planners.escape_endpoint`); ``info["escape"]`` describes the
+            segments. None (default): ``robot`` is used as given (grow it yourself).
 
     Returns:
         :class:`PlanResult`; ``path_rrt`` holds the raw tree path, ``path`` the final one,
@@ -166,17 +180,31 @@ def plan(
         other (the rest); they sum to ``time_s``.
 
     Raises:
-        PlanningError: start or goal in collision, outside the scene bounds or the sampling box.
-        SplatplanError: an unknown planner name, or no robot.
+        PlanningError: start or goal in collision (with ``margin``: even for the finest endpoint
+            check), outside the scene bounds or the sampling box.
+        SplatplanError: an unknown planner name, no robot, or ``margin`` with an OMPL planner or
+            a coarser ``rrt_config.edge_resolution`` than the margin assumes.
     """
     if planner.startswith("ompl:"):
         from .ompl_bridge import plan_ompl
 
+        if margin is not None:
+            raise SplatplanError("plan: margin= (endpoint escapes) applies to the library's planners, not OMPL's; grow the robot yourself")
         return plan_ompl(checker, start, goal, robot=robot, name=planner, time_limit_s=None, rrt_config=rrt_config)
     t0 = time.perf_counter()
     cfg = replace(rrt_config or RRTConfig(), seed=seed)
     deadline = None if cfg.time_limit_s is None else t0 + cfg.time_limit_s
-    rrt = make_planner(planner, checker, cfg, robot=robot)
+    escapes: list[Escape] = []
+    if margin is not None:
+        base = as_robot(robot)
+        cfg = _margin_config(cfg, margin)
+        rrt = make_planner(planner, checker, cfg, robot=base.inflated(float(margin.margin)))
+        t_esc = time.perf_counter()
+        escapes = _escapes(checker, base, rrt, margin, start, goal, seed)
+        t_esc = time.perf_counter() - t_esc
+        start, goal = escapes[0].path[-1], escapes[1].path[-1]
+    else:
+        rrt = make_planner(planner, checker, cfg, robot=robot)
     res = rrt.plan(start, goal, deadline=deadline)
     res.info["length_rrt"] = res.length
     res.info["path_shortcut"] = res.path.copy()
@@ -189,14 +217,65 @@ def plan(
             res.path = ref.path
             res.length = path_length(ref.path, rrt.geometry.distance_scale())
             res.refined = True
+    t_end = time.perf_counter()
+    if escapes:
+        _join_escapes(res, escapes, rrt.geometry.distance_scale())
     res.time_s = time.perf_counter() - t0
     split = dict(res.info.get("time_split", {}))
     split.pop("other", None)
-    split["refine"] = time.perf_counter() - t_ref
+    split["refine"] = t_end - t_ref
+    if escapes:
+        split["escape"] = t_esc
     split["other"] = max(0.0, res.time_s - sum(split.values()))
     res.info["time_split"] = split
     res.info["time_limit_s"] = cfg.time_limit_s
     return res
+
+
+def _margin_config(cfg: RRTConfig, margin: SplatMargin) -> RRTConfig:
+    """``cfg`` at the margin's edge resolution (or its own finer one)."""
+    from ..scenes.margin import SplatMargin
+
+    if not isinstance(margin, SplatMargin):
+        raise SplatplanError(f"plan: margin must be a SplatMargin (splatplan.scenes.margin_for), got {type(margin).__name__}")
+    r = float(margin.edge_resolution)
+    if cfg.edge_resolution is None:
+        return replace(cfg, edge_resolution=r)
+    if cfg.edge_resolution > r * (1 + 1e-9):
+        raise SplatplanError(f"plan: rrt_config.edge_resolution {cfg.edge_resolution:.4g} is coarser than the margin's {r:.4g}; its guarantee needs r or finer")
+    return cfg
+
+
+def _escapes(checker, base: Robot, planner, margin: SplatMargin, start, goal, seed: int) -> list[Escape]:
+    """Each endpoint's :class:`Escape` (``planner``: the search's, on the robot grown by the margin:
+    its geometry is reused, its sampling box holds the escape configurations)."""
+    geometry = planner.geometry
+    if goal is None:
+        raise PlanningError("plan: margin= needs a goal")
+    sq, gq = (base.check_q(np.asarray(x, dtype=np.float64).reshape(-1)) for x in (start, goal))
+    st = planner.settings(sq, gq)  # the sampling box the search will use (given or derived)
+    box = (st.box_lo, st.box_hi)
+    es = escape_endpoint(checker, base, sq, margin, toward=gq, seed=seed, what="start", geometry=geometry, box=box)
+    eg = escape_endpoint(checker, base, gq, margin, toward=sq, seed=seed + 1, what="goal", geometry=geometry, box=box)
+    return [es, eg]
+
+
+def _join_escapes(res: PlanResult, escapes: list[Escape], w) -> None:
+    """Put the escape segments on the path's ends (start's first, goal's reversed last), count their
+    checks and describe them in ``info["escape"]``."""
+    es, eg = escapes
+    res.info["escape"] = {name: {"escaped": e.escaped, "divisor": e.divisor, "margin_m": e.margin, "edge_resolution_m": e.resolution,
+                                 "displacement_m": e.displacement, "n_configs": e.n_configs}
+                          for name, e in (("start", es), ("goal", eg))}  # fmt: skip
+    res.info["n_configs"] = int(res.info.get("n_configs", 0)) + es.n_configs + eg.n_configs
+    if not res.success:
+        return
+    res.path = np.vstack([es.path[:-1], res.path, eg.path[::-1][1:]])
+    if res.info.get("path_shortcut") is not None:
+        res.info["path_shortcut"] = np.vstack([es.path[:-1], res.info["path_shortcut"], eg.path[::-1][1:]])
+    if res.path_rrt is not None:
+        res.path_rrt = np.vstack([es.path[:-1], res.path_rrt, eg.path[::-1][1:]])
+    res.length = path_length(res.path, w)
 
 
 def format_time_split(split: dict) -> str:

@@ -1,0 +1,227 @@
+"""Endpoint escape: leave an endpoint that the safety margin blocks, with the margin's guarantee kept.
+
+A planning problem's endpoints are often millimetres from the scene: a grasp has the fingers
+around the object. The safety margin of a splat scene (:func:`~splatplan.scenes.margin_for`),
+``m = rho + r / 2``, has two parts: ``rho`` estimates the covering radius of the real surface by
+the splats (every surface point within rho of a splat), ``r / 2`` covers the motion between two
+checked configurations of an edge sampled at resolution ``r`` (no robot point moves more than r
+from one check to the next). At a configuration closer to the splats than ``m`` the robot grown
+by ``m`` collides, and a planner that checks every configuration with that robot cannot start.
+
+**The trade.** An edge sampled at a finer resolution ``r / f`` needs only ``rho + r / (2 f)``: each
+configuration of the edge lies within ``r / (2 f)`` (displacement of any robot point) of a checked
+sample, whose ellipsoids grown by ``rho + r / (2 f)`` hold no splat, so the robot there keeps rho
+from every splat, the same clearance as the planner's own edges. :func:`escape_endpoint` uses this
+near a blocked endpoint: it finds the smallest divisor ``f`` (of ``fine``) whose smaller margin
+frees the endpoint, then a short straight segment from the endpoint, checked at ``r / f`` with
+that margin, to the first configuration the full margin frees. The planner plans from there with
+the full margin; the segment is the path's first (or last) edge.
+
+What it cannot do: free an endpoint whose splats lie closer than ``rho`` plus the finest
+``r / (2 f)`` (the check says so), which no check that keeps the guarantee can.
+
+    esc = escape_endpoint(checker, robot, q_goal, margin, toward=q_start)
+    esc.path          # (K, D): q_goal first, the escape configuration last (K = 1: q_goal was free)
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from ..errors import PlanningError, SplatplanError
+from .edges import EdgeChecker, edge_samples
+from .robot_links import LinkGeometry
+
+if TYPE_CHECKING:
+    from ..metric.checker import CollisionChecker
+    from ..robots.robot import Robot
+    from ..scenes.margin import SplatMargin
+
+#: resolution divisors tried, smallest first (the smallest that frees the endpoint is used)
+FINE_DIVISORS = (2, 4, 8, 16)
+
+
+@dataclass
+class Escape:
+    """A free straight segment from an endpoint to a configuration the full margin frees.
+
+    Attributes:
+        path: (K, D) the endpoint first, the escape configuration last; K = 1 when the full
+            margin frees the endpoint (no escape needed), else K = 2.
+        divisor: f, the resolution divisor of the segment's check (1: no escape).
+        margin: the margin the segment was checked with, ``rho + r / (2 f)`` (scene units).
+        resolution: the segment's edge resolution ``r / f`` (scene units of motion).
+        displacement: bound on any robot point's motion along the segment (scene units).
+        n_configs: configurations checked to find it.
+    """
+
+    path: np.ndarray
+    divisor: int
+    margin: float
+    resolution: float
+    displacement: float = 0.0
+    n_configs: int = 0
+    info: dict = field(default_factory=dict)
+
+    @property
+    def escaped(self) -> bool:
+        """Whether the endpoint needed an escape segment."""
+        return len(self.path) > 1
+
+
+def endpoint_divisor(checker: CollisionChecker, robot: Robot, q: np.ndarray, margin: SplatMargin, fine: tuple[int, ...] = FINE_DIVISORS, first: int = 1) -> int | None:
+    """The smallest resolution divisor f in (1, *fine), from ``first`` on, whose margin
+    ``rho + r / (2 f)`` frees ``robot`` at configuration ``q`` (D,) (f = 1: the full margin), or
+    None: blocked even at the finest."""
+    q = np.asarray(q, dtype=np.float64).reshape(1, -1)
+    for f in (x for x in (1, *sorted(int(x) for x in fine)) if x >= first):
+        geom = LinkGeometry(robot.inflated(_endpoint_margin(margin, f)))
+        if not bool(geom.collides(checker, q)[0]):
+            return f
+    return None
+
+
+def escape_endpoint(
+    checker: CollisionChecker,
+    robot: Robot,
+    q,
+    margin: SplatMargin,
+    *,
+    toward=None,
+    seed: int = 0,
+    fine: tuple[int, ...] = FINE_DIVISORS,
+    n_directions: int = 24,
+    reach: float | None = None,
+    what: str = "endpoint",
+    geometry: LinkGeometry | None = None,
+    box: tuple | None = None,
+) -> Escape:
+    """A free segment from ``q`` to a configuration that ``robot`` grown by the full margin clears.
+
+    Args:
+        checker: the scene's :class:`~splatplan.metric.CollisionChecker`.
+        robot: the robot's own model (not grown: the margins are applied here).
+        q: (D,) the endpoint (joint limits respected).
+        margin: the scene's :class:`~splatplan.scenes.SplatMargin` (its covering estimate
+            ``margin - r / 2`` and resolution r).
+        toward: (D,) the other endpoint: the first direction tried (then ``n_directions - 1``
+            random ones, seeded).
+        seed: seeds the random directions.
+        fine: the resolution divisors allowed (module docstring).
+        n_directions: straight segments tried (one batched check each for the finer margin,
+            one for the full margin).
+        reach: longest motion of any robot point along a segment (scene units; default 4 x the
+            full margin).
+        what: the endpoint's name in messages ("start", "goal").
+        geometry: the :class:`~.robot_links.LinkGeometry` of ``robot`` grown by the full margin
+            to reuse (a planner's: its buffers are warm); built here when None.
+        box: (lo (D,), hi (D,)) the planner's sampling box: the escape configuration stays in it
+            (besides the joint limits); coordinates with hi <= lo are held fixed.
+
+    Returns:
+        :class:`Escape`; ``path`` is ``q`` alone when the full margin frees it.
+
+    Raises:
+        PlanningError: ``q`` is blocked even with the finest divisor (its splats lie closer than
+            the covering estimate plus ``r / (2 max(fine))``), or no segment reaches a
+            configuration the full margin frees within ``reach``.
+        SplatplanError: bad arguments.
+    """
+    q = np.asarray(q, dtype=np.float64).reshape(-1)
+    if q.shape != (int(robot.dof),) or not np.all(np.isfinite(q)):
+        raise SplatplanError(f"escape_endpoint: the {what} must be {robot.dof} finite numbers, got {np.array2string(q, precision=4)}")
+    if int(n_directions) < 1:
+        raise SplatplanError(f"escape_endpoint: n_directions must be >= 1, got {n_directions}")
+    if not fine or min(int(f) for f in fine) < 2:
+        raise SplatplanError(f"escape_endpoint: fine must hold divisors >= 2, got {fine}")
+    m, r = float(margin.margin), float(margin.edge_resolution)
+    if m - 0.5 * r < 0:
+        raise SplatplanError(f"escape_endpoint: the margin {m:.4g} is smaller than half its edge resolution {r:.4g}")
+    full = LinkGeometry(robot.inflated(m)) if geometry is None else geometry
+    if not bool(full.collides(checker, q[None])[0]):
+        return Escape(q[None].copy(), 1, m, r, 0.0, 1)
+    f = endpoint_divisor(checker, robot, q, margin, fine, first=2)
+    if f is None:
+        finest = _endpoint_margin(margin, max(int(x) for x in fine))
+        raise PlanningError(
+            f"the {what} {np.array2string(q, precision=4)} is in collision even for the finest endpoint check: splats lie "
+            f"within {1000 * finest:.2f} mm of the robot there (the covering estimate {1000 * margin.covering_estimate:.2f} mm "
+            f"plus r/{max(int(x) for x in fine)}/2), closer than the margin's guarantee allows; move the {what} away from the scene"
+        )
+    weak = LinkGeometry(robot.inflated(_endpoint_margin(margin, f)))
+    r_f = r / f
+    reach_m = 4.0 * m if reach is None else float(reach)
+    if not (math.isfinite(reach_m) and reach_m > 0):
+        raise SplatplanError(f"escape_endpoint: reach must be finite and > 0, got {reach}")
+    dirs = _directions(q, None if toward is None else np.asarray(toward, dtype=np.float64).reshape(-1), int(n_directions), seed, full)  # (M, D)
+    limits = np.asarray(robot.joint_limits, dtype=np.float64).copy()  # (D, 2)
+    if box is not None:
+        lo, hi = (np.broadcast_to(np.asarray(x, dtype=np.float64), q.shape) for x in box)
+        frozen = hi <= lo
+        dirs[:, frozen] = 0.0
+        limits[:, 0], limits[:, 1] = np.maximum(limits[:, 0], np.where(frozen, -np.inf, lo)), np.minimum(limits[:, 1], np.where(frozen, np.inf, hi))
+        mot = weak.motion(dirs)
+        dirs = dirs / np.where(mot > 0, mot, 1.0)[:, None]
+    t_max = _limit_steps(q, dirs, limits, reach_m, weak)  # (M,)
+    keep = t_max > 0
+    dirs, t_max = dirs[keep], t_max[keep]
+    if len(dirs) == 0:
+        raise PlanningError(f"the {what} is blocked by the margin and the joint limits leave no direction to leave it by")
+    a = np.repeat(q[None], len(dirs), axis=0)
+    b = q + t_max[:, None] * dirs  # (M, D)
+    edges = EdgeChecker(checker, weak, r_f, stages=1)
+    k, n = edges.free_prefix(a, b)  # (M,), (M,) free samples of each segment at r / f
+    pts, idx, _ = edge_samples(a, b, weak.motion(b - a), r_f)  # (P, D), the same samples
+    loc = np.arange(idx.size) - (np.cumsum(n) - n)[idx] + 1  # (P,) 1..n_e
+    cand = np.nonzero(loc <= k[idx])[0]  # the samples in each segment's free prefix
+    n_cfg = 1 + weak.n_configs
+    best = None
+    if cand.size:
+        ok = ~full.collides(checker, pts[cand])  # (C,) free for the full margin
+        n_cfg += full.n_configs
+        if ok.any():
+            c = cand[ok]
+            disp = weak.motion(pts[c] - q)  # (C,) the segment's displacement bound
+            j = int(np.argmin(disp))
+            best = (pts[c[j]], float(disp[j]))
+    if best is None:
+        raise PlanningError(
+            f"the {what} {np.array2string(q, precision=4)} is blocked by the margin ({1000 * m:.2f} mm) and none of "
+            f"{len(dirs)} straight segments of up to {1000 * reach_m:.1f} mm reaches a configuration it frees"
+        )
+    return Escape(np.stack([q, best[0]]), int(f), _endpoint_margin(margin, f), r_f, best[1], int(n_cfg),
+                  {"directions": int(len(dirs))})  # fmt: skip
+
+
+def _endpoint_margin(margin: SplatMargin, f: int) -> float:
+    """``rho + r / (2 f)``: the margin of an edge checked at resolution r / f."""
+    return float(margin.covering_estimate) + 0.5 * float(margin.edge_resolution) / int(f)
+
+
+def _directions(q: np.ndarray, toward: np.ndarray | None, n: int, seed: int, geom: LinkGeometry) -> np.ndarray:
+    """(n, D) unit-motion directions (each moves some robot point by at most 1 scene unit per unit
+    step): towards ``toward`` first, then random (seeded), zero where the robot does not move."""
+    rng = np.random.default_rng(seed)
+    d = rng.standard_normal((n, q.size)) / np.maximum(geom.weights, 1e-12)  # (n, D) isotropic in the metric
+    if toward is not None and toward.shape == q.shape and np.any(toward != q):
+        d[0] = toward - q
+    mot = geom.motion(d)
+    return d / np.where(mot > 0, mot, 1.0)[:, None]
+
+
+def _limit_steps(q: np.ndarray, dirs: np.ndarray, limits: np.ndarray, reach: float, geom: LinkGeometry) -> np.ndarray:
+    """(M,) the step along each direction: ``reach`` of motion, shortened to stay within the joint
+    limits (0 where the direction leaves them at once)."""
+    lo, hi = limits[:, 0], limits[:, 1]
+    t = np.full(len(dirs), float(reach))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        up = np.where(dirs > 0, (hi - q) / dirs, np.inf)
+        dn = np.where(dirs < 0, (lo - q) / dirs, np.inf)
+    t = np.minimum(t, np.minimum(up, dn).min(axis=1))
+    t[~np.isfinite(t) | (t < 0)] = 0.0
+    t[geom.motion(dirs) <= 0] = 0.0
+    return t

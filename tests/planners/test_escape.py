@@ -1,0 +1,129 @@
+"""Endpoint escapes (splatplan.planners.escape): an endpoint the margin blocks is left by a segment
+checked finer with a smaller margin, and the margin's guarantee still holds along the whole path.
+
+The guarantee, checked here by brute force against the splat means (n_sigma 0: a grown sphere
+collides iff a mean lies inside it): every configuration of the returned path, sampled far finer
+than any check, keeps the sphere's centre at least R + rho from every mean (rho = the margin's
+covering estimate, margin - r / 2), the clearance the planner's own edges keep.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from splatplan.errors import PlanningError, SplatplanError
+from splatplan.planners import RRTConfig, escape_endpoint, plan
+from splatplan.robots import load_robot
+from splatplan.scenes.margin import SplatMargin
+
+from .scenes import make_checker, wall_scene
+
+R = 0.015
+#: margin m = rho + r / 2 with rho = 16 mm, r = 8 mm
+MARGIN = SplatMargin(margin=0.020, spacing=0.004, edge_resolution=0.008, n_sigma=0.0)
+RHO = MARGIN.covering_estimate
+
+
+@pytest.fixture(scope="module")
+def setup():
+    splats = wall_scene()
+    return splats, make_checker(splats, n_sigma=0.0), load_robot(f"sphere:{R}")
+
+
+def _min_dist(means: np.ndarray, path: np.ndarray, step: float = 2e-4) -> float:
+    """Smallest distance from the path (P, 3), sampled every ``step``, to any mean."""
+    pts = [path[:1]]
+    for a, b in zip(path[:-1], path[1:]):
+        n = max(1, int(np.ceil(np.linalg.norm(b - a) / step)))
+        pts.append(a + (np.arange(1, n + 1) / n)[:, None] * (b - a))
+    p = np.concatenate(pts)
+    d = np.inf
+    for chunk in np.array_split(p, max(1, len(p) // 512)):
+        d = min(d, float(np.sqrt(((chunk[:, None, :] - means[None]) ** 2).sum(-1)).min()))
+    return d
+
+
+def _at_distance(splats, d: float, side: float = -1.0) -> np.ndarray:
+    """The point (x, 0, 0.06) on the ``side`` of the wall whose nearest mean is ``d`` away (bisection)."""
+    means = np.asarray(splats.means, dtype=np.float64)
+    near, far = 0.0, 0.2
+    for _ in range(60):
+        mid = 0.5 * (near + far)
+        if _min_dist(means, np.array([[side * mid, 0.0, 0.06]])) < d:
+            near = mid
+        else:
+            far = mid
+    return np.array([side * far, 0.0, 0.06])
+
+
+def test_free_endpoint_needs_no_escape(setup):
+    splats, checker, robot = setup
+    q = np.array([-0.2, 0.0, 0.06])
+    esc = escape_endpoint(checker, robot, q, MARGIN)
+    assert not esc.escaped and esc.divisor == 1 and esc.path.shape == (1, 3)
+    np.testing.assert_array_equal(esc.path[0], q)
+
+
+def test_blocked_endpoint_escapes_with_the_guarantee(setup):
+    splats, checker, robot = setup
+    q = _at_distance(splats, R + 0.019)  # 19 mm from the wall: inside the 20 mm margin, outside rho + r/32
+    means = np.asarray(splats.means)
+    assert R + MARGIN.margin > _min_dist(means, q[None]) > R + RHO + MARGIN.edge_resolution / 32
+    esc = escape_endpoint(checker, robot, q, MARGIN, toward=np.array([0.2, 0.0, 0.06]))
+    assert esc.escaped and esc.divisor in (2, 4, 8, 16)
+    np.testing.assert_array_equal(esc.path[0], q)
+    # the escape configuration is free for the full margin (a valid start for the planner)
+    assert _min_dist(means, esc.path[-1:]) >= R + MARGIN.margin - 1e-5
+    # the segment keeps R + rho, and the margin it was checked with is rho + r / (2 f)
+    assert _min_dist(means, esc.path) >= R + RHO - 1e-5
+    assert esc.margin == pytest.approx(RHO + MARGIN.edge_resolution / (2 * esc.divisor))
+    assert esc.resolution == pytest.approx(MARGIN.edge_resolution / esc.divisor)
+    assert esc.n_configs > 1 and 0 < esc.displacement <= 4 * MARGIN.margin + 1e-9
+
+
+def test_endpoint_closer_than_the_finest_check_is_refused(setup):
+    splats, checker, robot = setup
+    q = _at_distance(splats, R + 0.012)  # 12 mm: inside rho (16 mm)
+    with pytest.raises(PlanningError, match="finest endpoint check"):
+        escape_endpoint(checker, robot, q, MARGIN)
+
+
+def test_plan_with_margin_escapes_both_ends_and_keeps_the_guarantee(setup):
+    splats, checker, robot = setup
+    start, goal = _at_distance(splats, R + 0.019), _at_distance(splats, R + 0.0185, side=1.0)
+    box = RRTConfig(time_limit_s=20.0, box_lo=(-0.2, -0.3, 0.0), box_hi=(0.2, 0.3, 0.2))
+    res = plan(checker, start, goal, robot=robot, margin=MARGIN, refine=False, seed=3, rrt_config=box)
+    assert res.success, res.message
+    np.testing.assert_array_equal(res.path[0], start)
+    np.testing.assert_array_equal(res.path[-1], goal)
+    esc = res.info["escape"]
+    assert esc["start"]["escaped"] and esc["goal"]["escaped"]
+    assert res.info["time_split"]["escape"] >= 0 and res.n_configs >= esc["start"]["n_configs"] + esc["goal"]["n_configs"]
+    assert _min_dist(np.asarray(splats.means), res.path) >= R + RHO - 1e-5
+
+
+def test_plan_with_margin_free_endpoints_is_the_grown_robot_plan(setup):
+    splats, checker, robot = setup
+    start, goal = np.array([-0.2, 0.0, 0.06]), np.array([0.2, 0.0, 0.06])
+    box = {"box_lo": (-0.25, -0.3, 0.0), "box_hi": (0.25, 0.3, 0.2)}
+    a = plan(checker, start, goal, robot=robot, margin=MARGIN, refine=False, seed=1, rrt_config=RRTConfig(**box))
+    b = plan(checker, start, goal, robot=robot.inflated(MARGIN.margin), refine=False, seed=1, rrt_config=RRTConfig(edge_resolution=MARGIN.edge_resolution, **box))
+    assert a.success and b.success
+    np.testing.assert_allclose(a.path, b.path)
+    assert not a.info["escape"]["start"]["escaped"] and not a.info["escape"]["goal"]["escaped"]
+
+
+def test_plan_margin_bad_requests(setup):
+    _, checker, robot = setup
+    s, g = np.array([-0.2, 0.0, 0.06]), np.array([0.2, 0.0, 0.06])
+    with pytest.raises(SplatplanError, match="coarser"):
+        plan(checker, s, g, robot=robot, margin=MARGIN, rrt_config=RRTConfig(edge_resolution=0.02))
+    with pytest.raises(SplatplanError, match="SplatMargin"):
+        plan(checker, s, g, robot=robot, margin=0.02)  # type: ignore[arg-type]
+    with pytest.raises(SplatplanError, match="OMPL"):
+        plan(checker, s, g, robot=robot, margin=MARGIN, planner="ompl:RRTConnect")
+    with pytest.raises(SplatplanError, match="finite"):
+        escape_endpoint(checker, robot, np.array([np.nan, 0.0, 0.0]), MARGIN)
+    with pytest.raises(SplatplanError, match="divisors"):
+        escape_endpoint(checker, robot, s, MARGIN, fine=(1,))
