@@ -47,7 +47,7 @@ sys.path.insert(0, str(REPO / "benchmarks"))
 MBM_DATA = Path(os.environ.get("SPLATPLAN_MBM_DATA", REPO / ".." / "shared" / "data" / "mbm")).resolve()
 
 #: the row fields the table and the before run need (a before tree may lack the newer ones)
-ROW_KEYS = ("family", "index", "start_free", "goal_free", "solved", "time_s", "cpu_s", "n_configs", "path_length", "min_exact_clearance_m",
+ROW_KEYS = ("family", "index", "start_free", "goal_free", "started", "start_escape", "goal_escape", "solved", "time_s", "cpu_s", "n_configs", "path_length", "min_exact_clearance_m",
             "n_splats_sampled", "margin_m", "path")  # fmt: skip
 
 #: the run of one tree (this one or a before tree through PYTHONPATH), as a subprocess script
@@ -196,9 +196,12 @@ def _pct(v, q):
 
 def summarise(rows: list[dict]) -> dict:
     both = [r for r in rows if r["start_free"] and r["goal_free"]]
-    sol = [r for r in both if r["solved"]]
+    started = [r for r in rows if r.get("started") or (r.get("started") is None and r["start_free"] and r["goal_free"])]  # (a tree without escapes: both free)
+    sol = [r for r in started if r["solved"]]
+    sol_both = [r for r in sol if r["start_free"] and r["goal_free"]]
     return {
-        "problems": len(rows), "both_free": len(both), "solved": len(sol),
+        "problems": len(rows), "both_free": len(both), "started": len(started), "solved": len(sol),
+        "median_wall_both_free_s": _pct([r["time_s"] for r in sol_both], 50),
         "median_wall_s": _pct([r["time_s"] for r in sol], 50), "p95_wall_s": _pct([r["time_s"] for r in sol], 95),
         "median_cpu_s": _pct([r.get("cpu_s") for r in sol], 50), "median_configs": _pct([r.get("n_configs") for r in sol], 50),
         "median_length": _pct([r["path_length"] for r in sol], 50), "mean_length": float(np.mean([r["path_length"] for r in sol])) if sol else None,
@@ -224,11 +227,13 @@ def _f(v, fmt=".3g", scale=1.0, unit=""):
 
 def table(result: dict) -> str:
     lines = [f"MBM planning speed ({result['date']}, {result['machine']}; n_sigma {result['n_sigma']:g}, first {result['n_per_family']} problems per family)", ""]
-    lines += ["| run | family | both free / problems | solved | median wall | p95 wall | median CPU | configs / plan | median length | paths < 0 |",
-              "|---|---|---|---|---|---|---|---|---|---|"]  # fmt: skip
+    lines += ["| run | family | both free / problems | started (escapes) | solved | median wall | median wall, both free | p95 wall | median CPU | configs / plan | median length | paths < 0 |",
+              "|---|---|---|---|---|---|---|---|---|---|---|---|"]  # fmt: skip
     for run in ("before", "after"):
         for fam, s in (result.get(run) or {}).get("summary", {}).items():
-            lines.append(f"| {run} | {fam} | {s['both_free']}/{s['problems']} | {s['solved']} | {_f(s['median_wall_s'], '.1f', 1e3, ' ms')} | "
+            st = s.get("started", s["both_free"])
+            lines.append(f"| {run} | {fam} | {s['both_free']}/{s['problems']} | {st} ({st - s['both_free']}) | {s['solved']} | {_f(s['median_wall_s'], '.1f', 1e3, ' ms')} | "
+                         f"{_f(s.get('median_wall_both_free_s'), '.1f', 1e3, ' ms')} | "
                          f"{_f(s['p95_wall_s'], '.1f', 1e3, ' ms')} | {_f(s['median_cpu_s'], '.1f', 1e3, ' ms')} | {_f(s['median_configs'], '.0f')} | "
                          f"{_f(s['median_length'], '.2f')} | {s['negative_clearance']} |")  # fmt: skip
     if result.get("before") and result.get("after"):

@@ -95,6 +95,11 @@ class MBMConfig:
     #: smaller margin that keeps the same guarantee (splatplan.planners.escape; our planners, derived
     #: or given margin > 0); false: such a problem is not started
     endpoint_escape: bool = True
+    #: ellipsoid YAML of a tighter model of the robot for the escape segments' finer check (a fit of
+    #: the same URDF whose ellipsoids still contain every link): "builtin" = the shipped model of
+    #: MBM's Panda with 10 ellipsoids on each wrist and hand link (reach 4 mm; used with the default
+    #: robot only); none = the planning model. The escape configuration is checked with the planning model
+    escape_ellipsoids: str | None = "builtin"
     #: measure the true covering radius rho(n_sigma) from the ground truth (diagnostic: did
     #: m >= rho + r/2 hold? ~1 s per scene at n_sigma 0, tens of seconds above; off by default)
     check_margin: bool = False

@@ -90,7 +90,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "DEFAULT_MBM", "MBM_DATA_ENV", "PUBLISHED", "TIMING_FIELDS", "MBMConfig", "MBMContext", "MBMResult", "MBMTask", "check_inputs",
-    "check_planners", "comparable", "list_tasks", "make_context", "mbm_data_dir", "mbm_task", "report", "run_mbm", "settings_hash",
+    "check_planners", "comparable", "escape_robot", "list_tasks", "make_context", "mbm_data_dir", "mbm_task", "report", "run_mbm", "settings_hash",
     "solve_problem", "summarise", "task_key",
 ]  # fmt: skip
 
@@ -103,6 +103,7 @@ class MBMContext:
     config: MBMConfig
     robot: Robot
     scenes: OrderedDict = field(default_factory=OrderedDict)  # scene path -> _Prepared (LRU)
+    escape_robot: Robot | None = None  # the tighter model of the escape segments (MBMConfig.escape_ellipsoids)
     max_scenes: int = 2
 
     def prepared(self, task: "MBMTask") -> "_Prepared":
@@ -186,7 +187,25 @@ def make_context(config: MBMConfig) -> MBMContext:
     """Load the robot once per process (the job engine calls this once per worker)."""
     from ..robots import load_robot
 
-    return MBMContext(config, load_robot(config.robot_path()))
+    return MBMContext(config, load_robot(config.robot_path()), escape_robot=escape_robot(config))
+
+
+#: the shipped escape model of MBM's Panda (MBMConfig.escape_ellipsoids = "builtin")
+BUILTIN_ESCAPE = Path(__file__).resolve().parents[1] / "robots" / "data" / "mbm_panda_tight_wrist.yaml"
+
+
+def escape_robot(config: MBMConfig) -> Robot | None:
+    """The escape segments' model (:attr:`MBMConfig.escape_ellipsoids`), or None (the planning model)."""
+    from ..robots import load_robot
+
+    e = config.escape_ellipsoids
+    if e is None or not config.endpoint_escape:
+        return None
+    if e == "builtin":
+        if config.robot is not None:
+            return None  # (the shipped model is a fit of MBM's own Panda URDF)
+        e = str(BUILTIN_ESCAPE)
+    return load_robot(config.robot_path(), ellipsoids=e)
 
 
 #: settings that do not change a row (left out of the task keys: growing a run reuses its rows)
@@ -216,7 +235,7 @@ def task_key(task: MBMTask, config: MBMConfig, sig: str) -> str:
 
 
 def _plan(checker, start, goal, robot, time_limit: float, seed: int, edge_resolution: float, planner: str = "auto", max_iters: int | None = None,
-          margin=None):  # fmt: skip
+          margin=None, escape_robot=None):  # fmt: skip
     """The public planner with the time limit and the edge resolution the margin was derived with
     (that of the un-inflated robot: the inflated one's default would be coarser and need a larger
     margin), no refinement. With ``max_iters`` our planners run to that iteration budget without a
@@ -229,7 +248,7 @@ def _plan(checker, start, goal, robot, time_limit: float, seed: int, edge_resolu
         cfg = RRTConfig(time_limit_s=None, max_iters=int(max_iters), edge_resolution=edge_resolution)
     else:
         cfg = RRTConfig(time_limit_s=time_limit, edge_resolution=edge_resolution)
-    return plan(checker, start, goal, robot=robot, seed=seed, refine=False, planner=planner, rrt_config=cfg, margin=margin)
+    return plan(checker, start, goal, robot=robot, seed=seed, refine=False, planner=planner, rrt_config=cfg, margin=margin, escape_robot=escape_robot)
 
 
 def _prepare(task: "MBMTask", cfg: MBMConfig, robot) -> _Prepared:
@@ -290,7 +309,8 @@ def solve_problem(task: MBMTask, ctx: MBMContext) -> dict:
         hit_own = np.asarray(robot_collides(checker, robot, ends)).any(axis=-1) if plan_robot is not robot else hit
         smargin = SplatMargin(margin, prep.spacing_nn, res, cfg.n_sigma)
         can = cfg.endpoint_escape and margin >= 0.5 * res > 0  # (an escape needs a margin with room for r / 2)
-        escape = [1 if not h else (endpoint_divisor(checker, robot, q, smargin) if can else None) for q, h in zip(ends, hit)]
+        tight = ctx.escape_robot or robot
+        escape = [1 if not h else (endpoint_divisor(checker, tight, q, smargin) if can else None) for q, h in zip(ends, hit)]
         prep.endpoints[task.request] = (q0, q1, exact_clearance(scene, robot, ends), hit, hit_own, _blocking(scene, robot, ends, hit_e), escape)
     q0, q1, clear, hit, hit_own, block, escape = prep.endpoints[task.request]
     row.update(start_blocked_by=block[0], goal_blocked_by=block[1])
@@ -304,7 +324,7 @@ def solve_problem(task: MBMTask, ctx: MBMContext) -> dict:
         cpu0 = time.process_time()
         if escapes:  # the planner grows the robot and leaves blocked endpoints (planners.escape)
             res_p = _plan(checker, q0, q1, robot, cfg.time_limit, cfg.seed + task.index, res, task.planner, cfg.max_iters,
-                          margin=SplatMargin(margin, prep.spacing_nn, res, cfg.n_sigma))  # fmt: skip
+                          margin=SplatMargin(margin, prep.spacing_nn, res, cfg.n_sigma), escape_robot=ctx.escape_robot)  # fmt: skip
         else:
             res_p = _plan(checker, q0, q1, plan_robot, cfg.time_limit, cfg.seed + task.index, res, task.planner, cfg.max_iters)
         cpu_s = time.process_time() - cpu0  # this process's CPU seconds (the checker's threads included)
@@ -323,11 +343,25 @@ def solve_problem(task: MBMTask, ctx: MBMContext) -> dict:
 
                 length = path_length(path, plan_robot.motion_bound)
             row.update(path_length=float(length), path=path.round(6).tolist())
-            row["min_exact_clearance_m"] = path_min_clearance(scene, robot, dense_path(robot, path))
+            row["min_exact_clearance_m"] = _path_clearance(scene, robot, ctx.escape_robot, path, (res_p.info or {}).get("escape"))
     else:
-        row["message"] = "endpoint in collision for the planning model against the splats"
+        row["message"] = ("endpoint in collision for the planning model against the splats, even for the finest endpoint check (an escape)"
+                          if escapes else "endpoint in collision for the planning model against the splats")
     row["wall_s"] = time.perf_counter() - t0
     return row
+
+
+def _path_clearance(scene, robot, escape_robot, path: np.ndarray, escape: dict | None) -> float:
+    """The path's exact clearance: each escape segment (the first / last edge of an escaped start /
+    goal) with the model it was checked with, the rest with ``robot``."""
+    if escape_robot is None or not escape:
+        return path_min_clearance(scene, robot, dense_path(robot, path))
+    lo = 1 if escape["start"]["escaped"] else 0
+    hi = len(path) - 1 if escape["goal"]["escaped"] else len(path)
+    parts = [path_min_clearance(scene, robot, dense_path(robot, path[lo:hi]))] if hi - lo >= 1 else []
+    for seg in ([path[:2]] if lo else []) + ([path[-2:]] if hi < len(path) else []):
+        parts.append(path_min_clearance(scene, escape_robot, dense_path(escape_robot, seg)))
+    return float(min(parts))
 
 
 def _blocking(scene, robot, ends: np.ndarray, hit_e: np.ndarray) -> list:
@@ -408,8 +442,11 @@ def run_mbm(config: MBMConfig | None = None, out_dir=None, *, engine=None, progr
         late = cfg.time_limit if cfg.max_iters is not None else None
         by_planner[p] = {fam: summarise([r for r in rp if r["family"] == fam], late) for fam in cfg.families}
         by_planner[p]["overall"] = summarise(rp, late)
+    esc = escape_robot(cfg)
     setup = {
         "robot": str(cfg.robot_path()), "robot_name": robot.name, "n_ellipsoids": robot.n_ellipsoids,
+        "escape_model": None if esc is None else {"ellipsoids": str(cfg.escape_ellipsoids if cfg.escape_ellipsoids != "builtin" else BUILTIN_ESCAPE.name),
+                                                  "n_ellipsoids": esc.n_ellipsoids},
         "problems": str(cfg.problems_dir()), "device": "cpu",
         "planner": "splatplan.planners.plan (planner=each of config.planners), no refinement",
         "planners": list(cfg.planners),

@@ -139,6 +139,7 @@ def plan(
     refine_config: RefineConfig | None = None,
     planner: str = "auto",
     margin: SplatMargin | None = None,
+    escape_robot: Robot | str | None = None,
 ) -> PlanResult:
     """Plan a collision-free path for a robot: RRT or RRT-Connect (+ shortcut) (+ refinement).
 
@@ -170,6 +171,8 @@ def plan(
             finer resolution with the smaller margin that keeps the same guarantee
             (:func:`~splatplan.planners.escape_endpoint`); ``info["escape"]`` describes the
             segments. None (default): ``robot`` is used as given (grow it yourself).
+        escape_robot: with ``margin``, a tighter model of the same robot for the escape segments'
+            check (:func:`~splatplan.planners.escape_endpoint`); None: ``robot``.
 
     Returns:
         :class:`PlanResult`; ``path_rrt`` holds the raw tree path, ``path`` the final one,
@@ -188,7 +191,7 @@ def plan(
     if planner.startswith("ompl:"):
         from .ompl_bridge import plan_ompl
 
-        if margin is not None:
+        if margin is not None or escape_robot is not None:
             raise SplatplanError("plan: margin= (endpoint escapes) applies to the library's planners, not OMPL's; grow the robot yourself")
         return plan_ompl(checker, start, goal, robot=robot, name=planner, time_limit_s=None, rrt_config=rrt_config)
     t0 = time.perf_counter()
@@ -200,7 +203,7 @@ def plan(
         cfg = _margin_config(cfg, margin)
         rrt = make_planner(planner, checker, cfg, robot=base.inflated(float(margin.margin)))
         t_esc = time.perf_counter()
-        escapes = _escapes(checker, base, rrt, margin, start, goal, seed)
+        escapes = _escapes(checker, base, rrt, margin, start, goal, seed, None if escape_robot is None else as_robot(escape_robot))
         t_esc = time.perf_counter() - t_esc
         start, goal = escapes[0].path[-1], escapes[1].path[-1]
     else:
@@ -246,7 +249,7 @@ def _margin_config(cfg: RRTConfig, margin: SplatMargin) -> RRTConfig:
     return cfg
 
 
-def _escapes(checker, base: Robot, planner, margin: SplatMargin, start, goal, seed: int) -> list[Escape]:
+def _escapes(checker, base: Robot, planner, margin: SplatMargin, start, goal, seed: int, escape_robot: Robot | None = None) -> list[Escape]:
     """Each endpoint's :class:`Escape` (``planner``: the search's, on the robot grown by the margin:
     its geometry is reused, its sampling box holds the escape configurations)."""
     geometry = planner.geometry
@@ -255,8 +258,9 @@ def _escapes(checker, base: Robot, planner, margin: SplatMargin, start, goal, se
     sq, gq = (base.check_q(np.asarray(x, dtype=np.float64).reshape(-1)) for x in (start, goal))
     st = planner.settings(sq, gq)  # the sampling box the search will use (given or derived)
     box = (st.box_lo, st.box_hi)
-    es = escape_endpoint(checker, base, sq, margin, toward=gq, seed=seed, what="start", geometry=geometry, box=box)
-    eg = escape_endpoint(checker, base, gq, margin, toward=sq, seed=seed + 1, what="goal", geometry=geometry, box=box)
+    kw = {"geometry": geometry, "box": box, "escape_robot": escape_robot}
+    es = escape_endpoint(checker, base, sq, margin, toward=gq, seed=seed, what="start", **kw)
+    eg = escape_endpoint(checker, base, gq, margin, toward=sq, seed=seed + 1, what="goal", **kw)
     return [es, eg]
 
 

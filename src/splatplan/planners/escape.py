@@ -52,7 +52,8 @@ class Escape:
     Attributes:
         path: (K, D) the endpoint first, the escape configuration last; K = 1 when the full
             margin frees the endpoint (no escape needed), else K = 2.
-        divisor: f, the resolution divisor of the segment's check (1: no escape).
+        divisor: f, the resolution divisor of the segment's check (1: no escape, or the escape
+            robot at the full margin and resolution).
         margin: the margin the segment was checked with, ``rho + r / (2 f)`` (scene units).
         resolution: the segment's edge resolution ``r / f`` (scene units of motion).
         displacement: bound on any robot point's motion along the segment (scene units).
@@ -99,6 +100,7 @@ def escape_endpoint(
     what: str = "endpoint",
     geometry: LinkGeometry | None = None,
     box: tuple | None = None,
+    escape_robot: Robot | None = None,
 ) -> Escape:
     """A free segment from ``q`` to a configuration that ``robot`` grown by the full margin clears.
 
@@ -121,6 +123,10 @@ def escape_endpoint(
             to reuse (a planner's: its buffers are warm); built here when None.
         box: (lo (D,), hi (D,)) the planner's sampling box: the escape configuration stays in it
             (besides the joint limits); coordinates with hi <= lo are held fixed.
+        escape_robot: a tighter model of the same robot (same kinematics; ellipsoids that still
+            contain every link) for the segment's finer check, e.g. one with more ellipsoids at the
+            wrist and hand; the escape configuration is still checked with ``robot`` (the
+            planner's model). None: ``robot``.
 
     Returns:
         :class:`Escape`; ``path`` is ``q`` alone when the full margin frees it.
@@ -144,7 +150,10 @@ def escape_endpoint(
     full = LinkGeometry(robot.inflated(m)) if geometry is None else geometry
     if not bool(full.collides(checker, q[None])[0]):
         return Escape(q[None].copy(), 1, m, r, 0.0, 1)
-    f = endpoint_divisor(checker, robot, q, margin, fine, first=2)
+    tight = robot if escape_robot is None else escape_robot
+    if int(tight.dof) != int(robot.dof):
+        raise SplatplanError(f"escape_endpoint: the escape robot has {tight.dof} degrees of freedom, the robot {robot.dof}")
+    f = endpoint_divisor(checker, tight, q, margin, fine, first=1 if escape_robot is not None else 2)
     if f is None:
         finest = _endpoint_margin(margin, max(int(x) for x in fine))
         raise PlanningError(
@@ -152,7 +161,7 @@ def escape_endpoint(
             f"within {1000 * finest:.2f} mm of the robot there (the covering estimate {1000 * margin.covering_estimate:.2f} mm "
             f"plus r/{max(int(x) for x in fine)}/2), closer than the margin's guarantee allows; move the {what} away from the scene"
         )
-    weak = LinkGeometry(robot.inflated(_endpoint_margin(margin, f)))
+    weak = LinkGeometry(tight.inflated(_endpoint_margin(margin, f)))  # (f = 1: a tighter model at the full margin)
     r_f = r / f
     reach_m = 4.0 * m if reach is None else float(reach)
     if not (math.isfinite(reach_m) and reach_m > 0):

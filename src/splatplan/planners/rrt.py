@@ -158,6 +158,22 @@ class RRT:
         # a ground robot may stand beside the captured space (an object capture ends at the object):
         # its start and goal may lie anywhere within the scene's bounds grown by its footprint diameter
         end_pad = max(pad, box_margin(robot)) if robot.base == "planar" else pad
+        lo, hi = lim[:, 0].copy(), lim[:, 1].copy()
+        need_scene = [j for j in range(d) if not (np.isfinite(lo[j]) and np.isfinite(hi[j]))]
+        if need_scene:  # (an arm within its joint limits needs neither the FK nor the scene box)
+            self._scene_box(start, goal, ref, need_scene, lo, hi, pad, end_pad, notes)
+        if self.config.frozen:
+            for j in self.config.frozen:
+                if not 0 <= int(j) < d:
+                    raise PlanningError(f"RRTConfig.frozen names coordinate {j}, the configuration has {d}")
+                lo[int(j)] = hi[int(j)] = start[int(j)]
+        return lo, hi
+
+    def _scene_box(self, start, goal, ref: np.ndarray, need_scene: list[int], lo: np.ndarray, hi: np.ndarray, pad: float, end_pad: float, notes: list[str]) -> None:
+        """The box of the coordinates without finite limits (``need_scene``), in place: a translation
+        from the scene's robust bounds, an unlimited rotation -pi..pi."""
+        robot, d = self.geometry.robot, start.size
+        lim = np.asarray(robot.joint_limits, dtype=np.float64).reshape(d, 2)
         c_ref = np.asarray(robot.ellipsoids(ref[None])[0], dtype=np.float64)[0].mean(axis=0)  # (3,) robot centre
         trans_dirs = np.full((d, 3), np.nan)
         for j in np.nonzero(~np.isfinite(lim).all(axis=1))[0].tolist():
@@ -168,8 +184,6 @@ class RRT:
             rot_same = quat1 is None or np.allclose(np.abs(np.sum(quat1[0] * quat1[1], axis=-1)), 1.0, atol=1e-9)
             if rot_same and np.allclose(u, u[:1], atol=1e-9) and abs(np.linalg.norm(u[0]) - 1.0) < 1e-6:
                 trans_dirs[j] = u[0]
-        lo, hi = lim[:, 0].copy(), lim[:, 1].copy()
-        need_scene = [j for j in range(d) if not (np.isfinite(lo[j]) and np.isfinite(hi[j]))]
         if need_scene:
             s_lo, s_hi = robust_scene_box(self.checker.scene)
             r_lo, r_hi = self.checker.scene.bounds()
@@ -195,12 +209,6 @@ class RRT:
                     if x[j] < lo[j] or x[j] > hi[j]:
                         notes.append(f"box widened on coordinate {j} to include the {name} (outside the {BOX_PERCENTILE:g}-{100 - BOX_PERCENTILE:g} percentile box)")
                         lo[j], hi[j] = min(lo[j], x[j]), max(hi[j], x[j])
-        if self.config.frozen:
-            for j in self.config.frozen:
-                if not 0 <= int(j) < d:
-                    raise PlanningError(f"RRTConfig.frozen names coordinate {j}, the configuration has {d}")
-                lo[int(j)] = hi[int(j)] = start[int(j)]
-        return lo, hi
 
     def _box(self, start: np.ndarray, goal: np.ndarray | None, notes: list[str]) -> tuple[np.ndarray, np.ndarray]:
         cfg, d = self.config, start.size
