@@ -293,3 +293,23 @@ def test_quick_defaults_solve_every_free_problem_safely():
     solved = [r for r in res.rows if r["solved"]]
     assert all(r["min_exact_clearance_m"] >= 0 for r in solved), [(r["family"], r["index"], r["min_exact_clearance_m"]) for r in solved]
     assert res.summary["overall"]["negative_clearance_paths"] == 0 and res.summary["overall"]["solved_of_started_frac"] == 1.0
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not (mbm_data_dir() / "problems").is_dir(), reason=f"MBM data not found at {mbm_data_dir()} (set {MBM_DATA_ENV})")
+def test_blocked_grasp_goal_is_escaped_safely():
+    """A grasp goal closer to the table than the margin (table_pick 7: blocked for the planning model)
+    is left by an escape segment: the problem starts, is solved, the path ends exactly at the goal and
+    keeps a positive exact clearance (the segment measured with the model it was checked with)."""
+    from splatplan.eval.mbm import check_inputs, list_tasks, make_context, solve_problem
+
+    cfg = MBMConfig(families=("table_pick",), n_per_family=7)
+    ctx = make_context(cfg)
+    assert ctx.escape_robot is not None and ctx.escape_robot.n_ellipsoids > ctx.robot.n_ellipsoids
+    task = check_inputs([t for t in list_tasks(cfg) if t.index == 7], ctx.robot)[0]
+    row = solve_problem(task, ctx)
+    assert row["start_free"] and not row["goal_free"] and row["goal_escape"] is not None and row["started"], row["message"]
+    assert row["solved"] and row["min_exact_clearance_m"] > 0, row
+    path = np.asarray(row["path"])
+    np.testing.assert_allclose(path[-1], task.q_goal, atol=1e-6)
+    np.testing.assert_allclose(path[0], task.q_start, atol=1e-6)

@@ -127,3 +127,21 @@ def test_plan_margin_bad_requests(setup):
         escape_endpoint(checker, robot, np.array([np.nan, 0.0, 0.0]), MARGIN)
     with pytest.raises(SplatplanError, match="divisors"):
         escape_endpoint(checker, robot, s, MARGIN, fine=(1,))
+
+
+def test_escape_robot_checks_the_segment_with_the_tighter_model(setup):
+    """A tighter model (here a smaller sphere) frees an endpoint the planning model cannot leave even
+    at the finest divisor; the segment then keeps R_tight + rho, the escape point the full margin."""
+    splats, checker, robot = setup
+    r_tight = 0.011
+    tight = load_robot(f"sphere:{r_tight}")
+    q = _at_distance(splats, R + 0.013)  # the planning sphere: 13 mm (< rho: refused); the tight one 17 mm
+    with pytest.raises(PlanningError, match="finest"):
+        escape_endpoint(checker, robot, q, MARGIN)
+    esc = escape_endpoint(checker, robot, q, MARGIN, escape_robot=tight, toward=np.array([-0.2, 0.0, 0.06]))
+    assert esc.escaped
+    means = np.asarray(splats.means)
+    assert _min_dist(means, esc.path) >= r_tight + RHO - 1e-5
+    assert _min_dist(means, esc.path[-1:]) >= R + MARGIN.margin - 1e-5
+    with pytest.raises(SplatplanError, match="degrees of freedom"):
+        escape_endpoint(checker, robot, q, MARGIN, escape_robot=load_robot("panda"))
