@@ -313,3 +313,20 @@ def test_blocked_grasp_goal_is_escaped_safely():
     path = np.asarray(row["path"])
     np.testing.assert_allclose(path[-1], task.q_goal, atol=1e-6)
     np.testing.assert_allclose(path[0], task.q_start, atol=1e-6)
+
+
+@pytest.mark.parametrize("yaml_text", [None, "ellipsoids: [oops"])
+def test_eval_mbm_bad_escape_model_exit_2(tmp_path, capsys, yaml_text):
+    """A missing or broken escape model stops the benchmark with one line naming it (exit 2)."""
+    fam = tmp_path / "problems" / "toy_panda"
+    fam.mkdir(parents=True)
+    (fam / "scene0001.yaml").write_text(SCENE_YAML)
+    cons = ", ".join(f"{{joint_name: panda_joint{i + 1}, position: {v}}}" for i, v in enumerate([0, -0.785, 0, -2.356, 0, 1.571, 0.785]))
+    (fam / "request0001.yaml").write_text(START + f"goal_constraints: [{{joint_constraints: [{cons}]}}]\n")
+    model = tmp_path / "escape.yaml"
+    if yaml_text is not None:
+        model.write_text(yaml_text)
+    rc = main(["eval", "mbm", "--problems", str(tmp_path / "problems"), "--families", "toy", "--robot", "panda", "--n-splats", "5000",
+               "--escape-ellipsoids", str(model), "--out", str(tmp_path / "o")])  # fmt: skip
+    err = capsys.readouterr().err
+    assert rc == 2 and "escape.yaml" in err and err.count("\n") == 1, err

@@ -192,6 +192,9 @@ def make_context(config: MBMConfig) -> MBMContext:
 
 #: the shipped escape model of MBM's Panda (MBMConfig.escape_ellipsoids = "builtin")
 BUILTIN_ESCAPE = Path(__file__).resolve().parents[1] / "robots" / "data" / "mbm_panda_tight_wrist.yaml"
+#: the URDF it fits: :func:`~splatplan.robots.fit_cache.fit_key` (opt, one per link) of MBM's panda.urdf
+#: (collision geometry and mesh contents, not the path: a copy elsewhere matches)
+BUILTIN_ESCAPE_URDF = "e8babbe47abe9c3565d2e8d5488424a4"
 
 
 def escape_robot(config: MBMConfig) -> Robot | None:
@@ -201,11 +204,15 @@ def escape_robot(config: MBMConfig) -> Robot | None:
     e = config.escape_ellipsoids
     if e is None or not config.endpoint_escape:
         return None
+    path = config.robot_path()
     if e == "builtin":
-        if config.robot is not None:
+        from ..robots.fit_cache import fit_key
+        from ..robots.urdf import read_urdf
+
+        if not Path(path).is_file() or fit_key(read_urdf(path), "opt", 1, False)[:32] != BUILTIN_ESCAPE_URDF:
             return None  # (the shipped model is a fit of MBM's own Panda URDF)
         e = str(BUILTIN_ESCAPE)
-    return load_robot(config.robot_path(), ellipsoids=e)
+    return load_robot(path, ellipsoids=e)
 
 
 #: settings that do not change a row (left out of the task keys: growing a run reuses its rows)
