@@ -4,7 +4,7 @@ recorded in its row (``cpu_s``: both checker threads; steadier than wall time on
     python benchmarks/mbm_cpu.py OUT [--families table_pick,box,bookshelf_small] [--n-per-family 10] [--margin-m M]
 
 Writes OUT/mbm.json, OUT/mbm.md (as `eval mbm`) and OUT/cpu_summary.json (solved, free endpoints,
-median / p95 wall and CPU time of the solved plans, worst exact clearance, the 1-minute load average
+problems started (both endpoints free or escaped), median / p95 wall and CPU time of the solved plans, worst exact clearance, the 1-minute load average
 before and after, one short row per problem); prints the summary. Runs whatever ``splatplan`` is
 importable, so the same script times an older checkout (``PYTHONPATH=OLD/src``) for a before/after.
 """
@@ -60,13 +60,14 @@ def main(argv=None) -> dict:
     summ = {
         "splatplan": os.path.dirname(mbm.__file__), "margin_m": args.margin_m, "solved": len(sol),
         "both_free": sum(bool(r["start_free"] and r["goal_free"]) for r in rows),
+        "started": sum(bool(r.get("started", r["start_free"] and r["goal_free"])) for r in rows),
         "free_endpoints": sum(int(r["start_free"]) + int(r["goal_free"]) for r in rows), "endpoints": 2 * len(rows),
         "median_wall_s": pct(t, 50), "p95_wall_s": pct(t, 95), "median_cpu_s": pct(c, 50), "p95_cpu_s": pct(c, 95),
         "worst_clearance_m": min(r["min_exact_clearance_m"] for r in sol) if sol else None,
         "negative_clearance_paths": sum(r["min_exact_clearance_m"] < 0 for r in sol),
         "load_avg_1min": [load0, os.getloadavg()[0]], "total_s": time.perf_counter() - t0,
         "rows": [{k: r.get(k) for k in ("family", "index", "solved", "time_s", "cpu_s", "n_nodes", "path_length", "min_exact_clearance_m",
-                                        "start_free", "goal_free", "timed_out")} for r in rows],
+                                        "start_free", "goal_free", "started", "start_escape", "goal_escape", "timed_out")} for r in rows],
     }  # fmt: skip
     with open(os.path.join(args.out, "cpu_summary.json"), "w") as f:
         json.dump(summ, f, indent=1)

@@ -43,6 +43,9 @@ if TYPE_CHECKING:
 
 #: resolution divisors tried, smallest first (the smallest that frees the endpoint is used)
 FINE_DIVISORS = (2, 4, 8, 16)
+#: the escape configuration lies up to this many times farther along its segment than the first one
+#: the full margin frees (while the segment's check and the full margin free it)
+DEPTH = 2.0
 
 
 @dataclass
@@ -95,12 +98,13 @@ def escape_endpoint(
     toward=None,
     seed: int = 0,
     fine: tuple[int, ...] = FINE_DIVISORS,
-    n_directions: int = 24,
+    n_directions: int = 12,
     reach: float | None = None,
     what: str = "endpoint",
     geometry: LinkGeometry | None = None,
     box: tuple | None = None,
     escape_robot: Robot | None = None,
+    depth: float = DEPTH,
 ) -> Escape:
     """A free segment from ``q`` to a configuration that ``robot`` grown by the full margin clears.
 
@@ -127,6 +131,9 @@ def escape_endpoint(
             contain every link) for the segment's finer check, e.g. one with more ellipsoids at the
             wrist and hand; the escape configuration is still checked with ``robot`` (the
             planner's model). None: ``robot``.
+        depth: the escape configuration is the farthest sample of the chosen segment within
+            ``depth`` x the displacement of its first sample the full margin frees (and free for
+            it, the segment's check free up to it): 1 = that first sample.
 
     Returns:
         :class:`Escape`; ``path`` is ``q`` alone when the full margin frees it.
@@ -182,7 +189,7 @@ def escape_endpoint(
         raise PlanningError(f"the {what} is blocked by the margin and the joint limits leave no direction to leave it by")
     a = np.repeat(q[None], len(dirs), axis=0)
     b = q + t_max[:, None] * dirs  # (M, D)
-    edges = EdgeChecker(checker, weak, r_f, stages=1)
+    edges = EdgeChecker(checker, weak, r_f, stages=3)  # (coarse to fine: a segment's checks stop at its first hit)
     k, n = edges.free_prefix(a, b)  # (M,), (M,) free samples of each segment at r / f
     pts, idx, _ = edge_samples(a, b, weak.motion(b - a), r_f)  # (P, D), the same samples
     loc = np.arange(idx.size) - (np.cumsum(n) - n)[idx] + 1  # (P,) 1..n_e
@@ -196,6 +203,10 @@ def escape_endpoint(
             c = cand[ok]
             disp = weak.motion(pts[c] - q)  # (C,) the segment's displacement bound
             j = int(np.argmin(disp))
+            # on the same segment, the farthest free sample within ``depth`` x that displacement: room
+            # for the search to leave it (a configuration barely free for the full margin is a narrow start)
+            same = (idx[c] == idx[c[j]]) & (disp <= float(depth) * disp[j] + 1e-12)
+            j = int(np.flatnonzero(same)[np.argmax(disp[same])])
             best = (pts[c[j]], float(disp[j]))
     if best is None:
         raise PlanningError(
