@@ -312,7 +312,7 @@ def solve_problem(task: MBMTask, ctx: MBMContext) -> dict:
             q0, q1 = load_moveit_request(task.request, robot)
         ends = np.stack([q0, q1])
         hit_e = np.asarray(robot_collides(checker, plan_robot, ends))  # (2, E)
-        hit = hit_e.any(axis=-1)
+        hit = np.asarray(hit_e.any(axis=-1), dtype=bool)  # (2,)
         hit_own = np.asarray(robot_collides(checker, robot, ends)).any(axis=-1) if plan_robot is not robot else hit
         smargin = SplatMargin(margin, prep.spacing_nn, res, cfg.n_sigma)
         can = cfg.endpoint_escape and margin >= 0.5 * res > 0  # (an escape needs a margin with room for r / 2)
