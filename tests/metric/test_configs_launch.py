@@ -67,6 +67,16 @@ def test_batch_shapes_robot_change_and_threads(monkeypatch):
     big = robot.inflated(0.02)
     np.testing.assert_array_equal(np.asarray(ch.collides_configs(big, q, out=ws)).copy(), np.asarray(ch.collides_configs(big, q)))
     np.testing.assert_array_equal(np.asarray(ch.collides_configs(robot, q, out=ws)), want)
+    # the workspace keeps a launcher per robot: alternating robots builds none
+    built = ws.reallocations
+    for _ in range(3):
+        np.testing.assert_array_equal(np.asarray(ch.collides_configs(big, q[:40], out=ws)), np.asarray(ch.collides_configs(big, q[:40])))
+        np.testing.assert_array_equal(np.asarray(ch.collides_configs(robot, q[:40], out=ws)), want[:40])
+    assert ws.reallocations == built
+    # a new robot object with the same model and semi-axes (another inflated copy) reuses its launcher
+    again = robot.inflated(0.02)
+    np.testing.assert_array_equal(np.asarray(ch.collides_configs(again, q[:40], out=ws)), np.asarray(ch.collides_configs(big, q[:40])))
+    assert ws.reallocations == built
     # a batch split over several threads
     monkeypatch.setattr(wp_metric, "CONFIG_MIN_SPLIT", 16)
     monkeypatch.setattr(wp_metric, "CONFIG_MIN_STEP", 8)

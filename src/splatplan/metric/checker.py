@@ -148,6 +148,22 @@ class CollisionChecker:
         """Preallocated output buffers on this checker's device, for ``out=`` (see :class:`MetricWorkspace`)."""
         return MetricWorkspace(self.device).reserve(capacity)
 
+    def thread_workspace(self) -> MetricWorkspace:
+        """The calling thread's workspace kept by this checker: callers that check many batches on one
+        thread (the planners, search after search) share its buffers and recorded launches. Results
+        written into it are valid until the thread's next call with it: copy what you keep."""
+        held = self.__dict__.get("_thread_ws")
+        if held is None or held[0] != id(self):  # (a checker from with_config copied this one's)
+            with self._lock:
+                held = self.__dict__.get("_thread_ws")
+                if held is None or held[0] != id(self):
+                    held = (id(self), threading.local())
+                    self.__dict__["_thread_ws"] = held
+        ws = getattr(held[1], "ws", None)
+        if ws is None:
+            ws = held[1].ws = self.workspace()
+        return ws
+
     # ------------------------------------------------------------------ queries
     def query(self, centers, quats, semi_axes, *, rots=None, out=None, validate=False) -> QueryResult:
         """All five outputs for a batch of link poses (see :class:`QueryResult`).

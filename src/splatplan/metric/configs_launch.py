@@ -3,7 +3,7 @@
 A sampling planner calls the per-configuration check tens of times per plan, most calls with
 tens of configurations: there, Python work around the two kernels (argument packing, buffer
 lookups, validation) costs as much as the kernels. :class:`ConfigsLauncher` does that work once
-per (workspace, robot): it owns the configuration, FK and output buffers at a capacity, and
+per (workspace, robot) (a workspace keeps one for each of the last few robots): it owns the configuration, FK and output buffers at a capacity, and
 Warp launch commands recorded for them (``wp.launch(..., record_cmd=True)``); a call copies the
 configurations in, sets the launch size and runs the two commands. Larger batches split the
 collision kernel over the checker's CPU threads as the general path does.
@@ -15,7 +15,6 @@ and without slack, and across a capacity growth).
 
 from __future__ import annotations
 
-import weakref
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
@@ -31,6 +30,9 @@ if TYPE_CHECKING:
 
 #: smallest capacity (configurations) of a launcher's buffers
 MIN_CAPACITY = 64
+#: launchers a workspace keeps, one per robot model (a planner alternates between a robot grown by a
+#: margin, its own model and a tighter model for endpoint checks: each keeps its recorded launches)
+MAX_LAUNCHERS = 4
 #: larger batches take the general path (a launcher's buffers hold ~2.3 kB per configuration of a
 #: 45-ellipsoid robot; planners' batches are far smaller)
 MAX_BATCH = 8192
@@ -62,7 +64,6 @@ class ConfigsLauncher:
 
         wp = _wp()
         dev = impl.device
-        self.robot_key = robot.semi_axes.tobytes()
         self.n_ell = e = int(robot.n_ellipsoids)
         self.capacity = cap = max(int(capacity), MIN_CAPACITY)
         self.impl = impl
@@ -105,31 +106,43 @@ class ConfigsLauncher:
         return hits
 
 
+def launcher_key(robot: Robot, device) -> tuple:
+    """What a launcher depends on: the robot's semi-axes and its FK model on the device (kinematics,
+    ellipsoid links and poses; a robot and its :meth:`~splatplan.robots.Robot.inflated` copies share
+    it), so a new robot object with the same model and semi-axes reuses the launcher. The launcher
+    keeps the model alive, so its ``id`` stays unique while the key is cached."""
+    from ..robots.wp_fk import _model
+
+    return (robot.semi_axes.tobytes(), id(_model(robot, device)))
+
+
 def fast_collides_configs(impl: WarpMetric, config, axes_for: Callable, robot: Any, q: Any, ws: MetricWorkspace, slack: bool):
     """:meth:`CollisionChecker.collides_configs` (``slack``: ``collides_configs_slack``) of numpy
-    configurations ``q`` (..., dof) through the launcher cached in the workspace ``ws`` (CPU
-    checkers; ``impl``, ``config``: the checker's kernels and MetricConfig; ``axes_for(robot)``: its
+    configurations ``q`` (..., dof) through the launcher the workspace ``ws`` keeps for this robot
+    (:func:`launcher_key`; the last :data:`MAX_LAUNCHERS` robots; CPU checkers; ``impl``, ``config``: the checker's kernels and MetricConfig; ``axes_for(robot)``: its
     cached device semi-axes), or None where this path does not apply: another robot type, an empty batch or one
     over :data:`MAX_BATCH`, or input that the general path must validate (and reject)."""
     a = q if isinstance(q, np.ndarray) else None
     if a is None or a.dtype.kind != "f" or a.ndim < 1 or a.shape[-1] != robot.dof:
         return None
-    hit = ws._cache.get("configs_launcher")  # (weak reference to the robot, its launcher)
-    if hit is not None and hit[0]() is not robot:
-        hit = None
-    if hit is None and not fast_path_robot(robot):
+    if not fast_path_robot(robot):
         return None
+    cache = ws._cache.setdefault("configs_launcher", {})  # launcher_key(robot) -> launcher
+    key = launcher_key(robot, impl.device)
+    hit = cache.get(key)
     shape = a.shape[:-1]
     a2 = a.reshape(-1, a.shape[-1])
     b = a2.shape[0]
     if b == 0 or b > MAX_BATCH or not np.isfinite(a2).all():
         return None
-    if hit is None or hit[1].robot_key != robot.semi_axes.tobytes() or hit[1].capacity < b:
-        cap = b if hit is None else max(b, 2 * hit[1].capacity)
-        launcher = ConfigsLauncher(impl, robot, axes_for(robot), config, cap)
-        ws._cache["configs_launcher"] = hit = (weakref.ref(robot), launcher)
+    if hit is None or hit.capacity < b:
+        hit = ConfigsLauncher(impl, robot, axes_for(robot), config, b if hit is None else max(b, 2 * hit.capacity))
+        cache.pop(key, None)
+        while len(cache) >= MAX_LAUNCHERS:  # the oldest robot's launcher goes
+            del cache[next(iter(cache))]
+        cache[key] = hit
         ws.reallocations += 1
-    res = hit[1].run(a2, slack)
+    res = hit.run(a2, slack)
     if slack:
         return res[0].reshape(shape), res[1].reshape(shape + (robot.n_ellipsoids,))
     return res.reshape(shape)

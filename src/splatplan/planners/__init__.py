@@ -206,6 +206,7 @@ def plan(
         escapes = _escapes(checker, base, rrt, margin, start, goal, seed, None if escape_robot is None else as_robot(escape_robot))
         t_esc = time.perf_counter() - t_esc
         start, goal = escapes[0].path[-1], escapes[1].path[-1]
+        rrt._checked_free = {np.asarray(q, dtype=np.float64).reshape(-1).tobytes() for q in (start, goal)}  # (free for its geometry: the escapes checked them)
     else:
         rrt = make_planner(planner, checker, cfg, robot=robot)
     res = rrt.plan(start, goal, deadline=deadline)

@@ -142,7 +142,11 @@ class LinkGeometry:
             self._axes = ax
 
     def _workspace(self, checker: CollisionChecker):
-        """This thread's reusable output buffers on ``checker``."""
+        """This thread's reusable output buffers on ``checker`` (the checker's own per-thread
+        workspace where it keeps one: shared by every search on the checker)."""
+        shared = getattr(checker, "thread_workspace", None)
+        if shared is not None:
+            return shared()
         key = (id(checker), threading.get_ident())
         hit = self._ws.get(key)
         if hit is None or hit[0] is not checker:

@@ -141,6 +141,10 @@ class RRT:
         self.geometry = LinkGeometry(as_robot(robot))
         #: a translating sphere: edges are checked between their samples too
         self.inflate_edges = self.geometry.sphere
+        #: configurations (their float64 bytes) already found free with this planner's geometry, whose
+        #: endpoint check the next search skips (set by :func:`~splatplan.planners.plan` after its
+        #: endpoint escapes checked them; used once)
+        self._checked_free: set[bytes] = set()
 
     @property
     def robot(self):
@@ -288,8 +292,10 @@ class RRT:
         edges = EdgeChecker(self.checker, geom, st.edge_resolution, inflate=self.inflate_edges, stages=self.config.edge_stages,
                             slack=self.config.edge_slack)  # fmt: skip
         q0 = geom.n_queries
-        check_endpoint(self.checker, geom, start, "start")
-        if goal is not None:
+        known, self._checked_free = self._checked_free, set()
+        if start.tobytes() not in known:
+            check_endpoint(self.checker, geom, start, "start")
+        if goal is not None and goal.tobytes() not in known:
             check_endpoint(self.checker, geom, goal, "goal")
         frozen = st.box_hi <= st.box_lo
         end = math.inf if deadline is None else float(deadline)

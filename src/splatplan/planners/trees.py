@@ -2,7 +2,10 @@
 
 A :class:`Tree` holds (cap, D) configurations, their images in the planner's weighted metric (for
 nearest-neighbour search) and parent indices. Nodes are appended after their parents, so a parent's
-index is always smaller than its child's. For lazy searches a node also carries whether the edge from
+index is always smaller than its child's. Nearest neighbours are exact: brute force while the tree is
+small; past :data:`KD_MIN_NODES` nodes a KD-tree over the first nodes (rebuilt as the tree grows by a
+quarter) plus brute force over the nodes added since, with a brute-force answer for any query whose
+KD-tree answer was removed. For lazy searches a node also carries whether the edge from
 its parent has been checked (``verified``) and whether it is still part of the tree (``valid``):
 :meth:`Tree.invalidate` removes nodes with their whole subtrees, which then never come back from
 :meth:`Tree.nearest`.
@@ -11,10 +14,16 @@ its parent has been checked (``verified``) and whether it is still part of the t
 from __future__ import annotations
 
 import numpy as np
+from scipy.spatial import cKDTree
 from scipy.spatial.distance import cdist
 
 #: metric coordinate given to removed nodes: never the nearest (its square stays finite in float64)
 _FAR = 1e150
+#: trees up to this many nodes answer nearest-neighbour queries by brute force only (one distance
+#: matrix beats building a KD-tree there)
+KD_MIN_NODES = 2048
+#: a KD-tree over the first nodes is rebuilt once the nodes added since exceed this share of it
+KD_REBUILD_SHARE = 0.25
 
 
 class Tree:
@@ -36,6 +45,8 @@ class Tree:
         self.valid = np.ones(cap, dtype=bool)  # (cap,) still in the tree
         self.nodes[0], self.zs[0], self.verified[0] = root, root * w, True
         self.n = 1
+        self._kd: cKDTree | None = None  # over zs[:_kd_n] as they were when built (removed nodes included)
+        self._kd_n = 0
 
     def add(self, q: np.ndarray, parents: np.ndarray, verified: bool = True) -> np.ndarray:
         """Append nodes (K, D) with parents (K,) (earlier nodes, or earlier rows of this call);
@@ -56,7 +67,25 @@ class Tree:
 
     def nearest(self, z: np.ndarray) -> np.ndarray:
         """(N, D) metric points -> (N,) index of the nearest node still in the tree."""
-        return np.argmin(cdist(z, self.zs[: self.n], "sqeuclidean"), axis=1)
+        if self.n < KD_MIN_NODES:
+            return np.argmin(cdist(z, self.zs[: self.n], "sqeuclidean"), axis=1)
+        if self._kd is None or self.n - self._kd_n > KD_REBUILD_SHARE * self._kd_n:
+            self._kd_n = self.n
+            self._kd = cKDTree(self.zs[: self.n].copy())
+        d_kd, i_kd = self._kd.query(z, k=1)  # (N,), (N,): among the first _kd_n nodes as built
+        i_kd = np.asarray(i_kd, dtype=np.int64)
+        d2 = np.asarray(d_kd, dtype=np.float64) ** 2
+        out = i_kd.copy()
+        if self.n > self._kd_n:  # the nodes added since the build, by brute force
+            tail = cdist(z, self.zs[self._kd_n : self.n], "sqeuclidean")  # (N, n - kd_n)
+            j = np.argmin(tail, axis=1)
+            t2 = tail[np.arange(len(z)), j]
+            closer = t2 < d2
+            out[closer] = self._kd_n + j[closer]
+        gone = ~self.valid[i_kd] & (out == i_kd)  # the KD-tree's answer was removed since: exact by brute force
+        if gone.any():
+            out[gone] = np.argmin(cdist(z[gone], self.zs[: self.n], "sqeuclidean"), axis=1)
+        return out
 
     def trace(self, i: int) -> np.ndarray:
         """(P, D) configurations from the root to node i."""

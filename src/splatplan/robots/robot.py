@@ -167,7 +167,9 @@ class Robot(OwnsThreadPool):
             raise SplatplanError(f"robot {self.name}: the inflation margin must be finite and >= 0, got {margin_m}")
         self.__dict__.setdefault("_axis_geo_cache", {})  # (kinematic bounds, shared with the copy: same kinematics)
         out = copy.copy(self)
-        out.__dict__.update(_lock=threading.Lock(), _pool=copy.copy(self._pool), _wp_cache={})
+        with self._lock:  # the FK models on devices (kinematics and ellipsoid poses only): shared with the copy
+            models = {k: v for k, v in self._wp_cache.items() if k[0] == "model"}
+        out.__dict__.update(_lock=threading.Lock(), _pool=copy.copy(self._pool), _wp_cache=models)
         out.semi_axes = inflate_semi_axes(self.semi_axes, m)
         out.motion_bound = out._motion_bound()
         out.info = {**self.info, "inflated_by_m": m + float(self.info.get("inflated_by_m", 0.0))}
