@@ -94,3 +94,27 @@ def test_invalid_input_gets_the_general_errors():
     with pytest.raises(SplatplanError, match="configurations need 7 values"):
         ch.collides_configs(robot, q[:5, :6], out=ws)
     assert np.asarray(ch.collides_configs(robot, q[:0], out=ws)).shape == (0,)
+
+
+def test_thread_workspace_is_kept_per_checker_and_thread_and_shared_by_searches():
+    import threading
+
+    from splatplan.planners.robot_links import LinkGeometry
+
+    ch, robot, q, _ = _setup(0.0, seed=3)
+    ws = ch.thread_workspace()
+    assert ch.thread_workspace() is ws
+    other = []
+    t = threading.Thread(target=lambda: other.append(ch.thread_workspace()))
+    t.start()
+    t.join()
+    assert other[0] is not ws
+    assert ch.with_config(n_sigma=1.0).thread_workspace() is not ws  # (another config: its own buffers)
+    # two searches' geometries (new objects, new inflated copies) on one checker: one launcher
+    want = np.asarray(ch.collides_configs(robot, q[:50]))
+    LinkGeometry(robot).collides(ch, q[:50])
+    built = ws.reallocations
+    for _ in range(2):
+        same = robot.inflated(0.0)  # a new robot object, same model and semi-axes
+        np.testing.assert_array_equal(LinkGeometry(same).collides(ch, q[:50]), want)
+    assert ws.reallocations == built

@@ -26,9 +26,10 @@ checking every long candidate edge from every vertex would cost more than the se
 every candidate on the few vertices left.
 
 The lengths (stride, edge resolution, sampling box) are the RRT's (:meth:`RRT.settings`, derived
-from the scene and the robot when unset). Nearest neighbours are brute force: one (N x n) distance
-matrix per query over preallocated arrays (the trees stay small enough that this beats rebuilding
-a KD-tree; the time it takes is reported in the time split). Everything random comes from one
+from the scene and the robot when unset). Nearest neighbours are exact (:class:`~.trees.Tree`): one
+(N x n) distance matrix per query while a tree is small, a KD-tree over its first nodes plus that
+matrix over the newest ones past :data:`~.trees.KD_MIN_NODES` nodes (the time it takes is reported
+in the time split). Everything random comes from one
 generator seeded by ``RRTConfig.seed``, so a run is deterministic for a seed.
 
 Budgets: ``time_limit_s`` (and the ``deadline`` of :meth:`RRTConnect.plan`), ``max_iters`` and
