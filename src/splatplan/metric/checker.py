@@ -152,13 +152,10 @@ class CollisionChecker:
         """The calling thread's workspace kept by this checker: callers that check many batches on one
         thread (the planners, search after search) share its buffers and recorded launches. Results
         written into it are valid until the thread's next call with it: copy what you keep."""
-        held = self.__dict__.get("_thread_ws")
-        if held is None or held[0] != id(self):  # (a checker from with_config copied this one's)
-            with self._lock:
-                held = self.__dict__.get("_thread_ws")
-                if held is None or held[0] != id(self):
-                    held = (id(self), threading.local())
-                    self.__dict__["_thread_ws"] = held
+        with self._lock:
+            held = self.__dict__.get("_thread_ws")
+            if held is None or held[0] != id(self):  # (a checker from with_config copied this one's)
+                held = self.__dict__["_thread_ws"] = (id(self), threading.local())
         ws = getattr(held[1], "ws", None)
         if ws is None:
             ws = held[1].ws = self.workspace()

@@ -111,9 +111,9 @@ def launcher_key(robot: Robot, device) -> tuple:
     ellipsoid links and poses; a robot and its :meth:`~splatplan.robots.Robot.inflated` copies share
     it), so a new robot object with the same model and semi-axes reuses the launcher. The launcher
     keeps the model alive, so its ``id`` stays unique while the key is cached."""
-    from ..robots.wp_fk import _model
+    from ..robots.wp_fk import fk_model
 
-    return (robot.semi_axes.tobytes(), id(_model(robot, device)))
+    return (robot.semi_axes.tobytes(), id(fk_model(robot, device)))
 
 
 def fast_collides_configs(impl: WarpMetric, config, axes_for: Callable, robot: Any, q: Any, ws: MetricWorkspace, slack: bool):

@@ -202,7 +202,7 @@ def model_arrays(robot, attach: Attachments | None = None) -> dict[str, np.ndarr
     }
 
 
-def _model(robot, device, attach: Attachments | None = None) -> FKModel:
+def fk_model(robot, device, attach: Attachments | None = None) -> FKModel:
     key = ("model", str(device), None if attach is None else attach.key)
     with robot._lock:
         m = robot._wp_cache.get(key)
@@ -253,7 +253,7 @@ def launch_fk(robot, q_wp, out_centers, out_rots, attach: Attachments | None = N
             raise SplatplanError(f"fk_wp: {name} must be a wp.array of {dt.__name__} with at least B*E = {b * e} rows on {dev}")
     if b == 0:
         return
-    m = _model(robot, dev, attach)
+    m = fk_model(robot, dev, attach)
     sr, sp = _scratch(robot, m, b, dev)
     pool = robot._thread_pool() if dev.is_cpu and b >= MIN_SPLIT else None
     launch_split(fk_kernel, b, [m, q_wp, 0, sr, sp, out_centers, out_rots], dev, pool, offset_at=2, min_split=MIN_SPLIT, min_step=MIN_SPLIT // 4, chunks_per_thread=CHUNKS_PER_THREAD)
@@ -266,7 +266,7 @@ def record_fk(robot, q_wp, out_centers, out_rots):
     cmd.launch()`` computes rows [0, b). Returns (the command, the arrays it points at: keep them
     alive as long as the command)."""
     dev = q_wp.device
-    m = _model(robot, dev)
+    m = fk_model(robot, dev)
     sr, sp = _scratch(robot, m, int(q_wp.shape[0]), dev)
     cmd = wp.launch(fk_kernel, dim=int(q_wp.shape[0]), inputs=[m, q_wp, 0, sr, sp, out_centers, out_rots], device=dev, record_cmd=True)
     return cmd, (m, sr, sp, q_wp, out_centers, out_rots)
