@@ -51,8 +51,6 @@ def test_same_hits_and_slack_as_the_general_path(n_sigma):
 
 
 def test_batch_shapes_robot_change_and_threads(monkeypatch):
-    from splatplan.metric import wp_metric
-
     ch, robot, q, _ = _setup(0.0, seed=5)
     ws = ch.workspace()
     want = np.asarray(ch.collides_configs(robot, q))
@@ -77,11 +75,19 @@ def test_batch_shapes_robot_change_and_threads(monkeypatch):
     again = robot.inflated(0.02)
     np.testing.assert_array_equal(np.asarray(ch.collides_configs(again, q[:40], out=ws)), np.asarray(ch.collides_configs(big, q[:40])))
     assert ws.reallocations == built
-    # a batch split over several threads
-    monkeypatch.setattr(wp_metric, "CONFIG_MIN_SPLIT", 16)
-    monkeypatch.setattr(wp_metric, "CONFIG_MIN_STEP", 8)
+    # a batch split over several threads: recorded chunk launches, as many as the batch needs (more on a larger batch)
+    from splatplan.metric import configs_launch
+
+    monkeypatch.setattr(configs_launch, "SPLIT_MIN", 16)
+    monkeypatch.setattr(configs_launch, "SPLIT_MIN_STEP", 8)
+    monkeypatch.setenv("SPLATPLAN_CPU_THREADS", "2")
     ws2 = ch.workspace()
-    np.testing.assert_array_equal(np.asarray(ch.collides_configs(robot, q, out=ws2)), want)
+    want_h, want_s = (np.asarray(a) for a in ch.collides_configs_slack(robot, q))
+    for n in (20, len(q), 100):
+        np.testing.assert_array_equal(np.asarray(ch.collides_configs(robot, q[:n], out=ws2)), want[:n])
+        h, s = ch.collides_configs_slack(robot, q[:n], out=ws2)
+        np.testing.assert_array_equal(np.asarray(h), want_h[:n])
+        np.testing.assert_array_equal(np.asarray(s), want_s[:n])
 
 
 def test_invalid_input_gets_the_general_errors():

@@ -6,7 +6,7 @@ lookups, validation) costs as much as the kernels. :class:`ConfigsLauncher` does
 per (workspace, robot) (a workspace keeps one for each of the last few robots): it owns the configuration, FK and output buffers at a capacity, and
 Warp launch commands recorded for them (``wp.launch(..., record_cmd=True)``); a call copies the
 configurations in, sets the launch size and runs the two commands. Larger batches split the
-collision kernel over the checker's CPU threads as the general path does.
+collision kernel over the checker's CPU threads in chunks, each a recorded launch of its own.
 
 The kernels, their inputs and so every answer are those of the general path
 (``tests/metric/test_configs_launch.py`` compares them on random and near-surface batches, with
@@ -20,6 +20,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from .._warp import cpu_threads, wait_all
 from .._warp import wp as _wp
 from .groups import robot_groups
 
@@ -33,6 +34,12 @@ MIN_CAPACITY = 64
 #: launchers a workspace keeps, one per robot model (a planner alternates between a robot grown by a
 #: margin, its own model and a tighter model for endpoint checks: each keeps its recorded launches)
 MAX_LAUNCHERS = 4
+#: batches of at least this many configurations run over the checker's CPU threads, in chunks of at
+#: least SPLIT_MIN_STEP, about SPLIT_CHUNKS_PER_THREAD per thread (recorded launches: a chunk costs a
+#: few microseconds to hand over, not the tens of a full launch)
+SPLIT_MIN = 256
+SPLIT_MIN_STEP = 64
+SPLIT_CHUNKS_PER_THREAD = 8
 #: larger batches take the general path (a launcher's buffers hold ~2.3 kB per configuration of a
 #: 45-ellipsoid robot; planners' batches are far smaller)
 MAX_BATCH = 8192
@@ -59,7 +66,6 @@ class ConfigsLauncher:
 
     def __init__(self, impl: WarpMetric, robot: Robot, axes: tuple, config, capacity: int) -> None:
         from ..robots.wp_fk import record_fk
-        from . import wp_metric
         from .wp_metric_kernel import LinkBatch, robot_collide_kernel
 
         wp = _wp()
@@ -67,7 +73,6 @@ class ConfigsLauncher:
         self.n_ell = e = int(robot.n_ellipsoids)
         self.capacity = cap = max(int(capacity), MIN_CAPACITY)
         self.impl = impl
-        self._wm = wp_metric  # (its CONFIG_MIN_SPLIT read per call)
         q = wp.empty((cap, int(robot.dof)), dtype=wp.float32, device=dev)  # (cap, dof)
         self.q_np = q.numpy()  # a view of the host buffer
         centers = wp.empty(cap * e, dtype=wp.vec3, device=dev)  # (cap E,) world frame
@@ -85,6 +90,8 @@ class ConfigsLauncher:
         # the kernel's inputs after the offset, without and with slack (they keep what they point at alive)
         self._args = [impl.configs_args(links, groups, a_min, a_max, config, hits, bad, sl) for sl in (None, slack)]
         self.collide = [wp.launch(robot_collide_kernel, dim=cap, inputs=[0, *a], device=dev, record_cmd=True) for a in self._args]
+        self._chunk_cmds: list[list] = [[], []]  # per slack flag: recorded launches for the chunks of a split batch
+        self._record = lambda k: wp.launch(robot_collide_kernel, dim=cap, inputs=[0, *self._args[k]], device=dev, record_cmd=True)
 
     def run(self, q: np.ndarray, slack: bool):
         """Check configurations ``q`` (B, dof) finite float, B <= capacity: hits (B,) bool and,
@@ -94,8 +101,9 @@ class ConfigsLauncher:
         self.q_np[:b] = q
         self.fk.set_dim(b)
         self.fk.launch()
-        if b >= self._wm.CONFIG_MIN_SPLIT:  # over the checker's threads, as the general path
-            self.impl.launch_configs(b, self._args[int(slack)])
+        n_thr = cpu_threads()
+        if n_thr > 1 and b >= SPLIT_MIN:  # over the checker's threads, in chunks with recorded launches
+            self._run_split(b, int(slack), n_thr)
         else:
             cmd = self.collide[int(slack)]
             cmd.set_dim(b)
@@ -104,6 +112,21 @@ class ConfigsLauncher:
         if slack:
             return hits, self.slack_np[: b * self.n_ell].reshape(b, self.n_ell)
         return hits
+
+    def _run_split(self, b: int, k: int, n_thr: int) -> None:
+        """The collision kernel over b configurations in chunks of at least :data:`SPLIT_MIN_STEP`
+        (about :data:`SPLIT_CHUNKS_PER_THREAD` per thread, taken as threads free up), each a recorded
+        launch of its own with its offset (set here, run on the checker's pool)."""
+        step = max(SPLIT_MIN_STEP, -(-b // (SPLIT_CHUNKS_PER_THREAD * n_thr)))
+        los = range(0, b, step)
+        cmds = self._chunk_cmds[k]
+        while len(cmds) < len(los):
+            cmds.append(self._record(k))
+        for cmd, lo in zip(cmds, los):
+            cmd.set_param_at_index(0, lo)
+            cmd.set_dim(min(step, b - lo))
+        pool = self.impl.executor()
+        wait_all([pool.submit(cmd.launch) for cmd in cmds[: len(los)]])
 
 
 def launcher_key(robot: Robot, device) -> tuple:
