@@ -197,3 +197,13 @@ def test_budgets_end_the_search():
     assert res.path.shape == (0, 3) and res.length == math.inf
     res = RRTConnect(ch, RRTConfig(max_nodes=40, time_limit_s=None, **PLANE), robot=SPHERE).plan(s, g)
     assert not res.success and "node budget" in res.message
+
+
+def test_batch_size_defaults_per_planner_and_an_explicit_one_wins():
+    ch = make_checker(wall_scene(), 0.0)
+    assert RRTConfig().batch_size is None
+    assert RRT(ch, robot=SPHERE).batch_size == 32 and RRTConnect(ch, robot=SPHERE).batch_size == 16
+    assert RRT(ch, RRTConfig(batch_size=8), robot=SPHERE).batch_size == 8
+    assert RRTConnect(ch, RRTConfig(batch_size=40), robot=SPHERE).batch_size == 40
+    with pytest.raises(SplatplanError, match="batch_size"):
+        RRTConfig(batch_size=0).validate()

@@ -134,6 +134,8 @@ class RRT:
 
     #: the planner's name in :data:`~splatplan.planners.PLANNERS`
     name = "rrt"
+    #: samples per iteration when ``RRTConfig.batch_size`` is None
+    default_batch_size = 32
 
     def __init__(self, checker: CollisionChecker, config: RRTConfig | None = None, *, robot: Robot | str) -> None:
         self.checker = checker
@@ -145,6 +147,12 @@ class RRT:
         #: endpoint check the next search skips (set by :func:`~splatplan.planners.plan` after its
         #: endpoint escapes checked them; used once)
         self._checked_free: set[bytes] = set()
+
+    @property
+    def batch_size(self) -> int:
+        """Samples per iteration: ``RRTConfig.batch_size``, or this planner's default when None."""
+        b = self.config.batch_size
+        return self.default_batch_size if b is None else int(b)
 
     @property
     def robot(self):
@@ -366,7 +374,7 @@ class RRT:
         it = 0
         while (message := s.stop(cfg, it, n, info)) is None:
             it += 1
-            nb = cfg.batch_size
+            nb = self.batch_size
             t1 = time.perf_counter()
             samples = s.sample(nb)  # (N, D)
             if goal is not None and cfg.goal_bias > 0:

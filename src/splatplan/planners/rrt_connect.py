@@ -2,7 +2,8 @@
 
 Two trees grow, one from the start and one from the goal, and take turns. Each iteration:
 
-1. **Extend** the active tree A towards ``batch_size`` uniform samples of the sampling box: the
+1. **Extend** the active tree A towards ``batch_size`` uniform samples of the sampling box (16
+   unless set: each tree grows every other iteration): the
    nearest node of A (weighted metric ``|motion_bound * dq|``, as in :mod:`.rrt`) steps at most
    ``stride`` towards each sample.
 2. **Connect**: the ``connect_attempts`` new nodes closest to the other tree B are each the target
@@ -61,6 +62,7 @@ class RRTConnect(RRT):
     """
 
     name = "rrtconnect"
+    default_batch_size = 16
 
     def plan(self, start, goal=None, deadline: float | None = None) -> PlanResult:
         """Search a path from ``start`` to ``goal`` (configurations (D,)).
@@ -118,7 +120,7 @@ class RRTConnect(RRT):
         """Steer from A's nearest nodes at most ``stride`` towards ``batch_size`` uniform samples:
         (base (M, D), their node ids (M,), new configurations (M, D))."""
         t1 = time.perf_counter()
-        samples = s.sample(self.config.batch_size)  # (N, D)
+        samples = s.sample(self.batch_size)  # (N, D)
         sz = samples * s.w
         t2 = time.perf_counter()
         near = ta.nearest(sz)  # (N,)
