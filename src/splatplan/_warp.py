@@ -243,11 +243,17 @@ def launch_split(kernel, dim: int, inputs: list, device, pool=None, *, offset_at
         args[offset_at] = 0
         w.launch(kernel, dim=dim, inputs=args, device=device)
         return
-    step = max(min_step, -(-dim // (chunks_per_thread * n_thr)))
 
     def chunk(lo: int) -> list:
         args = list(inputs)
         args[offset_at] = lo
         return args
 
-    wait_all(pool.submit(w.launch, kernel, dim=min(step, dim - lo), inputs=chunk(lo), device=device) for lo in range(0, dim, step))
+    wait_all(pool.submit(w.launch, kernel, dim=n, inputs=chunk(lo), device=device) for lo, n in split_chunks(dim, n_thr, min_step, chunks_per_thread))
+
+
+def split_chunks(dim: int, n_thr: int, min_step: int, chunks_per_thread: int) -> list[tuple[int, int]]:
+    """The (first thread index, size) chunks :func:`launch_split` cuts ``dim`` threads into for
+    ``n_thr`` workers: at least ``min_step`` each, about ``chunks_per_thread`` per worker."""
+    step = max(min_step, -(-dim // (chunks_per_thread * n_thr)))
+    return [(lo, min(step, dim - lo)) for lo in range(0, dim, step)]

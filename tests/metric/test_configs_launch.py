@@ -76,10 +76,10 @@ def test_batch_shapes_robot_change_and_threads(monkeypatch):
     np.testing.assert_array_equal(np.asarray(ch.collides_configs(again, q[:40], out=ws)), np.asarray(ch.collides_configs(big, q[:40])))
     assert ws.reallocations == built
     # a batch split over several threads: recorded chunk launches, as many as the batch needs (more on a larger batch)
-    from splatplan.metric import configs_launch
+    from splatplan.metric import wp_metric
 
-    monkeypatch.setattr(configs_launch, "SPLIT_MIN", 16)
-    monkeypatch.setattr(configs_launch, "SPLIT_MIN_STEP", 8)
+    monkeypatch.setattr(wp_metric, "CONFIG_MIN_SPLIT", 16)
+    monkeypatch.setattr(wp_metric, "CONFIG_MIN_STEP", 8)
     monkeypatch.setenv("SPLATPLAN_CPU_THREADS", "2")
     ws2 = ch.workspace()
     want_h, want_s = (np.asarray(a) for a in ch.collides_configs_slack(robot, q))

@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from .._warp import cpu_threads, wait_all
+from .._warp import cpu_threads, split_chunks, wait_all
 from .._warp import wp as _wp
 from .groups import robot_groups
 
@@ -34,12 +34,6 @@ MIN_CAPACITY = 64
 #: launchers a workspace keeps, one per robot model (a planner alternates between a robot grown by a
 #: margin, its own model and a tighter model for endpoint checks: each keeps its recorded launches)
 MAX_LAUNCHERS = 4
-#: batches of at least this many configurations run over the checker's CPU threads, in chunks of at
-#: least SPLIT_MIN_STEP, about SPLIT_CHUNKS_PER_THREAD per thread (recorded launches: a chunk costs a
-#: few microseconds to hand over, not the tens of a full launch)
-SPLIT_MIN = 256
-SPLIT_MIN_STEP = 64
-SPLIT_CHUNKS_PER_THREAD = 8
 #: larger batches take the general path (a launcher's buffers hold ~2.3 kB per configuration of a
 #: 45-ellipsoid robot; planners' batches are far smaller)
 MAX_BATCH = 8192
@@ -66,6 +60,7 @@ class ConfigsLauncher:
 
     def __init__(self, impl: WarpMetric, robot: Robot, axes: tuple, config, capacity: int) -> None:
         from ..robots.wp_fk import record_fk
+        from . import wp_metric
         from .wp_metric_kernel import LinkBatch, robot_collide_kernel
 
         wp = _wp()
@@ -73,6 +68,7 @@ class ConfigsLauncher:
         self.n_ell = e = int(robot.n_ellipsoids)
         self.capacity = cap = max(int(capacity), MIN_CAPACITY)
         self.impl = impl
+        self._wm = wp_metric  # (its split thresholds, read per call)
         q = wp.empty((cap, int(robot.dof)), dtype=wp.float32, device=dev)  # (cap, dof)
         self.q_np = q.numpy()  # a view of the host buffer
         centers = wp.empty(cap * e, dtype=wp.vec3, device=dev)  # (cap E,) world frame
@@ -89,9 +85,9 @@ class ConfigsLauncher:
         groups = robot_groups(robot)
         # the kernel's inputs after the offset, without and with slack (they keep what they point at alive)
         self._args = [impl.configs_args(links, groups, a_min, a_max, config, hits, bad, sl) for sl in (None, slack)]
-        self.collide = [wp.launch(robot_collide_kernel, dim=cap, inputs=[0, *a], device=dev, record_cmd=True) for a in self._args]
+        self._kernel = robot_collide_kernel
+        self.collide = [self._record(k) for k in (0, 1)]
         self._chunk_cmds: list[list] = [[], []]  # per slack flag: recorded launches for the chunks of a split batch
-        self._record = lambda k: wp.launch(robot_collide_kernel, dim=cap, inputs=[0, *self._args[k]], device=dev, record_cmd=True)
 
     def run(self, q: np.ndarray, slack: bool):
         """Check configurations ``q`` (B, dof) finite float, B <= capacity: hits (B,) bool and,
@@ -101,8 +97,9 @@ class ConfigsLauncher:
         self.q_np[:b] = q
         self.fk.set_dim(b)
         self.fk.launch()
-        n_thr = cpu_threads()
-        if n_thr > 1 and b >= SPLIT_MIN:  # over the checker's threads, in chunks with recorded launches
+        wm = self._wm
+        n_thr = cpu_threads() if b >= wm.CONFIG_MIN_SPLIT else 1
+        if n_thr > 1:  # over the checker's threads, in chunks with recorded launches (the general path's chunks)
             self._run_split(b, int(slack), n_thr)
         else:
             cmd = self.collide[int(slack)]
@@ -113,20 +110,24 @@ class ConfigsLauncher:
             return hits, self.slack_np[: b * self.n_ell].reshape(b, self.n_ell)
         return hits
 
+    def _record(self, k: int):
+        """A recorded launch of the collision kernel over the buffers (k = 1: with slack), offset 0."""
+        return _wp().launch(self._kernel, dim=self.capacity, inputs=[0, *self._args[k]], device=self.impl.device, record_cmd=True)
+
     def _run_split(self, b: int, k: int, n_thr: int) -> None:
-        """The collision kernel over b configurations in chunks of at least :data:`SPLIT_MIN_STEP`
-        (about :data:`SPLIT_CHUNKS_PER_THREAD` per thread, taken as threads free up), each a recorded
-        launch of its own with its offset (set here, run on the checker's pool)."""
-        step = max(SPLIT_MIN_STEP, -(-b // (SPLIT_CHUNKS_PER_THREAD * n_thr)))
-        los = range(0, b, step)
+        """The collision kernel over b configurations in the general path's chunks (:func:`~splatplan._warp.split_chunks`
+        with the checker's CONFIG_MIN_STEP and CHUNKS_PER_THREAD), each a recorded launch of its own with its
+        offset (set here, run on the checker's pool, taken as threads free up)."""
+        wm = self._wm
+        chunks = split_chunks(b, n_thr, wm.CONFIG_MIN_STEP, wm.CHUNKS_PER_THREAD)
         cmds = self._chunk_cmds[k]
-        while len(cmds) < len(los):
+        while len(cmds) < len(chunks):
             cmds.append(self._record(k))
-        for cmd, lo in zip(cmds, los):
+        for cmd, (lo, n) in zip(cmds, chunks):
             cmd.set_param_at_index(0, lo)
-            cmd.set_dim(min(step, b - lo))
+            cmd.set_dim(n)
         pool = self.impl.executor()
-        wait_all([pool.submit(cmd.launch) for cmd in cmds[: len(los)]])
+        wait_all([pool.submit(cmd.launch) for cmd in cmds[: len(chunks)]])
 
 
 def launcher_key(robot: Robot, device) -> tuple:

@@ -22,7 +22,6 @@ Configuration metric (what "stride", "edge resolution" and "goal tolerance" are 
 
 from __future__ import annotations
 
-import threading
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -117,7 +116,6 @@ class LinkGeometry:
         self.robot = robot
         self.n_queries = 0
         self.n_configs = 0
-        self._ws: dict = {}  # (id(checker), thread) -> (checker, its MetricWorkspace): buffers reused across checks
         self.dof = int(robot.dof)
         self.translation = robot.is_point
         ax = np.asarray(robot.semi_axes, dtype=np.float64)
@@ -142,19 +140,9 @@ class LinkGeometry:
             self._axes = ax
 
     def _workspace(self, checker: CollisionChecker):
-        """This thread's reusable output buffers on ``checker`` (the checker's own per-thread
-        workspace where it keeps one: shared by every search on the checker)."""
-        shared = getattr(checker, "thread_workspace", None)
-        if shared is not None:
-            return shared()
-        key = (id(checker), threading.get_ident())
-        hit = self._ws.get(key)
-        if hit is None or hit[0] is not checker:
-            if len(self._ws) >= 8:
-                self._ws.clear()
-            hit = (checker, checker.workspace())
-            self._ws[key] = hit
-        return hit[1]
+        """This thread's reusable output buffers on ``checker``: the checker's own per-thread
+        workspace, shared by every search on the checker."""
+        return checker.thread_workspace()
 
     # ------------------------------------------------------------------ metric
     def bind(self, q: np.ndarray) -> None:
