@@ -199,3 +199,96 @@ def test_groups_without_link_poses_are_one_per_ellipsoid():
 
     _, first, members, rel, _ = robot_groups(Bare())
     assert len(first) == 3 and sorted(members.tolist()) == [0, 1] and np.all(rel == 0)
+
+
+def _rotation(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
+    """(m, 3, 3) rotations by ``angle`` (m,) about unit ``axis`` (m, 3) (Rodrigues)."""
+    k = np.zeros((len(axis), 3, 3))
+    k[:, 0, 1], k[:, 0, 2], k[:, 1, 2] = -axis[:, 2], axis[:, 1], -axis[:, 0]
+    k = k - k.transpose(0, 2, 1)
+    s, c = np.sin(angle)[:, None, None], np.cos(angle)[:, None, None]
+    return np.eye(3) + s * k + (1 - c) * (k @ k)
+
+
+def _quat_to_mat(q: np.ndarray) -> np.ndarray:
+    w, x, y, z = q.T
+    return np.stack([
+        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
+        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
+        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
+    ], -2)  # fmt: skip
+
+
+def _mat_to_quat(r: np.ndarray) -> np.ndarray:
+    """(m, 3, 3) rotations -> (m, 4) wxyz (through scipy, an independent conversion)."""
+    from scipy.spatial.transform import Rotation
+
+    xyzw = Rotation.from_matrix(r).as_quat()
+    return np.concatenate([xyzw[:, 3:], xyzw[:, :3]], axis=1)
+
+
+@pytest.mark.parametrize("device", DEVICES)
+@pytest.mark.parametrize("n_sigma", [0.0, 1.0])
+@pytest.mark.parametrize("opacity", [False, True])
+def test_rigid_slack_holds_near_surfaces(device, n_sigma, opacity):
+    """RIGID SLACK: the answers are those of the plain check; a free ellipsoid moved rigidly (a
+    rotation about a random point of it and a translation) so that none of its points moves farther
+    than its slack is free by the numpy reference; links near the wall get a slack too (the FREE
+    SLACK gives them 0); it is never below the FREE SLACK; target 0 is the FREE SLACK."""
+    from splatplan.robots import load_robot
+
+    rng = np.random.default_rng(11 + int(n_sigma) + 5 * opacity)
+    scene = _wall_scene(rng, 4000, False)
+    cfg = MetricConfig(n_sigma=n_sigma, opacity_scaled_inflation=opacity) if opacity else MetricConfig(n_sigma=n_sigma)
+    on = CollisionChecker(scene, config=cfg, device=device, tiers=TierConfig(distance_grid_voxels=2**15))
+    ref = CollisionChecker(scene, config=cfg, backend="reference")
+    robot = load_robot("panda").inflated(0.01)
+    q = _configs(robot, rng, 300)
+    boundary = q[np.asarray(on.collides_configs(robot, q))]
+    q = np.concatenate([q, _configs(robot, rng, 0, boundary, 300)])
+    target = rng.uniform(0.0, 0.05, (len(q), robot.n_ellipsoids))
+    hits, slack = on.collides_configs_slack(robot, q, rigid_target=target)
+    hits, slack = np.asarray(hits), np.asarray(slack)
+    np.testing.assert_array_equal(hits, np.asarray(on.collides_configs(robot, q)))
+    _, centre = on.collides_configs_slack(robot, q)
+    centre = np.asarray(centre)
+    assert np.all(slack >= 0) and not slack[hits].any()
+    c, quat, ax = robot.ellipsoids(q)
+    ax = np.asarray(ax)
+    free = np.zeros_like(slack, dtype=bool)
+    free[~hits] = True
+    near = free & (centre == 0) & (slack > 0)
+    assert near.sum() > 20  # links near the wall are proven free over a distance too
+    assert np.all(slack[free] >= centre[free])  # (the FREE SLACK is a rigid one too: it is kept where larger)
+    np.testing.assert_array_equal(np.asarray(on.collides_configs_slack(robot, q, rigid_target=0.0)[1])[~hits], centre[~hits])  # target 0: the FREE SLACK
+    sel = np.nonzero(free & (slack > 0))
+    m = len(sel[0])
+    a = ax[sel[1]]  # (m, 3)
+    r0 = _quat_to_mat(np.asarray(quat)[sel])  # (m, 3, 3) world <- ellipsoid
+    # a rotation about a random point p of the ellipsoid (link frame u, |u / a| <= 1) then a translation;
+    # every point x = c + R0 v (|v / a| <= 1) moves by (R - I) R0 (v - u) + t: at most |R - I| 2 a_max + |t|
+    axis = rng.normal(size=(m, 3))
+    axis /= np.linalg.norm(axis, axis=1, keepdims=True)
+    u = rng.normal(size=(m, 3))
+    u = u / np.linalg.norm(u, axis=1, keepdims=True) * a * rng.uniform(0, 1, (m, 1))
+    split = rng.uniform(0.0, 1.0, m)
+    budget = slack[sel] * rng.uniform(0.5, 0.999, m)
+    angle = 2 * np.arcsin(np.clip(split * budget / (2 * 2 * a.max(1)), 0, 1))  # |R - I| = 2 sin(angle / 2)
+    rot = _rotation(axis, angle)
+    t = rng.normal(size=(m, 3))
+    t = t / np.linalg.norm(t, axis=1, keepdims=True) * ((1 - split) * budget)[:, None]
+    pw = c[sel] + np.einsum("mij,mj->mi", r0, u)  # the pivot (world)
+    c_new = pw + np.einsum("mij,mj->mi", rot, c[sel] - pw) + t
+    r_new = rot @ r0
+    # (the bound on the displacement holds: check it on the ellipsoid's extreme points)
+    for s in (-1, 1):
+        for k in range(3):
+            v = np.zeros((m, 3))
+            v[:, k] = s * a[:, k]
+            x0 = c[sel] + np.einsum("mij,mj->mi", r0, v)
+            x1 = c_new + np.einsum("mij,mj->mi", r_new, v)
+            assert np.all(np.linalg.norm(x1 - x0, axis=1) <= budget * (1 + 1e-9))
+    is_near = near[sel]
+    pick = np.concatenate([np.nonzero(is_near)[0], rng.permutation(np.nonzero(~is_near)[0])[:1500]])  # every near link
+    got = np.asarray(ref.collides(c_new[pick], _mat_to_quat(r_new[pick]), a[pick]))
+    assert not got.any()

@@ -81,6 +81,9 @@ def test_lazy_removes_edges_that_jump_a_wall(wall):
 
 
 def test_screened_shortcut_returns_the_same_path_with_fewer_checks(panda_table):
+    """Screening never changes the shortcut path. It saves checks where whole-edge checks check
+    every sample (no free slack); with the free slack, whole-edge checks skip most samples near
+    surfaces too, and only a sparse screen (the planners' every 64th sample) still saves checks."""
     robot = robots.load_robot("panda")
     q1, q2 = robot.q_default.copy(), robot.q_default.copy()
     q1[0], q2[0] = 1.4, -1.4
@@ -88,17 +91,21 @@ def test_screened_shortcut_returns_the_same_path_with_fewer_checks(panda_table):
     assert res.success and len(res.path) > 4
     r = res.info["edge_resolution"]
     paths, counts = {}, {}
-    for screen in (None, 4, 16):
+    for slack in (False, True):
+        for screen in (None, 4, 16, 64):
+            for cand in ("doubling", "all"):
+                geom = LinkGeometry(robot)
+                edges = EdgeChecker(panda_table, geom, r, stages=4, slack=slack)
+                paths[slack, screen, cand] = shortcut_path(edges, res.path, candidates=cand, screen=screen)
+                counts[slack, screen, cand] = geom.n_queries
+    for slack in (False, True):
         for cand in ("doubling", "all"):
-            geom = LinkGeometry(robot)
-            edges = EdgeChecker(panda_table, geom, r, stages=4, slack=True)
-            paths[screen, cand] = shortcut_path(edges, res.path, candidates=cand, screen=screen)
-            counts[screen, cand] = geom.n_queries
+            for screen in (4, 16, 64):
+                np.testing.assert_array_equal(paths[slack, screen, cand], paths[False, None, cand])
     for cand in ("doubling", "all"):
-        np.testing.assert_array_equal(paths[4, cand], paths[None, cand])
-        np.testing.assert_array_equal(paths[16, cand], paths[None, cand])
-        assert counts[16, cand] < counts[None, cand]
-    assert _dense_check(panda_table, robot, paths[16, "all"], r)
+        assert counts[False, 16, cand] < counts[False, None, cand]
+        assert counts[True, 64, cand] < counts[True, None, cand] < counts[False, None, cand]
+    assert _dense_check(panda_table, robot, paths[True, 16, "all"], r)
 
 
 def test_screen_never_rejects_a_free_edge(wall):

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import contextlib
 import threading
+import warnings
 from dataclasses import replace
 from typing import TYPE_CHECKING, overload
 
@@ -33,7 +34,7 @@ from ..errors import SplatplanError
 from ..scenes.splats import Splats
 from .blockers import FAINT_OPACITY, Blockers
 from .config import MetricConfig, QueryResult
-from .configs_launch import fast_collides_configs
+from .configs_launch import fast_collides_configs, fill_target, rigid_targets
 from .groups import robot_groups
 from .interop import (
     MetricWorkspace,
@@ -277,21 +278,22 @@ class CollisionChecker:
         :meth:`collides_robot_slack`. (``slack=True`` is deprecated: it changed the return type.)
         """
         if slack is not None:
-            import warnings
-
-            warnings.warn("collides_robot(slack=...) is deprecated and goes in 0.3: use collides_robot_slack(robot, q) for (hits, slack)",
-                          DeprecationWarning, stacklevel=2)  # fmt: skip
+            warnings.warn("collides_robot(slack=...) is deprecated and goes in 0.3: use collides_robot_slack(robot, q) for (hits, slack)", DeprecationWarning, stacklevel=2)
         with _torch_stream(q):
             return self._robot(robot, q, out, validate, full=False, subset=ellipsoids, slack=bool(slack))
 
-    def collides_robot_slack(self, robot: Robot, q, *, ellipsoids=None, out=None, validate=False):
+    def collides_robot_slack(self, robot: Robot, q, *, ellipsoids=None, out=None, validate=False, rigid_target=None):
         """(hits (..., E), slack (..., E) float32, both of the type of ``q``): :meth:`collides_robot`
         and each ellipsoid's FREE SLACK, a distance (scene units) such that the same ellipsoid, in any
         orientation, with its centre within ``slack`` of this one's, is free too (:mod:`.wp_metric_kernel`);
         0 where nothing is proven (a link near splats, the reference backend, or
-        ``collide_distance_grid`` off)."""
+        ``collide_distance_grid`` off). ``rigid_target`` (scene units; a scalar or (..., E)): the
+        RIGID SLACK instead, a weaker promise kept near splats too: the ellipsoid moved rigidly so
+        that no point of it moves farther than ``slack`` is free. One whose FREE SLACK is below its
+        target reads the splats out to it (at most its smallest semi-axis) for the clearance of its
+        closest mean. Planners, which bound every link point's motion along an edge, use it."""
         with _torch_stream(q):
-            return self._robot(robot, q, out, validate, full=False, subset=ellipsoids, slack=True)
+            return self._robot(robot, q, out, validate, full=False, subset=ellipsoids, slack=True, target=rigid_target)
 
     def collides_configs(self, robot: Robot, q, *, out=None, validate=False):
         """(...,) collision state of whole configurations: True where any ellipsoid of ``robot`` at
@@ -305,20 +307,17 @@ class CollisionChecker:
         with _torch_stream(q):
             return self._robot(robot, q, out, validate, full=False, per_config=True)
 
-    def collides_configs_slack(self, robot: Robot, q, *, out=None, validate=False):
+    def collides_configs_slack(self, robot: Robot, q, *, out=None, validate=False, rigid_target=None):
         """(hits (...,), slack (..., E) float32): :meth:`collides_configs` and each ellipsoid's FREE
-        SLACK as in :meth:`collides_robot_slack` (0 where nothing is proven; meaningful for the free
-        configurations)."""
+        SLACK (with ``rigid_target``: RIGID SLACK) as in :meth:`collides_robot_slack` (for free configurations)."""
         with _torch_stream(q):
-            return self._robot(robot, q, out, validate, full=False, slack=True, per_config=True)
+            return self._robot(robot, q, out, validate, full=False, slack=True, per_config=True, target=rigid_target)
 
-    def _robot(self, robot, q, out, validate, full: bool, subset=None, slack: bool = False, per_config: bool = False):
+    def _robot(self, robot, q, out, validate, full: bool, subset=None, slack: bool = False, per_config: bool = False, target=None):
         kind = array_kind(q)
-        sub = None
-        if subset is not None:
-            sub = [int(i) for i in np.asarray(subset).reshape(-1)]
-            if not sub or min(sub) < 0 or max(sub) >= robot.n_ellipsoids:
-                raise SplatplanError(f"ellipsoids must be a non-empty list of indices in 0..{robot.n_ellipsoids - 1}, got {subset}")
+        sub = None if subset is None else [int(i) for i in np.asarray(subset).reshape(-1)]
+        if sub is not None and (not sub or min(sub) < 0 or max(sub) >= robot.n_ellipsoids):
+            raise SplatplanError(f"ellipsoids must be a non-empty list of indices in 0..{robot.n_ellipsoids - 1}, got {subset}")
         e = int(robot.n_ellipsoids) if sub is None else len(sub)
         dof = int(robot.dof)
         if self.backend == "reference":
@@ -331,10 +330,10 @@ class CollisionChecker:
                 res = np.asarray(res).any(axis=-1)
             res = _convert_host(res, kind, _device_of(q, self.device))
             if slack:
-                return res, _from_host(np.zeros(np.shape(host_array(res)), dtype=np.float32), kind, _device_of(q, self.device))
+                return res, _from_host(np.zeros(np.shape(qn)[:-1] + (e,), dtype=np.float32), kind, _device_of(q, self.device))
             return res
         if per_config and sub is None and kind == "numpy" and out is not None and self.device == "cpu" and self._impl is not None:
-            fast = fast_collides_configs(self._impl, self.config, self._axes_for, robot, q, self._workspace(out, 1), slack)
+            fast = fast_collides_configs(self._impl, self.config, self._axes_for, robot, q, self._workspace(out, 1), slack, target)
             if fast is not None:
                 return fast
         from .._warp import wp as _wp
@@ -359,6 +358,7 @@ class CollisionChecker:
         b = int(np.prod(shape, dtype=np.int64)) if shape else 1
         oshape = shape + (e,)
         n = b * e
+        tgt = None if target is None or not slack else rigid_targets(target, oshape)  # (n,) float32
         if n == 0:
             if per_config:
                 hits = self._empty(kind, shape, bool)
@@ -371,7 +371,7 @@ class CollisionChecker:
         ws = self._workspace(out, n)
         ws.reserve_fk(n)
         if per_config and sub is None:  # whole buffers (the kernels read rows < n only): no per-call views
-            return self._configs(robot, qw, ws, b, n, e, shape, kind, validate, slack, out is not None)
+            return self._configs(robot, qw, ws, b, n, e, shape, kind, validate, slack, out is not None, tgt)
         centers, rots = ws.fk_centers[:n], ws.fk_rots[:n]
         if sub is None:  # robots of other types may take no subset (the duck-typed fk_wp of the docs)
             robot.fk_wp(qw, centers, rots)
@@ -385,7 +385,7 @@ class CollisionChecker:
             ws.reset_bad()
         if per_config:
             sl = (ws.reserve_slack(n) if out is not None else wp.empty(n, dtype=wp.float32, device=self.device)) if slack else None
-            self._kernels().collides_configs(links, b, robot_groups(robot), amin, amax, self.config, ws.in_collision, ws.bad, slack=sl)
+            self._kernels().collides_configs(links, b, robot_groups(robot), amin, amax, self.config, ws.in_collision, ws.bad, slack=fill_target(sl, tgt, n), rigid=tgt is not None)
             self._raise_bad(ws, kind, validate)
             hits = convert_out(ws.in_collision, b, shape, kind, False)
             return (hits, convert_out(sl, n, oshape, kind, False)) if slack else hits
@@ -393,7 +393,7 @@ class CollisionChecker:
             self._kernels().query(links, n, amin, amax, self.config, ws.outputs(), ws.scratch())
         else:
             sl = wp.empty(n, dtype=wp.float32, device=self.device) if slack else None
-            self._kernels().collides(links, n, amin, amax, self.config, ws.in_collision, ws.bad, ws.scratch(), robot_batch=True, slack=sl)
+            self._kernels().collides(links, n, amin, amax, self.config, ws.in_collision, ws.bad, ws.scratch(), robot_batch=True, slack=fill_target(sl, tgt, n), rigid=tgt is not None)
         self._raise_bad(ws, kind, validate)
         if full:
             return QueryResult(**{k: convert_out(getattr(ws, k), n, oshape, kind, False) for k in _FIELDS})
@@ -401,7 +401,7 @@ class CollisionChecker:
             return convert_out(ws.in_collision, n, oshape, kind, False), convert_out(sl, n, oshape, kind, False)
         return convert_out(ws.in_collision, n, oshape, kind, False)
 
-    def _configs(self, robot, qw, ws: MetricWorkspace, b: int, n: int, e: int, shape, kind: str, validate: bool, slack: bool, reuse: bool):
+    def _configs(self, robot, qw, ws: MetricWorkspace, b: int, n: int, e: int, shape, kind: str, validate: bool, slack: bool, reuse: bool, tgt=None):
         """:meth:`collides_configs` after the configuration checks: FK into the workspace, the
         per-configuration kernel, the outputs (the LinkBatch cached in the workspace)."""
         from .._warp import wp as _wp
@@ -423,7 +423,7 @@ class CollisionChecker:
         if kind != "numpy":
             ws.reset_bad()
         sl = (ws.reserve_slack(n) if reuse else wp.empty(n, dtype=wp.float32, device=self.device)) if slack else None
-        self._kernels().collides_configs(links, b, robot_groups(robot), amin, amax, self.config, ws.in_collision, ws.bad, slack=sl)
+        self._kernels().collides_configs(links, b, robot_groups(robot), amin, amax, self.config, ws.in_collision, ws.bad, slack=fill_target(sl, tgt, n), rigid=tgt is not None)
         self._raise_bad(ws, kind, validate)
         hits = convert_out(ws.in_collision, b, shape, kind, False)
         return (hits, convert_out(sl, n, shape + (e,), kind, False)) if slack else hits
@@ -596,3 +596,4 @@ def _device_q(q, kind: str, dof: int, device: str):
         raise SplatplanError(f"q as a wp.array must be contiguous float32 shaped (..., {dof})")
     n = int(np.prod(q.shape[:-1], dtype=np.int64)) if q.ndim > 1 else 1
     return q.reshape((n, dof))
+

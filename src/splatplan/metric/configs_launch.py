@@ -22,6 +22,7 @@ import numpy as np
 
 from .._warp import cpu_threads, split_chunks, wait_all
 from .._warp import wp as _wp
+from ..errors import SplatplanError
 from .groups import robot_groups
 
 if TYPE_CHECKING:
@@ -83,18 +84,20 @@ class ConfigsLauncher:
         links.rot_mode, links.rot_period, links.axes_period = 2, cap * e, e
         bad = wp.empty(1, dtype=wp.int32, device=dev)
         groups = robot_groups(robot)
-        # the kernel's inputs after the offset, without and with slack (they keep what they point at alive)
-        self._args = [impl.configs_args(links, groups, a_min, a_max, config, hits, bad, sl) for sl in (None, slack)]
+        # the kernel's inputs after the offset per slack kind (0 none, 1 FREE SLACK, 2 RIGID SLACK; they keep what they point at alive)
+        self._args = [impl.configs_args(links, groups, a_min, a_max, config, hits, bad, sl, rigid) for sl, rigid in ((None, False), (slack, False), (slack, True))]
         self._kernel = robot_collide_kernel
-        self.collide = [self._record(k) for k in (0, 1)]
-        self._chunk_cmds: list[list] = [[], []]  # per slack flag: recorded launches for the chunks of a split batch
+        self.collide: list = [None, None, None]  # per slack kind: the recorded launch (recorded on first use)
+        self._chunk_cmds: list[list] = [[], [], []]  # per slack kind: recorded launches for the chunks of a split batch
 
-    def run(self, q: np.ndarray, slack: bool):
+    def run(self, q: np.ndarray, slack: int, target: np.ndarray | None = None):
         """Check configurations ``q`` (B, dof) finite float, B <= capacity: hits (B,) bool and,
-        with ``slack``, the slack (B, E) float32, both views of this launcher's buffers (valid
-        until its next call)."""
+        with ``slack`` (1: the FREE SLACK, 2: the RIGID SLACK for ``target`` (B E,) float32), the
+        slack (B, E) float32, both views of this launcher's buffers (valid until its next call)."""
         b = int(q.shape[0])
         self.q_np[:b] = q
+        if slack == 2:
+            self.slack_np[: b * self.n_ell] = target  # (the kernel's input there)
         self.fk.set_dim(b)
         self.fk.launch()
         wm = self._wm
@@ -103,6 +106,8 @@ class ConfigsLauncher:
             self._run_split(b, int(slack), n_thr)
         else:
             cmd = self.collide[int(slack)]
+            if cmd is None:
+                cmd = self.collide[int(slack)] = self._record(int(slack))
             cmd.set_dim(b)
             cmd.launch()
         hits = self.hits_np[:b]
@@ -111,7 +116,7 @@ class ConfigsLauncher:
         return hits
 
     def _record(self, k: int):
-        """A recorded launch of the collision kernel over the buffers (k = 1: with slack), offset 0."""
+        """A recorded launch of the collision kernel over the buffers (k: the slack kind), offset 0."""
         return _wp().launch(self._kernel, dim=self.capacity, inputs=[0, *self._args[k]], device=self.impl.device, record_cmd=True)
 
     def _run_split(self, b: int, k: int, n_thr: int) -> None:
@@ -140,8 +145,8 @@ def launcher_key(robot: Robot, device) -> tuple:
     return (robot.semi_axes.tobytes(), id(fk_model(robot, device)))
 
 
-def fast_collides_configs(impl: WarpMetric, config, axes_for: Callable, robot: Any, q: Any, ws: MetricWorkspace, slack: bool):
-    """:meth:`CollisionChecker.collides_configs` (``slack``: ``collides_configs_slack``) of numpy
+def fast_collides_configs(impl: WarpMetric, config, axes_for: Callable, robot: Any, q: Any, ws: MetricWorkspace, slack: bool, target=None):
+    """:meth:`CollisionChecker.collides_configs` (``slack``: ``collides_configs_slack``, with its ``rigid_target``) of numpy
     configurations ``q`` (..., dof) through the launcher the workspace ``ws`` keeps for this robot
     (:func:`launcher_key`; the last :data:`MAX_LAUNCHERS` robots; CPU checkers; ``impl``, ``config``: the checker's kernels and MetricConfig; ``axes_for(robot)``: its
     cached device semi-axes), or None where this path does not apply: another robot type, an empty batch or one
@@ -166,7 +171,34 @@ def fast_collides_configs(impl: WarpMetric, config, axes_for: Callable, robot: A
             del cache[next(iter(cache))]
         cache[key] = hit
         ws.reallocations += 1
-    res = hit.run(a2, slack)
+    kind = 0 if not slack else (1 if target is None else 2)
+    res = hit.run(a2, kind, None if kind != 2 else rigid_targets(target, shape + (robot.n_ellipsoids,)))
     if slack:
         return res[0].reshape(shape), res[1].reshape(shape + (robot.n_ellipsoids,))
     return res.reshape(shape)
+
+
+def rigid_targets(target, shape: tuple) -> np.ndarray:
+    """A RIGID SLACK target (a scalar or an array broadcastable to ``shape`` = (..., E), scene units,
+    finite and >= 0) as a flat float32 array, or a :class:`SplatplanError` naming the problem."""
+    t = np.asarray(target, dtype=np.float64)
+    try:
+        t = np.broadcast_to(t, shape)
+    except ValueError:
+        raise SplatplanError(f"rigid_target must be a scalar or broadcast to {shape} (one value per ellipsoid), got shape {t.shape}") from None
+    if not np.all(np.isfinite(t)) or np.any(t < 0):
+        raise SplatplanError("rigid_target must be finite and >= 0 (scene units)")
+    return np.ascontiguousarray(t, dtype=np.float32).reshape(-1)
+
+
+def fill_target(sl, tgt: np.ndarray | None, n: int):
+    """Write the RIGID SLACK targets ``tgt`` (n,) into the kernel's slack buffer ``sl`` (its input
+    there); returns ``sl``."""
+    if sl is None or tgt is None:
+        return sl
+    wp = _wp()
+    if sl.device.is_cpu:
+        sl.numpy()[:n] = tgt
+    else:
+        wp.copy(sl, wp.array(tgt, dtype=wp.float32, device=sl.device), count=n)
+    return sl

@@ -403,37 +403,39 @@ class WarpMetric:
             wp.launch(metric_lanes_combine_kernel, dim=b, inputs=[lp, params, out], device=self.device)
 
     def collides(self, links: LinkBatch, b: int, a_min: float, a_max: float, cfg: MetricConfig, out_hit, bad, scratch=None, robot_batch: bool = False,
-                 slack=None) -> None:  # fmt: skip
+                 slack=None, rigid: bool = False) -> None:  # fmt: skip
         """in_collision of b queries into ``out_hit`` (bool device array of at least b rows);
         ``robot_batch``: the queries are the ellipsoids of robot configurations, in order (not sorted
         unless ``TierConfig.sort_robot_collides``; grids ``robot_collide_cell_scale`` times coarser);
         ``slack``: a float32 device array of at least b rows for each query's FREE SLACK
-        (:mod:`.wp_metric_kernel`; 0 everywhere without the mean-distance grid)."""
+        (:mod:`.wp_metric_kernel`; 0 everywhere without the mean-distance grid); ``rigid``: the RIGID
+        SLACK instead (near splats too)."""
         gs = self.gridset(cfg.n_sigma, 1.0, a_min, a_max, collide=robot_batch)
         if robot_batch and not self.tiers.sort_robot_collides:
             links.use_order = 0  # a robot batch (collides_robot): kept in configuration order
         else:
             self.sort_queries(links, b, *(scratch or self._scratch(b)))
         dgrid = self.mean_distance_grid()
-        slack_arr, want = (self.no_slack_array(), 0) if slack is None else (slack, 1)
+        slack_arr, want = self.slack_output(slack, rigid)
         params = metric_params(cfg, 0, self.tiers.collide_row_clip)
         self._launch(metric_collide_kernel, b, [links, gs.tiers, dgrid, params, out_hit, bad, slack_arr, want])
 
-    def collides_configs(self, links: LinkBatch, b: int, groups, a_min: float, a_max: float, cfg: MetricConfig, out_hit, bad, slack=None) -> None:
+    def collides_configs(self, links: LinkBatch, b: int, groups, a_min: float, a_max: float, cfg: MetricConfig, out_hit, bad, slack=None,
+                         rigid: bool = False) -> None:  # fmt: skip
         """Per-configuration collision of b configurations (``robot_collide_kernel``): ``links`` holds
         their B E ellipsoids configuration-major, ``groups`` the robot's :func:`~.checker.robot_groups`;
         ``out_hit`` (>= b rows) gets any-ellipsoid-collides, ``slack`` (>= b E rows, optional) each
-        ellipsoid's FREE SLACK. Grids as :meth:`collides` with ``robot_batch``."""
-        self.launch_configs(b, self.configs_args(links, groups, a_min, a_max, cfg, out_hit, bad, slack))
+        ellipsoid's FREE SLACK (``rigid``: the RIGID SLACK). Grids as :meth:`collides` with ``robot_batch``."""
+        self.launch_configs(b, self.configs_args(links, groups, a_min, a_max, cfg, out_hit, bad, slack, rigid))
 
-    def configs_args(self, links: LinkBatch, groups, a_min: float, a_max: float, cfg: MetricConfig, out_hit, bad, slack=None) -> list:
+    def configs_args(self, links: LinkBatch, groups, a_min: float, a_max: float, cfg: MetricConfig, out_hit, bad, slack=None, rigid: bool = False) -> list:
         """The inputs of ``robot_collide_kernel`` after its launch offset, for :meth:`collides_configs`
         (arguments as there; grids, groups and parameters cached). The list holds every array the
         kernel reads: a launch recorded with it stays valid while the list is kept."""
         gs = self.gridset(cfg.n_sigma, 1.0, a_min, a_max, collide=True)
         links.use_order = 0
         rg = self.robot_groups(groups, gs, cfg.n_sigma)
-        slack_arr, want = (self.no_slack_array(), 0) if slack is None else (slack, 1)
+        slack_arr, want = self.slack_output(slack, rigid)
         pk = (cfg.n_sigma, cfg.s2_cap, cfg.softmin_t, cfg.softmin_mode, cfg.cost_d_max, cfg.cost_gamma, cfg.cost_s_min, cfg.cost_reduce,
               cfg.k_collide, cfg.opacity_min, cfg.opacity_scaled_inflation, cfg.linearize, self.tiers.collide_row_clip)  # every field metric_params reads
         params = self._params_cache.get(pk)
@@ -449,6 +451,13 @@ class WarpMetric:
         # a thread is a whole configuration (tens of ellipsoids): split smaller batches than per-ellipsoid ones
         launch_split(robot_collide_kernel, b, [0, *args], self.device, pool, min_split=CONFIG_MIN_SPLIT, min_step=CONFIG_MIN_STEP,
                      chunks_per_thread=CHUNKS_PER_THREAD)  # fmt: skip
+
+    def slack_output(self, slack, rigid: bool) -> tuple:
+        """The collide kernels' (slack array, want_slack): (placeholder, 0) without ``slack``, else
+        (slack, 1) for the FREE SLACK or (slack, 2) for the RIGID SLACK (:mod:`.wp_metric_kernel`)."""
+        if slack is None:
+            return self.no_slack_array(), 0
+        return slack, 2 if rigid else 1
 
     def no_slack_array(self):
         """The (1,) placeholder of the collide kernels' slack output when no slack is asked for."""

@@ -84,8 +84,24 @@ FREE SLACK (collision-only kernel, ``want_slack``). A link that exits on the mea
 gets ``slack = (d_lb - rho) * DIST_SHRINK``, rho its largest tier radius: every mean is farther than
 rho from every point within ``slack`` of the centre, so the same link (same semi-axes, any
 orientation) with its centre anywhere within ``slack`` of this one's is free too, and the kernel
-would read no splat for it. Other links get 0 (nothing proven). Robot edge checks use it to skip
-check samples that are proven free (:class:`~splatplan.planners.rrt.EdgeChecker`).
+would read no splat for it. Other links get 0 (nothing proven).
+
+RIGID SLACK (``want_slack`` 2; the slack array holds each query's *target* on input). A weaker
+promise that near-surface links can get too: the same link moved rigidly so that no point of it
+moves farther than the slack stays free. With k = n_sigma sigma_top / a_min and
+s* = k + sqrt(k^2 + 1), every splat whose mean has scaling distance s >= s* has s2~ >= 1 (the radius
+bound above: s2~ >= s^2 - 2 k s). The map x -> diag(1/a) R^T (x - c) is 1/a_min-Lipschitz, so a mean
+at scaling distance s lies at least a_min (s - s*) from the scaled link s* E; a rigid motion moving
+no point of E farther than delta moves no point of s* E farther than s* delta (each point's bound
+is |v| + |w| r, and s* E reaches s* times as far from the centre, s* >= 1). Hence the link stays free
+while delta < a_min (s_min - s*) / s*, s_min over the means that count (opacity options as in the
+test). A link whose mean-distance slack above is below its target is scanned with the cap
+(s* (1 + lam))^2, lam = min(target / a_min, RIGID_SLACK_MAX): every mean with s below that root is
+read (s2~ <= s2 and the scan never misses an s2~ below its cap), the collision test itself uses the
+cap-1 cut, and the slack is the larger of the two. The per-configuration kernel scans a group-bound
+member the same way when its group slack falls short of its target. Robot edge checks use the
+rigid slack to skip check samples that are proven free (:class:`~splatplan.planners.edges.EdgeChecker`),
+with a point-motion bound per ellipsoid.
 
 LINEARISATION (``MetricParams.lin_distance``). With g = |diag(s) R^T A d| (so the paper's
 sigma = 2 g), the paper linearises s2 at the splat mean: s2~ = max(0, s2 - 2 n g). The default
@@ -139,6 +155,9 @@ ROW_Q_SHRINK = wp.constant(0.98)
 #: The mean-distance bound outside the grid (distance to the means' box) is shrunk by this against
 #: float32 rounding (the per-voxel bounds carry their own margin, see :mod:`.wp_metric`).
 DIST_SHRINK = wp.constant(0.999)
+#: RIGID SLACK (``want_slack`` 2): a link near splats is scanned out to the scaling distance
+#: s* (1 + min(target / a_min, RIGID_SLACK_MAX)): its rigid slack reaches at most RIGID_SLACK_MAX a_min.
+RIGID_SLACK_MAX = wp.constant(1.0)
 #: Rows holding at most this many splats are scanned whole (clipping costs more than it saves).
 ROW_CLIP_MIN = wp.constant(8)
 
@@ -709,12 +728,23 @@ def metric_lanes_combine_kernel(lp: LanePartials, p: MetricParams, out: MetricOu
 
 
 @wp.func
-def link_collides(links: LinkBatch, q: int, splats: SplatTiers, dgrid: MeanDistanceGrid, p: MetricParams):
+def plain_s2(d: wp.vec3, dd: float, link_a: wp.mat33, sphere: bool, inv_r2: float):
+    """s2 = d^T A d, the squared scaling distance of a splat mean at offset d (no inflation)."""
+    if sphere:
+        return dd * inv_r2
+    return wp.dot(d, link_a * d)
+
+
+@wp.func
+def link_collides(links: LinkBatch, q: int, splats: SplatTiers, dgrid: MeanDistanceGrid, p: MetricParams, slack_mode: int, target: float):
     """The collision-only test of query ellipsoid q: (in collision, FREE SLACK, valid).
 
     Radius for cap = 1, stops at the (k+1)-th colliding splat; a tier whose search radius is below
     the mean-distance bound at the centre is skipped (no splat of it is within the radius: the
-    outputs are unchanged). An invalid query reads (True, 0, False)."""
+    outputs are unchanged). ``slack_mode`` 2 (RIGID SLACK): a link whose mean-distance slack is
+    below ``target`` is scanned out to the scaling distance s* (1 + min(target / a_min,
+    RIGID_SLACK_MAX)) and gets the rigid slack of its closest mean. An invalid query reads
+    (True, 0, False)."""
     c = links.centers[q]
     ax = links.axes[q % links.axes_period]
     if not link_valid(links, q, c, ax):
@@ -722,13 +752,25 @@ def link_collides(links: LinkBatch, q: int, splats: SplatTiers, dgrid: MeanDista
     a_min = wp.min(ax)
     a_max = wp.max(ax)
     d_lb = mean_distance_lb(dgrid, c)
+    s_top = float(0.0)
+    for j in range(splats.n_tiers):
+        s_top = wp.max(s_top, splats.sigma[j])
+    far_slack = float(0.0)
     if dgrid.use != 0:
-        s_top = float(0.0)
-        for j in range(splats.n_tiers):
-            s_top = wp.max(s_top, splats.sigma[j])
         rho_top = search_radius(p.n_sigma, s_top, a_min, a_max, 1.0)
         if d_lb > rho_top:
-            return False, (d_lb - rho_top) * DIST_SHRINK, True  # beyond every tier's radius: no splat is read
+            far_slack = (d_lb - rho_top) * DIST_SHRINK
+            if slack_mode != 2 or far_slack >= target:
+                return False, far_slack, True  # beyond every tier's radius: no splat is read
+    # RIGID SLACK: scan out to s_scan = s* (1 + lam) (every mean with s < s_scan is read)
+    k_top = p.n_sigma * s_top / a_min
+    s_star = k_top + wp.sqrt(k_top * k_top + 1.0)
+    cap = float(1.0)
+    scan = slack_mode == 2 and target > 0.0
+    if scan:
+        lam = wp.min(target / a_min, RIGID_SLACK_MAX)
+        cap = s_star * s_star * (1.0 + lam) * (1.0 + lam)
+    min_s2 = cap
     rot = link_rotation(links, q)
     a = link_matrix(rot, ax)
     ncol = int(0)
@@ -740,11 +782,13 @@ def link_collides(links: LinkBatch, q: int, splats: SplatTiers, dgrid: MeanDista
     for j in range(splats.n_tiers):
         if ncol > k_collide:
             break
-        rho = search_radius(p.n_sigma, splats.sigma[j], a_min, a_max, 1.0)
+        rho = search_radius(p.n_sigma, splats.sigma[j], a_min, a_max, cap)
         if d_lb > rho:
             continue  # every mean is farther than the radius (MEAN DISTANCE GRID)
         rho2 = rho * rho
         s2_cut = rho2 / (a_max * a_max)
+        rho_1 = search_radius(p.n_sigma, splats.sigma[j], a_min, a_max, 1.0)
+        s2_cut1 = rho_1 * rho_1 / (a_max * a_max)  # (the collision test's cut; = s2_cut unless scanning for slack)
         inv_w = splats.inv_w[j]
         dim = splats.dims[j]
         cb = splats.cell_base[j]
@@ -754,7 +798,7 @@ def link_collides(links: LinkBatch, q: int, splats: SplatTiers, dgrid: MeanDista
         r_y = rho
         r_z = rho
         if not sphere:  # the ball and the link box (module docstring); a sphere's box is never smaller
-            h = link_box(ax, p.n_sigma * splats.sigma[j], 1.0)
+            h = link_box(ax, p.n_sigma * splats.sigma[j], cap)
             r_x = wp.min(rho, box_reach(rot, h, 0))
             r_y = wp.min(rho, box_reach(rot, h, 1))
             r_z = wp.min(rho, box_reach(rot, h, 2))
@@ -791,9 +835,20 @@ def link_collides(links: LinkBatch, q: int, splats: SplatTiers, dgrid: MeanDista
                         if dd <= rho2:
                             ns = splat_inflation(splats, p, i)
                             if ns >= 0.0:
-                                if link_s2(d, dd, a, sphere, inv_r2, splats.mrows, i, ns, s2_cut, p.lin_distance) < 1.0:
-                                    ncol += 1
-    return ncol > k_collide, float(0.0), True
+                                test = True
+                                if scan:
+                                    s2p = plain_s2(d, dd, a, sphere, inv_r2)
+                                    min_s2 = wp.min(min_s2, s2p)
+                                    test = s2p <= s2_cut1  # (else s2~ >= 1 by the radius bound)
+                                if test:
+                                    if link_s2(d, dd, a, sphere, inv_r2, splats.mrows, i, ns, s2_cut1, p.lin_distance) < 1.0:
+                                        ncol += 1
+    if ncol > k_collide:
+        return True, float(0.0), True
+    sl = far_slack
+    if scan:
+        sl = wp.max(sl, a_min * (wp.sqrt(wp.max(min_s2, 0.0)) - s_star) / s_star * DIST_SHRINK)
+    return False, sl, True
 
 
 @wp.kernel
@@ -805,14 +860,17 @@ def metric_collide_kernel(
     p: MetricParams,  # p.cap is ignored: the radius is the one for cap = 1
     out_hit: wp.array(dtype=wp.bool),  # (B,) True in collision (or invalid)
     bad: wp.array(dtype=wp.int32),  # (1,)
-    slack: wp.array(dtype=wp.float32),  # (B,) written when want_slack: FREE SLACK (module docstring), else (1,) unused
+    slack: wp.array(dtype=wp.float32),  # (B,) written when want_slack: FREE SLACK (module docstring); want_slack 2: in: the target, out: the RIGID SLACK; else (1,) unused
     want_slack: int,
 ):
     """Collision-only variant (:func:`link_collides`), one thread per query ellipsoid."""
     q = wp.tid() + offset
     if links.use_order != 0:
         q = links.order[q]
-    hit, sl, ok = link_collides(links, q, splats, dgrid, p)
+    target = float(0.0)
+    if want_slack == 2:
+        target = slack[q]
+    hit, sl, ok = link_collides(links, q, splats, dgrid, p, want_slack, target)
     out_hit[q] = hit
     if want_slack != 0:
         slack[q] = sl
@@ -843,7 +901,7 @@ def robot_collide_kernel(
     groups: RobotGroups,
     out_hit: wp.array(dtype=wp.bool),  # (B,) True: some ellipsoid of the configuration collides (or is invalid)
     bad: wp.array(dtype=wp.int32),  # (1,) smallest invalid configuration
-    slack: wp.array(dtype=wp.float32),  # (B E,) when want_slack: FREE SLACK per ellipsoid (0 where unknown), else (1,)
+    slack: wp.array(dtype=wp.float32),  # (B E,) when want_slack: FREE SLACK per ellipsoid (0 where unknown); want_slack 2: in the target, out the RIGID SLACK; else (1,)
     want_slack: int,
 ):
     """One thread per configuration: group by group, a group whose centroid is farther from every
@@ -851,7 +909,7 @@ def robot_collide_kernel(
     first colliding ellipsoid ends the configuration (GROUP BOUND in the module docstring)."""
     b = wp.tid() + offset
     base = b * groups.n_ellipsoids
-    if want_slack != 0:
+    if want_slack == 1:
         for e in range(groups.n_ellipsoids):
             slack[base + e] = 0.0
     hit = bool(False)
@@ -868,11 +926,22 @@ def robot_collide_kernel(
             if d > groups.radius[g] + 1.0e-5 * wp.length(cg):  # (a NaN centre fails this test and is caught below)
                 if want_slack != 0:  # each member's own reach (<= R_g): its slack is at least the group's
                     for k in range(k0, k1):
-                        slack[base + groups.members[k]] = (d - groups.reach[k] - 1.0e-5 * wp.length(cg)) * DIST_SHRINK
+                        q = base + groups.members[k]
+                        sl = (d - groups.reach[k] - 1.0e-5 * wp.length(cg)) * DIST_SHRINK
+                        if want_slack == 2:  # RIGID SLACK: a member with less than its target is scanned for more
+                            target = slack[q]
+                            if sl < target:
+                                h, sl2, ok = link_collides(links, q, splats, dgrid, p, want_slack, target)
+                                if not h:  # (proven free by the group bound: h is False)
+                                    sl = wp.max(sl, sl2)
+                        slack[q] = sl
                 continue
         for k in range(k0, k1):
             q = base + groups.members[k]
-            h, sl, ok = link_collides(links, q, splats, dgrid, p)
+            target = float(0.0)
+            if want_slack == 2:
+                target = slack[q]
+            h, sl, ok = link_collides(links, q, splats, dgrid, p, want_slack, target)
             if want_slack != 0:
                 slack[q] = sl
             if not ok:
@@ -882,6 +951,9 @@ def robot_collide_kernel(
                 break
         if hit:
             break
+    if hit and want_slack == 2:  # (the targets of the members not reached)
+        for e in range(groups.n_ellipsoids):
+            slack[base + e] = 0.0
     out_hit[b] = hit
 
 

@@ -88,19 +88,26 @@ class EdgeChecker:
         stages: batched calls per check, coarse to fine (1 = every sample in one call).
         slack: skip samples proven free (below; robots on a Warp checker; not with ``inflate``).
 
-    **Free slack (``slack``).** With the checker's mean-distance grid, an ellipsoid far from every
-    splat mean comes back with a slack: its centre may move that far, its orientation anyhow, with
-    it staying free (:meth:`CollisionChecker.collides_robot`). At a checked free configuration,
+    **Free slack (``slack``).** Each checked ellipsoid comes back with the checker's RIGID SLACK
+    (:meth:`CollisionChecker.collides_configs_slack`): a rigid motion that moves none of its points
+    farther keeps it free. Far from every splat it comes from the mean-distance grid at no cost;
+    near splats, a check asks for the slack that would prove the samples up to the next check of
+    its stage (:attr:`SLACK_TARGET_STEPS`), and links short of it read the splats that far around
+    them for the clearance of their closest mean. At a checked free configuration,
     each ellipsoid's slack divided by the bound on its displacement from one sample to the next
     (its own motion bound, :meth:`Robot.ellipsoid_motion_bounds`, over the edge, divided by n)
     is how many samples on either side it stays free (all of them for an ellipsoid that the
     edge does not move, such as a fixed base); the smallest over the ellipsoids is how many
     samples are free as well: they are not checked. The answers are those of checking them (the
-    checker would call each of them free), with fewer checks in free space.
+    checker would call each of them free), with fewer checks, near surfaces too.
     """
 
     #: stride ratio between consecutive stages of the coarse-to-fine check
     STAGE_FACTOR = 4
+    #: the free slack a check asks for, in samples of its edge (half the stride of its stage, at
+    #: most this): a link whose slack from the mean-distance grid falls short reads the splats
+    #: around it that far (the checker's RIGID SLACK); more reads more splats per check
+    SLACK_TARGET_STEPS = 4.0
 
     def __init__(self, checker: CollisionChecker, geometry: LinkGeometry, resolution: float, inflate: bool = False, stages: int = 1, slack: bool = False) -> None:
         self.checker = checker
@@ -178,8 +185,9 @@ class EdgeChecker:
             s = np.nonzero(sel)[0]
             if s.size == 0:
                 continue
-            if use_slack:
-                hit, slack = self.geometry.collides_slack(self.checker, pts[s])  # (S,), (S, E)
+            if use_slack:  # target: the slack that proves the samples up to the next check of this stride (at most SLACK_TARGET_STEPS)
+                want = min(0.5 * stride, self.SLACK_TARGET_STEPS) if stride > 1 else 0.0
+                hit, slack = self.geometry.collides_slack(self.checker, pts[s], step[idx[s]] * want)  # (S,), (S, E)
                 _prove_free(todo, s, hit, slack, step[idx[s]], first[idx[s]], last[s])
             else:
                 hit = self.configs_collide(pts[s]) if margin is None else self.configs_collide(pts[s], margin[s])  # (S,)

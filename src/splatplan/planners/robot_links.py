@@ -71,11 +71,12 @@ def configs_collide(checker: CollisionChecker, robot: Robot, q: np.ndarray, out=
     return np.array(checker.collides_configs(robot, q, out=out))
 
 
-def configs_collide_slack(checker: CollisionChecker, robot: Robot, q: np.ndarray, out=None) -> tuple[np.ndarray, np.ndarray]:
+def configs_collide_slack(checker: CollisionChecker, robot: Robot, q: np.ndarray, out=None, rigid_target=None) -> tuple[np.ndarray, np.ndarray]:
     """(..., dof) -> (any ellipsoid in collision (...,) bool, slack (..., E) float): as
     :func:`robot_collides_slack`, per configuration (the checker's per-configuration kernel; its
-    slack may differ from the per-ellipsoid one's but holds the same promise)."""
-    hit, slack = checker.collides_configs_slack(robot, q, out=out)
+    slack may differ from the per-ellipsoid one's but holds the same promise); ``rigid_target``:
+    the checker's RIGID SLACK (:meth:`CollisionChecker.collides_configs_slack`)."""
+    hit, slack = checker.collides_configs_slack(robot, q, out=out, rigid_target=rigid_target)
     return np.array(hit), np.array(slack)
 
 
@@ -200,11 +201,13 @@ class LinkGeometry:
         self.n_configs += hit.size // max(hit.shape[-1], 1) if hit.ndim else 1
         return np.any(hit, axis=-1)
 
-    def collides_slack(self, checker: CollisionChecker, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def collides_slack(self, checker: CollisionChecker, q: np.ndarray, target: np.ndarray | float = 0.0) -> tuple[np.ndarray, np.ndarray]:
         """(..., D) -> (any ellipsoid in collision (...,) bool, slack (..., E) float): each
-        ellipsoid's FREE SLACK (see :func:`robot_collides_slack`): the ellipsoid is free wherever
-        its centre lies within that distance of this one's."""
-        hit, slack = configs_collide_slack(checker, self.robot, np.asarray(q, dtype=np.float64), out=self._workspace(checker))  # (...,), (..., E)
+        ellipsoid's RIGID SLACK (:meth:`CollisionChecker.collides_configs_slack`) for ``target``
+        (scalar or (..., E)): the ellipsoid is free wherever a rigid motion moves none of its
+        points farther than that (a bound on every ellipsoid point's motion along an edge,
+        :meth:`Robot.ellipsoid_motion_bounds`, keeps it)."""
+        hit, slack = configs_collide_slack(checker, self.robot, np.asarray(q, dtype=np.float64), out=self._workspace(checker), rigid_target=target)  # (...,), (..., E)
         self.n_queries += slack.size
         self.n_configs += hit.size
         return hit, slack
