@@ -292,3 +292,20 @@ def test_rigid_slack_holds_near_surfaces(device, n_sigma, opacity):
     pick = np.concatenate([np.nonzero(is_near)[0], rng.permutation(np.nonzero(~is_near)[0])[:1500]])  # every near link
     got = np.asarray(ref.collides(c_new[pick], _mat_to_quat(r_new[pick]), a[pick]))
     assert not got.any()
+
+
+def test_rigid_target_bad_input_is_named():
+    from splatplan.errors import SplatplanError
+    from splatplan.robots import load_robot
+
+    rng = np.random.default_rng(0)
+    ch = CollisionChecker(_wall_scene(rng, 500, False), device="cpu")
+    robot = load_robot("panda")
+    q = np.tile(robot.q_default, (4, 1))
+    for bad, words in ((np.nan, "finite"), (-0.01, ">= 0"), (np.zeros((4, 3)), "broadcast")):
+        for ws in (None, ch.workspace()):
+            with pytest.raises(SplatplanError, match="rigid_target") as e:
+                ch.collides_configs_slack(robot, q, out=ws, rigid_target=bad)
+            assert words in str(e.value)
+    h, s = ch.collides_configs_slack(robot, q, rigid_target=0.01)  # a scalar broadcasts
+    assert np.asarray(s).shape == (4, robot.n_ellipsoids)

@@ -46,6 +46,15 @@ def test_same_hits_and_slack_as_the_general_path(n_sigma):
         np.testing.assert_array_equal(np.asarray(h), want_h[lo:hi])
         np.testing.assert_array_equal(np.asarray(s), want_s[lo:hi])
     assert "configs_launcher" in ws._cache
+    # the RIGID SLACK (per-ellipsoid targets: the launcher's slack buffer is their input) as the general path's
+    target = np.random.default_rng(1).uniform(0.0, 0.04, (len(q), robot.n_ellipsoids))
+    want_rh, want_rs = (np.asarray(a) for a in ch.collides_configs_slack(robot, q, rigid_target=target))
+    np.testing.assert_array_equal(want_rh, want_h)
+    assert (want_rs > want_s).any()
+    for lo, hi in [(0, 9), (9, 300), (300, 600)]:
+        h, s = ch.collides_configs_slack(robot, q[lo:hi], out=ws, rigid_target=target[lo:hi])
+        np.testing.assert_array_equal(np.asarray(h), want_h[lo:hi])
+        np.testing.assert_array_equal(np.asarray(s), want_rs[lo:hi])
     ref = CollisionChecker(scene, config=MetricConfig(n_sigma=n_sigma), backend="reference")
     np.testing.assert_array_equal(np.asarray(ref.collides_configs(robot, q[::12])), want[::12])
 

@@ -30,8 +30,9 @@ if TYPE_CHECKING:
     from .interop import MetricWorkspace
     from .wp_metric import WarpMetric
 
-#: smallest capacity (configurations) of a launcher's buffers
-MIN_CAPACITY = 64
+#: smallest capacity (configurations) of a launcher's buffers (~0.6 MB for the Panda: a planner's batches rarely
+#: outgrow it, so a plan records its launches once)
+MIN_CAPACITY = 256
 #: launchers a workspace keeps, one per robot model (a planner alternates between a robot grown by a
 #: margin, its own model and a tighter model for endpoint checks: each keeps its recorded launches)
 MAX_LAUNCHERS = 4
