@@ -99,7 +99,9 @@ test). A link whose mean-distance slack above is below its target is scanned wit
 (s* (1 + lam))^2, lam = min(target / a_min, RIGID_SLACK_MAX): every mean with s below that root is
 read (s2~ <= s2 and the scan never misses an s2~ below its cap), the collision test itself uses the
 cap-1 cut, and the slack is the larger of the two. The per-configuration kernel scans a group-bound
-member the same way when its group slack falls short of its target. Robot edge checks use the
+member the same way when its group slack falls short of its target; it also keeps the smallest
+slack / target ratio of the links done so far and asks later links for only that share of their
+targets (a planner proves samples with the smallest ratio: a larger one reads splats for nothing). Robot edge checks use the
 rigid slack to skip check samples that are proven free (:class:`~splatplan.planners.edges.EdgeChecker`),
 with a point-motion bound per ellipsoid.
 
@@ -913,6 +915,7 @@ def robot_collide_kernel(
         for e in range(groups.n_ellipsoids):
             slack[base + e] = 0.0
     hit = bool(False)
+    ratio = float(1.0)  # RIGID SLACK: the smallest slack / target so far (no later link needs more than that share of its target)
     for g in range(groups.n_groups):
         k0 = groups.first[g]
         k1 = groups.first[g + 1]
@@ -930,10 +933,12 @@ def robot_collide_kernel(
                         sl = (d - groups.reach[k] - 1.0e-5 * wp.length(cg)) * DIST_SHRINK
                         if want_slack == 2:  # RIGID SLACK: a member with less than its target is scanned for more
                             target = slack[q]
-                            if sl < target:
-                                h, sl2, ok = link_collides(links, q, splats, dgrid, p, want_slack, target)
+                            if sl < target * ratio:
+                                h, sl2, ok = link_collides(links, q, splats, dgrid, p, want_slack, target * ratio)
                                 if not h:  # (proven free by the group bound: h is False)
                                     sl = wp.max(sl, sl2)
+                            if target > 0.0:
+                                ratio = wp.min(ratio, sl / target)
                         slack[q] = sl
                 continue
         for k in range(k0, k1):
@@ -941,7 +946,9 @@ def robot_collide_kernel(
             target = float(0.0)
             if want_slack == 2:
                 target = slack[q]
-            h, sl, ok = link_collides(links, q, splats, dgrid, p, want_slack, target)
+            h, sl, ok = link_collides(links, q, splats, dgrid, p, want_slack, target * ratio)
+            if want_slack == 2 and target > 0.0:
+                ratio = wp.min(ratio, sl / target)
             if want_slack != 0:
                 slack[q] = sl
             if not ok:
