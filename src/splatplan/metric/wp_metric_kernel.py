@@ -88,17 +88,18 @@ would read no splat for it. Other links get 0 (nothing proven).
 
 RIGID SLACK (``want_slack`` 2; the slack array holds each query's *target* on input). A weaker
 promise that near-surface links can get too: the same link moved rigidly so that no point of it
-moves farther than the slack stays free. With k = n_sigma sigma_top / a_min and
+moves farther than the slack stays free. Per tier j, with k = n_sigma sigma_j / a_min and
 s* = k + sqrt(k^2 + 1), every splat whose mean has scaling distance s >= s* has s2~ >= 1 (the radius
 bound above: s2~ >= s^2 - 2 k s). The map x -> diag(1/a) R^T (x - c) is 1/a_min-Lipschitz, so a mean
 at scaling distance s lies at least a_min (s - s*) from the scaled link s* E; a rigid motion moving
 no point of E farther than delta moves no point of s* E farther than s* delta (each point's bound
 is |v| + |w| r, and s* E reaches s* times as far from the centre, s* >= 1). Hence the link stays free
-while delta < a_min (s_min - s*) / s*, s_min over the means that count (opacity options as in the
-test). A link whose mean-distance slack above is below its target is scanned with the cap
-(s* (1 + lam))^2, lam = min(target / a_min, RIGID_SLACK_MAX): every mean with s below that root is
-read (s2~ <= s2 and the scan never misses an s2~ below its cap), the collision test itself uses the
-cap-1 cut, and the slack is the larger of the two. The per-configuration kernel scans a group-bound
+while delta < a_min (s_min - s*) / s*, s_min over the tier's means that count (opacity options as
+in the test); the link's rigid slack is the smallest over the tiers. A link whose mean-distance slack
+above is below its target scans each tier with the cap (s* (1 + lam))^2, lam = min(target / a_min,
+RIGID_SLACK_MAX): every mean with s below that root is read (s2~ <= s2 and the scan never misses an
+s2~ below its cap; a tier skipped by the mean-distance grid has none), the collision test itself
+uses the cap-1 cut, and the slack is the larger of the two. The per-configuration kernel scans a group-bound
 member the same way when its group slack falls short of its target; it also keeps the smallest
 slack / target ratio of the links done so far and asks later links for only that share of their
 targets (a planner proves samples with the smallest ratio: a larger one reads splats for nothing). Robot edge checks use the
@@ -764,15 +765,12 @@ def link_collides(links: LinkBatch, q: int, splats: SplatTiers, dgrid: MeanDista
             far_slack = (d_lb - rho_top) * DIST_SHRINK
             if slack_mode != 2 or far_slack >= target:
                 return False, far_slack, True  # beyond every tier's radius: no splat is read
-    # RIGID SLACK: scan out to s_scan = s* (1 + lam) (every mean with s < s_scan is read)
-    k_top = p.n_sigma * s_top / a_min
-    s_star = k_top + wp.sqrt(k_top * k_top + 1.0)
-    cap = float(1.0)
+    # RIGID SLACK: tier j is scanned out to s*_j (1 + lam) (every mean with s below it is read)
     scan = slack_mode == 2 and target > 0.0
+    lam = float(0.0)
     if scan:
         lam = wp.min(target / a_min, RIGID_SLACK_MAX)
-        cap = s_star * s_star * (1.0 + lam) * (1.0 + lam)
-    min_s2 = cap
+    near_slack = lam * a_min  # (what a tier with no mean that close leaves)
     rot = link_rotation(links, q)
     a = link_matrix(rot, ax)
     ncol = int(0)
@@ -784,6 +782,12 @@ def link_collides(links: LinkBatch, q: int, splats: SplatTiers, dgrid: MeanDista
     for j in range(splats.n_tiers):
         if ncol > k_collide:
             break
+        k_j = p.n_sigma * splats.sigma[j] / a_min
+        s_star = k_j + wp.sqrt(k_j * k_j + 1.0)  # s >= s*_j: s2~ >= 1 for this tier's splats
+        cap = float(1.0)
+        if scan:
+            cap = s_star * s_star * (1.0 + lam) * (1.0 + lam)
+        min_s2 = cap
         rho = search_radius(p.n_sigma, splats.sigma[j], a_min, a_max, cap)
         if d_lb > rho:
             continue  # every mean is farther than the radius (MEAN DISTANCE GRID)
@@ -845,11 +849,13 @@ def link_collides(links: LinkBatch, q: int, splats: SplatTiers, dgrid: MeanDista
                                 if test:
                                     if link_s2(d, dd, a, sphere, inv_r2, splats.mrows, i, ns, s2_cut1, p.lin_distance) < 1.0:
                                         ncol += 1
+        if scan:
+            near_slack = wp.min(near_slack, a_min * (wp.sqrt(wp.max(min_s2, 0.0)) - s_star) / s_star)
     if ncol > k_collide:
         return True, float(0.0), True
     sl = far_slack
     if scan:
-        sl = wp.max(sl, a_min * (wp.sqrt(wp.max(min_s2, 0.0)) - s_star) / s_star * DIST_SHRINK)
+        sl = wp.max(sl, wp.max(near_slack, 0.0) * DIST_SHRINK)
     return False, sl, True
 
 
