@@ -69,9 +69,9 @@ class RRTConfig:
     #: batched calls per edge check, coarse to fine (samples at every 4^(s-1)-th, ..., 4th, every
     #: index); checks stop at an edge's first hit; 1 = every sample in one call (same answers)
     edge_stages: int = bounded(4, ge=1, le=8)
-    #: skip edge check samples that a checked neighbour proves free (the checker's free slack: a
-    #: configuration far from every splat stays free while no ellipsoid centre moves more than its
-    #: distance to the splats minus the link's reach); the same answers with fewer checks
+    #: skip edge check samples that a checked neighbour proves free (the checker's rigid slack: a
+    #: configuration stays free while no point of an ellipsoid moves farther than that ellipsoid's
+    #: clearance, read near surfaces too); the same answers with fewer checks
     edge_slack: bool = True
     #: RRT-Connect: lazy search: check only the new nodes while the trees grow and the edges of a
     #: candidate path once the trees meet (removing what collides); the returned path is checked at
