@@ -596,4 +596,3 @@ def _device_q(q, kind: str, dof: int, device: str):
         raise SplatplanError(f"q as a wp.array must be contiguous float32 shaped (..., {dof})")
     n = int(np.prod(q.shape[:-1], dtype=np.int64)) if q.ndim > 1 else 1
     return q.reshape((n, dof))
-

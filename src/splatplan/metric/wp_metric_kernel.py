@@ -755,11 +755,11 @@ def link_collides(links: LinkBatch, q: int, splats: SplatTiers, dgrid: MeanDista
     a_min = wp.min(ax)
     a_max = wp.max(ax)
     d_lb = mean_distance_lb(dgrid, c)
-    s_top = float(0.0)
-    for j in range(splats.n_tiers):
-        s_top = wp.max(s_top, splats.sigma[j])
     far_slack = float(0.0)
     if dgrid.use != 0:
+        s_top = float(0.0)
+        for j in range(splats.n_tiers):
+            s_top = wp.max(s_top, splats.sigma[j])
         rho_top = search_radius(p.n_sigma, s_top, a_min, a_max, 1.0)
         if d_lb > rho_top:
             far_slack = (d_lb - rho_top) * DIST_SHRINK
@@ -793,8 +793,10 @@ def link_collides(links: LinkBatch, q: int, splats: SplatTiers, dgrid: MeanDista
             continue  # every mean is farther than the radius (MEAN DISTANCE GRID)
         rho2 = rho * rho
         s2_cut = rho2 / (a_max * a_max)
-        rho_1 = search_radius(p.n_sigma, splats.sigma[j], a_min, a_max, 1.0)
-        s2_cut1 = rho_1 * rho_1 / (a_max * a_max)  # (the collision test's cut; = s2_cut unless scanning for slack)
+        s2_cut1 = s2_cut  # the collision test's cut (cap 1)
+        if scan:
+            rho_1 = search_radius(p.n_sigma, splats.sigma[j], a_min, a_max, 1.0)
+            s2_cut1 = rho_1 * rho_1 / (a_max * a_max)
         inv_w = splats.inv_w[j]
         dim = splats.dims[j]
         cb = splats.cell_base[j]
