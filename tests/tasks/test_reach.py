@@ -89,7 +89,11 @@ def test_tiny_reach_run(setup):
     assert res.trajectory.shape == (cfg.mppi.horizon + 1, 7)
     extra_starts = (cfg.plan_starts - 1) * min(cfg.plan_start_iters, cfg.plan_iters - 1) + cfg.plan_starts * cfg.plan_start_refine  # multi-start initial plan
     refinements = cfg.refine_plan_iters + (cfg.mppi.horizon - 1) * cfg.refine_iters  # goal-state refinement
-    assert res.iterations == cfg.plan_iters + extra_starts + refinements + (cfg.mppi.horizon - 1) * cfg.iters_per_step
+    # the goal search: a second initial plan (here all but its last iteration are its starts'), the route's iterations when it routed
+    search = min(cfg.plan_start_iters, cfg.plan_iters - 1) + extra_starts + cfg.refine_plan_iters + (cfg.route_iters if res.extra["route"] == "routed" else 0)
+    assert res.extra["route"] in ("not asked", "searched plan free", "no route found", "route costs more", "routed")
+    assert len(res.extra["goal_search_costs"]) == 2 and (res.extra["route"] == "not asked") == (not res.extra["kept_goal_search"])
+    assert res.iterations == cfg.plan_iters + extra_starts + search + refinements + (cfg.mppi.horizon - 1) * cfg.iters_per_step
     assert res.final_image.shape == (24, 24, 3) and len(res.views) >= 1
     assert np.isfinite(res.translation_error_m) and np.isfinite(res.rotation_error_deg)
     assert res.clearance_source == "analytic" and np.isfinite(res.min_clearance_m)
@@ -107,7 +111,8 @@ def test_multi_start_plan_and_elite(setup):
     robot, ts, cam, q0, rend, enc = setup
     goal = q0 + np.array([0.1, 0.05, 0.0, 0.1, 0.0, -0.05, 0.1])
     target = np.asarray(cam.render(rend, robot, goal[None], background=(0.5,) * 3).rgb[0])
-    cfg = ReachConfig(mppi=MPPIConfig(n_samples=8, horizon=5, n_knots=4, dt=0.1, temperature=0.1, noise_sigma=0.25), plan_iters=4, image_size=24, n_views=0, n_splats=20_000, plan_starts=3, plan_start_iters=2, plan_chunk=1)
+    cfg = ReachConfig(mppi=MPPIConfig(n_samples=8, horizon=5, n_knots=4, dt=0.1, temperature=0.1, noise_sigma=0.25), plan_iters=4, image_size=24, n_views=0, n_splats=20_000, plan_starts=3, plan_start_iters=2, plan_chunk=1,
+                      goal_search=False)  # the plain multi-start's count (test_tiny_reach_run counts the goal search)
     res = run_reach(robot, ts, target, config=cfg, q0=q0, encoder=enc, renderer=rend)
     # every start runs plan_start_iters; the chosen one continues to plan_iters
     refinements = cfg.refine_plan_iters + (cfg.mppi.horizon - 1) * cfg.refine_iters

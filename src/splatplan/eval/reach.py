@@ -9,7 +9,8 @@ scene (the straight camera path runs through the bin's front wall: the paper's g
 from ``above_bin`` they lie on the table in front of the wall), then some with the camera behind the bin's
 front wall; the goal image is the wrist view there.
 Per goal and run, ``touched``: the executed trajectory's clearance is <= 0 (the arm touched or cut the
-geometry). Errors: final camera pose vs the goal camera pose.
+geometry); ``initial plan``: with the collision cost, whether the task's goal search (an initial plan
+without the path's collision cost, routed around the geometry, :attr:`~splatplan.tasks.reach.ReachConfig.goal_search`) was kept. Errors: final camera pose vs the goal camera pose.
 Clearance: the smallest exact signed distance of any link ellipsoid to the analytic boxes over the
 executed (densified) trajectory. Success: translation < ``position_tol`` (5 cm), rotation <
 ``orientation_tol_deg`` and clearance > 0.
@@ -141,15 +142,22 @@ def markdown(result: dict) -> str:
 
 def goal_table(data: dict) -> str:
     """Per goal and run: where the goal is, success, errors, clearances and whether the arm touched the geometry (markdown)."""
-    lines = ["| goal | camera (m) | hidden from start | line of sight (m) | run | success | translation error (m) | rotation error (deg) | clearance (m) | clearance, moving links (m) | touched |",
-             "|---|---|---|---|---|---|---|---|---|---|---|"]  # fmt: skip
+    lines = ["| goal | camera (m) | hidden from start | line of sight (m) | run | initial plan | success | translation error (m) | rotation error (deg) | clearance (m) | clearance, moving links (m) | touched |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|"]  # fmt: skip
     for g in data["goals"]:
         los = g.get("line_of_sight_m")
         for name, r in g["runs"].items():
             lines.append(f"| {g['name']} | {', '.join(f'{v:.3f}' for v in g['camera_position'])} | {g.get('occluded', 'n/a')} | {'n/a' if los is None else f'{los:+.3f}'} | "
-                         f"{name.replace('_', ' ')} | {r['success']} | {r['translation_error_m']:.4f} | {r['rotation_error_deg']:.2f} | {r['min_clearance_m']:+.4f} | "
+                         f"{name.replace('_', ' ')} | {initial_plan(r)} | {r['success']} | {r['translation_error_m']:.4f} | {r['rotation_error_deg']:.2f} | {r['min_clearance_m']:+.4f} | "
                          f"{r['min_clearance_moving_links_m']:+.4f} | {r['min_clearance_m'] <= 0} |")  # fmt: skip
     return "\n".join(lines) + "\n"
+
+
+def initial_plan(run: dict) -> str:
+    """Which initial plan a run kept (its summary): the goal search (and its route), the collision-aware plan, or the plain one."""
+    if run.get("kept_goal_search"):
+        return f"goal search ({run.get('route', 'n/a')})"
+    return "collision-aware" if run.get("collision_cost") else "plain"
 
 
 @dataclass

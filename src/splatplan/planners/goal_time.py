@@ -18,11 +18,24 @@ The schedule (fields of :class:`GoalTimeSchedule`, flat in the task's config):
   ``track_temperature``. After T steps the robot is where the plan ended.
 
 Controls are joint velocities bounded by ``u_max`` (the refinement's offsets act on them).
+
+**A goal search** (``search`` and ``route`` given): after the initial plan, a second one (the same
+starts and iterations) runs on the ``search`` MPPI, whose costs leave out the path's collision
+cost, so that a wall between the start and the goal does not bend the search towards a look-alike
+goal that is easier to reach. The two plans are compared on the search costs (which goal, not which
+path); when the searched one is kept and it collides under the full costs, a collision-free path to
+its goal state from ``route(start, goal)`` (e.g. RRT-Connect on the same checker,
+:func:`~splatplan.planners.plan`; None when there is none, e.g. the goal state itself collides:
+the plan is kept and the full costs of the tracking free it) seeds it: the knots are fitted to the
+path (:meth:`GoalTimeMPC.fit_path`), kept if they cost less than the plan under the full costs,
+and ``route_iters`` iterations of the full costs follow. The last chunk of the initial plan and
+the tracking run on the full costs.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 
@@ -82,6 +95,9 @@ class GoalTimeSchedule(ConfigTerms):
     refine_sigma: float = bounded(0.05, ge=0)
     #: lower bound of the refinement std (rad)
     refine_sigma_min: float = bounded(0.002, ge=0)
+    #: with a goal search and a route (GoalTimeMPC's search / route): MPPI iterations of the full costs
+    #: after a routed plan is fitted
+    route_iters: int = bounded(10, ge=0)
     #: growth of the refinement std after an improvement
     refine_grow: float = bounded(1.5, ge=1)
     #: shrink of the refinement std after an iteration without improvement
@@ -94,12 +110,22 @@ class GoalTimeMPC:
     ``u_max`` (du,): the control bound, also of the refinement). Counts the MPPI iterations in
     ``iters``; ``start_costs`` are the multi-start costs."""
 
-    def __init__(self, mppi: MPPI, schedule: GoalTimeSchedule, u_max: np.ndarray, progress_value: str) -> None:
+    def __init__(
+        self, mppi: MPPI, schedule: GoalTimeSchedule, u_max: np.ndarray, progress_value: str, *,
+        search: MPPI | None = None, route: Callable[[np.ndarray, np.ndarray], np.ndarray | None] | None = None,
+    ) -> None:  # fmt: skip
         self.cfg, self.mppi, self.mcfg = schedule, mppi, mppi.config
         self.dyn, self.vmax, self.value = mppi.dynamics, np.asarray(u_max, np.float64), progress_value
+        self.search, self.route = search, route
         self.refiner = self._new_refiner()
         self.iters = 0
+        #: the multi-start costs
         self.start_costs: list[float] = []
+        #: with a goal search: the search costs of the plain and the searched initial plans, and which was kept
+        self.search_costs: tuple[float, float] | None = None
+        self.kept_search = False
+        #: what the route step did: "not asked" / "searched plan free" / "no route found" / "route costs more" / "routed"
+        self.route_outcome = "not asked"
 
     def anneal(self, c: float) -> float:
         """Noise scale from the raw goal cost ``c`` of the current plan."""
@@ -133,9 +159,17 @@ class GoalTimeMPC:
             kept = float(total[b])
         return kept
 
+    def _chunks(self, q: np.ndarray, n: int, chunk: int, scale: float = 1.0):
+        """n MPPI iterations in chunks of ``chunk`` (the noise anneals in between); returns the last info and the scale."""
+        info = None
+        while n > 0:
+            info, scale = self.plan_chunk(q, min(chunk, n), scale)
+            n -= chunk
+        return info, scale
+
     def initial_plan(self, q: np.ndarray, chunk: int) -> tuple[int, float]:
-        """The multi-start plan (when ``plan_starts`` > 1) and the rest of ``plan_iters`` but the
-        last chunk; returns the iterations done on the kept plan and its noise scale."""
+        """The multi-start plan (when ``plan_starts`` > 1) and the rest of ``plan_iters`` but the last
+        chunk, on the current MPPI; returns the iterations done on the kept plan and its noise scale."""
         cfg, mppi = self.cfg, self.mppi
         done, scale = 0, 1.0
         if cfg.plan_starts > 1:  # several short plans from zero velocity, each with its own noise; the best continues
@@ -143,21 +177,18 @@ class GoalTimeMPC:
             starts = []
             for j in range(cfg.plan_starts):
                 mppi.reset(rng=self.mcfg.seed + j)
-                sc, left = 1.0, n0
-                while left > 0:
-                    n = min(chunk, left)
-                    info, sc = self.plan_chunk(q, n, sc)
-                    left -= n
+                info, sc = self._chunks(q, n0, chunk)
                 cost, knots = info.nominal_cost, info.nominal_knots
                 if cfg.plan_start_refine > 0:  # compare the starts' local minima, not their progress
                     self.refiner = self._new_refiner(j)
                     cost, knots = self.refine(q, cfg.plan_start_refine, self.mcfg.horizon), mppi.knots.copy()
                 starts.append((cost, j, knots, sc, mppi.rng, self.refiner))
+            self.iters += (n0 + cfg.plan_start_refine) * cfg.plan_starts
             self.start_costs = [round(float(e[0]), 4) for e in starts]
             _, _, knots, scale, rng, self.refiner = min(starts, key=lambda e: (e[0], e[1]))
             mppi.reset(knots, rng=rng)
-            done = n0  # the chosen start's iterations; the other starts' are extra
-            self.iters += n0 * (cfg.plan_starts - 1) + cfg.plan_start_refine * cfg.plan_starts
+            done = n0  # the kept start's iterations (counted above with the others)
+            self.iters -= n0
         while cfg.plan_iters - done > chunk:
             _, scale = self.plan_chunk(q, chunk, scale)
             done += chunk
@@ -167,6 +198,77 @@ class GoalTimeMPC:
             self.iters += cfg.refine_plan_iters
         return done, scale
 
+    def goal_search(self, q: np.ndarray, chunk: int, done: int, scale: float) -> tuple[int, float]:
+        """The goal search (module docstring) after the plain initial plan (``done`` iterations, noise
+        scale ``scale``); returns the kept plan's iterations and noise scale."""
+        search = self.search
+        assert search is not None
+        full, plain = self.mppi, (self.mppi.knots.copy(), self.mppi.rng, self.refiner, self.start_costs, done, scale)
+        self.mppi = search
+        try:
+            done_s, scale_s = self.initial_plan(q, chunk)
+        finally:
+            self.mppi = full
+        c_plain, c_search = search.evaluate(q, np.stack([plain[0], search.knots])).total
+        self.search_costs = (round(float(c_plain), 4), round(float(c_search), 4))
+        self.kept_search = bool(c_search < c_plain)
+        if not self.kept_search:
+            knots, rng, self.refiner, self.start_costs, done, scale = plain
+            full.reset(knots, rng=rng)
+            return done, scale
+        full.reset(search.knots, rng=search.rng)
+        return done_s, self.route_plan(q, scale_s)
+
+    def fit_path(self, q: np.ndarray, path: np.ndarray, goal_step: int) -> np.ndarray:
+        """Knots (n_knots, du) whose rollout from ``q`` follows ``path`` (N, dx) (path[0] = q) and reaches
+        its end at ``goal_step``, holding it after: the path timed at a constant fraction of the velocity
+        bound (segment time max_j |dq_j| / u_max_j), the knots by least squares on the rollout, which is
+        linear in them (the joint integrator within its limits); the goal state weighs 10x, clipped."""
+        mppi, t_len = self.mppi, self.mcfg.horizon
+        path = np.asarray(path, np.float64)
+        vmax = self.vmax[: path.shape[1]]
+        step = np.abs(np.diff(path, axis=0))  # (N - 1, dx); a dimension without speed (bound 0) sets no time
+        seg = np.max(np.divide(step, vmax, out=np.zeros_like(step), where=vmax > 0), axis=1)  # (N - 1,) segment times at full speed
+        t = np.concatenate([[0.0], np.cumsum(seg)])
+        if not t[-1] > 0:
+            t = np.linspace(0.0, 1.0, len(path))
+        frac = np.minimum(np.arange(1, t_len + 1) / (goal_step + 1), 1.0) * t[-1]  # (T,) path time at each rollout step
+        target = np.stack([np.interp(frac, t, path[:, j]) for j in range(path.shape[1])], axis=1)  # (T, dx)
+        n, du = mppi.knots.shape
+        basis = np.concatenate([np.zeros((1, n * du)), np.eye(n * du)]).reshape(-1, n, du)  # (1 + n du, n, du)
+        roll = self.dyn.rollout(q, mppi.spline(basis), self.mcfg.dt)  # (1 + n du, T, dx)
+        a = (roll[1:] - roll[0]).reshape(n * du, -1).T  # (T dx, n du): states = roll[0] + a @ knots
+        w_step = np.ones((t_len, 1))
+        w_step[goal_step] = 10.0
+        w = np.broadcast_to(w_step, target.shape).reshape(-1)  # (T dx,)
+        sol, *_ = np.linalg.lstsq(a * w[:, None], (target - roll[0]).reshape(-1) * w, rcond=None)
+        return mppi.clip(sol.reshape(n, du))
+
+    def route_plan(self, q: np.ndarray, scale: float) -> float:
+        """The route step of a goal search (module docstring) on the kept plan; returns the noise scale.
+        Outcomes (:attr:`route_outcome`): "searched plan free", "no route found" (e.g. the goal state
+        collides: the plan is kept, the full costs of the rest of the schedule free it), "route costs
+        more", "routed"."""
+        mppi, goal = self.mppi, self.mcfg.horizon - 1
+        ev = mppi.evaluate(q, mppi.knots[None], goal)
+        if not ev.in_collision()[0]:
+            self.route_outcome = "searched plan free"
+            return scale
+        path = self.route(q, ev.states[0, goal]) if self.route is not None else None
+        if path is None:  # the goal state collides (or no path in time): the tracking's full costs move it
+            self.route_outcome = "no route found"
+            return scale
+        knots = self.fit_path(q, path, goal)
+        if not mppi.evaluate(q, knots[None], goal).total[0] < ev.total[0]:
+            self.route_outcome = "route costs more"
+            return scale
+        self.route_outcome = "routed"
+        mppi.reset(knots)
+        if self.cfg.route_iters > 0:
+            _, scale = self.plan_chunk(q, self.cfg.route_iters, scale)
+            self.iters += self.cfg.route_iters
+        return scale
+
     def execute(self, q: np.ndarray, on_step=None) -> tuple[list, list]:
         """Plan, then execute the T steps; returns the states (T + 1, dx) and the per-step raw goal
         cost of the plan. ``on_step(s, state, value)`` after each executed step."""
@@ -174,6 +276,8 @@ class GoalTimeMPC:
         states, trace = [q.copy()], []
         chunk = max(1, cfg.plan_chunk) if cfg.noise_cost_ref > 0 else cfg.plan_iters  # the noise anneals on progress between chunks
         done, scale = self.initial_plan(q, chunk)
+        if self.search is not None:
+            done, scale = self.goal_search(q, chunk, done, scale)
         for s in range(t_len):
             goal = t_len - 1 - s  # the goal time stays at T; the rollout's tail beyond it is never executed
             if s > 0 and cfg.refine_iters > 0:

@@ -25,7 +25,12 @@ Cost per sample (:mod:`splatplan.planners.costs`, :class:`~splatplan.planners.Im
 Schedule: shrinking horizon with a fixed goal time (:class:`~splatplan.planners.goal_time.GoalTimeMPC`,
 whose fields are flat in :class:`ReachConfig`): a multi-start initial plan with goal-state
 refinement, then one control a step with the image rendered at step ``T - 1 - s`` of the rollout
-after ``s`` executed steps; after T steps the arm is where the plan ended. K = 32, T = 48, 8 knots,
+after ``s`` executed steps; after T steps the arm is where the plan ended. With the collision
+cost, a second initial plan searches the goal without the path's collision cost (a wall between
+the start and a hidden goal would otherwise hold the plan in front of it, at a look-alike view); it
+is kept when its image cost is lower, and when its path collides an RRT-Connect path to its goal
+state (the task's checker) seeds it (``goal_search``; the goal search of
+:class:`~splatplan.planners.goal_time.GoalTimeMPC`). K = 32, T = 48, 8 knots,
 dt = 0.05 s and temperature 0.1 follow the paper's authors' example; images are 64x64 here
 (224x224 in the paper). Goals and the start of the studies: :mod:`splatplan.planners.reach_goals`.
 
@@ -40,6 +45,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field, replace
+from functools import partial
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -88,6 +94,13 @@ class ReachConfig(TaskConfig, StridedCollisionTerms, JointVelocityTerms, GoalTim
     orientation_tol_deg: float = bounded(15.0, gt=0, le=180)
     #: intermediate wrist views kept for the figures
     n_views: int = bounded(6, ge=0)
+    #: with the collision cost: a second initial plan searches the goal without the path's collision cost;
+    #: kept when its image cost is lower, with a collision-free RRT-Connect path to its goal state when it
+    #: collides (GoalTimeMPC's goal search and route); the collision cost acts from there on. False = the
+    #: collision-aware initial plan only
+    goal_search: bool = True
+    #: time limit of that RRT-Connect route (s)
+    route_time_s: float = bounded(2.0, gt=0)
 
     def check(self) -> None:
         check_order(self, "refine_sigma_min", "refine_sigma")
@@ -228,8 +241,13 @@ def run_reach(
             path_costs.insert(0, cfg.collision_cost(ts.checker, robot))
         vmax = cfg.velocity_bound(robot)
         mcfg = replace(cfg.mppi, u_min=tuple(-vmax), u_max=tuple(vmax), report_nominal=True)  # the nominal's raw image cost anneals the noise
-        mppi = MPPI(JointIntegrator(robot, velocity_limits=vmax), None, mcfg, costs=[UntilGoalCost(path_costs), image_cost])
-        run = GoalTimeMPC(mppi, cfg, vmax, "image_raw")
+        dyn = JointIntegrator(robot, velocity_limits=vmax)
+        mppi = MPPI(dyn, None, mcfg, costs=[UntilGoalCost(path_costs), image_cost])
+        search = route = None
+        if collision and cfg.goal_search:  # the goal first (free goal state), then a collision-free path to it
+            search = MPPI(dyn, None, mcfg, costs=[UntilGoalCost(cfg.joint_costs(robot)), image_cost])
+            route = partial(_route, robot, ts.checker, cfg)
+        run = GoalTimeMPC(mppi, cfg, vmax, "image_raw", search=search, route=route)
         views, view_every = [], max(1, cfg.mppi.horizon // max(cfg.n_views, 1))
 
         def on_step(s: int, q_s: np.ndarray, best: float) -> None:
@@ -270,10 +288,23 @@ def run_reach(
         encoder=enc.name,
         success=success,
         extra={"robot": robot.name, "scene": ts.name, "n_splats": len(ts.splats), "image_size": cfg.image_size, "n_samples": cfg.mppi.n_samples, "horizon": cfg.mppi.horizon,
-               "plan_start_costs": run.start_costs,
+               "plan_start_costs": run.start_costs, "route": run.route_outcome, "goal_search_costs": run.search_costs, "kept_goal_search": run.kept_search,
                # the moving links only: the Panda's fixed link0 sits 2.2 cm above the table whatever the arm does
                "min_clearance_moving_links_m": round(float(moving_clearance(robot, ts, traj)), 6)},
     )
+
+
+def _route(robot: Robot, checker, cfg: ReachConfig, start: np.ndarray, goal: np.ndarray) -> np.ndarray | None:
+    """A collision-free joint path (N, dof) from ``start`` to ``goal`` (RRT-Connect + shortcut on the
+    task's checker, ``cfg.route_time_s``), or None when there is none in time (or an end collides)."""
+    from ..errors import PlanningError
+    from ..planners import RRTConfig, plan
+
+    try:
+        res = plan(checker, start, goal, robot=robot, refine=False, seed=cfg.mppi.seed, rrt_config=RRTConfig(time_limit_s=cfg.route_time_s))
+    except PlanningError:
+        return None
+    return np.asarray(res.path, np.float64) if res.success else None
 
 
 def _host(image) -> np.ndarray:
