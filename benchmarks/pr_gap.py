@@ -660,7 +660,7 @@ def conclusion(res: dict[str, Any]) -> list[str]:
         "n_sigma sigma inflation. That inflation meets this scene's few large, semi-transparent floaters and its long tail of large (mostly ground) splats, and the "
         "E1 lattice then puts a whole layer of free queries just above the ground. The metric's ranking is sound (n_sigma = 0). Default n_sigma = 1 is a safety "
         "margin by design, and E1 alone is no reason to lower it. Opacity-aware conservatism (d2) removes the floater part and leaves the size-tail part; "
-        "its cost is the extra misses at its own rule listed above. Adopt it as the default only if the real-rooms study (#36) shows the same floater-driven "
+        "its cost is the extra misses at its own rule listed above. Adopt it as the default only if the real-rooms study (`benchmarks/real_rooms.py`) shows the same floater-driven "
         "closures. For E1's reporting, the half-cell-shifted lattice and the no-floater scene show how much of the gap is grid and floaters.",
     ]
 

@@ -197,7 +197,7 @@ def run_reach_demo(out: Path, device: str = "auto") -> dict:
     from .render import SplatRenderer
     from .robots import load_robot
     from .tasks._common import load_task_scene
-    from .planners.reach_goals import make_reach_goals, reach_start
+    from .planners.reach_goals import HIDDEN_GOAL_SAMPLER, make_reach_goals, reach_start
     from .render.cameras import wrist_camera
     from .tasks.reach import ReachConfig, reach_encoder, run_reach
     from ._warp import resolve_device
@@ -210,7 +210,7 @@ def run_reach_demo(out: Path, device: str = "auto") -> dict:
     cam = wrist_camera(robot, cfg.image_size, cfg.fov_deg, cfg.camera_link)
     q0 = reach_start(robot, cfg.camera_link)
     with SplatRenderer(ts.splats, dev) as rend:
-        goal = make_reach_goals(robot, ts, rend, cam, n=1, q_start=q0, n_behind=1, n_candidates=128, seed=cfg.mppi.seed)[0]
+        goal = make_reach_goals(robot, ts, rend, cam, n=1, q_start=q0, n_behind=1, seed=cfg.mppi.seed, **HIDDEN_GOAL_SAMPLER)[0]  # the study's first goal
         target = np.asarray(cam.render(rend, robot, goal["q"][None], background=(cfg.background,) * 3).rgb[0])
         res = run_reach(robot, ts, target, config=cfg, q0=q0, encoder=reach_encoder("thumbnail", device=dev, config=cfg), goal_camera_pose=goal["camera_pose"], renderer=rend, device=dev)
     path = Path(out) / "demo_reach.png"
