@@ -121,11 +121,15 @@ class GoalTimeMPC:
         self.iters = 0
         #: the multi-start costs
         self.start_costs: list[float] = []
-        #: with a goal search: the search costs of the plain and the searched initial plans, and which was kept
+        #: with a goal search: the search costs of the plain and the searched initial plans
         self.search_costs: tuple[float, float] | None = None
-        self.kept_search = False
         #: what the route step did: "not asked" / "searched plan free" / "no route found" / "route costs more" / "routed"
         self.route_outcome = "not asked"
+
+    @property
+    def kept_search(self) -> bool:
+        """Whether the goal search's plan was kept (its search cost below the plain plan's)."""
+        return self.search_costs is not None and self.search_costs[1] < self.search_costs[0]
 
     def anneal(self, c: float) -> float:
         """Noise scale from the raw goal cost ``c`` of the current plan."""
@@ -159,14 +163,6 @@ class GoalTimeMPC:
             kept = float(total[b])
         return kept
 
-    def _chunks(self, q: np.ndarray, n: int, chunk: int, scale: float = 1.0):
-        """n MPPI iterations in chunks of ``chunk`` (the noise anneals in between); returns the last info and the scale."""
-        info = None
-        while n > 0:
-            info, scale = self.plan_chunk(q, min(chunk, n), scale)
-            n -= chunk
-        return info, scale
-
     def initial_plan(self, q: np.ndarray, chunk: int) -> tuple[int, float]:
         """The multi-start plan (when ``plan_starts`` > 1) and the rest of ``plan_iters`` but the last
         chunk, on the current MPPI; returns the iterations done on the kept plan and its noise scale."""
@@ -177,18 +173,21 @@ class GoalTimeMPC:
             starts = []
             for j in range(cfg.plan_starts):
                 mppi.reset(rng=self.mcfg.seed + j)
-                info, sc = self._chunks(q, n0, chunk)
+                sc, left = 1.0, n0
+                while left > 0:
+                    n = min(chunk, left)
+                    info, sc = self.plan_chunk(q, n, sc)
+                    left -= n
                 cost, knots = info.nominal_cost, info.nominal_knots
                 if cfg.plan_start_refine > 0:  # compare the starts' local minima, not their progress
                     self.refiner = self._new_refiner(j)
                     cost, knots = self.refine(q, cfg.plan_start_refine, self.mcfg.horizon), mppi.knots.copy()
                 starts.append((cost, j, knots, sc, mppi.rng, self.refiner))
-            self.iters += (n0 + cfg.plan_start_refine) * cfg.plan_starts
             self.start_costs = [round(float(e[0]), 4) for e in starts]
             _, _, knots, scale, rng, self.refiner = min(starts, key=lambda e: (e[0], e[1]))
             mppi.reset(knots, rng=rng)
-            done = n0  # the kept start's iterations (counted above with the others)
-            self.iters -= n0
+            done = n0  # the chosen start's iterations; the other starts' are extra
+            self.iters += n0 * (cfg.plan_starts - 1) + cfg.plan_start_refine * cfg.plan_starts
         while cfg.plan_iters - done > chunk:
             _, scale = self.plan_chunk(q, chunk, scale)
             done += chunk
@@ -210,8 +209,7 @@ class GoalTimeMPC:
         finally:
             self.mppi = full
         c_plain, c_search = search.evaluate(q, np.stack([plain[0], search.knots])).total
-        self.search_costs = (round(float(c_plain), 4), round(float(c_search), 4))
-        self.kept_search = bool(c_search < c_plain)
+        self.search_costs = (float(c_plain), float(c_search))
         if not self.kept_search:
             knots, rng, self.refiner, self.start_costs, done, scale = plain
             full.reset(knots, rng=rng)

@@ -51,11 +51,13 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from .._config import NESTED_SKIP, bounded, check_order
-from ..errors import SplatplanError
+from ..errors import PlanningError, SplatplanError
+from ..planners import plan
 from ..planners.costs import JointVelocityTerms, StridedCollisionTerms
 from ..planners.goal_time import GoalTimeMPC, GoalTimeSchedule
 from ..planners.image_cost import ImageTerms
 from ..planners.mppi import MPPI, MPPIConfig
+from ..planners.rrt_types import RRTConfig
 from ._common import TaskConfig, check_start, load_task_scene, moving_clearance, trajectory_clearance
 
 if TYPE_CHECKING:
@@ -288,7 +290,7 @@ def run_reach(
         encoder=enc.name,
         success=success,
         extra={"robot": robot.name, "scene": ts.name, "n_splats": len(ts.splats), "image_size": cfg.image_size, "n_samples": cfg.mppi.n_samples, "horizon": cfg.mppi.horizon,
-               "plan_start_costs": run.start_costs, "route": run.route_outcome, "goal_search_costs": run.search_costs, "kept_goal_search": run.kept_search,
+               "plan_start_costs": run.start_costs, "route": run.route_outcome, "goal_search_costs": None if run.search_costs is None else [round(c, 4) for c in run.search_costs], "kept_goal_search": run.kept_search,
                # the moving links only: the Panda's fixed link0 sits 2.2 cm above the table whatever the arm does
                "min_clearance_moving_links_m": round(float(moving_clearance(robot, ts, traj)), 6)},
     )
@@ -297,9 +299,6 @@ def run_reach(
 def _route(robot: Robot, checker, cfg: ReachConfig, start: np.ndarray, goal: np.ndarray) -> np.ndarray | None:
     """A collision-free joint path (N, dof) from ``start`` to ``goal`` (RRT-Connect + shortcut on the
     task's checker, ``cfg.route_time_s``), or None when there is none in time (or an end collides)."""
-    from ..errors import PlanningError
-    from ..planners import RRTConfig, plan
-
     try:
         res = plan(checker, start, goal, robot=robot, refine=False, seed=cfg.mppi.seed, rrt_config=RRTConfig(time_limit_s=cfg.route_time_s))
     except PlanningError:
