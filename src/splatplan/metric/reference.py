@@ -155,3 +155,15 @@ def mean_distance_lb_ref(lb: np.ndarray, origin: np.ndarray, v: float, box_lo: n
     inside = np.all((f >= 0) & (f < dims), axis=-1)
     ijk = np.clip(np.floor(f).astype(np.int64), 0, dims - 1)
     return np.maximum(d, np.where(inside, lb[ijk[..., 2], ijk[..., 1], ijk[..., 0]], 0.0))
+
+
+def hit_bound_ref(ub: np.ndarray, origin: np.ndarray, v: float, pts: np.ndarray, a_min: np.ndarray) -> np.ndarray:
+    """The numpy twin of the kernels' ``hit_bound`` lookup (HIT BOUND): for points (P, 3) and
+    smallest semi-axes (P,), True where the point lies in the grid and its voxel's upper bound ``ub``
+    (nz, ny, nx) (:func:`~.tiers.mean_distance_upper`) is below 0.999 a_min."""
+    p = np.asarray(pts, dtype=np.float64)
+    dims = np.array(ub.shape[::-1])  # (nx, ny, nz)
+    f = (p - np.asarray(origin, dtype=np.float64)) / v
+    inside = np.all((f >= 0) & (f < dims), axis=-1)
+    ijk = np.clip(np.floor(f).astype(np.int64), 0, dims - 1)
+    return inside & (ub[ijk[..., 2], ijk[..., 1], ijk[..., 0]] < 0.999 * np.asarray(a_min, dtype=np.float64))

@@ -33,7 +33,7 @@ from .._warp import wp as _wp
 from ..scenes.splats import Splats, quat_to_rotmat
 from .config import COST_REDUCE_CODES, MetricConfig
 from .reference import search_radius_ref
-from .tiers import TierConfig, mean_distance_bounds, quantile_tiers, size_class_tiers
+from .tiers import TierConfig, mean_distance_bounds, mean_distance_upper, quantile_tiers, size_class_tiers
 from .wp_metric_kernel import (
     LanePartials,
     LinkBatch,
@@ -176,7 +176,9 @@ class WarpMetric:
         self._lock = threading.Lock()
         self._pool: ThreadPoolExecutor | None = None
         self._pool_finalizer: weakref.finalize | None = None
-        self._dgrid: MeanDistanceGrid | None = None  # built on first use (mean_distance_grid)
+        self._dgrids: dict[float, MeanDistanceGrid] = {}  # opacity threshold -> grid, built on first use (mean_distance_grid)
+        self._dgrid_lb: tuple | None = None  # mean_distance_bounds' output (() when off)
+        self._dgrid_lb_wp = None  # its lb on the device
         self._no_slack = None  # (1,) placeholder of the collide kernel's slack output
         self._groups_cache: dict = {}  # (robot groups key, largest std, n_sigma) -> RobotGroups
         self._params_cache: dict = {}  # the collide kernels' MetricParams by the config values they are made of
@@ -323,25 +325,48 @@ class WarpMetric:
         t.n_tiers = len(groups)
         return _GridSet(tiers=t, groups=groups, counts=[b - a for a, b in zip(offsets, offsets[1:])], sigma=sigmas)
 
-    def mean_distance_grid(self) -> MeanDistanceGrid:
+    def mean_distance_grid(self, opacity_min: float = 0.0) -> MeanDistanceGrid:
         """The kernels' :class:`MeanDistanceGrid` of the splat means (built once; ``use == 0`` when
-        ``TierConfig.collide_distance_grid`` is off). See :func:`mean_distance_bounds`."""
+        ``TierConfig.collide_distance_grid`` is off; see :func:`mean_distance_bounds`), with the HIT
+        BOUND of the means of opacity >= ``opacity_min`` (:func:`mean_distance_upper`; built once per
+        threshold, the last few kept; ``use_ub == 0`` when ``TierConfig.collide_hit_grid`` is off)."""
+        key = float(np.float32(opacity_min))
         with self._lock:
-            if self._dgrid is None:
-                g = MeanDistanceGrid()
-                d = self.device
+            hit = self._dgrids.get(key)
+            if hit is not None:
+                return hit
+            d = self.device
+            if self._dgrid_lb is None:
                 if self.tiers.collide_distance_grid and len(self._means_np):
-                    lb, origin, v, lo, hi = mean_distance_bounds(self._means_np, int(self.tiers.distance_grid_voxels))
-                    g.lb = wp.array(lb.reshape(-1), dtype=wp.float32, device=d)
-                    g.origin, g.inv_v = wp.vec3(*origin), float(np.float32(1.0 / v))
-                    g.dims = wp.vec3i(int(lb.shape[2]), int(lb.shape[1]), int(lb.shape[0]))
-                    g.box_lo, g.box_hi, g.use = wp.vec3(*lo), wp.vec3(*hi), 1
+                    self._dgrid_lb = mean_distance_bounds(self._means_np, int(self.tiers.distance_grid_voxels))
                 else:
-                    g.lb = wp.zeros(1, dtype=wp.float32, device=d)
-                    g.origin, g.inv_v, g.dims = wp.vec3(0.0, 0.0, 0.0), 1.0, wp.vec3i(1, 1, 1)
-                    g.box_lo, g.box_hi, g.use = wp.vec3(0.0, 0.0, 0.0), wp.vec3(0.0, 0.0, 0.0), 0
-                self._dgrid = g
-            return self._dgrid
+                    self._dgrid_lb = ()
+            g = MeanDistanceGrid()
+            g.ub, g.ub_opacity, g.use_ub = self._placeholder_ub(), key, 0
+            if self._dgrid_lb:
+                lb, origin, v, lo, hi = self._dgrid_lb
+                if self._dgrid_lb_wp is None:
+                    self._dgrid_lb_wp = wp.array(lb.reshape(-1), dtype=wp.float32, device=d)
+                g.lb = self._dgrid_lb_wp
+                g.origin, g.inv_v = wp.vec3(*origin), float(np.float32(1.0 / v))
+                g.dims = wp.vec3i(int(lb.shape[2]), int(lb.shape[1]), int(lb.shape[0]))
+                g.box_lo, g.box_hi, g.use = wp.vec3(*lo), wp.vec3(*hi), 1
+                if self.tiers.collide_hit_grid:
+                    counted = self._means_np[self._opac_np >= np.float32(key)] if key > 0 else self._means_np
+                    g.ub = wp.array(mean_distance_upper(counted, origin, v, lb.shape).reshape(-1), dtype=wp.float32, device=d)
+                    g.use_ub = 1
+            else:
+                g.lb = wp.zeros(1, dtype=wp.float32, device=d)
+                g.origin, g.inv_v, g.dims = wp.vec3(0.0, 0.0, 0.0), 1.0, wp.vec3i(1, 1, 1)
+                g.box_lo, g.box_hi, g.use = wp.vec3(0.0, 0.0, 0.0), wp.vec3(0.0, 0.0, 0.0), 0
+            while len(self._dgrids) >= 3:  # (a checker rarely changes its opacity rule)
+                del self._dgrids[next(iter(self._dgrids))]
+            self._dgrids[key] = g
+            return g
+
+    def _placeholder_ub(self):
+        """A one-element HIT BOUND array (never read: ``use_ub == 0``)."""
+        return wp.full(1, float("inf"), dtype=wp.float32, device=self.device)
 
     # ------------------------------------------------------------------ launches
     def _launch(self, kernel, b: int, args: list) -> None:
@@ -415,7 +440,7 @@ class WarpMetric:
             links.use_order = 0  # a robot batch (collides_robot): kept in configuration order
         else:
             self.sort_queries(links, b, *(scratch or self._scratch(b)))
-        dgrid = self.mean_distance_grid()
+        dgrid = self.mean_distance_grid(cfg.opacity_min)
         slack_arr, want = self.slack_output(slack, rigid)
         params = metric_params(cfg, 0, self.tiers.collide_row_clip)
         self._launch(metric_collide_kernel, b, [links, gs.tiers, dgrid, params, out_hit, bad, slack_arr, want])
@@ -442,7 +467,7 @@ class WarpMetric:
         if params is None:
             params = metric_params(cfg, 0, self.tiers.collide_row_clip)
             self._params_cache = {pk: params}  # (one entry: the config in use)
-        return [links, gs.tiers, self.mean_distance_grid(), params, rg, out_hit, bad, slack_arr, want]
+        return [links, gs.tiers, self.mean_distance_grid(cfg.opacity_min), params, rg, out_hit, bad, slack_arr, want]
 
     def launch_configs(self, b: int, args: list) -> None:
         """``robot_collide_kernel`` over b configurations with :meth:`configs_args`' inputs; on CPU

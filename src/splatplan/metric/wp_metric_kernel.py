@@ -80,6 +80,18 @@ covers the inflation). A robot edge check is mostly links in free space (MBM Pan
 grown links' checks at tree nodes are farther from every mean than their longest semi-axis), where
 this replaces the cell rows by one read.
 
+HIT BOUND (collision-only kernels). On the same voxels, a second array stores an upper bound on the
+distance from any point of the voxel to the nearest mean that counts (opacity at least
+``MeanDistanceGrid.ub_opacity``; :func:`~.tiers.mean_distance_upper`), grown by a margin far above
+float32 rounding. A link whose centre reads a bound below ``HIT_SHRINK`` a_min holds such a mean
+inside its (plain) ellipsoid: s2 <= |d|^2 / a_min^2 < 1, and s2~ <= s2 for every n_sigma >= 0 and
+either linearisation, so that splat collides and, with ``k_collide`` 0, so does the link; it is
+reported without a splat read (the scan would find it; same output). The bound is used only when
+the splats it counts are a subset of those the test counts (no opacity rule, or ``opacity_min <=
+ub_opacity``). The per-configuration kernel checks every near group's members this way before it
+scans any (a colliding planner sample usually has a link deep in the geometry: MBM Panda, ~80% of
+them end at these reads); a colliding configuration's slack is 0.
+
 FREE SLACK (collision-only kernel, ``want_slack``). A link that exits on the mean-distance bound
 gets ``slack = (d_lb - rho) * DIST_SHRINK``, rho its largest tier radius: every mean is farther than
 rho from every point within ``slack`` of the centre, so the same link (same semi-axes, any
@@ -163,6 +175,9 @@ DIST_SHRINK = wp.constant(0.999)
 RIGID_SLACK_MAX = wp.constant(1.0)
 #: Rows holding at most this many splats are scanned whole (clipping costs more than it saves).
 ROW_CLIP_MIN = wp.constant(8)
+#: HIT BOUND: a link collides when a counted mean lies within this fraction of its smallest semi-axis
+#: of its centre (the margin, 0.1%, is far above float32 rounding of the scaling distance).
+HIT_SHRINK = wp.constant(0.999)
 
 
 @wp.func
@@ -222,6 +237,9 @@ class MeanDistanceGrid:
     box_lo: wp.vec3  # the bounding box of every mean (the bound outside the grid: distance to it)
     box_hi: wp.vec3
     use: int
+    ub: wp.array(dtype=wp.float32)  # (nx * ny * nz,) per voxel: >= the distance from any point of the voxel to the nearest mean of opacity >= ub_opacity (HIT BOUND)
+    ub_opacity: float  # the opacity threshold of the means ub counts (a splat below it may be free space)
+    use_ub: int  # 0: no upper bounds (ub is a placeholder)
 
 
 @wp.func
@@ -271,6 +289,33 @@ class MetricParams:
     use_opacity: int  # 1 when either opacity option is active (else opacity is never read)
     collide_clip: int  # 1: the collision-only kernel clips rows to the link's ellipsoid too (ROW_CLIP)
     lin_distance: int  # 1: linearise the scaling distance s, 0: s2 (the paper) (LINEARISATION)
+
+
+@wp.func
+def hit_bound(g: MeanDistanceGrid, p: MetricParams, c: wp.vec3, a_min: float):
+    """True when a mean that counts lies within HIT_SHRINK a_min of ``c`` by the voxel's upper bound
+    (HIT BOUND in the module docstring): the link of smallest semi-axis ``a_min`` centred at ``c``
+    collides. False where the bound does not apply (no grid, k_collide > 0, a looser opacity rule)."""
+    if g.use_ub == 0 or p.k_collide != 0:
+        return False
+    if p.use_opacity != 0 and p.opacity_min > g.ub_opacity:
+        return False
+    fx = (c[0] - g.origin[0]) * g.inv_v
+    fy = (c[1] - g.origin[1]) * g.inv_v
+    fz = (c[2] - g.origin[2]) * g.inv_v
+    if fx >= 0.0 and fy >= 0.0 and fz >= 0.0 and fx < float(g.dims[0]) and fy < float(g.dims[1]) and fz < float(g.dims[2]):
+        ix = wp.min(int(fx), g.dims[0] - 1)
+        iy = wp.min(int(fy), g.dims[1] - 1)
+        iz = wp.min(int(fz), g.dims[2] - 1)
+        return g.ub[(iz * g.dims[1] + iy) * g.dims[0] + ix] < a_min * HIT_SHRINK
+    return False
+
+
+@wp.kernel
+def hit_bound_kernel(g: MeanDistanceGrid, p: MetricParams, pts: wp.array(dtype=wp.vec3), a_min: wp.array(dtype=wp.float32), out: wp.array(dtype=wp.bool)):
+    """out[i] = :func:`hit_bound` at pts[i] for a link of smallest semi-axis a_min[i] (tests)."""
+    i = wp.tid()
+    out[i] = hit_bound(g, p, pts[i], a_min[i])
 
 
 @wp.struct
@@ -754,6 +799,8 @@ def link_collides(links: LinkBatch, q: int, splats: SplatTiers, dgrid: MeanDista
         return True, float(0.0), False
     a_min = wp.min(ax)
     a_max = wp.max(ax)
+    if hit_bound(dgrid, p, c, a_min):
+        return True, float(0.0), True  # a counted mean inside the link (HIT BOUND): no splat is read
     d_lb = mean_distance_lb(dgrid, c)
     far_slack = float(0.0)
     if dgrid.use != 0:
@@ -923,6 +970,35 @@ def robot_collide_kernel(
         for e in range(groups.n_ellipsoids):
             slack[base + e] = 0.0
     hit = bool(False)
+    stop = bool(False)  # an invalid link: left to the pass below (it reports it)
+    if dgrid.use_ub != 0 and p.k_collide == 0:  # HIT BOUND first: a configuration with a link on a mean ends at one read per near link
+        for g in range(groups.n_groups):
+            k0 = groups.first[g]
+            k1 = groups.first[g + 1]
+            cg = wp.vec3(0.0, 0.0, 0.0)
+            for k in range(k0, k1):
+                cg = cg + links.centers[base + groups.members[k]]
+            cg = cg / float(k1 - k0)
+            if mean_distance_lb(dgrid, cg) > groups.radius[g] + 1.0e-5 * wp.length(cg):
+                continue  # (a free group: see below)
+            for k in range(k0, k1):
+                q = base + groups.members[k]
+                c = links.centers[q]
+                ax = links.axes[q % links.axes_period]
+                if not link_valid(links, q, c, ax):
+                    stop = True
+                    break
+                if hit_bound(dgrid, p, c, wp.min(ax)):
+                    hit = True
+                    break
+            if hit or stop:
+                break
+    if hit:
+        if want_slack == 2:
+            for e in range(groups.n_ellipsoids):
+                slack[base + e] = 0.0
+        out_hit[b] = True
+        return
     ratio = float(1.0)  # RIGID SLACK: the smallest slack / target so far (no later link needs more than that share of its target)
     for g in range(groups.n_groups):
         k0 = groups.first[g]
