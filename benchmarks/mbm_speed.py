@@ -3,7 +3,8 @@
     python benchmarks/mbm_speed.py [--families table_pick,box,bookshelf_small] [--n-per-family 10]
         [--n-sigma 0] [--before REV] [--no-vamp] [--out benchmarks/results/mbm_speed/NAME]
 
-Everything runs on this machine in one process tree, so the ratios hold on a shared machine:
+Everything runs on this machine in one process tree, family by family (the before run of a family, then
+its after run), so the ratios hold on a shared machine:
 
 * **after**: ``eval mbm`` at its defaults (splats sampled per surface area, derived margin, the
   library's default planner) over the first N problems of each family; per problem the wall and CPU
@@ -299,15 +300,20 @@ def main(argv=None) -> dict:
     with tempfile.TemporaryDirectory(dir=REPO / "build", prefix="mbm_speed_") as tmp:
         scratch = Path(tmp)
         wt = None
+        before_rows: list[dict] = []
+        rows = []
         try:
             if args.before:
                 wt = before_tree(args.before, scratch)
-                rows = run_tree(wt / "src", args.families, args.n_per_family, args.n_sigma, scratch)
-                result["before"] = {"rows": rows, "summary": _summaries(rows, fams)}
+            for fam in fams:  # family by family, before then after: a machine that slows down mid-run biases neither
+                if wt is not None:
+                    before_rows += run_tree(wt / "src", fam, args.n_per_family, args.n_sigma, scratch)
+                rows += run_tree(None, fam, args.n_per_family, args.n_sigma, scratch)
         finally:
             if wt is not None:
                 subprocess.run(["git", "-C", str(REPO), "worktree", "remove", "--force", str(wt)], capture_output=True)
-        rows = run_tree(None, args.families, args.n_per_family, args.n_sigma, scratch)
+        if wt is not None:
+            result["before"] = {"rows": before_rows, "summary": _summaries(before_rows, fams)}
     result["after"] = {"rows": rows, "summary": _summaries(rows, fams)}
     if not args.no_per_config:
         result["per_config"] = per_config_costs(fams, args.n_sigma, rows)
