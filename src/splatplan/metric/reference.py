@@ -150,20 +150,23 @@ def mean_distance_lb_ref(lb: np.ndarray, origin: np.ndarray, v: float, box_lo: n
     p = np.asarray(pts, dtype=np.float64)
     lo, hi = np.asarray(box_lo, dtype=np.float64), np.asarray(box_hi, dtype=np.float64)
     d = np.linalg.norm(np.maximum(np.maximum(lo - p, p - hi), 0.0), axis=-1) * 0.999
-    dims = np.array(lb.shape[::-1])  # (nx, ny, nz)
-    f = (p - np.asarray(origin, dtype=np.float64)) / v
+    inside, val = _voxel_lookup(lb, origin, v, p)
+    return np.maximum(d, np.where(inside, val, 0.0))
+
+
+def _voxel_lookup(grid: np.ndarray, origin: np.ndarray, v: float, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(inside (P,) bool, value (P,)): whether each point (P, 3) lies in the voxel grid ``grid``
+    (nz, ny, nx) of corner ``origin`` and side ``v``, and its voxel's value (the clamped voxel outside)."""
+    dims = np.array(grid.shape[::-1])  # (nx, ny, nz)
+    f = (np.asarray(pts, dtype=np.float64) - np.asarray(origin, dtype=np.float64)) / v
     inside = np.all((f >= 0) & (f < dims), axis=-1)
     ijk = np.clip(np.floor(f).astype(np.int64), 0, dims - 1)
-    return np.maximum(d, np.where(inside, lb[ijk[..., 2], ijk[..., 1], ijk[..., 0]], 0.0))
+    return inside, grid[ijk[..., 2], ijk[..., 1], ijk[..., 0]]
 
 
 def hit_bound_ref(ub: np.ndarray, origin: np.ndarray, v: float, pts: np.ndarray, a_min: np.ndarray) -> np.ndarray:
     """The numpy twin of the kernels' ``hit_bound`` lookup (HIT BOUND): for points (P, 3) and
     smallest semi-axes (P,), True where the point lies in the grid and its voxel's upper bound ``ub``
     (nz, ny, nx) (:func:`~.tiers.mean_distance_upper`) is below 0.999 a_min."""
-    p = np.asarray(pts, dtype=np.float64)
-    dims = np.array(ub.shape[::-1])  # (nx, ny, nz)
-    f = (p - np.asarray(origin, dtype=np.float64)) / v
-    inside = np.all((f >= 0) & (f < dims), axis=-1)
-    ijk = np.clip(np.floor(f).astype(np.int64), 0, dims - 1)
-    return inside & (ub[ijk[..., 2], ijk[..., 1], ijk[..., 0]] < 0.999 * np.asarray(a_min, dtype=np.float64))
+    inside, val = _voxel_lookup(ub, origin, v, pts)
+    return inside & (val < 0.999 * np.asarray(a_min, dtype=np.float64))

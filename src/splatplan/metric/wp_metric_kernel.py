@@ -243,6 +243,20 @@ class MeanDistanceGrid:
 
 
 @wp.func
+def voxel_index(g: MeanDistanceGrid, c: wp.vec3):
+    """The flat index (x fastest) of the grid voxel holding ``c``, or -1 outside the grid (or NaN)."""
+    fx = (c[0] - g.origin[0]) * g.inv_v
+    fy = (c[1] - g.origin[1]) * g.inv_v
+    fz = (c[2] - g.origin[2]) * g.inv_v
+    if fx >= 0.0 and fy >= 0.0 and fz >= 0.0 and fx < float(g.dims[0]) and fy < float(g.dims[1]) and fz < float(g.dims[2]):
+        ix = wp.min(int(fx), g.dims[0] - 1)
+        iy = wp.min(int(fy), g.dims[1] - 1)
+        iz = wp.min(int(fz), g.dims[2] - 1)
+        return (iz * g.dims[1] + iy) * g.dims[0] + ix
+    return -1
+
+
+@wp.func
 def mean_distance_lb(g: MeanDistanceGrid, c: wp.vec3):
     """A lower bound (>= 0) on the distance from ``c`` to every splat mean: the larger of the
     distance to the means' bounding box and the voxel's stored bound (0 when ``g.use == 0``)."""
@@ -252,14 +266,9 @@ def mean_distance_lb(g: MeanDistanceGrid, c: wp.vec3):
     dy = wp.max(wp.max(g.box_lo[1] - c[1], c[1] - g.box_hi[1]), 0.0)
     dz = wp.max(wp.max(g.box_lo[2] - c[2], c[2] - g.box_hi[2]), 0.0)
     d = wp.sqrt(dx * dx + dy * dy + dz * dz) * DIST_SHRINK
-    fx = (c[0] - g.origin[0]) * g.inv_v
-    fy = (c[1] - g.origin[1]) * g.inv_v
-    fz = (c[2] - g.origin[2]) * g.inv_v
-    if fx >= 0.0 and fy >= 0.0 and fz >= 0.0 and fx < float(g.dims[0]) and fy < float(g.dims[1]) and fz < float(g.dims[2]):
-        ix = wp.min(int(fx), g.dims[0] - 1)
-        iy = wp.min(int(fy), g.dims[1] - 1)
-        iz = wp.min(int(fz), g.dims[2] - 1)
-        d = wp.max(d, g.lb[(iz * g.dims[1] + iy) * g.dims[0] + ix])
+    v = voxel_index(g, c)
+    if v >= 0:
+        d = wp.max(d, g.lb[v])
     return d
 
 
@@ -300,15 +309,10 @@ def hit_bound(g: MeanDistanceGrid, p: MetricParams, c: wp.vec3, a_min: float):
         return False
     if p.use_opacity != 0 and p.opacity_min > g.ub_opacity:
         return False
-    fx = (c[0] - g.origin[0]) * g.inv_v
-    fy = (c[1] - g.origin[1]) * g.inv_v
-    fz = (c[2] - g.origin[2]) * g.inv_v
-    if fx >= 0.0 and fy >= 0.0 and fz >= 0.0 and fx < float(g.dims[0]) and fy < float(g.dims[1]) and fz < float(g.dims[2]):
-        ix = wp.min(int(fx), g.dims[0] - 1)
-        iy = wp.min(int(fy), g.dims[1] - 1)
-        iz = wp.min(int(fz), g.dims[2] - 1)
-        return g.ub[(iz * g.dims[1] + iy) * g.dims[0] + ix] < a_min * HIT_SHRINK
-    return False
+    v = voxel_index(g, c)
+    if v < 0:
+        return False
+    return g.ub[v] < a_min * HIT_SHRINK
 
 
 @wp.kernel
@@ -948,6 +952,23 @@ class RobotGroups:
     n_ellipsoids: int  # E: the ellipsoids of configuration b are queries b E .. b E + E - 1
 
 
+@wp.func
+def group_bound(links: LinkBatch, groups: RobotGroups, dgrid: MeanDistanceGrid, base: int, g: int):
+    """GROUP BOUND of group g of the configuration whose ellipsoids start at ``base``: (its centroid,
+    the mean-distance bound there, whether the group is free by it: the bound exceeds R_g plus a pad
+    against the float32 rounding of the centroid at its distance from the origin; never without the
+    grid, and a NaN centre fails the test)."""
+    k0 = groups.first[g]
+    k1 = groups.first[g + 1]
+    cg = wp.vec3(0.0, 0.0, 0.0)
+    for k in range(k0, k1):
+        cg = cg + links.centers[base + groups.members[k]]
+    cg = cg / float(k1 - k0)
+    d = mean_distance_lb(dgrid, cg)
+    far = dgrid.use != 0 and d > groups.radius[g] + 1.0e-5 * wp.length(cg)
+    return cg, d, far
+
+
 @wp.kernel
 def robot_collide_kernel(
     offset: int,
@@ -975,11 +996,8 @@ def robot_collide_kernel(
         for g in range(groups.n_groups):
             k0 = groups.first[g]
             k1 = groups.first[g + 1]
-            cg = wp.vec3(0.0, 0.0, 0.0)
-            for k in range(k0, k1):
-                cg = cg + links.centers[base + groups.members[k]]
-            cg = cg / float(k1 - k0)
-            if mean_distance_lb(dgrid, cg) > groups.radius[g] + 1.0e-5 * wp.length(cg):
+            cg, d, far = group_bound(links, groups, dgrid, base, g)
+            if far:
                 continue  # (a free group: see below)
             for k in range(k0, k1):
                 q = base + groups.members[k]
@@ -993,38 +1011,28 @@ def robot_collide_kernel(
                     break
             if hit or stop:
                 break
-    if hit:
-        if want_slack == 2:
-            for e in range(groups.n_ellipsoids):
-                slack[base + e] = 0.0
-        out_hit[b] = True
-        return
     ratio = float(1.0)  # RIGID SLACK: the smallest slack / target so far (no later link needs more than that share of its target)
     for g in range(groups.n_groups):
+        if hit:  # (found by the HIT BOUND pass)
+            break
         k0 = groups.first[g]
         k1 = groups.first[g + 1]
-        cg = wp.vec3(0.0, 0.0, 0.0)
-        for k in range(k0, k1):
-            cg = cg + links.centers[base + groups.members[k]]
-        cg = cg / float(k1 - k0)
-        if dgrid.use != 0:
-            d = mean_distance_lb(dgrid, cg)
-            # R_g plus a pad against the float32 rounding of the centroid at its distance from the origin
-            if d > groups.radius[g] + 1.0e-5 * wp.length(cg):  # (a NaN centre fails this test and is caught below)
-                if want_slack != 0:  # each member's own reach (<= R_g): its slack is at least the group's
-                    for k in range(k0, k1):
-                        q = base + groups.members[k]
-                        sl = (d - groups.reach[k] - 1.0e-5 * wp.length(cg)) * DIST_SHRINK
-                        if want_slack == 2:  # RIGID SLACK: a member with less than its target is scanned for more
-                            target = slack[q]
-                            if sl < target * ratio:
-                                h, sl2, ok = link_collides(links, q, splats, dgrid, p, want_slack, target * ratio)
-                                if not h:  # (proven free by the group bound: h is False)
-                                    sl = wp.max(sl, sl2)
-                            if target > 0.0:
-                                ratio = wp.min(ratio, sl / target)
-                        slack[q] = sl
-                continue
+        cg, d, far = group_bound(links, groups, dgrid, base, g)
+        if far:
+            if want_slack != 0:  # each member's own reach (<= R_g): its slack is at least the group's
+                for k in range(k0, k1):
+                    q = base + groups.members[k]
+                    sl = (d - groups.reach[k] - 1.0e-5 * wp.length(cg)) * DIST_SHRINK
+                    if want_slack == 2:  # RIGID SLACK: a member with less than its target is scanned for more
+                        target = slack[q]
+                        if sl < target * ratio:
+                            h, sl2, ok = link_collides(links, q, splats, dgrid, p, want_slack, target * ratio)
+                            if not h:  # (proven free by the group bound: h is False)
+                                sl = wp.max(sl, sl2)
+                        if target > 0.0:
+                            ratio = wp.min(ratio, sl / target)
+                    slack[q] = sl
+            continue
         for k in range(k0, k1):
             q = base + groups.members[k]
             target = float(0.0)
