@@ -6,6 +6,7 @@ import json
 import os
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -243,6 +244,40 @@ def test_interrupt_during_the_kernel_exits_cleanly(tmp_path, sig, code):
     assert proc.returncode == code, (proc.returncode, err)
     assert "Traceback" not in err and err.strip() in ("splatplan: interrupted", "splatplan: terminated"), err
     assert sorted(os.listdir(tmp_path)) == ["p.npy"]  # no output, no stray temp file
+
+
+@pytest.mark.parametrize("sig, code, word", [("SIGINT", 130, "interrupted"), ("SIGTERM", 143, "terminated")])
+def test_a_signal_that_native_code_turns_into_another_error_reads_as_the_interruption(monkeypatch, capsys, sig, code, word):
+    """A Ctrl-C that lands in a C extension's import comes back as ``ImportError: initialization
+    failed`` (pybind11 swallows the KeyboardInterrupt): the CLI reports the interruption (one line,
+    its exit code), not a traceback; the same error with no signal received stays an error."""
+    import argparse
+    import signal
+
+    import splatplan.cli as cli
+
+    def interrupted_import(args):
+        try:
+            os.kill(os.getpid(), getattr(signal, sig))  # the CLI's handler raises on this thread
+            time.sleep(5)  # (the handler runs at the next bytecode)
+        except BaseException:
+            raise ImportError("initialization failed") from None
+        return 0
+
+    def failing_import(args):
+        raise ImportError("initialization failed")
+
+    for func in (interrupted_import, failing_import):
+        parser = argparse.ArgumentParser(prog="splatplan")
+        parser.set_defaults(func=func)
+        monkeypatch.setattr(cli, "build_parser", lambda p=parser: p)
+        if func is failing_import:
+            with pytest.raises(ImportError):
+                cli.main([])
+            continue
+        assert cli.main([]) == code
+        err = capsys.readouterr().err
+        assert err.strip() == f"splatplan: {word}" and "Traceback" not in err
 
 
 def test_check_robot_configurations(tmp_path, capsys):

@@ -256,7 +256,7 @@ def _main(argv: list[str] | None) -> int:
 
 def _run(argv: list[str] | None) -> int:
     from ._flags import UsageError, check_device
-    from ._process import Terminated, cli_signal_handlers
+    from ._process import Terminated, cli_signal_handlers, received_signal
 
     with cli_signal_handlers():  # Ctrl-C / SIGTERM unwind through every finally (no stray temp files)
         try:
@@ -299,3 +299,14 @@ def _run(argv: list[str] | None) -> int:
         except MemoryError:
             print("splatplan: error: out of memory; try a smaller batch or --device cuda", file=sys.stderr)
             return 2
+        except Exception:
+            sig = received_signal()
+            if sig is None:
+                raise
+            # a Ctrl-C / SIGTERM that native code turned into another error (a C extension whose
+            # import it interrupted raises ImportError): the interruption it is
+            import signal
+
+            term = sig == signal.SIGTERM
+            print(f"splatplan: {'terminated' if term else 'interrupted'}{_resume_hint()}", file=sys.stderr)
+            return 128 + int(sig) if term else 130

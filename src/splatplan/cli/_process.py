@@ -8,15 +8,32 @@ import sys
 import threading
 from contextlib import contextmanager
 
-__all__ = ["Terminated", "cli_signal_handlers", "headless_matplotlib", "signals_deferred"]
+__all__ = ["Terminated", "cli_signal_handlers", "headless_matplotlib", "received_signal", "signals_deferred"]
+
+#: the signals :func:`cli_signal_handlers` turned into exceptions since it was entered (main thread)
+_RECEIVED: list[int] = []
 
 
 class Terminated(SystemExit):
     """Raised by the CLI's SIGTERM handler (exit code 143), so ``finally`` blocks clean up."""
 
 
+def _raise_interrupt(signum, frame):
+    _RECEIVED.append(signum)
+    raise KeyboardInterrupt
+
+
 def _raise_terminated(signum, frame):
+    _RECEIVED.append(signum)
     raise Terminated(128 + signum)
+
+
+def received_signal() -> int | None:
+    """The last SIGINT / SIGTERM that :func:`cli_signal_handlers` raised as an exception, or None.
+    Native code can swallow that exception into another one (a C extension whose import it
+    interrupts fails with ``ImportError: initialization failed``): the CLI reads this to report such a
+    failure as the interruption it is."""
+    return _RECEIVED[-1] if _RECEIVED else None
 
 
 @contextmanager
@@ -28,8 +45,9 @@ def cli_signal_handlers():
         yield
         return
     old = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    _RECEIVED.clear()
     if old[signal.SIGINT] is not signal.SIG_IGN:
-        signal.signal(signal.SIGINT, signal.default_int_handler)
+        signal.signal(signal.SIGINT, _raise_interrupt)
     if old[signal.SIGTERM] is not signal.SIG_IGN:
         signal.signal(signal.SIGTERM, _raise_terminated)
     try:
