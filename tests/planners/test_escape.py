@@ -15,7 +15,9 @@ import pytest
 from splatplan.errors import PlanningError, SplatplanError
 from splatplan.planners import RRTConfig, escape_endpoint, plan
 from splatplan.robots import load_robot
-from splatplan.scenes.margin import SplatMargin
+from splatplan.scenes.builtin.ellipsoid_clearance import project_to_ellipsoid
+from splatplan.scenes.margin import SplatMargin, margin_for
+from splatplan.scenes.splats import quat_to_rotmat
 
 from .scenes import make_checker, wall_scene
 
@@ -145,3 +147,50 @@ def test_escape_robot_checks_the_segment_with_the_tighter_model(setup):
     assert _min_dist(means, esc.path[-1:]) >= R + MARGIN.margin - 1e-5
     with pytest.raises(SplatplanError, match="degrees of freedom"):
         escape_endpoint(checker, robot, q, MARGIN, escape_robot=load_robot("panda"))
+
+
+def _min_dist_ellipsoids(splats, path: np.ndarray, n_sigma: float, step: float = 5e-4) -> float:
+    """Smallest distance from the path (P, 3), sampled every ``step``, to any splat's n-sigma ellipsoid."""
+    pts = [path[:1]]
+    for a, b in zip(path[:-1], path[1:]):
+        n = max(1, int(np.ceil(np.linalg.norm(b - a) / step)))
+        pts.append(a + (np.arange(1, n + 1) / n)[:, None] * (b - a))
+    p = np.concatenate(pts)  # (P, 3)
+    mu = np.asarray(splats.means, dtype=np.float64)
+    rot = quat_to_rotmat(np.asarray(splats.quats, dtype=np.float64)).reshape(-1, 3, 3)  # world <- splat
+    semi = n_sigma * np.asarray(splats.scales, dtype=np.float64)  # (N, 3)
+    best = np.inf
+    for x in p:
+        u = np.einsum("nji,nj->ni", rot, x - mu)  # (N, 3) in each splat's frame
+        best = min(best, float(np.linalg.norm(u - project_to_ellipsoid(u, semi), axis=1).min()))
+    return best
+
+
+def test_a_higher_n_sigma_frees_what_the_means_cannot_with_the_guarantee(setup):
+    """An endpoint closer to the wall than rho(0) plus the finest r / 32 (refused at the planner's
+    n_sigma 0) is left by a segment checked at the margin's floor n_sigma with rho(n), the smaller
+    covering radius of the splats' n-sigma ellipsoids; the segment keeps R + rho(n) from every one
+    of them (brute force over the whole segment), the escape point is free for the full margin."""
+    splats, checker, robot = setup
+    margin = margin_for(splats, robot, 0.0)  # derived: rho(0) = 3 h, s_t known
+    n_e = min(margin.floor_n_sigma, 3.0)
+    rho_e = margin.covering_at(n_e)
+    assert rho_e < margin.covering_estimate - 0.005
+    d = R + 0.5 * (rho_e + margin.covering_estimate)  # between rho(n_e) and rho(0)
+    q = _at_distance(splats, d)
+    with pytest.raises(PlanningError, match="n_sigma tried: 0"):
+        escape_endpoint(checker, robot, q, margin, n_sigmas=())
+    esc = escape_endpoint(checker, robot, q, margin, toward=np.array([-0.25, 0.0, 0.06]))
+    assert esc.escaped and esc.n_sigma == pytest.approx(n_e)
+    assert esc.margin == pytest.approx(rho_e + margin.edge_resolution / (2 * esc.divisor))
+    means = np.asarray(splats.means)
+    assert _min_dist(means, esc.path[-1:]) >= R + margin.margin - 1e-5  # the full margin at n_sigma 0 frees the escape point
+    assert _min_dist_ellipsoids(splats, esc.path, n_e) >= R + rho_e - 1e-5
+    # the planner's own n_sigma first: an endpoint it frees at some divisor escapes at n_sigma 0
+    q2 = _at_distance(splats, R + margin.covering_estimate + 0.6 * margin.edge_resolution / 2)
+    esc2 = escape_endpoint(checker, robot, q2, margin, toward=np.array([-0.25, 0.0, 0.06]))
+    assert esc2.escaped and esc2.n_sigma == 0.0
+    # the planner reports the n_sigma of each escape
+    box = RRTConfig(time_limit_s=20.0, box_lo=(-0.25, -0.3, 0.0), box_hi=(0.25, 0.3, 0.2))
+    res = plan(checker, q, np.array([-0.2, 0.1, 0.06]), robot=robot, margin=margin, refine=False, seed=2, rrt_config=box)
+    assert res.success and res.info["escape"]["start"]["n_sigma"] == pytest.approx(n_e) and res.info["escape"]["goal"]["n_sigma"] == 0.0

@@ -77,6 +77,31 @@ def test_the_derived_margin_covers_the_measured_gaps(sampled):
         assert not m.holds(m.covering_estimate + 1e-9)  # holds() is the bound itself
 
 
+def test_the_margin_at_another_n_sigma_is_the_margin_derived_there(sampled):
+    """covering_at / at give, from a margin derived at one n_sigma, the margin margin_for derives at
+    another (the escapes' higher-n_sigma check), down to the floor; floor_n_sigma is where it lands."""
+    scene, splats, spacing = sampled
+    robot = load_robot("sphere:0.01")
+    m0 = margin_for(splats, robot, 0.0)
+    assert m0.tangential_std == pytest.approx(float(np.median(np.sort(splats.scales.astype(np.float64), axis=1)[:, 1])))
+    for n in (0.0, 0.5, 1.0, 2.0, 3.0, 50.0):
+        there = margin_for(splats, robot, n)
+        assert m0.covering_at(n) == pytest.approx(there.covering_estimate, rel=1e-12)
+        assert m0.at(n).margin == pytest.approx(there.margin, rel=1e-12) and m0.at(n).n_sigma == n
+        assert there.covering_at(0.0) == pytest.approx(m0.covering_estimate, rel=1e-12)
+    n_floor = m0.floor_n_sigma
+    assert n_floor is not None and n_floor > 0
+    assert m0.covering_at(n_floor) == pytest.approx(0.5 * m0.spacing)
+    assert m0.covering_at(0.9 * n_floor) > 0.5 * m0.spacing
+    # the estimate keeps its promise where it is used: at the floor n_sigma the measured rho is below it
+    rho = covering_radius(scene, splats, spacing, n_sigma=min(n_floor, 3.0), seed=0)
+    assert m0.at(min(n_floor, 3.0)).holds(rho), (n_floor, rho)
+    # a margin given by hand knows nothing of other n_sigma
+    hand = SplatMargin(margin=0.02, spacing=0.004, edge_resolution=0.008, n_sigma=0.0)
+    assert hand.covering_at(0.0) == pytest.approx(0.016) and hand.covering_at(1.0) is None and hand.at(1.0) is None
+    assert hand.floor_n_sigma is None
+
+
 def test_old_names_stay_importable_from_the_mbm_study():
     from splatplan.eval import mbm
     from splatplan.scenes import margin

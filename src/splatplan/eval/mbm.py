@@ -32,7 +32,8 @@ checked with the same grown model (``start_free``, ``goal_free``); with ``endpoi
 default) an endpoint the margin blocks is left by a short segment checked at a finer resolution
 with the smaller margin that keeps the same guarantee (:mod:`splatplan.planners.escape`;
 ``start_escape`` / ``goal_escape``: the resolution divisor used, 1 = free, None = blocked even at
-the finest: the problem is not started). With ``check_margin`` the
+the finest: the problem is not started; ``start_escape_n_sigma`` / ``goal_escape_n_sigma``: the
+checker n_sigma of that check, the benchmark's own or the margin's floor n_sigma). With ``check_margin`` the
 benchmark measures rho(n) (:func:`~splatplan.scenes.margin.covering_radius`, ``rho_measured_m``)
 and reports whether ``m >= rho(n) + r / 2`` held (``bound_holds``).
 
@@ -78,12 +79,13 @@ import numpy as np
 
 from ..errors import SplatplanError
 from ..planners.clearance import dense_path, exact_clearance, path_min_clearance  # noqa: F401 - (also importable from here)
-from ..scenes.margin import covering_radius, derived_margin  # noqa: F401 (the margin lives in the scene stage; these names stay importable here)
+from ..scenes.margin import covering_radius, derived_margin, margin_for  # noqa: F401 (the margin lives in the scene stage; these names stay importable here)
 from ._mbm_config import DEFAULT_MBM, MBM_DATA_ENV, PUBLISHED, MBMConfig, MBMResult, MBMTask, check_planners, mbm_data_dir
 from ._mbm_report import report, summarise
 
 if TYPE_CHECKING:
     from ..metric.checker import CollisionChecker
+    from ..scenes.margin import SplatMargin
     from ..robots.robot import Robot
     from ..scenes.builtin.analytic_scene import AnalyticScene
     from ..scenes.splats import Splats
@@ -135,7 +137,18 @@ class _Prepared:
     n_isolated: int  # faint isolated splats dropped (MBMConfig.drop_isolated)
     n_sampled: int  # splats sampled (floaters included, before any filter)
     base_spacing: float  # the sampler's grid spacing (m)
-    endpoints: dict = field(default_factory=dict)  # request path -> (q0, q1, exact clearance (2,), hit (2,), hit_own (2,))
+    endpoints: dict = field(default_factory=dict)  # request path -> (q0, q1, exact clearance (2,), hit (2,), hit_own (2,), blockers, escapes)
+    tangential_std: float | None = None  # the splats' median middle std (m; the margin's rho(n) at the escapes' n_sigma)
+    factors: tuple[float, float] = (3.0, 0.5)  # (spacing_factor, floor_factor) of the derived margin
+
+    def splat_margin(self, n_sigma: float) -> "SplatMargin":
+        """The margin as the planner and the escapes take it (spacing, edge resolution, and the
+        tangential std that estimates rho at another n_sigma; unknown for a fixed margin)."""
+        from ..scenes.margin import SplatMargin
+
+        derived = bool(np.isfinite(self.spacing_nn))
+        return SplatMargin(self.margin, self.spacing_nn, self.resolution, float(n_sigma), self.tangential_std if derived else None,
+                           *self.factors)  # fmt: skip
 
 
 def list_tasks(config: MBMConfig) -> list[MBMTask]:
@@ -279,21 +292,21 @@ def _prepare(task: "MBMTask", cfg: MBMConfig, robot) -> _Prepared:
         if n_isolated:
             splats = splats.subset(~iso)
     if cfg.margin_m is None:
-        margin, h_nn, res = derived_margin(robot, splats.means, cfg.margin_spacing_factor, n_sigma=cfg.n_sigma, scales=splats.scales,
-                                           floor_factor=cfg.margin_floor_factor)  # fmt: skip
+        sm = margin_for(splats, robot, cfg.n_sigma, spacing_factor=cfg.margin_spacing_factor, floor_factor=cfg.margin_floor_factor)
+        margin, h_nn, res, s_t = sm.margin, sm.spacing, sm.edge_resolution, sm.tangential_std
     else:
-        margin, h_nn, res = float(cfg.margin_m), float("nan"), 0.25 * robot.min_semi_axis
+        margin, h_nn, res, s_t = float(cfg.margin_m), float("nan"), 0.25 * robot.min_semi_axis, None
     rho = covering_radius(scene, splats, base_spacing, n_sigma=cfg.n_sigma, seed=cfg.seed) if cfg.check_margin else float("nan")
     checker = CollisionChecker(splats, n_sigma=cfg.n_sigma, device="cpu")
-    return _Prepared(splats, scene, checker, margin, h_nn, res, rho, n_isolated, n, base_spacing)
+    return _Prepared(splats, scene, checker, margin, h_nn, res, rho, n_isolated, n, base_spacing, tangential_std=s_t,
+                     factors=(float(cfg.margin_spacing_factor), float(cfg.margin_floor_factor)))  # fmt: skip
 
 
 def solve_problem(task: MBMTask, ctx: MBMContext) -> dict:
     """Solve one MBM problem with ``task.planner`` (pure: the row depends only on ``task`` and the
     config, whatever the context has cached); returns its row."""
-    from ..planners.escape import endpoint_divisor
+    from ..planners.escape import endpoint_check
     from ..planners.robot_links import robot_collides
-    from ..scenes.margin import SplatMargin
     from ..scenes.moveit import load_moveit_request
 
     cfg, robot = ctx.config, ctx.robot
@@ -314,24 +327,25 @@ def solve_problem(task: MBMTask, ctx: MBMContext) -> dict:
         hit_e = np.asarray(robot_collides(checker, plan_robot, ends))  # (2, E)
         hit = np.asarray(hit_e.any(axis=-1), dtype=bool)  # (2,)
         hit_own = np.asarray(robot_collides(checker, robot, ends)).any(axis=-1) if plan_robot is not robot else hit
-        smargin = SplatMargin(margin, prep.spacing_nn, res, cfg.n_sigma)
+        smargin = prep.splat_margin(cfg.n_sigma)
         can = cfg.endpoint_escape and margin >= 0.5 * res > 0  # (an escape needs a margin with room for r / 2)
         tight = ctx.escape_robot or robot
-        escape = [1 if not h else (endpoint_divisor(checker, tight, q, smargin) if can else None) for q, h in zip(ends, hit)]
+        escape = [(float(cfg.n_sigma), 1) if not h else (endpoint_check(checker, tight, q, smargin) if can else None) for q, h in zip(ends, hit)]
         prep.endpoints[task.request] = (q0, q1, exact_clearance(scene, robot, ends), hit, hit_own, _blocking(scene, robot, ends, hit_e), escape)
     q0, q1, clear, hit, hit_own, block, escape = prep.endpoints[task.request]
     row.update(start_blocked_by=block[0], goal_blocked_by=block[1])
     row.update(start_valid=bool(clear[0] > 0), goal_valid=bool(clear[1] > 0), start_clearance_m=float(clear[0]), goal_clearance_m=float(clear[1]))
     row.update(start_free=bool(not hit[0]), goal_free=bool(not hit[1]), start_free_unmargined=bool(not hit_own[0]), goal_free_unmargined=bool(not hit_own[1]))
     escapes = ours and cfg.endpoint_escape and margin >= 0.5 * res > 0
-    row.update(start_escape=escape[0] if escapes else None, goal_escape=escape[1] if escapes else None)
+    row.update(start_escape=escape[0][1] if escapes and escape[0] else None, goal_escape=escape[1][1] if escapes and escape[1] else None,
+               start_escape_n_sigma=escape[0][0] if escapes and escape[0] else None, goal_escape_n_sigma=escape[1][0] if escapes and escape[1] else None)  # fmt: skip
     row["started"] = bool((row["start_free"] and row["goal_free"]) or (escapes and escape[0] is not None and escape[1] is not None))
     row.update(solved=False, time_s=None, cpu_s=None, n_configs=None, n_nodes=None, path_length=None, path=None, min_exact_clearance_m=None, message="", timed_out=False)
     if row["started"]:
         cpu0 = time.process_time()
         if escapes:  # the planner grows the robot and leaves blocked endpoints (planners.escape)
             res_p = _plan(checker, q0, q1, robot, cfg.time_limit, cfg.seed + task.index, res, task.planner, cfg.max_iters,
-                          margin=SplatMargin(margin, prep.spacing_nn, res, cfg.n_sigma), escape_robot=ctx.escape_robot)  # fmt: skip
+                          margin=prep.splat_margin(cfg.n_sigma), escape_robot=ctx.escape_robot)  # fmt: skip
         else:
             res_p = _plan(checker, q0, q1, plan_robot, cfg.time_limit, cfg.seed + task.index, res, task.planner, cfg.max_iters)
         cpu_s = time.process_time() - cpu0  # this process's CPU seconds (the checker's threads included)

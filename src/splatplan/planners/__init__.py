@@ -270,7 +270,7 @@ def _join_escapes(res: PlanResult, escapes: list[Escape], w) -> None:
     checks and describe them in ``info["escape"]``."""
     es, eg = escapes
     res.info["escape"] = {name: {"escaped": e.escaped, "divisor": e.divisor, "margin_m": e.margin, "edge_resolution_m": e.resolution,
-                                 "displacement_m": e.displacement, "n_configs": e.n_configs}
+                                 "displacement_m": e.displacement, "n_configs": e.n_configs, "n_sigma": e.n_sigma}
                           for name, e in (("start", es), ("goal", eg))}  # fmt: skip
     res.info["n_configs"] = int(res.info.get("n_configs", 0)) + es.n_configs + eg.n_configs
     if not res.success:

@@ -17,8 +17,23 @@ frees the endpoint, then a short straight segment from the endpoint, checked at 
 that margin, to the first configuration the full margin frees. The planner plans from there with
 the full margin; the segment is the path's first (or last) edge.
 
-What it cannot do: free an endpoint whose splats lie closer than ``rho`` plus the finest
-``r / (2 f)`` (the check says so), which no check that keeps the guarantee can.
+**A higher n_sigma for the segment.** The same argument holds at every checker n_sigma n: the
+splats' n-sigma ellipsoids cover the surface more closely than their means (each reaches at least
+n s_t along it, s_t the splats' tangential std), so their covering radius rho(n) is smaller, and a
+segment checked at n with the margin ``rho(n) + r / (2 f)`` keeps every robot point rho(n) away from
+every n-sigma ellipsoid, hence out of the real surface. Where the planner's own n_sigma cannot free
+the endpoint even at the finest divisor, the segment is checked at a higher n_sigma with the
+margin's estimate of rho there (:meth:`~splatplan.scenes.SplatMargin.covering_at`: needs the
+splats' tangential std, which :func:`~splatplan.scenes.margin_for` records). By default that is
+the n_sigma at which the estimate reaches its floor
+(:attr:`~splatplan.scenes.SplatMargin.floor_n_sigma`, at most :data:`MAX_ESCAPE_N_SIGMA`): all
+the margin a higher n_sigma can save, at one more check per divisor (and the checker's search
+grids for that n_sigma, built once). A robot beside a flat surface gains most: its
+splats' ellipsoids grow along the surface, not towards the robot. The escape configuration is
+still freed by the planner's own check (its n_sigma, the full margin).
+
+What it cannot do: free an endpoint whose splats lie closer than rho(n) plus the finest
+``r / (2 f)`` at every n tried (the check says so), which no check that keeps the guarantee can.
 
     esc = escape_endpoint(checker, robot, q_goal, margin, toward=q_start)
     esc.path          # (K, D): q_goal first, the escape configuration last (K = 1: q_goal was free)
@@ -46,6 +61,8 @@ FINE_DIVISORS = (2, 4, 8, 16)
 #: the escape configuration lies up to this many times farther along its segment than the first one
 #: the full margin frees (while the segment's check and the full margin free it)
 DEPTH = 2.0
+#: the highest checker n_sigma a segment's check uses by default (the margin's floor n_sigma, capped)
+MAX_ESCAPE_N_SIGMA = 3.0
 
 
 @dataclass
@@ -57,7 +74,7 @@ class Escape:
             margin frees the endpoint (no escape needed), else K = 2.
         divisor: f, the resolution divisor of the segment's check (1: no escape, or the escape
             robot at the full margin and resolution).
-        margin: the margin the segment was checked with, ``rho + r / (2 f)`` (scene units).
+        margin: the margin the segment was checked with, ``rho(n) + r / (2 f)`` (scene units).
         resolution: the segment's edge resolution ``r / f`` (scene units of motion).
         displacement: bound on any robot point's motion along the segment (scene units).
         n_configs: configurations checked to find it.
@@ -70,6 +87,8 @@ class Escape:
     displacement: float = 0.0
     n_configs: int = 0
     info: dict = field(default_factory=dict)
+    #: the checker n_sigma of the segment's check (the planner's own, or a higher one of ``n_sigmas``)
+    n_sigma: float | None = None
 
     @property
     def escaped(self) -> bool:
@@ -79,14 +98,42 @@ class Escape:
 
 def endpoint_divisor(checker: CollisionChecker, robot: Robot, q: np.ndarray, margin: SplatMargin, fine: tuple[int, ...] = FINE_DIVISORS, first: int = 1) -> int | None:
     """The smallest resolution divisor f in (1, *fine), from ``first`` on, whose margin
-    ``rho + r / (2 f)`` frees ``robot`` at configuration ``q`` (D,) (f = 1: the full margin), or
-    None: blocked even at the finest."""
+    ``rho + r / (2 f)`` frees ``robot`` at configuration ``q`` (D,) at the checker's n_sigma
+    (f = 1: the full margin), or None: blocked even at the finest."""
+    found = endpoint_check(checker, robot, q, margin, fine, first, n_sigmas=())
+    return None if found is None else found[1]
+
+
+def endpoint_check(checker: CollisionChecker, robot: Robot, q: np.ndarray, margin: SplatMargin, fine: tuple[int, ...] = FINE_DIVISORS, first: int = 1,
+                   n_sigmas: tuple[float, ...] | None = None) -> tuple[float, int] | None:  # fmt: skip
+    """The first (n, f) whose margin ``rho(n) + r / (2 f)`` frees ``robot`` at configuration ``q``
+    (D,) for the checker at n_sigma n: n the checker's own n_sigma, then those of ``n_sigmas``
+    above it where the margin estimates rho(n) (None: the margin's floor n_sigma, at most
+    :data:`MAX_ESCAPE_N_SIGMA`; (): the checker's own only); f in (1, *fine) from ``first`` on,
+    smallest first. None: blocked at every one (module docstring)."""
     q = np.asarray(q, dtype=np.float64).reshape(1, -1)
-    for f in (x for x in (1, *sorted(int(x) for x in fine)) if x >= first):
-        geom = LinkGeometry(robot.inflated(_endpoint_margin(margin, f)))
-        if not bool(geom.collides(checker, q)[0]):
-            return f
+    for n, check, rho in _checks(checker, margin, n_sigmas):
+        for f in (x for x in (1, *sorted(int(x) for x in fine)) if x >= first):
+            geom = LinkGeometry(robot.inflated(rho + 0.5 * float(margin.edge_resolution) / f))
+            if not bool(geom.collides(check, q)[0]):
+                return n, f
     return None
+
+
+def _checks(checker: CollisionChecker, margin: SplatMargin, n_sigmas: tuple[float, ...] | None) -> list[tuple[float, CollisionChecker, float]]:
+    """(n, checker at n, the margin's rho(n)): the checker's own n_sigma first, then the higher
+    ones of ``n_sigmas`` (ascending; None: the margin's floor n_sigma capped at
+    :data:`MAX_ESCAPE_N_SIGMA`) whose covering radius the margin estimates."""
+    own = float(checker.n_sigma)
+    out = [(own, checker, float(margin.covering_estimate))]
+    if n_sigmas is None:
+        top = margin.floor_n_sigma
+        n_sigmas = () if top is None else (min(float(top), MAX_ESCAPE_N_SIGMA),)
+    for n in sorted({float(x) for x in n_sigmas if float(x) > own}):
+        rho = margin.covering_at(n)
+        if rho is not None and rho >= 0:
+            out.append((n, checker.with_config(n_sigma=n), float(rho)))
+    return out
 
 
 def escape_endpoint(
@@ -105,6 +152,7 @@ def escape_endpoint(
     box: tuple | None = None,
     escape_robot: Robot | None = None,
     depth: float = DEPTH,
+    n_sigmas: tuple[float, ...] | None = None,
 ) -> Escape:
     """A free segment from ``q`` to a configuration that ``robot`` grown by the full margin clears.
 
@@ -134,13 +182,17 @@ def escape_endpoint(
         depth: the escape configuration is the farthest sample of the chosen segment within
             ``depth`` x the displacement of its first sample the full margin frees (and free for
             it, the segment's check free up to it): 1 = that first sample.
+        n_sigmas: checker n_sigma tried for the segment's check where the checker's own cannot
+            free ``q`` (those above it, ascending; each with the margin's rho(n),
+            :meth:`~splatplan.scenes.SplatMargin.covering_at`); None: the margin's floor n_sigma
+            (at most :data:`MAX_ESCAPE_N_SIGMA`); (): the checker's own only.
 
     Returns:
         :class:`Escape`; ``path`` is ``q`` alone when the full margin frees it.
 
     Raises:
-        PlanningError: ``q`` is blocked even with the finest divisor (its splats lie closer than
-            the covering estimate plus ``r / (2 max(fine))``), or no segment reaches a
+        PlanningError: ``q`` is blocked even with the finest divisor at every n_sigma tried (its
+            splats lie closer than rho(n) plus ``r / (2 max(fine))``), or no segment reaches a
             configuration the full margin frees within ``reach``.
         SplatplanError: bad arguments.
     """
@@ -156,19 +208,24 @@ def escape_endpoint(
         raise SplatplanError(f"escape_endpoint: the margin {m:.4g} is smaller than half its edge resolution {r:.4g}")
     full = LinkGeometry(robot.inflated(m)) if geometry is None else geometry
     if not bool(full.collides(checker, q[None])[0]):
-        return Escape(q[None].copy(), 1, m, r, 0.0, 1)
+        return Escape(q[None].copy(), 1, m, r, 0.0, 1, n_sigma=float(checker.n_sigma))
     tight = robot if escape_robot is None else escape_robot
     if int(tight.dof) != int(robot.dof):
         raise SplatplanError(f"escape_endpoint: the escape robot has {tight.dof} degrees of freedom, the robot {robot.dof}")
-    f = endpoint_divisor(checker, tight, q, margin, fine, first=1 if escape_robot is not None else 2)
-    if f is None:
+    found = endpoint_check(checker, tight, q, margin, fine, first=1 if escape_robot is not None else 2, n_sigmas=n_sigmas)
+    if found is None:
         finest = _endpoint_margin(margin, max(int(x) for x in fine))
+        tried = ", ".join(f"{n:g}" for n, _, _ in _checks(checker, margin, n_sigmas))
         raise PlanningError(
             f"the {what} {np.array2string(q, precision=4)} is in collision even for the finest endpoint check: splats lie "
             f"within {1000 * finest:.2f} mm of the robot there (the covering estimate {1000 * margin.covering_estimate:.2f} mm "
-            f"plus r/{max(int(x) for x in fine)}/2), closer than the margin's guarantee allows; move the {what} away from the scene"
+            f"plus r/{max(int(x) for x in fine)}/2; n_sigma tried: {tried}), closer than the margin's guarantee allows; "
+            f"move the {what} away from the scene"
         )
-    weak = LinkGeometry(tight.inflated(_endpoint_margin(margin, f)))  # (f = 1: a tighter model at the full margin)
+    n_e, f = found
+    check, rho_e = next((c, rho) for n, c, rho in _checks(checker, margin, n_sigmas) if n == n_e)
+    m_e = rho_e + 0.5 * r / f
+    weak = LinkGeometry(tight.inflated(m_e))  # (f = 1: a tighter model at the full margin)
     r_f = r / f
     reach_m = 4.0 * m if reach is None else float(reach)
     if not (math.isfinite(reach_m) and reach_m > 0):
@@ -189,7 +246,7 @@ def escape_endpoint(
         raise PlanningError(f"the {what} is blocked by the margin and the joint limits leave no direction to leave it by")
     a = np.repeat(q[None], len(dirs), axis=0)
     b = q + t_max[:, None] * dirs  # (M, D)
-    edges = EdgeChecker(checker, weak, r_f, stages=3)  # (coarse to fine: a segment's checks stop at its first hit)
+    edges = EdgeChecker(check, weak, r_f, stages=3)  # (coarse to fine: a segment's checks stop at its first hit; at n_e)
     k, n = edges.free_prefix(a, b)  # (M,), (M,) free samples of each segment at r / f
     pts, idx, _ = edge_samples(a, b, weak.motion(b - a), r_f)  # (P, D), the same samples
     loc = np.arange(idx.size) - (np.cumsum(n) - n)[idx] + 1  # (P,) 1..n_e
@@ -213,8 +270,8 @@ def escape_endpoint(
             f"the {what} {np.array2string(q, precision=4)} is blocked by the margin ({1000 * m:.2f} mm) and none of "
             f"{len(dirs)} straight segments of up to {1000 * reach_m:.1f} mm reaches a configuration it frees"
         )
-    return Escape(np.stack([q, best[0]]), int(f), _endpoint_margin(margin, f), r_f, best[1], int(n_cfg),
-                  {"directions": int(len(dirs))})  # fmt: skip
+    return Escape(np.stack([q, best[0]]), int(f), float(m_e), r_f, best[1], int(n_cfg),
+                  {"directions": int(len(dirs))}, n_sigma=float(n_e))  # fmt: skip
 
 
 def _endpoint_margin(margin: SplatMargin, f: int) -> float:

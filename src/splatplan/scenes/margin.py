@@ -58,7 +58,7 @@ estimate from the spacing, and no margin covers a surface the capture does not c
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Protocol
 
 import numpy as np
@@ -97,17 +97,58 @@ class SplatMargin:
             configurations that ``margin`` assumes (plan with ``RRTConfig(edge_resolution=r)`` or
             finer).
         n_sigma: the checker's n_sigma the margin is for.
+        tangential_std: s_t, the splats' median middle std (scene units), which the estimate of
+            rho at another n_sigma needs (:meth:`covering_at`); None: unknown (a margin given by
+            hand holds at ``n_sigma`` only).
+        spacing_factor: rho(0) estimated as this x ``spacing``.
+        floor_factor: the estimate of rho(n) never drops below this x ``spacing``.
     """
 
     margin: float
     spacing: float
     edge_resolution: float
     n_sigma: float
+    tangential_std: float | None = None
+    spacing_factor: float = 3.0
+    floor_factor: float = 0.5
 
     @property
     def covering_estimate(self) -> float:
         """The margin's estimate of the covering radius rho(n_sigma): ``margin - r / 2``."""
         return self.margin - 0.5 * self.edge_resolution
+
+    def covering_at(self, n_sigma: float) -> float | None:
+        """The estimate of rho(n) at another checker n_sigma ``n`` from the same splats,
+        ``max(spacing_factor h - n s_t, floor_factor h)`` (scene units): each splat's n-sigma
+        ellipsoid reaches at least n s_t along the surface and closes the gaps between means.
+        At the margin's own n_sigma it is :attr:`covering_estimate`; None where it cannot be
+        estimated (``tangential_std`` or ``spacing`` unknown)."""
+        n = float(n_sigma)
+        if n == float(self.n_sigma):
+            return self.covering_estimate
+        h, s_t = float(self.spacing), self.tangential_std
+        if s_t is None or not (math.isfinite(h) and math.isfinite(float(s_t))) or n < 0:
+            return None
+        return max(float(self.spacing_factor) * h - n * float(s_t), float(self.floor_factor) * h)
+
+    @property
+    def floor_n_sigma(self) -> float | None:
+        """The smallest n_sigma at which :meth:`covering_at` reaches its floor,
+        ``(spacing_factor - floor_factor) h / s_t``: all that a higher n_sigma can take off the
+        margin (None where :meth:`covering_at` cannot estimate it; inf when s_t is 0)."""
+        h, s_t = float(self.spacing), self.tangential_std
+        if s_t is None or not (math.isfinite(h) and math.isfinite(float(s_t))):
+            return None
+        gap = max(float(self.spacing_factor) - float(self.floor_factor), 0.0) * h
+        return gap / float(s_t) if s_t > 0 else (0.0 if gap == 0 else math.inf)
+
+    def at(self, n_sigma: float) -> "SplatMargin | None":
+        """The same scene's margin for a checker at ``n_sigma``: :meth:`covering_at` + r / 2 at
+        the same edge resolution (None where :meth:`covering_at` is)."""
+        rho = self.covering_at(n_sigma)
+        if rho is None:
+            return None
+        return replace(self, margin=float(rho + 0.5 * self.edge_resolution), n_sigma=float(n_sigma))
 
     def holds(self, rho: float) -> bool:
         """Whether the guarantee holds for a measured covering radius ``rho``
@@ -191,9 +232,10 @@ def margin_for(
         if not (math.isfinite(r) and r > 0):
             raise SplatplanError(f"margin_for: edge_resolution must be a finite number > 0, got {edge_resolution!r}")
     h = splat_spacing(means)
-    s_t = _tangential_std(splats.scales) if n_sigma > 0 else 0.0
+    s_t = _tangential_std(splats.scales)
     m = max(spacing_factor * h - float(n_sigma) * s_t, floor_factor * h) + 0.5 * r
-    return SplatMargin(margin=float(m), spacing=h, edge_resolution=r, n_sigma=float(n_sigma))
+    return SplatMargin(margin=float(m), spacing=h, edge_resolution=r, n_sigma=float(n_sigma), tangential_std=s_t,
+                       spacing_factor=float(spacing_factor), floor_factor=float(floor_factor))  # fmt: skip
 
 
 def covering_radius(scene: AnalyticScene, splats: Splats, spacing: float, n_sigma: float = 0.0, seed: int = 0, oversample: float = 3.0, k: int = 8, chunk: int = 65536) -> float:
