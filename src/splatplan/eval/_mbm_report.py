@@ -146,7 +146,8 @@ def report(result: MBMResult) -> str:
         lines += ["", f"Endpoints not free for the planning model: {n_not}; of them {o['not_free_below_margin']} lie closer to the "
                       "real geometry (exact clearance) than the margin, so the planning model, whose margin carries the guarantee, cannot "
                       "hold them at this splat density (the margin scales with the splat spacing, ~1/sqrt(n_splats)); an escape "
-                      "segment, checked at a finer resolution with a smaller margin, opens the problems counted under escapes."]  # fmt: skip
+                      "segment, checked at a finer resolution with a smaller margin (where that is not enough, at a higher n_sigma, "
+                      "whose splat ellipsoids cover the surface more closely), opens the problems counted under escapes."]  # fmt: skip
     late = result.summary.get("overall", {}).get("solved_late")
     if late is not None:
         lines += ["", (f"Searches ran to {cfg.max_iters:,} iterations with no wall-clock limit (reproducible anywhere): "
