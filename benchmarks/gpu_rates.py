@@ -37,7 +37,7 @@ def device_name(device: str) -> str:
     return f"{platform.processor() or platform.machine()} CPU, {os.cpu_count()} cores"
 
 
-def bench_reach(device: str, size: int, encoder: str, quick: bool, backend: str = "warp") -> dict:
+def bench_reach(device: str, size: int, encoder: str, quick: bool, backend: str = "warp", horizon: int | None = None) -> dict:
     from splatplan.encoders import load_encoder
     from splatplan.eval.reach import quick_task_config
     from splatplan.render import SplatRenderer
@@ -50,6 +50,8 @@ def bench_reach(device: str, size: int, encoder: str, quick: bool, backend: str 
     from dataclasses import replace
 
     cfg = replace(quick_task_config(ReachConfig()) if quick else ReachConfig(), image_size=size)
+    if horizon is not None:  # fewer executed MPC steps (a smoke run of the script; the rate is per step)
+        cfg = replace(cfg, mppi=replace(cfg.mppi, horizon=int(horizon), n_knots=min(cfg.mppi.n_knots, int(horizon))))
     robot = load_robot("panda")
     ts = load_task_scene("tabletop", n_sigma=cfg.n_sigma, device=device, n_splats=cfg.n_splats)
     random = encoder.startswith("dinov2")
@@ -134,6 +136,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--prune-margin", type=float, default=None, help="MPPIConfig.prune_margin of the Panda rows (default: off)")
     ap.add_argument("--prune-chunks", type=int, default=4, help="MPPIConfig.prune_chunks with --prune-margin (fewer chunks: fewer, larger queries, less pruned)")
     ap.add_argument("--reach-size", type=int, default=224)
+    ap.add_argument("--reach-horizon", type=int, default=None, help="MPC steps of the reach rows (the shrinking horizon; default: the study's)")
     ap.add_argument("--reach-encoders", default="thumbnail,dinov2-vits14", help="comma list; empty: skip the reach rows")
     ap.add_argument("--reach-backends", default="warp", help="renderers of the reach rows: warp, gsplat (CUDA only), comma list")
     ap.add_argument("--quick", action="store_true", help="smoke test: 20k splats, 2 steps, the reach study's quick settings")
@@ -157,7 +160,7 @@ def main(argv: list[str] | None = None) -> int:
             print(f"panda K={k}: {r['steps_per_s']:.2f} steps/s, costs {r['cost_s_per_step']}, query alone {r['query_only_s']}", flush=True)
     for enc in [e for e in args.reach_encoders.split(",") if e]:
         for backend in [b for b in args.reach_backends.split(",") if b]:
-            r = bench_reach(args.device, args.reach_size, enc, args.quick, backend)
+            r = bench_reach(args.device, args.reach_size, enc, args.quick, backend, args.reach_horizon)
             res["reach"].append(r)
             print(f"reach {enc} {backend}: {r['mpc_steps_per_s']:.2f} steps/s, {r['mppi_iterations_per_s']:.1f} it/s", flush=True)
     out = Path(args.out)

@@ -41,7 +41,7 @@ def test_gpu_rates_script_on_cpu(tmp_path, capsys):
 
     out = tmp_path / "g.json"
     argv = ["--device", "cpu", "--quick", "--samples", "8", "--lanes-sweep", "1,2", "--tune-factors", "0.25", "--tune-lanes", "1", "--tune-group-links", "0,1",
-            "--reach-size", "16", "--reach-encoders", "thumbnail", "--out", str(out)]  # fmt: skip
+            "--reach-size", "16", "--reach-horizon", "6", "--reach-encoders", "thumbnail", "--out", str(out)]  # fmt: skip
     assert gpu_rates.main(argv) == 0
     res = json.loads(out.read_text())
     (p,) = res["panda"]
@@ -50,7 +50,7 @@ def test_gpu_rates_script_on_cpu(tmp_path, capsys):
     assert {"numpy_q", "device_q_workspace", "lanes_1", "lanes_2"} <= set(p["query_only_s"]) and p["query_only_s"]["lanes_default"] == 1
     assert len(res["tune"]) == 2 and all(t["seconds"] > 0 for t in res["tune"]) and {t["group_links"] for t in res["tune"]} == {False, True}
     (r,) = res["reach"]
-    assert r["image_size"] == 16 and r["mpc_steps_per_s"] > 0
+    assert r["image_size"] == 16 and r["mpc_steps"] == 6 and r["mpc_steps_per_s"] > 0
     assert "| Panda MPPI" in capsys.readouterr().out and out.with_suffix(".md").exists()
 
 
