@@ -125,7 +125,8 @@ def _checks(checker: CollisionChecker, margin: SplatMargin, n_sigmas: tuple[floa
     ones of ``n_sigmas`` (ascending; None: the margin's floor n_sigma capped at
     :data:`MAX_ESCAPE_N_SIGMA`) whose covering radius the margin estimates."""
     own = float(checker.n_sigma)
-    out = [(own, checker, float(margin.covering_estimate))]
+    rho_own = margin.covering_at(own)  # (the margin's own estimate when it was made for this n_sigma or cannot say)
+    out = [(own, checker, float(margin.covering_estimate if rho_own is None else rho_own))]
     if n_sigmas is None:
         top = margin.floor_n_sigma
         n_sigmas = () if top is None else (min(float(top), MAX_ESCAPE_N_SIGMA),)
