@@ -14,6 +14,7 @@ import pytest
 
 from splatplan.errors import PlanningError, SplatplanError
 from splatplan.planners import RRTConfig, escape_endpoint, plan
+from splatplan.planners.escape import MAX_ESCAPE_N_SIGMA, endpoint_check, escape_n_sigmas
 from splatplan.robots import load_robot
 from splatplan.scenes.builtin.ellipsoid_clearance import project_to_ellipsoid
 from splatplan.scenes.margin import SplatMargin, margin_for
@@ -194,3 +195,27 @@ def test_a_higher_n_sigma_frees_what_the_means_cannot_with_the_guarantee(setup):
     box = RRTConfig(time_limit_s=20.0, box_lo=(-0.25, -0.3, 0.0), box_hi=(0.25, 0.3, 0.2))
     res = plan(checker, q, np.array([-0.2, 0.1, 0.06]), robot=robot, margin=margin, refine=False, seed=2, rrt_config=box)
     assert res.success and res.info["escape"]["start"]["n_sigma"] == pytest.approx(n_e) and res.info["escape"]["goal"]["n_sigma"] == 0.0
+
+
+def test_the_default_escape_n_sigmas_go_down_from_the_floor():
+    """The floor n_sigma first (all a higher n_sigma can save), then the whole numbers below it,
+    highest first (an edge's splats reach past it less at a lower n_sigma); none without s_t."""
+    m = SplatMargin(margin=0.01, spacing=0.002, edge_resolution=0.004, n_sigma=0.0, tangential_std=0.0017)
+    floor = m.floor_n_sigma
+    assert floor == pytest.approx(2.5 * 0.002 / 0.0017) and 2 < floor < 3
+    assert escape_n_sigmas(m, 0.0) == pytest.approx((floor, 2.0, 1.0))
+    assert escape_n_sigmas(m, 1.0) == pytest.approx((floor, 2.0))
+    wide = SplatMargin(margin=0.01, spacing=0.002, edge_resolution=0.004, n_sigma=0.0, tangential_std=0.0005)  # floor at n = 10
+    assert escape_n_sigmas(wide, 0.0) == (MAX_ESCAPE_N_SIGMA, 2.0, 1.0)
+    assert escape_n_sigmas(MARGIN, 0.0) == ()
+
+
+def test_an_explicit_n_sigma_order_is_followed(setup):
+    """endpoint_check tries the planner's own n_sigma, then the given ones in the given order."""
+    splats, checker, robot = setup
+    margin = margin_for(splats, robot, 0.0)
+    q = _at_distance(splats, R + 0.5 * (margin.covering_at(3.0) + margin.covering_estimate))
+    assert endpoint_check(checker, robot, q, margin, n_sigmas=()) is None
+    for order in ((3.0, 2.0), (2.0, 3.0)):
+        n, f = endpoint_check(checker, robot, q, margin, n_sigmas=order)
+        assert n in order and (n == order[0] or endpoint_check(checker, robot, q, margin, n_sigmas=order[:1]) is None)

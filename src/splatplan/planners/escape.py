@@ -24,13 +24,16 @@ segment checked at n with the margin ``rho(n) + r / (2 f)`` keeps every robot po
 every n-sigma ellipsoid, hence out of the real surface. Where the planner's own n_sigma cannot free
 the endpoint even at the finest divisor, the segment is checked at a higher n_sigma with the
 margin's estimate of rho there (:meth:`~splatplan.scenes.SplatMargin.covering_at`: needs the
-splats' tangential std, which :func:`~splatplan.scenes.margin_for` records). By default that is
-the n_sigma at which the estimate reaches its floor
+splats' tangential std, which :func:`~splatplan.scenes.margin_for` records). By default the first
+is the n_sigma at which the estimate reaches its floor
 (:attr:`~splatplan.scenes.SplatMargin.floor_n_sigma`, at most :data:`MAX_ESCAPE_N_SIGMA`): all
-the margin a higher n_sigma can save, at one more check per divisor (and the checker's search
-grids for that n_sigma, built once). A robot beside a flat surface gains most: its
-splats' ellipsoids grow along the surface, not towards the robot. The escape configuration is
-still freed by the planner's own check (its n_sigma, the full margin).
+the margin a higher n_sigma can save. A robot beside a flat surface gains most: its splats'
+ellipsoids grow along the surface, not towards the robot. Beside an edge (a thin bar, a shelf's
+rim) the same growth reaches past the edge towards the robot, so the whole numbers below the floor
+n_sigma follow, from the highest down (:func:`escape_n_sigmas`). Each costs one more check per
+divisor, and the checker's search grids for that n_sigma, built once, only for an endpoint the
+planner's own n_sigma cannot free. The escape configuration is still freed by the planner's own
+check (its n_sigma, the full margin).
 
 What it cannot do: free an endpoint whose splats lie closer than rho(n) plus the finest
 ``r / (2 f)`` at every n tried (the check says so), which no check that keeps the guarantee can.
@@ -108,9 +111,9 @@ def endpoint_check(checker: CollisionChecker, robot: Robot, q: np.ndarray, margi
                    n_sigmas: tuple[float, ...] | None = None) -> tuple[float, int] | None:  # fmt: skip
     """The first (n, f) whose margin ``rho(n) + r / (2 f)`` frees ``robot`` at configuration ``q``
     (D,) for the checker at n_sigma n: n the checker's own n_sigma, then those of ``n_sigmas``
-    above it where the margin estimates rho(n) (None: the margin's floor n_sigma, at most
-    :data:`MAX_ESCAPE_N_SIGMA`; (): the checker's own only); f in (1, *fine) from ``first`` on,
-    smallest first. None: blocked at every one (module docstring)."""
+    above it, in order, where the margin estimates rho(n) (None: :func:`escape_n_sigmas`; (): the
+    checker's own only); f in (1, *fine) from ``first`` on, smallest first. None: blocked at every
+    one (module docstring)."""
     q = np.asarray(q, dtype=np.float64).reshape(1, -1)
     for n, check, rho in _checks(checker, margin, n_sigmas):
         for f in (x for x in (1, *sorted(int(x) for x in fine)) if x >= first):
@@ -120,19 +123,29 @@ def endpoint_check(checker: CollisionChecker, robot: Robot, q: np.ndarray, margi
     return None
 
 
+def escape_n_sigmas(margin: SplatMargin, own: float) -> tuple[float, ...]:
+    """The default n_sigma of an escape segment's check after the planner's own ``own``: the
+    margin's floor n_sigma (at most :data:`MAX_ESCAPE_N_SIGMA`), then the whole numbers between
+    ``own`` and it, highest first; () where the margin cannot estimate rho at another n_sigma."""
+    top = margin.floor_n_sigma
+    if top is None:
+        return ()
+    top = min(float(top), MAX_ESCAPE_N_SIGMA)
+    return (top, *(float(k) for k in range(math.ceil(top) - 1, 0, -1) if float(own) < k < top))
+
+
 def _checks(checker: CollisionChecker, margin: SplatMargin, n_sigmas: tuple[float, ...] | None) -> list[tuple[float, CollisionChecker, float]]:
-    """(n, checker at n, the margin's rho(n)): the checker's own n_sigma first, then the higher
-    ones of ``n_sigmas`` (ascending; None: the margin's floor n_sigma capped at
-    :data:`MAX_ESCAPE_N_SIGMA`) whose covering radius the margin estimates."""
+    """(n, checker at n, the margin's rho(n)): the checker's own n_sigma first, then those of
+    ``n_sigmas`` above it, in order (None: :func:`escape_n_sigmas`), whose covering radius the
+    margin estimates."""
     own = float(checker.n_sigma)
     rho_own = margin.covering_at(own)  # (the margin's own estimate when it was made for this n_sigma or cannot say)
     out = [(own, checker, float(margin.covering_estimate if rho_own is None else rho_own))]
-    if n_sigmas is None:
-        top = margin.floor_n_sigma
-        n_sigmas = () if top is None else (min(float(top), MAX_ESCAPE_N_SIGMA),)
-    for n in sorted({float(x) for x in n_sigmas if float(x) > own}):
+    seen = {own}
+    for n in (float(x) for x in (escape_n_sigmas(margin, own) if n_sigmas is None else n_sigmas)):
         rho = margin.covering_at(n)
-        if rho is not None and rho >= 0:
+        if n > own and n not in seen and rho is not None and rho >= 0:
+            seen.add(n)
             out.append((n, checker.with_config(n_sigma=n), float(rho)))
     return out
 
@@ -184,9 +197,9 @@ def escape_endpoint(
             ``depth`` x the displacement of its first sample the full margin frees (and free for
             it, the segment's check free up to it): 1 = that first sample.
         n_sigmas: checker n_sigma tried for the segment's check where the checker's own cannot
-            free ``q`` (those above it, ascending; each with the margin's rho(n),
-            :meth:`~splatplan.scenes.SplatMargin.covering_at`); None: the margin's floor n_sigma
-            (at most :data:`MAX_ESCAPE_N_SIGMA`); (): the checker's own only.
+            free ``q`` (those above it, in order; each with the margin's rho(n),
+            :meth:`~splatplan.scenes.SplatMargin.covering_at`); None: :func:`escape_n_sigmas`
+            (the margin's floor n_sigma, then the whole numbers below it); (): the checker's own only.
 
     Returns:
         :class:`Escape`; ``path`` is ``q`` alone when the full margin frees it.
