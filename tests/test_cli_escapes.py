@@ -511,7 +511,10 @@ def test_robot_info_json_is_valid_with_unlimited_joints(tmp_path, capsys):
 
     text = URDF.format(geom=BOX, xyz="0 0 0.1", lower="-1", vel="1").replace('type="revolute"', 'type="continuous"')
     (tmp_path / "c.urdf").write_text(text)
-    rc, out, err = run_main(["robot", "info", str(tmp_path / "c.urdf"), "--json", "--per-link", "1"], capsys)
+    # the links' ellipsoids given (a sphere around each 10 cm box): no fit, which is not what this tests (minutes on 2 cores)
+    ells = "ellipsoids:\n" + "".join(f"- link: {n}\n  center: [0, 0, 0]\n  quat: [1, 0, 0, 0]\n  semi_axes: [0.0867, 0.0867, 0.0867]\n" for n in "ab")
+    (tmp_path / "c.yaml").write_text(ells)
+    rc, out, err = run_main(["robot", "info", str(tmp_path / "c.urdf"), "--json", "--ellipsoids", str(tmp_path / "c.yaml")], capsys)
     if rc != 0:
         pytest.skip(f"robot info did not run here: {err}")
 
