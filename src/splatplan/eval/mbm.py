@@ -33,7 +33,8 @@ default) an endpoint the margin blocks is left by a short segment checked at a f
 with the smaller margin that keeps the same guarantee (:mod:`splatplan.planners.escape`;
 ``start_escape`` / ``goal_escape``: the resolution divisor used, 1 = free, None = blocked even at
 the finest: the problem is not started; ``start_escape_n_sigma`` / ``goal_escape_n_sigma``: the
-checker n_sigma of that check, the benchmark's own or the margin's floor n_sigma). With ``check_margin`` the
+checker n_sigma of that check, the benchmark's own or a higher one,
+:func:`~splatplan.planners.escape.escape_n_sigmas`). With ``check_margin`` the
 benchmark measures rho(n) (:func:`~splatplan.scenes.margin.covering_radius`, ``rho_measured_m``)
 and reports whether ``m >= rho(n) + r / 2`` held (``bound_holds``).
 
@@ -85,9 +86,9 @@ from ._mbm_report import report, summarise
 
 if TYPE_CHECKING:
     from ..metric.checker import CollisionChecker
-    from ..scenes.margin import SplatMargin
     from ..robots.robot import Robot
     from ..scenes.builtin.analytic_scene import AnalyticScene
+    from ..scenes.margin import SplatMargin
     from ..scenes.splats import Splats
 
 __all__ = [
