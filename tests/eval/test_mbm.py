@@ -315,6 +315,30 @@ def test_blocked_grasp_goal_is_escaped_safely():
     np.testing.assert_allclose(path[0], task.q_start, atol=1e-6)
 
 
+@pytest.mark.slow
+@pytest.mark.skipif(not (mbm_data_dir() / "problems").is_dir(), reason=f"MBM data not found at {mbm_data_dir()} (set {MBM_DATA_ENV})")
+def test_a_goal_only_a_higher_n_sigma_frees_is_escaped_safely():
+    """bookshelf_small 29: the wrist is 3 mm from the shelf at the goal, closer than rho(0) plus the
+    finest r / 32 (blocked at n_sigma 0 at every divisor); the escape segment is checked at a higher
+    n_sigma with rho(n) from the same splats, the problem is solved and the whole path keeps a
+    positive exact clearance (the segment measured with the model it was checked with)."""
+    from splatplan.eval.mbm import check_inputs, list_tasks, make_context, solve_problem
+    from splatplan.planners.escape import endpoint_check
+
+    cfg = MBMConfig(families=("bookshelf_small",), n_per_family=29)
+    ctx = make_context(cfg)
+    task = check_inputs([t for t in list_tasks(cfg) if t.index == 29], ctx.robot)[0]
+    row = solve_problem(task, ctx)
+    prep = ctx.prepared(task)
+    margin = prep.splat_margin(cfg.n_sigma)
+    assert endpoint_check(prep.checker, ctx.escape_robot, np.asarray(task.q_goal), margin, n_sigmas=()) is None  # n_sigma 0 cannot
+    assert row["start_free"] and not row["goal_free"] and row["started"], row["message"]
+    assert row["goal_escape_n_sigma"] > 1.0 and row["goal_escape_n_sigma"] <= 3.0
+    assert row["solved"] and row["min_exact_clearance_m"] > 0, row
+    path = np.asarray(row["path"])
+    np.testing.assert_allclose(path[-1], task.q_goal, atol=1e-6)
+
+
 @pytest.mark.parametrize("yaml_text", [None, "ellipsoids: [oops"])
 def test_eval_mbm_bad_escape_model_exit_2(tmp_path, capsys, yaml_text):
     """A missing or broken escape model stops the benchmark with one line naming it (exit 2)."""
