@@ -339,6 +339,23 @@ def test_a_goal_only_a_higher_n_sigma_frees_is_escaped_safely():
     np.testing.assert_allclose(path[-1], task.q_goal, atol=1e-6)
 
 
+@pytest.mark.slow
+@pytest.mark.skipif(not (mbm_data_dir() / "problems").is_dir(), reason=f"MBM data not found at {mbm_data_dir()} (set {MBM_DATA_ENV})")
+def test_an_escape_with_no_segment_out_is_a_row_not_started():
+    """bookshelf_small 19: the goal's endpoint check passes (the escape model at a higher n_sigma)
+    but no escape segment within its reach gets the planning model clear (the certified model is
+    0.7 mm into the shelf there): the row says so (not started, the planner's message), no failure."""
+    from splatplan.eval.mbm import check_inputs, list_tasks, make_context, solve_problem
+
+    cfg = MBMConfig(families=("bookshelf_small",), n_per_family=19)
+    ctx = make_context(cfg)
+    task = check_inputs([t for t in list_tasks(cfg) if t.index == 19], ctx.robot)[0]
+    row = solve_problem(task, ctx)
+    assert not row["goal_valid"] and not row["started"] and not row["solved"] and row["path"] is None
+    assert row["goal_escape"] is not None and row["goal_escape_n_sigma"] > 0  # the endpoint check passed, the segments did not
+    assert row["message"].startswith("not started:") and "straight segments" in row["message"], row["message"]
+
+
 @pytest.mark.parametrize("yaml_text", [None, "ellipsoids: [oops"])
 def test_eval_mbm_bad_escape_model_exit_2(tmp_path, capsys, yaml_text):
     """A missing or broken escape model stops the benchmark with one line naming it (exit 2)."""

@@ -97,8 +97,8 @@ class MBMConfig:
     endpoint_escape: bool = True
     #: ellipsoid YAML of a tighter model of the robot for the escape segments' finer check (a fit of
     #: the same URDF whose ellipsoids still contain every link): "builtin" = the shipped model of
-    #: MBM's Panda with 10 ellipsoids on each wrist and hand link (reach 4 mm; used when the robot is
-    #: MBM's Panda URDF, by content); none = the planning model. The escape configuration is checked with the planning model
+    #: MBM's Panda with 10 ellipsoids on each wrist and hand link (reach 4 mm; panda_link5: 16, 2 mm;
+    #: used when the robot is MBM's Panda URDF, by content); none = the planning model. The escape configuration is checked with the planning model
     escape_ellipsoids: str | None = "builtin"
     #: measure the true covering radius rho(n_sigma) from the ground truth (diagnostic: did
     #: m >= rho + r/2 hold? ~1 s per scene at n_sigma 0, tens of seconds above; off by default)

@@ -78,7 +78,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..errors import SplatplanError
+from ..errors import PlanningError, SplatplanError
 from ..planners.clearance import dense_path, exact_clearance, path_min_clearance  # noqa: F401 - (also importable from here)
 from ..scenes.margin import covering_radius, derived_margin, margin_for  # noqa: F401 (the margin lives in the scene stage; these names stay importable here)
 from ._mbm_config import DEFAULT_MBM, MBM_DATA_ENV, PUBLISHED, MBMConfig, MBMResult, MBMTask, check_planners, mbm_data_dir
@@ -342,13 +342,18 @@ def solve_problem(task: MBMTask, ctx: MBMContext) -> dict:
                start_escape_n_sigma=escape[0][0] if escapes and escape[0] else None, goal_escape_n_sigma=escape[1][0] if escapes and escape[1] else None)  # fmt: skip
     row["started"] = bool((row["start_free"] and row["goal_free"]) or (escapes and escape[0] is not None and escape[1] is not None))
     row.update(solved=False, time_s=None, cpu_s=None, n_configs=None, n_nodes=None, path_length=None, path=None, min_exact_clearance_m=None, message="", timed_out=False)
+    res_p = None
     if row["started"]:
         cpu0 = time.process_time()
         if escapes:  # the planner grows the robot and leaves blocked endpoints (planners.escape)
-            res_p = _plan(checker, q0, q1, robot, cfg.time_limit, cfg.seed + task.index, res, task.planner, cfg.max_iters,
-                          margin=prep.splat_margin(cfg.n_sigma), escape_robot=ctx.escape_robot)  # fmt: skip
+            try:
+                res_p = _plan(checker, q0, q1, robot, cfg.time_limit, cfg.seed + task.index, res, task.planner, cfg.max_iters,
+                              margin=prep.splat_margin(cfg.n_sigma), escape_robot=ctx.escape_robot)  # fmt: skip
+            except PlanningError as exc:  # the endpoint check passed but no escape segment reaches a configuration the full margin frees
+                row.update(started=False, message=f"not started: {exc}")
         else:
             res_p = _plan(checker, q0, q1, plan_robot, cfg.time_limit, cfg.seed + task.index, res, task.planner, cfg.max_iters)
+    if res_p is not None:
         cpu_s = time.process_time() - cpu0  # this process's CPU seconds (the checker's threads included)
         row.update(solved=bool(res_p.success), time_s=float(res_p.time_s), cpu_s=cpu_s, n_nodes=int(res_p.n_nodes),
                    n_configs=(res_p.info or {}).get("n_configs"), message=str(getattr(res_p, "message", "")))  # fmt: skip
@@ -366,7 +371,7 @@ def solve_problem(task: MBMTask, ctx: MBMContext) -> dict:
                 length = path_length(path, plan_robot.motion_bound)
             row.update(path_length=float(length), path=path.round(6).tolist())
             row["min_exact_clearance_m"] = _path_clearance(scene, robot, ctx.escape_robot, path, (res_p.info or {}).get("escape"))
-    else:
+    elif not row["message"]:
         row["message"] = ("endpoint in collision for the planning model against the splats, even for the finest endpoint check (an escape)"
                           if escapes else "endpoint in collision for the planning model against the splats")
     row["wall_s"] = time.perf_counter() - t0
