@@ -330,7 +330,7 @@ def test_a_goal_only_a_higher_n_sigma_frees_is_escaped_safely():
     task = check_inputs([t for t in list_tasks(cfg) if t.index == 29], ctx.robot)[0]
     row = solve_problem(task, ctx)
     prep = ctx.prepared(task)
-    margin = prep.splat_margin(cfg.n_sigma)
+    margin = prep.splat_margin
     assert endpoint_check(prep.checker, ctx.escape_robot, np.asarray(task.q_goal), margin, n_sigmas=()) is None  # n_sigma 0 cannot
     assert row["start_free"] and not row["goal_free"] and row["started"], row["message"]
     assert row["goal_escape_n_sigma"] > 1.0 and row["goal_escape_n_sigma"] <= 3.0

@@ -80,7 +80,7 @@ import numpy as np
 
 from ..errors import PlanningError, SplatplanError
 from ..planners.clearance import dense_path, exact_clearance, path_min_clearance  # noqa: F401 - (also importable from here)
-from ..scenes.margin import covering_radius, derived_margin, margin_for  # noqa: F401 (the margin lives in the scene stage; these names stay importable here)
+from ..scenes.margin import SplatMargin, covering_radius, derived_margin, margin_for  # noqa: F401 (the margin lives in the scene stage; these names stay importable here)
 from ._mbm_config import DEFAULT_MBM, MBM_DATA_ENV, PUBLISHED, MBMConfig, MBMResult, MBMTask, check_planners, mbm_data_dir
 from ._mbm_report import report, summarise
 
@@ -88,7 +88,6 @@ if TYPE_CHECKING:
     from ..metric.checker import CollisionChecker
     from ..robots.robot import Robot
     from ..scenes.builtin.analytic_scene import AnalyticScene
-    from ..scenes.margin import SplatMargin
     from ..scenes.splats import Splats
 
 __all__ = [
@@ -138,18 +137,8 @@ class _Prepared:
     n_isolated: int  # faint isolated splats dropped (MBMConfig.drop_isolated)
     n_sampled: int  # splats sampled (floaters included, before any filter)
     base_spacing: float  # the sampler's grid spacing (m)
+    splat_margin: SplatMargin  # the margin as the planner and the escapes take it (a fixed one knows no tangential std)
     endpoints: dict = field(default_factory=dict)  # request path -> (q0, q1, exact clearance (2,), hit (2,), hit_own (2,), blockers, escapes)
-    tangential_std: float | None = None  # the splats' median middle std (m; the margin's rho(n) at the escapes' n_sigma)
-    factors: tuple[float, float] = (3.0, 0.5)  # (spacing_factor, floor_factor) of the derived margin
-
-    def splat_margin(self, n_sigma: float) -> "SplatMargin":
-        """The margin as the planner and the escapes take it (spacing, edge resolution, and the
-        tangential std that estimates rho at another n_sigma; unknown for a fixed margin)."""
-        from ..scenes.margin import SplatMargin
-
-        derived = bool(np.isfinite(self.spacing_nn))
-        return SplatMargin(self.margin, self.spacing_nn, self.resolution, float(n_sigma), self.tangential_std if derived else None,
-                           *self.factors)  # fmt: skip
 
 
 def list_tasks(config: MBMConfig) -> list[MBMTask]:
@@ -294,13 +283,11 @@ def _prepare(task: "MBMTask", cfg: MBMConfig, robot) -> _Prepared:
             splats = splats.subset(~iso)
     if cfg.margin_m is None:
         sm = margin_for(splats, robot, cfg.n_sigma, spacing_factor=cfg.margin_spacing_factor, floor_factor=cfg.margin_floor_factor)
-        margin, h_nn, res, s_t = sm.margin, sm.spacing, sm.edge_resolution, sm.tangential_std
     else:
-        margin, h_nn, res, s_t = float(cfg.margin_m), float("nan"), 0.25 * robot.min_semi_axis, None
+        sm = SplatMargin(float(cfg.margin_m), float("nan"), 0.25 * robot.min_semi_axis, float(cfg.n_sigma))
     rho = covering_radius(scene, splats, base_spacing, n_sigma=cfg.n_sigma, seed=cfg.seed) if cfg.check_margin else float("nan")
     checker = CollisionChecker(splats, n_sigma=cfg.n_sigma, device="cpu")
-    return _Prepared(splats, scene, checker, margin, h_nn, res, rho, n_isolated, n, base_spacing, tangential_std=s_t,
-                     factors=(float(cfg.margin_spacing_factor), float(cfg.margin_floor_factor)))  # fmt: skip
+    return _Prepared(splats, scene, checker, sm.margin, sm.spacing, sm.edge_resolution, rho, n_isolated, n, base_spacing, sm)
 
 
 def solve_problem(task: MBMTask, ctx: MBMContext) -> dict:
@@ -328,7 +315,7 @@ def solve_problem(task: MBMTask, ctx: MBMContext) -> dict:
         hit_e = np.asarray(robot_collides(checker, plan_robot, ends))  # (2, E)
         hit = np.asarray(hit_e.any(axis=-1), dtype=bool)  # (2,)
         hit_own = np.asarray(robot_collides(checker, robot, ends)).any(axis=-1) if plan_robot is not robot else hit
-        smargin = prep.splat_margin(cfg.n_sigma)
+        smargin = prep.splat_margin
         can = cfg.endpoint_escape and margin >= 0.5 * res > 0  # (an escape needs a margin with room for r / 2)
         tight = ctx.escape_robot or robot
         escape = [(float(cfg.n_sigma), 1) if not h else (endpoint_check(checker, tight, q, smargin) if can else None) for q, h in zip(ends, hit)]
@@ -348,7 +335,7 @@ def solve_problem(task: MBMTask, ctx: MBMContext) -> dict:
         if escapes:  # the planner grows the robot and leaves blocked endpoints (planners.escape)
             try:
                 res_p = _plan(checker, q0, q1, robot, cfg.time_limit, cfg.seed + task.index, res, task.planner, cfg.max_iters,
-                              margin=prep.splat_margin(cfg.n_sigma), escape_robot=ctx.escape_robot)  # fmt: skip
+                              margin=prep.splat_margin, escape_robot=ctx.escape_robot)  # fmt: skip
             except PlanningError as exc:  # the endpoint check passed but no escape segment reaches a configuration the full margin frees
                 row.update(started=False, message=f"not started: {exc}")
         else:

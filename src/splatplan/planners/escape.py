@@ -114,12 +114,20 @@ def endpoint_check(checker: CollisionChecker, robot: Robot, q: np.ndarray, margi
     above it, in order, where the margin estimates rho(n) (None: :func:`escape_n_sigmas`; (): the
     checker's own only); f in (1, *fine) from ``first`` on, smallest first. None: blocked at every
     one (module docstring)."""
+    found = _first_free(_checks(checker, margin, n_sigmas), robot, q, float(margin.edge_resolution), fine, first)
+    return None if found is None else (found[0], found[3])
+
+
+def _first_free(checks: list[tuple[float, CollisionChecker, float]], robot: Robot, q: np.ndarray, r: float, fine: tuple[int, ...],
+                first: int) -> tuple[float, CollisionChecker, float, int] | None:  # fmt: skip
+    """:func:`endpoint_check` over the (n, checker at n, rho(n)) of :func:`_checks`: the first
+    (n, checker, rho(n), f) that frees ``robot`` at ``q``, or None."""
     q = np.asarray(q, dtype=np.float64).reshape(1, -1)
-    for n, check, rho in _checks(checker, margin, n_sigmas):
+    for n, check, rho in checks:
         for f in (x for x in (1, *sorted(int(x) for x in fine)) if x >= first):
-            geom = LinkGeometry(robot.inflated(rho + 0.5 * float(margin.edge_resolution) / f))
+            geom = LinkGeometry(robot.inflated(rho + 0.5 * r / f))
             if not bool(geom.collides(check, q)[0]):
-                return n, f
+                return n, check, rho, f
     return None
 
 
@@ -226,18 +234,18 @@ def escape_endpoint(
     tight = robot if escape_robot is None else escape_robot
     if int(tight.dof) != int(robot.dof):
         raise SplatplanError(f"escape_endpoint: the escape robot has {tight.dof} degrees of freedom, the robot {robot.dof}")
-    found = endpoint_check(checker, tight, q, margin, fine, first=1 if escape_robot is not None else 2, n_sigmas=n_sigmas)
+    checks = _checks(checker, margin, n_sigmas)
+    found = _first_free(checks, tight, q, r, fine, 1 if escape_robot is not None else 2)
     if found is None:
         finest = _endpoint_margin(margin, max(int(x) for x in fine))
-        tried = ", ".join(f"{n:g}" for n, _, _ in _checks(checker, margin, n_sigmas))
+        tried = ", ".join(f"{n:g}" for n, _, _ in checks)
         raise PlanningError(
             f"the {what} {np.array2string(q, precision=4)} is in collision even for the finest endpoint check: splats lie "
             f"within {1000 * finest:.2f} mm of the robot there (the covering estimate {1000 * margin.covering_estimate:.2f} mm "
             f"plus r/{max(int(x) for x in fine)}/2; n_sigma tried: {tried}), closer than the margin's guarantee allows; "
             f"move the {what} away from the scene"
         )
-    n_e, f = found
-    check, rho_e = next((c, rho) for n, c, rho in _checks(checker, margin, n_sigmas) if n == n_e)
+    n_e, check, rho_e, f = found
     m_e = rho_e + 0.5 * r / f
     weak = LinkGeometry(tight.inflated(m_e))  # (f = 1: a tighter model at the full margin)
     r_f = r / f
