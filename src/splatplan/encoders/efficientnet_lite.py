@@ -34,7 +34,7 @@ from ..errors import SplatplanError
 from .base import Encoder, images_to_torch, size_hw, torch
 from .preprocess import resize
 
-nn = torch.nn
+nn: Any = torch.nn  # (torch is read as Any by the type checker)
 F = torch.nn.functional
 
 #: (expand ratio, kernel, stride, repeats, in channels, out channels) per stage.
