@@ -112,3 +112,24 @@ def test_bad_prune_margin_exits_2_with_one_line(tmp_path, capsys):
         err = capsys.readouterr().err.strip().splitlines()
         assert rc == 2 and len(err) == 1 and "prune_margin" in err[0] and "Traceback" not in err[0], (value, err)
         assert not out.exists()
+
+
+def test_clearances_of_one_evaluation_equal_the_separate_ones(tabletop_small):
+    """A run's every-link and moving-link clearances from one per-ellipsoid evaluation are those
+    evaluated on their own (exact geometry and the metric's estimate alike)."""
+    from dataclasses import replace
+
+    from splatplan.robots import load_robot
+    from splatplan.tasks._common import ellipsoid_clearances, moving_clearance, moving_ellipsoids, trajectory_clearance
+
+    robot = load_robot("panda")
+    states = np.stack([robot.q_default, robot.q_default + np.array([0.4, 0.5, 0.0, -0.3, 0.0, 0.3, 0.0])])
+    for ts in (tabletop_small, replace(tabletop_small, analytic=None)):
+        per_e, source = ellipsoid_clearances(robot, ts, states)
+        assert per_e.shape[1] == robot.n_ellipsoids and source == ("analytic" if ts.analytic is not None else "metric")
+        c, s, per_state = trajectory_clearance(robot, ts, states)
+        c2, s2, per_state2 = trajectory_clearance(robot, ts, states, (per_e, source))
+        assert (c, s) == (c2, s2) and np.array_equal(per_state, per_state2)
+        m = moving_clearance(robot, ts, states)
+        assert m == moving_clearance(robot, ts, states, (per_e, source)) == float(per_e[:, moving_ellipsoids(robot)].min())
+        assert m >= c
