@@ -37,7 +37,7 @@ def device_name(device: str) -> str:
     return f"{platform.processor() or platform.machine()} CPU, {os.cpu_count()} cores"
 
 
-def bench_reach(device: str, size: int, encoder: str, quick: bool, backend: str = "warp", horizon: int | None = None) -> dict:
+def bench_reach(device: str, size: int, encoder: str, quick: bool, backend: str = "warp", horizon: int | None = None, plan_iters: int | None = None) -> dict:
     from splatplan.encoders import load_encoder
     from splatplan.eval.reach import quick_task_config
     from splatplan.render import SplatRenderer
@@ -52,6 +52,9 @@ def bench_reach(device: str, size: int, encoder: str, quick: bool, backend: str 
     cfg = replace(quick_task_config(ReachConfig()) if quick else ReachConfig(), image_size=size)
     if horizon is not None:  # fewer executed MPC steps (a smoke run of the script; the rate is per step)
         cfg = replace(cfg, mppi=replace(cfg.mppi, horizon=int(horizon), n_knots=min(cfg.mppi.n_knots, int(horizon))))
+    if plan_iters is not None:  # a shorter initial plan, one start, no goal search (a smoke run of the script)
+        n = max(1, int(plan_iters))
+        cfg = replace(cfg, plan_iters=n, plan_starts=1, plan_start_iters=min(cfg.plan_start_iters, n), plan_start_refine=0, refine_plan_iters=0, goal_search=False)
     robot = load_robot("panda")
     ts = load_task_scene("tabletop", n_sigma=cfg.n_sigma, device=device, n_splats=cfg.n_splats)
     random = encoder.startswith("dinov2")
@@ -137,6 +140,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--prune-chunks", type=int, default=4, help="MPPIConfig.prune_chunks with --prune-margin (fewer chunks: fewer, larger queries, less pruned)")
     ap.add_argument("--reach-size", type=int, default=224)
     ap.add_argument("--reach-horizon", type=int, default=None, help="MPC steps of the reach rows (the shrinking horizon; default: the study's)")
+    ap.add_argument("--reach-plan-iters", type=int, default=None, help="initial-plan MPPI iterations of the reach rows, one start, no goal search (default: the study's schedule)")
     ap.add_argument("--reach-encoders", default="thumbnail,dinov2-vits14", help="comma list; empty: skip the reach rows")
     ap.add_argument("--reach-backends", default="warp", help="renderers of the reach rows: warp, gsplat (CUDA only), comma list")
     ap.add_argument("--quick", action="store_true", help="smoke test: 20k splats, 2 steps, the reach study's quick settings")
@@ -160,7 +164,7 @@ def main(argv: list[str] | None = None) -> int:
             print(f"panda K={k}: {r['steps_per_s']:.2f} steps/s, costs {r['cost_s_per_step']}, query alone {r['query_only_s']}", flush=True)
     for enc in [e for e in args.reach_encoders.split(",") if e]:
         for backend in [b for b in args.reach_backends.split(",") if b]:
-            r = bench_reach(args.device, args.reach_size, enc, args.quick, backend, args.reach_horizon)
+            r = bench_reach(args.device, args.reach_size, enc, args.quick, backend, args.reach_horizon, args.reach_plan_iters)
             res["reach"].append(r)
             print(f"reach {enc} {backend}: {r['mpc_steps_per_s']:.2f} steps/s, {r['mppi_iterations_per_s']:.1f} it/s", flush=True)
     out = Path(args.out)

@@ -41,7 +41,7 @@ def test_gpu_rates_script_on_cpu(tmp_path, capsys):
 
     out = tmp_path / "g.json"
     argv = ["--device", "cpu", "--quick", "--samples", "8", "--lanes-sweep", "1,2", "--tune-factors", "0.25", "--tune-lanes", "1", "--tune-group-links", "0,1",
-            "--reach-size", "16", "--reach-horizon", "6", "--reach-encoders", "thumbnail", "--out", str(out)]  # fmt: skip
+            "--reach-size", "16", "--reach-horizon", "6", "--reach-plan-iters", "2", "--reach-encoders", "thumbnail", "--out", str(out)]  # fmt: skip
     assert gpu_rates.main(argv) == 0
     res = json.loads(out.read_text())
     (p,) = res["panda"]
