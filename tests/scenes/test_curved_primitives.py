@@ -235,3 +235,25 @@ def test_splat_count_per_area_keeps_the_spacing():
     assert 3.6 < counts[1] / counts[0] < 4.4
     with pytest.raises(SplatplanError, match="spacing"):
         n_splats_for_spacing(_scene_scaled(1.0), float("nan"))
+
+
+def test_min_ellipsoid_clearance_is_the_minimum_of_the_full_evaluation():
+    """min_ellipsoid_clearance (only the pairs that can hold the minimum solved) equals
+    ellipsoid_clearance(...).min() on boxes, cylinders and spheres, for batches whose minimum is
+    positive (separated) and negative (penetrating), in small chunks too; +inf for no ellipsoid."""
+    rng = np.random.default_rng(11)
+    signs = []
+    for trial in range(6):
+        sc = _random_scene(rng, 2, 2, 2)
+        n = 200
+        c = rng.uniform(-0.6, 0.6, (n, 3))
+        if trial % 2 == 0:  # keep every centre clear of the primitives (a positive minimum, most pairs far)
+            c = c[sc.sdf(c) > 0.13][:60]
+        q = _quats(rng, len(c))
+        a = rng.uniform(0.005, 0.12, (len(c), 3))
+        full = float(sc.ellipsoid_clearance(c, q, a).min())
+        assert sc.min_ellipsoid_clearance(c, q, a) == full
+        assert sc.min_ellipsoid_clearance(c, q, a, chunk=7) == full
+        signs.append(full > 0)
+    assert signs[0::2] == [True] * 3 and not any(signs[1::2])  # both cases met
+    assert sc.min_ellipsoid_clearance(np.zeros((0, 3)), None, np.ones(3)) == float("inf")

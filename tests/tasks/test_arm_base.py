@@ -114,22 +114,28 @@ def test_bad_prune_margin_exits_2_with_one_line(tmp_path, capsys):
         assert not out.exists()
 
 
-def test_clearances_of_one_evaluation_equal_the_separate_ones(tabletop_small):
-    """A run's every-link and moving-link clearances from one per-ellipsoid evaluation are those
-    evaluated on their own (exact geometry and the metric's estimate alike)."""
+def test_run_clearance_equals_the_full_evaluation(tabletop_small):
+    """A run's every-link and moving-link minimum clearances (one evaluation that solves only the
+    pairs that can hold a minimum) are those of the full per-ellipsoid evaluation, exact geometry
+    and the metric's estimate alike, on a free and a penetrating trajectory."""
     from dataclasses import replace
 
     from splatplan.robots import load_robot
-    from splatplan.tasks._common import ellipsoid_clearances, moving_clearance, moving_ellipsoids, trajectory_clearance
+    from splatplan.tasks._common import densify, moving_clearance, moving_ellipsoids, run_clearance, trajectory_clearance
 
     robot = load_robot("panda")
-    states = np.stack([robot.q_default, robot.q_default + np.array([0.4, 0.5, 0.0, -0.3, 0.0, 0.3, 0.0])])
+    mov = moving_ellipsoids(robot)
+    assert 0 < mov.sum() < robot.n_ellipsoids  # (the fixed base link)
+    free = np.stack([robot.q_default, robot.q_default + np.array([0.4, 0.5, 0.0, -0.3, 0.0, 0.3, 0.0])])
+    down = np.stack([robot.q_default, [0.75, 1.51, -0.35, -0.21, 0.0, 1.59, 0.7]])  # ends 1 cm into the geometry
     for ts in (tabletop_small, replace(tabletop_small, analytic=None)):
-        per_e, source = ellipsoid_clearances(robot, ts, states)
-        assert per_e.shape[1] == robot.n_ellipsoids and source == ("analytic" if ts.analytic is not None else "metric")
-        c, s, per_state = trajectory_clearance(robot, ts, states)
-        c2, s2, per_state2 = trajectory_clearance(robot, ts, states, (per_e, source))
-        assert (c, s) == (c2, s2) and np.array_equal(per_state, per_state2)
-        m = moving_clearance(robot, ts, states)
-        assert m == moving_clearance(robot, ts, states, (per_e, source)) == float(per_e[:, moving_ellipsoids(robot)].min())
-        assert m >= c
+        for states in (free, down):
+            c, s, per_state = trajectory_clearance(robot, ts, states)
+            lo, mo, src = run_clearance(robot, ts, states)
+            assert src == s and lo == c == float(per_state.min())
+            if ts.analytic is not None:
+                cc, qq, ax = robot.ellipsoids(densify(robot, states))
+                full = ts.analytic.ellipsoid_clearance(cc, qq, ax)  # (S', E)
+                assert mo == float(full[:, mov].min()) and lo == float(full.min())
+            assert mo == moving_clearance(robot, ts, states) and mo >= lo
+    assert run_clearance(robot, tabletop_small, down)[0] < 0 < run_clearance(robot, tabletop_small, free)[0]  # (both cases met)

@@ -176,32 +176,44 @@ def safe_step(robot, checker, dyn, x: np.ndarray, u: np.ndarray, dt: float, step
     return np.zeros_like(u), None
 
 
-def ellipsoid_clearances(robot, scene: TaskScene, states: np.ndarray) -> tuple[np.ndarray, str]:
-    """Clearance (m) of every robot ellipsoid at every configuration of the densified trajectory.
+def trajectory_clearance(robot, scene: TaskScene, states: np.ndarray) -> tuple[float, str, np.ndarray]:
+    """Smallest clearance (m) of any robot ellipsoid over the densified trajectory.
 
     Returns:
-        (per state and ellipsoid (S', E), source). Source "analytic": the exact signed distance to
-        the scene's boxes (:meth:`AnalyticScene.ellipsoid_clearance`); "metric": a lower bound from
-        the CollisionSplatting metric, ``(sqrt(min s2~) - 1) * smallest semi-axis`` (to the
-        n_sigma-inflated splat centres; capped where min s2~ reaches the checker's s2_cap).
+        (min clearance, source, per-state minimum (S',)). Source "analytic": the exact signed
+        distance to the scene's boxes (:meth:`AnalyticScene.ellipsoid_clearance`); "metric": a lower
+        bound from the CollisionSplatting metric, ``(sqrt(min s2~) - 1) * smallest semi-axis`` (to
+        the n_sigma-inflated splat centres; capped where min s2~ reaches the checker's s2_cap).
+        A run's result needs only the minima: :func:`run_clearance` (the same values, cheaper).
     """
     q = densify(robot, states)
     if scene.analytic is not None:
         c, quat, ax = robot.ellipsoids(q)
-        return np.asarray(scene.analytic.ellipsoid_clearance(c, quat, ax)), "analytic"  # (S', E)
-    res = scene.checker.query_robot(robot, q)
-    return s2_to_metres(res.min_s2, robot.semi_axes), "metric"  # (S', E)
-
-
-def trajectory_clearance(robot, scene: TaskScene, states: np.ndarray, clearances: tuple[np.ndarray, str] | None = None) -> tuple[float, str, np.ndarray]:
-    """Smallest clearance (m) of any robot ellipsoid over the densified trajectory.
-
-    Returns:
-        (min clearance, source, per-state minimum (S',)): :func:`ellipsoid_clearances` (or
-        ``clearances``, its output for these states, when given), reduced.
-    """
-    per_e, source = ellipsoid_clearances(robot, scene, states) if clearances is None else clearances
+        per_e = scene.analytic.ellipsoid_clearance(c, quat, ax)  # (S', E)
+        source = "analytic"
+    else:
+        res = scene.checker.query_robot(robot, q)
+        per_e = s2_to_metres(res.min_s2, robot.semi_axes)  # (S', E)
+        source = "metric"
     return float(per_e.min()), source, per_e.min(axis=-1)
+
+
+def run_clearance(robot, scene: TaskScene, states: np.ndarray) -> tuple[float, float, str]:
+    """(every ellipsoid's smallest clearance, the moving ellipsoids' smallest (:func:`moving_ellipsoids`),
+    source) (m) over the densified trajectory: the values of :func:`trajectory_clearance` and
+    :func:`moving_clearance` from one evaluation; with the analytic scene, only the ellipsoid-box
+    pairs that can hold a minimum are solved (:meth:`AnalyticScene.min_ellipsoid_clearance`)."""
+    q = densify(robot, states)
+    mov = moving_ellipsoids(robot)
+    if scene.analytic is not None:
+        c, quat, ax = robot.ellipsoids(q)
+        ax = np.broadcast_to(np.asarray(ax, np.float64), c.shape)
+        moving = scene.analytic.min_ellipsoid_clearance(c[:, mov], quat[:, mov], ax[:, mov])
+        fixed = scene.analytic.min_ellipsoid_clearance(c[:, ~mov], quat[:, ~mov], ax[:, ~mov])
+        return float(min(moving, fixed)), float(moving), "analytic"
+    res = scene.checker.query_robot(robot, q)
+    per_e = s2_to_metres(res.min_s2, robot.semi_axes)  # (S', E)
+    return float(per_e.min()), float(per_e[:, mov].min()) if mov.any() else float("inf"), "metric"
 
 
 def moving_ellipsoids(robot) -> np.ndarray:
@@ -214,11 +226,10 @@ def moving_ellipsoids(robot) -> np.ndarray:
     return np.ptp(c, axis=0).max(axis=-1) > 1e-9
 
 
-def moving_clearance(robot, scene: TaskScene, states: np.ndarray, clearances: tuple[np.ndarray, str] | None = None) -> float:
+def moving_clearance(robot, scene: TaskScene, states: np.ndarray) -> float:
     """Like :func:`trajectory_clearance` over the ellipsoids that move (the arm's fixed base link
-    excluded: it sits at a constant distance from the table); ``clearances``: as there."""
-    per_e, _ = ellipsoid_clearances(robot, scene, states) if clearances is None else clearances
-    return float(per_e[:, moving_ellipsoids(robot)].min())
+    excluded: it sits at a constant distance from the table); :func:`run_clearance` gives both."""
+    return run_clearance(robot, scene, states)[1]
 
 
 CLEARANCE_NOTES = {
@@ -248,13 +259,13 @@ class TaskResult:
     maps: dict = field(default_factory=dict)
 
     @classmethod
-    def of_run(cls, robot, ts, states, error: float, tol: float, elapsed: float, n_steps: int, collision, clearances=None, **fields) -> "TaskResult":
+    def of_run(cls, robot, ts, states, error: float, tol: float, elapsed: float, n_steps: int, collision, clearance=None, **fields) -> "TaskResult":
         """The result of a run whose executed configurations ``states`` (S + 1, dof) end ``error`` (m)
         from the goal: success = ``error < tol`` with a positive clearance of the whole executed
-        trajectory (:func:`trajectory_clearance`; ``clearances``: :func:`ellipsoid_clearances` of
-        ``states`` when the caller has it); ``fields``: goal, extra, maps, ..."""
+        trajectory (:func:`run_clearance`; ``clearance``: its output for ``states`` when the caller
+        has it); ``fields``: goal, extra, maps, ..."""
         traj = np.asarray(states)
-        clearance, source, _ = trajectory_clearance(robot, ts, traj, clearances)
+        clearance, _, source = run_clearance(robot, ts, traj) if clearance is None else clearance
         success = bool(error < tol and clearance > 0)
         return cls(success=success, trajectory=traj, min_clearance_m=clearance, final_position_error_m=error, time_s=elapsed,
                    steps_per_s=n_steps / elapsed if elapsed > 0 else float("nan"), collision_cost=bool(collision), clearance_source=source,

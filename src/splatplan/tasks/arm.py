@@ -36,7 +36,7 @@ from ..planners.dynamics import JointIntegrator
 from ..planners.costs import JointVelocityTerms, StridedCollisionTerms
 from ..planners.mppi import MPPIConfig
 from ..robots.ik import check_reachable, rotation_error
-from ._common import TaskConfig, TaskResult, TaskScene, check_start, ellipsoid_clearances, load_task_scene, moving_clearance
+from ._common import TaskConfig, TaskResult, TaskScene, check_start, load_task_scene, run_clearance
 
 if TYPE_CHECKING:
     from ..robots.robot import Robot
@@ -193,11 +193,11 @@ def run_arm(robot: Robot | str, scene, goal_position, goal_quat=None, *, config:
     elapsed = time.perf_counter() - t0
     pe, re = _ee_error(robot, q, li, p_goal, r_goal)
     traj = np.asarray(states)
-    per_e = ellipsoid_clearances(robot, ts, traj)  # (every link's and the moving ones' minimum from one evaluation)
-    clearance_moving = moving_clearance(robot, ts, traj, per_e)
+    clear = run_clearance(robot, ts, traj)  # (every link's and the moving ones' minimum from one evaluation)
+    clearance_moving = clear[1]
     ee = robot.link_poses(traj)[:, li, :3, 3]
     return TaskResult.of_run(  # success: position error and clearance; the orientation error is reported beside it
-        robot, ts, traj, pe, cfg.position_tol, elapsed, n_steps, collision, clearances=per_e,
+        robot, ts, traj, pe, cfg.position_tol, elapsed, n_steps, collision, clearance=clear,
         final_orientation_error_deg=float(np.rad2deg(re)),
         goal={"position": p_goal.tolist(), "quat_wxyz": None if quat is None else quat.tolist(), "link": cfg.ee_link},
         extra={"robot": robot.name, "scene": ts.name, "n_steps": n_steps, "ee_trace": ee.round(5).tolist(), "n_splats": len(ts.splats),

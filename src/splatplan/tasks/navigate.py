@@ -209,7 +209,7 @@ def drive_to(robot: Robot, nav: NavScene, goal_xy, cfg: NavigateConfig, *, start
     from ..planners.costs import ControlEffortCost, GoalPoseCost, StateCost
     from ..planners.dynamics import PlanarBase
     from ..planners.route import carrot, wrap_angle
-    from ._common import check_start, trajectory_clearance
+    from ._common import check_start, run_clearance
 
     goal = np.asarray(goal_xy, np.float64).reshape(-1)[:2]
     x = np.asarray(cfg.start if start is None else start, np.float64).reshape(3).copy()
@@ -248,7 +248,7 @@ def drive_to(robot: Robot, nav: NavScene, goal_xy, cfg: NavigateConfig, *, start
         states.append(x.copy())
     elapsed = time.perf_counter() - t0
     traj = np.asarray(states)
-    clearance, source, _ = trajectory_clearance(robot, nav.task, traj)
+    clearance, _, source = run_clearance(robot, nav.task, traj)
     dist = float(np.linalg.norm(traj[-1, :2] - goal))
     reached = reached or dist < cfg.goal_tol_m
     msg = "" if reached else f"not within {cfg.goal_tol_m} m of the goal after {cfg.max_steps} MPC steps ({dist:.2f} m left)"

@@ -58,7 +58,7 @@ from ..planners.goal_time import GoalTimeMPC, GoalTimeSchedule
 from ..planners.image_cost import ImageTerms
 from ..planners.mppi import MPPI, MPPIConfig
 from ..planners.rrt_types import RRTConfig
-from ._common import TaskConfig, check_start, ellipsoid_clearances, load_task_scene, moving_clearance, trajectory_clearance
+from ._common import TaskConfig, check_start, load_task_scene, run_clearance
 
 if TYPE_CHECKING:
     from ..robots.robot import Robot
@@ -267,8 +267,7 @@ def run_reach(
         if own:
             rend.close()
     traj = np.asarray(states)
-    per_e = ellipsoid_clearances(robot, ts, traj)  # (every link's and the moving ones' minimum from one evaluation)
-    clearance, source, _ = trajectory_clearance(robot, ts, traj, per_e)
+    clearance, clearance_moving, source = run_clearance(robot, ts, traj)  # (every link's and the moving ones' minimum from one evaluation)
     li = robot.link_names.index(cfg.camera_link)
     cam_poses = robot.link_poses(traj)[:, li] @ cam.offset  # (S + 1, 4, 4) world <- camera
     pe = re = float("nan")
@@ -293,7 +292,7 @@ def run_reach(
         extra={"robot": robot.name, "scene": ts.name, "n_splats": len(ts.splats), "image_size": cfg.image_size, "n_samples": cfg.mppi.n_samples, "horizon": cfg.mppi.horizon,
                "plan_start_costs": run.start_costs, "route": run.route_outcome, "goal_search_costs": None if run.search_costs is None else [round(c, 4) for c in run.search_costs], "kept_goal_search": run.kept_search,
                # the moving links only: the Panda's fixed link0 sits 2.2 cm above the table whatever the arm does
-               "min_clearance_moving_links_m": round(float(moving_clearance(robot, ts, traj, per_e)), 6)},
+               "min_clearance_moving_links_m": round(clearance_moving, 6)},
     )
 
 

@@ -206,21 +206,13 @@ def _ellipsoid_sphere(
     return val, np.minimum(np.maximum(lb, 0.0) - sph[:, 3], val), val
 
 
-def ellipsoid_clearance_chunk(
-    scene: Any,  # an AnalyticScene (boxes, cylinders, spheres rows)
-    c: np.ndarray,  # (Q, 3) world
-    rot_e: np.ndarray,  # (Q, 3, 3) ellipsoid -> world
-    a: np.ndarray,  # (Q, 3)
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(value, lower, upper) (Q,) of the clearance of Q ellipsoids to every primitive of ``scene``.
-
-    Broad phase over all primitives: the SDF of the ellipsoid's centre d_c gives an upper bound
-    (d_c itself inside, max(d_c - a_min, 0) outside: the ball of radius a_min is inside E) and the
-    lower bound d_c - a_max (the SDF is 1-Lipschitz); only pairs whose lower bound reaches the best
-    upper bound over every primitive are solved."""
-    q_n = len(c)
-    a_max, a_min = a.max(1, keepdims=True), a.min(1, keepdims=True)
-    parts: list[tuple[Any, Any, Any, np.ndarray, np.ndarray]] = []  # (kind, local centres (Q, M, 3) or None, rotations (M, 3, 3) or None, params (M, k), d_c (Q, M))
+def _broad_phase(scene: Any, c: np.ndarray, a: np.ndarray) -> tuple[list, np.ndarray]:
+    """The primitives of ``scene`` seen from Q ellipsoid centres ``c`` (Q, 3) with semi-axes ``a``
+    (Q, 3): per primitive kind (shape, local centres (Q, M, 3) or None, rotations (M, 3, 3) or None,
+    params (M, k), centre SDF d_c (Q, M)), and each ellipsoid's upper bound on its clearance (Q, 1):
+    d_c itself inside a primitive, max(d_c - a_min, 0) outside (the ball of radius a_min is inside E)."""
+    a_min = a.min(1, keepdims=True)
+    parts: list[tuple[Any, Any, Any, np.ndarray, np.ndarray]] = []
     if len(scene.boxes):
         boxes, rot_b = scene.boxes, scene.rotations()
         local = np.einsum("mji,qmj->qmi", rot_b, c[:, None, :] - boxes[None, :, :3])  # (Q, M, 3) box frame
@@ -233,10 +225,37 @@ def ellipsoid_clearance_chunk(
     if len(scene.spheres):
         sph = scene.spheres
         parts.append((None, None, None, sph, np.linalg.norm(c[:, None, :] - sph[None, :, :3], axis=2) - sph[None, :, 3]))
-    best_ub = np.full((q_n, 1), np.inf)
+    best_ub = np.full((len(c), 1), np.inf)
     for *_, d_c in parts:
         ub = np.where(d_c < 0, d_c, np.maximum(d_c - a_min, 0.0))  # min over the ellipsoid <= this
         best_ub = np.minimum(best_ub, ub.min(axis=1, keepdims=True))
+    return parts, best_ub
+
+
+def clearance_upper_bound(scene: Any, c: np.ndarray, a: np.ndarray) -> float:
+    """An upper bound on the smallest clearance of Q ellipsoids (centres ``c`` (Q, 3), semi-axes
+    ``a`` (Q, 3)) to ``scene``, from their centres alone (:func:`_broad_phase`; +inf for none)."""
+    return float(_broad_phase(scene, c, a)[1].min()) if len(c) else float("inf")
+
+
+def ellipsoid_clearance_chunk(
+    scene: Any,  # an AnalyticScene (boxes, cylinders, spheres rows)
+    c: np.ndarray,  # (Q, 3) world
+    rot_e: np.ndarray,  # (Q, 3, 3) ellipsoid -> world
+    a: np.ndarray,  # (Q, 3)
+    cutoff: float = float("inf"),
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(value, lower, upper) (Q,) of the clearance of Q ellipsoids to every primitive of ``scene``.
+
+    Broad phase over all primitives (:func:`_broad_phase`): the SDF of the ellipsoid's centre d_c
+    gives an upper bound and the lower bound d_c - a_max (the SDF is 1-Lipschitz); only pairs whose
+    lower bound reaches the best upper bound over every primitive are solved. ``cutoff``: pairs
+    whose lower bound exceeds it are not solved either (an ellipsoid with none left reads +inf: its
+    clearance exceeds ``cutoff``)."""
+    q_n = len(c)
+    a_max = a.max(1, keepdims=True)
+    parts, best_ub = _broad_phase(scene, c, a)
+    best_ub = np.minimum(best_ub, cutoff)
     out, out_lo, out_hi = np.full(q_n, np.inf), np.full(q_n, np.inf), np.full(q_n, np.inf)
     for shape, local, rot_p, prm, d_c in parts:
         cand_q, cand_m = np.nonzero(d_c - a_max <= best_ub + 1e-12)  # 1-Lipschitz lower bound can reach the best
