@@ -121,7 +121,8 @@ def test_run_clearance_equals_the_full_evaluation(tabletop_small):
     from dataclasses import replace
 
     from splatplan.robots import load_robot
-    from splatplan.tasks._common import densify, moving_clearance, moving_ellipsoids, run_clearance, trajectory_clearance
+    from splatplan.planners.clearance import s2_to_metres
+    from splatplan.tasks._common import densify, moving_ellipsoids, run_clearance
 
     robot = load_robot("panda")
     mov = moving_ellipsoids(robot)
@@ -130,12 +131,12 @@ def test_run_clearance_equals_the_full_evaluation(tabletop_small):
     down = np.stack([robot.q_default, [0.75, 1.51, -0.35, -0.21, 0.0, 1.59, 0.7]])  # ends 1 cm into the geometry
     for ts in (tabletop_small, replace(tabletop_small, analytic=None)):
         for states in (free, down):
-            c, s, per_state = trajectory_clearance(robot, ts, states)
+            q = densify(robot, states)
+            if ts.analytic is not None:  # the full per-ellipsoid evaluation (S', E)
+                cc, qq, ax = robot.ellipsoids(q)
+                full, s = ts.analytic.ellipsoid_clearance(cc, qq, ax), "analytic"
+            else:
+                full, s = s2_to_metres(ts.checker.query_robot(robot, q).min_s2, robot.semi_axes), "metric"
             lo, mo, src = run_clearance(robot, ts, states)
-            assert src == s and lo == c == float(per_state.min())
-            if ts.analytic is not None:
-                cc, qq, ax = robot.ellipsoids(densify(robot, states))
-                full = ts.analytic.ellipsoid_clearance(cc, qq, ax)  # (S', E)
-                assert mo == float(full[:, mov].min()) and lo == float(full.min())
-            assert mo == moving_clearance(robot, ts, states) and mo >= lo
+            assert src == s and lo == float(full.min()) and mo == float(full[:, mov].min()) and mo >= lo
     assert run_clearance(robot, tabletop_small, down)[0] < 0 < run_clearance(robot, tabletop_small, free)[0]  # (both cases met)

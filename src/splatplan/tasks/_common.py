@@ -176,33 +176,17 @@ def safe_step(robot, checker, dyn, x: np.ndarray, u: np.ndarray, dt: float, step
     return np.zeros_like(u), None
 
 
-def trajectory_clearance(robot, scene: TaskScene, states: np.ndarray) -> tuple[float, str, np.ndarray]:
-    """Smallest clearance (m) of any robot ellipsoid over the densified trajectory.
-
-    Returns:
-        (min clearance, source, per-state minimum (S',)). Source "analytic": the exact signed
-        distance to the scene's boxes (:meth:`AnalyticScene.ellipsoid_clearance`); "metric": a lower
-        bound from the CollisionSplatting metric, ``(sqrt(min s2~) - 1) * smallest semi-axis`` (to
-        the n_sigma-inflated splat centres; capped where min s2~ reaches the checker's s2_cap).
-        A run's result needs only the minima: :func:`run_clearance` (the same values, cheaper).
-    """
-    q = densify(robot, states)
-    if scene.analytic is not None:
-        c, quat, ax = robot.ellipsoids(q)
-        per_e = scene.analytic.ellipsoid_clearance(c, quat, ax)  # (S', E)
-        source = "analytic"
-    else:
-        res = scene.checker.query_robot(robot, q)
-        per_e = s2_to_metres(res.min_s2, robot.semi_axes)  # (S', E)
-        source = "metric"
-    return float(per_e.min()), source, per_e.min(axis=-1)
-
-
 def run_clearance(robot, scene: TaskScene, states: np.ndarray) -> tuple[float, float, str]:
-    """(every ellipsoid's smallest clearance, the moving ellipsoids' smallest (:func:`moving_ellipsoids`),
-    source) (m) over the densified trajectory: the values of :func:`trajectory_clearance` and
-    :func:`moving_clearance` from one evaluation; with the analytic scene, only the ellipsoid-box
-    pairs that can hold a minimum are solved (:meth:`AnalyticScene.min_ellipsoid_clearance`)."""
+    """Smallest clearances (m) over the densified trajectory: (every ellipsoid's, the moving ellipsoids'
+    (:func:`moving_ellipsoids`; the arm's fixed base link sits at a constant distance from the table),
+    source).
+
+    Source "analytic": the exact signed distance to the scene's boxes (the minimum of
+    :meth:`AnalyticScene.ellipsoid_clearance`, solving only the ellipsoid-box pairs that can hold it:
+    :meth:`AnalyticScene.min_ellipsoid_clearance`); "metric": a lower bound from the
+    CollisionSplatting metric, ``(sqrt(min s2~) - 1) * smallest semi-axis`` (to the n_sigma-inflated
+    splat centres; capped where min s2~ reaches the checker's s2_cap).
+    """
     q = densify(robot, states)
     mov = moving_ellipsoids(robot)
     if scene.analytic is not None:
@@ -224,12 +208,6 @@ def moving_ellipsoids(robot) -> np.ndarray:
     hi = np.where(np.isfinite(lim[:, 1]), lim[:, 1], 1.0)
     c, _, _ = robot.ellipsoids(lo + rng.random((4, robot.dof)) * (hi - lo))
     return np.ptp(c, axis=0).max(axis=-1) > 1e-9
-
-
-def moving_clearance(robot, scene: TaskScene, states: np.ndarray) -> float:
-    """Like :func:`trajectory_clearance` over the ellipsoids that move (the arm's fixed base link
-    excluded: it sits at a constant distance from the table); :func:`run_clearance` gives both."""
-    return run_clearance(robot, scene, states)[1]
 
 
 CLEARANCE_NOTES = {
