@@ -225,6 +225,7 @@ SECTIONS = {
     "reach": markdown_file("reach.md"),
     "reach_behind_wall": markdown_file("reach_behind_wall.md"),
     "reach_goal_filters": markdown_file("reach_goal_filters.md"),
+    "reach_basin": markdown_file("reach_basin.md"),
     "navigate": markdown_file("navigate.md"),
     "gpu_arm": markdown_file("gpu_studies/arm.md"),
     "gpu_base": markdown_file("gpu_studies/base.md"),
