@@ -96,3 +96,34 @@ def test_chunks_split_when_the_workspace_cap_is_reached():
     tight = SplatRenderer(scene, "cpu", threads=1, max_bytes=fixed + 2000)
     with pytest.raises(SplatplanError, match="workspace"):
         tight.render(v, k, 64, 64)
+
+
+def test_splats_just_off_the_image_that_reach_into_it():
+    """Splats whose centres project just outside the image (0-12 px beyond every edge), elongated and
+    flat ones among them, footprints of 1-20 px: the project kernel's early cull (a bound on the
+    footprint before the 2D covariance) must keep every one that reaches a pixel."""
+    from splatplan.render import intrinsics_from_fov
+    from splatplan.scenes.splats import Splats
+
+    rng = np.random.default_rng(11)
+    v = look_at(np.array([-3.0, 0.2, 0.4]), np.zeros(3))[None]  # (1, 4, 4) world -> camera
+    k = intrinsics_from_fov(70.0, W, H)
+    n = 240
+    edge = rng.integers(0, 4, n)  # left, right, top, bottom
+    off = rng.uniform(0.0, 12.0, n)  # pixels beyond the edge
+    along = rng.uniform(0.0, 1.0, n)
+    u = np.where(edge == 0, -off, np.where(edge == 1, W + off, along * W))
+    vv = np.where(edge == 2, -off, np.where(edge == 3, H + off, along * H))
+    z = rng.uniform(1.5, 4.5, n)  # view depth
+    cam_pts = np.column_stack([(u - k[0, 2]) / k[0, 0] * z, (vv - k[1, 2]) / k[1, 1] * z, z])  # camera frame
+    rot, t = v[0, :3, :3], v[0, :3, 3]
+    means = (cam_pts - t) @ rot  # world frame: R^T (x - t)
+    scales = np.exp(rng.uniform(np.log(0.002), np.log(0.15), (n, 3)))
+    scales[: n // 4, 2] = 0.0  # disks
+    scales[n // 4 : n // 2, 0] *= 8.0  # needles
+    scene = Splats(means, rng.normal(size=(n, 4)), scales, rng.uniform(0.05, 1.0, n), rng.uniform(0, 1, (n, 3)))
+    want = render_reference(scene, v, k, W, H, background=(0.1, 0.2, 0.3))
+    assert 0.02 < (want.alpha[0] > 0.01).mean() < 0.9  # splats from outside reach in, not everywhere
+    for blend in ("tile", "pixel"):
+        got = SplatRenderer(scene, "cpu", blend=blend, threads=1).render(v, k, W, H, background=(0.1, 0.2, 0.3))
+        _check(got, want, f"off-image/{blend}")

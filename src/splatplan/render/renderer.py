@@ -82,6 +82,18 @@ class _Workspace:
         self.tiles = tiles
 
 
+def _spread(covs: np.ndarray) -> np.ndarray:
+    """(N, 3, 3) float32 covariances -> (N,) float32 upper bounds on the square root of each one's largest
+    eigenvalue (the smaller of the trace and the largest absolute row sum, both >= it for a symmetric
+    positive semi-definite matrix; rounded up), for the project kernel's EARLY CULL; (1,) when N = 0."""
+    if len(covs) == 0:
+        return np.zeros(1, np.float32)
+    c = covs.astype(np.float64)
+    lam = np.minimum(np.trace(c, axis1=1, axis2=2), np.abs(c).sum(axis=2).max(axis=1))
+    out = np.sqrt(np.maximum(lam, 0.0)) * (1.0 + 1e-6)
+    return np.nextafter(out.astype(np.float32), np.float32(np.inf))
+
+
 def _wp_raster():
     from . import wp_raster
 
@@ -132,6 +144,10 @@ class SplatRenderer(OwnsThreadPool):
         s.means = wp.array(arrs["means"].astype(np.float32), dtype=wp.vec3, device=d)
         s.covs = wp.array(arrs["covs"].astype(np.float32), dtype=wp.mat33, device=d)
         s.opacities = wp.array(arrs["opacities"].astype(np.float32), dtype=wp.float32, device=d)
+        s.extent = wp.empty(max(self.n, 1), dtype=wp.float32, device=d)
+        if self.n:
+            wp.launch(rast.extent_kernel, dim=self.n, inputs=[s.opacities, s.extent], device=d)
+        s.spread = wp.array(_spread(arrs["covs"].astype(np.float32)), dtype=wp.float32, device=d)
         s.colors = wp.array(arrs["colors"].astype(np.float32), dtype=wp.vec3, device=d)
         sh = arrs["sh"].reshape(-1, 3).astype(np.float32) if self.sh_k else np.zeros((1, 3), np.float32)
         s.sh = wp.array(sh, dtype=wp.vec3, device=d)
@@ -139,7 +155,7 @@ class SplatRenderer(OwnsThreadPool):
         s.sh_k = self.sh_k
         s.sh_deg = 0
         self._scene = s
-        self._scene_bytes = self.n * (12 + 36 + 4 + 12 + 12 * self.sh_k)
+        self._scene_bytes = self.n * (12 + 36 + 4 + 4 + 4 + 12 + 12 * self.sh_k)
         if self.n:
             lo, hi = arrs["means"].min(axis=0), arrs["means"].max(axis=0)
             self._centre, self._radius = 0.5 * (lo + hi), 0.5 * float(np.linalg.norm(hi - lo)) * 1.001 + 1e-6

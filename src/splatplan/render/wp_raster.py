@@ -19,6 +19,13 @@ Pipeline for a chunk of C cameras (rows r = c * N + i, splat i seen by camera c)
    pixels inside the tile; the CPU kernel: each splat visits only the ~10 pixels it covers) or
    ``blend_pixel_kernel`` (one thread per pixel; the CUDA kernel). Both give the same result.
 
+EARLY CULL (project_kernel): before the 2D covariance, a splat whose footprint bound stays off the
+image is dropped. With lam >= the largest eigenvalue of its 3D covariance (``SceneArgs.spread``,
+squared, padded), the 2D variance along x, m0^T Sigma m0 + LOW_PASS, is at most
+(j00^2 + j02^2) lam + LOW_PASS (m0 = j00 W[0] + j02 W[2], W's rows orthonormal), and likewise along y:
+the bounding box from these bounds contains the exact one, so a splat dropped here would have been
+dropped by the exact box (the images are unchanged; most off-screen splats skip the covariance).
+
 Exactness of the bounding box: alpha = o exp(-q/2) >= ALPHA_MIN iff q <= k^2 with
 k^2 = 2 ln(o / ALPHA_MIN); the ellipse {q <= k^2} lies inside |dx| <= k sqrt(S_xx),
 |dy| <= k sqrt(S_yy) (S the 2D covariance). So binning drops only pixels the blending would skip.
@@ -49,6 +56,8 @@ class SceneArgs:
     means: wp.array(dtype=wp.vec3)  # (N,) centres
     covs: wp.array(dtype=wp.mat33)  # (N,) covariances R diag(s^2) R^T (disks thickened)
     opacities: wp.array(dtype=wp.float32)  # (N,) in [0, 1]
+    extent: wp.array(dtype=wp.float32)  # (N,) k = sqrt(2 ln(o / ALPHA_MIN)): alpha >= ALPHA_MIN only within q <= k^2 (0 below ALPHA_MIN)
+    spread: wp.array(dtype=wp.float32)  # (N,) >= sqrt(largest eigenvalue of the covariance) (EARLY CULL)
     colors: wp.array(dtype=wp.vec3)  # (N,) SH band 0 + 0.5
     sh: wp.array(dtype=wp.vec3)  # (N * sh_k,) higher SH coefficients, row-major per splat
     n: int  # N
@@ -140,6 +149,17 @@ def sh_color(scene: SceneArgs, i: int, d: wp.vec3) -> wp.vec3:
 
 
 @wp.kernel
+def extent_kernel(opacities: wp.array(dtype=wp.float32), extent: wp.array(dtype=wp.float32)):
+    """extent[i] = sqrt(2 ln(o_i / ALPHA_MIN)) (0 below ALPHA_MIN: such splats are never drawn)."""
+    i = wp.tid()
+    o = opacities[i]
+    k = float(0.0)
+    if o >= _ALPHA_MIN:
+        k = wp.sqrt(2.0 * wp.log(o / _ALPHA_MIN))
+    extent[i] = k
+
+
+@wp.kernel
 def project_kernel(
     scene: SceneArgs, cams: CamArgs, cam_base: int, frame: FrameArgs,
     key_scale: wp.float64, key_max: wp.float64, proj: ProjArgs,
@@ -168,6 +188,18 @@ def project_kernel(
     j02 = -fx * tx * inv_z * inv_z
     j11 = fy * inv_z
     j12 = -fy * ty * inv_z * inv_z
+    u = fx * p[0] * inv_z + intr[2]
+    v = fy * p[1] * inv_z + intr[3]
+    kk = scene.extent[i]
+    # EARLY CULL: the 2D variances below are at most (j00^2 + j02^2) lam_max + LOW_PASS (resp. j11, j12):
+    # a footprint that stays off the image with these bounds does so with the exact ones
+    lam = scene.spread[i] * scene.spread[i] * 1.0001
+    rxb = kk * wp.sqrt((j00 * j00 + j02 * j02) * lam + _LOW_PASS)
+    ryb = kk * wp.sqrt((j11 * j11 + j12 * j12) * lam + _LOW_PASS)
+    if wp.ceil(u - rxb - 0.5) > float(frame.width - 1) or wp.floor(u + rxb - 0.5) < 0.0:
+        return
+    if wp.ceil(v - ryb - 0.5) > float(frame.height - 1) or wp.floor(v + ryb - 0.5) < 0.0:
+        return
     # 2D covariance (J W) Sigma (J W)^T + low-pass, J = [[j00, 0, j02], [0, j11, j12]], W = rot:
     # rows of J W are m0 = j00 W[0] + j02 W[2] and m1 = j11 W[1] + j12 W[2] (world frame)
     m0 = j00 * wp.vec3(rot[0, 0], rot[0, 1], rot[0, 2]) + j02 * wp.vec3(rot[2, 0], rot[2, 1], rot[2, 2])
@@ -181,11 +213,7 @@ def project_kernel(
     if not (det > 0.0) or not wp.isfinite(det):  # also NaN / overflow from absurd scales
         return
     inv_det = 1.0 / det
-    u = fx * p[0] * inv_z + intr[2]
-    v = fy * p[1] * inv_z + intr[3]
-    # opacity-aware extent: alpha >= ALPHA_MIN only where q <= k2
-    k2 = 2.0 * wp.log(o / _ALPHA_MIN)
-    kk = wp.sqrt(k2)
+    # opacity-aware extent (kk): alpha >= ALPHA_MIN only where q <= kk^2
     rx = kk * wp.sqrt(a)
     ry = kk * wp.sqrt(d)
     # pixel centres px + 0.5 within [u - rx, u + rx]
