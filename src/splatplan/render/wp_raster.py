@@ -20,11 +20,13 @@ Pipeline for a chunk of C cameras (rows r = c * N + i, splat i seen by camera c)
    ``blend_pixel_kernel`` (one thread per pixel; the CUDA kernel). Both give the same result.
 
 EARLY CULL (project_kernel): before the 2D covariance, a splat whose footprint bound stays off the
-image is dropped. With lam >= the largest eigenvalue of its 3D covariance (``SceneArgs.spread``,
-squared, padded), the 2D variance along x, m0^T Sigma m0 + LOW_PASS, is at most
-(j00^2 + j02^2) lam + LOW_PASS (m0 = j00 W[0] + j02 W[2], W's rows orthonormal), and likewise along y:
-the bounding box from these bounds contains the exact one, so a splat dropped here would have been
-dropped by the exact box (the images are unchanged; most off-screen splats skip the covariance).
+image is dropped. With lam >= the largest eigenvalue of its 3D covariance (``SceneArgs.spread``
+squared), the 2D variance along x, m0^T Sigma m0 + LOW_PASS, is at most (j00^2 + j02^2) lam' +
+LOW_PASS with lam' = 1.004 lam: m0 = j00 W[0] + j02 W[2] has |m0|^2 <= (j00^2 + j02^2)(1 + 2e-3) for
+rows of W orthonormal to the 1e-3 that the camera check allows (the rest of the pad covers float32
+rounding); likewise along y. The bounding box from these bounds contains the exact one, so a splat
+dropped here would have been dropped by the exact box: the images are unchanged, and most
+off-screen splats skip the covariance.
 
 Exactness of the bounding box: alpha = o exp(-q/2) >= ALPHA_MIN iff q <= k^2 with
 k^2 = 2 ln(o / ALPHA_MIN); the ellipse {q <= k^2} lies inside |dx| <= k sqrt(S_xx),
@@ -193,7 +195,7 @@ def project_kernel(
     kk = scene.extent[i]
     # EARLY CULL: the 2D variances below are at most (j00^2 + j02^2) lam_max + LOW_PASS (resp. j11, j12):
     # a footprint that stays off the image with these bounds does so with the exact ones
-    lam = scene.spread[i] * scene.spread[i] * 1.0001
+    lam = scene.spread[i] * scene.spread[i] * 1.004  # (pad: rows of W orthonormal to 1e-3, float32 rounding)
     rxb = kk * wp.sqrt((j00 * j00 + j02 * j02) * lam + _LOW_PASS)
     ryb = kk * wp.sqrt((j11 * j11 + j12 * j12) * lam + _LOW_PASS)
     if wp.ceil(u - rxb - 0.5) > float(frame.width - 1) or wp.floor(u + rxb - 0.5) < 0.0:
