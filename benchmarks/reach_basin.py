@@ -74,6 +74,19 @@ def probe_poses(t_goal: np.ndarray, dirs: np.ndarray, axes: np.ndarray) -> tuple
     return tr, rot
 
 
+def study_goals(study: dict) -> list[dict]:
+    """The goals of an E5 study result: name, q (7,) and per run its final_q (7,) and final errors
+    (KeyError / TypeError / ValueError where the file is not one)."""
+    out = []
+    for g in study["goals"]:
+        runs = {k: {"final_q": np.asarray(r["final_q"], np.float64).reshape(7), "translation_error_m": float(r["translation_error_m"]),
+                    "rotation_error_deg": float(r["rotation_error_deg"])} for k, r in g["runs"].items()}  # fmt: skip
+        out.append({"name": str(g["name"]), "q": np.asarray(g["q"], np.float64).reshape(7), "runs": runs})
+    if not out:
+        raise ValueError("no goals")
+    return out
+
+
 def guidance(steps, medians: list[float], level: float) -> float:
     """The largest step whose median probe cost is below ``level`` (0 when the first is not)."""
     out = 0.0
@@ -108,8 +121,16 @@ def main(argv: list[str] | None = None) -> int:
     if not a.out.is_dir():
         print(f"reach_basin: --out {a.out} is not a folder", file=sys.stderr)
         return 2
-    study = json.loads(a.study.read_text())
     n_dirs = 6 if a.quick else int(a.directions)
+    if n_dirs < 1:
+        print(f"reach_basin: --directions must be >= 1, got {n_dirs}", file=sys.stderr)
+        return 2
+    try:
+        study = json.loads(a.study.read_text())
+        goals_in = study_goals(study)
+    except (ValueError, KeyError, TypeError) as e:
+        print(f"reach_basin: {a.study} is not an E5 study result (goals with q and runs with final_q): {type(e).__name__}: {e}", file=sys.stderr)
+        return 2
     t0 = time.perf_counter()
     cfg = ReachConfig()
     size = int(study.get("config", {}).get("image_size", cfg.image_size))
@@ -128,8 +149,8 @@ def main(argv: list[str] | None = None) -> int:
             res = rend.render(v, cam.Ks((len(v),)), cam.width, cam.height, background=bg)
             return np.asarray(res.rgb), np.asarray(res.alpha)
 
-        for g in study["goals"]:
-            q_goal = np.asarray(g["q"], np.float64)
+        for g in goals_in:
+            q_goal = g["q"]
             t_goal = cam.cam_to_world(robot, q_goal)
             target = np.asarray(cam.render(rend, robot, q_goal[None], background=bg).rgb[0])
             tr, rot = probe_poses(t_goal, dirs, axes)
@@ -146,7 +167,7 @@ def main(argv: list[str] | None = None) -> int:
                 med_r, p10_r = [float(np.median(c)) for c in rot_c], [float(np.percentile(c, 10)) for c in rot_c]
                 row.update({"translation_median": med_t, "translation_p10": p10_t, "rotation_median": med_r, "rotation_p10": p10_r})
                 for run_name, run in g["runs"].items():
-                    q_end = np.asarray(run["final_q"], np.float64)
+                    q_end = run["final_q"]
                     res = cam.render(rend, robot, q_end[None], background=bg)
                     c_end = float(cost.raw_cost_of_images(np.asarray(res.rgb), np.asarray(res.alpha))[0])
                     row["runs"][run_name] = {"final_cost": c_end, "translation_error_m": run["translation_error_m"], "rotation_error_deg": run["rotation_error_deg"],

@@ -58,9 +58,17 @@ def test_a_coarser_pyramid_has_the_wider_basin(quick_run):
     assert coarse > default > fine
 
 
-def test_missing_study_is_a_clear_error(tmp_path, capsys):
+def test_bad_input_is_a_clear_error(tmp_path, capsys):
     assert reach_basin.main(["--study", str(tmp_path / "nope.json"), "--out", str(tmp_path)]) == 2
     assert "no study results" in capsys.readouterr().err
+    for text in ("{not json", '{"goals": []}', '{"goals": [{"name": "g", "q": [0, 1]}]}'):
+        bad = tmp_path / "bad.json"
+        bad.write_text(text)
+        assert reach_basin.main(["--study", str(bad), "--out", str(tmp_path)]) == 2
+        assert "is not an E5 study result" in capsys.readouterr().err
+    assert reach_basin.main(["--directions", "0", "--out", str(tmp_path)]) == 2
+    assert "--directions must be >= 1" in capsys.readouterr().err
+    assert not list(tmp_path.glob("reach_basin.*"))  # nothing written
 
 
 def test_committed_result_matches_the_study():
