@@ -185,8 +185,8 @@ class EdgeChecker:
             s = np.nonzero(sel)[0]
             if s.size == 0:
                 continue
-            if use_slack:  # target: the slack that proves the samples up to the next check of this stride (at most SLACK_TARGET_STEPS)
-                want = min(0.5 * stride, self.SLACK_TARGET_STEPS) if stride > 1 else 0.0
+            if use_slack and stride > 1:  # target: the slack that proves the samples up to the next check of this stride (at most SLACK_TARGET_STEPS); the last stage has no later samples to prove
+                want = min(0.5 * stride, self.SLACK_TARGET_STEPS)
                 hit, slack = self.geometry.collides_slack(self.checker, pts[s], step[idx[s]] * want)  # (S,), (S, E)
                 _prove_free(todo, s, hit, slack, step[idx[s]], first[idx[s]], last[s])
             else:
