@@ -18,12 +18,42 @@ class Terminated(SystemExit):
     """Raised by the CLI's SIGTERM handler (exit code 143), so ``finally`` blocks clean up."""
 
 
+#: seconds before a signal that arrived inside a finaliser is delivered again
+REDELIVER_S = 0.02
+
+
+def _in_finalizer(frame) -> bool:
+    """Whether ``frame`` (the one a signal interrupted) runs inside an object's ``__del__`` or a
+    ``weakref`` callback: Python swallows an exception raised there ("Exception ignored in ...", a
+    traceback on stderr) and goes on as if the signal had never come."""
+    while frame is not None:
+        code = frame.f_code
+        if code.co_name == "__del__" or code.co_filename.endswith("weakref.py"):
+            return True
+        frame = frame.f_back
+    return False
+
+
+def _deliver_later(signum: int) -> None:
+    """Send ``signum`` to this process again in :data:`REDELIVER_S` (from a timer thread; the handler
+    runs again in the main thread, outside the finaliser by then, or defers once more)."""
+    t = threading.Timer(REDELIVER_S, os.kill, (os.getpid(), signum))
+    t.daemon = True
+    t.start()
+
+
 def _raise_interrupt(signum, frame):
+    if _in_finalizer(frame):
+        _deliver_later(signum)
+        return
     _RECEIVED.append(signum)
     raise KeyboardInterrupt
 
 
 def _raise_terminated(signum, frame):
+    if _in_finalizer(frame):
+        _deliver_later(signum)
+        return
     _RECEIVED.append(signum)
     raise Terminated(128 + signum)
 
@@ -40,7 +70,9 @@ def received_signal() -> int | None:
 def cli_signal_handlers():
     """SIGINT -> KeyboardInterrupt and SIGTERM -> :class:`Terminated` while the block runs (main
     thread only), so every ``finally`` (temp files of :func:`atomic_path`) runs on Ctrl-C or kill.
-    A signal the caller ignores (SIG_IGN, e.g. ``nohup``-style launchers) stays ignored."""
+    A signal the caller ignores (SIG_IGN, e.g. ``nohup``-style launchers) stays ignored. A signal
+    that lands inside a finaliser (``__del__``, where the exception would be swallowed) is sent
+    again a moment later."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
