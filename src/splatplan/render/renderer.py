@@ -142,12 +142,13 @@ class SplatRenderer(OwnsThreadPool):
         rast = _wp_raster()
         s = rast.SceneArgs()
         s.means = wp.array(arrs["means"].astype(np.float32), dtype=wp.vec3, device=d)
-        s.covs = wp.array(arrs["covs"].astype(np.float32), dtype=wp.mat33, device=d)
+        covs = arrs["covs"].astype(np.float32)  # (N, 3, 3) as the kernels hold them
+        s.covs = wp.array(covs, dtype=wp.mat33, device=d)
         s.opacities = wp.array(arrs["opacities"].astype(np.float32), dtype=wp.float32, device=d)
         s.extent = wp.empty(max(self.n, 1), dtype=wp.float32, device=d)
         if self.n:
             wp.launch(rast.extent_kernel, dim=self.n, inputs=[s.opacities, s.extent], device=d)
-        s.spread = wp.array(_spread(arrs["covs"].astype(np.float32)), dtype=wp.float32, device=d)
+        s.spread = wp.array(_spread(covs), dtype=wp.float32, device=d)
         s.colors = wp.array(arrs["colors"].astype(np.float32), dtype=wp.vec3, device=d)
         sh = arrs["sh"].reshape(-1, 3).astype(np.float32) if self.sh_k else np.zeros((1, 3), np.float32)
         s.sh = wp.array(sh, dtype=wp.vec3, device=d)
