@@ -40,6 +40,8 @@ from pathlib import Path
 
 import numpy as np
 
+from splatplan.robots.kinematics import axis_angle_matrix
+
 #: translation probe steps (m)
 STEPS_M = (0.005, 0.01, 0.02, 0.03, 0.05, 0.08, 0.12, 0.20)
 #: rotation probe steps (degrees)
@@ -54,13 +56,6 @@ def unit_vectors(rng: np.random.Generator, n: int) -> np.ndarray:
     return v / np.linalg.norm(v, axis=1, keepdims=True)
 
 
-def axis_angle(axis: np.ndarray, deg: float) -> np.ndarray:
-    """(3, 3) rotation by ``deg`` about the unit ``axis`` (Rodrigues)."""
-    a = np.radians(deg)
-    k = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]])
-    return np.eye(3) + np.sin(a) * k + (1.0 - np.cos(a)) * (k @ k)
-
-
 def probe_poses(t_goal: np.ndarray, dirs: np.ndarray, axes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """World <- camera probe poses around ``t_goal`` (4, 4): translations (len(STEPS_M), n, 4, 4)
     (camera moved by step * dir, world frame) and turns (len(STEPS_DEG), n, 4, 4) (camera rotated
@@ -68,9 +63,8 @@ def probe_poses(t_goal: np.ndarray, dirs: np.ndarray, axes: np.ndarray) -> tuple
     tr = np.broadcast_to(t_goal, (len(STEPS_M), len(dirs), 4, 4)).copy()
     tr[..., :3, 3] += np.asarray(STEPS_M)[:, None, None] * dirs[None]
     rot = np.broadcast_to(t_goal, (len(STEPS_DEG), len(axes), 4, 4)).copy()
-    for i, deg in enumerate(STEPS_DEG):
-        for j, ax in enumerate(axes):
-            rot[i, j, :3, :3] = t_goal[:3, :3] @ axis_angle(ax, deg)
+    for j, ax in enumerate(axes):
+        rot[:, j, :3, :3] = t_goal[:3, :3] @ axis_angle_matrix(ax, np.radians(STEPS_DEG))  # (steps, 3, 3)
     return tr, rot
 
 
