@@ -46,6 +46,8 @@ from splatplan.robots.kinematics import axis_angle_matrix
 STEPS_M = (0.005, 0.01, 0.02, 0.03, 0.05, 0.08, 0.12, 0.20)
 #: rotation probe steps (degrees)
 STEPS_DEG = (1.0, 2.0, 4.0, 8.0, 15.0, 30.0)
+#: most probe directions per step (each step renders this many views per goal)
+MAX_DIRECTIONS = 4096
 #: encoders compared for the basin half-width: (label, thumbnail size, pyramid levels); the first is the study's default
 ENCODERS = (("bands 4/8 px (default)", 8, 2), ("bands 2/4 px", 4, 2), ("bands 4/8/16 px", 16, 3))
 
@@ -116,8 +118,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f"reach_basin: --out {a.out} is not a folder", file=sys.stderr)
         return 2
     n_dirs = 6 if a.quick else int(a.directions)
-    if n_dirs < 1:
-        print(f"reach_basin: --directions must be >= 1, got {n_dirs}", file=sys.stderr)
+    if not 1 <= n_dirs <= MAX_DIRECTIONS:
+        print(f"reach_basin: --directions must be between 1 and {MAX_DIRECTIONS}, got {n_dirs}", file=sys.stderr)
         return 2
     try:
         study = json.loads(a.study.read_text())

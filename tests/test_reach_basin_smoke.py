@@ -66,8 +66,9 @@ def test_bad_input_is_a_clear_error(tmp_path, capsys):
         bad.write_text(text)
         assert reach_basin.main(["--study", str(bad), "--out", str(tmp_path)]) == 2
         assert "is not an E5 study result" in capsys.readouterr().err
-    assert reach_basin.main(["--directions", "0", "--out", str(tmp_path)]) == 2
-    assert "--directions must be >= 1" in capsys.readouterr().err
+    for n in ("0", "-1", str(10**18)):
+        assert reach_basin.main(["--directions", n, "--out", str(tmp_path)]) == 2
+        assert "--directions must be between 1 and" in capsys.readouterr().err
     assert not list(tmp_path.glob("reach_basin.*"))  # nothing written
 
 
