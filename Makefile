@@ -24,7 +24,8 @@ browser:
 	    || echo "note: could not install chromium; the browser test will skip"; \
 	fi
 
-# The suite on two worker processes (pytest-xdist; TEST_WORKERS=0 runs it in this process): studies run in their
+# The suite on two worker processes (pytest-xdist, work stealing: a worker that runs out takes tests queued on the
+# other, so one minute-long study at the end does not leave a core idle; TEST_WORKERS=0 runs it in this process): studies run in their
 # --quick form, the docs site is built, mypy checks the source. Each worker runs single-threaded (TEST_THREADS:
 # splatplan's CPU launches, torch/OpenMP, BLAS): the workers already fill the cores, and threads of one worker
 # waiting on a core the other holds only add CPU time. The tests of the threaded paths set their own counts.
@@ -32,7 +33,7 @@ TEST_WORKERS ?= 2
 TEST_THREADS ?= $(if $(filter 0 1,$(TEST_WORKERS)),,1)
 TEST_ENV := $(if $(TEST_THREADS),SPLATPLAN_CPU_THREADS=$(TEST_THREADS) OMP_NUM_THREADS=$(TEST_THREADS) OPENBLAS_NUM_THREADS=$(TEST_THREADS) MKL_NUM_THREADS=$(TEST_THREADS),)
 test: $(STAMP) browser
-	$(TEST_ENV) $(PY) -m pytest -q -n $(TEST_WORKERS)
+	$(TEST_ENV) $(PY) -m pytest -q -n $(TEST_WORKERS) --dist worksteal
 
 # The documentation site into site/ (warnings are errors); the CLI and API reference and the benchmark
 # tables are generated from the code and benchmarks/results/ while it builds. make test builds it too
