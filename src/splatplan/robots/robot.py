@@ -305,11 +305,12 @@ class Robot(OwnsThreadPool):
         straight segment q1 -> q2 gives the stated inequality for any pair of configurations.
         """
         bound = np.zeros(self.dof)
-        for lin, rot, rho in self._joint_motion_terms():
+        smax = self.semi_axes.max(axis=1)  # (E,)
+        for lin, rot, ells, geo in self._motion_terms():
             for sl, c in lin:
                 bound[sl] += c
             if rot is not None:
-                bound[rot[0]] += rot[1] * max(rho.values(), default=0.0)
+                bound[rot[0]] += rot[1] * (float((geo + smax[ells]).max()) if len(ells) else 0.0)
         return bound
 
     def ellipsoid_motion_bounds(self) -> np.ndarray:
@@ -327,39 +328,50 @@ class Robot(OwnsThreadPool):
         if hit is not None and hit[0] == key:
             return hit[1].copy()
         bound = np.zeros((self.n_ellipsoids, self.dof))
-        for lin, rot, rho in self._joint_motion_terms():
+        smax = self.semi_axes.max(axis=1)  # (E,)
+        for lin, rot, ells, geo in self._motion_terms():
             for sl, c in lin:
-                bound[list(rho), sl] += c
+                bound[ells, sl] += c
             if rot is not None:
-                for e, r in rho.items():
-                    bound[e, rot[0]] += rot[1] * r
+                bound[ells, rot[0]] += rot[1] * (geo + smax[ells])
         self.__dict__["_ell_motion_cache"] = (key, bound)
         return bound.copy()
 
-    def _joint_motion_terms(self):
+    def _motion_terms(self) -> list:
         """Per moving joint, the terms both motion bounds sum (the argument of :meth:`_motion_bound`):
-        yields ``(lin, rot, rho)`` with ``lin`` [(dof slice, coefficient)] of its translations (each
+        ``(lin, rot, ells, geo)`` with ``lin`` [(dof slice, coefficient)] of its translations (each
         moves every downstream point by that much per unit), ``rot`` (dof index, |multiplier|) of its
-        rotation or None, and ``rho`` {downstream ellipsoid: its distance bound from the rotation
-        axis} (0 for a pure translation: the keys are the ellipsoids the joint moves)."""
+        rotation or None, ``ells`` (k,) the ellipsoids it moves and ``geo`` (k,) the kinematic part
+        of their distance bounds from the rotation axis (:meth:`_axis_distance_bound` less the
+        largest semi-axis; 0 for a pure translation). Kinematics only: cached, shared with
+        :meth:`inflated` copies (which grow the semi-axes alone)."""
+        cache = self.__dict__.setdefault("_axis_geo_cache", {})
+        key = ("terms", np.asarray(self.ellipsoid_link).tobytes(), np.asarray(self.ellipsoid_local).tobytes())
+        hit = cache.get(key)
+        if hit is not None:
+            return hit
         kin = self.kin
         sub = self._subtree()
-        ell_of_link, smax = self._ellipsoids_of_link(), self.semi_axes.max(axis=1)
+        ell_of_link = self._ellipsoids_of_link()
+        terms = []
         for l in range(kin.n_links):
             jt = int(kin.jtype[l])
             if jt == FIXED:
                 continue
             qi, m = int(kin.qidx[l]), abs(float(kin.mult[l]))
             down = [(d, e) for d in sub[l] for e in ell_of_link.get(d, [])]
+            ells = np.array([e for _, e in down], dtype=np.int64)
             if jt in (PRISMATIC, TRANSLATION):
                 n_lin = 3 if jt == TRANSLATION else 1
-                yield [(slice(qi, qi + n_lin), m if jt == PRISMATIC else 1.0)], None, {e: 0.0 for _, e in down}
+                terms.append(([(slice(qi, qi + n_lin), m if jt == PRISMATIC else 1.0)], None, ells, np.zeros(len(ells))))
                 continue
             if jt == PLANAR:
                 lin, qi_rot, factor, axis = [(slice(qi, qi + 2), 1.0)], qi + 2, 1.0, np.array([0.0, 0.0, 1.0])
             else:
                 lin, qi_rot, factor, axis = [], qi, m, kin.axis[l]
-            yield lin, (qi_rot, factor), {e: self._axis_distance_bound(l, d, e, axis, smax[e]) for d, e in down}
+            terms.append((lin, (qi_rot, factor), ells, np.array([self._axis_distance_bound(l, d, e, axis, 0.0) for d, e in down], dtype=np.float64)))
+        cache[key] = terms
+        return terms
 
     def _ellipsoids_of_link(self) -> dict[int, list[int]]:
         """Link index -> the indices of the ellipsoids it carries (the motion bounds' bookkeeping)."""
