@@ -302,10 +302,8 @@ class CollisionChecker:
         One thread per configuration (GROUP BOUND, :mod:`.wp_metric_kernel`): the ellipsoids of a
         link are proven free together by one read of the mean-distance grid when the link is far
         from every splat, and a configuration stops at its first colliding ellipsoid. The cheap
-        check for planners' edge checks. On a CPU checker a numpy batch runs recorded launches in
-        ``out`` or, without it, in the calling thread's workspace (:meth:`thread_workspace`; the
-        result is then a copy): tens of microseconds per call beside the kernel. Other arguments as
-        in :meth:`collides_robot`.
+        check for planners' edge checks (CPU, numpy: recorded launches in ``out`` or the calling thread's
+        workspace, the result then a copy). Other arguments as in :meth:`collides_robot`.
         """
         with _torch_stream(q):
             return self._robot(robot, q, out, validate, full=False, per_config=True)
@@ -335,14 +333,11 @@ class CollisionChecker:
             if slack:
                 return res, _from_host(np.zeros(np.shape(qn)[:-1] + (e,), dtype=np.float32), kind, _device_of(q, self.device))
             return res
-        if per_config and sub is None and kind == "numpy" and self.device == "cpu" and self._impl is not None:
-            # the lean path (recorded launches); without ``out``, the calling thread's workspace and a copy of the result
+        if per_config and sub is None and kind == "numpy" and self.device == "cpu" and self._impl is not None:  # the lean path
             ws = self.thread_workspace() if out is None else self._workspace(out, 1)
             fast = fast_collides_configs(self._impl, self.config, self._axes_for, robot, q, ws, slack, target)
-            if fast is not None:
-                if out is None:
-                    return (fast[0].copy(), fast[1].copy()) if slack else fast.copy()
-                return fast
+            if fast is not None:  # (without ``out``: a copy, the thread's buffers are reused)
+                return fast if out is not None else ((fast[0].copy(), fast[1].copy()) if slack else fast.copy())
         from .._warp import wp as _wp
         from .wp_metric_kernel import LinkBatch
 
