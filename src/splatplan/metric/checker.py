@@ -334,8 +334,8 @@ class CollisionChecker:
                 return res, _from_host(np.zeros(np.shape(qn)[:-1] + (e,), dtype=np.float32), kind, _device_of(q, self.device))
             return res
         if per_config and sub is None and kind == "numpy" and self.device == "cpu" and self._impl is not None:  # the lean path
-            ws = self.thread_workspace() if out is None else self._workspace(out, 1)
-            fast = fast_collides_configs(self._impl, self.config, self._axes_for, robot, q, ws, slack, target)
+            lean = self.thread_workspace() if out is None else self._workspace(out, 1)
+            fast = fast_collides_configs(self._impl, self.config, self._axes_for, robot, q, lean, slack, target)
             if fast is not None:  # (without ``out``: a copy, the thread's buffers are reused)
                 return fast if out is not None else ((fast[0].copy(), fast[1].copy()) if slack else fast.copy())
         from .._warp import wp as _wp

@@ -353,7 +353,7 @@ class Robot(OwnsThreadPool):
         kin = self.kin
         sub = self._subtree()
         ell_of_link = self._ellipsoids_of_link()
-        terms = []
+        terms: list[tuple[list, tuple[int, float] | None, np.ndarray, np.ndarray]] = []
         for l in range(kin.n_links):
             jt = int(kin.jtype[l])
             if jt == FIXED:
