@@ -48,6 +48,22 @@ def test_root_and_scenes_import_neither_torch_nor_warp():
     assert res.stdout.startswith("ok")
 
 
+def test_the_command_line_starts_without_the_heavy_modules():
+    """Building the CLI (every subcommand's flags and help) loads none of torch, warp, matplotlib or
+    scipy.spatial: ``splatplan --help`` and a bad flag answer in well under a second."""
+    res = _run(
+        """
+        import sys
+        from splatplan.cli import build_parser
+
+        build_parser()
+        print(sorted(m for m in ("torch", "warp", "matplotlib", "scipy.spatial") if m in sys.modules))
+        """
+    )
+    assert res.returncode == 0, res.stderr
+    assert res.stdout.strip() == "[]", res.stdout
+
+
 def test_core_works_without_torch():
     res = _run(
         NO_TORCH

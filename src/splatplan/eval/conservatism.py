@@ -28,7 +28,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from .._config import bounded
 from ..errors import PlanningError, SplatplanError
@@ -220,6 +219,8 @@ class ConservatismContext:
 
         self.splats, self.scene = load_scene(level, seed)
         self.base = CollisionChecker(self.splats, n_sigma=0.0, device=device, config=MetricConfig.paper())
+        from scipy.spatial import cKDTree
+
         self.tree = cKDTree(self.splats.means.astype(np.float64))
         self._checkers: dict[float, object] = {}
 

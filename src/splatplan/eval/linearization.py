@@ -28,7 +28,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from .._config import bounded
 from ..errors import PlanningError, SplatplanError
@@ -167,6 +166,8 @@ def markdown(result: LinearizationResult) -> str:
 
 def _plan_row(lv: int, splats, scene, checker, start, goals, cfg: LinearizationConfig, along: dict) -> dict:
     """The planner of E3 from the centre to every goal at level ``lv``: length and d_min of the raw RRT path."""
+    from scipy.spatial import cKDTree
+
     trials, _ = plan_trials(checker, start, goals, cKDTree(splats.means.astype(np.float64)), scene.sdf, cfg.seed, cfg.time_budget_s, tag=f"M{lv}")
     ok = [r for r in trials if r]
     return {

@@ -7,13 +7,15 @@ the two kinds are measured the same way.
 
 from __future__ import annotations
 
-from typing import Callable
+from typing import TYPE_CHECKING, Callable
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from .bspline import resample_polyline
 from .rrt_types import path_length
+
+if TYPE_CHECKING:
+    from scipy.spatial import cKDTree
 
 __all__ = ["path_length", "densify_path", "d_min", "smoothness", "clearance", "SMOOTHNESS_POINTS"]
 
@@ -45,6 +47,8 @@ def d_min(path: np.ndarray, means: np.ndarray | cKDTree, spacing: float = 0.002)
         means: (N, 3) splat means, or a prebuilt ``cKDTree`` of them (reuse it across paths).
         spacing: resampling step along the path.
     """
+    from scipy.spatial import cKDTree  # (imported here: the CLI starts without scipy.spatial)
+
     tree = means if isinstance(means, cKDTree) else cKDTree(np.asarray(means, dtype=np.float64))
     dist, _ = tree.query(densify_path(path, spacing)[:, :3])
     return float(dist.min())

@@ -55,13 +55,13 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
-from scipy.spatial.distance import cdist
 
 from ..errors import PlanningError
 from .bounds import box_margin
 from .edges import EdgeChecker, check_endpoint, edge_points, edge_samples, shortcut_path
 from .robot_links import LinkGeometry, as_robot
 from .rrt_types import PlanResult, RRTConfig, RRTSettings, path_length
+from .trees import sq_dists
 
 __all__ = ["RRT", "RRTConfig", "RRTSettings", "PlanResult", "EdgeChecker", "Search", "check_endpoint", "edge_points", "edge_samples",
            "path_length", "robust_scene_box", "shortcut_path", "BOX_PERCENTILE", "STRIDE_FRACTION"]  # fmt: skip
@@ -381,7 +381,7 @@ class RRT:
                 samples[rng.random(nb) < cfg.goal_bias] = goal
             sz = samples * w
             t2 = time.perf_counter()
-            near = np.argmin(cdist(sz, zs[:n], "sqeuclidean"), axis=1)  # (N,)
+            near = np.argmin(sq_dists(sz, zs[:n]), axis=1)  # (N,)
             t3 = time.perf_counter()
             clock["sampling"] += t2 - t1
             clock["nearest"] += t3 - t2

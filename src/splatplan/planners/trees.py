@@ -13,9 +13,12 @@ its parent has been checked (``verified``) and whether it is still part of the t
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
-from scipy.spatial import cKDTree
-from scipy.spatial.distance import cdist
+
+if TYPE_CHECKING:
+    from scipy.spatial import cKDTree
 
 #: metric coordinate given to removed nodes: never the nearest (its square stays finite in float64)
 _FAR = 1e150
@@ -24,6 +27,14 @@ _FAR = 1e150
 KD_MIN_NODES = 2048
 #: a KD-tree over the first nodes is rebuilt once the nodes added since exceed this share of it
 KD_REBUILD_SHARE = 0.25
+
+
+def sq_dists(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(N, D), (M, D) -> (N, M) squared Euclidean distances (scipy's ``cdist``, imported on first use: a
+    program that only builds the command line does not load scipy.spatial)."""
+    from scipy.spatial.distance import cdist
+
+    return cdist(a, b, "sqeuclidean")
 
 
 class Tree:
@@ -68,23 +79,25 @@ class Tree:
     def nearest(self, z: np.ndarray) -> np.ndarray:
         """(N, D) metric points -> (N,) index of the nearest node still in the tree."""
         if self.n < KD_MIN_NODES:
-            return np.argmin(cdist(z, self.zs[: self.n], "sqeuclidean"), axis=1)
+            return np.argmin(sq_dists(z, self.zs[: self.n]), axis=1)
         if self._kd is None or self.n - self._kd_n > KD_REBUILD_SHARE * self._kd_n:
             self._kd_n = self.n
+            from scipy.spatial import cKDTree
+
             self._kd = cKDTree(self.zs[: self.n].copy())
         d_kd, i_kd = self._kd.query(z, k=1)  # (N,), (N,): among the first _kd_n nodes as built
         i_kd = np.asarray(i_kd, dtype=np.int64)
         d2 = np.asarray(d_kd, dtype=np.float64) ** 2
         out = i_kd.copy()
         if self.n > self._kd_n:  # the nodes added since the build, by brute force
-            tail = cdist(z, self.zs[self._kd_n : self.n], "sqeuclidean")  # (N, n - kd_n)
+            tail = sq_dists(z, self.zs[self._kd_n : self.n])  # (N, n - kd_n)
             j = np.argmin(tail, axis=1)
             t2 = tail[np.arange(len(z)), j]
             closer = t2 < d2
             out[closer] = self._kd_n + j[closer]
         gone = ~self.valid[i_kd] & (out == i_kd)  # the KD-tree's answer was removed since: exact by brute force
         if gone.any():
-            out[gone] = np.argmin(cdist(z[gone], self.zs[: self.n], "sqeuclidean"), axis=1)
+            out[gone] = np.argmin(sq_dists(z[gone], self.zs[: self.n]), axis=1)
         return out
 
     def trace(self, i: int) -> np.ndarray:
