@@ -342,7 +342,7 @@ class Robot(OwnsThreadPool):
         ``(lin, rot, ells, geo)`` with ``lin`` [(dof slice, coefficient)] of its translations (each
         moves every downstream point by that much per unit), ``rot`` (dof index, |multiplier|) of its
         rotation or None, ``ells`` (k,) the ellipsoids it moves and ``geo`` (k,) the kinematic part
-        of their distance bounds from the rotation axis (:meth:`_axis_distance_bound` less the
+        of their distance bounds from the rotation axis (:meth:`_axis_distance_geometry`: less the
         largest semi-axis; 0 for a pure translation). Kinematics only: cached, shared with
         :meth:`inflated` copies (which grow the semi-axes alone)."""
         cache = self.__dict__.setdefault("_axis_geo_cache", {})
@@ -369,7 +369,7 @@ class Robot(OwnsThreadPool):
                 lin, qi_rot, factor, axis = [(slice(qi, qi + 2), 1.0)], qi + 2, 1.0, np.array([0.0, 0.0, 1.0])
             else:
                 lin, qi_rot, factor, axis = [], qi, m, kin.axis[l]
-            terms.append((lin, (qi_rot, factor), ells, np.array([self._axis_distance_bound(l, d, e, axis, 0.0) for d, e in down], dtype=np.float64)))
+            terms.append((lin, (qi_rot, factor), ells, np.array([self._axis_distance_geometry(l, d, e, axis) for d, e in down], dtype=np.float64)))
         cache[key] = terms
         return terms
 
@@ -380,20 +380,9 @@ class Robot(OwnsThreadPool):
             out.setdefault(int(l), []).append(e)
         return out
 
-    def _axis_distance_bound(self, l: int, d: int, e: int, axis: np.ndarray, smax: float) -> float:
-        """Bound on the distance of ellipsoid e (on link d, below joint l) from l's axis: a part that
-        depends on the kinematics only (cached, shared with :meth:`inflated` copies) + its largest
-        semi-axis ``smax``."""
-        cache = self.__dict__.setdefault("_axis_geo_cache", {})
-        key = (l, d, e, axis.tobytes())
-        geo = cache.get(key)
-        if geo is None:
-            geo = cache[key] = self._axis_distance_geometry(l, d, e, axis)
-        return geo + float(smax)
-
     def _axis_distance_geometry(self, l: int, d: int, e: int, axis: np.ndarray) -> float:
-        """:meth:`_axis_distance_bound` without the ellipsoid's own size."""
-        smax = 0.0
+        """Bound on the distance of ellipsoid e (on link d, below joint l) from l's axis, without the
+        ellipsoid's own size (its largest semi-axis is added by the motion bounds)."""
         kin = self.kin
         path = []  # links from d up to (excluding) l
         k = d
@@ -405,7 +394,7 @@ class Robot(OwnsThreadPool):
             for k in reversed(path):
                 t = t @ kin.origin[k]
             c = (t @ self.ellipsoid_local[e])[:3, 3]
-            return float(np.linalg.norm(c - (c @ axis) * axis) + smax)
+            return float(np.linalg.norm(c - (c @ axis) * axis))
         # Down the path from l: the origin of the first moving joint k* is fixed in l's frame, so its
         # distance from the axis is exact; below it, each hop adds its offset length (and travel).
         down = list(reversed(path))
@@ -417,7 +406,7 @@ class Robot(OwnsThreadPool):
                 break
         p = t[:3, 3]
         total = float(np.linalg.norm(p - (p @ axis) * axis))
-        total += float(np.linalg.norm(self.ellipsoid_local[e][:3, 3])) + smax
+        total += float(np.linalg.norm(self.ellipsoid_local[e][:3, 3]))
         for i, k in enumerate(down):
             if i > first:
                 total += float(np.linalg.norm(kin.origin[k][:3, 3]))
