@@ -14,11 +14,12 @@ import pytest
 
 from splatplan.errors import PlanningError, SplatplanError
 from splatplan.planners import RRTConfig, escape_endpoint, plan
-from splatplan.planners.escape import MAX_ESCAPE_N_SIGMA, endpoint_check, escape_n_sigmas
+from splatplan.planners.escape import MAX_ESCAPE_N_SIGMA, endpoint_check, escape_n_sigmas, push_directions
+from splatplan.planners.robot_links import LinkGeometry
 from splatplan.robots import load_robot
 from splatplan.scenes.builtin.ellipsoid_clearance import project_to_ellipsoid
 from splatplan.scenes.margin import SplatMargin, margin_for
-from splatplan.scenes.splats import quat_to_rotmat
+from splatplan.scenes.splats import Splats, quat_to_rotmat
 
 from .scenes import make_checker, wall_scene
 
@@ -219,3 +220,60 @@ def test_an_explicit_n_sigma_order_is_followed(setup):
     for order in ((3.0, 2.0), (2.0, 3.0)):
         n, f = endpoint_check(checker, robot, q, margin, n_sigmas=order)
         assert n in order and (n == order[0] or endpoint_check(checker, robot, q, margin, n_sigmas=order[:1]) is None)
+
+
+def test_push_direction_leads_away_from_the_splats(setup):
+    """The push of a sphere blocked beside the wall points away from the wall (the mean of the
+    splats inside its grown bounding sphere lies on the wall)."""
+    splats, checker, robot = setup
+    q = _at_distance(splats, R + 0.019)  # on the x < 0 side of the wall
+    full = LinkGeometry(robot.inflated(MARGIN.margin))
+    d = push_directions(checker, full, q)
+    assert d.shape == (1, 3)
+    u = d[0] / np.linalg.norm(d[0])
+    assert u[0] < -0.9  # away from the wall (x = 0)
+    free = np.array([-0.2, 0.0, 0.06])  # nothing blocks a free configuration
+    assert push_directions(checker, full, free).shape == (0, 3)
+
+
+def test_push_directions_of_an_arm_move_the_blocked_ellipsoids_out():
+    """Panda above a table of splats 3 mm below its hand (free for its own model, blocked for the model
+    grown by 1 cm): every push direction moves the centres of the blocked ellipsoids away from the
+    table (checked by FK, not by the Jacobian used to find it), and a short step along each frees
+    the grown arm."""
+    robot = load_robot("panda")
+    q = np.asarray(robot.q_default, dtype=np.float64)
+    c, quat, ax = robot.ellipsoids(q[None])
+    c, rot, ax = np.asarray(c[0], dtype=np.float64), quat_to_rotmat(np.asarray(quat[0])), np.asarray(ax, dtype=np.float64)
+    hand = int(np.argmax(np.linalg.norm(c[:, :2], axis=1)))  # the ellipsoid farthest from the base's axis (the hand's)
+    reach_z = np.sqrt(np.einsum("ej,ej->e", rot[:, 2, :] ** 2, ax**2))  # (E,) each ellipsoid's extent along z
+    near = np.linalg.norm(c[:, :2] - c[hand, :2], axis=1) < 0.06
+    z0 = float((c[near, 2] - reach_z[near]).min()) - 0.003
+    rng = np.random.default_rng(0)
+    table = np.array([c[hand, 0], c[hand, 1], z0]) + rng.uniform(-0.06, 0.06, (1600, 3)) * np.array([1.0, 1.0, 0.0])
+    n = len(table)
+    splats = Splats(table, np.tile([1.0, 0.0, 0.0, 0.0], (n, 1)), np.full((n, 3), 1e-3), np.full(n, 0.9), np.full((n, 3), 0.5))
+    checker = make_checker(splats, n_sigma=0.0)
+    full = LinkGeometry(robot.inflated(0.01))
+    hit = np.asarray(checker.collides_robot(full.robot, q[None]))[0]
+    assert hit.any() and not checker.collides_configs(robot, q[None])[0]
+    dirs = push_directions(checker, full, q)
+    assert len(dirs) >= 1
+    for d in dirs:
+        d = d / full.motion(d[None])[0]  # a unit step moves no point of the arm farther than 1 m
+        c1 = np.asarray(robot.ellipsoids((q + 0.005 * d)[None])[0][0], dtype=np.float64)
+        assert np.all(c1[hit, 2] > c[hit, 2])  # up, away from the table
+        freed = [t for t in np.linspace(0.002, 0.04, 20) if not checker.collides_configs(full.robot, (q + t * d)[None])[0]]
+        assert freed, "no step of up to 4 cm along a push frees the grown arm"
+
+
+def test_second_round_escapes_where_the_first_direction_fails(setup):
+    """One direction in the first round, straight into the wall: the second round's push leaves it,
+    with the guarantee."""
+    splats, checker, robot = setup
+    q = _at_distance(splats, R + 0.019)
+    esc = escape_endpoint(checker, robot, q, MARGIN, toward=np.array([0.2, 0.0, 0.06]), n_directions=1)
+    assert esc.escaped and esc.info["push_directions"] == 1 and esc.info["directions"] > 1
+    means = np.asarray(splats.means)
+    assert _min_dist(means, esc.path[-1:]) >= R + MARGIN.margin - 1e-5
+    assert _min_dist(means, esc.path) >= R + RHO - 1e-5

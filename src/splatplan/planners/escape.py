@@ -64,6 +64,10 @@ FINE_DIVISORS = (2, 4, 8, 16)
 #: the escape configuration lies up to this many times farther along its segment than the first one
 #: the full margin frees (while the segment's check and the full margin free it)
 DEPTH = 2.0
+#: segments of the escape's second round (only where the first finds none), as a multiple of ``n_directions``
+RETRY_FACTOR = 4
+#: push directions tried first (:func:`push_directions`: all blocked ellipsoids at once, then the most crowded alone)
+MAX_PUSH = 4
 #: the highest checker n_sigma a segment's check uses by default (the margin's floor n_sigma, capped)
 MAX_ESCAPE_N_SIGMA = 3.0
 
@@ -184,12 +188,15 @@ def escape_endpoint(
         q: (D,) the endpoint (joint limits respected).
         margin: the scene's :class:`~splatplan.scenes.SplatMargin` (its covering estimate
             ``margin - r / 2`` and resolution r).
-        toward: (D,) the other endpoint: the first direction tried (then ``n_directions - 1``
-            random ones, seeded).
+        toward: (D,) the other endpoint: the first direction tried (then random ones, seeded,
+            ``n_directions`` in all).
         seed: seeds the random directions.
         fine: the resolution divisors allowed (module docstring).
-        n_directions: straight segments tried (one batched check each for the finer margin,
-            one for the full margin).
+        n_directions: straight segments tried in the first round (one batched check each for the
+            finer margin, one for the full margin); where none reaches a freed configuration, a
+            second round tries :data:`RETRY_FACTOR` x as many: first up to :data:`MAX_PUSH` that
+            move the blocking ellipsoids away from their splats (:func:`push_directions`), then
+            random ones.
         reach: longest motion of any robot point along a segment (scene units; default 4 x the
             full margin).
         what: the endpoint's name in messages ("start", "goal").
@@ -252,7 +259,36 @@ def escape_endpoint(
     reach_m = 4.0 * m if reach is None else float(reach)
     if not (math.isfinite(reach_m) and reach_m > 0):
         raise SplatplanError(f"escape_endpoint: reach must be finite and > 0, got {reach}")
-    dirs = _directions(q, None if toward is None else np.asarray(toward, dtype=np.float64).reshape(-1), int(n_directions), seed, full)  # (M, D)
+    tw = None if toward is None else np.asarray(toward, dtype=np.float64).reshape(-1)
+    best, n_cfg, n_dirs, n_push = None, 1, 0, 0
+    for k in range(2):  # a second, larger round only where the first finds none: pushes first, then random
+        if k == 0:
+            dirs = _directions(q, tw, int(n_directions), seed, full)
+        else:
+            push = push_directions(checker, full, q)  # (K, D) the blocked ellipsoids moved away from their splats
+            n_push = len(push)
+            dirs = _directions(q, None, RETRY_FACTOR * int(n_directions), (seed, 1), full, push)
+        best, n_c, n_d = _segments(checker, robot, q, dirs, box, reach_m, weak, full, check, r_f, depth)
+        n_cfg, n_dirs = n_cfg + n_c, n_dirs + n_d
+        if best is not None:
+            break
+    if best is None and n_dirs == 0:
+        raise PlanningError(f"the {what} is blocked by the margin and the joint limits leave no direction to leave it by")
+    if best is None:
+        raise PlanningError(
+            f"the {what} {np.array2string(q, precision=4)} is blocked by the margin ({1000 * m:.2f} mm) and none of "
+            f"{n_dirs} straight segments of up to {1000 * reach_m:.1f} mm reaches a configuration it frees"
+        )
+    return Escape(np.stack([q, best[0]]), int(f), float(m_e), r_f, best[1], int(n_cfg),
+                  {"directions": int(n_dirs), "push_directions": int(n_push)}, n_sigma=float(n_e))  # fmt: skip
+
+
+def _segments(checker: CollisionChecker, robot: Robot, q: np.ndarray, dirs: np.ndarray, box: tuple | None, reach_m: float, weak: LinkGeometry,
+              full: LinkGeometry, check: CollisionChecker, r_f: float, depth: float) -> tuple[tuple[np.ndarray, float] | None, int, int]:  # fmt: skip
+    """Try the straight segments from ``q`` along ``dirs`` (M, D): (the escape configuration and its
+    displacement bound, or None; configurations checked; segments tried). Each segment is checked
+    with ``weak`` at resolution ``r_f`` (on ``check``), its free samples with ``full``."""
+    w0, f0 = weak.n_configs, full.n_configs
     limits = np.asarray(robot.joint_limits, dtype=np.float64).copy()  # (D, 2)
     if box is not None:
         lo, hi = (np.broadcast_to(np.asarray(x, dtype=np.float64), q.shape) for x in box)
@@ -265,7 +301,7 @@ def escape_endpoint(
     keep = t_max > 0
     dirs, t_max = dirs[keep], t_max[keep]
     if len(dirs) == 0:
-        raise PlanningError(f"the {what} is blocked by the margin and the joint limits leave no direction to leave it by")
+        return None, 0, 0
     a = np.repeat(q[None], len(dirs), axis=0)
     b = q + t_max[:, None] * dirs  # (M, D)
     edges = EdgeChecker(check, weak, r_f, stages=3)  # (coarse to fine: a segment's checks stop at its first hit; at n_e)
@@ -273,11 +309,9 @@ def escape_endpoint(
     pts, idx, _ = edge_samples(a, b, weak.motion(b - a), r_f)  # (P, D), the same samples
     loc = np.arange(idx.size) - (np.cumsum(n) - n)[idx] + 1  # (P,) 1..n_e
     cand = np.nonzero(loc <= k[idx])[0]  # the samples in each segment's free prefix
-    n_cfg = 1 + weak.n_configs
     best = None
     if cand.size:
         ok = ~full.collides(checker, pts[cand])  # (C,) free for the full margin
-        n_cfg += full.n_configs
         if ok.any():
             c = cand[ok]
             disp = weak.motion(pts[c] - q)  # (C,) the segment's displacement bound
@@ -287,13 +321,7 @@ def escape_endpoint(
             same = (idx[c] == idx[c[j]]) & (disp <= float(depth) * disp[j] + 1e-12)
             j = int(np.flatnonzero(same)[np.argmax(disp[same])])
             best = (pts[c[j]], float(disp[j]))
-    if best is None:
-        raise PlanningError(
-            f"the {what} {np.array2string(q, precision=4)} is blocked by the margin ({1000 * m:.2f} mm) and none of "
-            f"{len(dirs)} straight segments of up to {1000 * reach_m:.1f} mm reaches a configuration it frees"
-        )
-    return Escape(np.stack([q, best[0]]), int(f), float(m_e), r_f, best[1], int(n_cfg),
-                  {"directions": int(len(dirs))}, n_sigma=float(n_e))  # fmt: skip
+    return best, (weak.n_configs - w0) + (full.n_configs - f0), len(dirs)
 
 
 def _endpoint_margin(margin: SplatMargin, f: int) -> float:
@@ -301,15 +329,85 @@ def _endpoint_margin(margin: SplatMargin, f: int) -> float:
     return float(margin.covering_estimate) + 0.5 * float(margin.edge_resolution) / int(f)
 
 
-def _directions(q: np.ndarray, toward: np.ndarray | None, n: int, seed: int, geom: LinkGeometry) -> np.ndarray:
+def _directions(q: np.ndarray, toward: np.ndarray | None, n: int, seed, geom: LinkGeometry, push: np.ndarray | None = None) -> np.ndarray:
     """(n, D) unit-motion directions (each moves some robot point by at most 1 scene unit per unit
-    step): towards ``toward`` first, then random (seeded), zero where the robot does not move."""
+    step): towards ``toward`` first, then the ``push`` directions (K, D) (at most n - 1 of them), then
+    random ones (seeded by ``seed``, an int or a tuple of ints), zero where the robot does not move."""
     rng = np.random.default_rng(seed)
     d = rng.standard_normal((n, q.size)) / np.maximum(geom.weights, 1e-12)  # (n, D) isotropic in the metric
+    k = 0
     if toward is not None and toward.shape == q.shape and np.any(toward != q):
         d[0] = toward - q
+        k = 1
+    if push is not None and len(push):
+        m = min(len(push), n - k)
+        d[k : k + m] = push[:m]
     mot = geom.motion(d)
     return d / np.where(mot > 0, mot, 1.0)[:, None]
+
+
+def push_directions(checker: CollisionChecker, full: LinkGeometry, q: np.ndarray, max_dirs: int = MAX_PUSH) -> np.ndarray:
+    """(K, D) joint-space directions that move the ellipsoids which block ``q`` (D,) at the full
+    margin (``full``: the robot grown by it) away from the splats around them: each blocked
+    ellipsoid's push is the unit vector from the mean of the splat means within its bounding sphere
+    to its centre; a direction is the Jacobian transpose (finite differences of the centres) times
+    the pushes, the joint motion that increases ``sum_e push_e . c_e(q)`` fastest: first for all
+    blocked ellipsoids at once, then for each of the (at most ``max_dirs - 1``) most crowded ones
+    alone. (On MotionBenchMaker's blocked grasps it beat the least-squares and damped least-squares
+    motions towards the pushes: the one of every ellipsoid at once may ask for more than the joints
+    can give.) Empty where nothing blocks ``q`` or the pushes are undefined. A heuristic for which
+    directions to try first: every segment along them is checked like any other."""
+    robot = full.robot
+    hit = np.asarray(checker.collides_robot(robot, q[None]))[0]  # (E,)
+    if not hit.any():
+        return np.zeros((0, q.size))
+    c, _, ax = robot.ellipsoids(q[None])  # (1, E, 3), (E, 3)
+    c = np.asarray(c[0], dtype=np.float64)
+    blocked = np.flatnonzero(hit)  # (B,)
+    radius = np.asarray(ax, dtype=np.float64)[blocked].max(axis=1)  # (B,) bounding spheres
+    lo, hi = (c[blocked] - radius[:, None]).min(axis=0), (c[blocked] + radius[:, None]).max(axis=0)
+    near = _means_in_box(np.asarray(checker.scene.means), lo, hi)  # (N', 3): a box around every blocked sphere
+    pushes, counts, rows = [], [], []
+    for e, r in zip(blocked.tolist(), radius.tolist()):
+        inside = near[np.sum((near - c[e]) ** 2, axis=1) <= r * r]
+        if len(inside) == 0:
+            continue
+        v = c[e] - inside.mean(axis=0)
+        nv = float(np.linalg.norm(v))
+        if not nv > 1e-12:
+            continue
+        pushes.append(v / nv)
+        counts.append(len(inside))
+        rows.append(e)
+    if not rows:
+        return np.zeros((0, q.size))
+    jac = _center_jacobian(robot, q, np.asarray(rows))  # (B', 3, D)
+    order = np.argsort(counts, kind="stable")[::-1]
+    systems = [(jac.reshape(-1, q.size), np.concatenate(pushes))] + [(jac[i], pushes[i]) for i in order[: max(0, int(max_dirs) - 1)] if len(rows) > 1]
+    out = []
+    for a, b in systems:
+        dq = a.T @ b  # (D,) the gradient of sum_e push_e . c_e(q): every blocked centre's motion along its push, to first order
+        if np.all(np.isfinite(dq)) and full.motion(dq[None])[0] > 0:
+            out.append(dq)
+    return np.asarray(out).reshape(-1, q.size)
+
+
+def _means_in_box(means: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """(N', 3) float64: the rows of ``means`` (N, 3) within the box lo..hi (3,) (axis by axis, each
+    pass over the rows left)."""
+    idx = np.flatnonzero((means[:, 0] >= lo[0]) & (means[:, 0] <= hi[0]))
+    for a in (1, 2):
+        v = means[idx, a]
+        idx = idx[(v >= lo[a]) & (v <= hi[a])]
+    return means[idx].astype(np.float64)
+
+
+def _center_jacobian(robot: Robot, q: np.ndarray, rows: np.ndarray, h: float = 1e-6) -> np.ndarray:
+    """(len(rows), 3, D): d centre / d q of the ellipsoids ``rows`` at ``q`` (central differences)."""
+    d = q.size
+    qs = np.concatenate([q + h * np.eye(d), q - h * np.eye(d)])  # (2D, D)
+    c = np.asarray(robot.ellipsoids(qs)[0], dtype=np.float64)[:, rows]  # (2D, B, 3)
+    return np.transpose((c[:d] - c[d:]) / (2.0 * h), (1, 2, 0))
 
 
 def _limit_steps(q: np.ndarray, dirs: np.ndarray, limits: np.ndarray, reach: float, geom: LinkGeometry) -> np.ndarray:
