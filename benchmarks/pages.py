@@ -237,6 +237,7 @@ SECTIONS = {
     "engine_mbm_100k": markdown_file("engine_mbm_100k.md"),
     "mbm_default": markdown_file("mbm/default_budget/mbm.md", "mbm/default_budget/cpu_summary.json"),
     "mbm_held_out": markdown_file("mbm/first30_default/mbm.md", "mbm/first30_default/mbm.json"),
+    "mbm_escapes": markdown_file("mbm/escapes.md"),
     "mbm_speed_ns0": markdown_file("mbm_speed/ns0.md"),
     "mbm_speed_ns1": markdown_file("mbm_speed/ns1.md"),
     "fit_frontier": markdown_file("fit_frontier_v2/fit_frontier.md"),

@@ -277,3 +277,12 @@ def test_second_round_escapes_where_the_first_direction_fails(setup):
     means = np.asarray(splats.means)
     assert _min_dist(means, esc.path[-1:]) >= R + MARGIN.margin - 1e-5
     assert _min_dist(means, esc.path) >= R + RHO - 1e-5
+
+
+def test_without_a_second_round_the_first_directions_decide(setup):
+    splats, checker, robot = setup
+    q = _at_distance(splats, R + 0.019)
+    with pytest.raises(PlanningError, match="none of 1 straight segments"):
+        escape_endpoint(checker, robot, q, MARGIN, toward=np.array([0.2, 0.0, 0.06]), n_directions=1, retry=0)
+    with pytest.raises(SplatplanError, match="retry must be >= 0"):
+        escape_endpoint(checker, robot, q, MARGIN, retry=-1)

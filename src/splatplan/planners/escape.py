@@ -179,6 +179,7 @@ def escape_endpoint(
     escape_robot: Robot | None = None,
     depth: float = DEPTH,
     n_sigmas: tuple[float, ...] | None = None,
+    retry: int = RETRY_FACTOR,
 ) -> Escape:
     """A free segment from ``q`` to a configuration that ``robot`` grown by the full margin clears.
 
@@ -194,7 +195,7 @@ def escape_endpoint(
         fine: the resolution divisors allowed (module docstring).
         n_directions: straight segments tried in the first round (one batched check each for the
             finer margin, one for the full margin); where none reaches a freed configuration, a
-            second round tries :data:`RETRY_FACTOR` x as many: first up to :data:`MAX_PUSH` that
+            second round tries ``retry`` x as many: first up to :data:`MAX_PUSH` that
             move the blocking ellipsoids away from their splats (:func:`push_directions`), then
             random ones.
         reach: longest motion of any robot point along a segment (scene units; default 4 x the
@@ -215,6 +216,7 @@ def escape_endpoint(
             free ``q`` (those above it, in order; each with the margin's rho(n),
             :meth:`~splatplan.scenes.SplatMargin.covering_at`); None: :func:`escape_n_sigmas`
             (the margin's floor n_sigma, then the whole numbers below it); (): the checker's own only.
+        retry: the second round's segments as a multiple of ``n_directions`` (0: no second round).
 
     Returns:
         :class:`Escape`; ``path`` is ``q`` alone when the full margin frees it.
@@ -230,6 +232,8 @@ def escape_endpoint(
         raise SplatplanError(f"escape_endpoint: the {what} must be {robot.dof} finite numbers, got {np.array2string(q, precision=4)}")
     if int(n_directions) < 1:
         raise SplatplanError(f"escape_endpoint: n_directions must be >= 1, got {n_directions}")
+    if int(retry) < 0:
+        raise SplatplanError(f"escape_endpoint: retry must be >= 0, got {retry}")
     if not fine or min(int(f) for f in fine) < 2:
         raise SplatplanError(f"escape_endpoint: fine must hold divisors >= 2, got {fine}")
     m, r = float(margin.margin), float(margin.edge_resolution)
@@ -261,13 +265,13 @@ def escape_endpoint(
         raise SplatplanError(f"escape_endpoint: reach must be finite and > 0, got {reach}")
     tw = None if toward is None else np.asarray(toward, dtype=np.float64).reshape(-1)
     best, n_cfg, n_dirs, n_push = None, 1, 0, 0
-    for k in range(2):  # a second, larger round only where the first finds none: pushes first, then random
+    for k in range(2 if int(retry) > 0 else 1):  # a second, larger round only where the first finds none: pushes first, then random
         if k == 0:
             dirs = _directions(q, tw, int(n_directions), seed, full)
         else:
             push = push_directions(checker, full, q)  # (K, D) the blocked ellipsoids moved away from their splats
             n_push = len(push)
-            dirs = _directions(q, None, RETRY_FACTOR * int(n_directions), (seed, 1), full, push)
+            dirs = _directions(q, None, int(retry) * int(n_directions), (seed, 1), full, push)
         best, n_c, n_d = _segments(checker, robot, q, dirs, box, reach_m, weak, full, check, r_f, depth)
         n_cfg, n_dirs = n_cfg + n_c, n_dirs + n_d
         if best is not None:
