@@ -27,6 +27,7 @@ import platform
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -50,7 +51,7 @@ def main(argv=None) -> dict:
     cfg = mbm.MBMConfig(families=tuple(args.families.split(",")), n_per_family=args.n_per_family)
     ctx = mbm.make_context(cfg)
     robot = ctx.robot
-    rows = []
+    rows: list[dict[str, Any]] = []
     for task in mbm.list_tasks(cfg):
         prep = ctx.prepared(task)
         checker, margin = prep.checker, prep.splat_margin
@@ -59,7 +60,7 @@ def main(argv=None) -> dict:
         for name, q, other in (("start", q0, q1), ("goal", q1, q0)):
             if not full.collides(checker, q[None])[0]:
                 continue
-            row = {"family": task.family, "index": task.index, "endpoint": name}
+            row: dict[str, Any] = {"family": task.family, "index": task.index, "endpoint": name}
             for label, retry in SETTINGS:
                 times, fails, second, finest = [], 0, 0, 0
                 for seed in range(args.seeds):
@@ -76,7 +77,7 @@ def main(argv=None) -> dict:
                               "median_ms": 1e3 * float(np.median(times)), "p95_ms": 1e3 * float(np.percentile(times, 95))}  # fmt: skip
             rows.append(row)
             print(f"{task.family} {task.index} {name}: " + ", ".join(f"{lab} {row[lab]['failures']}/{args.seeds} failed" for lab, _ in SETTINGS), flush=True)
-    summary = {}
+    summary: dict[str, dict[str, Any]] = {}
     for label, _ in SETTINGS:
         tot = sum(r[label]["seeds"] for r in rows)
         summary[label] = {"escapes": tot, "failures": sum(r[label]["failures"] for r in rows), "second_round": sum(r[label]["second_round"] for r in rows),
