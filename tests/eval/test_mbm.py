@@ -341,12 +341,14 @@ def test_a_goal_only_a_higher_n_sigma_frees_is_escaped_safely():
 
 @pytest.mark.slow
 @pytest.mark.skipif(not (mbm_data_dir() / "problems").is_dir(), reason=f"MBM data not found at {mbm_data_dir()} (set {MBM_DATA_ENV})")
-def test_an_escape_with_no_segment_out_is_a_row_not_started():
-    """bookshelf_small 19: the goal's endpoint check passes (the escape model at a higher n_sigma)
-    but no escape segment within its reach gets the planning model clear (the certified model is
-    0.7 mm into the shelf there): the row says so (not started, the planner's message), no failure."""
+def test_an_escape_with_no_segment_out_is_a_row_not_started(monkeypatch):
+    """bookshelf_small 19: the goal's endpoint check passes (the escape model at a higher n_sigma);
+    with every escape segment blocked (the segment search made to find nothing), the row says so (not
+    started, the planner's message), no failure."""
     from splatplan.eval.mbm import check_inputs, list_tasks, make_context, solve_problem
+    from splatplan.planners import escape
 
+    monkeypatch.setattr(escape, "_segments", lambda *a, **k: (None, 0, len(a[3])))  # (no segment gets out)
     cfg = MBMConfig(families=("bookshelf_small",), n_per_family=19)
     ctx = make_context(cfg)
     task = check_inputs([t for t in list_tasks(cfg) if t.index == 19], ctx.robot)[0]
@@ -354,6 +356,25 @@ def test_an_escape_with_no_segment_out_is_a_row_not_started():
     assert not row["goal_valid"] and not row["started"] and not row["solved"] and row["path"] is None
     assert row["goal_escape"] is not None and row["goal_escape_n_sigma"] > 0  # the endpoint check passed, the segments did not
     assert row["message"].startswith("not started:") and "straight segments" in row["message"], row["message"]
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not (mbm_data_dir() / "problems").is_dir(), reason=f"MBM data not found at {mbm_data_dir()} (set {MBM_DATA_ENV})")
+def test_a_goal_random_segments_cannot_leave_is_escaped_by_a_push():
+    """bookshelf_small 19: the certified model is 0.7 mm into the shelf at the goal (an invalid
+    endpoint for it), the escape model at a higher n_sigma is free there, and none of the first
+    round's segments gets the planning model clear; the second round's push directions do. The
+    problem is solved and the whole path keeps a positive exact clearance (the segment measured with
+    the model it was checked with)."""
+    from splatplan.eval.mbm import check_inputs, list_tasks, make_context, solve_problem
+
+    cfg = MBMConfig(families=("bookshelf_small",), n_per_family=19)
+    ctx = make_context(cfg)
+    task = check_inputs([t for t in list_tasks(cfg) if t.index == 19], ctx.robot)[0]
+    row = solve_problem(task, ctx)
+    assert not row["goal_valid"] and row["goal_escape_n_sigma"] > 0
+    assert row["started"] and row["solved"] and row["min_exact_clearance_m"] > 0, row["message"]
+    np.testing.assert_allclose(np.asarray(row["path"])[-1], task.q_goal, atol=1e-6)
 
 
 @pytest.mark.parametrize("yaml_text", [None, "ellipsoids: [oops"])
