@@ -68,7 +68,7 @@ def main(argv=None) -> dict:
                     try:
                         e = escape_endpoint(checker, robot, q, margin, toward=other, seed=seed, escape_robot=ctx.escape_robot, geometry=full,
                                             retry=RETRY_FACTOR if retry is None else retry)  # fmt: skip
-                        second += int(e.info.get("push_directions", 0) > 0 or e.info.get("directions", 0) > 12)
+                        second += int(e.info["rounds"] == 2)
                     except PlanningError as ex:
                         fails += 1
                         finest += int("finest" in str(ex))

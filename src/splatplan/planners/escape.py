@@ -270,7 +270,7 @@ def escape_endpoint(
     if not (math.isfinite(reach_m) and reach_m > 0):
         raise SplatplanError(f"escape_endpoint: reach must be finite and > 0, got {reach}")
     tw = None if toward is None else np.asarray(toward, dtype=np.float64).reshape(-1)
-    best, n_cfg, n_dirs, n_push = None, 1, 0, 0
+    best, n_cfg, n_dirs, n_push, rounds = None, 1, 0, 0, 0
     for k in range(2 if int(retry) > 0 else 1):  # a second, larger round only where the first finds none: pushes first, then random
         if k == 0:
             dirs = _directions(q, tw, int(n_directions), seed, full)
@@ -279,7 +279,7 @@ def escape_endpoint(
             n_push = len(push)
             dirs = _directions(q, None, int(retry) * int(n_directions), (seed, 1), full, push)
         best, n_c, n_d = _segments(checker, robot, q, dirs, box, reach_m, weak, full, check, r_f, depth)
-        n_cfg, n_dirs = n_cfg + n_c, n_dirs + n_d
+        n_cfg, n_dirs, rounds = n_cfg + n_c, n_dirs + n_d, k + 1
         if best is not None:
             break
     if best is None and n_dirs == 0:
@@ -290,7 +290,7 @@ def escape_endpoint(
             f"{n_dirs} straight segments of up to {1000 * reach_m:.1f} mm reaches a configuration it frees"
         )
     return Escape(np.stack([q, best[0]]), int(f), float(m_e), r_f, best[1], int(n_cfg),
-                  {"directions": int(n_dirs), "push_directions": int(n_push)}, n_sigma=float(n_e))  # fmt: skip
+                  {"directions": int(n_dirs), "push_directions": int(n_push), "rounds": rounds}, n_sigma=float(n_e))  # fmt: skip
 
 
 def _segments(checker: CollisionChecker, robot: Robot, q: np.ndarray, dirs: np.ndarray, box: tuple | None, reach_m: float, weak: LinkGeometry,
@@ -339,7 +339,7 @@ def _endpoint_margin(margin: SplatMargin, f: int) -> float:
     return float(margin.covering_estimate) + 0.5 * float(margin.edge_resolution) / int(f)
 
 
-def _directions(q: np.ndarray, toward: np.ndarray | None, n: int, seed, geom: LinkGeometry, push: np.ndarray | None = None) -> np.ndarray:
+def _directions(q: np.ndarray, toward: np.ndarray | None, n: int, seed: int | tuple[int, ...], geom: LinkGeometry, push: np.ndarray | None = None) -> np.ndarray:
     """(n, D) unit-motion directions (each moves some robot point by at most 1 scene unit per unit
     step): towards ``toward`` first, then the ``push`` directions (K, D) (at most n - 1 of them), then
     random ones (seeded by ``seed``, an int or a tuple of ints), zero where the robot does not move."""

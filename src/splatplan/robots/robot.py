@@ -165,7 +165,7 @@ class Robot(OwnsThreadPool):
         m = float(margin_m)
         if not (np.isfinite(m) and m >= 0):
             raise SplatplanError(f"robot {self.name}: the inflation margin must be finite and >= 0, got {margin_m}")
-        self.__dict__.setdefault("_axis_geo_cache", {})  # (kinematic bounds, shared with the copy: same kinematics)
+        self.__dict__.setdefault("_motion_terms_cache", {})  # (kinematic motion terms, shared with the copy: same kinematics)
         out = copy.copy(self)
         with self._lock:  # the FK models on devices (kinematics and ellipsoid poses only): shared with the copy
             models = {k: v for k, v in self._wp_cache.items() if k[0] == "model"}
@@ -345,8 +345,8 @@ class Robot(OwnsThreadPool):
         of their distance bounds from the rotation axis (:meth:`_axis_distance_geometry`: less the
         largest semi-axis; 0 for a pure translation). Kinematics only: cached, shared with
         :meth:`inflated` copies (which grow the semi-axes alone)."""
-        cache = self.__dict__.setdefault("_axis_geo_cache", {})
-        key = ("terms", np.asarray(self.ellipsoid_link).tobytes(), np.asarray(self.ellipsoid_local).tobytes())
+        cache = self.__dict__.setdefault("_motion_terms_cache", {})
+        key = (np.asarray(self.ellipsoid_link).tobytes(), np.asarray(self.ellipsoid_local).tobytes())
         hit = cache.get(key)
         if hit is not None:
             return hit
