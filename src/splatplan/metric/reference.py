@@ -170,3 +170,31 @@ def hit_bound_ref(ub: np.ndarray, origin: np.ndarray, v: float, pts: np.ndarray,
     (nz, ny, nx) (:func:`~.tiers.mean_distance_upper`) is below 0.999 a_min."""
     inside, val = _voxel_lookup(ub, origin, v, pts)
     return inside & (val < 0.999 * np.asarray(a_min, dtype=np.float64))
+
+
+def cover_spheres_ref(center: np.ndarray, rot: np.ndarray, axes: np.ndarray, s_star: float = 1.0, max_spheres: int = 4) -> tuple[np.ndarray, np.ndarray]:
+    """The numpy twin of the kernels' COVER SPHERES of one link: K = min(``max_spheres``,
+    ceil(2 a1 / a2)) spheres along its longest axis (a1 the longest semi-axis, a2 the second) whose
+    union holds the link scaled by ``s_star`` (``center`` (3,), ``rot`` (3, 3) world <- link,
+    ``axes`` (3,)). Sphere i covers the slab of axis coordinates [t_i - h, t_i + h] (h = a1 / K); a
+    point of the link at axis coordinate x lies within (x - t_i)^2 + a2^2 (1 - x^2 / a1^2) of the
+    slab's centre (squared), largest at an end of the slab.
+
+    Returns:
+        centres (K, 3) world, radii (K,) (before the kernel's float32 pad); K = 0 where h^2 + a2^2 >=
+        a1^2 (a link so close to a sphere that the middle spheres would reach beyond its bounding
+        sphere: the kernels do not try a cover there).
+    """
+    a = np.asarray(axes, dtype=np.float64)
+    m = int(np.argmax(a))
+    a1 = a[m]
+    a2 = float(np.max(np.delete(a, m)))
+    k = int(min(max_spheres, np.ceil(2.0 * a1 / a2)))
+    h = a1 / k
+    if h * h + a2 * a2 >= a1 * a1:  # a near sphere: no cover tighter than its bounding sphere
+        return np.zeros((0, 3)), np.zeros(0)
+    t = -a1 + h * (2 * np.arange(k) + 1)  # (K,)
+    ends = np.stack([np.maximum(t - h, -a1), np.minimum(t + h, a1)])  # (2, K)
+    r2 = np.max((ends - t) ** 2 + a2 * a2 * (1.0 - ends**2 / (a1 * a1)), axis=0)  # (K,)
+    u = np.asarray(rot, dtype=np.float64)[:, m]
+    return np.asarray(center, dtype=np.float64) + np.outer(t * s_star, u), np.sqrt(np.maximum(r2, 0.0)) * s_star

@@ -80,6 +80,11 @@ class TierConfig:
     #: than a few splats, only the cells that the link's ellipsoid can reach (ROW_CLIP of the full
     #: kernel, :mod:`.wp_metric_kernel`); False: whole rows of the link's box.
     collide_row_clip: bool = True
+    #: The collision-only kernels first test a link near splats (one the mean-distance bound at its
+    #: centre does not clear) with up to 4 spheres along its longest axis that together cover it,
+    #: each against the mean-distance bound at its own centre (COVER SPHERES, :mod:`.wp_metric_kernel`):
+    #: a link they clear is free without a splat read (same outputs). False: every such link is scanned.
+    collide_cover: bool = True
     #: ``collides_robot`` (the collision-only kernel on robot batches) uses grids with cells this many
     #: times wider than (elongated_)cell_factor x its radius. Its radius is for cap 1, half the full
     #: query's at the default s2_cap 4, so 2 gives both the same cell width. The best width depends on

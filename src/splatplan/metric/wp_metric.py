@@ -92,7 +92,7 @@ class _GridSet:
     sigma: list  # largest std per tier
 
 
-def metric_params(cfg: MetricConfig, pow_m: int, collide_clip: bool = False) -> MetricParams:
+def metric_params(cfg: MetricConfig, pow_m: int, collide_clip: bool = False, collide_cover: bool = False) -> MetricParams:
     """The kernels' struct for ``cfg``."""
     p = MetricParams()
     p.n_sigma = float(cfg.n_sigma)
@@ -109,6 +109,7 @@ def metric_params(cfg: MetricConfig, pow_m: int, collide_clip: bool = False) -> 
     p.opacity_scaled = 1 if cfg.opacity_scaled_inflation else 0
     p.use_opacity = 1 if (cfg.opacity_min > 0 or cfg.opacity_scaled_inflation) else 0
     p.collide_clip = 1 if collide_clip else 0
+    p.collide_cover = 1 if collide_cover else 0
     p.lin_distance = 1 if cfg.linearize == "distance" else 0
     return p
 
@@ -442,7 +443,7 @@ class WarpMetric:
             self.sort_queries(links, b, *(scratch or self._scratch(b)))
         dgrid = self.mean_distance_grid(cfg.opacity_min)
         slack_arr, want = self.slack_output(slack, rigid)
-        params = metric_params(cfg, 0, self.tiers.collide_row_clip)
+        params = metric_params(cfg, 0, self.tiers.collide_row_clip, self.tiers.collide_cover)
         self._launch(metric_collide_kernel, b, [links, gs.tiers, dgrid, params, out_hit, bad, slack_arr, want])
 
     def collides_configs(self, links: LinkBatch, b: int, groups, a_min: float, a_max: float, cfg: MetricConfig, out_hit, bad, slack=None,
@@ -462,10 +463,10 @@ class WarpMetric:
         rg = self.robot_groups(groups, gs, cfg.n_sigma)
         slack_arr, want = self.slack_output(slack, rigid)
         pk = (cfg.n_sigma, cfg.s2_cap, cfg.softmin_t, cfg.softmin_mode, cfg.cost_d_max, cfg.cost_gamma, cfg.cost_s_min, cfg.cost_reduce,
-              cfg.k_collide, cfg.opacity_min, cfg.opacity_scaled_inflation, cfg.linearize, self.tiers.collide_row_clip)  # every field metric_params reads
+              cfg.k_collide, cfg.opacity_min, cfg.opacity_scaled_inflation, cfg.linearize, self.tiers.collide_row_clip, self.tiers.collide_cover)  # every field metric_params reads
         params = self._params_cache.get(pk)
         if params is None:
-            params = metric_params(cfg, 0, self.tiers.collide_row_clip)
+            params = metric_params(cfg, 0, self.tiers.collide_row_clip, self.tiers.collide_cover)
             self._params_cache = {pk: params}  # (one entry: the config in use)
         return [links, gs.tiers, self.mean_distance_grid(cfg.opacity_min), params, rg, out_hit, bad, slack_arr, want]
 

@@ -180,6 +180,10 @@ ROW_CLIP_MIN = wp.constant(8)
 HIT_SHRINK = wp.constant(0.999)
 
 
+#: COVER SPHERES: the most spheres a near link's cover uses (along its longest axis).
+COVER_MAX = wp.constant(4)
+
+
 @wp.func
 def search_radius(n_sigma: float, sigma_g: float, a_min: float, a_max: float, cap: float):
     """rho = a_max (k + sqrt(k^2 + cap)) (1 + 1e-4), k = n_sigma sigma_g / a_min: splats beyond have s2~ >= cap.
@@ -297,6 +301,7 @@ class MetricParams:
     opacity_scaled: int  # 1: inflation n_sigma * o_i * sigma_i
     use_opacity: int  # 1 when either opacity option is active (else opacity is never read)
     collide_clip: int  # 1: the collision-only kernel clips rows to the link's ellipsoid too (ROW_CLIP)
+    collide_cover: int  # 1: the collision-only kernel tests near links by their COVER SPHERES first
     lin_distance: int  # 1: linearise the scaling distance s, 0: s2 (the paper) (LINEARISATION)
 
 
@@ -788,6 +793,52 @@ def plain_s2(d: wp.vec3, dd: float, link_a: wp.mat33, sphere: bool, inv_r2: floa
 
 
 @wp.func
+def cover_margin(dgrid: MeanDistanceGrid, c: wp.vec3, rot: wp.mat33, ax: wp.vec3, s_star: float):
+    """COVER SPHERES (module docstring): the smallest (mean-distance bound at a sphere's centre minus its
+    radius) over K spheres along the longest axis that together cover the link scaled by ``s_star``;
+    > 0: no mean lies in that scaled link (the test stops at the first sphere with <= 0); -1 for a
+    link too close to a sphere for the cover to be tighter than its bounding sphere."""
+    m = int(0)  # the longest axis
+    if ax[1] > ax[m]:
+        m = 1
+    if ax[2] > ax[m]:
+        m = 2
+    a1 = ax[m]
+    a2 = float(0.0)  # the second longest
+    for k in range(3):
+        if k != m:
+            a2 = wp.max(a2, ax[k])
+    n = wp.min(COVER_MAX, int(wp.ceil(2.0 * a1 / a2)))
+    h = a1 / float(n)
+    if h * h + a2 * a2 >= a1 * a1:
+        return float(-1.0)  # (a near sphere: its middle spheres would reach farther than the link's bounding sphere)
+    u = wp.vec3(rot[0, m], rot[1, m], rot[2, m])  # world direction of the longest axis
+    e = a2 * a2 / (a1 * a1)
+    best = float(1.0e30)
+    for i in range(n):
+        t = -a1 + h * float(2 * i + 1)  # the slab |x - t| <= h along the axis, its sphere centred at t
+        lo = wp.max(t - h, -a1)
+        hi = wp.min(t + h, a1)
+        # a point of the slab at axis coordinate x lies within (x - t)^2 + a2^2 (1 - x^2 / a1^2) of the
+        # centre (squared; convex in x, so largest at an end of the slab)
+        r2 = wp.max((lo - t) * (lo - t) + a2 * a2 - e * lo * lo, (hi - t) * (hi - t) + a2 * a2 - e * hi * hi)
+        x = c + u * (t * s_star)
+        d = mean_distance_lb(dgrid, x) - wp.sqrt(wp.max(r2, 0.0)) * s_star * RHO_SLACK - 1.0e-5 * wp.length(x)
+        best = wp.min(best, d)
+        if best <= 0.0:
+            break
+    return best
+
+
+@wp.kernel
+def cover_margin_kernel(dgrid: MeanDistanceGrid, centers: wp.array(dtype=wp.vec3), rots: wp.array(dtype=wp.mat33), axes: wp.array(dtype=wp.vec3),
+                        s_star: float, out: wp.array(dtype=wp.float32)):  # fmt: skip
+    """out[i] = :func:`cover_margin` of link i (tests, diagnostics)."""
+    i = wp.tid()
+    out[i] = cover_margin(dgrid, centers[i], rots[i], axes[i], s_star)
+
+
+@wp.func
 def link_collides(links: LinkBatch, q: int, splats: SplatTiers, dgrid: MeanDistanceGrid, p: MetricParams, slack_mode: int, target: float):
     """The collision-only test of query ellipsoid q: (in collision, FREE SLACK, valid).
 
@@ -807,15 +858,26 @@ def link_collides(links: LinkBatch, q: int, splats: SplatTiers, dgrid: MeanDista
         return True, float(0.0), True  # a counted mean inside the link (HIT BOUND): no splat is read
     d_lb = mean_distance_lb(dgrid, c)
     far_slack = float(0.0)
+    s_top = float(0.0)  # the largest std of any tier
+    for j in range(splats.n_tiers):
+        s_top = wp.max(s_top, splats.sigma[j])
     if dgrid.use != 0:
-        s_top = float(0.0)
-        for j in range(splats.n_tiers):
-            s_top = wp.max(s_top, splats.sigma[j])
         rho_top = search_radius(p.n_sigma, s_top, a_min, a_max, 1.0)
         if d_lb > rho_top:
             far_slack = (d_lb - rho_top) * DIST_SHRINK
             if slack_mode != 2 or far_slack >= target:
                 return False, far_slack, True  # beyond every tier's radius: no splat is read
+    cover_slack = float(0.0)  # RIGID SLACK proven by the cover spheres
+    if dgrid.use != 0 and p.collide_cover != 0 and a_max > a_min:  # COVER SPHERES
+        k_top = p.n_sigma * s_top / a_min
+        s_top_star = k_top + wp.sqrt(k_top * k_top + 1.0)
+        cover = cover_margin(dgrid, c, link_rotation(links, q), ax, s_top_star)
+        if cover > 0.0:  # no mean in s* E: free, no splat is read
+            if slack_mode != 2 or target <= 0.0:
+                return False, far_slack, True
+            cover_slack = cover / s_top_star * DIST_SHRINK
+            if wp.max(far_slack, cover_slack) >= target:
+                return False, wp.max(far_slack, cover_slack), True
     # RIGID SLACK: tier j is scanned out to s*_j (1 + lam) (every mean with s below it is read)
     scan = slack_mode == 2 and target > 0.0
     lam = float(0.0)
@@ -906,7 +968,7 @@ def link_collides(links: LinkBatch, q: int, splats: SplatTiers, dgrid: MeanDista
             near_slack = wp.min(near_slack, a_min * (wp.sqrt(wp.max(min_s2, 0.0)) - s_star) / s_star)
     if ncol > k_collide:
         return True, float(0.0), True
-    sl = far_slack
+    sl = wp.max(far_slack, cover_slack)
     if scan:
         sl = wp.max(sl, wp.max(near_slack, 0.0) * DIST_SHRINK)
     return False, sl, True
