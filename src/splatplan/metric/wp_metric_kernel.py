@@ -80,6 +80,27 @@ covers the inflation). A robot edge check is mostly links in free space (MBM Pan
 grown links' checks at tree nodes are farther from every mean than their longest semi-axis), where
 this replaces the cell rows by one read.
 
+COVER SPHERES (collision-only kernels, ``TierConfig.collide_cover``). The bound at a link's centre
+clears it only when every mean is farther than its longest semi-axis (times s*); an elongated link
+beside a surface fails that test although its ellipsoid is far from every mean. Such a link is next
+tested by K = min(4, ceil(2 a1 / a2)) spheres along its longest axis (a1 the longest semi-axis, a2
+the second): sphere i is centred at axis coordinate t_i = -a1 + h (2 i + 1), h = a1 / K, and holds
+the slab of the link with axis coordinate x in [t_i - h, t_i + h], whose points lie within
+(x - t_i)^2 + a2^2 (1 - x^2 / a1^2) of its centre (squared; convex in x, so the largest value is
+at an end of the slab, which gives its radius). The spheres of the link scaled by s* = k + sqrt(k^2
++ 1), k = n_sigma sigma_top / a_min (sigma_top the largest tier std), hold every mean with s2~ < 1
+(the radius bound above, for every tier); when the mean-distance bound at each sphere's centre
+exceeds its radius (plus the float32 pads of the group bound), no mean lies in that scaled link and
+the link is free without a splat read: same outputs. A link so close to a sphere that h^2 + a2^2 >=
+a1^2 (its middle spheres would reach beyond its bounding sphere) is not tried. With the RIGID SLACK
+and a target > 0, a rigid motion that moves no point of the link farther than delta moves no point
+of s* E farther than s* delta, so the link stays free while s* delta is below the smallest (bound
+minus radius) over its spheres: that slack is returned when it meets the target, else the link is
+scanned as before and keeps the larger slack. MBM Panda (the 45 ellipsoids grown by the margin,
+configurations of its planners): ~35% of the links the centre bound leaves near are cleared, the
+per-configuration check ~7-10% faster on free configurations; the bound's voxels (2^21 over the
+scene) limit it: with exact distances ~80% would be.
+
 HIT BOUND (collision-only kernels). On the same voxels, a second array stores an upper bound on the
 distance from any point of the voxel to the nearest mean that counts (opacity at least
 ``MeanDistanceGrid.ub_opacity``; :func:`~.tiers.mean_distance_upper`), grown by a margin far above
