@@ -83,7 +83,8 @@ class TierConfig:
     #: The collision-only kernels first test a link near splats (one the mean-distance bound at its
     #: centre does not clear) with up to 4 spheres along its longest axis that together cover it,
     #: each against the mean-distance bound at its own centre (COVER SPHERES, :mod:`.wp_metric_kernel`):
-    #: a link they clear is free without a splat read (same outputs). False: every such link is scanned.
+    #: a link they clear is free without a splat read (the same collision answers and FREE SLACK; its
+    #: RIGID SLACK may be larger, a promise that still holds). False: every such link is scanned.
     collide_cover: bool = True
     #: ``collides_robot`` (the collision-only kernel on robot batches) uses grids with cells this many
     #: times wider than (elongated_)cell_factor x its radius. Its radius is for cap 1, half the full

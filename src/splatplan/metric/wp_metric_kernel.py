@@ -91,7 +91,8 @@ at an end of the slab, which gives its radius). The spheres of the link scaled b
 + 1), k = n_sigma sigma_top / a_min (sigma_top the largest tier std), hold every mean with s2~ < 1
 (the radius bound above, for every tier); when the mean-distance bound at each sphere's centre
 exceeds its radius (plus the float32 pads of the group bound), no mean lies in that scaled link and
-the link is free without a splat read: same outputs. A link so close to a sphere that h^2 + a2^2 >=
+the link is free without a splat read: the same answer (and FREE SLACK, 0 for a link the centre
+bound leaves near). A link so close to a sphere that h^2 + a2^2 >=
 a1^2 (its middle spheres would reach beyond its bounding sphere) is not tried. With the RIGID SLACK
 and a target > 0, a rigid motion that moves no point of the link farther than delta moves no point
 of s* E farther than s* delta, so the link stays free while s* delta is below the smallest (bound
