@@ -98,9 +98,10 @@ and a target > 0, a rigid motion that moves no point of the link farther than de
 of s* E farther than s* delta, so the link stays free while s* delta is below the smallest (bound
 minus radius) over its spheres: that slack is returned when it meets the target, else the link is
 scanned as before and keeps the larger slack. MBM Panda (the 45 ellipsoids grown by the margin,
-configurations of its planners): ~35% of the links the centre bound leaves near are cleared, the
-per-configuration check ~7-10% faster on free configurations; the bound's voxels (2^21 over the
-scene) limit it: with exact distances ~80% would be.
+configurations of its planners): ~35% of the links the centre bound leaves near are cleared, free
+configurations 7-10% faster (``benchmarks/mbm_speed.py``, near-surface configurations: box 5.7 -> 5.0
+us, table_pick and bookshelf within noise); the bound's voxels (2^21 over the scene) limit it: with
+exact distances ~80% would be.
 
 HIT BOUND (collision-only kernels). On the same voxels, a second array stores an upper bound on the
 distance from any point of the voxel to the nearest mean that counts (opacity at least
