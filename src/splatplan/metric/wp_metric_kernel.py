@@ -218,6 +218,14 @@ def search_radius(n_sigma: float, sigma_g: float, a_min: float, a_max: float, ca
     return a_max * (k + wp.sqrt(k * k + cap)) * RHO_SLACK
 
 
+@wp.func
+def free_scale(n_sigma: float, sigma_g: float, a_min: float):
+    """s* = k + sqrt(k^2 + 1), k = n_sigma sigma_g / a_min: a splat of std at most sigma_g whose mean
+    lies at scaling distance s >= s* from the link has s2~ >= 1 (the radius bound above, cap 1)."""
+    k = n_sigma * sigma_g / a_min
+    return k + wp.sqrt(k * k + 1.0)
+
+
 @wp.struct
 class LinkBatch:
     """B query ellipsoids (world frame, scene units). Rotations and semi-axes are read with a period
@@ -890,11 +898,11 @@ def link_collides(links: LinkBatch, q: int, splats: SplatTiers, dgrid: MeanDista
             far_slack = (d_lb - rho_top) * DIST_SHRINK
             if slack_mode != 2 or far_slack >= target:
                 return False, far_slack, True  # beyond every tier's radius: no splat is read
+    rot = link_rotation(links, q)
     cover_slack = float(0.0)  # RIGID SLACK proven by the cover spheres
     if dgrid.use != 0 and p.collide_cover != 0 and a_max > a_min:  # COVER SPHERES
-        k_top = p.n_sigma * s_top / a_min
-        s_top_star = k_top + wp.sqrt(k_top * k_top + 1.0)
-        cover = cover_margin(dgrid, c, link_rotation(links, q), ax, s_top_star)
+        s_top_star = free_scale(p.n_sigma, s_top, a_min)
+        cover = cover_margin(dgrid, c, rot, ax, s_top_star)
         if cover > 0.0:  # no mean in s* E: free, no splat is read
             if slack_mode != 2 or target <= 0.0:
                 return False, far_slack, True
@@ -907,7 +915,6 @@ def link_collides(links: LinkBatch, q: int, splats: SplatTiers, dgrid: MeanDista
     if scan:
         lam = wp.min(target / a_min, RIGID_SLACK_MAX)
     near_slack = lam * a_min  # (what a tier with no mean that close leaves)
-    rot = link_rotation(links, q)
     a = link_matrix(rot, ax)
     ncol = int(0)
     sphere = a_min == a_max
@@ -918,8 +925,7 @@ def link_collides(links: LinkBatch, q: int, splats: SplatTiers, dgrid: MeanDista
     for j in range(splats.n_tiers):
         if ncol > k_collide:
             break
-        k_j = p.n_sigma * splats.sigma[j] / a_min
-        s_star = k_j + wp.sqrt(k_j * k_j + 1.0)  # s >= s*_j: s2~ >= 1 for this tier's splats
+        s_star = free_scale(p.n_sigma, splats.sigma[j], a_min)  # s >= s*_j: s2~ >= 1 for this tier's splats
         cap = float(1.0)
         if scan:
             cap = s_star * s_star * (1.0 + lam) * (1.0 + lam)
