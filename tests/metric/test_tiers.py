@@ -109,3 +109,71 @@ def test_query_order_does_not_change_results(device):
     for k in got[True]:
         np.testing.assert_array_equal(got[True][k], got[False][k], err_msg=k)
     assert got[True]["n_colliding"][5] == -1 and got[True]["hit"][2000]
+
+
+def _average_per_cell_ref(points: np.ndarray, width: float) -> float:
+    """Points per occupied cell floor(p / width), counted with a Python set (the slow reference)."""
+    cells = {tuple(int(v) for v in np.floor(p / width)) for p in np.asarray(points, dtype=np.float64)}
+    return len(points) / len(cells)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_finer_cell_steps_matches_a_direct_count(seed):
+    from splatplan.metric.tiers import finer_cell_steps
+
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(2000, 6000))
+    # points on a few random planes (surface-like) and some volume noise
+    normals = rng.normal(size=(3, 3))
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    pts = rng.uniform(-1.0, 1.0, (n, 3))
+    k = rng.integers(0, 3, n)
+    pts -= (np.einsum("ij,ij->i", pts, normals[k]))[:, None] * normals[k]  # onto plane k (through the origin)
+    pts[: n // 10] = rng.uniform(-1.0, 1.0, (n // 10, 3))
+    width, target = float(rng.uniform(0.2, 0.6)), float(rng.uniform(10.0, 60.0))
+    want = 4
+    for s in range(5):
+        if _average_per_cell_ref(pts, width * 2.0 ** (-s / 4.0)) <= target:
+            want = s
+            break
+    assert finer_cell_steps(pts, width, target) == want
+    assert finer_cell_steps(pts, width, target, max_steps=1) == min(want, 1)
+
+
+def test_finer_cell_steps_edge_cases():
+    from splatplan.metric.tiers import finer_cell_steps
+
+    plane = np.stack(np.meshgrid(np.arange(64.0), np.arange(64.0), [0.5], indexing="ij"), -1).reshape(-1, 3)  # spacing 1
+    assert finer_cell_steps(plane, 4.0, 16.0) == 0  # 16 a cell already
+    assert finer_cell_steps(plane, 8.0, 16.0) == 4  # 64 a cell: 2x finer
+    assert finer_cell_steps(plane, 1e6, 16.0) == 4  # one huge cell: at most max_steps
+    assert finer_cell_steps(np.zeros((0, 3)), 1.0, 16.0) == 0
+    assert finer_cell_steps(plane[:10], 100.0, 16.0) == 0  # fewer points than the target
+    assert finer_cell_steps(plane, 0.0, 16.0) == 0 and finer_cell_steps(plane, float("nan"), 16.0) == 0
+
+
+@pytest.mark.parametrize("n_sigma", [0.0, 1.0])
+def test_dense_scene_gets_finer_robot_cells_and_the_same_answers(n_sigma):
+    """A densely sampled wall fills the robot-check cells with hundreds of splats: the checker's
+    grid for collides_configs is finer than with the rule off, and every answer is the same."""
+    from splatplan.robots import load_robot
+
+    rng = np.random.default_rng(3)
+    n = 60000
+    scene = random_scene(rng, n, scale=0.002)
+    scene.means[:] = rng.uniform(-1.0, 1.0, (n, 3)) * np.array([0.003, 0.5, 0.4]) + np.array([0.55, 0.0, 0.4])  # a thin wall
+    robot = load_robot("panda").inflated(0.01)
+    cfg = MetricConfig(n_sigma=n_sigma)
+    on = CollisionChecker(scene, config=cfg, device="cpu", tiers=TierConfig())
+    off = CollisionChecker(scene, config=cfg, device="cpu", tiers=TierConfig(robot_collide_cell_splats=None))
+    lim = robot.joint_limits
+    q = lim[:, 0] + rng.random((400, robot.dof)) * (lim[:, 1] - lim[:, 0])
+    got, want = np.asarray(on.collides_configs(robot, q)), np.asarray(off.collides_configs(robot, q))
+    np.testing.assert_array_equal(got, want)
+    assert 0.05 < want.mean() < 0.95
+    np.testing.assert_array_equal(np.asarray(on.collides_robot(robot, q[:100])), np.asarray(off.collides_robot(robot, q[:100])))
+    (cells_on,) = {k[1] for k in on._impl._gridsets}  # (the robot checks' grid set: one here)
+    (cells_off,) = {k[1] for k in off._impl._gridsets}
+    assert all(a <= b for a, b in zip(cells_on, cells_off)) and any(a < b for a, b in zip(cells_on, cells_off)), (cells_on, cells_off)  # (sparse tiers keep theirs)
+    on.close()
+    off.close()

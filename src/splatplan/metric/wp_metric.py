@@ -33,7 +33,7 @@ from .._warp import wp as _wp
 from ..scenes.splats import Splats, quat_to_rotmat
 from .config import COST_REDUCE_CODES, MetricConfig
 from .reference import search_radius_ref
-from .tiers import TierConfig, mean_distance_bounds, mean_distance_upper, quantile_tiers, size_class_tiers
+from .tiers import TierConfig, finer_cell_steps, mean_distance_bounds, mean_distance_upper, quantile_tiers, size_class_tiers
 from .wp_metric_kernel import (
     LanePartials,
     LinkBatch,
@@ -174,6 +174,7 @@ class WarpMetric:
         self._sort_scale = wp.vec3(*(1023.0 / (bhi - blo + 2 * pad)).astype(np.float32))
         self._gridsets: dict[tuple[int, ...], _GridSet] = {}  # quantised cell per tier -> grids + data
         self._keys: dict[tuple[float, ...], tuple[tuple[tuple[int, int], ...], tuple[int, ...]]] = {}  # (n_sigma, cap, a_min, a_max) -> grid key
+        self._dense: dict[tuple, int] = {}  # (tier classes, quantised width) -> finer_cell_steps
         self._lock = threading.Lock()
         self._pool: ThreadPoolExecutor | None = None
         self._pool_finalizer: weakref.finalize | None = None
@@ -222,11 +223,24 @@ class WarpMetric:
             rho = [float(r) if math.isfinite(r) and r < 1e30 else 1e30 for r in np.atleast_1d(rho_all)]
             groups = self._group_classes(rho, cf)
             cells = tuple(int(math.floor(4 * math.log2(max(rho[j] * cf, 1e-9)))) for _, j in groups)
+            if collide and self.tiers.robot_collide_cell_splats is not None:  # finer cells where the tier is dense
+                cells = tuple(q - self._dense_steps(g, q) for g, q in zip(groups, cells))
             key = (groups, cells)
             if len(self._keys) >= 256:
                 self._keys.clear()
             self._keys[args] = key
         return key
+
+    def _dense_steps(self, group: tuple[int, int], q: int) -> int:
+        """Steps of 2^(1/4) finer than the quantised width 2^(q / 4) for the tier of classes ``group``
+        (:func:`~.tiers.finer_cell_steps` with ``TierConfig.robot_collide_cell_splats``; memoised)."""
+        key = (group, q)
+        hit = self._dense.get(key)
+        if hit is None:
+            lo = self.class_offset[group[0]]
+            n = self.class_offset[group[1]] + self.class_count[group[1]] - lo
+            hit = self._dense[key] = finer_cell_steps(self._means_np[lo : lo + n], 2.0 ** (q / 4.0), float(self.tiers.robot_collide_cell_splats or 0.0))
+        return hit
 
     def _group_classes(self, rho: list[float], cell_factor: float | None = None) -> tuple[tuple[int, int], ...]:
         """Partition of the classes into tiers (contiguous runs) of least estimated cost per query.
