@@ -198,3 +198,22 @@ def cover_spheres_ref(center: np.ndarray, rot: np.ndarray, axes: np.ndarray, s_s
     r2 = np.max((ends - t) ** 2 + a2 * a2 * (1.0 - ends**2 / (a1 * a1)), axis=0)  # (K,)
     u = np.asarray(rot, dtype=np.float64)[:, m]
     return np.asarray(center, dtype=np.float64) + np.outer(t * s_star, u), np.sqrt(np.maximum(r2, 0.0)) * s_star
+
+
+def cell_s2_lb_ref(center: np.ndarray, rot: np.ndarray, axes: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """The numpy twin of the kernels' CELL BOXES bound (float64, without the kernel's float32 pad):
+    for links (..., 3) centres, (..., 3, 3) world <- link rotations, (..., 3) semi-axes and boxes
+    [lo, hi] (..., 3), the lower bound sum_k max(|u_k . (m - c)| - r_k, 0)^2 / a_k^2 on the squared
+    scaling distance of every point of the box (u_k the link's axes, m the box centre, r_k the
+    half-width of the box's projection on u_k). Returns (...,)."""
+    c = np.asarray(center, dtype=np.float64)
+    r = np.asarray(rot, dtype=np.float64)
+    a = np.asarray(axes, dtype=np.float64)
+    lo = np.asarray(lo, dtype=np.float64)
+    hi = np.asarray(hi, dtype=np.float64)
+    m = 0.5 * (lo + hi) - c  # (..., 3)
+    half = 0.5 * (hi - lo)  # (..., 3)
+    p = np.einsum("...ik,...i->...k", r, m)  # (..., 3) the box centre on each link axis
+    w = np.einsum("...ik,...i->...k", np.abs(r), half)  # (..., 3) the box's half-width on each axis
+    g = np.maximum(np.abs(p) - w, 0.0)
+    return np.sum(g * g / (a * a), axis=-1)

@@ -33,7 +33,7 @@ from .._warp import wp as _wp
 from ..scenes.splats import Splats, quat_to_rotmat
 from .config import COST_REDUCE_CODES, MetricConfig
 from .reference import search_radius_ref
-from .tiers import TierConfig, finer_cell_steps, mean_distance_bounds, mean_distance_upper, quantile_tiers, size_class_tiers
+from .tiers import TierConfig, cell_boxes, finer_cell_steps, mean_distance_bounds, mean_distance_upper, quantile_tiers, size_class_tiers
 from .wp_metric_kernel import (
     LanePartials,
     LinkBatch,
@@ -326,7 +326,16 @@ class WarpMetric:
         cell_perm = np.concatenate(perm)
         d = self.device
         t = SplatTiers()
-        t.means = wp.array(self._means_np[cell_perm], dtype=wp.vec3, device=d)
+        sorted_means = self._means_np[cell_perm]  # (N, 3) in the grids' cell order
+        t.means = wp.array(sorted_means, dtype=wp.vec3, device=d)
+        if self.tiers.collide_cell_boxes:  # CELL BOXES: the bounding box of each cell's means
+            box_lo, box_hi = cell_boxes(sorted_means, np.concatenate(starts))
+            t.cell_box_lo = wp.array(box_lo, dtype=wp.vec3, device=d)
+            t.cell_box_hi = wp.array(box_hi, dtype=wp.vec3, device=d)
+            t.use_cell_box = 1
+        else:
+            t.cell_box_lo = t.cell_box_hi = wp.zeros(1, dtype=wp.vec3, device=d)
+            t.use_cell_box = 0
         t.mrows = wp.array(self._mrows_np[cell_perm], dtype=wp.mat33, device=d)
         t.opacity = wp.array(self._opac_np[cell_perm], dtype=wp.float32, device=d)
         t.cell_start = wp.array(np.concatenate(starts).astype(np.int32), dtype=wp.int32, device=d)

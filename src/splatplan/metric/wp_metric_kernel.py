@@ -103,6 +103,19 @@ configurations 7-10% faster (``benchmarks/mbm_speed.py``, near-surface configura
 us, table_pick and bookshelf within noise); the bound's voxels (2^21 over the scene) limit it: with
 exact distances ~80% would be.
 
+CELL BOXES (collision-only kernels, ``TierConfig.collide_cell_boxes``). Each grid cell also stores
+the bounding box of its means. A scan reads a row's cells one by one and skips a cell holding more
+than ``CELL_BOX_MIN`` splats when a lower bound on the squared scaling distance s2 over its box
+exceeds the cut s2_cut = (rho / a_max)^2 that every read splat is tested against: with u_k the
+link's axes, s2 = sum_k (u_k . d)^2 / a_k^2 >= sum_k (min over the box of |u_k . d|)^2 / a_k^2, and
+the minimum of |u_k . d| over a box is the distance from 0 of the box's projection interval
+(:func:`cell_s2_lb`; the box grown by 1e-5 (1 + |c|) and the bound shrunk by 0.1% against float32
+rounding). A skipped splat has s2 > s2_cut, which the scan rejects (link_s2 returns +inf; with the
+RIGID SLACK its s2 exceeds the scan's cap, so the smallest s2 below the cap is unchanged): every
+output, slack included, is the plain scan's. A surface patch beside a near link then costs one
+test instead of its splats. MBM Panda (planners' batches, ~70 splats a cell): node checks 5-11% and
+edge checks with RIGID SLACK 7-10% faster; sparse scenes (under ~16 splats a cell) unchanged.
+
 HIT BOUND (collision-only kernels). On the same voxels, a second array stores an upper bound on the
 distance from any point of the voxel to the nearest mean that counts (opacity at least
 ``MeanDistanceGrid.ub_opacity``; :func:`~.tiers.mean_distance_upper`), grown by a margin far above
@@ -205,6 +218,11 @@ HIT_SHRINK = wp.constant(0.999)
 
 #: COVER SPHERES: the most spheres a near link's cover uses (along its longest axis).
 COVER_MAX = wp.constant(4)
+#: CELL BOXES: cells holding at most this many splats are read without testing their box.
+CELL_BOX_MIN = wp.constant(16)
+#: CELL BOXES: a cell is skipped when its bound times this exceeds the cut (0.1%, above the float32
+#: rounding of the bound, whose box is also padded; see :func:`cell_s2_lb`).
+CELL_BOX_SHRINK = wp.constant(0.999)
 
 
 @wp.func
@@ -258,6 +276,9 @@ class SplatTiers:
     offset: wp.array(dtype=wp.int32)  # (T + 1,) tier j = [offset[j], offset[j + 1])
     sigma: wp.array(dtype=wp.float32)  # (T,) largest std in the tier
     n_tiers: int
+    cell_box_lo: wp.array(dtype=wp.vec3)  # indexed like cell_start: the smallest coordinates of the cell's means (CELL BOXES)
+    cell_box_hi: wp.array(dtype=wp.vec3)  # ... the largest
+    use_cell_box: int  # 0: no boxes (the arrays are placeholders)
 
 
 @wp.struct
@@ -861,6 +882,33 @@ def cover_margin(dgrid: MeanDistanceGrid, c: wp.vec3, rot: wp.mat33, ax: wp.vec3
     return best
 
 
+@wp.func
+def cell_s2_lb(c: wp.vec3, rot: wp.mat33, ax: wp.vec3, lo: wp.vec3, hi: wp.vec3):
+    """CELL BOXES (module docstring): a lower bound on the squared scaling distance s2 = sum_k
+    (u_k . (x - c))^2 / a_k^2 (u_k the link's axes, columns of ``rot``) over every point x of the box
+    [lo, hi]: per axis, the distance from 0 of the box's projection interval, squared over a_k^2. The
+    box is grown by 1e-5 (1 + |c|) against float32 rounding."""
+    pad = 1.0e-5 * (1.0 + wp.length(c))
+    ctr = (lo + hi) * 0.5 - c
+    half = (hi - lo) * 0.5 + wp.vec3(pad, pad, pad)
+    s2 = float(0.0)
+    for k in range(3):
+        u = wp.vec3(rot[0, k], rot[1, k], rot[2, k])
+        p = wp.dot(u, ctr)
+        r = wp.abs(u[0]) * half[0] + wp.abs(u[1]) * half[1] + wp.abs(u[2]) * half[2]
+        m = wp.max(wp.abs(p) - r, 0.0)
+        s2 += m * m / (ax[k] * ax[k])
+    return s2
+
+
+@wp.kernel
+def cell_s2_lb_kernel(centers: wp.array(dtype=wp.vec3), rots: wp.array(dtype=wp.mat33), axes: wp.array(dtype=wp.vec3), lo: wp.array(dtype=wp.vec3),
+                      hi: wp.array(dtype=wp.vec3), out: wp.array(dtype=wp.float32)):  # fmt: skip
+    """out[i] = :func:`cell_s2_lb` of link i and box i (tests)."""
+    i = wp.tid()
+    out[i] = cell_s2_lb(centers[i], rots[i], axes[i], lo[i], hi[i])
+
+
 @wp.kernel
 def cover_margin_kernel(dgrid: MeanDistanceGrid, centers: wp.array(dtype=wp.vec3), rots: wp.array(dtype=wp.mat33), axes: wp.array(dtype=wp.vec3),
                         s_star: float, out: wp.array(dtype=wp.float32)):  # fmt: skip
@@ -977,22 +1025,38 @@ def link_collides(links: LinkBatch, q: int, splats: SplatTiers, dgrid: MeanDista
                 x0, x1, n_run = row_runs(x0s, xa, xb, dim[0])
                 for run in range(n_run):
                     a0, a1 = run_cells(run, x0, x1, dim[0])
-                    for i in range(splats.cell_start[row + a0], splats.cell_start[row + a1 + 1]):
+                    i_end = splats.cell_start[row + a1 + 1]
+                    i = splats.cell_start[row + a0]
+                    cell = a0  # CELL BOXES: the run cell by cell (else as one range), a cell beyond the cut skipped
+                    while i < i_end:
                         if ncol > k_collide:
                             break
-                        d = splats.means[i] - c
-                        dd = wp.dot(d, d)
-                        if dd <= rho2:
-                            ns = splat_inflation(splats, p, i)
-                            if ns >= 0.0:
-                                test = True
-                                if scan:
-                                    s2p = plain_s2(d, dd, a, sphere, inv_r2)
-                                    min_s2 = wp.min(min_s2, s2p)
-                                    test = s2p <= s2_cut1  # (else s2~ >= 1 by the radius bound)
-                                if test:
-                                    if link_s2(d, dd, a, sphere, inv_r2, splats.mrows, i, ns, s2_cut1, p.lin_distance) < 1.0:
-                                        ncol += 1
+                        i_stop = i_end
+                        if splats.use_cell_box != 0:
+                            i_stop = splats.cell_start[row + cell + 1]  # (cell holds [i, i_stop): the cells before it are done)
+                            k_box = row + cell
+                            cell += 1
+                            if i_stop - i > CELL_BOX_MIN:
+                                if cell_s2_lb(c, rot, ax, splats.cell_box_lo[k_box], splats.cell_box_hi[k_box]) * CELL_BOX_SHRINK > s2_cut:
+                                    i = i_stop
+                                    continue
+                        for si in range(i, i_stop):
+                            if ncol > k_collide:
+                                break
+                            d = splats.means[si] - c
+                            dd = wp.dot(d, d)
+                            if dd <= rho2:
+                                ns = splat_inflation(splats, p, si)
+                                if ns >= 0.0:
+                                    test = True
+                                    if scan:
+                                        s2p = plain_s2(d, dd, a, sphere, inv_r2)
+                                        min_s2 = wp.min(min_s2, s2p)
+                                        test = s2p <= s2_cut1  # (else s2~ >= 1 by the radius bound)
+                                    if test:
+                                        if link_s2(d, dd, a, sphere, inv_r2, splats.mrows, si, ns, s2_cut1, p.lin_distance) < 1.0:
+                                            ncol += 1
+                        i = i_stop
         if scan:
             near_slack = wp.min(near_slack, a_min * (wp.sqrt(wp.max(min_s2, 0.0)) - s_star) / s_star)
     if ncol > k_collide:
