@@ -154,3 +154,23 @@ def test_configs_and_slack_same_with_and_without_boxes(device, regime):
     np.testing.assert_array_equal(np.asarray(on.collides_robot(robot, q[:100])), np.asarray(off.collides_robot(robot, q[:100])))
     for ch in (on, off):
         ch.close()
+
+
+def test_only_dense_tiers_get_boxes():
+    """A dense wall's tier gets boxes; a sparse scene's tiers do not (the kernel would not test its
+    cells), and with the option off none does."""
+    rng = np.random.default_rng(80)
+    dense = _dense_walls(rng, 30000)
+    sparse = random_scene(rng, 3000, scale=0.01)
+    robot_like = (np.zeros((1, 3)), random_quats(rng, 1), np.full((1, 3), 0.03))
+
+    def bases(scene, **tiers):
+        ch = CollisionChecker(scene, config=MetricConfig(n_sigma=0.0), device="cpu", tiers=TierConfig(**tiers))
+        ch.collides(*robot_like)
+        out = [gs.tiers.box_base.numpy().tolist() for gs in ch._impl._gridsets.values()]
+        ch.close()
+        return out
+
+    assert any(b >= 0 for bs in bases(dense) for b in bs)
+    assert all(b < 0 for bs in bases(sparse) for b in bs)
+    assert all(b < 0 for bs in bases(dense, collide_cell_boxes=False) for b in bs)

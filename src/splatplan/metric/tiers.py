@@ -89,7 +89,9 @@ class TierConfig:
     #: The collision-only kernel skips, in the cell rows it reads, every cell (holding more than a
     #: few splats) whose means' bounding box lies beyond the link's search ellipsoid by a lower
     #: bound from the link's three axes (CELL BOXES, :mod:`.wp_metric_kernel`; same outputs): a
-    #: surface patch beside a near link costs one test instead of its splats. 24 bytes per grid cell.
+    #: surface patch beside a near link costs one test instead of its splats. Only dense tiers (more
+    #: than 16 splats per occupied cell) get boxes, 24 bytes per grid cell, at most the tier's own
+    #: splat data (52 bytes a splat).
     collide_cell_boxes: bool = True
     #: ``collides_robot`` (the collision-only kernel on robot batches) uses grids with cells this many
     #: times wider than (elongated_)cell_factor x its radius. Its radius is for cap 1, half the full

@@ -35,6 +35,7 @@ from .config import COST_REDUCE_CODES, MetricConfig
 from .reference import search_radius_ref
 from .tiers import TierConfig, cell_boxes, finer_cell_steps, mean_distance_bounds, mean_distance_upper, quantile_tiers, size_class_tiers
 from .wp_metric_kernel import (
+    CELL_BOX_MIN,
     LanePartials,
     LinkBatch,
     MeanDistanceGrid,
@@ -328,14 +329,10 @@ class WarpMetric:
         t = SplatTiers()
         sorted_means = self._means_np[cell_perm]  # (N, 3) in the grids' cell order
         t.means = wp.array(sorted_means, dtype=wp.vec3, device=d)
-        if self.tiers.collide_cell_boxes:  # CELL BOXES: the bounding box of each cell's means
-            box_lo, box_hi = cell_boxes(sorted_means, np.concatenate(starts))
-            t.cell_box_lo = wp.array(box_lo, dtype=wp.vec3, device=d)
-            t.cell_box_hi = wp.array(box_hi, dtype=wp.vec3, device=d)
-            t.use_cell_box = 1
-        else:
-            t.cell_box_lo = t.cell_box_hi = wp.zeros(1, dtype=wp.vec3, device=d)
-            t.use_cell_box = 0
+        box_base, box_lo, box_hi = self._cell_boxes(sorted_means, starts, offsets)
+        t.box_base = wp.array(box_base, dtype=wp.int32, device=d)
+        t.cell_box_lo = wp.array(box_lo, dtype=wp.vec3, device=d)
+        t.cell_box_hi = wp.array(box_hi, dtype=wp.vec3, device=d)
         t.mrows = wp.array(self._mrows_np[cell_perm], dtype=wp.mat33, device=d)
         t.opacity = wp.array(self._opac_np[cell_perm], dtype=wp.float32, device=d)
         t.cell_start = wp.array(np.concatenate(starts).astype(np.int32), dtype=wp.int32, device=d)
@@ -348,6 +345,26 @@ class WarpMetric:
         t.sigma = wp.array(np.asarray(sigmas, np.float32), dtype=wp.float32, device=d)
         t.n_tiers = len(groups)
         return _GridSet(tiers=t, groups=groups, counts=[b - a for a, b in zip(offsets, offsets[1:])], sigma=sigmas)
+
+    def _cell_boxes(self, sorted_means: np.ndarray, starts: list, offsets: list) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """CELL BOXES (:mod:`.wp_metric_kernel`) of a grid set: (box_base (T,) int32, lo (M, 3), hi (M, 3)
+        float32). A tier gets boxes when ``TierConfig.collide_cell_boxes`` is on, its occupied cells hold
+        more than ``CELL_BOX_MIN`` splats on average (the kernel tests no sparser cell) and its boxes
+        (24 bytes a cell) are no larger than its splat data (52 bytes a splat); else base -1."""
+        base, los, his, m = [], [np.zeros((1, 3), np.float32)], [np.zeros((1, 3), np.float32)], 1  # (entry 0: a placeholder)
+        for j, st in enumerate(starts):
+            n = int(offsets[j + 1] - offsets[j])
+            n_cells = len(st) - 1
+            n_occ = int(np.count_nonzero(np.diff(st)))
+            if not self.tiers.collide_cell_boxes or n <= CELL_BOX_MIN * max(n_occ, 1) or 24 * n_cells > 52 * n:
+                base.append(-1)
+                continue
+            lo, hi = cell_boxes(sorted_means[offsets[j] : offsets[j + 1]], np.asarray(st) - offsets[j])
+            base.append(m)
+            los.append(lo)
+            his.append(hi)
+            m += len(lo)
+        return np.asarray(base, np.int32), np.concatenate(los), np.concatenate(his)
 
     def mean_distance_grid(self, opacity_min: float = 0.0) -> MeanDistanceGrid:
         """The kernels' :class:`MeanDistanceGrid` of the splat means (built once; ``use == 0`` when

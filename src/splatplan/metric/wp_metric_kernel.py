@@ -103,8 +103,9 @@ configurations 7-10% faster (``benchmarks/mbm_speed.py``, near-surface configura
 us, table_pick and bookshelf within noise); the bound's voxels (2^21 over the scene) limit it: with
 exact distances ~80% would be.
 
-CELL BOXES (collision-only kernels, ``TierConfig.collide_cell_boxes``). Each grid cell also stores
-the bounding box of its means. A scan reads a row's cells one by one and skips a cell holding more
+CELL BOXES (collision-only kernels, ``TierConfig.collide_cell_boxes``). Each grid cell of a dense
+tier (more than ``CELL_BOX_MIN`` splats per occupied cell, boxes no larger than the tier's splat
+data) also stores the bounding box of its means. A scan reads a row's cells one by one and skips a cell holding more
 than ``CELL_BOX_MIN`` splats when a lower bound on the squared scaling distance s2 over its box
 exceeds the cut s2_cut = (rho / a_max)^2 that every read splat is tested against: with u_k the
 link's axes, s2 = sum_k (u_k . d)^2 / a_k^2 >= sum_k (min over the box of |u_k . d|)^2 / a_k^2, and
@@ -276,9 +277,9 @@ class SplatTiers:
     offset: wp.array(dtype=wp.int32)  # (T + 1,) tier j = [offset[j], offset[j + 1])
     sigma: wp.array(dtype=wp.float32)  # (T,) largest std in the tier
     n_tiers: int
-    cell_box_lo: wp.array(dtype=wp.vec3)  # indexed like cell_start: the smallest coordinates of the cell's means (CELL BOXES)
+    box_base: wp.array(dtype=wp.int32)  # (T,) CELL BOXES: tier j's cell k has its box at box_base[j] + k; -1: the tier has none
+    cell_box_lo: wp.array(dtype=wp.vec3)  # the smallest coordinates of the cell's means
     cell_box_hi: wp.array(dtype=wp.vec3)  # ... the largest
-    use_cell_box: int  # 0: no boxes (the arrays are placeholders)
 
 
 @wp.struct
@@ -990,6 +991,7 @@ def link_collides(links: LinkBatch, q: int, splats: SplatTiers, dgrid: MeanDista
         inv_w = splats.inv_w[j]
         dim = splats.dims[j]
         cb = splats.cell_base[j]
+        bb = splats.box_base[j]  # CELL BOXES of this tier (-1: none)
         c_lo = splats.cell_lo[j]
         c_hi = splats.cell_hi[j]
         r_x = rho
@@ -1032,9 +1034,9 @@ def link_collides(links: LinkBatch, q: int, splats: SplatTiers, dgrid: MeanDista
                         if ncol > k_collide:
                             break
                         i_stop = i_end
-                        if splats.use_cell_box != 0:
+                        if bb >= 0:
                             i_stop = splats.cell_start[row + cell + 1]  # (cell holds [i, i_stop): the cells before it are done)
-                            k_box = row + cell
+                            k_box = bb + row - cb + cell
                             cell += 1
                             if i_stop - i > CELL_BOX_MIN:
                                 if cell_s2_lb(c, rot, ax, splats.cell_box_lo[k_box], splats.cell_box_hi[k_box]) * CELL_BOX_SHRINK > s2_cut:
