@@ -105,17 +105,19 @@ exact distances ~80% would be.
 
 CELL BOXES (collision-only kernels, ``TierConfig.collide_cell_boxes``). Each grid cell of a dense
 tier (more than ``CELL_BOX_MIN`` splats per occupied cell, boxes no larger than the tier's splat
-data) also stores the bounding box of its means. A scan reads a row's cells one by one and skips a cell holding more
-than ``CELL_BOX_MIN`` splats when a lower bound on the squared scaling distance s2 over its box
-exceeds the cut s2_cut = (rho / a_max)^2 that every read splat is tested against: with u_k the
-link's axes, s2 = sum_k (u_k . d)^2 / a_k^2 >= sum_k (min over the box of |u_k . d|)^2 / a_k^2, and
-the minimum of |u_k . d| over a box is the distance from 0 of the box's projection interval
-(:func:`cell_s2_lb`; the box grown by 1e-5 (1 + |c|) and the bound shrunk by 0.1% against float32
-rounding). A skipped splat has s2 > s2_cut, which the scan rejects (link_s2 returns +inf; with the
-RIGID SLACK its s2 exceeds the scan's cap, so the smallest s2 below the cap is unchanged): every
-output, slack included, is the plain scan's. A surface patch beside a near link then costs one
-test instead of its splats. MBM Panda (planners' batches, ~70 splats a cell): node checks 5-11% and
-edge checks with RIGID SLACK 7-10% faster; sparse scenes (under ~16 splats a cell) unchanged.
+data) also stores the bounding box of its means. A scan then reads a row's cells one by one and
+skips a cell holding more than ``CELL_BOX_MIN`` splats when a lower bound on the squared scaling
+distance s2 over its box exceeds the cut s2_cut = (rho / a_max)^2 that every read splat is tested
+against: with u_k the link's axes, s2 = sum_k (u_k . d)^2 / a_k^2 >= sum_k (min over the box of
+|u_k . d|)^2 / a_k^2, and the minimum of |u_k . d| over a box is the distance from 0 of the box's
+projection interval (:func:`cell_s2_lb`; the box grown by 1e-5 (1 + |c|) and the bound shrunk by
+0.1% against float32 rounding). A skipped splat has s2 > s2_cut, which the scan rejects (link_s2
+returns +inf; with the RIGID SLACK its s2 exceeds the scan's cap, so the smallest s2 below the cap
+is unchanged): every output, slack included, is the plain scan's. A surface patch beside a near
+link then costs one test instead of its splats. MBM Panda (the planners' own batches replayed,
+~70 splats a cell): node checks 5-11% and edge checks with RIGID SLACK 7-10% faster; whole plans
+~3% (interleaved, 18 problems; within the noise of one benchmark run); the built-in scenes (17-32
+splats a cell) unchanged.
 
 HIT BOUND (collision-only kernels). On the same voxels, a second array stores an upper bound on the
 distance from any point of the voxel to the nearest mean that counts (opacity at least
