@@ -16,7 +16,7 @@ from splatplan.metric.wp_metric import TierConfig
 from splatplan.metric.wp_metric_kernel import cell_s2_lb_kernel
 from splatplan.scenes.splats import quat_to_rotmat
 
-from .conftest import DEVICES, random_quats, random_scene
+from .conftest import COLLIDE_REGIMES, DEVICES, near_surface_links, option_pair, plane_walls, random_quats, random_scene
 
 wp = _wp()
 
@@ -76,34 +76,12 @@ def test_bound_is_below_every_point_and_matches_numpy_twin(device):
     assert np.median(ref[near] / np.maximum(s2[near], 1e-12)) > 0.5  # and reasonably tight
 
 
-REGIMES = [
-    dict(n_sigma=0.0),
-    dict(n_sigma=1.0),
-    dict(n_sigma=3.0, linearize="squared", opacity_min=0.0, opacity_scaled_inflation=False),
-    dict(n_sigma=1.0, opacity_min=0.4),
-    dict(n_sigma=0.0, k_collide=2),
-]
+REGIMES = COLLIDE_REGIMES
 
 
 def _dense_walls(rng, n: int):
     """n small splats on two walls and a tilted plane (dense: many splats per grid cell)."""
-    uv = rng.uniform(-0.3, 0.3, (n, 2))
-    k = rng.integers(0, 3, n)
-    p = np.zeros((n, 3))
-    p[k == 0] = np.column_stack([np.full((k == 0).sum(), 0.1), uv[k == 0]])
-    p[k == 1] = np.column_stack([uv[k == 1, 0], np.full((k == 1).sum(), -0.15), uv[k == 1, 1]])
-    t = uv[k == 2]
-    p[k == 2] = np.column_stack([t[:, 0], t[:, 1], 0.5 * t[:, 0] + 0.3 * t[:, 1] - 0.1])
-    scene = random_scene(rng, n, scale=0.002)
-    scene.means[:] = p + rng.normal(scale=0.001, size=p.shape)
-    return scene
-
-
-def _pair(scene, device, **cfg):
-    conf = MetricConfig(**cfg)
-    tiers = dict(distance_grid_voxels=2**18)
-    return (CollisionChecker(scene, config=conf, device=device, tiers=TierConfig(collide_cell_boxes=True, **tiers)),
-            CollisionChecker(scene, config=conf, device=device, tiers=TierConfig(collide_cell_boxes=False, **tiers)))  # fmt: skip
+    return plane_walls(rng, n, scale=0.002, noise=0.001)
 
 
 @pytest.mark.parametrize("device", DEVICES)
@@ -111,14 +89,9 @@ def _pair(scene, device, **cfg):
 def test_same_answers_with_and_without_boxes(device, regime):
     rng = np.random.default_rng(60 + regime)
     scene = _dense_walls(rng, 30000)
-    on, off = _pair(scene, device, **REGIMES[regime])
+    on, off = option_pair(scene, device, "collide_cell_boxes", **REGIMES[regime])
     ref = CollisionChecker(scene, config=MetricConfig(**REGIMES[regime]), backend="reference")
-    n = 2000
-    near = np.asarray(scene.means)[rng.integers(0, len(scene.means), n // 2)] + rng.normal(scale=0.04, size=(n // 2, 3))
-    centers = np.concatenate([near, rng.uniform(-0.6, 0.6, (n - n // 2, 3))])
-    quats = random_quats(rng, n)
-    axes = rng.uniform(0.004, 0.03, (n, 3))
-    axes[: n // 2, 0] *= 4  # rods
+    centers, quats, axes = near_surface_links(rng, scene, 2000)
     a = np.asarray(on.collides(centers, quats, axes))
     np.testing.assert_array_equal(a, np.asarray(off.collides(centers, quats, axes)))
     np.testing.assert_array_equal(a[::8], np.asarray(ref.collides(centers[::8], quats[::8], axes[::8])))
@@ -136,7 +109,7 @@ def test_configs_and_slack_same_with_and_without_boxes(device, regime):
     wall = rng.uniform(-1.0, 1.0, (40000, 3)) * np.array([0.004, 0.5, 0.4]) + np.array([0.55, 0.0, 0.4])  # a dense thin wall
     scene = random_scene(rng, len(wall), scale=0.002)
     scene.means[:] = wall
-    on, off = _pair(scene, device, **REGIMES[regime])
+    on, off = option_pair(scene, device, "collide_cell_boxes", **REGIMES[regime])
     robot = load_robot("panda").inflated(0.01)
     lim = robot.joint_limits
     q = lim[:, 0] + rng.random((300, robot.dof)) * (lim[:, 1] - lim[:, 0])

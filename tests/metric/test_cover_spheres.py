@@ -15,7 +15,7 @@ from splatplan.metric.wp_metric import TierConfig, WarpMetric
 from splatplan.metric.wp_metric_kernel import cover_margin_kernel
 from splatplan.scenes.splats import quat_to_rotmat
 
-from .conftest import DEVICES, random_quats, random_scene
+from .conftest import COLLIDE_REGIMES, DEVICES, near_surface_links, option_pair, plane_walls, random_quats, random_scene
 
 wp = _wp()
 
@@ -116,49 +116,17 @@ def test_elongated_link_beside_a_wall_is_cleared(device):
         assert bool(np.asarray(ch.collides(c - [0.035, 0, 0], np.array([[1.0, 0, 0, 0]]), axes))[0])  # 5 mm from the wall: the rod's tube holds means
 
 
-REGIMES = [
-    dict(n_sigma=0.0),
-    dict(n_sigma=1.0),
-    dict(n_sigma=3.0, linearize="squared", opacity_min=0.0, opacity_scaled_inflation=False),
-    dict(n_sigma=1.0, opacity_min=0.4),
-    dict(n_sigma=0.0, k_collide=2),
-]
-
-
-def _walls(rng, n: int):
-    """n splats on three planes (two axis-aligned walls and a tilted one), 2 mm noise off them."""
-    uv = rng.uniform(-0.3, 0.3, (n, 2))
-    k = rng.integers(0, 3, n)
-    p = np.zeros((n, 3))
-    p[k == 0] = np.column_stack([np.full((k == 0).sum(), 0.1), uv[k == 0]])
-    p[k == 1] = np.column_stack([uv[k == 1, 0], np.full((k == 1).sum(), -0.15), uv[k == 1, 1]])
-    t = uv[k == 2]
-    p[k == 2] = np.column_stack([t[:, 0], t[:, 1], 0.5 * t[:, 0] + 0.3 * t[:, 1] - 0.1])
-    scene = random_scene(rng, n, scale=0.003)
-    scene.means[:] = p + rng.normal(scale=0.002, size=p.shape)
-    return scene
-
-
-def _pair(scene, device, **cfg):
-    conf = MetricConfig(**cfg)
-    tiers = dict(distance_grid_voxels=2**18)
-    return (CollisionChecker(scene, config=conf, device=device, tiers=TierConfig(collide_cover=True, **tiers)),
-            CollisionChecker(scene, config=conf, device=device, tiers=TierConfig(collide_cover=False, **tiers)))  # fmt: skip
+REGIMES = COLLIDE_REGIMES
 
 
 @pytest.mark.parametrize("device", DEVICES)
 @pytest.mark.parametrize("regime", range(len(REGIMES)))
 def test_same_answers_with_and_without_cover(device, regime):
     rng = np.random.default_rng(30 + regime)
-    scene = _walls(rng, 6000)
-    on, off = _pair(scene, device, **REGIMES[regime])
+    scene = plane_walls(rng, 6000, scale=0.003, noise=0.002)
+    on, off = option_pair(scene, device, "collide_cover", **REGIMES[regime])
     ref = CollisionChecker(scene, config=MetricConfig(**REGIMES[regime]), backend="reference")
-    n = 3000
-    near = np.asarray(scene.means)[rng.integers(0, len(scene.means), n // 2)] + rng.normal(scale=0.04, size=(n // 2, 3))
-    centers = np.concatenate([near, rng.uniform(-0.6, 0.6, (n - n // 2, 3))])
-    quats = random_quats(rng, n)
-    axes = rng.uniform(0.004, 0.03, (n, 3))
-    axes[: n // 2, 0] *= 4  # rods
+    centers, quats, axes = near_surface_links(rng, scene, 3000)
     a = np.asarray(on.collides(centers, quats, axes))
     np.testing.assert_array_equal(a, np.asarray(off.collides(centers, quats, axes)))
     np.testing.assert_array_equal(a[::6], np.asarray(ref.collides(centers[::6], quats[::6], axes[::6])))
@@ -186,7 +154,7 @@ def test_configs_same_with_and_without_cover(device, regime):
     wall = rng.uniform(-1.0, 1.0, (6000, 3)) * np.array([0.01, 0.5, 0.4]) + np.array([0.55, 0.0, 0.4])  # a thin wall in front of the arm
     scene = random_scene(rng, len(wall), scale=0.003)
     scene.means[:] = wall
-    on, off = _pair(scene, device, **REGIMES[regime])
+    on, off = option_pair(scene, device, "collide_cover", **REGIMES[regime])
     robot = load_robot("panda").inflated(0.01)
     lim = robot.joint_limits
     q = lim[:, 0] + rng.random((400, robot.dof)) * (lim[:, 1] - lim[:, 0])

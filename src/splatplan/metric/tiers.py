@@ -151,25 +151,16 @@ def cell_boxes(means: np.ndarray, starts: np.ndarray) -> tuple[np.ndarray, np.nd
         lo (M, 3), hi (M, 3) float32: per entry, the smallest and largest coordinates of its cell's
         means; (0, 0, 0) for an empty cell and for the last entry (never read as a box).
     """
-    m = np.asarray(means, dtype=np.float32).reshape(-1, 3)
     st = np.asarray(starts, dtype=np.int64).reshape(-1)
     lo = np.zeros((len(st), 3), dtype=np.float32)
     hi = np.zeros((len(st), 3), dtype=np.float32)
-    if len(st) < 2 or len(m) == 0:
+    if len(st) < 2:
         return lo, hi
-    cnt = np.zeros(len(st), dtype=np.int64)
-    cnt[:-1] = np.maximum(st[1:] - st[:-1], 0)  # (a tier's end entry is followed by the next tier's first cell: same index, 0 or more)
-    full = np.nonzero(cnt > 0)[0]
-    if len(full):
-        lo[full] = np.minimum.reduceat(m, st[full], axis=0)[: len(full)]
-        hi[full] = np.maximum.reduceat(m, st[full], axis=0)[: len(full)]
-        # reduceat reduces up to the next index given: correct the cells whose next given index is not their end
-        ends = st[full] + cnt[full]
-        nxt = np.append(st[full][1:], len(m))
-        bad = np.nonzero(ends != nxt)[0]
-        for k in bad.tolist():
-            a, b = int(st[full[k]]), int(ends[k])
-            lo[full[k]], hi[full[k]] = m[a:b].min(axis=0), m[a:b].max(axis=0)
+    m = np.asarray(means, dtype=np.float32).reshape(-1, 3)[: st[-1]]  # (the table covers [st[0], st[-1]))
+    full = np.nonzero(st[1:] > st[:-1])[0]  # non-empty cells: the cells between two of them are empty,
+    if len(full):  # so each one runs up to the next one's start (the last to st[-1]), as reduceat reduces
+        lo[full] = np.minimum.reduceat(m, st[full], axis=0)
+        hi[full] = np.maximum.reduceat(m, st[full], axis=0)
     return lo, hi
 
 

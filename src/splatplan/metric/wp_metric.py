@@ -224,23 +224,25 @@ class WarpMetric:
             rho = [float(r) if math.isfinite(r) and r < 1e30 else 1e30 for r in np.atleast_1d(rho_all)]
             groups = self._group_classes(rho, cf)
             cells = tuple(int(math.floor(4 * math.log2(max(rho[j] * cf, 1e-9)))) for _, j in groups)
-            if collide and self.tiers.robot_collide_cell_splats is not None:  # finer cells where the tier is dense
-                cells = tuple(q - self._dense_steps(g, q) for g, q in zip(groups, cells))
+            target = self.tiers.robot_collide_cell_splats
+            if collide and target is not None:  # finer cells where the tier is dense
+                cells = tuple(q - self._dense_steps(g, q, float(target)) for g, q in zip(groups, cells))
             key = (groups, cells)
             if len(self._keys) >= 256:
                 self._keys.clear()
             self._keys[args] = key
         return key
 
-    def _dense_steps(self, group: tuple[int, int], q: int) -> int:
+    def _dense_steps(self, group: tuple[int, int], q: int, target: float) -> int:
         """Steps of 2^(1/4) finer than the quantised width 2^(q / 4) for the tier of classes ``group``
-        (:func:`~.tiers.finer_cell_steps` with ``TierConfig.robot_collide_cell_splats``; memoised)."""
+        (:func:`~.tiers.finer_cell_steps` with ``target`` = ``TierConfig.robot_collide_cell_splats``;
+        memoised: a checker's TierConfig does not change)."""
         key = (group, q)
         hit = self._dense.get(key)
         if hit is None:
             lo = self.class_offset[group[0]]
             n = self.class_offset[group[1]] + self.class_count[group[1]] - lo
-            hit = self._dense[key] = finer_cell_steps(self._means_np[lo : lo + n], 2.0 ** (q / 4.0), float(self.tiers.robot_collide_cell_splats or 0.0))
+            hit = self._dense[key] = finer_cell_steps(self._means_np[lo : lo + n], 2.0 ** (q / 4.0), target)
         return hit
 
     def _group_classes(self, rho: list[float], cell_factor: float | None = None) -> tuple[tuple[int, int], ...]:
