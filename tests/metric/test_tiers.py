@@ -150,6 +150,7 @@ def test_finer_cell_steps_edge_cases():
     assert finer_cell_steps(np.zeros((0, 3)), 1.0, 16.0) == 0
     assert finer_cell_steps(plane[:10], 100.0, 16.0) == 0  # fewer points than the target
     assert finer_cell_steps(plane, 0.0, 16.0) == 0 and finer_cell_steps(plane, float("nan"), 16.0) == 0
+    assert finer_cell_steps(plane * 1e30, 1e-300, 16.0) == 0  # (cells too fine to count: no step)
 
 
 @pytest.mark.parametrize("n_sigma", [0.0, 1.0])

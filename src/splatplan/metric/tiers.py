@@ -175,7 +175,11 @@ def finer_cell_steps(points: np.ndarray, width: float, target: float, max_steps:
         return 0
     for k in range(max_steps + 1):
         w = width * 2.0 ** (-k / 4.0)
-        cell = np.floor(p / w).astype(np.int64)  # (N, 3)
+        with np.errstate(over="ignore", invalid="ignore"):
+            scaled = p / w  # (N, 3) in cells
+        if not np.all(np.abs(scaled) < 2.0**52):  # (cells this fine are not countable as integers: stop here)
+            return k
+        cell = np.floor(scaled).astype(np.int64)  # (N, 3)
         cell -= cell.min(axis=0)
         span = cell.max(axis=0) + 1
         if float(np.prod(span.astype(np.float64))) < 2.0**62:
