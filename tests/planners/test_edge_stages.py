@@ -80,3 +80,21 @@ def test_empty_and_bad_stages(panda_boxes):
     assert k.shape == n.shape == (0,)
     with pytest.raises(SplatplanError):
         EdgeChecker(panda_boxes, geom, 0.01, stages=0)
+
+
+def test_arm_walk_matches_one_call(panda_boxes):
+    """``walk``: edges_free by the checker's SLACK WALK, the one-call answers with fewer checks."""
+    robot = robots.load_robot("panda")
+    geom = LinkGeometry(robot)
+    rng = np.random.default_rng(7)
+    a, b = _arm_edges(robot, rng, 24, 0.5)
+    a[:3] = b[:3]
+    res = 0.25 * robot.min_semi_axis
+    ref = EdgeChecker(panda_boxes, geom, res, stages=1)
+    k_ref, n_ref = ref.free_prefix(a, b)
+    assert 0 < (k_ref < n_ref).sum() < len(a)
+    walk = EdgeChecker(panda_boxes, geom, res, stages=4, slack=True, walk=True)
+    c0 = geom.n_configs
+    np.testing.assert_array_equal(walk.edges_free(a, b), k_ref == n_ref)
+    assert 0 < geom.n_configs - c0 < n_ref.sum()  # counted, and fewer than every sample
+    assert walk.edges_free(a[:0], b[:0]).shape == (0,)

@@ -4,8 +4,13 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from ..scenes.splats import Splats
+    from .config import MetricConfig
 
 #: splats fainter than this are "faint" in :class:`Blockers` (haze, floaters; the remedy names
 #: ``MetricConfig.opacity_min``)
@@ -84,3 +89,42 @@ class Blockers:
             where = f", {self.height[0]:.3g}-{self.height[1]:.3g} above the floor ({self.n_floor_level} standing on it)"
         return (f"{self.n} splat(s) ({self.n_inside} with the mean inside, {self.n_faint} faint) of opacity {lo:.3g}-{hi:.3g} "
                 f"(median {med:.3g}), std up to {self.max_std:.3g}, around ({c}){where} (scene units)")
+
+
+def find_blockers(scene: Splats, config: MetricConfig, center, quat, semi_axes) -> Blockers:
+    """:meth:`CollisionChecker.blockers` of ``scene`` at ``config``: the splats one ellipsoid counts
+    (s2~ < 1), summarised (host numpy, the reference formulas)."""
+    from ..scenes.splats import quat_to_rotmat
+    from .reference import conservative_s2_ref, link_matrices, splat_inflation_ref
+    from .wp_metric_kernel import search_radius
+
+    sc = scene
+    c = np.asarray(center, dtype=np.float64).reshape(3)
+    ax = np.broadcast_to(np.asarray(semi_axes, dtype=np.float64), (3,))
+    sig = np.asarray(sc.scales, dtype=np.float64).max(axis=1)  # (N,)
+    rho = float(search_radius(float(config.n_sigma), float(sig.max()), float(ax.min()), float(ax.max()), 1.0))
+    near = np.nonzero(np.sum((np.asarray(sc.means, dtype=np.float64) - c) ** 2, axis=1) <= rho * rho)[0]  # (M,) candidates
+    keep, ns = splat_inflation_ref(sc.opacities, len(sc), config)
+    near = near[keep[near]]
+    a = link_matrices(None if quat is None else np.asarray(quat, dtype=np.float64).reshape(1, 4), ax, 1)
+    s2, s2c = conservative_s2_ref(np.asarray(sc.means)[near], np.asarray(sc.quats)[near], np.asarray(sc.scales)[near], c[None], a, ns[near], config.linearize)
+    hit = s2c[0] < 1.0
+    idx = near[hit]
+    op = np.asarray(sc.opacities, dtype=np.float64)[idx]
+    terrain = (sc.info or {}).get("terrain")  # a ground robot's scene (scenes.terrain.remove_terrain)
+    floor, height, n_floor = None, (np.nan, np.nan), 0
+    if terrain is not None and idx.size:
+        fz, step = float(terrain["floor_z"]), float(terrain["step_height"])
+        z = np.asarray(sc.means, dtype=np.float64)[idx, 2]
+        rz = quat_to_rotmat(np.asarray(sc.quats, dtype=np.float64)[idx])[:, 2, :]  # (n, 3): row z of R
+        sz = np.sqrt(np.sum((rz * np.asarray(sc.scales, dtype=np.float64)[idx]) ** 2, axis=1))  # std along z
+        floor, height = (fz, step), (float(z.min() - fz), float(z.max() - fz))
+        n_floor = int(np.sum(z - ns[idx] * sz < fz + step))
+    return Blockers(
+        indices=idx, n=int(idx.size), n_inside=int(np.sum(s2[0][hit] < 1.0)), n_faint=int(np.sum(op < FAINT_OPACITY)),
+        opacity=(float(op.min()), float(np.median(op)), float(op.max())) if idx.size else (np.nan,) * 3,
+        max_std=float(sig[idx].max()) if idx.size else np.nan,
+        centroid=np.asarray(sc.means, dtype=np.float64)[idx].mean(axis=0) if idx.size else np.full(3, np.nan),
+        n_sigma=float(config.n_sigma), linearize=config.linearize, floor=floor, height=height, n_floor_level=n_floor,
+        n_inside_faint=int(np.sum((s2[0][hit] < 1.0) & (op < FAINT_OPACITY))),
+    )  # fmt: skip

@@ -32,9 +32,9 @@ import numpy as np
 from .._arrays import array_kind, host_array
 from ..errors import SplatplanError
 from ..scenes.splats import Splats
-from .blockers import FAINT_OPACITY, Blockers
+from .blockers import Blockers, find_blockers
 from .config import MetricConfig, QueryResult
-from .configs_launch import fast_collides_configs, fill_target, rigid_targets
+from .configs_launch import MAX_BATCH, fast_collides_configs, fast_path_robot, fill_target, launcher_for, rigid_targets
 from .groups import robot_groups
 from .interop import (
     MetricWorkspace,
@@ -219,40 +219,7 @@ class CollisionChecker:
         messages and diagnostics, not a hot loop). ``center`` (3,) world frame, ``quat`` (4,) wxyz
         world <- link or None, ``semi_axes`` (3,) scene units.
         """
-        from ..scenes.splats import quat_to_rotmat
-        from .reference import conservative_s2_ref, link_matrices, splat_inflation_ref
-        from .wp_metric_kernel import search_radius
-
-        sc = self.scene
-        c = np.asarray(center, dtype=np.float64).reshape(3)
-        ax = np.broadcast_to(np.asarray(semi_axes, dtype=np.float64), (3,))
-        sig = np.asarray(sc.scales, dtype=np.float64).max(axis=1)  # (N,)
-        rho = float(search_radius(float(self.config.n_sigma), float(sig.max()), float(ax.min()), float(ax.max()), 1.0))
-        near = np.nonzero(np.sum((np.asarray(sc.means, dtype=np.float64) - c) ** 2, axis=1) <= rho * rho)[0]  # (M,) candidates
-        keep, ns = splat_inflation_ref(sc.opacities, len(sc), self.config)
-        near = near[keep[near]]
-        a = link_matrices(None if quat is None else np.asarray(quat, dtype=np.float64).reshape(1, 4), ax, 1)
-        s2, s2c = conservative_s2_ref(np.asarray(sc.means)[near], np.asarray(sc.quats)[near], np.asarray(sc.scales)[near], c[None], a, ns[near], self.config.linearize)
-        hit = s2c[0] < 1.0
-        idx = near[hit]
-        op = np.asarray(sc.opacities, dtype=np.float64)[idx]
-        terrain = (sc.info or {}).get("terrain")  # a ground robot's scene (scenes.terrain.remove_terrain)
-        floor, height, n_floor = None, (np.nan, np.nan), 0
-        if terrain is not None and idx.size:
-            fz, step = float(terrain["floor_z"]), float(terrain["step_height"])
-            z = np.asarray(sc.means, dtype=np.float64)[idx, 2]
-            rz = quat_to_rotmat(np.asarray(sc.quats, dtype=np.float64)[idx])[:, 2, :]  # (n, 3): row z of R
-            sz = np.sqrt(np.sum((rz * np.asarray(sc.scales, dtype=np.float64)[idx]) ** 2, axis=1))  # std along z
-            floor, height = (fz, step), (float(z.min() - fz), float(z.max() - fz))
-            n_floor = int(np.sum(z - ns[idx] * sz < fz + step))
-        return Blockers(
-            indices=idx, n=int(idx.size), n_inside=int(np.sum(s2[0][hit] < 1.0)), n_faint=int(np.sum(op < FAINT_OPACITY)),
-            opacity=(float(op.min()), float(np.median(op)), float(op.max())) if idx.size else (np.nan,) * 3,
-            max_std=float(sig[idx].max()) if idx.size else np.nan,
-            centroid=np.asarray(sc.means, dtype=np.float64)[idx].mean(axis=0) if idx.size else np.full(3, np.nan),
-            n_sigma=float(self.config.n_sigma), linearize=self.config.linearize, floor=floor, height=height, n_floor_level=n_floor,
-            n_inside_faint=int(np.sum((s2[0][hit] < 1.0) & (op < FAINT_OPACITY))),
-        )  # fmt: skip
+        return find_blockers(self.scene, self.config, center, quat, semi_axes)
 
     # ------------------------------------------------------------------ robots
     def query_robot(self, robot: Robot, q, *, ellipsoids=None, out=None, validate=False) -> QueryResult:
@@ -313,6 +280,38 @@ class CollisionChecker:
         SLACK (with ``rigid_target``: RIGID SLACK) as in :meth:`collides_robot_slack` (for free configurations)."""
         with _torch_stream(q):
             return self._robot(robot, q, out, validate, full=False, slack=True, per_config=True, target=rigid_target)
+
+    def edges_free(self, robot: Robot, starts, ends, n_samples, step, *, target_steps: int = 4) -> tuple[np.ndarray, np.ndarray]:
+        """Whether N straight configuration-space edges of ``robot`` are collision-free at their
+        check samples, by a SLACK WALK (:mod:`.edge_walk`): the answer of checking every sample with
+        :meth:`collides_configs`, with far fewer checks (a checked sample's RIGID SLACK proves its
+        neighbours free).
+
+        Args:
+            robot: the :class:`~splatplan.robots.Robot`.
+            starts: (N, dof) edge starts (not checked: a planner checked them already).
+            ends: (N, dof) edge ends.
+            n_samples: (N,) int >= 1: edge i is checked at ``starts + (k / n)(ends - starts)``, k = 1..n.
+            step: (N, E) float >= 0 (scene units): a bound on how far any point of ellipsoid e moves
+                between consecutive samples of edge i (:meth:`Robot.ellipsoid_motion_bounds` times
+                |dq| over n).
+            target_steps: the slack each check asks for, in samples (more reads more splats per check).
+
+        Returns:
+            (free (N,) bool, checks (N,) int64: configurations checked per edge, up to its first
+            colliding sample). One kernel launch on a CPU checker, one checker call per check
+            elsewhere (the same answers).
+
+        Raises:
+            SplatplanError: shapes that do not match the robot, non-finite values, n < 1 or step < 0.
+        """
+        from .edge_walk import edge_inputs, walk_with_checker
+
+        a, b, n, st, t = edge_inputs(starts, ends, n_samples, step, int(robot.dof), int(robot.n_ellipsoids), target_steps)
+        if len(a) and self.backend != "reference" and self.device == "cpu" and self._impl is not None and len(a) <= MAX_BATCH and fast_path_robot(robot):
+            free, checks = launcher_for(self._impl, self.config, self._axes_for, robot, self.thread_workspace(), len(a)).walk(a, b, n, st, t)
+            return free.copy(), checks.astype(np.int64)
+        return walk_with_checker(self, robot, a, b, n, st, t)
 
     def _robot(self, robot, q, out, validate, full: bool, subset=None, slack: bool = False, per_config: bool = False, target=None):
         kind = array_kind(q)

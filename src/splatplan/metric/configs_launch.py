@@ -90,6 +90,8 @@ class ConfigsLauncher:
         self._kernel = robot_collide_kernel
         self.collide: list = [None, None, None]  # per slack kind: the recorded launch (recorded on first use)
         self._chunk_cmds: list[list] = [[], [], []]  # per slack kind: recorded launches for the chunks of a split batch
+        self._walk: dict = {}  # t_steps -> the recorded SLACK WALK launch (:meth:`walk`)
+        self._walk_io: tuple | None = None  # its edge buffers (allocated on first use)
 
     def run(self, q: np.ndarray, slack: int, target: np.ndarray | None = None):
         """Check configurations ``q`` (B, dof) finite float, B <= capacity: hits (B,) bool and,
@@ -115,6 +117,35 @@ class ConfigsLauncher:
         if slack:
             return hits, self.slack_np[: b * self.n_ell].reshape(b, self.n_ell)
         return hits
+
+    def walk(self, starts: np.ndarray, ends: np.ndarray, n: np.ndarray, step: np.ndarray, t_steps: int) -> tuple[np.ndarray, np.ndarray]:
+        """The SLACK WALK (:mod:`.edge_walk`) of N <= capacity edges, one thread each, on the calling
+        thread: ``starts``/``ends`` (N, dof) float64, ``n`` (N,) samples, ``step`` (N, E) float64;
+        (free (N,) bool, checks (N,) int32), views of this launcher's buffers (valid until its next
+        call). Edge i uses row i of the configuration buffers as its scratch."""
+        from .wp_metric_kernel import edge_walk_kernel
+
+        wp = _wp()
+        b = int(starts.shape[0])
+        if self._walk_io is None:
+            dev, cap, dof = self.impl.device, self.capacity, int(self.q_np.shape[1])
+            arrs = (wp.empty((cap, dof), dtype=wp.float64, device=dev), wp.empty((cap, dof), dtype=wp.float64, device=dev),
+                    wp.empty(cap, dtype=wp.int32, device=dev), wp.empty((cap, self.n_ell), dtype=wp.float64, device=dev),
+                    wp.empty(cap, dtype=wp.int32, device=dev))  # fmt: skip
+            self._walk_io = (arrs, [a.numpy() for a in arrs])
+        (a_s, a_e, a_n, a_st, a_c), (s_np, e_np, n_np, st_np, c_np) = self._walk_io
+        cmd = self._walk.get(int(t_steps))
+        if cmd is None:
+            links, tiers, dgrid, params, rg, hits, bad, slack, _want = self._args[2]
+            m, sr, sp, q, _c, _r = self._fk_keep
+            cmd = self._walk[int(t_steps)] = wp.launch(
+                edge_walk_kernel, dim=self.capacity, device=self.impl.device, record_cmd=True,
+                inputs=[links, tiers, dgrid, params, rg, bad, slack, m, q, sr, sp, a_s, a_e, a_n, a_st, int(t_steps), hits, a_c],
+            )  # fmt: skip
+        s_np[:b], e_np[:b], n_np[:b], st_np[:b] = starts, ends, n, step
+        cmd.set_dim(b)
+        cmd.launch()
+        return self.hits_np[:b], c_np[:b]
 
     def _record(self, k: int):
         """A recorded launch of the collision kernel over the buffers (k: the slack kind), offset 0."""
@@ -157,14 +188,25 @@ def fast_collides_configs(impl: WarpMetric, config, axes_for: Callable, robot: A
         return None
     if not fast_path_robot(robot):
         return None
-    cache = ws._cache.setdefault("configs_launcher", {})  # launcher_key(robot) -> launcher
-    key = launcher_key(robot, impl.device)
-    hit = cache.get(key)
     shape = a.shape[:-1]
     a2 = a.reshape(-1, a.shape[-1])
     b = a2.shape[0]
     if b == 0 or b > MAX_BATCH or not np.isfinite(a2).all():
         return None
+    hit = launcher_for(impl, config, axes_for, robot, ws, b)
+    kind = 0 if not slack else (1 if target is None else 2)
+    res = hit.run(a2, kind, None if kind != 2 else rigid_targets(target, shape + (robot.n_ellipsoids,)))
+    if slack:
+        return res[0].reshape(shape), res[1].reshape(shape + (robot.n_ellipsoids,))
+    return res.reshape(shape)
+
+
+def launcher_for(impl: WarpMetric, config, axes_for: Callable, robot: Robot, ws: MetricWorkspace, b: int) -> ConfigsLauncher:
+    """The launcher the workspace ``ws`` keeps for ``robot`` (:func:`launcher_key`), grown (or made)
+    to hold ``b`` rows; the oldest robot's goes beyond :data:`MAX_LAUNCHERS`."""
+    cache = ws._cache.setdefault("configs_launcher", {})  # launcher_key(robot) -> launcher
+    key = launcher_key(robot, impl.device)
+    hit = cache.get(key)
     if hit is None or hit.capacity < b:
         hit = ConfigsLauncher(impl, robot, axes_for(robot), config, b if hit is None else max(b, 2 * hit.capacity))
         cache.pop(key, None)
@@ -172,11 +214,7 @@ def fast_collides_configs(impl: WarpMetric, config, axes_for: Callable, robot: A
             del cache[next(iter(cache))]
         cache[key] = hit
         ws.reallocations += 1
-    kind = 0 if not slack else (1 if target is None else 2)
-    res = hit.run(a2, kind, None if kind != 2 else rigid_targets(target, shape + (robot.n_ellipsoids,)))
-    if slack:
-        return res[0].reshape(shape), res[1].reshape(shape + (robot.n_ellipsoids,))
-    return res.reshape(shape)
+    return hit
 
 
 def rigid_targets(target, shape: tuple) -> np.ndarray:

@@ -188,6 +188,7 @@ the first colliding member ends the configuration: the answer is "any ellipsoid 
 from __future__ import annotations
 
 from .._warp import wp as _wp
+from ..robots.wp_fk import FKModel, fk_config
 
 wp = _wp()
 wp.set_module_options({"enable_backward": False})  # forward only: halves the compile time
@@ -1128,23 +1129,21 @@ def group_bound(links: LinkBatch, groups: RobotGroups, dgrid: MeanDistanceGrid, 
     return cg, d, far
 
 
-@wp.kernel
-def robot_collide_kernel(
-    offset: int,
-    links: LinkBatch,  # (B E,) the ellipsoids of B configurations, configuration-major
+@wp.func
+def config_collides(
+    links: LinkBatch,  # the ellipsoids of configuration b at rows b E .. b E + E - 1
     splats: SplatTiers,
     dgrid: MeanDistanceGrid,
     p: MetricParams,
     groups: RobotGroups,
-    out_hit: wp.array(dtype=wp.bool),  # (B,) True: some ellipsoid of the configuration collides (or is invalid)
+    b: int,
     bad: wp.array(dtype=wp.int32),  # (1,) smallest invalid configuration
-    slack: wp.array(dtype=wp.float32),  # (B E,) when want_slack: FREE SLACK per ellipsoid (0 where unknown); want_slack 2: in the target, out the RIGID SLACK; else (1,)
+    slack: wp.array(dtype=wp.float32),  # rows b E ..: as in robot_collide_kernel
     want_slack: int,
 ):
-    """One thread per configuration: group by group, a group whose centroid is farther from every
-    mean than R_g is free (one read), else its ellipsoids are tested (:func:`link_collides`); the
-    first colliding ellipsoid ends the configuration (GROUP BOUND in the module docstring)."""
-    b = wp.tid() + offset
+    """Whether configuration b collides (some ellipsoid collides or is invalid), with its slack
+    written as ``want_slack`` asks: the body of :func:`robot_collide_kernel`, for kernels that
+    check configurations they compute themselves."""
     base = b * groups.n_ellipsoids
     if want_slack == 1:
         for e in range(groups.n_ellipsoids):
@@ -1212,7 +1211,97 @@ def robot_collide_kernel(
     if hit and want_slack == 2:  # (the targets of the members not reached)
         for e in range(groups.n_ellipsoids):
             slack[base + e] = 0.0
-    out_hit[b] = hit
+    return hit
+
+
+@wp.kernel
+def robot_collide_kernel(
+    offset: int,
+    links: LinkBatch,  # (B E,) the ellipsoids of B configurations, configuration-major
+    splats: SplatTiers,
+    dgrid: MeanDistanceGrid,
+    p: MetricParams,
+    groups: RobotGroups,
+    out_hit: wp.array(dtype=wp.bool),  # (B,) True: some ellipsoid of the configuration collides (or is invalid)
+    bad: wp.array(dtype=wp.int32),  # (1,) smallest invalid configuration
+    slack: wp.array(dtype=wp.float32),  # (B E,) when want_slack: FREE SLACK per ellipsoid (0 where unknown); want_slack 2: in the target, out the RIGID SLACK; else (1,)
+    want_slack: int,
+):
+    """One thread per configuration (:func:`config_collides`): group by group, a group whose
+    centroid is farther from every mean than R_g is free (one read), else its ellipsoids are tested
+    (:func:`link_collides`); the first colliding ellipsoid ends the configuration (GROUP BOUND in the
+    module docstring)."""
+    b = wp.tid() + offset
+    out_hit[b] = config_collides(links, splats, dgrid, p, groups, b, bad, slack, want_slack)
+
+
+@wp.kernel
+def edge_walk_kernel(
+    links: LinkBatch,  # (N E,) per edge the ellipsoids of the configuration it checks (scratch, written by its FK)
+    splats: SplatTiers,
+    dgrid: MeanDistanceGrid,
+    p: MetricParams,
+    groups: RobotGroups,
+    bad: wp.array(dtype=wp.int32),  # (1,) smallest invalid edge
+    slack: wp.array(dtype=wp.float32),  # (N E,) scratch: the RIGID SLACK target in, the slack out
+    m: FKModel,
+    q: wp.array2d(dtype=wp.float32),  # (N, dof) scratch: the configuration edge i checks
+    scratch_rot: wp.array(dtype=wp.mat33),  # FK slots, as in fk_kernel
+    scratch_pos: wp.array(dtype=wp.vec3),
+    starts: wp.array2d(dtype=wp.float64),  # (N, dof) edge starts (not checked)
+    ends: wp.array2d(dtype=wp.float64),  # (N, dof) edge ends
+    n_samples: wp.array(dtype=wp.int32),  # (N,) n_i >= 1: the check samples a + (k / n_i)(b - a), k = 1..n_i
+    step: wp.array2d(dtype=wp.float64),  # (N, E) bound on each ellipsoid's displacement (any point) between consecutive samples
+    t_steps: int,  # the slack a check asks for, in samples (>= 1)
+    out_free: wp.array(dtype=wp.bool),  # (N,) every sample of edge i is free
+    out_checks: wp.array(dtype=wp.int32),  # (N,) configurations checked
+):
+    """One thread per edge: SLACK WALK (:mod:`.edge_walk`). Walks the samples from the start: a
+    check t_steps (at most) past the proven prefix asks for a RIGID SLACK of t_steps steps, and
+    its slack proves the samples within floor(min_e slack_e / step_e) of it free; a check that
+    does not reach back to the prefix keeps its proven span and the next one is placed closer.
+    Stops at the first colliding sample (or invalid configuration: reported in ``bad``)."""
+    i = wp.tid()
+    n = n_samples[i]
+    dof = starts.shape[1]
+    ne = groups.n_ellipsoids
+    base = i * ne
+    t_f = wp.float64(t_steps)
+    lo = int(0)  # samples 1..lo proven free
+    k_prev = t_steps  # the reach of the last check (at most t_steps)
+    span0 = n + 1  # samples span0..span1: proven free by a check that did not reach the prefix
+    span1 = int(-1)
+    checks = int(0)
+    free = bool(True)
+    while lo < n:
+        pk = wp.min(lo + 1 + wp.min(t_steps, k_prev), n)
+        t = wp.float64(pk) / wp.float64(n)
+        for d in range(dof):
+            q[i, d] = wp.float32(starts[i, d] + t * (ends[i, d] - starts[i, d]))
+        fk_config(m, q, i, scratch_rot, scratch_pos, links.centers, links.rots)
+        for e in range(ne):
+            slack[base + e] = wp.float32(step[i, e] * t_f)
+        checks += 1
+        if config_collides(links, splats, dgrid, p, groups, i, bad, slack, 2):
+            free = False
+            break
+        reach = wp.float64(n)  # samples proven on either side (every ellipsoid that moves keeps its slack)
+        for e in range(ne):
+            st = step[i, e]
+            if st > 0.0:
+                reach = wp.min(reach, wp.floor(wp.float64(slack[base + e]) / st))
+        k = int(wp.max(reach, wp.float64(0.0)))
+        if pk - k <= lo + 1:
+            lo = wp.max(lo, wp.min(pk + k, n))
+            k_prev = wp.min(k, t_steps)
+        else:  # a gap before it: its span is kept, the next check goes nearer the prefix
+            span0 = pk - k
+            span1 = wp.min(pk + k, n)
+            k_prev = k
+        if lo + 1 >= span0:
+            lo = wp.max(lo, span1)
+    out_free[i] = free
+    out_checks[i] = checks
 
 
 @wp.kernel

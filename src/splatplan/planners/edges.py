@@ -87,6 +87,9 @@ class EdgeChecker:
             for translating spheres only; see the module docstring).
         stages: batched calls per check, coarse to fine (1 = every sample in one call).
         slack: skip samples proven free (below; robots on a Warp checker; not with ``inflate``).
+        walk: with ``slack``, :meth:`edges_free` runs the checker's SLACK WALK
+            (:meth:`CollisionChecker.edges_free`: one compiled call, the same answers) instead of
+            the batched stages.
 
     **Free slack (``slack``).** Each checked ellipsoid comes back with the checker's RIGID SLACK
     (:meth:`CollisionChecker.collides_configs_slack`): a rigid motion that moves none of its points
@@ -109,7 +112,8 @@ class EdgeChecker:
     #: around it that far (the checker's RIGID SLACK); more reads more splats per check
     SLACK_TARGET_STEPS = 4.0
 
-    def __init__(self, checker: CollisionChecker, geometry: LinkGeometry, resolution: float, inflate: bool = False, stages: int = 1, slack: bool = False) -> None:
+    def __init__(self, checker: CollisionChecker, geometry: LinkGeometry, resolution: float, inflate: bool = False, stages: int = 1, slack: bool = False,
+                 walk: bool = False) -> None:  # fmt: skip
         self.checker = checker
         self.geometry = geometry
         self.resolution = float(resolution)
@@ -120,6 +124,8 @@ class EdgeChecker:
         #: skip check samples that a checked one proves free (FREE SLACK of the checker: the same
         #: answers, fewer checks); robots checked with ``collides_robot`` only
         self.use_slack = bool(slack)
+        #: :meth:`edges_free` by the checker's SLACK WALK (with ``use_slack``, without ``inflate``)
+        self.walk = bool(walk)
         #: wall-clock seconds spent in collision checks (statistics)
         self.time_s = 0.0
 
@@ -139,9 +145,29 @@ class EdgeChecker:
 
     def edges_free(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         """(E, D), (E, D) -> bool (E,): True where the whole edge (end point included, start
-        excluded) is collision-free at ``resolution``. An edge's checks stop at its first hit found."""
+        excluded) is collision-free at ``resolution``. An edge's checks stop at its first hit found.
+        With ``walk`` (and ``slack``): the checker's SLACK WALK, one call for all edges."""
+        if self.walk and self.use_slack and not self.inflate:
+            return self._walk(np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64))
         k, n = self.free_prefix(a, b, exact=np.zeros(len(a), dtype=bool))
         return k == n
+
+    def _walk(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        """:meth:`edges_free` by :meth:`CollisionChecker.edges_free` (the samples of :func:`edge_samples`,
+        each ellipsoid's step its own motion bound over n, the slack target :attr:`SLACK_TARGET_STEPS`)."""
+        if len(a) == 0:
+            return np.zeros(0, dtype=bool)
+        t0 = time.perf_counter()
+        n_float = np.maximum(1.0, np.ceil(self.geometry.motion(b - a) / self.resolution - 1e-9))  # (E,) as edge_samples
+        require_bytes(float(n_float.sum()) * (a.shape[-1] + 2) * 8 * 4, f"{float(n_float.sum()):.3g} collision checks along {len(a)} edge(s)",
+                      "the edge length (or coarsen the edge resolution)")  # fmt: skip
+        n = n_float.astype(np.int64)
+        step = self.geometry.ellipsoid_motion(b - a) / n[:, None]  # (E_edges, E)
+        free, checks = self.checker.edges_free(self.geometry.robot, a, b, n, step, target_steps=int(self.SLACK_TARGET_STEPS))
+        self.geometry.n_configs += int(checks.sum())
+        self.geometry.n_queries += int(checks.sum()) * int(self.geometry.robot.n_ellipsoids)
+        self.time_s += time.perf_counter() - t0
+        return free
 
     def free_prefix(self, a: np.ndarray, b: np.ndarray, exact: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """How far along each of E edges the check samples stay free (``stages`` batched calls).

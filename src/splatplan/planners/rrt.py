@@ -298,7 +298,7 @@ class RRT:
         goal = None if goal is None else np.asarray(goal, dtype=np.float64).reshape(-1)
         geom = self.geometry
         edges = EdgeChecker(self.checker, geom, st.edge_resolution, inflate=self.inflate_edges, stages=self.config.edge_stages,
-                            slack=self.config.edge_slack)  # fmt: skip
+                            slack=self.config.edge_slack, walk=self.config.edge_walk)  # fmt: skip
         q0 = geom.n_queries
         known, self._checked_free = self._checked_free, set()
         if start.tobytes() not in known:

@@ -73,6 +73,10 @@ class RRTConfig:
     #: configuration stays free while no point of an ellipsoid moves farther than that ellipsoid's
     #: clearance, read near surfaces too); the same answers with fewer checks
     edge_slack: bool = True
+    #: with edge_slack: an edge that only has to be free or not is checked by one compiled walk
+    #: along it (the checker's SLACK WALK, CollisionChecker.edges_free) instead of edge_stages
+    #: batched calls; the same answers with fewer checks near surfaces
+    edge_walk: bool = True
     #: RRT-Connect: lazy search: check only the new nodes while the trees grow and the edges of a
     #: candidate path once the trees meet (removing what collides); the returned path is checked at
     #: edge_resolution either way. False: every edge checked when it is grown (the eager search)

@@ -87,17 +87,18 @@ def other_joint(m: FKModel, f: int, q: wp.array2d(dtype=wp.float32), b: int):
     return lrot, lpos
 
 
-@wp.kernel
-def fk_kernel(
+@wp.func
+def fk_config(
     m: FKModel,
     q: wp.array2d(dtype=wp.float32),  # (B, dof)
-    b0: int,  # first configuration of this launch
+    b: int,  # the configuration (row of q)
     scratch_rot: wp.array(dtype=wp.mat33),  # (B * n_slots,) or (1,)
     scratch_pos: wp.array(dtype=wp.vec3),
     out_centers: wp.array(dtype=wp.vec3),  # (B * E,) world frame
     out_rots: wp.array(dtype=wp.mat33),  # (B * E,) world <- ellipsoid
 ):
-    b = wp.tid() + b0
+    """The FK of configuration b: its ellipsoids' poses into rows b E .. b E + E - 1 (the body of
+    :func:`fk_kernel`, for kernels that compute configurations themselves)."""
     # Pose of the previous frame; for the root (f = 0, parent -1 = f - 1) the identity.
     rot = wp.identity(n=3, dtype=float)
     pos = wp.vec3(0.0, 0.0, 0.0)
@@ -126,6 +127,20 @@ def fk_kernel(
             o = b * m.n_ell + m.ell_id[k]
             out_centers[o] = rot @ m.epos[k] + pos
             out_rots[o] = rot @ m.erot[k]
+
+
+@wp.kernel
+def fk_kernel(
+    m: FKModel,
+    q: wp.array2d(dtype=wp.float32),  # (B, dof)
+    b0: int,  # first configuration of this launch
+    scratch_rot: wp.array(dtype=wp.mat33),  # (B * n_slots,) or (1,)
+    scratch_pos: wp.array(dtype=wp.vec3),
+    out_centers: wp.array(dtype=wp.vec3),  # (B * E,) world frame
+    out_rots: wp.array(dtype=wp.mat33),  # (B * E,) world <- ellipsoid
+):
+    """One thread per configuration (:func:`fk_config`)."""
+    fk_config(m, q, wp.tid() + b0, scratch_rot, scratch_pos, out_centers, out_rots)
 
 
 assert (FIXED, REVOLUTE, PRISMATIC, PLANAR, TRANSLATION) == (0, 1, 2, 3, 4)  # codes used in the kernel
