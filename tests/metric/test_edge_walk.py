@@ -1,6 +1,6 @@
 """The SLACK WALK of straight configuration-space edges (:meth:`CollisionChecker.edges_free`,
 :mod:`splatplan.metric.edge_walk`): the kernel (one thread per edge) against the same walk from
-Python (:func:`walk_edges_ref`: the same answers and the same number of checks) and against checking
+Python (:func:`walk_with_checker`: the same answers and the same number of checks) and against checking
 every sample (the answer it stands for), on random and near-surface edges in every n_sigma regime;
 a robot that does not move needs one check; a batch past the launcher's capacity; the reference
 backend; invalid input."""
@@ -12,7 +12,7 @@ import pytest
 
 from splatplan.errors import SplatplanError
 from splatplan.metric import CollisionChecker, MetricConfig
-from splatplan.metric.edge_walk import walk_edges_ref
+from splatplan.metric.edge_walk import walk_with_checker
 from splatplan.metric.wp_metric import TierConfig
 
 from .conftest import random_scene
@@ -52,12 +52,8 @@ def _every_sample_free(ch, robot, starts, ends, n) -> np.ndarray:
     return np.asarray(out)
 
 
-def _python_walk(ch, robot, starts, ends, n, step, t):
-    def check(q, target):
-        hit, sl = ch.collides_configs_slack(robot, q, rigid_target=target)
-        return bool(np.asarray(hit)[0]), np.asarray(sl)[0]
-
-    return walk_edges_ref(check, starts, ends, n, step, t)
+def _python_walk(ch, robot, starts, ends, n, step, t, screen=0):
+    return walk_with_checker(ch, robot, starts, ends, n, step, t, screen)
 
 
 @pytest.mark.parametrize("n_sigma", [0.0, 1.0, 3.0])
@@ -66,14 +62,17 @@ def test_kernel_walk_is_the_python_walk_and_every_sample(n_sigma):
     starts, ends, n, step = _edges(ch, robot, rng, 40, 0.3)
     want = _every_sample_free(ch, robot, starts, ends, n)
     assert 0 < want.sum() < len(want)  # both kinds of edge
-    for t in (1, 4):
-        free, checks = ch.edges_free(robot, starts, ends, n, step, target_steps=t)
-        ref_free, ref_checks = _python_walk(ch, robot, starts, ends, n, step, t)
+    for t, screen in ((1, 0), (4, 0), (4, 8)):
+        free, checks = ch.edges_free(robot, starts, ends, n, step, target_steps=t, screen=screen)
+        ref_free, ref_checks = _python_walk(ch, robot, starts, ends, n, step, t, screen)
         np.testing.assert_array_equal(free, want)
         np.testing.assert_array_equal(free, ref_free)
         np.testing.assert_array_equal(checks, ref_checks)
-        assert checks.dtype == np.int64 and (checks >= 1).all() and (checks <= n).all()
+        assert checks.dtype == np.int64 and (checks >= 1).all() and (checks <= n + (n // screen if screen else 0)).all()
+    free, checks = ch.edges_free(robot, starts, ends, n, step)
     assert checks[free].sum() < 0.5 * n[free].sum()  # the slack skipped samples
+    _, screened = ch.edges_free(robot, starts, ends, n, step, screen=4)
+    assert screened[~free].sum() < checks[~free].sum()  # the screen found the hits sooner
 
 
 def test_near_surface_edges_and_a_long_batch():
@@ -127,3 +126,5 @@ def test_empty_and_invalid_input():
             ch.edges_free(robot, *args)
     with pytest.raises(SplatplanError, match="target_steps"):
         ch.edges_free(robot, a, a, n, st, target_steps=0)
+    with pytest.raises(SplatplanError, match="screen"):
+        ch.edges_free(robot, a, a, n, st, screen=-1)

@@ -9,6 +9,7 @@ import pytest
 
 from splatplan.errors import SplatplanError
 from splatplan.planners import RRT, EdgeChecker, edge_samples
+from splatplan.planners.edges import shortcut_path
 from splatplan.planners.robot_links import LinkGeometry
 
 from .scenes import make_checker, make_scene, wall_scene
@@ -98,3 +99,24 @@ def test_arm_walk_matches_one_call(panda_boxes):
     np.testing.assert_array_equal(walk.edges_free(a, b), k_ref == n_ref)
     assert 0 < geom.n_configs - c0 < n_ref.sum()  # counted, and fewer than every sample
     assert walk.edges_free(a[:0], b[:0]).shape == (0,)
+
+
+@pytest.mark.parametrize("screen", [None, 4])
+def test_shortcut_with_the_walk_is_the_same_path(panda_boxes, screen):
+    """shortcut_path (doubling candidates, screened or not) keeps the same vertices whether its
+    edges are walked (each candidate one walk with its screen, farthest first) or staged."""
+    robot = robots.load_robot("panda")
+    geom = LinkGeometry(robot)
+    rng = np.random.default_rng(3)
+    lim = robot.joint_limits
+    steps = np.clip(np.cumsum(rng.normal(scale=0.25, size=(400, 7)), axis=0), lim[:, 0], lim[:, 1])  # a random walk in joint space
+    path = steps[~np.asarray(panda_boxes.collides_configs(robot, steps))][:14]  # its free configurations
+    assert len(path) >= 10
+    res = 0.25 * robot.min_semi_axis
+    walk = EdgeChecker(panda_boxes, geom, res, stages=4, slack=True, walk=True)
+    staged = EdgeChecker(panda_boxes, geom, res, stages=1)
+    assert walk.walks and not staged.walks
+    got = shortcut_path(walk, path, candidates="doubling", screen=screen)
+    want = shortcut_path(staged, path, candidates="doubling", screen=screen)
+    np.testing.assert_array_equal(got, want)
+    assert len(got) < len(path)

@@ -281,7 +281,7 @@ class CollisionChecker:
         with _torch_stream(q):
             return self._robot(robot, q, out, validate, full=False, slack=True, per_config=True, target=rigid_target)
 
-    def edges_free(self, robot: Robot, starts, ends, n_samples, step, *, target_steps: int = 4) -> tuple[np.ndarray, np.ndarray]:
+    def edges_free(self, robot: Robot, starts, ends, n_samples, step, *, target_steps: int = 4, screen: int = 0) -> tuple[np.ndarray, np.ndarray]:
         """Whether N straight configuration-space edges of ``robot`` are collision-free at their
         check samples, by a SLACK WALK (:mod:`.edge_walk`): the answer of checking every sample with
         :meth:`collides_configs`, with far fewer checks (a checked sample's RIGID SLACK proves its
@@ -296,6 +296,8 @@ class CollisionChecker:
                 between consecutive samples of edge i (:meth:`Robot.ellipsoid_motion_bounds` times
                 |dq| over n).
             target_steps: the slack each check asks for, in samples (more reads more splats per check).
+            screen: > 0: first check samples screen, 2 screen, ... < n without slack, stopping at a
+                hit (an edge that collides costs few checks; a free one ~n / screen more).
 
         Returns:
             (free (N,) bool, checks (N,) int64: configurations checked per edge, up to its first
@@ -307,11 +309,11 @@ class CollisionChecker:
         """
         from .edge_walk import edge_inputs, walk_with_checker
 
-        a, b, n, st, t = edge_inputs(starts, ends, n_samples, step, int(robot.dof), int(robot.n_ellipsoids), target_steps)
+        a, b, n, st, t, scr = edge_inputs(starts, ends, n_samples, step, int(robot.dof), int(robot.n_ellipsoids), target_steps, screen)
         if len(a) and self.backend != "reference" and self.device == "cpu" and self._impl is not None and len(a) <= MAX_BATCH and fast_path_robot(robot):
-            free, checks = launcher_for(self._impl, self.config, self._axes_for, robot, self.thread_workspace(), len(a)).walk(a, b, n, st, t)
+            free, checks = launcher_for(self._impl, self.config, self._axes_for, robot, self.thread_workspace(), len(a)).walk(a, b, n, st, t, scr)
             return free.copy(), checks.astype(np.int64)
-        return walk_with_checker(self, robot, a, b, n, st, t)
+        return walk_with_checker(self, robot, a, b, n, st, t, scr)
 
     def _robot(self, robot, q, out, validate, full: bool, subset=None, slack: bool = False, per_config: bool = False, target=None):
         kind = array_kind(q)

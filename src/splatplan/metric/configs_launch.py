@@ -90,7 +90,7 @@ class ConfigsLauncher:
         self._kernel = robot_collide_kernel
         self.collide: list = [None, None, None]  # per slack kind: the recorded launch (recorded on first use)
         self._chunk_cmds: list[list] = [[], [], []]  # per slack kind: recorded launches for the chunks of a split batch
-        self._walk: dict = {}  # t_steps -> the recorded SLACK WALK launch (:meth:`walk`)
+        self._walk: dict = {}  # (t_steps, screen) -> the recorded SLACK WALK launch (:meth:`walk`)
         self._walk_io: tuple | None = None  # its edge buffers (allocated on first use)
 
     def run(self, q: np.ndarray, slack: int, target: np.ndarray | None = None):
@@ -118,7 +118,7 @@ class ConfigsLauncher:
             return hits, self.slack_np[: b * self.n_ell].reshape(b, self.n_ell)
         return hits
 
-    def walk(self, starts: np.ndarray, ends: np.ndarray, n: np.ndarray, step: np.ndarray, t_steps: int) -> tuple[np.ndarray, np.ndarray]:
+    def walk(self, starts: np.ndarray, ends: np.ndarray, n: np.ndarray, step: np.ndarray, t_steps: int, screen: int = 0) -> tuple[np.ndarray, np.ndarray]:
         """The SLACK WALK (:mod:`.edge_walk`) of N <= capacity edges, one thread each, on the calling
         thread: ``starts``/``ends`` (N, dof) float64, ``n`` (N,) samples, ``step`` (N, E) float64;
         (free (N,) bool, checks (N,) int32), views of this launcher's buffers (valid until its next
@@ -134,13 +134,14 @@ class ConfigsLauncher:
                     wp.empty(cap, dtype=wp.int32, device=dev))  # fmt: skip
             self._walk_io = (arrs, [a.numpy() for a in arrs])
         (a_s, a_e, a_n, a_st, a_c), (s_np, e_np, n_np, st_np, c_np) = self._walk_io
-        cmd = self._walk.get(int(t_steps))
+        key = (int(t_steps), int(screen))
+        cmd = self._walk.get(key)
         if cmd is None:
             links, tiers, dgrid, params, rg, hits, bad, slack, _want = self._args[2]
             m, sr, sp, q, _c, _r = self._fk_keep
-            cmd = self._walk[int(t_steps)] = wp.launch(
+            cmd = self._walk[key] = wp.launch(
                 edge_walk_kernel, dim=self.capacity, device=self.impl.device, record_cmd=True,
-                inputs=[links, tiers, dgrid, params, rg, bad, slack, m, q, sr, sp, a_s, a_e, a_n, a_st, int(t_steps), hits, a_c],
+                inputs=[links, tiers, dgrid, params, rg, bad, slack, m, q, sr, sp, a_s, a_e, a_n, a_st, int(t_steps), int(screen), hits, a_c],
             )  # fmt: skip
         s_np[:b], e_np[:b], n_np[:b], st_np[:b] = starts, ends, n, step
         cmd.set_dim(b)

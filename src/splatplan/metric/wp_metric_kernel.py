@@ -1253,6 +1253,7 @@ def edge_walk_kernel(
     n_samples: wp.array(dtype=wp.int32),  # (N,) n_i >= 1: the check samples a + (k / n_i)(b - a), k = 1..n_i
     step: wp.array2d(dtype=wp.float64),  # (N, E) bound on each ellipsoid's displacement (any point) between consecutive samples
     t_steps: int,  # the slack a check asks for, in samples (>= 1)
+    screen: int,  # > 0: first the samples screen, 2 screen, ... < n_i (no slack), stopping at a hit
     out_free: wp.array(dtype=wp.bool),  # (N,) every sample of edge i is free
     out_checks: wp.array(dtype=wp.int32),  # (N,) configurations checked
 ):
@@ -1260,7 +1261,8 @@ def edge_walk_kernel(
     check t_steps (at most) past the proven prefix asks for a RIGID SLACK of t_steps steps, and
     its slack proves the samples within floor(min_e slack_e / step_e) of it free; a check that
     does not reach back to the prefix keeps its proven span and the next one is placed closer.
-    Stops at the first colliding sample (or invalid configuration: reported in ``bad``)."""
+    Stops at the first colliding sample (or invalid configuration: reported in ``bad``); with
+    ``screen``, a first pass over every screen-th sample stops it sooner where the edge collides."""
     i = wp.tid()
     n = n_samples[i]
     dof = starts.shape[1]
@@ -1273,6 +1275,19 @@ def edge_walk_kernel(
     span1 = int(-1)
     checks = int(0)
     free = bool(True)
+    if screen > 0:  # the screen: an edge that collides there costs few checks
+        ks = screen
+        while ks < n:
+            t = wp.float64(ks) / wp.float64(n)
+            for d in range(dof):
+                q[i, d] = wp.float32(starts[i, d] + t * (ends[i, d] - starts[i, d]))
+            fk_config(m, q, i, scratch_rot, scratch_pos, links.centers, links.rots)
+            checks += 1
+            if config_collides(links, splats, dgrid, p, groups, i, bad, slack, 0):
+                free = False
+                lo = n  # (no walk)
+                break
+            ks += screen
     while lo < n:
         pk = wp.min(lo + 1 + wp.min(t_steps, k_prev), n)
         t = wp.float64(pk) / wp.float64(n)

@@ -143,16 +143,26 @@ class EdgeChecker:
         """(..., D) -> bool (...): any link in collision (semi-axes grown by ``margin``)."""
         return self.geometry.collides(self.checker, configs, margin)
 
-    def edges_free(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    @property
+    def walks(self) -> bool:
+        """Whether :meth:`edges_free` runs the checker's SLACK WALK (``walk`` with ``slack``, without ``inflate``)."""
+        return self.walk and self.use_slack and not self.inflate
+
+    def edges_free(self, a: np.ndarray, b: np.ndarray, screen: int | None = None) -> np.ndarray:
         """(E, D), (E, D) -> bool (E,): True where the whole edge (end point included, start
         excluded) is collision-free at ``resolution``. An edge's checks stop at its first hit found.
-        With ``walk`` (and ``slack``): the checker's SLACK WALK, one call for all edges."""
-        if self.walk and self.use_slack and not self.inflate:
-            return self._walk(np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64))
-        k, n = self.free_prefix(a, b, exact=np.zeros(len(a), dtype=bool))
-        return k == n
+        With :attr:`walks`: the checker's SLACK WALK, one call for all edges. ``screen``: first
+        every screen-th sample of each edge (:meth:`screen`; inside the walk, edge by edge), the
+        same answers with fewer checks where edges collide."""
+        if self.walks:
+            return self._walk(np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64), int(screen or 0))
+        ok = np.ones(len(a), dtype=bool) if not screen else self.screen(a, b, int(screen))
+        if ok.any():
+            k, n = self.free_prefix(np.asarray(a)[ok], np.asarray(b)[ok], exact=np.zeros(int(ok.sum()), dtype=bool))
+            ok[ok] = k == n
+        return ok
 
-    def _walk(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    def _walk(self, a: np.ndarray, b: np.ndarray, screen: int = 0) -> np.ndarray:
         """:meth:`edges_free` by :meth:`CollisionChecker.edges_free` (the samples of :func:`edge_samples`,
         each ellipsoid's step its own motion bound over n, the slack target :attr:`SLACK_TARGET_STEPS`)."""
         if len(a) == 0:
@@ -163,7 +173,7 @@ class EdgeChecker:
                       "the edge length (or coarsen the edge resolution)")  # fmt: skip
         n = n_float.astype(np.int64)
         step = self.geometry.ellipsoid_motion(b - a) / n[:, None]  # (E_edges, E)
-        free, checks = self.checker.edges_free(self.geometry.robot, a, b, n, step, target_steps=int(self.SLACK_TARGET_STEPS))
+        free, checks = self.checker.edges_free(self.geometry.robot, a, b, n, step, target_steps=int(self.SLACK_TARGET_STEPS), screen=screen)
         self.geometry.n_configs += int(checks.sum())
         self.geometry.n_queries += int(checks.sum()) * int(self.geometry.robot.n_ellipsoids)
         self.time_s += time.perf_counter() - t0
@@ -330,12 +340,7 @@ def shortcut_path(edges: EdgeChecker, path: np.ndarray, deadline: float | None =
             cand = cand[cand >= i + 2]
         j = i + 1
         if cand.size and screen is not None:
-            cand = cand[::-1]  # farthest first
-            ok = edges.screen(np.repeat(p[i : i + 1], cand.size, axis=0), p[cand], int(screen))
-            for c in cand[ok].tolist():
-                if edges.edges_free(p[i : i + 1], p[c : c + 1])[0]:
-                    j = c
-                    break
+            j = first_free(edges, p, i, cand[::-1], int(screen)) or j  # farthest first
         elif cand.size:
             free = edges.edges_free(np.repeat(p[i : i + 1], cand.size, axis=0), p[cand])
             if free.any():
@@ -343,3 +348,20 @@ def shortcut_path(edges: EdgeChecker, path: np.ndarray, deadline: float | None =
         out.append(p[j])
         i = j
     return np.asarray(out)
+
+
+def first_free(edges: EdgeChecker, p: np.ndarray, i: int, cand: np.ndarray, screen: int) -> int | None:
+    """The first vertex c of ``cand`` (in that order) whose edge p[i] -> p[c] is free, each screened
+    at every ``screen``-th sample first (0: not screened), or None. With :attr:`EdgeChecker.walks` each candidate is one
+    walk with its screen, and the candidates after the first free one are not looked at; else all
+    are screened in one call and the survivors checked whole in turn."""
+    if edges.walks:
+        for c in cand.tolist():
+            if edges.edges_free(p[i : i + 1], p[c : c + 1], screen=screen)[0]:
+                return int(c)
+        return None
+    ok = edges.screen(np.repeat(p[i : i + 1], cand.size, axis=0), p[cand], screen) if screen else np.ones(cand.size, dtype=bool)
+    for c in cand[ok].tolist():
+        if edges.edges_free(p[i : i + 1], p[c : c + 1])[0]:
+            return int(c)
+    return None

@@ -37,6 +37,7 @@ from typing import Any
 
 import numpy as np
 
+from .edges import first_free
 from .rrt import Search
 from .trees import Tree
 
@@ -144,11 +145,7 @@ def _shortcut_check(s: Search, trees: list[Tree], path: np.ndarray, owners: list
         cand = cand[cand >= i + 2][::-1]  # farthest first
         j = i + 1
         if cand.size:
-            ok = edges.screen(np.repeat(p[i : i + 1], cand.size, axis=0), p[cand], int(screen)) if screen else np.ones(cand.size, dtype=bool)
-            for c in cand[ok].tolist():
-                if edges.edges_free(p[i : i + 1], p[c : c + 1])[0]:
-                    j = c
-                    break
+            j = first_free(edges, p, i, cand, int(screen or 0)) or j
         if j == i + 1:
             t, node = owners[i]
             if not trees[t].verified[node]:
