@@ -9,13 +9,17 @@ is free when every sample is.
 RIGID SLACK (:meth:`CollisionChecker.collides_configs_slack`): a rigid motion that moves none of
 the ellipsoid's points farther keeps it free, so the samples within ``floor(min_e slack_e /
 step_e)`` of it are free as well (an ellipsoid that does not move, step 0, is free at all of them).
-The walk keeps the prefix 1..lo proven free and checks the sample ``t`` past it (t = the target,
-at most ``target_steps``), asking for a slack of ``target_steps`` steps (a link whose grid bound
-falls short reads the splats that far around it). A check that reaches back to the prefix extends
-it past its own reach; one that does not keeps its proven span, and the next check goes nearer the
-prefix (t = its reach), down to checking the next sample itself. The walk stops at the first
-colliding sample. Every answer is the one of checking every sample (the skipped ones are proven
-free by the checker's promise); near surfaces a check proves about 2 target_steps + 1 samples.
+The walk keeps the prefix 1..lo proven free and checks the sample ``w`` past it, asking for a slack
+of ``w`` steps (plus half a step: the checker returns a capped slack a little short of what was
+asked; a link whose grid bound falls short reads the splats that far around it, and more steps
+read more splats). A check that reaches back to the prefix extends it past its own reach,
+and the next one goes one step farther (w + 1, at most ``target_steps``); one that does not leaves
+a proven span, and the gap before it is filled from its right end, each check asking for the slack
+that would reach the prefix (at most ``target_steps``) and growing the span leftwards where it
+falls short. So the walk asks for about the slack the surfaces around it leave, and checks no
+sample twice. It stops at the first colliding sample.
+Every answer is the one of checking every sample (the skipped ones are proven free by the
+checker's promise); near surfaces a check proves up to 2 target_steps + 1 samples.
 With ``screen`` > 0 a first pass checks every screen-th sample (no slack) and stops at a hit: an
 edge that collides is then found after a few checks wherever it collides, at ~n / screen more
 checks for a free one.
@@ -83,16 +87,19 @@ def walk_edges_ref(check: Callable[[np.ndarray, np.ndarray], tuple[bool, np.ndar
     for i in range(len(starts)):
         a, b, ni, st = starts[i], ends[i], int(n[i]), step[i]
         moving = st > 0
-        lo, k_prev, span0, span1 = 0, t, ni + 1, -1
+        lo, want, span0, span1 = 0, t, ni + 1, -1
         for ks in range(int(screen), ni, int(screen)) if screen > 0 else ():  # the screen
             checks[i] += 1
             if check((a + (ks / ni) * (b - a))[None], None)[0]:
                 free[i], lo = False, ni
                 break
         while lo < ni:
-            pk = min(lo + 1 + min(t, k_prev), ni)
+            pk = min(lo + 1 + want, ni)
+            if span0 <= ni:  # fill the gap before the span from its right end
+                pk = span0 - 1
+                want = min(t, pk - lo - 1)
             q = a + (pk / ni) * (b - a)
-            hit, sl = check(q[None], (st * float(t))[None])
+            hit, sl = check(q[None], (st * (want + 0.5 if want > 0 else 0.0))[None])
             checks[i] += 1
             if hit:
                 free[i] = False
@@ -103,11 +110,13 @@ def walk_edges_ref(check: Callable[[np.ndarray, np.ndarray], tuple[bool, np.ndar
             k = int(max(reach, 0.0))
             if pk - k <= lo + 1:
                 lo = max(lo, min(pk + k, ni))
-                k_prev = min(k, t)
+                if lo + 1 >= span0:
+                    lo, span0 = max(lo, span1), ni + 1
+                want = min(t, max(k, want + 1))
+            elif span0 <= ni:
+                span0 = pk - k
             else:
-                span0, span1, k_prev = pk - k, min(pk + k, ni), k
-            if lo + 1 >= span0:
-                lo = max(lo, span1)
+                span0, span1 = pk - k, min(pk + k, ni)
     return free, checks
 
 

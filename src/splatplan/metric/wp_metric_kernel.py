@@ -1257,20 +1257,21 @@ def edge_walk_kernel(
     out_free: wp.array(dtype=wp.bool),  # (N,) every sample of edge i is free
     out_checks: wp.array(dtype=wp.int32),  # (N,) configurations checked
 ):
-    """One thread per edge: SLACK WALK (:mod:`.edge_walk`). Walks the samples from the start: a
-    check t_steps (at most) past the proven prefix asks for a RIGID SLACK of t_steps steps, and
-    its slack proves the samples within floor(min_e slack_e / step_e) of it free; a check that
-    does not reach back to the prefix keeps its proven span and the next one is placed closer.
-    Stops at the first colliding sample (or invalid configuration: reported in ``bad``); with
-    ``screen``, a first pass over every screen-th sample stops it sooner where the edge collides."""
+    """One thread per edge: SLACK WALK (:mod:`.edge_walk`): a check ``want`` samples past the
+    proven prefix asks for a RIGID SLACK of ``want`` steps; its slack proves the samples within
+    floor(min_e slack_e / step_e) of it free. One that reaches the prefix extends it, and the next
+    goes one step farther (up to t_steps); one that does not leaves a proven span, and the gap
+    before it is filled from its right end, each check asking to reach the prefix (a sample is
+    never checked twice). Stops at the first colliding sample (or invalid configuration: reported
+    in ``bad``); with ``screen``, a first pass over every screen-th sample stops it sooner where the
+    edge collides."""
     i = wp.tid()
     n = n_samples[i]
     dof = starts.shape[1]
     ne = groups.n_ellipsoids
     base = i * ne
-    t_f = wp.float64(t_steps)
     lo = int(0)  # samples 1..lo proven free
-    k_prev = t_steps  # the reach of the last check (at most t_steps)
+    want = t_steps  # where the next check goes past the prefix, and the slack it asks for, in samples (0..t_steps)
     span0 = n + 1  # samples span0..span1: proven free by a check that did not reach the prefix
     span1 = int(-1)
     checks = int(0)
@@ -1289,13 +1290,19 @@ def edge_walk_kernel(
                 break
             ks += screen
     while lo < n:
-        pk = wp.min(lo + 1 + wp.min(t_steps, k_prev), n)
+        pk = wp.min(lo + 1 + want, n)
+        if span0 <= n:  # a gap before a proven span: filled from its right end (asking to reach the prefix)
+            pk = span0 - 1
+            want = wp.min(t_steps, pk - lo - 1)
         t = wp.float64(pk) / wp.float64(n)
         for d in range(dof):
             q[i, d] = wp.float32(starts[i, d] + t * (ends[i, d] - starts[i, d]))
         fk_config(m, q, i, scratch_rot, scratch_pos, links.centers, links.rots)
+        ask = wp.float64(0.0)  # the target in steps: half a step over ``want`` (the kernel returns a capped slack a little short of its target)
+        if want > 0:
+            ask = wp.float64(want) + wp.float64(0.5)
         for e in range(ne):
-            slack[base + e] = wp.float32(step[i, e] * t_f)
+            slack[base + e] = wp.float32(step[i, e] * ask)
         checks += 1
         if config_collides(links, splats, dgrid, p, groups, i, bad, slack, 2):
             free = False
@@ -1306,15 +1313,17 @@ def edge_walk_kernel(
             if st > 0.0:
                 reach = wp.min(reach, wp.floor(wp.float64(slack[base + e]) / st))
         k = int(wp.max(reach, wp.float64(0.0)))
-        if pk - k <= lo + 1:
+        if pk - k <= lo + 1:  # it reaches the prefix: the prefix grows past its reach (and the span it meets)
             lo = wp.max(lo, wp.min(pk + k, n))
-            k_prev = wp.min(k, t_steps)
-        else:  # a gap before it: its span is kept, the next check goes nearer the prefix
+            if lo + 1 >= span0:
+                lo = wp.max(lo, span1)
+                span0 = n + 1
+            want = wp.min(t_steps, wp.max(k, want + 1))  # (one step more than it asked for, up to t_steps)
+        elif span0 <= n:  # (filling a gap: pk + 1 == span0) the span grows leftwards
+            span0 = pk - k
+        else:  # a gap before it: its span is kept
             span0 = pk - k
             span1 = wp.min(pk + k, n)
-            k_prev = k
-        if lo + 1 >= span0:
-            lo = wp.max(lo, span1)
     out_free[i] = free
     out_checks[i] = checks
 
