@@ -128,3 +128,11 @@ def test_empty_and_invalid_input():
         ch.edges_free(robot, a, a, n, st, target_steps=0)
     with pytest.raises(SplatplanError, match="screen"):
         ch.edges_free(robot, a, a, n, st, screen=-1)
+
+
+def test_validate_false_checks_shapes_only():
+    ch, robot, rng = _setup(0.0, seed=4)
+    starts, ends, n, step = _edges(ch, robot, rng, 8, 0.2)
+    np.testing.assert_array_equal(ch.edges_free(robot, starts, ends, n, step, validate=False)[0], ch.edges_free(robot, starts, ends, n, step)[0])
+    with pytest.raises(SplatplanError, match="shape"):
+        ch.edges_free(robot, starts, ends, n[:3], step, validate=False)

@@ -281,7 +281,7 @@ class CollisionChecker:
         with _torch_stream(q):
             return self._robot(robot, q, out, validate, full=False, slack=True, per_config=True, target=rigid_target)
 
-    def edges_free(self, robot: Robot, starts, ends, n_samples, step, *, target_steps: int = 4, screen: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    def edges_free(self, robot: Robot, starts, ends, n_samples, step, *, target_steps: int = 4, screen: int = 0, validate: bool = True) -> tuple[np.ndarray, np.ndarray]:
         """Whether N straight configuration-space edges of ``robot`` are collision-free at their
         check samples, by a SLACK WALK (:mod:`.edge_walk`): the answer of checking every sample with
         :meth:`collides_configs`, with far fewer checks (a checked sample's RIGID SLACK proves its
@@ -298,18 +298,17 @@ class CollisionChecker:
             target_steps: the slack each check asks for, in samples (more reads more splats per check).
             screen: > 0: first check samples screen, 2 screen, ... < n without slack, stopping at a
                 hit (an edge that collides costs few checks; a free one ~n / screen more).
+            validate: check the values (finite, n >= 1, step >= 0, ...); False: shapes only, for
+                callers that built them (a planner's edges; ~10 us a call).
 
-        Returns:
-            (free (N,) bool, checks (N,) int64: configurations checked per edge, up to its first
-            colliding sample). One kernel launch on a CPU checker, one checker call per check
-            elsewhere (the same answers).
-
-        Raises:
-            SplatplanError: shapes that do not match the robot, non-finite values, n < 1 or step < 0.
+        Returns (free (N,) bool, checks (N,) int64: configurations checked per edge, up to its first
+        colliding sample): one kernel launch on a CPU checker, one checker call per check elsewhere
+        (the same answers). Raises SplatplanError for shapes that do not match the robot, non-finite
+        values, n < 1 or step < 0.
         """
         from .edge_walk import edge_inputs, walk_with_checker
 
-        a, b, n, st, t, scr = edge_inputs(starts, ends, n_samples, step, int(robot.dof), int(robot.n_ellipsoids), target_steps, screen)
+        a, b, n, st, t, scr = edge_inputs(starts, ends, n_samples, step, int(robot.dof), int(robot.n_ellipsoids), target_steps, screen, validate)
         if len(a) and self.backend != "reference" and self.device == "cpu" and self._impl is not None and len(a) <= MAX_BATCH and fast_path_robot(robot):
             free, checks = launcher_for(self._impl, self.config, self._axes_for, robot, self.thread_workspace(), len(a)).walk(a, b, n, st, t, scr)
             return free.copy(), checks.astype(np.int64)

@@ -47,13 +47,19 @@ if TYPE_CHECKING:
 MAX_SAMPLES = 2**31 - 2
 
 
-def edge_inputs(starts, ends, n_samples, step, dof: int, n_ell: int, target_steps, screen=0) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, int, int]:
+def edge_inputs(starts, ends, n_samples, step, dof: int, n_ell: int, target_steps, screen=0, validate: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, int, int]:
     """The walk's inputs as (starts (N, dof) float64, ends, n (N,) int64, step (N, E) float64,
-    target_steps int, screen int), or a :class:`SplatplanError` naming what is wrong."""
+    target_steps int, screen int), or a :class:`SplatplanError` naming what is wrong (without
+    ``validate``: shapes only, for callers that built the values themselves)."""
     a = np.asarray(starts, dtype=np.float64)
     b = np.asarray(ends, dtype=np.float64)
     if a.ndim != 2 or a.shape[1] != dof or b.shape != a.shape:
         raise SplatplanError(f"edges_free: starts and ends must both have shape (N, {dof}), got {a.shape} and {b.shape}")
+    if not validate:
+        n, st = np.asarray(n_samples, dtype=np.int64), np.asarray(step, dtype=np.float64)
+        if n.shape != (len(a),) or st.shape != (len(a), n_ell):
+            raise SplatplanError(f"edges_free: n_samples must have shape ({len(a)},) and step ({len(a)}, {n_ell}), got {n.shape} and {st.shape}")
+        return a, b, n, st, int(target_steps), int(screen)
     if not (np.isfinite(a).all() and np.isfinite(b).all()):
         raise SplatplanError("edges_free: starts and ends must be finite")
     n_raw = np.asarray(n_samples)
@@ -76,7 +82,7 @@ def edge_inputs(starts, ends, n_samples, step, dof: int, n_ell: int, target_step
     return a, b, n, st, int(t), int(sc)
 
 
-def walk_edges_ref(check: Callable[[np.ndarray, np.ndarray], tuple[bool, np.ndarray]], starts: np.ndarray, ends: np.ndarray, n: np.ndarray,
+def walk_edges_ref(check: Callable[[np.ndarray, np.ndarray | None], tuple[bool, np.ndarray | None]], starts: np.ndarray, ends: np.ndarray, n: np.ndarray,
                    step: np.ndarray, target_steps: int, screen: int = 0) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
     """The SLACK WALK (module docstring) from Python: ``check(q (1, dof) float64, target (1, E) or
     None)`` -> (hit, RIGID SLACK (E,)) checks one configuration (None: no slack asked for, the

@@ -173,7 +173,8 @@ class EdgeChecker:
                       "the edge length (or coarsen the edge resolution)")  # fmt: skip
         n = n_float.astype(np.int64)
         step = self.geometry.ellipsoid_motion(b - a) / n[:, None]  # (E_edges, E)
-        free, checks = self.checker.edges_free(self.geometry.robot, a, b, n, step, target_steps=int(self.SLACK_TARGET_STEPS), screen=screen)
+        free, checks = self.checker.edges_free(self.geometry.robot, a, b, n, step, target_steps=int(self.SLACK_TARGET_STEPS), screen=screen,
+                                                validate=False)  # fmt: skip
         self.geometry.n_configs += int(checks.sum())
         self.geometry.n_queries += int(checks.sum()) * int(self.geometry.robot.n_ellipsoids)
         self.time_s += time.perf_counter() - t0
