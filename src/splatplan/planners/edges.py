@@ -111,6 +111,10 @@ class EdgeChecker:
     #: most this): a link whose slack from the mean-distance grid falls short reads the splats
     #: around it that far (the checker's RIGID SLACK); more reads more splats per check
     SLACK_TARGET_STEPS = 4.0
+    #: :meth:`edges_free` walks (:attr:`walks`) calls of at most this many edges; larger batches (a
+    #: planner's candidate edges, many of them colliding) take the batched stages, coarse to fine
+    #: and split over the checker's threads, where the walk would run them one after another on one
+    WALK_MAX_EDGES = 8
 
     def __init__(self, checker: CollisionChecker, geometry: LinkGeometry, resolution: float, inflate: bool = False, stages: int = 1, slack: bool = False,
                  walk: bool = False) -> None:  # fmt: skip
@@ -151,10 +155,11 @@ class EdgeChecker:
     def edges_free(self, a: np.ndarray, b: np.ndarray, screen: int | None = None) -> np.ndarray:
         """(E, D), (E, D) -> bool (E,): True where the whole edge (end point included, start
         excluded) is collision-free at ``resolution``. An edge's checks stop at its first hit found.
-        With :attr:`walks`: the checker's SLACK WALK, one call for all edges. ``screen``: first
-        every screen-th sample of each edge (:meth:`screen`; inside the walk, edge by edge), the
-        same answers with fewer checks where edges collide."""
-        if self.walks:
+        With :attr:`walks` (and at most :attr:`WALK_MAX_EDGES` edges): the checker's SLACK WALK,
+        one call for all edges. ``screen``: first every screen-th sample of each edge
+        (:meth:`screen`; inside the walk, edge by edge), the same answers with fewer checks where
+        edges collide."""
+        if self.walks and len(a) <= self.WALK_MAX_EDGES:
             return self._walk(np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64), int(screen or 0))
         ok = np.ones(len(a), dtype=bool) if not screen else self.screen(a, b, int(screen))
         if ok.any():
