@@ -77,17 +77,21 @@ def test_point_robot_slack(checker):
     assert geom.n_queries - q0 < q0
 
 
-def test_rrt_connect_same_tree_and_path(checker):
-    robot = robots.load_robot("panda").inflated(0.01)
+def _blocked_pair(checker, robot, seed: int):
+    """A free start and goal without a straight free edge between them."""
     geom = LinkGeometry(robot)
-    rng = np.random.default_rng(4)
+    rng = np.random.default_rng(seed)
     lim = robot.joint_limits
     q = lim[:, 0] + rng.random((400, robot.dof)) * (lim[:, 1] - lim[:, 0])
     q = q[~geom.collides(checker, q)]
-    ec = EdgeChecker(checker, geom, 0.25 * robot.min_semi_axis, stages=4)
-    blocked = ~ec.edges_free(q[:-1], q[1:])  # a start and goal without a straight free edge between them
+    blocked = ~EdgeChecker(checker, geom, 0.25 * robot.min_semi_axis, stages=4).edges_free(q[:-1], q[1:])
     i = int(np.nonzero(blocked)[0][0])
-    start, goal = q[i], q[i + 1]
+    return q[i], q[i + 1]
+
+
+def test_rrt_connect_same_tree_and_path(checker):
+    robot = robots.load_robot("panda").inflated(0.01)
+    start, goal = _blocked_pair(checker, robot, 4)
     out = []
     for slack in (False, True):
         cfg = RRTConfig(seed=3, max_iters=40, time_limit_s=None, edge_slack=slack)
@@ -102,14 +106,8 @@ def test_rrt_connect_same_tree_and_path(checker):
 def test_rrt_connect_same_tree_and_path_walked(checker):
     """RRTConfig.edge_walk: edges walked by the checker (SLACK WALK) or staged, the same search."""
     robot = robots.load_robot("panda").inflated(0.01)
-    geom = LinkGeometry(robot)
-    rng = np.random.default_rng(5)
-    lim = robot.joint_limits
-    q = lim[:, 0] + rng.random((400, robot.dof)) * (lim[:, 1] - lim[:, 0])
-    q = q[~geom.collides(checker, q)]
-    blocked = ~EdgeChecker(checker, geom, 0.25 * robot.min_semi_axis, stages=4).edges_free(q[:-1], q[1:])
-    i = int(np.nonzero(blocked)[0][0])
-    out = [RRTConnect(checker, RRTConfig(seed=3, max_iters=40, time_limit_s=None, edge_walk=w), robot=robot).plan(q[i], q[i + 1]) for w in (False, True)]
+    start, goal = _blocked_pair(checker, robot, 5)
+    out = [RRTConnect(checker, RRTConfig(seed=3, max_iters=40, time_limit_s=None, edge_walk=w), robot=robot).plan(start, goal) for w in (False, True)]
     a, b = out
     assert a.success and b.success
     np.testing.assert_array_equal(a.tree_nodes, b.tree_nodes)

@@ -119,10 +119,8 @@ def walk_edges_ref(check: Callable[[np.ndarray, np.ndarray | None], tuple[bool, 
                 if lo + 1 >= span0:
                     lo, span0 = max(lo, span1), ni + 1
                 want = min(t, max(k, want + 1))
-            elif span0 <= ni:
-                span0 = pk - k
-            else:
-                span0, span1 = pk - k, min(pk + k, ni)
+            else:  # a new span, or (filling a gap) the span grown leftwards
+                span0, span1 = pk - k, (min(pk + k, ni) if span0 > ni else span1)
     return free, checks
 
 

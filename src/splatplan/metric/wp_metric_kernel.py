@@ -1235,6 +1235,27 @@ def robot_collide_kernel(
     out_hit[b] = config_collides(links, splats, dgrid, p, groups, b, bad, slack, want_slack)
 
 
+@wp.func
+def edge_sample_fk(
+    m: FKModel,
+    q: wp.array2d(dtype=wp.float32),
+    scratch_rot: wp.array(dtype=wp.mat33),
+    scratch_pos: wp.array(dtype=wp.vec3),
+    links: LinkBatch,
+    starts: wp.array2d(dtype=wp.float64),
+    ends: wp.array2d(dtype=wp.float64),
+    i: int,
+    k: int,
+    n: int,
+):
+    """Sample k of edge i's n, starts + (k / n)(ends - starts) (float64, cast to float32 as the host
+    path does), into row i of ``q`` and its ellipsoids' poses into ``links`` (:func:`fk_config`)."""
+    t = wp.float64(k) / wp.float64(n)
+    for d in range(starts.shape[1]):
+        q[i, d] = wp.float32(starts[i, d] + t * (ends[i, d] - starts[i, d]))
+    fk_config(m, q, i, scratch_rot, scratch_pos, links.centers, links.rots)
+
+
 @wp.kernel
 def edge_walk_kernel(
     links: LinkBatch,  # (N E,) per edge the ellipsoids of the configuration it checks (scratch, written by its FK)
@@ -1267,7 +1288,6 @@ def edge_walk_kernel(
     edge collides."""
     i = wp.tid()
     n = n_samples[i]
-    dof = starts.shape[1]
     ne = groups.n_ellipsoids
     base = i * ne
     lo = int(0)  # samples 1..lo proven free
@@ -1279,10 +1299,7 @@ def edge_walk_kernel(
     if screen > 0:  # the screen: an edge that collides there costs few checks
         ks = screen
         while ks < n:
-            t = wp.float64(ks) / wp.float64(n)
-            for d in range(dof):
-                q[i, d] = wp.float32(starts[i, d] + t * (ends[i, d] - starts[i, d]))
-            fk_config(m, q, i, scratch_rot, scratch_pos, links.centers, links.rots)
+            edge_sample_fk(m, q, scratch_rot, scratch_pos, links, starts, ends, i, ks, n)
             checks += 1
             if config_collides(links, splats, dgrid, p, groups, i, bad, slack, 0):
                 free = False
@@ -1294,10 +1311,7 @@ def edge_walk_kernel(
         if span0 <= n:  # a gap before a proven span: filled from its right end (asking to reach the prefix)
             pk = span0 - 1
             want = wp.min(t_steps, pk - lo - 1)
-        t = wp.float64(pk) / wp.float64(n)
-        for d in range(dof):
-            q[i, d] = wp.float32(starts[i, d] + t * (ends[i, d] - starts[i, d]))
-        fk_config(m, q, i, scratch_rot, scratch_pos, links.centers, links.rots)
+        edge_sample_fk(m, q, scratch_rot, scratch_pos, links, starts, ends, i, pk, n)
         ask = wp.float64(0.0)  # the target in steps: half a step over ``want`` (the kernel returns a capped slack a little short of its target)
         if want > 0:
             ask = wp.float64(want) + wp.float64(0.5)
@@ -1319,11 +1333,10 @@ def edge_walk_kernel(
                 lo = wp.max(lo, span1)
                 span0 = n + 1
             want = wp.min(t_steps, wp.max(k, want + 1))  # (one step more than it asked for, up to t_steps)
-        elif span0 <= n:  # (filling a gap: pk + 1 == span0) the span grows leftwards
+        else:  # a gap before it: its span is kept (while filling a gap, pk + 1 == span0: the span grows leftwards)
+            if span0 > n:
+                span1 = wp.min(pk + k, n)
             span0 = pk - k
-        else:  # a gap before it: its span is kept
-            span0 = pk - k
-            span1 = wp.min(pk + k, n)
     out_free[i] = free
     out_checks[i] = checks
 

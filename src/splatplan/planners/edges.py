@@ -41,6 +41,16 @@ def edge_points(a: np.ndarray, b: np.ndarray, resolution: float, include_start: 
     return a[:, None, :] + t[None, :, None] * (b - a)[:, None, :]
 
 
+def sample_counts(motion: np.ndarray, resolution: float, dof: int) -> np.ndarray:
+    """(E,) motion bounds -> (E,) int64 check-sample counts ``max(1, ceil(motion / resolution))``,
+    after a resource guard: a huge edge (a goal 1e30 away) or a tiny resolution would ask for more
+    checks than memory holds."""
+    n_float = np.maximum(1.0, np.ceil(np.asarray(motion, dtype=np.float64) / resolution - 1e-9))  # (E,)
+    require_bytes(float(n_float.sum()) * (dof + 2) * 8 * 4, f"{float(n_float.sum()):.3g} collision checks along {len(n_float)} edge(s)",
+                  "the edge length (or coarsen the edge resolution)")  # fmt: skip
+    return n_float.astype(np.int64)
+
+
 def edge_samples(a: np.ndarray, b: np.ndarray, motion: np.ndarray, resolution: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Check configurations of E edges, each edge with its own count (see the module docstring).
 
@@ -53,11 +63,7 @@ def edge_samples(a: np.ndarray, b: np.ndarray, motion: np.ndarray, resolution: f
         points (P, D) = a_e + (k / n_e)(b_e - a_e) for k = 1..n_e, edge index (P,), n (E,) with
         ``n_e = max(1, ceil(motion_e / resolution))``.
     """
-    n_float = np.maximum(1.0, np.ceil(np.asarray(motion, dtype=np.float64) / resolution - 1e-9))  # (E,)
-    # resource guard: a huge edge (a goal 1e30 away) or a tiny resolution would ask for more points than memory holds
-    require_bytes(float(n_float.sum()) * (a.shape[-1] + 2) * 8 * 4, f"{float(n_float.sum()):.3g} collision checks along {len(a)} edge(s)",
-                  "the edge length (or coarsen the edge resolution)")
-    n = n_float.astype(np.int64)
+    n = sample_counts(motion, resolution, a.shape[-1])
     idx = np.repeat(np.arange(len(a)), n)  # (P,)
     first = np.cumsum(n) - n  # (E,)
     k = np.arange(idx.size) - first[idx] + 1  # 1..n_e
@@ -173,10 +179,7 @@ class EdgeChecker:
         if len(a) == 0:
             return np.zeros(0, dtype=bool)
         t0 = time.perf_counter()
-        n_float = np.maximum(1.0, np.ceil(self.geometry.motion(b - a) / self.resolution - 1e-9))  # (E,) as edge_samples
-        require_bytes(float(n_float.sum()) * (a.shape[-1] + 2) * 8 * 4, f"{float(n_float.sum()):.3g} collision checks along {len(a)} edge(s)",
-                      "the edge length (or coarsen the edge resolution)")  # fmt: skip
-        n = n_float.astype(np.int64)
+        n = sample_counts(self.geometry.motion(b - a), self.resolution, a.shape[-1])  # (E,) as edge_samples
         step = self.geometry.ellipsoid_motion(b - a) / n[:, None]  # (E_edges, E)
         free, checks = self.checker.edges_free(self.geometry.robot, a, b, n, step, target_steps=int(self.SLACK_TARGET_STEPS), screen=screen,
                                                 validate=False)  # fmt: skip
